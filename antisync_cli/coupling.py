@@ -1,0 +1,170 @@
+"""Weights, damage and coupling matrices: the paper's Eqs. (1), (4) and (27) in one place.
+
+Every backend and every measure consumes what this module produces, so the direction
+convention is fixed here once: damaging the directed link ``a -> b`` multiplies
+``Omega[a, b]`` (and only that entry) by ``1 - beta``; with normalized coupling this changes
+row ``a`` of ``W`` only (Eq. 4).
+
+Conventions
+-----------
+- ``omega`` is a dense ``(N, N)`` float array of non-negative weights, zero diagonal.
+- ``coupling="normalized"``: ``w_ij = Omega_ij / S_i`` with ``S_i = sum_l Omega_il`` (Eq. 1).
+- ``coupling="raw"``: ``w_ij = Omega_ij`` (the non-normalized model of Eq. 27).
+- The (generalized) Laplacian is ``L = diag(sum_j w_ij) - W``; for normalized coupling
+  this is ``I - W`` (Eq. 10).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Literal
+
+import numpy as np
+
+__all__ = [
+    "COUPLINGS",
+    "Coupling",
+    "CouplingCSR",
+    "coupling_derivative",
+    "coupling_matrix",
+    "damaged_omega",
+    "laplacian",
+    "to_csr",
+    "variant_weights",
+]
+
+Coupling = Literal["normalized", "raw"]
+COUPLINGS: tuple[str, ...] = ("normalized", "raw")
+
+
+def _check_coupling(coupling: str) -> None:
+    if coupling not in COUPLINGS:
+        raise ValueError(f"coupling must be one of {COUPLINGS}, got {coupling!r}")
+
+
+def damaged_omega(omega: np.ndarray, a: int, b: int, beta: float) -> np.ndarray:
+    """Return ``Omega*``: a copy of ``omega`` with ``Omega*_ab = (1 - beta) Omega_ab``.
+
+    Parameters
+    ----------
+    omega : ndarray, shape (N, N)
+        Weights of the undamaged network.
+    a, b : int
+        0-based indices of the directed link ``a -> b``; ``omega[a, b]`` must be positive.
+    beta : float
+        Damage, ``0 <= beta < 1``.
+    """
+    if not 0.0 <= beta < 1.0:
+        raise ValueError(f"beta must satisfy 0 <= beta < 1, got {beta}")
+    if omega[a, b] <= 0:
+        raise ValueError(f"there is no link {a}->{b} to damage (Omega[{a}, {b}] = 0)")
+    out = np.array(omega, dtype=np.float64, copy=True)
+    out[a, b] *= 1.0 - beta
+    return out
+
+
+def coupling_matrix(omega: np.ndarray, coupling: Coupling = "normalized") -> np.ndarray:
+    """Coupling matrix ``W(Omega)``: Eq. (1) for ``normalized``, ``Omega`` itself for ``raw``."""
+    _check_coupling(coupling)
+    omega = np.asarray(omega, dtype=np.float64)
+    if coupling == "raw":
+        return omega.copy()
+    strength = omega.sum(axis=1)
+    if np.any(strength <= 0):
+        isolated = np.flatnonzero(strength <= 0).tolist()
+        raise ValueError(f"nodes with zero strength cannot be normalized: indices {isolated}")
+    return omega / strength[:, None]
+
+
+def laplacian(omega: np.ndarray, coupling: Coupling = "normalized") -> np.ndarray:
+    """Laplacian ``L = diag(W 1) - W`` of the linearized dynamics ``dtheta/dt = -L theta``."""
+    w = coupling_matrix(omega, coupling)
+    return np.diag(w.sum(axis=1)) - w
+
+
+def coupling_derivative(
+    omega: np.ndarray, a: int, b: int, coupling: Coupling = "normalized", beta: float = 0.0
+) -> np.ndarray:
+    """``dW(Omega*)/dbeta`` for damage on ``a -> b`` at damage ``beta`` (only row ``a`` is nonzero).
+
+    For normalized coupling, with ``S(beta) = S_a - beta Omega_ab`` (Eq. 4):
+    ``d w_aj / dbeta = Omega_aj Omega_ab / S(beta)^2`` for ``j != b`` and
+    ``d w_ab / dbeta = -Omega_ab (S_a - Omega_ab) / S(beta)^2``.
+    For raw coupling, ``d Omega*_ab / dbeta = -Omega_ab``.
+    """
+    _check_coupling(coupling)
+    omega = np.asarray(omega, dtype=np.float64)
+    n = omega.shape[0]
+    d = np.zeros((n, n))
+    wab = omega[a, b]
+    if coupling == "raw":
+        d[a, b] = -wab
+        return d
+    s_a = omega[a].sum()
+    s_beta = s_a - beta * wab
+    d[a] = omega[a] * wab / s_beta**2
+    d[a, b] = -wab * (s_a - wab) / s_beta**2
+    return d
+
+
+@dataclass(frozen=True)
+class CouplingCSR:
+    """Sparsity pattern of ``W`` in compressed-row form, shared by all damage variants.
+
+    Attributes
+    ----------
+    indptr : int64 array, shape (N + 1,)
+    indices : int64 array, shape (nnz,)
+        Column indices; row ``i`` holds ``indices[indptr[i]:indptr[i+1]]``.
+    weights : float64 array, shape (nnz,)
+        ``w_ij`` of the undamaged network.
+    """
+
+    indptr: np.ndarray
+    indices: np.ndarray
+    weights: np.ndarray
+
+    @property
+    def n_nodes(self) -> int:
+        return self.indptr.size - 1
+
+    def position(self, i: int, j: int) -> int:
+        """Index into ``weights`` of entry ``(i, j)``; ``KeyError`` if it is not in the pattern."""
+        row = self.indices[self.indptr[i] : self.indptr[i + 1]]
+        hit = np.flatnonzero(row == j)
+        if hit.size == 0:
+            raise KeyError((i, j))
+        return int(self.indptr[i] + hit[0])
+
+
+def to_csr(w: np.ndarray, pattern: np.ndarray | None = None) -> CouplingCSR:
+    """Compress ``w`` to CSR over ``pattern`` (default: the nonzeros of ``w``)."""
+    w = np.asarray(w, dtype=np.float64)
+    mask = (w != 0) if pattern is None else np.asarray(pattern, dtype=bool)
+    rows, cols = np.nonzero(mask)  # row-major order
+    indptr = np.zeros(w.shape[0] + 1, dtype=np.int64)
+    np.add.at(indptr, rows + 1, 1)
+    indptr = np.cumsum(indptr)
+    return CouplingCSR(indptr, cols.astype(np.int64), w[rows, cols].copy())
+
+
+def variant_weights(
+    omega: np.ndarray,
+    csr: CouplingCSR,
+    damages: list[tuple[int, int, float]],
+    coupling: Coupling = "normalized",
+) -> np.ndarray:
+    """CSR weights of ``W(Omega*)`` for each damage ``(a, b, beta)``, on the pattern of ``csr``.
+
+    Returns
+    -------
+    ndarray, shape (len(damages), nnz)
+        Row ``v`` equals ``csr.weights`` except on row ``a`` of damage ``v``.
+    """
+    out = np.empty((len(damages), csr.weights.size))
+    mask = np.zeros(omega.shape, dtype=bool)
+    mask[np.repeat(np.arange(csr.n_nodes), np.diff(csr.indptr)), csr.indices] = True
+    for v, (a, b, beta) in enumerate(damages):
+        w = coupling_matrix(damaged_omega(omega, a, b, beta), coupling)
+        out[v] = to_csr(w, pattern=mask).weights
+    return out

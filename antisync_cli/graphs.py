@@ -1,0 +1,212 @@
+"""Graph builders with the paper's node labels, and directed-edge parsing.
+
+Every builder returns an undirected :class:`networkx.Graph` whose edges carry a ``weight``
+(1.0 unless an edge list says otherwise). :func:`omega_matrix` turns it into the dense
+weight matrix ``Omega`` in the fixed node order of :func:`node_order`.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import networkx as nx
+import numpy as np
+
+__all__ = [
+    "GraphError",
+    "all_directed_edges",
+    "barbell",
+    "build_graph",
+    "edge_label",
+    "from_edgelist",
+    "lollipop",
+    "node_order",
+    "omega_matrix",
+    "parse_edge",
+]
+
+GRAPH_KINDS = ("lollipop", "barbell", "atlas", "networkx", "edgelist")
+
+
+class GraphError(ValueError):
+    """A graph specification or graph file that cannot be turned into a usable network."""
+
+
+def lollipop(n_nodes: int, path: int) -> nx.Graph:
+    """Lollipop graph with the paper's labels (Fig. 1).
+
+    Parameters
+    ----------
+    n_nodes : int
+        Total number of nodes ``N``.
+    path : int
+        Number of path nodes ``L`` (``1 <= L <= N - 2``).
+
+    Returns
+    -------
+    networkx.Graph
+        Nodes ``1..N``: the path ``1 - 2 - ... - L`` with node 1 its free end, the bridge
+        ``L - (L+1)``, and the clique on ``L+1..N``. For ``N=6, L=3`` the edges are
+        1-2, 2-3, 3-4, 4-5, 4-6, 5-6, so ``"2->1"`` means what the paper's Fig. 1 means.
+    """
+    if path < 1 or n_nodes - path < 2:
+        raise GraphError(
+            f"lollipop needs 1 <= path <= nodes - 2, got nodes={n_nodes}, path={path}"
+        )
+    g = nx.Graph()
+    g.add_nodes_from(range(1, n_nodes + 1))
+    # the stick: 1 - 2 - ... - L, then the bridge L - (L+1)
+    nx.add_path(g, range(1, path + 2), weight=1.0)
+    # the candy: a clique on L+1 .. N
+    clique = range(path + 1, n_nodes + 1)
+    g.add_edges_from(((u, v) for u in clique for v in clique if u < v), weight=1.0)
+    return g
+
+
+def barbell(m1: int, m2: int = 0) -> nx.Graph:
+    """Barbell graph (two ``m1``-cliques joined by a path of ``m2`` nodes), nodes ``1..N``."""
+    if m1 < 2 or m2 < 0:
+        raise GraphError(f"barbell needs m1 >= 2 and m2 >= 0, got m1={m1}, m2={m2}")
+    g = nx.barbell_graph(m1, m2)
+    return _unit_weights(nx.relabel_nodes(g, {v: v + 1 for v in g}))
+
+
+def atlas(index: int) -> nx.Graph:
+    """Graph ``index`` of the networkx graph atlas (``G<index>``), its 0-based labels kept."""
+    if not 0 <= index < 1253:
+        raise GraphError(f"atlas index must be in 0..1252, got {index}")
+    g = nx.Graph(nx.graph_atlas(index))
+    g.graph["name"] = f"G{index}"
+    return _unit_weights(g)
+
+
+def from_networkx(generator: str, args: dict | None = None) -> nx.Graph:
+    """Any networkx generator by name, e.g. ``("barbell_graph", {"m1": 3, "m2": 0})``."""
+    func = getattr(nx, generator, None)
+    if func is None or not callable(func) or not generator.endswith(("graph", "_tree")):
+        raise GraphError(
+            f"unknown networkx generator {generator!r}; give the name of a networkx function "
+            "that builds a graph, e.g. 'barbell_graph', 'path_graph', 'karate_club_graph'"
+        )
+    try:
+        g = func(**(args or {}))
+    except TypeError as exc:
+        raise GraphError(f"networkx.{generator} rejected args {args}: {exc}") from None
+    if not isinstance(g, nx.Graph) or g.is_directed():
+        raise GraphError(f"networkx.{generator} did not return an undirected graph")
+    return _unit_weights(nx.Graph(g))
+
+
+def from_edgelist(path: str | Path) -> nx.Graph:
+    """Read ``u v [weight]`` lines (``#`` starts a comment). Integer labels stay integers."""
+    path = Path(path)
+    try:
+        text = path.read_text()
+    except OSError as exc:
+        raise GraphError(f"cannot read edge list {path}: {exc.strerror}") from None
+    rows = []
+    for lineno, line in enumerate(text.splitlines(), 1):
+        tokens = line.split("#", 1)[0].split()
+        if not tokens:
+            continue
+        if len(tokens) not in (2, 3):
+            raise GraphError(f"{path}:{lineno}: expected 'u v' or 'u v weight', got {line!r}")
+        weight = 1.0
+        if len(tokens) == 3:
+            try:
+                weight = float(tokens[2])
+            except ValueError:
+                raise GraphError(f"{path}:{lineno}: weight {tokens[2]!r} is not a number") from None
+            if not (weight > 0 and math.isfinite(weight)):
+                raise GraphError(f"{path}:{lineno}: weight must be positive and finite")
+        rows.append((tokens[0], tokens[1], weight))
+    if not rows:
+        raise GraphError(f"{path}: no edges found")
+    as_int = all(_is_int(u) and _is_int(v) for u, v, _ in rows)
+    g = nx.Graph()
+    for u, v, w in rows:
+        if u == v:
+            raise GraphError(f"{path}: self-loop {u}-{v} is not allowed")
+        g.add_edge(int(u) if as_int else u, int(v) if as_int else v, weight=w)
+    return g
+
+
+def build_graph(spec: dict) -> nx.Graph:
+    """Build a graph from the config's ``graph`` mapping and check it is usable.
+
+    The graph must be connected, have at least two nodes and no self-loops.
+    """
+    kind = spec.get("kind")
+    if kind == "lollipop":
+        g = lollipop(int(spec["nodes"]), int(spec["path"]))
+    elif kind == "barbell":
+        g = barbell(int(spec["m1"]), int(spec.get("m2", 0)))
+    elif kind == "atlas":
+        g = atlas(int(spec["index"]))
+    elif kind == "networkx":
+        g = from_networkx(str(spec["generator"]), spec.get("args") or {})
+    elif kind == "edgelist":
+        g = from_edgelist(spec["path"])
+    else:
+        raise GraphError(f"graph.kind must be one of {', '.join(GRAPH_KINDS)}; got {kind!r}")
+    if g.number_of_nodes() < 2:
+        raise GraphError("graph needs at least 2 nodes")
+    if nx.number_of_selfloops(g):
+        raise GraphError("graph has self-loops; remove them")
+    if not nx.is_connected(g):
+        parts = nx.number_connected_components(g)
+        raise GraphError(f"graph is disconnected ({parts} components); antisync needs a connected graph")
+    return g
+
+
+def node_order(g: nx.Graph) -> list:
+    """The fixed node order used for matrices: sorted labels when sortable, else insertion order."""
+    nodes = list(g.nodes)
+    try:
+        return sorted(nodes)
+    except TypeError:
+        return nodes
+
+
+def omega_matrix(g: nx.Graph) -> np.ndarray:
+    """Dense symmetric weight matrix ``Omega`` in :func:`node_order`."""
+    return nx.to_numpy_array(g, nodelist=node_order(g), weight="weight", dtype=np.float64)
+
+
+def edge_label(u, v) -> str:
+    """``"u->v"``, the label of a directed edge in configs and outputs."""
+    return f"{u}->{v}"
+
+
+def all_directed_edges(g: nx.Graph) -> list[tuple]:
+    """Every directed edge ``(u, v)`` of ``g``, sorted by the node order of ``u`` then ``v``."""
+    pos = {v: i for i, v in enumerate(node_order(g))}
+    pairs = [(u, v) for u, v in g.edges] + [(v, u) for u, v in g.edges]
+    return sorted(pairs, key=lambda e: (pos[e[0]], pos[e[1]]))
+
+
+def parse_edge(text: str, g: nx.Graph) -> tuple:
+    """Parse ``"a->b"`` into node labels of ``g``; :class:`GraphError` if it is not an edge."""
+    parts = str(text).split("->")
+    if len(parts) != 2 or not parts[0].strip() or not parts[1].strip():
+        raise GraphError(f"edge {text!r} is not of the form 'a->b'")
+    by_name = {str(v): v for v in g.nodes}
+    a, b = (by_name.get(p.strip()) for p in parts)
+    if a is None or b is None or not g.has_edge(a, b):
+        sample = ", ".join(edge_label(u, v) for u, v in all_directed_edges(g)[:6])
+        raise GraphError(f"edge {text!r} is not in the graph; valid edges look like {sample}, ...")
+    return a, b
+
+
+def _unit_weights(g: nx.Graph) -> nx.Graph:
+    nx.set_edge_attributes(g, 1.0, "weight")
+    return g
+
+
+def _is_int(token: str) -> bool:
+    try:
+        int(token)
+    except ValueError:
+        return False
+    return True
