@@ -13,6 +13,8 @@ from pathlib import Path
 import networkx as nx
 import numpy as np
 
+from antisync_cli.errors import AntisyncError
+
 __all__ = [
     "GraphError",
     "all_directed_edges",
@@ -29,7 +31,7 @@ __all__ = [
 GRAPH_KINDS = ("lollipop", "barbell", "atlas", "networkx", "edgelist")
 
 
-class GraphError(ValueError):
+class GraphError(AntisyncError, ValueError):
     """A graph specification or graph file that cannot be turned into a usable network."""
 
 

@@ -1,0 +1,3 @@
+from antisync_cli.cli.app import main
+
+main()

@@ -1,0 +1,26 @@
+"""The `antisync` command: one Typer app, one module per subcommand."""
+
+from __future__ import annotations
+
+import typer
+
+from antisync_cli.cli.report import report
+from antisync_cli.cli.run import run
+from antisync_cli.cli.summary import summary
+from antisync_cli.cli.validate import validate
+
+app = typer.Typer(
+    name="antisync",
+    help="Antifragility of Kuramoto synchronization to link damage (tau0, F_beta, Lambda).",
+    no_args_is_help=True,
+    add_completion=False,
+    pretty_exceptions_enable=False,
+)
+app.command()(run)
+app.command()(summary)
+app.command()(report)
+app.command()(validate)
+
+
+def main() -> None:
+    app()

@@ -1,0 +1,374 @@
+"""YAML configs and ``--set`` overrides -> frozen, validated dataclasses.
+
+Every key has a default except ``graph``. Unknown keys are errors that name the key and
+suggest the nearest valid one; every value is range-checked here, before any file is touched.
+The resolved config (defaults filled in, ``block_size`` fixed) is what gets stored with results.
+
+Example
+-------
+>>> cfg = load_config_text('''
+... graph: {kind: lollipop, nodes: 6, path: 3}
+... edges: ["2->1"]
+... betas: [0.5]
+... realizations: 1000
+... ''', overrides=["seed=7"])
+>>> cfg.seed, cfg.betas
+(7, (0.5,))
+"""
+
+from __future__ import annotations
+
+import difflib
+import math
+from dataclasses import asdict, dataclass, field, replace
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from antisync_cli.coupling import COUPLINGS
+from antisync_cli.errors import ConfigError
+
+__all__ = [
+    "BACKENDS",
+    "EXECUTORS",
+    "INTEGRATORS",
+    "LAMBDA_METHODS",
+    "MEASURES",
+    "Config",
+    "Dynamics",
+    "Histogram",
+    "LambdaSpec",
+    "load_config",
+    "load_config_text",
+]
+
+BACKENDS = ("cpu", "cuda", "auto")
+EXECUTORS = ("local", "dask")
+INTEGRATORS = ("euler",)
+LAMBDA_METHODS = ("finite-difference",)
+MEASURES = ("km",)
+
+_GRAPH_KEYS = {
+    "lollipop": ({"nodes", "path"}, set()),
+    "barbell": ({"m1"}, {"m2"}),
+    "atlas": ({"index"}, set()),
+    "networkx": ({"generator"}, {"args"}),
+    "edgelist": ({"path"}, set()),
+}
+
+
+@dataclass(frozen=True)
+class Dynamics:
+    """Model and integrator (paper Eqs. 2, 27; Sec. 3: Euler, dt = 0.001, r = 0.99)."""
+
+    coupling: str = "normalized"
+    integrator: str = "euler"
+    dt: float = 0.001
+    threshold: float = 0.99
+    t_max: float = 200.0
+
+    def __post_init__(self):
+        _choice("dynamics.coupling", self.coupling, COUPLINGS)
+        _choice("dynamics.integrator", self.integrator, INTEGRATORS)
+        _positive("dynamics.dt", self.dt)
+        _positive("dynamics.t_max", self.t_max)
+        if not 0.0 < self.threshold < 1.0:
+            raise ConfigError(f"dynamics.threshold must be in (0, 1), got {self.threshold}")
+        if self.dt > self.t_max:
+            raise ConfigError(f"dynamics.dt ({self.dt}) must be smaller than t_max ({self.t_max})")
+
+    @property
+    def max_steps(self) -> int:
+        return int(math.ceil(self.t_max / self.dt - 1e-9))
+
+
+@dataclass(frozen=True)
+class LambdaSpec:
+    """How Lambda^KM = d<F_beta>/dbeta at beta = 0 is estimated (Eqs. 7, 13)."""
+
+    method: str = "finite-difference"
+    dbeta: float = 0.01
+
+    def __post_init__(self):
+        _choice("lambda.method", self.method, LAMBDA_METHODS)
+        if not 0.0 < self.dbeta < 1.0:
+            raise ConfigError(f"lambda.dbeta must be in (0, 1), got {self.dbeta}")
+
+
+@dataclass(frozen=True)
+class Histogram:
+    """2D histogram of (tau0, tau(beta)) pairs (Figs. 1c-f): ``bins`` x ``bins`` on [0, tau_max)."""
+
+    bins: int = 120
+    tau_max: float = 40.0
+
+    def __post_init__(self):
+        if not isinstance(self.bins, int) or not 2 <= self.bins <= 4096:
+            raise ConfigError(f"histogram.bins must be an integer in 2..4096, got {self.bins!r}")
+        _positive("histogram.tau_max", self.tau_max)
+
+
+@dataclass(frozen=True)
+class Config:
+    """A resolved antisync experiment: one graph, its damaged edges, the beta grid, the model."""
+
+    graph: dict
+    name: str = "run"
+    edges: Any = "all"
+    betas: tuple = (0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9)
+    lambda_: LambdaSpec = field(default_factory=LambdaSpec)
+    dynamics: Dynamics = field(default_factory=Dynamics)
+    measures: tuple = ("km",)
+    realizations: int = 2000
+    seed: int = 1
+    block_size: Any = "auto"
+    keep_pairs: int = 10000
+    histogram: Histogram = field(default_factory=Histogram)
+    backend: str = "cpu"
+    executor: str = "local"
+    threads: Any = None
+    output: str = ""
+
+    def __post_init__(self):
+        if not isinstance(self.realizations, int) or self.realizations < 1:
+            raise ConfigError(f"realizations must be an integer >= 1, got {self.realizations!r}")
+        if not isinstance(self.seed, int) or not 0 <= self.seed < 2**63:
+            raise ConfigError(f"seed must be an integer in 0..2**63-1, got {self.seed!r}")
+        for b in self.betas:
+            if isinstance(b, bool) or not isinstance(b, int | float) or not 0.0 <= b < 1.0:
+                raise ConfigError(f"betas must lie in [0, 1), got {b!r}")
+        if self.edges != "all":
+            if not isinstance(self.edges, list | tuple) or not self.edges:
+                raise ConfigError(
+                    f"edges must be 'all' or a non-empty list like [\"2->1\"], got {self.edges!r}"
+                )
+        for m in self.measures:
+            _choice("measures", m, MEASURES)
+        _choice("backend", self.backend, BACKENDS)
+        _choice("executor", self.executor, EXECUTORS)
+        if self.block_size != "auto" and (
+            not isinstance(self.block_size, int) or self.block_size < 1
+        ):
+            raise ConfigError(f"block_size must be 'auto' or an integer >= 1, got {self.block_size!r}")
+        if not isinstance(self.keep_pairs, int) or self.keep_pairs < 0:
+            raise ConfigError(f"keep_pairs must be an integer >= 0, got {self.keep_pairs!r}")
+        if self.threads is not None and (not isinstance(self.threads, int) or self.threads < 1):
+            raise ConfigError(f"threads must be null or an integer >= 1, got {self.threads!r}")
+        _check_graph(self.graph)
+
+    @property
+    def resolved_block_size(self) -> int:
+        """Realizations per statistics block: about 1000 blocks, at least 100 per block."""
+        if self.block_size != "auto":
+            return int(self.block_size)
+        return max(100, -(-self.realizations // 1000))
+
+    def resolved(self) -> Config:
+        """This config with ``block_size`` fixed, as stored with results."""
+        return replace(self, block_size=self.resolved_block_size)
+
+    def to_dict(self) -> dict:
+        d = asdict(self)
+        d["lambda"] = d.pop("lambda_")
+        d["betas"] = list(self.betas)
+        d["measures"] = list(self.measures)
+        if isinstance(d["edges"], tuple):
+            d["edges"] = list(d["edges"])
+        return d
+
+    def to_yaml(self) -> str:
+        return yaml.safe_dump(self.to_dict(), sort_keys=False)
+
+    def simulation_key(self) -> dict:
+        """The part of the config that determines the numbers (compared on ``--resume``)."""
+        d = self.resolved().to_dict()
+        for k in ("name", "backend", "executor", "threads", "output"):
+            d.pop(k)
+        return d
+
+
+_TOP_KEYS = {
+    "name", "graph", "edges", "betas", "lambda", "dynamics", "measures", "realizations",
+    "seed", "block_size", "keep_pairs", "histogram", "backend", "executor", "threads", "output",
+}
+_SECTIONS = {"lambda": LambdaSpec, "dynamics": Dynamics, "histogram": Histogram}
+
+
+def load_config(path: str | Path, overrides: list[str] | None = None) -> Config:
+    """Read a YAML config file, apply ``key=value`` overrides, validate.
+
+    Raises
+    ------
+    ConfigError
+        With a one-line message naming the file, key or value at fault.
+    """
+    path = Path(path)
+    try:
+        text = path.read_text()
+    except FileNotFoundError:
+        raise ConfigError(f"config file {path} does not exist") from None
+    except OSError as exc:
+        raise ConfigError(f"cannot read config file {path}: {exc.strerror}") from None
+    try:
+        return load_config_text(text, overrides, source=path)
+    except ConfigError as exc:
+        msg = str(exc)
+        raise ConfigError(msg if msg.startswith(str(path)) else f"{path}: {msg}") from None
+
+
+def load_config_text(text: str, overrides: list[str] | None = None, source: Path | None = None) -> Config:
+    """Like :func:`load_config` for YAML text; relative paths resolve against ``source``'s folder."""
+    try:
+        raw = yaml.safe_load(text)
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, "problem_mark", None)
+        where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark else ""
+        problem = getattr(exc, "problem", None) or "not valid YAML"
+        raise ConfigError(f"invalid YAML{where}: {problem}") from None
+    if raw is None:
+        raw = {}
+    if not isinstance(raw, dict):
+        raise ConfigError("a config must be a YAML mapping of keys such as graph:, edges:, betas:")
+    for item in overrides or []:
+        _apply_override(raw, item)
+    return _from_mapping(raw, source)
+
+
+def _apply_override(raw: dict, item: str) -> None:
+    key, sep, value = item.partition("=")
+    key = key.strip()
+    if not sep or not key:
+        raise ConfigError(f"--set expects key=value (e.g. realizations=50000), got {item!r}")
+    try:
+        parsed = yaml.safe_load(value) if value.strip() else None
+    except yaml.YAMLError:
+        raise ConfigError(f"--set {key}: value {value!r} is not valid YAML") from None
+    parts = key.split(".")
+    node = raw
+    for p in parts[:-1]:
+        if not isinstance(node.get(p), dict):
+            node[p] = {}
+        node = node[p]
+    node[parts[-1]] = parsed
+
+
+def _from_mapping(raw: dict, source: Path | None) -> Config:
+    _unknown(raw, _TOP_KEYS, "")
+    if "graph" not in raw:
+        raise ConfigError("missing key 'graph' (e.g. graph: {kind: lollipop, nodes: 6, path: 3})")
+    kwargs: dict[str, Any] = {}
+    for key, value in raw.items():
+        if key in _SECTIONS:
+            if value is None:
+                value = {}
+            if not isinstance(value, dict):
+                raise ConfigError(f"'{key}' must be a mapping, got {value!r}")
+            cls = _SECTIONS[key]
+            valid = {f for f in cls.__dataclass_fields__}
+            _unknown(value, valid, f"{key}.")
+            value = {k: _number(f"{key}.{k}", v, cls.__dataclass_fields__[k].default)
+                     for k, v in value.items()}
+            kwargs["lambda_" if key == "lambda" else key] = cls(**value)
+        elif key == "betas":
+            if value is None:
+                value = []
+            if not isinstance(value, list):
+                raise ConfigError(f"betas must be a list such as [0.1, 0.5], got {value!r}")
+            kwargs["betas"] = tuple(sorted({_number("betas", b, 0.0) for b in value}))
+        elif key == "measures":
+            kwargs["measures"] = tuple(value if isinstance(value, list) else [value])
+        elif key == "graph":
+            kwargs["graph"] = _resolve_graph(value, source)
+        else:
+            kwargs[key] = value
+    if not kwargs.get("name"):
+        kwargs["name"] = source.stem if source else _graph_name(kwargs["graph"])
+    if not kwargs.get("output"):
+        kwargs["output"] = f"results/{kwargs['name']}.h5"
+    return Config(**kwargs)
+
+
+def _resolve_graph(value, source: Path | None) -> dict:
+    if not isinstance(value, dict):
+        raise ConfigError(
+            f"graph must be a mapping such as {{kind: lollipop, nodes: 6, path: 3}}, got {value!r}"
+        )
+    g = dict(value)
+    if g.get("kind") == "edgelist" and "path" in g and source is not None:
+        p = Path(str(g["path"]))
+        if not p.is_absolute():
+            g["path"] = str((source.parent / p).resolve())
+    return g
+
+
+def _check_graph(g: dict) -> None:
+    kind = g.get("kind")
+    if kind not in _GRAPH_KEYS:
+        raise ConfigError(
+            f"graph.kind must be one of {', '.join(_GRAPH_KEYS)}, got {kind!r}"
+            + _suggest(str(kind), _GRAPH_KEYS)
+        )
+    required, optional = _GRAPH_KEYS[kind]
+    _unknown(g, required | optional | {"kind"}, "graph.")
+    missing = sorted(required - set(g))
+    if missing:
+        raise ConfigError(f"graph of kind {kind} needs key(s) {', '.join(missing)}")
+
+
+def _graph_name(g: dict) -> str:
+    kind = g.get("kind")
+    if kind == "lollipop":
+        return f"lollipop_{g.get('nodes')}_{g.get('path')}"
+    if kind == "atlas":
+        return f"G{g.get('index')}"
+    if kind == "networkx":
+        return str(g.get("generator"))
+    if kind == "edgelist":
+        return Path(str(g.get("path"))).stem
+    return str(kind)
+
+
+def graph_name(g: dict) -> str:
+    """A short name for a graph spec: ``G105`` for atlas graphs, ``lollipop_6_3``, ..."""
+    return _graph_name(g)
+
+
+def _unknown(mapping: dict, valid: set, prefix: str) -> None:
+    for key in mapping:
+        if key not in valid:
+            raise ConfigError(
+                f"unknown key '{prefix}{key}'" + _suggest(str(key), valid, prefix)
+                + f"; valid keys: {', '.join(sorted(prefix + v for v in valid))}"
+            )
+
+
+def _suggest(word: str, valid, prefix: str = "") -> str:
+    close = difflib.get_close_matches(word, [str(v) for v in valid], n=1, cutoff=0.5)
+    return f" (did you mean '{prefix}{close[0]}'?)" if close else ""
+
+
+def _choice(key: str, value, valid) -> None:
+    if value not in valid:
+        raise ConfigError(
+            f"{key} must be one of {', '.join(valid)}, got {value!r}" + _suggest(str(value), valid)
+        )
+
+
+def _positive(key: str, value) -> None:
+    if isinstance(value, bool) or not isinstance(value, int | float) or not (
+        value > 0 and math.isfinite(value)
+    ):
+        raise ConfigError(f"{key} must be a positive number, got {value!r}")
+
+
+def _number(key: str, value, default):
+    """Coerce YAML ints to float where the default is a float; leave other types to validators."""
+    if isinstance(default, float) and isinstance(value, int) and not isinstance(value, bool):
+        return float(value)
+    if isinstance(default, float) and isinstance(value, str):
+        try:
+            return float(value)  # YAML reads 1e-3 (no dot) as a string
+        except ValueError:
+            raise ConfigError(f"{key} must be a number, got {value!r}") from None
+    return value

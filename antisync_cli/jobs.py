@@ -1,0 +1,148 @@
+"""Config -> jobs -> chunks.
+
+A :class:`Job` is one graph with its damaged edges and beta grid, converted once into the flat
+arrays that every backend consumes (STYLE habit 2). Its *variants* are the damages actually
+integrated: every requested ``beta`` and the finite-difference ``dbeta`` for each edge.
+A :class:`Chunk` is a contiguous range of statistics blocks, the unit of work of executors.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import networkx as nx
+import numpy as np
+
+from antisync_cli import coupling, graphs
+from antisync_cli.config import Config, graph_name
+from antisync_cli.errors import ConfigError
+
+__all__ = ["Chunk", "Job", "make_job"]
+
+
+@dataclass(frozen=True)
+class Chunk:
+    """Blocks ``first_block .. first_block + n_blocks - 1`` of a job."""
+
+    first_block: int
+    n_blocks: int
+
+    def realizations(self, block: int, total: int) -> tuple[int, int]:
+        """``(first, count)`` of the realizations this chunk covers."""
+        first = self.first_block * block
+        return first, min(self.n_blocks * block, total - first)
+
+
+@dataclass(frozen=True)
+class Job:
+    """One graph's experiment, ready for a kernel.
+
+    Attributes
+    ----------
+    name : str
+        Graph name (``G105``, ``lollipop_6_3``, ...) and HDF5 group name.
+    nodes : list
+        Node labels in matrix order.
+    omega : ndarray (N, N)
+        Undamaged weights.
+    edges : list of (label, label)
+        Damaged directed edges, ``edge_labels[i] == "a->b"``.
+    betas : tuple of float
+        Requested damages (may be empty: Lambda only).
+    variant_edge, variant_beta : ndarrays (V,)
+        Edge index and damage of each integrated variant.
+    csr : CouplingCSR
+        ``W(Omega)``; ``variant_weights[v]`` is ``W(Omega*)`` of variant ``v`` on its pattern.
+    """
+
+    config: Config
+    name: str
+    graph: nx.Graph
+    nodes: list
+    omega: np.ndarray
+    edges: list
+    edge_labels: list
+    betas: tuple
+    dbeta: float
+    variant_edge: np.ndarray
+    variant_beta: np.ndarray
+    csr: coupling.CouplingCSR
+    variant_weights: np.ndarray
+
+    @property
+    def block_size(self) -> int:
+        return self.config.resolved_block_size
+
+    @property
+    def n_blocks(self) -> int:
+        return -(-self.config.realizations // self.block_size)
+
+    def variant(self, edge_index: int, beta: float) -> int:
+        """Index of the variant damaging ``edges[edge_index]`` by ``beta``."""
+        hit = np.flatnonzero((self.variant_edge == edge_index) & np.isclose(self.variant_beta, beta))
+        if hit.size == 0:
+            raise KeyError((edge_index, beta))
+        return int(hit[0])
+
+    @property
+    def hist_variants(self) -> np.ndarray:
+        """Variants whose (tau0, tau(beta)) histogram is kept: the requested betas."""
+        keep = np.isin(np.round(self.variant_beta, 12), np.round(np.array(self.betas), 12))
+        return np.flatnonzero(keep)
+
+    def chunks(self, realizations_per_chunk: int | None = None) -> list[Chunk]:
+        """Split the job into chunks of whole blocks (sizes never change the results)."""
+        if realizations_per_chunk is None:
+            # aim at ~25k integrations per chunk: a few seconds on one core
+            realizations_per_chunk = max(1, 25_000 // (1 + len(self.variant_edge)))
+        per = max(1, -(-realizations_per_chunk // self.block_size))
+        return [Chunk(b, min(per, self.n_blocks - b)) for b in range(0, self.n_blocks, per)]
+
+
+def make_job(config: Config, graph: nx.Graph | None = None, name: str | None = None) -> Job:
+    """Build the graph, resolve edges and betas, and compute all coupling arrays."""
+    if graph is None:
+        try:
+            graph = graphs.build_graph(config.graph)
+        except (KeyError, TypeError, ValueError) as exc:
+            if isinstance(exc, graphs.GraphError):
+                raise
+            raise graphs.GraphError(f"graph {config.graph}: {exc}") from None
+    nodes = graphs.node_order(graph)
+    index = {v: i for i, v in enumerate(nodes)}
+    omega = graphs.omega_matrix(graph)
+    if config.edges == "all":
+        edges = graphs.all_directed_edges(graph)
+    else:
+        edges = []
+        for text in config.edges:
+            e = graphs.parse_edge(text, graph)
+            if e in edges:
+                raise ConfigError(f"edge {text!r} is listed twice")
+            edges.append(e)
+    dbeta = config.lambda_.dbeta
+    grid = sorted(set(config.betas) | {dbeta})
+    variant_edge = np.repeat(np.arange(len(edges)), len(grid))
+    variant_beta = np.tile(np.array(grid, dtype=np.float64), len(edges))
+    w = coupling.coupling_matrix(omega, config.dynamics.coupling)
+    csr = coupling.to_csr(w, pattern=omega > 0)
+    damages = [
+        (index[edges[e][0]], index[edges[e][1]], float(b))
+        for e, b in zip(variant_edge, variant_beta, strict=True)
+    ]
+    vw = coupling.variant_weights(omega, csr, damages, config.dynamics.coupling)
+    return Job(
+        config=config.resolved(),
+        name=name or graph.graph.get("name") or graph_name(config.graph),
+        graph=graph,
+        nodes=nodes,
+        omega=omega,
+        edges=edges,
+        edge_labels=[graphs.edge_label(a, b) for a, b in edges],
+        betas=tuple(float(b) for b in config.betas),
+        dbeta=float(dbeta),
+        variant_edge=variant_edge,
+        variant_beta=variant_beta,
+        csr=csr,
+        variant_weights=vw,
+    )

@@ -1,0 +1,112 @@
+"""Run jobs: pending chunks -> executor -> journal -> checkpoints -> final HDF5 file.
+
+This is the only place that ties computation to files and progress bars; the CLI calls
+:func:`run_config`, and a notebook can too.
+"""
+
+from __future__ import annotations
+
+import sys
+import time
+from collections.abc import Callable
+from pathlib import Path
+
+from antisync_cli.backends import resolve_backend
+from antisync_cli.config import Config
+from antisync_cli.jobs import Job, make_job
+from antisync_cli.store import JobState, ResultStore, command_line, git_revision
+
+__all__ = ["Interrupted", "run_config", "run_jobs"]
+
+
+class Interrupted(Exception):
+    """The run was interrupted; everything finished so far is saved and ``--resume`` continues."""
+
+
+def run_config(config: Config, **kwargs) -> Path:
+    """Run one config (one graph) and return the path of its HDF5 file. See :func:`run_jobs`."""
+    return run_jobs([make_job(config)], config, **kwargs)
+
+
+def run_jobs(
+    jobs: list[Job],
+    config: Config,
+    *,
+    output: str | Path | None = None,
+    resume: bool = False,
+    overwrite: bool = False,
+    progress: bool | None = None,
+    executor=None,
+    chunk_realizations: int | None = None,
+    checkpoint_seconds: float = 30.0,
+    log: Callable[[str], None] | None = None,
+) -> Path:
+    """Run ``jobs`` to completion into ``output`` (default ``config.output``).
+
+    Parameters
+    ----------
+    resume : bool
+        Continue an interrupted run in ``output``; done blocks are neither redone nor recounted.
+    overwrite : bool
+        Replace an existing ``output``. Without ``resume`` or ``overwrite`` an existing file
+        is an error and is left untouched.
+    progress : bool, optional
+        Show a progress bar on stderr; default: only when stderr is a terminal.
+    executor : object, optional
+        Something with ``run(work)`` yielding ``(job, ChunkResult)``; default local.
+    """
+    say = log or (lambda msg: None)
+    store = ResultStore(output or config.output)
+    backend, note = resolve_backend(config.backend)
+    if executor is None:
+        from antisync_cli.executors.local import LocalExecutor
+
+        executor = LocalExecutor(backend, config.threads)
+    store.prepare(resume=resume, overwrite=overwrite)
+    key = config.simulation_key()
+    states = store.load_states(jobs, key) if resume else {job.name: JobState(job) for job in jobs}
+    store.start_journal(key)
+    provenance = {
+        "command": command_line(),
+        "config_yaml": config.resolved().to_yaml(),
+        "git_revision": git_revision(),
+        "simulation_key": _json(key),
+    }
+    work = [(job, c) for job in jobs for c in states[job.name].pending(job.chunks(chunk_realizations))]
+    done_already = sum(st.realizations_done for st in states.values())
+    total = sum(job.config.realizations for job in jobs)
+    say(f"{note}; {executor.describe()}; {len(jobs)} job(s), "
+        f"{sum(len(j.variant_edge) for j in jobs)} damaged variant(s), {total:,} realizations per job"
+        + (f" ({done_already:,} already done)" if done_already else ""))
+    from tqdm import tqdm
+
+    show = sys.stderr.isatty() if progress is None else progress
+    bar = tqdm(total=total, initial=done_already, unit="real", unit_scale=True, delay=1.0,
+               disable=not show, file=sys.stderr, dynamic_ncols=True)
+    last = time.monotonic()
+    try:
+        for job, res in executor.run(work):
+            store.save_chunk(job.name, res)
+            states[job.name].add(res)
+            bar.update(res.count)
+            if time.monotonic() - last > checkpoint_seconds:
+                store.checkpoint(states, provenance)
+                last = time.monotonic()
+    except KeyboardInterrupt:
+        bar.close()
+        store.checkpoint(states, provenance)
+        raise Interrupted(
+            f"interrupted; finished chunks are saved in {store.path}: "
+            "rerun the same command with --resume to finish"
+        ) from None
+    finally:
+        bar.close()
+        executor.close()
+    store.checkpoint(states, provenance, final=True)
+    return store.path
+
+
+def _json(obj) -> str:
+    import json
+
+    return json.dumps(obj)

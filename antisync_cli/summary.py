@@ -1,0 +1,153 @@
+"""Per-(edge, beta) records from stored block statistics: <F_beta>, Lambda^KM, <tau0>, counts.
+
+Records are computed from the block records of a result file (never from a live run), so a
+summary of a resumed, a Dask or a CUDA run is computed exactly like any other.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from antisync_cli import estimators
+
+__all__ = ["JobView", "job_records", "read_views", "records"]
+
+# error bars are flagged when the largest 0.1% of samples carry this share of the variance
+TAIL_WARN = 0.5
+
+
+@dataclass
+class JobView:
+    """What a summary needs from one stored job."""
+
+    graph: str
+    edges: list
+    betas: tuple
+    dbeta: float
+    variant_edge: np.ndarray
+    variant_beta: np.ndarray
+    rec: np.ndarray
+    rec0: np.ndarray
+    done: np.ndarray
+    tail: np.ndarray
+    realizations: int
+    hist: np.ndarray | None = None
+    hist_variants: np.ndarray | None = None
+    tau_max_hist: float = 40.0
+    omega: np.ndarray | None = None
+    nodes: list | None = None
+    attrs: dict | None = None
+
+    def variant(self, edge_index: int, beta: float) -> int:
+        hit = np.flatnonzero((self.variant_edge == edge_index) & np.isclose(self.variant_beta, beta))
+        return int(hit[0]) if hit.size else -1
+
+
+def _num(x: float):
+    return None if x is None or (isinstance(x, float) and math.isnan(x)) else float(x)
+
+
+def _lambda(view: JobView, e: int) -> dict:
+    v = view.variant(e, view.dbeta)
+    s = estimators.summarize_variant(view.rec[view.done, v])
+    f = s["F"]
+    share = estimators.tail_share(view.tail[v])
+    warning = None
+    if f.n_batches < 10:
+        warning = f"only {f.n_batches} batches: standard error is rough"
+    elif not math.isnan(share) and share > TAIL_WARN:
+        warning = f"heavy tail: top 0.1% of samples carry {share:.0%} of the variance"
+    elif not math.isnan(f.se_batch) and f.se_batch > 2 * f.se_naive:
+        warning = "batch-means error exceeds twice the naive one: tail not yet sampled"
+    d = view.dbeta
+    return {
+        "lambda_km": _num((f.mean - 1.0) / d),
+        "lambda_km_se": _num(f.se / d),
+        "lambda_km_se_naive": _num(f.se_naive / d),
+        "lambda_km_se_batch": _num(f.se_batch / d),
+        "lambda_km_tail_share": _num(share),
+        "lambda_km_warning": warning,
+        "lambda_dbeta": d,
+    }
+
+
+def job_records(view: JobView) -> list[dict]:
+    """One record per (edge, requested beta); with no betas, one record per edge (Lambda only)."""
+    s0 = estimators.summarize_tau0(view.rec0[view.done])
+    t0 = s0["tau0"]
+    out = []
+    for e, label in enumerate(view.edges):
+        lam = _lambda(view, e)
+        for beta in view.betas or (None,):
+            rec = {"graph": view.graph, "edge": label, "beta": beta}
+            if beta is not None:
+                s = estimators.summarize_variant(view.rec[view.done, view.variant(e, beta)])
+                rec.update({
+                    "F_mean": _num(s["F"].mean),
+                    "F_se": _num(s["F"].se),
+                    "F_se_naive": _num(s["F"].se_naive),
+                    "tau_mean": _num(s["tau"].mean),
+                    "tau_se": _num(s["tau"].se),
+                    "n": s["n"],
+                    "n_excluded": s["n_already"],
+                    "n_not_synced": s["n_not_synced"],
+                })
+            else:
+                s = estimators.summarize_variant(view.rec[view.done, view.variant(e, view.dbeta)])
+                rec.update({"F_mean": None, "F_se": None, "F_se_naive": None, "tau_mean": None,
+                            "tau_se": None, "n": s["n"], "n_excluded": s["n_already"],
+                            "n_not_synced": s["n_not_synced"]})
+            rec.update(lam)
+            rec.update({
+                "tau0_mean": _num(t0.mean),
+                "tau0_se": _num(t0.se),
+                "tau0_n": s0["n"],
+                "realizations_done": int(s0["n"] + s0["n_already"] + s0["n_not_synced"]),
+            })
+            out.append(rec)
+    return out
+
+
+def read_views(path: str | Path) -> list[JobView]:
+    """All jobs of a result file (raises :class:`~antisync_cli.errors.StoreError` if unusable)."""
+    from antisync_cli.errors import StoreError
+    from antisync_cli.store import open_results
+
+    views = []
+    with open_results(path) as f:
+        if "jobs" not in f:
+            raise StoreError(f"{path} has no jobs group: not a complete antisync result file")
+        for name, g in f["jobs"].items():
+            try:
+                views.append(JobView(
+                    graph=str(g.attrs["graph"]),
+                    edges=json.loads(g.attrs["edges"]),
+                    betas=tuple(float(b) for b in np.atleast_1d(g.attrs["betas"])),
+                    dbeta=float(g.attrs["dbeta"]),
+                    variant_edge=g["variant_edge"][...],
+                    variant_beta=g["variant_beta"][...],
+                    rec=g["block_records"][...],
+                    rec0=g["tau0_records"][...],
+                    done=g["blocks_done"][...],
+                    tail=g["tail_counts"][...],
+                    realizations=int(g.attrs["realizations"]),
+                    hist=g["hist"][...],
+                    hist_variants=g["hist_variants"][...],
+                    tau_max_hist=float(g.attrs["tau_max_hist"]),
+                    omega=g["omega"][...],
+                    nodes=json.loads(g.attrs["nodes"]),
+                    attrs={k: g.attrs[k] for k in g.attrs if k != "summary_json"},
+                ))
+            except KeyError as exc:
+                raise StoreError(f"{path}: job {name} lacks {exc}; the file is damaged") from None
+    return views
+
+
+def records(path: str | Path) -> list[dict]:
+    """Summary records of every job in a result file."""
+    return [r for view in read_views(path) for r in job_records(view)]
