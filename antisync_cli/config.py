@@ -123,6 +123,7 @@ class Config:
     realizations: int = 2000
     seed: int = 1
     block_size: Any = "auto"
+    chunk_size: Any = "auto"
     keep_pairs: int = 10000
     histogram: Histogram = field(default_factory=Histogram)
     backend: str = "cpu"
@@ -151,6 +152,10 @@ class Config:
             not isinstance(self.block_size, int) or self.block_size < 1
         ):
             raise ConfigError(f"block_size must be 'auto' or an integer >= 1, got {self.block_size!r}")
+        if self.chunk_size != "auto" and (
+            not isinstance(self.chunk_size, int) or self.chunk_size < 1
+        ):
+            raise ConfigError(f"chunk_size must be 'auto' or an integer >= 1, got {self.chunk_size!r}")
         if not isinstance(self.keep_pairs, int) or self.keep_pairs < 0:
             raise ConfigError(f"keep_pairs must be an integer >= 0, got {self.keep_pairs!r}")
         if self.threads is not None and (not isinstance(self.threads, int) or self.threads < 1):
@@ -183,14 +188,14 @@ class Config:
     def simulation_key(self) -> dict:
         """The part of the config that determines the numbers (compared on ``--resume``)."""
         d = self.resolved().to_dict()
-        for k in ("name", "backend", "executor", "threads", "output"):
+        for k in ("name", "backend", "executor", "threads", "output", "chunk_size"):
             d.pop(k)
         return d
 
 
 _TOP_KEYS = {
     "name", "graph", "edges", "betas", "lambda", "dynamics", "measures", "realizations",
-    "seed", "block_size", "keep_pairs", "histogram", "backend", "executor", "threads", "output",
+    "seed", "block_size", "chunk_size", "keep_pairs", "histogram", "backend", "executor", "threads", "output",
 }
 _SECTIONS = {"lambda": LambdaSpec, "dynamics": Dynamics, "histogram": Histogram}
 

@@ -231,9 +231,9 @@ def tail_share(tail_counts: np.ndarray, top: float = 1e-3) -> float:
     taken = 0.0
     share = 0.0
     for k in range(counts.size - 1, -1, -1):
-        take = min(counts[k], want - taken)
-        if take <= 0:
+        if taken >= want:
             break
+        take = min(counts[k], want - taken)
         share += take * centres[k] ** 2
         taken += take
     return float(share / energy.sum())

@@ -72,6 +72,8 @@ def run_jobs(
         "git_revision": git_revision(),
         "simulation_key": _json(key),
     }
+    if chunk_realizations is None and config.chunk_size != "auto":
+        chunk_realizations = int(config.chunk_size)
     work = [(job, c) for job in jobs for c in states[job.name].pending(job.chunks(chunk_realizations))]
     done_already = sum(st.realizations_done for st in states.values())
     total = sum(job.config.realizations for job in jobs)

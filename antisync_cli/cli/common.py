@@ -12,7 +12,9 @@ import typer
 EXIT_USAGE = 2
 
 ConfigArg = Annotated[Path, typer.Argument(help="YAML config file (see configs/).", show_default=False)]
-ResultArg = Annotated[Path, typer.Argument(help="HDF5 result file written by `antisync run`.", show_default=False)]
+ResultArg = Annotated[
+    Path, typer.Argument(help="HDF5 result file written by `antisync run`.", show_default=False)
+]
 SetOpt = Annotated[
     list[str] | None,
     typer.Option("--set", help="Override a config key, value parsed as YAML: --set realizations=5000 "

@@ -13,7 +13,9 @@ from antisync_cli.cli.common import DebugOpt, QuietOpt, ResultArg, info, user_er
 @user_errors
 def report(
     results: ResultArg,
-    out: Annotated[Path | None, typer.Option("--out", "-o", help="Folder for figures (default: next to the file).")] = None,
+    out: Annotated[
+        Path | None, typer.Option("--out", "-o", help="Folder for figures (default: next to the file).")
+    ] = None,
     pdf: Annotated[bool, typer.Option("--pdf", help="Also write PDF versions.")] = False,
     quiet: QuietOpt = False,
     debug: DebugOpt = False,

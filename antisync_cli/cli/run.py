@@ -18,10 +18,16 @@ def run(
     out: Annotated[Path | None, typer.Option("--out", "-o", help="Override `output` (HDF5 path).")] = None,
     backend: Annotated[str | None, typer.Option(help="cpu, cuda or auto.")] = None,
     executor: Annotated[str | None, typer.Option(help="local or dask.")] = None,
-    workers: Annotated[int | None, typer.Option(help="Dask: start a LocalCluster with this many workers.")] = None,
-    scheduler: Annotated[str | None, typer.Option(help="Dask: address of an existing scheduler (tcp://host:8786).")] = None,
+    workers: Annotated[
+        int | None, typer.Option(help="Dask: start a LocalCluster with this many workers.")
+    ] = None,
+    scheduler: Annotated[
+        str | None, typer.Option(help="Dask: address of an existing scheduler (tcp://host:8786).")
+    ] = None,
     threads: Annotated[int | None, typer.Option(help="CPU threads (default: all cores).")] = None,
-    resume: Annotated[bool, typer.Option("--resume", help="Finish an interrupted run in the same output file.")] = False,
+    resume: Annotated[
+        bool, typer.Option("--resume", help="Finish an interrupted run in the same output file.")
+    ] = False,
     overwrite: Annotated[bool, typer.Option("--overwrite", help="Replace an existing output file.")] = False,
     set_: SetOpt = None,
     quiet: QuietOpt = False,

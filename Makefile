@@ -1,0 +1,48 @@
+# antisync: `make run` and `make test` work on a fresh machine with Python 3.11, pip and gcc.
+PYTHON ?= python3
+VENV   := .venv
+BIN    := $(VENV)/bin
+STAMP  := $(VENV)/.installed-stamp
+CONFIG ?= configs/lollipop6.yaml
+RESULT ?= results/lollipop6.h5
+
+.PHONY: help install run test test-slow test-cuda bench lint format clean
+
+help:
+	@echo "make run        set up .venv, run $(CONFIG), write $(RESULT) and figures"
+	@echo "make test       set up .venv and run the test suite (fast; slow tests: make test-slow)"
+	@echo "make bench      speed benchmarks (results go to bench/RESULTS.md by hand)"
+	@echo "make lint       ruff check"
+
+$(STAMP): pyproject.toml
+	$(PYTHON) -m venv $(VENV)
+	$(BIN)/python -m pip install --quiet --upgrade pip
+	$(BIN)/python -m pip install --quiet -e ".[dev]"
+	@touch $(STAMP)
+
+install: $(STAMP)
+
+# --resume: a finished result is kept (no-op), an interrupted one is finished.
+run: $(STAMP)
+	$(BIN)/antisync run $(CONFIG) --resume
+	$(BIN)/antisync summary $(RESULT)
+	$(BIN)/antisync report $(RESULT)
+
+test: $(STAMP)
+	$(BIN)/python -m pytest
+
+test-slow: $(STAMP)
+	$(BIN)/python -m pytest -m slow
+
+bench: $(STAMP)
+	$(BIN)/python bench/bench_kernels.py
+
+lint: $(STAMP)
+	$(BIN)/ruff check antisync_cli tests bench
+
+format: $(STAMP)
+	$(BIN)/ruff format antisync_cli tests bench
+
+clean:
+	rm -rf $(VENV) .pytest_cache .ruff_cache build *.egg-info
+	find . -name __pycache__ -type d -prune -exec rm -rf {} +

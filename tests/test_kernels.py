@@ -1,0 +1,90 @@
+"""The CPU kernel against the slow reference and against closed forms."""
+
+import numpy as np
+import pytest
+from naive import sync_steps, two_oscillator_tau
+
+from antisync_cli import coupling, graphs
+from antisync_cli.kernels.cpu import simulate
+from antisync_cli.phases import initial_phases
+from antisync_cli.status import Status
+
+
+def _arrays(g, damages, kind="normalized"):
+    omega = graphs.omega_matrix(g)
+    csr = coupling.to_csr(coupling.coupling_matrix(omega, kind), pattern=omega > 0)
+    return omega, csr, coupling.variant_weights(omega, csr, damages, kind)
+
+
+@pytest.mark.parametrize("kind", ["normalized", "raw"])
+def test_cpu_kernel_matches_naive_reference(kind):
+    g = graphs.lollipop(6, 3)
+    damages = [(1, 0, 0.5), (4, 5, 0.3), (1, 2, 0.01), (0, 1, 0.5)]
+    omega, csr, vw = _arrays(g, damages, kind)
+    dt, thr, max_steps, m = 0.002, 0.99, 40_000, 24
+    res = simulate(9, 0, m, csr.indptr, csr.indices, csr.weights, vw, dt=dt, threshold=thr,
+                   max_steps=max_steps)
+    theta0 = initial_phases(9, 0, m, 6)
+    w0 = coupling.coupling_matrix(omega, kind)
+    mismatched = 0
+    for r in range(m):
+        st, k = sync_steps(theta0[r], w0, dt, thr, max_steps)
+        assert res.status0[r] == st
+        # (cos, sin) rotation and theta updates round differently: a crossing may move by a
+        # step when r(t) passes the threshold within rounding of a grid point
+        assert abs(int(res.steps0[r]) - k) <= 1
+        mismatched += int(res.steps0[r] != k)
+        for v, (a, b, beta) in enumerate(damages):
+            wv = coupling.coupling_matrix(coupling.damaged_omega(omega, a, b, beta), kind)
+            st, k = sync_steps(theta0[r], wv, dt, thr, max_steps)
+            assert res.status[r, v] == st
+            assert abs(int(res.steps[r, v]) - k) <= 1
+            mismatched += int(res.steps[r, v] != k)
+    assert mismatched <= 1  # out of 120 integrations
+
+
+def test_two_oscillators_closed_form_and_first_order_convergence():
+    """N=2: tau = ln(tan(phi0/2)/tan(arccos r))/2 exactly; Euler's error must shrink like dt."""
+    g = graphs.from_networkx("path_graph", {"n": 2})
+    omega, csr, vw = _arrays(g, [])
+    thr = 0.99
+    # pick realizations with a comfortable initial phase difference
+    theta0 = initial_phases(2, 0, 200, 2)
+    phi0 = np.angle(np.exp(1j * (theta0[:, 1] - theta0[:, 0])))
+    keep = np.flatnonzero((np.abs(phi0) > 0.8) & (np.abs(phi0) < 2.6))[:5]
+    exact = np.array([two_oscillator_tau(phi0[r], thr) for r in keep])
+    dts = np.array([0.004, 0.002, 0.001, 0.0005])
+    errors = []
+    for dt in dts:
+        res = simulate(2, 0, 200, csr.indptr, csr.indices, csr.weights, vw, dt=dt,
+                       threshold=thr, max_steps=200_000)
+        assert np.all(res.status0[keep] == Status.SYNCED)
+        errors.append(np.abs(res.steps0[keep] * dt - exact).mean())
+    order = np.polyfit(np.log(dts), np.log(errors), 1)[0]
+    assert 0.8 < order < 1.2, (order, errors)
+    assert errors[-1] < 2e-3
+
+
+def test_already_synced_and_not_synced_status():
+    g = graphs.from_networkx("path_graph", {"n": 2})
+    omega, csr, vw = _arrays(g, [])
+    theta0 = initial_phases(2, 0, 200, 2)
+    r0 = np.abs(np.exp(1j * theta0).mean(axis=1))
+    res = simulate(2, 0, 200, csr.indptr, csr.indices, csr.weights, vw, dt=0.01, threshold=0.99,
+                   max_steps=5)
+    assert np.array_equal(res.status0 == Status.ALREADY_SYNCED, r0 >= 0.99)
+    assert np.all(res.steps0[res.status0 == Status.ALREADY_SYNCED] == 0)
+    assert np.any(res.status0 == Status.NOT_SYNCED)
+
+
+def test_results_do_not_depend_on_threads_or_batching():
+    g = graphs.lollipop(6, 3)
+    omega, csr, vw = _arrays(g, [(1, 0, 0.5), (4, 5, 0.5)])
+    args = (csr.indptr, csr.indices, csr.weights, vw)
+    kw = dict(dt=0.002, threshold=0.99, max_steps=40_000)
+    one = simulate(4, 0, 64, *args, threads=1, **kw)
+    two = simulate(4, 0, 64, *args, threads=2, **kw)
+    part = simulate(4, 40, 24, *args, threads=2, **kw)
+    for name in ("status0", "steps0", "status", "steps"):
+        assert np.array_equal(getattr(one, name), getattr(two, name))
+        assert np.array_equal(getattr(one, name)[40:], getattr(part, name))
