@@ -88,3 +88,17 @@ def test_results_do_not_depend_on_threads_or_batching():
     for name in ("status0", "steps0", "status", "steps"):
         assert np.array_equal(getattr(one, name), getattr(two, name))
         assert np.array_equal(getattr(one, name)[40:], getattr(part, name))
+
+
+@pytest.mark.parametrize("kind", ["normalized", "raw"])
+def test_lane_driver_is_bit_identical_to_scalar_driver(kind):
+    """Lanes step many trajectories together; each must see exactly the scalar arithmetic."""
+    g = graphs.lollipop(7, 2)
+    omega, csr, vw = _arrays(g, [(1, 0, 0.5), (0, 1, 0.5), (4, 5, 0.01), (2, 3, 0.9)], kind)
+    args = (csr.indptr, csr.indices, csr.weights, vw)
+    kw = dict(dt=0.002, threshold=0.99, max_steps=30_000)
+    scalar = simulate(6, 0, 90, *args, lanes=0, **kw)
+    for lanes in (1, 7, 32):
+        lane = simulate(6, 0, 90, *args, lanes=lanes, **kw)
+        for name in ("status0", "steps0", "status", "steps"):
+            assert np.array_equal(getattr(scalar, name), getattr(lane, name)), (lanes, name)

@@ -21,12 +21,15 @@ import math
 
 from antisync_cli.status import Status
 
-__all__ = ["RENORM_EVERY", "make_kernels"]
+__all__ = ["RENORM_EVERY", "TAYLOR_MAX_ANGLE", "make_kernels"]
 
 RENORM_EVERY = 1024
 _SYNCED = int(Status.SYNCED)
 _ALREADY = int(Status.ALREADY_SYNCED)
 _NOT_SYNCED = int(Status.NOT_SYNCED)
+
+
+TAYLOR_MAX_ANGLE = 0.05
 
 
 def make_kernels(jit):
@@ -35,11 +38,32 @@ def make_kernels(jit):
     Returns
     -------
     dict
-        ``euler_step(c, s, acc, indptr, indices, weights, dt) -> r2N2`` advances the state
-        in place and returns ``|sum_j e^{i theta_j}|^2``;
+        ``rotation(a) -> (cos a, sin a)`` (Taylor polynomials for ``|a| <= 0.05``);
+        ``euler_step(c, s, acc, indptr, indices, weights, dt) -> R`` advances one state in
+        place and returns ``R = |sum_j e^{i theta_j}|^2``;
         ``sync_steps(c, s, acc, indptr, indices, weights, dt, r2_target, max_steps)
-        -> (status, steps)`` integrates until ``|sum_j e^{i theta_j}|^2 >= r2_target``.
+        -> (status, steps)`` integrates until ``R >= r2_target``;
+        ``euler_step_lanes(c, s, acc, sc, ss, lw, indptr, indices, dt, r2, taylor)`` advances
+        ``L`` independent states stored as ``[node, lane]`` (weights ``lw[nnz, lane]``), the
+        lane loop innermost so the compiler vectorizes across lanes; ``taylor=True`` promises
+        ``|alpha| <= 0.05`` for every node and lane (then results equal ``euler_step``'s bit
+        for bit, since the same operations run in the same order).
     """
+
+    def taylor_rotation(a):
+        a2 = a * a
+        ca = 1.0 - a2 * (0.5 - a2 * (1.0 / 24.0 - a2 * (1.0 / 720.0 - a2 / 40320.0)))
+        sa = a * (1.0 - a2 * (1.0 / 6.0 - a2 * (1.0 / 120.0 - a2 * (1.0 / 5040.0 - a2 / 362880.0))))
+        return ca, sa
+
+    taylor_rotation = jit(taylor_rotation)
+
+    def rotation(a):
+        if abs(a) <= TAYLOR_MAX_ANGLE:
+            return taylor_rotation(a)
+        return math.cos(a), math.sin(a)
+
+    rotation = jit(rotation)
 
     def euler_step(c, s, acc, indptr, indices, weights, dt):
         n = c.shape[0]
@@ -51,18 +75,12 @@ def make_kernels(jit):
                 w = weights[p]
                 sc += w * c[j]
                 ss += w * s[j]
+            # Eq. (2) in (cos, sin) form: omega_i = c_i sum_j w_ij s_j - s_i sum_j w_ij c_j
             acc[i] = dt * (c[i] * ss - s[i] * sc)
         sum_c = 0.0
         sum_s = 0.0
         for i in range(n):
-            a = acc[i]
-            if abs(a) <= 0.05:
-                a2 = a * a
-                ca = 1.0 - a2 * (0.5 - a2 * (1.0 / 24.0 - a2 * (1.0 / 720.0 - a2 / 40320.0)))
-                sa = a * (1.0 - a2 * (1.0 / 6.0 - a2 * (1.0 / 120.0 - a2 * (1.0 / 5040.0 - a2 / 362880.0))))
-            else:
-                ca = math.cos(a)
-                sa = math.sin(a)
+            ca, sa = rotation(acc[i])
             ci = c[i]
             si = s[i]
             c[i] = ci * ca - si * sa
@@ -72,6 +90,40 @@ def make_kernels(jit):
         return sum_c * sum_c + sum_s * sum_s
 
     euler_step = jit(euler_step)
+
+    def euler_step_lanes(c, s, acc, sc, ss, lw, indptr, indices, dt, r2, taylor):
+        n, lanes = c.shape
+        for i in range(n):
+            for q in range(lanes):
+                sc[q] = 0.0
+                ss[q] = 0.0
+            for p in range(indptr[i], indptr[i + 1]):
+                j = indices[p]
+                for q in range(lanes):
+                    w = lw[p, q]
+                    sc[q] += w * c[j, q]
+                    ss[q] += w * s[j, q]
+            for q in range(lanes):
+                acc[i, q] = dt * (c[i, q] * ss[q] - s[i, q] * sc[q])
+        for q in range(lanes):
+            sc[q] = 0.0
+            ss[q] = 0.0
+        for i in range(n):
+            for q in range(lanes):
+                if taylor:
+                    ca, sa = taylor_rotation(acc[i, q])
+                else:
+                    ca, sa = rotation(acc[i, q])
+                ci = c[i, q]
+                si = s[i, q]
+                c[i, q] = ci * ca - si * sa
+                s[i, q] = si * ca + ci * sa
+                sc[q] += c[i, q]
+                ss[q] += s[i, q]
+        for q in range(lanes):
+            r2[q] = sc[q] * sc[q] + ss[q] * ss[q]
+
+    euler_step_lanes = jit(euler_step_lanes)
 
     def renormalize(c, s):
         for i in range(c.shape[0]):
@@ -103,4 +155,11 @@ def make_kernels(jit):
         return _NOT_SYNCED, max_steps
 
     sync_steps = jit(sync_steps)
-    return {"euler_step": euler_step, "sync_steps": sync_steps, "order2": order2}
+    return {
+        "rotation": rotation,
+        "euler_step": euler_step,
+        "euler_step_lanes": euler_step_lanes,
+        "sync_steps": sync_steps,
+        "order2": order2,
+        "renormalize": renormalize,
+    }
