@@ -43,11 +43,13 @@ def make_kernels(jit):
         place and returns ``R = |sum_j e^{i theta_j}|^2``;
         ``sync_steps(c, s, acc, indptr, indices, weights, dt, r2_target, max_steps)
         -> (status, steps)`` integrates until ``R >= r2_target``;
-        ``euler_step_lanes(c, s, acc, sc, ss, lw, indptr, indices, dt, r2, taylor)`` advances
+        ``euler_step_lanes(c, s, acc, sum_c, sum_s, tot_c, tot_s, lw, indptr, indices, dt, r2,
+        taylor)`` advances
         ``L`` independent states stored as ``[node, lane]`` (weights ``lw[nnz, lane]``), the
         lane loop innermost so the compiler vectorizes across lanes; ``taylor=True`` promises
         ``|alpha| <= 0.05`` for every node and lane (then results equal ``euler_step``'s bit
-        for bit, since the same operations run in the same order).
+        for bit, since the same operations run in the same order);
+        ``tangent_step_lanes(...)`` does the same step and its forward sensitivities.
     """
 
     def taylor_rotation(a):
@@ -91,23 +93,30 @@ def make_kernels(jit):
 
     euler_step = jit(euler_step)
 
-    def euler_step_lanes(c, s, acc, sc, ss, lw, indptr, indices, dt, r2, taylor):
+    def lane_sums(c, s, sum_c, sum_s, acc, lw, indptr, indices, dt):
+        """Coupling sums ``sum_j w_ij c_j``, ``sum_j w_ij s_j`` and rotation angles, per lane."""
         n, lanes = c.shape
         for i in range(n):
             for q in range(lanes):
-                sc[q] = 0.0
-                ss[q] = 0.0
+                sum_c[i, q] = 0.0
+                sum_s[i, q] = 0.0
             for p in range(indptr[i], indptr[i + 1]):
                 j = indices[p]
                 for q in range(lanes):
                     w = lw[p, q]
-                    sc[q] += w * c[j, q]
-                    ss[q] += w * s[j, q]
+                    sum_c[i, q] += w * c[j, q]
+                    sum_s[i, q] += w * s[j, q]
             for q in range(lanes):
-                acc[i, q] = dt * (c[i, q] * ss[q] - s[i, q] * sc[q])
+                acc[i, q] = dt * (c[i, q] * sum_s[i, q] - s[i, q] * sum_c[i, q])
+
+    lane_sums = jit(lane_sums)
+
+    def lane_rotate(c, s, acc, tot_c, tot_s, r2, taylor):
+        """Rotate every ``(c_i, s_i)`` by its angle; ``r2 = |sum_j e^{i theta_j}|^2`` per lane."""
+        n, lanes = c.shape
         for q in range(lanes):
-            sc[q] = 0.0
-            ss[q] = 0.0
+            tot_c[q] = 0.0
+            tot_s[q] = 0.0
         for i in range(n):
             for q in range(lanes):
                 if taylor:
@@ -118,12 +127,64 @@ def make_kernels(jit):
                 si = s[i, q]
                 c[i, q] = ci * ca - si * sa
                 s[i, q] = si * ca + ci * sa
-                sc[q] += c[i, q]
-                ss[q] += s[i, q]
+                tot_c[q] += c[i, q]
+                tot_s[q] += s[i, q]
         for q in range(lanes):
-            r2[q] = sc[q] * sc[q] + ss[q] * ss[q]
+            r2[q] = tot_c[q] * tot_c[q] + tot_s[q] * tot_s[q]
+
+    lane_rotate = jit(lane_rotate)
+
+    def euler_step_lanes(c, s, acc, sum_c, sum_s, tot_c, tot_s, lw, indptr, indices, dt, r2, taylor):
+        lane_sums(c, s, sum_c, sum_s, acc, lw, indptr, indices, dt)
+        lane_rotate(c, s, acc, tot_c, tot_s, r2, taylor)
 
     euler_step_lanes = jit(euler_step_lanes)
+
+    def tangent_step_lanes(c, s, acc, sum_c, sum_s, tot_c, tot_s, lw, indptr, indices, dt, r2, taylor,
+                           u, du, cu, su, edge_a, edge_b, rho, mu, dr2):
+        """Euler step plus its tangents ``u[e] = dtheta/dbeta_e`` for damage on each edge ``e``.
+
+        The tangent of ``theta <- theta + dt f(theta, W(beta))`` is
+        ``u <- u + dt (J u + df/dbeta)``, with ``(J u)_i = sum_j w_ij cos(theta_j - theta_i)
+        (u_j - u_i)`` and, for damage on ``a -> b``, ``df_a/dbeta = rho omega_a + mu
+        sin(theta_b - theta_a)`` (``dw_aj/dbeta = rho w_aj + mu [j = b]``; see
+        :func:`antisync_cli.coupling.coupling_derivative`). Afterwards
+        ``dr2[e] = d|sum_j e^{i theta_j}|^2 / dbeta_e``.
+        """
+        n, lanes = c.shape
+        lane_sums(c, s, sum_c, sum_s, acc, lw, indptr, indices, dt)
+        for e in range(u.shape[0]):
+            for j in range(n):
+                for q in range(lanes):
+                    cu[j, q] = c[j, q] * u[e, j, q]
+                    su[j, q] = s[j, q] * u[e, j, q]
+            for i in range(n):
+                for q in range(lanes):
+                    du[i, q] = 0.0
+                for p in range(indptr[i], indptr[i + 1]):
+                    j = indices[p]
+                    for q in range(lanes):
+                        du[i, q] += lw[p, q] * (c[i, q] * cu[j, q] + s[i, q] * su[j, q])
+                for q in range(lanes):
+                    diag = c[i, q] * sum_c[i, q] + s[i, q] * sum_s[i, q]
+                    du[i, q] = dt * (du[i, q] - u[e, i, q] * diag)
+            a = edge_a[e]
+            b = edge_b[e]
+            for q in range(lanes):
+                sin_ba = s[b, q] * c[a, q] - c[b, q] * s[a, q]
+                du[a, q] += rho[e] * acc[a, q] + dt * mu[e] * sin_ba
+            for i in range(n):
+                for q in range(lanes):
+                    u[e, i, q] += du[i, q]
+        lane_rotate(c, s, acc, tot_c, tot_s, r2, taylor)
+        for e in range(u.shape[0]):
+            for q in range(lanes):
+                dr2[e, q] = 0.0
+            for i in range(n):
+                for q in range(lanes):
+                    dr2[e, q] += 2.0 * (tot_s[q] * c[i, q] - tot_c[q] * s[i, q]) * u[e, i, q]
+
+    tangent_step_lanes = jit(tangent_step_lanes)
 
     def renormalize(c, s):
         for i in range(c.shape[0]):
@@ -159,6 +220,7 @@ def make_kernels(jit):
         "rotation": rotation,
         "euler_step": euler_step,
         "euler_step_lanes": euler_step_lanes,
+        "tangent_step_lanes": tangent_step_lanes,
         "sync_steps": sync_steps,
         "order2": order2,
         "renormalize": renormalize,

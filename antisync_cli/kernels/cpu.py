@@ -1,9 +1,19 @@
-"""CPU backend: a ``prange`` batch driver over realizations around the shared step functions.
+"""CPU backend: numba batch drivers around the shared step functions of :mod:`.core`.
 
-Layers (as in stumpy): the step/sync functions of :mod:`antisync_cli.kernels.core` integrate
-one trajectory; :func:`_integrate_batch` runs a batch of realizations in parallel, each
-realization integrating the undamaged network once (``tau0``) and then every damage variant
-from the same initial phases; :func:`simulate` is the public, validated entry point.
+Layers (as in stumpy): the step functions of :mod:`antisync_cli.kernels.core` advance a state;
+the private drivers here run batches of realizations in parallel threads; :func:`simulate` and
+:func:`simulate_pathwise` are the public, validated entry points.
+
+Two drivers give identical results, bit for bit:
+
+- ``_integrate_batch``: one trajectory at a time per thread (the plain reference path,
+  the same loop structure as the CUDA kernel);
+- ``_integrate_lanes`` (default): each thread steps ``LANES`` trajectories together in a
+  ``[node, lane]`` layout so the compiler vectorizes across lanes; a finished lane is refilled
+  with the next (realization, variant) item of the thread's queue.
+
+``_pathwise_lanes`` integrates the undamaged network with forward sensitivities for every
+damaged edge at once (the tangent of the Euler step, exact for the discretized dynamics).
 """
 
 from __future__ import annotations
@@ -14,20 +24,19 @@ import numba
 import numpy as np
 from numba import njit, prange
 
-from antisync_cli.kernels.core import make_kernels
-from antisync_cli.kernels.core import RENORM_EVERY, TAYLOR_MAX_ANGLE
+from antisync_cli.kernels.core import RENORM_EVERY, TAYLOR_MAX_ANGLE, make_kernels
 from antisync_cli.phases import phase
 from antisync_cli.status import Status
 
-__all__ = ["SimResult", "simulate"]
+__all__ = ["LANES", "PathwiseResult", "SimResult", "simulate", "simulate_pathwise"]
 
 _K = make_kernels(lambda f: njit(f, inline="always", cache=True))
 _sync_steps = _K["sync_steps"]
 _step_lanes = _K["euler_step_lanes"]
-_renormalize = _K["renormalize"]
+_tangent_lanes = _K["tangent_step_lanes"]
 
 LANES = 32
-"""Realizations stepped together by one thread (the ``[node, lane]`` layout's inner width)."""
+"""Trajectories stepped together per thread (the inner width of the ``[node, lane]`` layout)."""
 _SYNCED = int(Status.SYNCED)
 _ALREADY = int(Status.ALREADY_SYNCED)
 _NOT_SYNCED = int(Status.NOT_SYNCED)
@@ -35,7 +44,7 @@ _NOT_SYNCED = int(Status.NOT_SYNCED)
 
 @njit(parallel=True, cache=True)
 def _integrate_batch(
-    seed, first, indptr, indices, base_w, var_w, var_is_base, dt, r2_target, max_steps,
+    ks, indptr, indices, base_w, var_w, var_is_base, dt, r2_target, max_steps, seed,
     status0, steps0, status, steps,
 ):
     m = status0.shape[0]
@@ -47,7 +56,7 @@ def _integrate_batch(
         s = np.empty(n)
         acc = np.empty(n)
         for i in range(n):
-            theta[i] = phase(seed, first + r, i)
+            theta[i] = phase(seed, ks[r], i)
             c[i] = np.cos(theta[i])
             s[i] = np.sin(theta[i])
         st, k = _sync_steps(c, s, acc, indptr, indices, base_w, dt, r2_target, max_steps)
@@ -82,8 +91,22 @@ def _next_item(r, v, r_hi, var_is_base):
 
 
 @njit(inline="always")
-def _load_lane(q, qr, qv, r_hi, seed, first, base_w, var_w, var_is_base, r2_target, c, s, lw,
-               ci, si, lane_r, lane_v, lane_k, status0, steps0, status, steps):
+def _start_state(seed, k, ci, si, r2_target):
+    """Initial (cos, sin) of realization k; returns True when r(0) already reaches the threshold."""
+    tot_c = 0.0
+    tot_s = 0.0
+    for i in range(ci.shape[0]):
+        th = phase(seed, k, i)
+        ci[i] = np.cos(th)
+        si[i] = np.sin(th)
+        tot_c += ci[i]
+        tot_s += si[i]
+    return tot_c * tot_c + tot_s * tot_s >= r2_target
+
+
+@njit(inline="always")
+def _load_lane(q, qr, qv, r_hi, seed, ks, base_w, var_w, var_is_base, r2_target, c, s, lw,
+               ci, si, lane_r, lane_v, lane_k, status0, steps0, frac0, status, steps, frac):
     """Put the next queued item that needs integrating into lane ``q``.
 
     Items already synchronized at t = 0 are recorded on the spot. Returns the advanced cursor
@@ -93,21 +116,15 @@ def _load_lane(q, qr, qv, r_hi, seed, first, base_w, var_w, var_is_base, r2_targ
     while qr < r_hi:
         r, v = qr, qv
         qr, qv = _next_item(qr, qv, r_hi, var_is_base)
-        sum_c = 0.0
-        sum_s = 0.0
-        for i in range(n):
-            th = phase(seed, first + r, i)
-            ci[i] = np.cos(th)
-            si[i] = np.sin(th)
-            sum_c += ci[i]
-            sum_s += si[i]
-        if sum_c * sum_c + sum_s * sum_s >= r2_target:
+        if _start_state(seed, ks[r], ci, si, r2_target):
             if v < 0:
                 status0[r] = _ALREADY
                 steps0[r] = 0
+                frac0[r] = 0.0
             else:
                 status[r, v] = _ALREADY
                 steps[r, v] = 0
+                frac[r, v] = 0.0
             continue
         for i in range(n):
             c[i, q] = ci[i]
@@ -121,10 +138,18 @@ def _load_lane(q, qr, qv, r_hi, seed, first, base_w, var_w, var_is_base, r2_targ
     return qr, qv, 0
 
 
+@njit(inline="always")
+def _renormalize_lane(c, s, q):
+    for i in range(c.shape[0]):
+        inv = 1.0 / np.sqrt(c[i, q] * c[i, q] + s[i, q] * s[i, q])
+        c[i, q] *= inv
+        s[i, q] *= inv
+
+
 @njit(parallel=True, cache=True)
 def _integrate_lanes(
-    seed, first, indptr, indices, base_w, var_w, var_is_base, dt, r2_target, max_steps, taylor,
-    lanes, n_groups, status0, steps0, status, steps,
+    ks, indptr, indices, base_w, var_w, var_is_base, dt, r2_target, max_steps, seed, taylor,
+    lanes, n_groups, status0, steps0, frac0, status, steps, frac,
 ):
     m = status0.shape[0]
     n = indptr.shape[0] - 1
@@ -139,10 +164,13 @@ def _integrate_lanes(
         c = np.empty((n, lanes))
         s = np.empty((n, lanes))
         acc = np.empty((n, lanes))
+        sum_c = np.empty((n, lanes))
+        sum_s = np.empty((n, lanes))
         lw = np.empty((nnz, lanes))
-        sc = np.empty(lanes)
-        ss = np.empty(lanes)
-        r2 = np.empty(lanes)
+        tot_c = np.empty(lanes)
+        tot_s = np.empty(lanes)
+        r2 = np.zeros(lanes)
+        r2_prev = np.zeros(lanes)
         lane_r = np.full(lanes, -1, dtype=np.int64)
         lane_v = np.zeros(lanes, dtype=np.int64)
         lane_k = np.zeros(lanes, dtype=np.int64)
@@ -151,12 +179,16 @@ def _integrate_lanes(
         qr, qv = r_lo, -1
         active = 0
         for q in range(lanes):
-            qr, qv, filled = _load_lane(q, qr, qv, r_hi, seed, first, base_w, var_w, var_is_base,
+            qr, qv, filled = _load_lane(q, qr, qv, r_hi, seed, ks, base_w, var_w, var_is_base,
                                         r2_target, c, s, lw, ci, si, lane_r, lane_v, lane_k,
-                                        status0, steps0, status, steps)
+                                        status0, steps0, frac0, status, steps, frac)
             active += filled
+            if filled:
+                r2[q] = ((ci.sum()) ** 2 + (si.sum()) ** 2)
         while active > 0:
-            _step_lanes(c, s, acc, sc, ss, lw, indptr, indices, dt, r2, taylor)
+            for q in range(lanes):
+                r2_prev[q] = r2[q]
+            _step_lanes(c, s, acc, sum_c, sum_s, tot_c, tot_s, lw, indptr, indices, dt, r2, taylor)
             for q in range(lanes):
                 if lane_r[q] < 0:
                     continue
@@ -164,35 +196,145 @@ def _integrate_lanes(
                 k = lane_k[q]
                 if r2[q] >= r2_target:
                     st = _SYNCED
+                    # where inside the last step a straight line through R crosses the target
+                    x = (r2_target - r2_prev[q]) / (r2[q] - r2_prev[q])
                 elif k >= max_steps:
                     st = _NOT_SYNCED
+                    x = 0.0
                 else:
                     if k % RENORM_EVERY == 0:
-                        for i in range(n):
-                            inv = 1.0 / np.sqrt(c[i, q] * c[i, q] + s[i, q] * s[i, q])
-                            c[i, q] *= inv
-                            s[i, q] *= inv
+                        _renormalize_lane(c, s, q)
                     continue
                 r = lane_r[q]
                 v = lane_v[q]
                 if v < 0:
                     status0[r] = st
                     steps0[r] = k
+                    frac0[r] = x
                 else:
                     status[r, v] = st
                     steps[r, v] = k
+                    frac[r, v] = x
                 lane_r[q] = -1
                 active -= 1
-                qr, qv, filled = _load_lane(q, qr, qv, r_hi, seed, first, base_w, var_w, var_is_base,
+                qr, qv, filled = _load_lane(q, qr, qv, r_hi, seed, ks, base_w, var_w, var_is_base,
                                             r2_target, c, s, lw, ci, si, lane_r, lane_v, lane_k,
-                                            status0, steps0, status, steps)
+                                            status0, steps0, frac0, status, steps, frac)
                 active += filled
+                if filled:
+                    r2[q] = ((ci.sum()) ** 2 + (si.sum()) ** 2)
         # variants that leave W unchanged share the undamaged result
         for r in range(r_lo, r_hi):
             for v in range(n_var):
                 if var_is_base[v]:
                     status[r, v] = status0[r]
                     steps[r, v] = steps0[r]
+                    frac[r, v] = frac0[r]
+
+
+@njit(parallel=True, cache=True)
+def _pathwise_lanes(
+    ks, indptr, indices, base_w, dt, r2_target, max_steps, seed, taylor, edge_a, edge_b, rho, mu,
+    lanes, n_groups, status0, steps0, frac0, dtau,
+):
+    m = status0.shape[0]
+    n = indptr.shape[0] - 1
+    nnz = base_w.shape[0]
+    n_edges = edge_a.shape[0]
+    per = (m + n_groups - 1) // n_groups
+    empty_var = np.empty((0, nnz))
+    no_var = np.zeros(0, dtype=np.bool_)
+    dummy_i8 = np.empty((m, 0), dtype=np.int8)
+    dummy_i = np.empty((m, 0), dtype=np.int64)
+    dummy_f = np.empty((m, 0))
+    for group in prange(n_groups):
+        r_lo = group * per
+        r_hi = min(m, r_lo + per)
+        if r_lo >= r_hi:
+            continue
+        c = np.empty((n, lanes))
+        s = np.empty((n, lanes))
+        acc = np.empty((n, lanes))
+        sum_c = np.empty((n, lanes))
+        sum_s = np.empty((n, lanes))
+        lw = np.empty((nnz, lanes))
+        tot_c = np.empty(lanes)
+        tot_s = np.empty(lanes)
+        r2 = np.zeros(lanes)
+        r2_prev = np.zeros(lanes)
+        u = np.zeros((n_edges, n, lanes))
+        du = np.empty((n, lanes))
+        cu = np.empty((n, lanes))
+        su = np.empty((n, lanes))
+        dr2 = np.zeros((n_edges, lanes))
+        dr2_prev = np.zeros((n_edges, lanes))
+        lane_r = np.full(lanes, -1, dtype=np.int64)
+        lane_v = np.zeros(lanes, dtype=np.int64)
+        lane_k = np.zeros(lanes, dtype=np.int64)
+        ci = np.empty(n)
+        si = np.empty(n)
+        qr, qv = r_lo, -1
+        active = 0
+        for q in range(lanes):
+            qr, qv, filled = _load_lane(q, qr, qv, r_hi, seed, ks, base_w, empty_var, no_var,
+                                        r2_target, c, s, lw, ci, si, lane_r, lane_v, lane_k,
+                                        status0, steps0, frac0, dummy_i8, dummy_i, dummy_f)
+            active += filled
+            if filled:
+                r2[q] = ((ci.sum()) ** 2 + (si.sum()) ** 2)
+                for e in range(n_edges):
+                    dr2[e, q] = 0.0
+                    for i in range(n):
+                        u[e, i, q] = 0.0
+        while active > 0:
+            for q in range(lanes):
+                r2_prev[q] = r2[q]
+                for e in range(n_edges):
+                    dr2_prev[e, q] = dr2[e, q]
+            _tangent_lanes(c, s, acc, sum_c, sum_s, tot_c, tot_s, lw, indptr, indices, dt, r2, taylor,
+                           u, du, cu, su, edge_a, edge_b, rho, mu, dr2)
+            for q in range(lanes):
+                if lane_r[q] < 0:
+                    continue
+                lane_k[q] += 1
+                k = lane_k[q]
+                r = lane_r[q]
+                if r2[q] >= r2_target:
+                    span = r2[q] - r2_prev[q]
+                    x = (r2_target - r2_prev[q]) / span
+                    status0[r] = _SYNCED
+                    steps0[r] = k
+                    frac0[r] = x
+                    # tau = dt (k - 1 + x) with x linear in R between the two steps:
+                    # dx/dbeta = -((1 - x) dR_{k-1} + x dR_k) / (R_k - R_{k-1})
+                    for e in range(n_edges):
+                        dtau[r, e] = -dt * ((1.0 - x) * dr2_prev[e, q] + x * dr2[e, q]) / span
+                elif k >= max_steps:
+                    status0[r] = _NOT_SYNCED
+                    steps0[r] = k
+                    frac0[r] = 0.0
+                    for e in range(n_edges):
+                        dtau[r, e] = 0.0
+                else:
+                    if k % RENORM_EVERY == 0:
+                        _renormalize_lane(c, s, q)
+                    continue
+                lane_r[q] = -1
+                active -= 1
+                qr, qv, filled = _load_lane(q, qr, qv, r_hi, seed, ks, base_w, empty_var, no_var,
+                                            r2_target, c, s, lw, ci, si, lane_r, lane_v, lane_k,
+                                            status0, steps0, frac0, dummy_i8, dummy_i, dummy_f)
+                active += filled
+                if filled:
+                    r2[q] = ((ci.sum()) ** 2 + (si.sum()) ** 2)
+                    for e in range(n_edges):
+                        dr2[e, q] = 0.0
+                        for i in range(n):
+                            u[e, i, q] = 0.0
+        for r in range(r_lo, r_hi):
+            if status0[r] == _ALREADY:
+                for e in range(n_edges):
+                    dtau[r, e] = 0.0
 
 
 @dataclass(frozen=True)
@@ -205,12 +347,36 @@ class SimResult:
         :class:`~antisync_cli.status.Status` code and steps of the undamaged network.
     status, steps : arrays, shape (m, V)
         The same for each damage variant ``v``.
+    frac0, frac : arrays or None
+        Where inside the crossing step the threshold is met, ``x`` in ``(0, 1]``, from a
+        straight line through ``R = |sum_j e^{i theta_j}|^2`` at the two grid points: the
+        interpolated crossing time is ``(steps - 1 + x) dt`` (None from the plain driver).
     """
 
     status0: np.ndarray
     steps0: np.ndarray
     status: np.ndarray
     steps: np.ndarray
+    frac0: np.ndarray | None = None
+    frac: np.ndarray | None = None
+
+
+@dataclass(frozen=True)
+class PathwiseResult:
+    """Undamaged trajectories with their sensitivities.
+
+    Attributes
+    ----------
+    status0, steps0, frac0 : arrays, shape (m,)
+        As in :class:`SimResult`; the interpolated ``tau0 = (steps0 - 1 + frac0) dt``.
+    dtau : array, shape (m, E)
+        ``d tau0 / d beta_e`` at ``beta = 0`` for damage on edge ``e`` (0 unless SYNCED).
+    """
+
+    status0: np.ndarray
+    steps0: np.ndarray
+    frac0: np.ndarray
+    dtau: np.ndarray
 
 
 def _row_sum_bound(indptr, base_w, var_w) -> float:
@@ -220,6 +386,33 @@ def _row_sum_bound(indptr, base_w, var_w) -> float:
     for w in (base_w, *var_w):
         best = max(best, float(np.bincount(rows, np.abs(w), minlength=indptr.size - 1).max()))
     return best
+
+
+def _realization_ids(first: int, count: int, realizations) -> np.ndarray:
+    if realizations is not None:
+        ks = np.asarray(realizations, dtype=np.uint64)
+        if ks.ndim != 1:
+            raise ValueError("realizations must be a 1-D array of realization indices")
+        return ks
+    if first < 0 or count < 0:
+        raise ValueError("first and count must be non-negative")
+    return np.arange(first, first + count, dtype=np.uint64)
+
+
+class _Threads:
+    """Temporarily set numba's thread count (results never depend on it)."""
+
+    def __init__(self, threads):
+        self.threads = threads
+
+    def __enter__(self):
+        self.previous = numba.get_num_threads()
+        if self.threads is not None:
+            numba.set_num_threads(max(1, min(int(self.threads), numba.config.NUMBA_NUM_THREADS)))
+        return 4 * numba.get_num_threads()
+
+    def __exit__(self, *exc):
+        numba.set_num_threads(self.previous)
 
 
 def simulate(
@@ -236,6 +429,7 @@ def simulate(
     max_steps: int,
     threads: int | None = None,
     lanes: int = LANES,
+    realizations: np.ndarray | None = None,
 ) -> SimResult:
     """Integrate realizations ``first .. first+count-1`` for the base network and every variant.
 
@@ -254,29 +448,89 @@ def simulate(
     lanes : int
         Trajectories stepped together per thread; ``0`` selects the plain one-trajectory-at-a-
         time driver. Results are identical either way (same operations in the same order).
+    realizations : array of int, optional
+        Explicit realization indices instead of ``first .. first+count-1``.
     """
+    ks = _realization_ids(first, count, realizations)
     n = indptr.size - 1
+    m = ks.size
+    base_weights = np.ascontiguousarray(base_weights, dtype=np.float64)
     var_w = np.ascontiguousarray(variant_weights, dtype=np.float64).reshape(-1, base_weights.size)
     var_is_base = np.array([np.array_equal(w, base_weights) for w in var_w], dtype=np.bool_)
-    status0 = np.empty(count, dtype=np.int8)
-    steps0 = np.empty(count, dtype=np.int64)
-    status = np.empty((count, var_w.shape[0]), dtype=np.int8)
-    steps = np.empty((count, var_w.shape[0]), dtype=np.int64)
+    status0 = np.empty(m, dtype=np.int8)
+    steps0 = np.empty(m, dtype=np.int64)
+    status = np.empty((m, var_w.shape[0]), dtype=np.int8)
+    steps = np.empty((m, var_w.shape[0]), dtype=np.int64)
     r2_target = (threshold * n) ** 2
-    previous = numba.get_num_threads()
-    if threads is not None:
-        numba.set_num_threads(max(1, min(threads, numba.config.NUMBA_NUM_THREADS)))
-    args = (np.uint64(seed), np.uint64(first), indptr.astype(np.int64), indices.astype(np.int64),
-            base_weights.astype(np.float64), var_w, var_is_base, float(dt), r2_target, int(max_steps))
-    try:
-        if lanes:
-            # |alpha_i| = dt |omega_i| <= dt sum_j |w_ij|: the Taylor rotation is always valid
-            bound = float(dt) * _row_sum_bound(indptr, base_weights, var_w)
-            groups = 4 * numba.get_num_threads()
-            _integrate_lanes(*args, bound <= TAYLOR_MAX_ANGLE, int(lanes), groups,
-                             status0, steps0, status, steps)
-        else:
+    args = (ks, indptr.astype(np.int64), indices.astype(np.int64), base_weights, var_w, var_is_base,
+            float(dt), r2_target, int(max_steps), np.uint64(seed))
+    with _Threads(threads) as groups:
+        if not lanes:
             _integrate_batch(*args, status0, steps0, status, steps)
-    finally:
-        numba.set_num_threads(previous)
-    return SimResult(status0, steps0, status, steps)
+            return SimResult(status0, steps0, status, steps)
+        frac0 = np.empty(m)
+        frac = np.empty((m, var_w.shape[0]))
+        # |alpha_i| = dt |omega_i| <= dt sum_j |w_ij|: then the Taylor rotation is always valid
+        taylor = float(dt) * _row_sum_bound(indptr, base_weights, var_w) <= TAYLOR_MAX_ANGLE
+        _integrate_lanes(*args, taylor, int(lanes), groups, status0, steps0, frac0, status, steps, frac)
+    return SimResult(status0, steps0, status, steps, frac0, frac)
+
+
+def simulate_pathwise(
+    seed: int,
+    first: int,
+    count: int,
+    indptr: np.ndarray,
+    indices: np.ndarray,
+    base_weights: np.ndarray,
+    edge_a: np.ndarray,
+    edge_b: np.ndarray,
+    rho: np.ndarray,
+    mu: np.ndarray,
+    *,
+    dt: float,
+    threshold: float,
+    max_steps: int,
+    threads: int | None = None,
+    lanes: int = LANES,
+    realizations: np.ndarray | None = None,
+) -> PathwiseResult:
+    """Undamaged trajectories and ``d tau0 / d beta_e`` for damage on every edge ``e`` at once.
+
+    Damage on edge ``e = a -> b`` changes row ``a`` of ``W`` as
+    ``dw_aj/dbeta = rho[e] w_aj + mu[e] [j = b]`` (see :func:`tangent_coefficients`).
+    """
+    ks = _realization_ids(first, count, realizations)
+    n = indptr.size - 1
+    m = ks.size
+    base_weights = np.ascontiguousarray(base_weights, dtype=np.float64)
+    status0 = np.empty(m, dtype=np.int8)
+    steps0 = np.empty(m, dtype=np.int64)
+    frac0 = np.empty(m)
+    dtau = np.empty((m, len(edge_a)))
+    taylor = float(dt) * _row_sum_bound(indptr, base_weights, []) <= TAYLOR_MAX_ANGLE
+    with _Threads(threads) as groups:
+        _pathwise_lanes(
+            ks, indptr.astype(np.int64), indices.astype(np.int64), base_weights, float(dt),
+            (threshold * n) ** 2, int(max_steps), np.uint64(seed), taylor,
+            np.asarray(edge_a, dtype=np.int64), np.asarray(edge_b, dtype=np.int64),
+            np.asarray(rho, dtype=np.float64), np.asarray(mu, dtype=np.float64),
+            int(lanes), groups, status0, steps0, frac0, dtau,
+        )
+    return PathwiseResult(status0, steps0, frac0, dtau)
+
+
+def tangent_coefficients(omega: np.ndarray, edges: list[tuple[int, int]], coupling: str):
+    """``(edge_a, edge_b, rho, mu)`` with ``dw_aj/dbeta = rho w_aj + mu [j = b]`` at beta = 0.
+
+    Normalized coupling: ``rho = Omega_ab / S_a``, ``mu = -Omega_ab / S_a``; raw coupling:
+    ``rho = 0``, ``mu = -Omega_ab``. (Checked against
+    :func:`antisync_cli.coupling.coupling_derivative` in the tests.)
+    """
+    a = np.array([e[0] for e in edges], dtype=np.int64)
+    b = np.array([e[1] for e in edges], dtype=np.int64)
+    wab = omega[a, b]
+    if coupling == "raw":
+        return a, b, np.zeros(len(edges)), -wab
+    strength = omega.sum(axis=1)[a]
+    return a, b, wab / strength, -wab / strength
