@@ -1,7 +1,8 @@
 """Non-simulation response measures: Lambda^(xi2), Lambda^(RW) and Lambda^(linear).
 
 - :mod:`~antisync_cli.measures.spectral`: ``xi2`` and ``Lambda^(xi2)`` (Eqs. 21-22), exact.
-- :mod:`~antisync_cli.measures.randomwalk`: ``tau_RW`` and ``Lambda^(RW)`` (Appendix, Eqs. 23-26), exact.
+- :mod:`~antisync_cli.measures.randomwalk`: ``tau_RW`` and ``Lambda^(RW)`` (Appendix,
+  Eqs. 23-26), exact.
 - :mod:`~antisync_cli.measures.linear`: the linearized dynamics, ``tau^(linear)`` and
   ``Lambda^(linear)`` (Eqs. 14-20), over realizations of the initial phases.
 

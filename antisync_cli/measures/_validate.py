@@ -3,13 +3,12 @@
 from __future__ import annotations
 
 import numpy as np
-from scipy.sparse.csgraph import connected_components
 
 from antisync_cli.coupling import COUPLINGS
 
 
 def check_coupling(coupling: str) -> None:
-    """Raise ``ValueError`` unless ``coupling`` is one of :data:`antisync_cli.coupling.COUPLINGS`."""
+    """Raise ``ValueError`` unless ``coupling`` is in :data:`antisync_cli.coupling.COUPLINGS`."""
     if coupling not in COUPLINGS:
         raise ValueError(f"coupling must be one of {COUPLINGS}, got {coupling!r}")
 
@@ -22,20 +21,21 @@ def as_omega(omega, *, symmetric: bool = False, name: str = "omega") -> np.ndarr
     """
     omega = np.asarray(omega, dtype=np.float64)
     if omega.ndim != 2 or omega.shape[0] != omega.shape[1] or omega.shape[0] < 2:
-        raise ValueError(f"{name} must be a square (N, N) matrix with N >= 2, got shape {omega.shape}")
+        raise ValueError(
+            f"{name} must be a square (N, N) matrix with N >= 2, got shape {omega.shape}"
+        )
     if not np.all(np.isfinite(omega)) or np.any(omega < 0):
         raise ValueError(f"{name} must have finite, non-negative weights")
     if np.any(np.diag(omega) != 0):
         raise ValueError(f"{name} must have a zero diagonal (no self-loops)")
-    if symmetric and not np.allclose(omega, omega.T, rtol=1e-12, atol=0.0):
+    if symmetric and np.any(np.abs(omega - omega.T) > 1e-12 * np.abs(omega).max()):
         raise ValueError(
             f"{name} must be symmetric (an undamaged, undirected network); "
             "derivatives at beta=0 are taken around an undirected Omega"
         )
-    n_parts, _ = connected_components(omega > 0, directed=True, connection="strong")
-    if n_parts != 1:
+    if not _strongly_connected(omega > 0):
         raise ValueError(
-            f"{name} describes a disconnected graph ({n_parts} strongly connected components); "
+            f"{name} describes a disconnected graph (not every node reaches every other); "
             "the measures need a connected network"
         )
     return omega
@@ -50,3 +50,17 @@ def check_edge(omega: np.ndarray, a: int, b: int) -> tuple[int, int]:
     if omega[a, b] <= 0:
         raise ValueError(f"there is no link {a}->{b} to damage (Omega[{a}, {b}] = 0)")
     return a, b
+
+
+def _strongly_connected(adj: np.ndarray) -> bool:
+    """Whether every node reaches node 0 and is reached from it (breadth-first, both ways)."""
+    for step in (adj, adj.T):
+        seen = np.zeros(adj.shape[0], dtype=bool)
+        seen[0] = True
+        frontier = seen.copy()
+        while frontier.any():
+            frontier = step[frontier].any(axis=0) & ~seen
+            seen |= frontier
+        if not seen.all():
+            return False
+    return True

@@ -79,7 +79,8 @@ class LinearResult:
         if self.n < 0 or self.n_excluded < 0 or not 0 <= self.n_already_synced <= self.n_excluded:
             raise ValueError(
                 "LinearResult needs n >= 0 and 0 <= n_already_synced <= n_excluded, got "
-                f"n={self.n}, n_excluded={self.n_excluded}, n_already_synced={self.n_already_synced}"
+                f"n={self.n}, n_excluded={self.n_excluded}, "
+                f"n_already_synced={self.n_already_synced}"
             )
 
 
@@ -153,7 +154,7 @@ def tau_linear_euler(
     dt: float = 0.001,
     t_max: float = 200.0,
 ) -> np.ndarray:
-    """Synchronization times of the linear dynamics by explicit Euler, ``theta <- theta - dt L theta``.
+    """Synchronization times of the linear dynamics by explicit Euler: ``theta -= dt L theta``.
 
     Parameters
     ----------
@@ -176,8 +177,9 @@ def tau_linear_euler(
     if not dt > 0:
         raise ValueError(f"dt must be positive, got {dt}")
     out = np.empty(theta0.shape[0])
-    _euler_kernel(laplacian(omega, coupling), theta0, float(threshold), float(dt),
-                  int(round(t_max / dt)), out)
+    _euler_kernel(
+        laplacian(omega, coupling), theta0, float(threshold), float(dt), int(round(t_max / dt)), out
+    )
     return out
 
 
@@ -340,8 +342,9 @@ def _scan(flow: _Flow, theta0: np.ndarray, thr: float, t_max: float, h: float) -
                 if bracket[row, k]:
                     t_cross = _root(flow, grid[row, k], t_k, 0.0, h, thr)
                 else:
-                    t_cross = _refine(flow, grid[row, k], r_l[row, k], grid[row, k + 1],
-                                      r_r[row, k], t_k, h, thr)
+                    t_cross = _refine(
+                        flow, grid[row, k], r_l[row, k], grid[row, k + 1], r_r[row, k], t_k, h, thr
+                    )
                 if t_cross is not None:
                     tau[active[row]] = t_cross if t_cross <= t_max else np.inf
                     done[row] = True
@@ -445,7 +448,9 @@ def _as_theta0(theta0, n: int) -> np.ndarray:
     if theta0.ndim == 1:
         theta0 = theta0[None, :]
     if theta0.ndim != 2 or theta0.shape[1] != n:
-        raise ValueError(f"theta0 must have shape (M, {n}) for this {n}-node network, got {theta0.shape}")
+        raise ValueError(
+            f"theta0 must have shape (M, {n}) for this {n}-node network, got {theta0.shape}"
+        )
     if not np.all(np.isfinite(theta0)):
         raise ValueError("theta0 must be finite")
     return np.ascontiguousarray(theta0)

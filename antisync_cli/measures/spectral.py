@@ -171,7 +171,9 @@ def _symmetrized_spectrum(
         ls = np.diag(strength) - omega
     evals, x = np.linalg.eigh(ls)
     if evals[1] <= 1e-12 * abs(evals[-1]):
-        raise ValueError("xi_2 is zero: the graph is disconnected; the measures need a connected network")
+        raise ValueError(
+            "xi_2 is zero: the graph is disconnected; the measures need a connected network"
+        )
     return evals, x, d
 
 
