@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 import scipy.linalg
 
-from antisync_cli.coupling import coupling_matrix, damaged_omega, laplacian
+from antisync_cli.coupling import coupling_derivative, coupling_matrix, damaged_omega, laplacian
 from antisync_cli.graphs import all_directed_edges, lollipop, omega_matrix
 from antisync_cli.measures import (
     LinearResult,
@@ -336,7 +336,13 @@ def naive_tau(omega, theta0, threshold, coupling, dt_grid, t_max):
 
 
 @pytest.mark.parametrize(
-    "coupling, damage", [("normalized", None), ("normalized", (3, 4, 0.6)), ("raw", (1, 2, 0.5))]
+    "coupling, damage",
+    [
+        ("normalized", None),
+        ("normalized", (3, 4, 0.6)),  # 4->5: eigenvalue 3/2 becomes a Jordan block (Taylor route)
+        ("normalized", (1, 0, 0.6)),  # 2->1: diagonalizable, eigendecomposition route
+        ("raw", (1, 2, 0.5)),
+    ],
 )
 def test_tau_linear_exact_against_fine_grid(lollipop_phases, coupling, damage):
     omega, theta0 = lollipop_phases
@@ -372,13 +378,40 @@ def test_tau_linear_exact_finds_first_crossing_of_nonmonotone_r():
     assert np.sum(fine == 0.0) > 0  # and some start above the threshold: tau = 0
 
 
-def test_tau_linear_expm_route_matches_eig_route(lollipop_phases, monkeypatch):
+def test_flow_routes_agree_with_scipy_expm(lollipop_phases, monkeypatch):
     omega, theta0 = lollipop_phases
-    star = damaged_omega(omega, 4, 5, 0.5)  # non-symmetric: the eig route is used
+    defective = laplacian(damaged_omega(omega, 3, 4, 0.6))
+    assert np.linalg.cond(np.linalg.eig(defective)[1]) > 1e8  # really the Taylor route
+    star = damaged_omega(omega, 4, 5, 0.5)  # non-symmetric but diagonalizable
+    for lap in (defective, laplacian(star)):
+        flow = linear_mod._Flow(lap, symmetric=False, coupling="normalized", omega=None)
+        for s in (0.003, 0.05, 0.7, 4.0):
+            np.testing.assert_allclose(
+                flow.advance(theta0[0], s), scipy.linalg.expm(-s * lap) @ theta0[0], rtol=1e-12
+            )
+        np.testing.assert_allclose(
+            flow.stack(0.05, 40)[-1], scipy.linalg.expm(-2.0 * lap), rtol=1e-11, atol=1e-14
+        )
     tau_eig = tau_linear_exact(star, theta0[:30])
-    monkeypatch.setattr(linear_mod, "_MAX_EIG_COND", 0.0)  # force scipy.linalg.expm
-    tau_expm = tau_linear_exact(star, theta0[:30])
-    np.testing.assert_allclose(tau_expm, tau_eig, rtol=1e-9)
+    monkeypatch.setattr(linear_mod, "_MAX_EIG_COND", 0.0)  # force the Taylor route
+    tau_taylor = tau_linear_exact(star, theta0[:30])
+    np.testing.assert_allclose(tau_taylor, tau_eig, rtol=1e-9)
+
+
+def test_modal_sensitivity_matches_expm_frechet(lollipop_phases):
+    """dtheta/dbeta by Daleckii-Krein (vectorized) against scipy.linalg.expm_frechet."""
+    omega, theta0 = lollipop_phases
+    t = np.linspace(0.5, 30, 20)
+    for coupling in ("normalized", "raw"):
+        lap = laplacian(omega, coupling)
+        for a, b in [(1, 0), (3, 4), (4, 5)]:
+            dw = coupling_derivative(omega, a, b, coupling)
+            dlap = np.diag(dw.sum(axis=1)) - dw
+            args = (omega, lap, dlap, theta0[:20], t, coupling)
+            modal = linear_mod._sensitivity(*args, route="modal")
+            frechet = linear_mod._sensitivity(*args, route="frechet")
+            for x, y in zip(modal, frechet, strict=True):
+                np.testing.assert_allclose(x, y, rtol=1e-9, atol=1e-11)
 
 
 def test_tau_linear_not_reached_by_t_max(lollipop_phases):

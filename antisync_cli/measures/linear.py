@@ -47,6 +47,10 @@ _MIN_INTERVAL = 1e-10
 # Above this condition number of the eigenvector matrix, exp(-tL) comes from scipy's expm.
 _MAX_EIG_COND = 1e8
 _BLOCK = 128
+# Taylor steps of exp(-sL) (the expm route inside a grid interval) satisfy ||s L||_inf <= 0.1;
+# 15 terms then leave a remainder below 0.1^16 / 16! ~ 5e-30.
+_TAYLOR_NORM = 0.1
+_TAYLOR_TERMS = 15
 
 
 @dataclass(frozen=True)
@@ -124,8 +128,9 @@ def tau_linear_exact(
     Notes
     -----
     ``theta(t) = Q exp(-t Xi) Q^-1 theta0`` with the eigendecomposition ``L = Q Xi Q^-1``
-    (complex pairs allowed; the phases are its real part), or ``scipy.linalg.expm`` when ``Q``
-    is ill-conditioned. ``r`` is evaluated on a grid (vectorized over realizations) and the
+    (complex pairs allowed; the phases are its real part), or products of short truncated
+    Taylor series of ``exp(-sL)`` when ``Q`` is ill-conditioned (a nearly defective ``L``).
+    ``r`` is evaluated on a grid (vectorized over realizations) and the
     first grid interval ``[t_k, t_k + h]`` with ``r(t_k) < r <= r(t_k + h)`` is handed to
     ``brentq``. A crossing and recrossing *inside* an interval cannot be missed: with
     ``A1 = max_i |(L theta(t_k))_i|`` and ``A2 = max_i |(L^2 theta(t_k))_i|``, the maximum
@@ -271,7 +276,13 @@ def lambda_linear(
 
 
 class _Flow:
-    """``theta -> exp(-s L) theta`` by eigendecomposition, or by ``expm`` if that is unsafe."""
+    """``theta -> exp(-s L) theta``: eigendecomposition, or Taylor steps where that is unsafe.
+
+    The eigendecomposition route is Eq. (18), ``exp(-sL) = Q exp(-s Xi) Q^-1``. When ``Q`` is
+    ill-conditioned (a nearly defective ``L``, e.g. lollipop(6, 3) damaged on 4->5, whose
+    eigenvalue 3/2 becomes a Jordan block), ``exp(-sL)`` is a product of truncated Taylor
+    series of steps with ``||step L||_inf <= 0.1`` instead (remainder < 0.1^16/16! per step).
+    """
 
     def __init__(self, lap: np.ndarray, *, symmetric: bool, coupling: str, omega: np.ndarray):
         self.lap = lap
@@ -289,20 +300,42 @@ class _Flow:
                 self.xi, self.q, self.qinv = xi, q, np.linalg.inv(q)
             else:
                 self.xi = xi
+                self.lap_norm = float(np.abs(lap).sum(axis=1).max())
+                powers = np.empty((_TAYLOR_TERMS, *lap.shape))
+                powers[0] = np.eye(lap.shape[0])
+                for k in range(1, _TAYLOR_TERMS):
+                    powers[k] = powers[k - 1] @ lap / k  # L^k / k!
+                self.powers = powers.reshape(_TAYLOR_TERMS, -1)
         self.spectral_radius = float(np.max(np.abs(self.xi)))
 
-    def stack(self, times: np.ndarray) -> np.ndarray:
-        """Propagators ``exp(-t L)`` for each ``t`` in ``times``, shape ``(T, N, N)``."""
+    def stack(self, h: float, count: int) -> np.ndarray:
+        """Propagators ``exp(-k h L)`` for ``k = 1..count``, shape ``(count, N, N)``."""
         if self.use_eig:
-            e = np.exp(-np.multiply.outer(times, self.xi))  # (T, N)
+            e = np.exp(-np.multiply.outer(h * np.arange(1, count + 1), self.xi))
             return np.einsum("il,tl,lj->tij", self.q, e, self.qinv).real
-        return scipy.linalg.expm(-np.multiply.outer(times, self.lap))
+        out = np.empty((count, *self.lap.shape))
+        out[0] = self.propagator(h)
+        for k in range(1, count):
+            out[k] = out[0] @ out[k - 1]
+        return out
+
+    def propagator(self, s: float) -> np.ndarray:
+        """``exp(-s L)`` as a product of Taylor steps (the route for an ill-conditioned ``Q``)."""
+        n_sub = max(1, int(np.ceil(s * self.lap_norm / _TAYLOR_NORM)))
+        step = s / n_sub
+        prop = ((-step) ** np.arange(_TAYLOR_TERMS) @ self.powers).reshape(self.lap.shape)
+        return np.linalg.matrix_power(prop, n_sub)
 
     def advance(self, theta: np.ndarray, s: float) -> np.ndarray:
         """``exp(-s L) theta`` for one state ``theta`` of shape ``(N,)``."""
         if self.use_eig:
             return (self.q @ (np.exp(-s * self.xi) * (self.qinv @ theta))).real
-        return scipy.linalg.expm(-s * self.lap) @ theta
+        return self.propagator(s) @ theta
+
+
+def _r1(theta: np.ndarray) -> float:
+    """Order parameter of one state, without the overhead of :func:`order_parameter`."""
+    return abs(np.exp(1j * theta).sum()) / theta.size
 
 
 def _upper_bound(r_l, r_r, a1, a2, h):
@@ -320,15 +353,16 @@ def _scan(flow: _Flow, theta0: np.ndarray, thr: float, t_max: float, h: float) -
     tau = np.full(theta0.shape[0], np.inf)
     tau[r0 >= thr] = 0.0
     active = np.flatnonzero(r0 < thr)
-    props = flow.stack(h * np.arange(1, _BLOCK + 1))  # (B, N, N)
+    props = flow.stack(h, _BLOCK)  # (B, N, N)
     theta = theta0[active]
     t_start = 0.0
     while active.size and t_start < t_max:
         block = np.einsum("bij,mj->mbi", props, theta)
         grid = np.concatenate([theta[:, None, :], block], axis=1)  # (m, B+1, N)
         r = order_parameter(grid)
-        a1 = np.abs(grid @ flow.lap.T).max(axis=-1)
-        a2 = np.abs(grid @ flow.lap2.T).max(axis=-1)
+        # einsum, not matmul: a tall-skinny BLAS call would be threaded for no gain
+        a1 = np.abs(np.einsum("mbj,ij->mbi", grid, flow.lap)).max(axis=-1)
+        a2 = np.abs(np.einsum("mbj,ij->mbi", grid, flow.lap2)).max(axis=-1)
         r_l, r_r = r[:, :-1], r[:, 1:]
         bracket = r_r >= thr
         suspect = ~bracket & (_upper_bound(r_l, r_r, a1[:, :-1], a2[:, :-1], h) >= thr)
@@ -358,7 +392,7 @@ def _root(flow, theta_k, t_k, s_lo, s_hi, thr):
     """``t_k + s`` with ``r(exp(-s L) theta_k) = thr`` for ``s`` in ``[s_lo, s_hi]`` (a bracket)."""
 
     def f(s):
-        return order_parameter(flow.advance(theta_k, s)) - thr
+        return _r1(flow.advance(theta_k, s)) - thr
 
     return t_k + brentq(f, s_lo, s_hi, xtol=1e-13, rtol=4 * np.finfo(float).eps)
 
@@ -371,7 +405,7 @@ def _refine(flow, th_l, r_l, th_r, r_r, t_k, h, thr):
         s_l, s_r, th_a, r_a, th_b, r_b = stack.pop()
         s_m = 0.5 * (s_l + s_r)
         th_m = flow.advance(th_a, s_m - s_l)
-        r_m = float(order_parameter(th_m))
+        r_m = _r1(th_m)
         if r_m >= thr:
             return _root(flow, th_a, t_k + s_l, 0.0, s_m - s_l, thr)
         if s_r - s_l <= 2 * _MIN_INTERVAL:
@@ -395,19 +429,51 @@ def _lambda_derivative(omega, a, b, theta0, tau0, coupling):
     dw = coupling_derivative(omega, a, b, coupling)
     dlap = np.diag(dw.sum(axis=1)) - dw
     out = np.full(tau0.shape, np.nan)
-    for m in np.flatnonzero(np.isfinite(tau0) & (tau0 > 0)):
-        t = tau0[m]
-        expm_tl, frechet = scipy.linalg.expm_frechet(-t * lap, -t * dlap)
-        theta = expm_tl @ theta0[m]
-        e = np.exp(1j * theta)
-        z = e.mean()
-        dz_dt = np.mean(1j * (-lap @ theta) * e)
-        dz_db = np.mean(1j * (frechet @ theta0[m]) * e)
-        dr_dt = (np.conj(z) * dz_dt).real
-        dr_db = (np.conj(z) * dz_db).real
-        if dr_dt > 0:
-            out[m] = (dr_db / dr_dt) / t  # -tau'/tau0 with tau' = -dr_db/dr_dt (|z| cancels)
+    ok = np.flatnonzero(np.isfinite(tau0) & (tau0 > 0))
+    if ok.size == 0:
+        return out
+    route = "modal" if np.array_equal(omega, omega.T) else "frechet"
+    theta, dtheta_db = _sensitivity(omega, lap, dlap, theta0[ok], tau0[ok], coupling, route)
+    e = np.exp(1j * theta)
+    z = e.mean(axis=1)
+    dz_dt = np.mean(1j * (-theta @ lap.T) * e, axis=1)
+    dz_db = np.mean(1j * dtheta_db * e, axis=1)
+    dr_dt = (np.conj(z) * dz_dt).real  # both times |z|, which cancels in the ratio
+    dr_db = (np.conj(z) * dz_db).real
+    with np.errstate(divide="ignore", invalid="ignore"):
+        # -tau'/tau0 with tau' = -dr_db/dr_dt; a tangential crossing (dr/dt = 0) stays nan
+        out[ok] = np.where(dr_dt > 0, dr_db / dr_dt / tau0[ok], np.nan)
     return out
+
+
+def _sensitivity(omega, lap, dlap, theta0, t, coupling, route="modal"):
+    """``theta(t)`` and ``dtheta(t)/dbeta = D exp(-t L)[-t dL] theta0`` for each realization.
+
+    ``route="modal"`` (symmetric ``omega``): Daleckii-Krein, ``Q (G o (Q^-1 dL Q)) Q^-1`` with
+    ``G_ij`` the divided difference of ``x -> exp(-t x)`` at ``xi_i, xi_j``, vectorized over
+    realizations. ``route="frechet"``: ``scipy.linalg.expm_frechet`` per realization.
+    """
+    if route == "frechet":
+        theta = np.empty_like(theta0)
+        dtheta = np.empty_like(theta0)
+        for m, (tm, th0) in enumerate(zip(t, theta0, strict=True)):
+            expm_tl, frechet = scipy.linalg.expm_frechet(-tm * lap, -tm * dlap)
+            theta[m], dtheta[m] = expm_tl @ th0, frechet @ th0
+        return theta, dtheta
+    d = np.sqrt(omega.sum(axis=1)) if coupling == "normalized" else np.ones(len(lap))
+    xi, x = np.linalg.eigh(d[:, None] * lap / d[None, :])
+    q, qinv = x / d[:, None], x.T * d[None, :]
+    c = theta0 @ qinv.T  # modal coordinates, (M, N)
+    decay = np.exp(-np.multiply.outer(t, xi))  # (M, N)
+    # G_ij = (e^{-t xi_i} - e^{-t xi_j}) / (xi_i - xi_j) = -t e^{-t xi_j} expm1(y)/y,
+    # y = -t (xi_i - xi_j): no cancellation for close eigenvalues, -t e^{-t xi} when equal
+    y = -t[:, None, None] * (xi[:, None] - xi[None, :])
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ratio = np.where(y == 0, 1.0, np.expm1(y) / y)
+    g = -t[:, None, None] * decay[:, None, :] * ratio
+    theta = (decay * c) @ q.T
+    dtheta = np.einsum("il,mlk,mk->mi", q, g * (qinv @ dlap @ q), c)
+    return theta, dtheta
 
 
 # --- Euler ---------------------------------------------------------------------------------
