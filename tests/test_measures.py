@@ -241,7 +241,7 @@ def test_lambda_xi2_path4_hand_derivation():
     expected = {(0, 1): 0.0, (1, 0): 0.25, (1, 2): -0.25, (2, 1): -0.25, (2, 3): 0.25, (3, 2): 0.0}
     for (a, b), value in expected.items():
         assert lambda_xi2(omega, a, b) == pytest.approx(value, abs=1e-12)
-    # confirmation only: a central difference of Eq. (21)
+    # confirmation only: a central difference of Eq. (15)
     h = 1e-6
     fd = (xi2(scaled(omega, 1, 0, 1 - h)) - xi2(scaled(omega, 1, 0, 1 + h))) / (2 * h) / 0.5
     assert fd == pytest.approx(0.25, abs=1e-8)

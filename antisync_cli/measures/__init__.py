@@ -1,10 +1,14 @@
 """Non-simulation response measures: Lambda^(xi2), Lambda^(RW) and Lambda^(linear).
 
-- :mod:`~antisync_cli.measures.spectral`: ``xi2`` and ``Lambda^(xi2)`` (Eqs. 21-22), exact.
+- :mod:`~antisync_cli.measures.spectral`: ``xi2`` and ``Lambda^(xi2)`` (Eqs. 15-16), exact.
 - :mod:`~antisync_cli.measures.randomwalk`: ``tau_RW`` and ``Lambda^(RW)`` (Appendix,
-  Eqs. 23-26), exact.
+  Eqs. 23-25), exact.
 - :mod:`~antisync_cli.measures.linear`: the linearized dynamics, ``tau^(linear)`` and
-  ``Lambda^(linear)`` (Eqs. 14-20), over realizations of the initial phases.
+  ``Lambda^(linear)`` (Eqs. 7-14), over realizations of the initial phases.
+
+Equation numbers count the numbered equations of the paper's LaTeX source in order
+(Eq. 1: ``w_ij``, Eq. 3: ``r(t)``, Eq. 9: ``dtheta/dt = -L theta``, Eq. 16: ``Lambda^(xi2)``,
+Eq. 20: the raw-coupling model, Eq. 23: ``tau_j(0)``).
 
 All functions take the dense weight matrix ``Omega`` and 0-based node indices; damage on
 ``a -> b`` follows :mod:`antisync_cli.coupling`.

@@ -1,13 +1,13 @@
-"""The linearized Kuramoto dynamics and Lambda^(linear): Eqs. (14)-(20) of the paper.
+"""The linearized Kuramoto dynamics and Lambda^(linear): Eqs. (7)-(14) of the paper.
 
-The phases follow ``dtheta/dt = -L theta`` (Eq. 16) with ``L = diag(W 1) - W`` (Eq. 15 for
+The phases follow ``dtheta/dt = -L theta`` (Eq. 9) with ``L = diag(W 1) - W`` (Eq. 8 for
 normalized coupling), starting from raw phases ``theta0`` in ``[0, 2 pi)`` that are never
 wrapped. ``tau^(linear)`` is the first time the order parameter ``r(t) = |mean_j exp(i
-theta_j)|`` (Eq. 3) reaches the threshold; ``F^(linear)_beta = tau_0 / tau(beta)`` (Eq. 19)
-and ``Lambda^(linear)`` is the derivative of its mean at ``beta = 0`` (Eq. 20).
+theta_j)|`` (Eq. 3) reaches the threshold; ``F^(linear)_beta = tau_0 / tau(beta)`` (Eq. 13)
+and ``Lambda^(linear)`` is the derivative of its mean at ``beta = 0`` (Eq. 14).
 
 Two independent routes give ``tau``: :func:`tau_linear_exact` uses the exact solution
-``theta(t) = exp(-t L) theta0`` (Eqs. 17-18) and root finding, :func:`tau_linear_euler` the
+``theta(t) = exp(-t L) theta0`` (Eqs. 10-12) and root finding, :func:`tau_linear_euler` the
 explicit Euler scheme with the discrete convention of the Kuramoto kernels.
 
 A fact used throughout: ``-L`` has non-negative off-diagonal entries and zero row sums, so
@@ -55,7 +55,7 @@ _TAYLOR_TERMS = 15
 
 @dataclass(frozen=True)
 class LinearResult:
-    """``Lambda^(linear)`` estimated over realizations of the initial phases (Eq. 20).
+    """``Lambda^(linear)`` estimated over realizations of the initial phases (Eq. 14).
 
     Attributes
     ----------
@@ -103,7 +103,7 @@ def tau_linear_exact(
     *,
     grid_dt: float | None = None,
 ) -> np.ndarray:
-    """Synchronization times of the linear dynamics from its exact solution, Eqs. (16)-(18).
+    """Synchronization times of the linear dynamics from its exact solution, Eqs. (9)-(12).
 
     Parameters
     ----------
@@ -201,7 +201,7 @@ def lambda_linear(
     dt: float = 0.001,
     t_max: float = 200.0,
 ) -> LinearResult:
-    """``Lambda^(linear)`` of the directed link ``a -> b``, Eq. (20) of the paper.
+    """``Lambda^(linear)`` of the directed link ``a -> b``, Eq. (14) of the paper.
 
     Parameters
     ----------
@@ -215,8 +215,8 @@ def lambda_linear(
         Synchronization threshold ``r``.
     coupling : {"normalized", "raw"}
     dbeta : float
-        Damage of the finite difference ``(<tau_0 / tau(dbeta)> - 1) / dbeta`` (Eq. 20
-        evaluated numerically, as the paper's Eq. (29) does for the Kuramoto model).
+        Damage of the finite difference ``(<tau_0 / tau(dbeta)> - 1) / dbeta`` (Eq. 14
+        evaluated numerically: the paper's Eq. 18, with ``dbeta = 0.01``).
     method : {"exact", "euler", "derivative"}
         ``"exact"``: both times from :func:`tau_linear_exact`; ``"euler"``: both from
         :func:`tau_linear_euler` with step ``dt``; ``"derivative"``: no finite difference but the
@@ -235,8 +235,11 @@ def lambda_linear(
     -----
     For ``method="derivative"``: ``dtau/dbeta = -(dr/dbeta) / (dr/dt)`` at ``t = tau_0``, with
     ``dtheta/dt = -L theta`` and ``dtheta/dbeta = D exp(-t L)[-t dL] theta0`` the Frechet
-    derivative of the matrix exponential (``scipy.linalg.expm_frechet``), ``dL = dL/dbeta``;
-    ``dr = Re(conj(z) dz) / r`` with ``dz = mean_j(i dtheta_j exp(i theta_j))``.
+    derivative of the matrix exponential, ``dL = dL/dbeta``; ``dr = Re(conj(z) dz) / r`` with
+    ``dz = mean_j(i dtheta_j exp(i theta_j))``. For symmetric ``omega`` the Frechet derivative
+    is evaluated in the eigenbasis (Daleckii-Krein, vectorized over realizations), otherwise by
+    ``scipy.linalg.expm_frechet``. This is the derivative of the mean; the finite difference
+    also sees rare jumps of ``tau`` where ``r`` touches the threshold tangentially.
     """
     check_coupling(coupling)
     if method not in LINEAR_METHODS:
@@ -278,7 +281,7 @@ def lambda_linear(
 class _Flow:
     """``theta -> exp(-s L) theta``: eigendecomposition, or Taylor steps where that is unsafe.
 
-    The eigendecomposition route is Eq. (18), ``exp(-sL) = Q exp(-s Xi) Q^-1``. When ``Q`` is
+    The eigendecomposition route is Eq. (11), ``exp(-sL) = Q exp(-s Xi) Q^-1``. When ``Q`` is
     ill-conditioned (a nearly defective ``L``, e.g. lollipop(6, 3) damaged on 4->5, whose
     eigenvalue 3/2 becomes a Jordan block), ``exp(-sL)`` is a product of truncated Taylor
     series of steps with ``||step L||_inf <= 0.1`` instead (remainder < 0.1^16/16! per step).

@@ -1,4 +1,4 @@
-"""The random-walk measure Lambda^(RW) of the paper's Appendix (Eqs. 23-26).
+"""The random-walk measure Lambda^(RW) of the paper's Appendix (Eqs. 23-25).
 
 A walker hops with the transition matrix ``W(Omega)`` (always normalized, Eq. 1). Its global
 time is ``tau_RW = (1/N) sum_j tau_j(0)`` with ``tau_j(0)`` the spectral sum of Eq. (23).

@@ -1,8 +1,8 @@
-"""The spectral measure Lambda^(xi2): Eqs. (21)-(22) of the paper.
+"""The spectral measure Lambda^(xi2): Eqs. (15)-(16) of the paper.
 
 ``xi2`` is the eigenvalue of the Laplacian ``L = diag(W 1) - W`` with the smallest nonzero real
-part; ``F^(xi2)_beta = Re xi2(L(Omega*)) / xi2(L(Omega))`` (Eq. 21) and ``Lambda^(xi2)`` is its
-derivative at ``beta = 0`` (Eq. 22), computed here exactly by first-order eigenvalue
+part; ``F^(xi2)_beta = Re xi2(L(Omega*)) / xi2(L(Omega))`` (Eq. 15) and ``Lambda^(xi2)`` is its
+derivative at ``beta = 0`` (Eq. 16), computed here exactly by first-order eigenvalue
 perturbation rather than by a finite difference.
 
 At ``beta = 0`` ``Omega`` is symmetric, so ``L`` is similar to a symmetric matrix:
@@ -33,7 +33,7 @@ def xi2(omega: np.ndarray, coupling: Coupling = "normalized") -> float:
     omega : ndarray, shape (N, N)
         Weights of a connected network; may be asymmetric (a damaged ``Omega*``).
     coupling : {"normalized", "raw"}
-        ``W = S^-1 Omega`` (Eq. 1) or ``W = Omega`` (Eq. 27).
+        ``W = S^-1 Omega`` (Eq. 1) or ``W = Omega`` (the model of Eq. 20).
 
     Returns
     -------
@@ -59,7 +59,7 @@ def xi2(omega: np.ndarray, coupling: Coupling = "normalized") -> float:
 def f_xi2(
     omega: np.ndarray, a: int, b: int, beta: float, coupling: Coupling = "normalized"
 ) -> float:
-    """Functionality ``F^(xi2)_beta = Re xi2(Omega*) / xi2(Omega)``, Eq. (21) of the paper.
+    """Functionality ``F^(xi2)_beta = Re xi2(Omega*) / xi2(Omega)``, Eq. (15) of the paper.
 
     Parameters
     ----------
@@ -83,7 +83,7 @@ def lambda_xi2(
     coupling: Coupling = "normalized",
     degeneracy_rtol: float = DEGENERACY_RTOL,
 ) -> float:
-    """Exact ``Lambda^(xi2) = dF^(xi2)_beta / dbeta`` at ``beta = 0``, Eq. (22) of the paper.
+    """Exact ``Lambda^(xi2) = dF^(xi2)_beta / dbeta`` at ``beta = 0``, Eq. (16) of the paper.
 
     Parameters
     ----------
@@ -110,7 +110,7 @@ def lambda_xi2_all(
     coupling: Coupling = "normalized",
     degeneracy_rtol: float = DEGENERACY_RTOL,
 ) -> np.ndarray:
-    """``Lambda^(xi2)`` (Eq. 22) for many directed edges of one network, from one eigensolve.
+    """``Lambda^(xi2)`` (Eq. 16) for many directed edges of one network, from one eigensolve.
 
     Parameters
     ----------
