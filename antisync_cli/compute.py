@@ -11,8 +11,11 @@ import numpy as np
 
 from antisync_cli import estimators
 from antisync_cli.jobs import Chunk, Job
+from antisync_cli.status import Status
 
-__all__ = ["ChunkResult", "compute_chunk", "simulate_job"]
+__all__ = ["ChunkResult", "compute_chunk", "lambda_values", "simulate_job"]
+
+_SYNCED = int(Status.SYNCED)
 
 
 @dataclass
@@ -24,6 +27,7 @@ class ChunkResult:
     rec, rec0 : block records (see :func:`antisync_cli.estimators.block_records`)
     tail : int64 (V, TAIL_BINS)
     hist : int64 (len(job.hist_variants), bins, bins)
+    lam_rec, lam_tail : Lambda block records and |Lambda| tail counts per edge
     kept : dict of arrays or None
         Per-realization steps and status for realizations below ``keep_pairs``.
     """
@@ -33,6 +37,8 @@ class ChunkResult:
     rec0: np.ndarray
     tail: np.ndarray
     hist: np.ndarray
+    lam_rec: np.ndarray
+    lam_tail: np.ndarray
     kept: dict | None
     first: int
     count: int
@@ -40,28 +46,89 @@ class ChunkResult:
     backend: str
 
 
-def simulate_job(job: Job, first: int, count: int, backend: str = "cpu", threads: int | None = None):
-    """Integrate realizations ``first .. first+count-1`` of ``job`` on ``backend``."""
-    dyn = job.config.dynamics
+def _kernel(backend: str):
     if backend == "cuda":
-        from antisync_cli.kernels.cuda import simulate
+        from antisync_cli.kernels import cuda as kernel
     else:
-        from antisync_cli.kernels.cpu import simulate
+        from antisync_cli.kernels import cpu as kernel
+    return kernel
+
+
+def simulate_job(job: Job, first: int, count: int, backend: str = "cpu", threads: int | None = None,
+                 variant_weights: np.ndarray | None = None, realizations: np.ndarray | None = None):
+    """Integrate realizations ``first .. first+count-1`` (or ``realizations``) of ``job``."""
+    dyn = job.config.dynamics
     kwargs = {"threads": threads} if backend != "cuda" else {}
-    return simulate(
-        job.config.seed, first, count, job.csr.indptr, job.csr.indices, job.csr.weights,
-        job.variant_weights, dt=dyn.dt, threshold=dyn.threshold, max_steps=dyn.max_steps,
-        **kwargs,
+    if realizations is not None:
+        kwargs["realizations"] = realizations
+    weights = job.variant_weights if variant_weights is None else variant_weights
+    return _kernel(backend).simulate(
+        job.config.seed, first, count, job.csr.indptr, job.csr.indices, job.csr.weights, weights,
+        dt=dyn.dt, threshold=dyn.threshold, max_steps=dyn.max_steps, **kwargs,
     )
+
+
+def lambda_values(job: Job, sim, first: int, count: int, threads: int | None = None):
+    """Per-realization Lambda^KM estimates for every edge of ``job`` by ``lambda.method``.
+
+    Returns ``(values, code, flagged, base)`` with ``values``/``code``/``flagged`` of shape
+    ``(count, E)`` (see :func:`antisync_cli.estimators.lambda_block_records`) and ``base`` the
+    undamaged outcome when the pathwise kernel produced it (else None).
+    """
+    spec = job.config.lambda_
+    dyn = job.config.dynamics
+    n_edges = len(job.edges)
+    if spec.method == "finite-difference":
+        v = np.array([job.variant(e, job.dbeta) for e in range(n_edges)], dtype=np.int64)
+        steps = sim.steps[:, v]
+        ok = (sim.status0[:, None] == _SYNCED) & (sim.status[:, v] == _SYNCED)
+        code = np.where(ok, _SYNCED, np.maximum(sim.status0[:, None], sim.status[:, v])).astype(np.int8)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            values = np.where(ok, (sim.steps0[:, None] / np.where(ok, steps, 1) - 1.0) / job.dbeta, 0.0)
+        return values, code, np.zeros_like(ok), None
+
+    from antisync_cli.kernels.cpu import simulate_pathwise
+
+    edge_a, edge_b, rho, mu = job.tangent
+    pw = simulate_pathwise(job.config.seed, first, count, job.csr.indptr, job.csr.indices,
+                           job.csr.weights, edge_a, edge_b, rho, mu, dt=dyn.dt,
+                           threshold=dyn.threshold, max_steps=dyn.max_steps, threads=threads)
+    tau0 = (pw.steps0 - 1 + pw.frac0) * dyn.dt
+    ok0 = pw.status0 == _SYNCED
+    values = np.where(ok0[:, None], -pw.dtau / np.where(ok0, tau0, 1.0)[:, None], 0.0)
+    code = np.repeat(pw.status0[:, None], n_edges, axis=1).astype(np.int8)
+    flagged = np.zeros((count, n_edges), dtype=bool)
+    if spec.method == "hybrid":
+        flagged = ok0[:, None] & (np.abs(values) > spec.hybrid_cut)
+        for e in np.flatnonzero(flagged.any(axis=0)):
+            rows = np.flatnonzero(flagged[:, e])
+            sec = simulate_job(job, 0, 0, "cpu", threads, job.secant_weights[e : e + 1],
+                               realizations=first + rows)
+            tau = (sec.steps[:, 0] - 1 + sec.frac[:, 0]) * dyn.dt
+            good = sec.status[:, 0] == _SYNCED
+            values[rows[good], e] = (tau0[rows[good]] / tau[good] - 1.0) / job.dbeta
+            code[rows[~good], e] = sec.status[~good, 0]
+    return values, code, flagged, pw
 
 
 def compute_chunk(job: Job, chunk: Chunk, backend: str = "cpu", threads: int | None = None) -> ChunkResult:
     """Integrate and reduce one chunk (pure: no files, no progress bars)."""
     start = time.perf_counter()
     first, count = chunk.realizations(job.block_size, job.config.realizations)
-    sim = simulate_job(job, first, count, backend, threads)
+    derivative = job.config.lambda_.method != "finite-difference"
+    if derivative and len(job.variant_edge) == 0:
+        sim = None  # Lambda only: the pathwise pass integrates the undamaged network itself
+    else:
+        sim = simulate_job(job, first, count, backend, threads)
+    values, code, flagged, base = lambda_values(job, sim, first, count, threads)
+    if sim is None:
+        from antisync_cli.kernels.cpu import SimResult
+
+        empty = np.empty((count, 0))
+        sim = SimResult(base.status0, base.steps0, empty.astype(np.int8), empty.astype(np.int64))
     dt = job.config.dynamics.dt
     rec, rec0, tail = estimators.block_records(sim, dt, job.block_size)
+    lam_rec, lam_tail = estimators.lambda_block_records(values, code, flagged, job.block_size)
     hcfg = job.config.histogram
     hist = estimators.histogram2d(sim, job.hist_variants, dt, hcfg.bins, hcfg.tau_max)
     keep = max(0, min(job.config.keep_pairs - first, count))
@@ -72,6 +139,7 @@ def compute_chunk(job: Job, chunk: Chunk, backend: str = "cpu", threads: int | N
             "steps0": sim.steps0[:keep].copy(),
             "status": sim.status[:keep].copy(),
             "steps": sim.steps[:keep].copy(),
+            "lambda": values[:keep].copy(),
         }
-    return ChunkResult(chunk, rec, rec0, tail, hist, kept, first, count,
+    return ChunkResult(chunk, rec, rec0, tail, hist, lam_rec, lam_tail, kept, first, count,
                        time.perf_counter() - start, backend)

@@ -46,7 +46,7 @@ __all__ = [
 BACKENDS = ("cpu", "cuda", "auto")
 EXECUTORS = ("local", "dask")
 INTEGRATORS = ("euler",)
-LAMBDA_METHODS = ("finite-difference",)
+LAMBDA_METHODS = ("finite-difference", "pathwise", "hybrid")
 MEASURES = ("km",)
 
 _GRAPH_KEYS = {
@@ -85,15 +85,25 @@ class Dynamics:
 
 @dataclass(frozen=True)
 class LambdaSpec:
-    """How Lambda^KM = d<F_beta>/dbeta at beta = 0 is estimated (Eqs. 7, 13)."""
+    """How Lambda^KM = d<F_beta>/dbeta at beta = 0 is estimated (Eqs. 6, 13).
+
+    - ``finite-difference``: the paper's ``(tau0/tau(dbeta) - 1)/dbeta`` per realization
+      (grid crossing times), one damaged trajectory per edge.
+    - ``pathwise``: ``-tau0'/tau0`` per realization from the forward sensitivities of the
+      undamaged trajectory (interpolated crossing), every edge from one trajectory.
+    - ``hybrid``: pathwise, except where ``|-tau0'/tau0| > hybrid_cut`` (trajectories near saddle
+      states): there the secant ``(tau0/tau(dbeta) - 1)/dbeta`` of interpolated times.
+    """
 
     method: str = "finite-difference"
     dbeta: float = 0.01
+    hybrid_cut: float = 2.0
 
     def __post_init__(self):
         _choice("lambda.method", self.method, LAMBDA_METHODS)
         if not 0.0 < self.dbeta < 1.0:
             raise ConfigError(f"lambda.dbeta must be in (0, 1), got {self.dbeta}")
+        _positive("lambda.hybrid_cut", self.hybrid_cut)
 
 
 @dataclass(frozen=True)

@@ -29,6 +29,7 @@ __all__ = [
     "coupling_matrix",
     "damaged_omega",
     "laplacian",
+    "tangent_coefficients",
     "to_csr",
     "variant_weights",
 ]
@@ -168,3 +169,19 @@ def variant_weights(
         w = coupling_matrix(damaged_omega(omega, a, b, beta), coupling)
         out[v] = to_csr(w, pattern=mask).weights
     return out
+
+
+def tangent_coefficients(omega: np.ndarray, edges: list[tuple[int, int]], coupling: str):
+    """``(edge_a, edge_b, rho, mu)`` with ``dw_aj/dbeta = rho w_aj + mu [j = b]`` at beta = 0.
+
+    Normalized coupling: ``rho = Omega_ab / S_a``, ``mu = -Omega_ab / S_a``; raw coupling:
+    ``rho = 0``, ``mu = -Omega_ab``. (Checked against
+    :func:`coupling_derivative` in the tests.)
+    """
+    a = np.array([e[0] for e in edges], dtype=np.int64)
+    b = np.array([e[1] for e in edges], dtype=np.int64)
+    wab = omega[a, b]
+    if coupling == "raw":
+        return a, b, np.zeros(len(edges)), -wab
+    strength = omega.sum(axis=1)[a]
+    return a, b, wab / strength, -wab / strength

@@ -24,13 +24,16 @@ from antisync_cli.status import Status
 
 __all__ = [
     "BLOCK_FIELDS",
+    "LAMBDA_FIELDS",
     "TAIL_BINS",
     "TAU0_FIELDS",
     "Estimate",
     "block_records",
     "estimate_mean",
     "histogram2d",
+    "lambda_block_records",
     "summarize_variant",
+    "summarize_lambda",
     "summarize_tau0",
     "tail_share",
 ]
@@ -39,6 +42,8 @@ __all__ = [
 BLOCK_FIELDS = ("n", "n_already", "n_not_synced", "sum_d", "sum_d2", "sum_tau", "sum_tau2")
 # per block record for the undamaged network
 TAU0_FIELDS = ("n", "n_already", "n_not_synced", "sum_tau", "sum_tau2")
+# per (block, edge) record of the per-realization Lambda values of any estimator
+LAMBDA_FIELDS = ("n", "n_already", "n_not_synced", "sum", "sum2", "n_flagged")
 # log-spaced bins of |F - 1| for the tail diagnostic: 8 per decade from 1e-9 to 1e3
 TAIL_EDGES = np.logspace(-9, 3, 97)
 TAIL_BINS = TAIL_EDGES.size + 1  # plus underflow (|d| < 1e-9, including 0) and overflow
@@ -111,6 +116,61 @@ def block_records(sim, dt: float, block: int):
     _reduce_blocks(sim.status0, sim.steps0, sim.status, sim.steps, dt, block, TAIL_EDGES,
                    rec, rec0, tail)
     return rec, rec0, tail
+
+
+@njit(cache=True)
+def _reduce_lambda(values, code, flagged, block, edges, rec, tail):
+    m, n_edges = values.shape
+    for bl in range(rec.shape[0]):
+        for r in range(bl * block, min(bl * block + block, m)):
+            for e in range(n_edges):
+                if code[r, e] == _SYNCED:
+                    x = values[r, e]
+                    rec[bl, e, 0] += 1
+                    rec[bl, e, 3] += x
+                    rec[bl, e, 4] += x * x
+                    rec[bl, e, 5] += flagged[r, e]
+                    tail[e, np.searchsorted(edges, abs(x), side="right")] += 1
+                elif code[r, e] == _ALREADY:
+                    rec[bl, e, 1] += 1
+                else:
+                    rec[bl, e, 2] += 1
+
+
+def lambda_block_records(values: np.ndarray, code: np.ndarray, flagged: np.ndarray, block: int):
+    """Block records of per-realization Lambda values (any estimator).
+
+    Parameters
+    ----------
+    values : float array (m, E)
+        Per-realization estimates of Lambda for each edge (used where ``code`` is SYNCED).
+    code : int8 array (m, E)
+        :class:`~antisync_cli.status.Status` of the realization for that edge: SYNCED when every
+        time it needs was finite and positive.
+    flagged : bool array (m, E)
+        Realizations the hybrid estimator treated by a secant (counted).
+
+    Returns
+    -------
+    rec : ndarray (n_blocks, E, len(LAMBDA_FIELDS)); tail : int64 (E, TAIL_BINS) of ``|value|``.
+    """
+    m, n_edges = values.shape
+    rec = np.zeros((-(-m // block), n_edges, len(LAMBDA_FIELDS)))
+    tail = np.zeros((n_edges, TAIL_BINS), dtype=np.int64)
+    _reduce_lambda(values, code, flagged.astype(np.int64), block, TAIL_EDGES, rec, tail)
+    return rec, tail
+
+
+def summarize_lambda(rec_e: np.ndarray) -> dict:
+    """Lambda estimate for one edge from its block records ``(n_blocks, len(LAMBDA_FIELDS))``."""
+    b = _coarsen(rec_e)
+    return {
+        "lambda": estimate_mean(b[:, 0], b[:, 3], b[:, 4]),
+        "n": int(rec_e[:, 0].sum()),
+        "n_already": int(rec_e[:, 1].sum()),
+        "n_not_synced": int(rec_e[:, 2].sum()),
+        "n_flagged": int(rec_e[:, 5].sum()),
+    }
 
 
 def histogram2d(sim, variants: np.ndarray, dt: float, bins: int, tau_max: float) -> np.ndarray:

@@ -53,6 +53,10 @@ class Job:
         Edge index and damage of each integrated variant.
     csr : CouplingCSR
         ``W(Omega)``; ``variant_weights[v]`` is ``W(Omega*)`` of variant ``v`` on its pattern.
+    tangent : tuple of arrays
+        ``(edge_a, edge_b, rho, mu)`` per edge for the pathwise kernel.
+    secant_weights : ndarray (E, nnz)
+        ``W(Omega*)`` at ``dbeta`` for each edge (hybrid secants).
     """
 
     config: Config
@@ -68,6 +72,8 @@ class Job:
     variant_beta: np.ndarray
     csr: coupling.CouplingCSR
     variant_weights: np.ndarray
+    tangent: tuple
+    secant_weights: np.ndarray
 
     @property
     def block_size(self) -> int:
@@ -121,7 +127,8 @@ def make_job(config: Config, graph: nx.Graph | None = None, name: str | None = N
                 raise ConfigError(f"edge {text!r} is listed twice")
             edges.append(e)
     dbeta = config.lambda_.dbeta
-    grid = sorted(set(config.betas) | {dbeta})
+    fd = config.lambda_.method == "finite-difference"
+    grid = sorted(set(config.betas) | ({dbeta} if fd else set()))
     variant_edge = np.repeat(np.arange(len(edges)), len(grid))
     variant_beta = np.tile(np.array(grid, dtype=np.float64), len(edges))
     w = coupling.coupling_matrix(omega, config.dynamics.coupling)
@@ -131,6 +138,10 @@ def make_job(config: Config, graph: nx.Graph | None = None, name: str | None = N
         for e, b in zip(variant_edge, variant_beta, strict=True)
     ]
     vw = coupling.variant_weights(omega, csr, damages, config.dynamics.coupling)
+    edge_idx = [(index[a], index[b]) for a, b in edges]
+    secant = coupling.variant_weights(
+        omega, csr, [(a, b, float(dbeta)) for a, b in edge_idx], config.dynamics.coupling
+    )
     return Job(
         config=config.resolved(),
         name=name or graph.graph.get("name") or graph_name(config.graph),
@@ -145,4 +156,6 @@ def make_job(config: Config, graph: nx.Graph | None = None, name: str | None = N
         variant_beta=variant_beta,
         csr=csr,
         variant_weights=vw,
+        tangent=coupling.tangent_coefficients(omega, edge_idx, config.dynamics.coupling),
+        secant_weights=secant,
     )

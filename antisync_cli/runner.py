@@ -13,6 +13,7 @@ from pathlib import Path
 
 from antisync_cli.backends import resolve_backend
 from antisync_cli.config import Config
+from antisync_cli.errors import AntisyncError
 from antisync_cli.jobs import Job, make_job
 from antisync_cli.store import JobState, ResultStore, command_line, git_revision
 
@@ -58,6 +59,11 @@ def run_jobs(
     say = log or (lambda msg: None)
     store = ResultStore(output or config.output)
     backend, note = resolve_backend(config.backend)
+    if backend == "cuda" and config.lambda_.method != "finite-difference":
+        raise AntisyncError(
+            f"lambda.method {config.lambda_.method} runs on the cpu backend only; "
+            "use --backend cpu or lambda.method finite-difference"
+        )
     if executor is None:
         from antisync_cli.executors.local import LocalExecutor
 

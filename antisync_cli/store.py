@@ -15,9 +15,14 @@ Layout (one file per run or sweep)::
                                              sum tau, sum tau^2  (d = F - 1)
         tau0_records       (n_blocks, 5)     n, n_already, n_not_synced, sum tau0, sum tau0^2
         tail_counts        (V, bins) int64   log histogram of |F - 1|
+        lambda_records     (n_blocks, E, 6)  n, n_already, n_not_synced, sum L, sum L^2, n_flagged
+                                             of the per-realization Lambda estimates (attr
+                                             lambda_method says which estimator)
+        lambda_tail_counts (E, bins) int64   log histogram of |Lambda| per realization
         hist               (H, bins, bins) int64, [v, i_tau0, i_tau_beta] on [0, tau_max)
-        kept/status0, kept/steps0, kept/status, kept/steps: the first keep_pairs realizations
-                           (steps are integration steps: tau = steps * dt; status -1 = not run)
+        kept/status0, kept/steps0, kept/status, kept/steps, kept/lambda: the first keep_pairs
+                           realizations (steps are integration steps: tau = steps * dt;
+                           status -1 = not run; lambda = per-realization estimate per edge)
 
 Crash safety: while a run is going, each finished chunk is written at once to its own file in
 ``<output>.partial/`` (write to a temporary name, then an atomic rename). Every
@@ -60,6 +65,9 @@ class JobState:
         self.rec0 = np.zeros((nb, len(estimators.TAU0_FIELDS)))
         self.done = np.zeros(nb, dtype=bool)
         self.tail = np.zeros((nv, estimators.TAIL_BINS), dtype=np.int64)
+        ne = len(job.edges)
+        self.lam_rec = np.zeros((nb, ne, len(estimators.LAMBDA_FIELDS)))
+        self.lam_tail = np.zeros((ne, estimators.TAIL_BINS), dtype=np.int64)
         bins = job.config.histogram.bins
         self.hist = np.zeros((len(job.hist_variants), bins, bins), dtype=np.int64)
         keep = min(job.config.keep_pairs, job.config.realizations)
@@ -68,6 +76,7 @@ class JobState:
             "steps0": np.zeros(keep, dtype=np.int64),
             "status": np.full((keep, nv), -1, dtype=np.int8),
             "steps": np.zeros((keep, nv), dtype=np.int64),
+            "lambda": np.zeros((keep, ne)),
         }
         self.seconds = 0.0
         self.backends: set[str] = set()
@@ -81,6 +90,8 @@ class JobState:
         self.rec0[sl] = res.rec0
         self.tail += res.tail
         self.hist += res.hist
+        self.lam_rec[sl] = res.lam_rec
+        self.lam_tail += res.lam_tail
         if res.kept is not None:
             k = res.kept["status0"].size
             for key, arr in res.kept.items():
@@ -178,6 +189,7 @@ class ResultStore:
         """Persist a finished chunk at once (atomic rename), before it is merged."""
         arrays = {
             "rec": res.rec, "rec0": res.rec0, "tail": res.tail, "hist": res.hist,
+            "lam_rec": res.lam_rec, "lam_tail": res.lam_tail,
             "meta": np.array([res.chunk.first_block, res.chunk.n_blocks, res.first, res.count]),
             "seconds": np.array([res.seconds]),
             "backend": np.array([res.backend]),
@@ -227,10 +239,12 @@ class ResultStore:
                     first_block, n_blocks, first, count = (int(x) for x in z["meta"])
                     kept = None
                     if "kept_status0" in z:
-                        kept = {k: z[f"kept_{k}"] for k in ("status0", "steps0", "status", "steps")}
+                        kept = {k: z[f"kept_{k}"]
+                                for k in ("status0", "steps0", "status", "steps", "lambda")}
                     yield ChunkResult(
                         Chunk(first_block, n_blocks), z["rec"], z["rec0"], z["tail"], z["hist"],
-                        kept, first, count, float(z["seconds"][0]), str(z["backend"][0]),
+                        z["lam_rec"], z["lam_tail"], kept, first, count, float(z["seconds"][0]),
+                        str(z["backend"][0]),
                     )
             except (OSError, ValueError, KeyError):
                 continue  # a chunk file cut off by a crash: its blocks are simply redone
@@ -275,6 +289,7 @@ def _write_state(g, st: JobState) -> None:
     g.attrs["edges"] = json.dumps(job.edge_labels)
     g.attrs["betas"] = np.array(job.betas, dtype=np.float64)
     g.attrs["dbeta"] = job.dbeta
+    g.attrs["lambda_method"] = cfg.lambda_.method
     g.attrs["seed"] = cfg.seed
     g.attrs["dt"] = cfg.dynamics.dt
     g.attrs["threshold"] = cfg.dynamics.threshold
@@ -288,6 +303,7 @@ def _write_state(g, st: JobState) -> None:
     g.attrs["complete"] = st.complete
     g.attrs["block_fields"] = json.dumps(list(estimators.BLOCK_FIELDS))
     g.attrs["tau0_fields"] = json.dumps(list(estimators.TAU0_FIELDS))
+    g.attrs["lambda_fields"] = json.dumps(list(estimators.LAMBDA_FIELDS))
     g.create_dataset("omega", data=job.omega)
     g.create_dataset("variant_edge", data=job.variant_edge)
     g.create_dataset("variant_beta", data=job.variant_beta)
@@ -296,6 +312,8 @@ def _write_state(g, st: JobState) -> None:
     g.create_dataset("block_records", data=st.rec, compression="gzip", compression_opts=1)
     g.create_dataset("tau0_records", data=st.rec0, compression="gzip", compression_opts=1)
     g.create_dataset("tail_counts", data=st.tail)
+    g.create_dataset("lambda_records", data=st.lam_rec, compression="gzip", compression_opts=1)
+    g.create_dataset("lambda_tail_counts", data=st.lam_tail)
     g.create_dataset("hist", data=st.hist, compression="gzip", compression_opts=1)
     kept = g.create_group("kept")
     for key, arr in st.kept.items():
@@ -312,6 +330,8 @@ def _read_state(g, st: JobState) -> None:
     st.rec0[...] = g["tau0_records"][...]
     st.done[...] = g["blocks_done"][...]
     st.tail[...] = g["tail_counts"][...]
+    st.lam_rec[...] = g["lambda_records"][...]
+    st.lam_tail[...] = g["lambda_tail_counts"][...]
     st.hist[...] = g["hist"][...]
     for key in st.kept:
         st.kept[key][...] = g["kept"][key][...]
@@ -327,7 +347,8 @@ def _view_from_state(st: JobState):
         graph=job.name, edges=job.edge_labels, betas=job.betas, dbeta=job.dbeta,
         variant_edge=job.variant_edge, variant_beta=job.variant_beta,
         rec=st.rec, rec0=st.rec0, done=st.done, tail=st.tail,
-        realizations=job.config.realizations,
+        realizations=job.config.realizations, lam_rec=st.lam_rec, lam_tail=st.lam_tail,
+        lambda_method=job.config.lambda_.method,
     )
 
 

@@ -39,6 +39,9 @@ class JobView:
     hist: np.ndarray | None = None
     hist_variants: np.ndarray | None = None
     tau_max_hist: float = 40.0
+    lam_rec: np.ndarray | None = None
+    lam_tail: np.ndarray | None = None
+    lambda_method: str = "finite-difference"
     omega: np.ndarray | None = None
     nodes: list | None = None
     attrs: dict | None = None
@@ -53,26 +56,27 @@ def _num(x: float):
 
 
 def _lambda(view: JobView, e: int) -> dict:
-    v = view.variant(e, view.dbeta)
-    s = estimators.summarize_variant(view.rec[view.done, v])
-    f = s["F"]
-    share = estimators.tail_share(view.tail[v])
+    s = estimators.summarize_lambda(view.lam_rec[view.done, e])
+    est = s["lambda"]
+    share = estimators.tail_share(view.lam_tail[e])
     warning = None
-    if f.n_batches < 10:
-        warning = f"only {f.n_batches} batches: standard error is rough"
+    if est.n_batches < 10:
+        warning = f"only {est.n_batches} batches: standard error is rough"
     elif not math.isnan(share) and share > TAIL_WARN:
         warning = f"heavy tail: top 0.1% of samples carry {share:.0%} of the variance"
-    elif not math.isnan(f.se_batch) and f.se_batch > 2 * f.se_naive:
+    elif not math.isnan(est.se_batch) and est.se_batch > 2 * est.se_naive:
         warning = "batch-means error exceeds twice the naive one: tail not yet sampled"
-    d = view.dbeta
     return {
-        "lambda_km": _num((f.mean - 1.0) / d),
-        "lambda_km_se": _num(f.se / d),
-        "lambda_km_se_naive": _num(f.se_naive / d),
-        "lambda_km_se_batch": _num(f.se_batch / d),
+        "lambda_km": _num(est.mean),
+        "lambda_km_se": _num(est.se),
+        "lambda_km_se_naive": _num(est.se_naive),
+        "lambda_km_se_batch": _num(est.se_batch),
         "lambda_km_tail_share": _num(share),
         "lambda_km_warning": warning,
-        "lambda_dbeta": d,
+        "lambda_method": view.lambda_method,
+        "lambda_dbeta": view.dbeta,
+        "lambda_n": s["n"],
+        "lambda_n_flagged": s["n_flagged"],
     }
 
 
@@ -98,7 +102,7 @@ def job_records(view: JobView) -> list[dict]:
                     "n_not_synced": s["n_not_synced"],
                 })
             else:
-                s = estimators.summarize_variant(view.rec[view.done, view.variant(e, view.dbeta)])
+                s = estimators.summarize_lambda(view.lam_rec[view.done, e])
                 rec.update({"F_mean": None, "F_se": None, "F_se_naive": None, "tau_mean": None,
                             "tau_se": None, "n": s["n"], "n_excluded": s["n_already"],
                             "n_not_synced": s["n_not_synced"]})
@@ -140,6 +144,9 @@ def read_views(path: str | Path) -> list[JobView]:
                     hist_variants=g["hist_variants"][...],
                     tau_max_hist=float(g.attrs["tau_max_hist"]),
                     omega=g["omega"][...],
+                    lam_rec=g["lambda_records"][...],
+                    lam_tail=g["lambda_tail_counts"][...],
+                    lambda_method=str(g.attrs["lambda_method"]),
                     nodes=json.loads(g.attrs["nodes"]),
                     attrs={k: g.attrs[k] for k in g.attrs if k != "summary_json"},
                 ))

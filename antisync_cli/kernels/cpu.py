@@ -498,7 +498,8 @@ def simulate_pathwise(
     """Undamaged trajectories and ``d tau0 / d beta_e`` for damage on every edge ``e`` at once.
 
     Damage on edge ``e = a -> b`` changes row ``a`` of ``W`` as
-    ``dw_aj/dbeta = rho[e] w_aj + mu[e] [j = b]`` (see :func:`tangent_coefficients`).
+    ``dw_aj/dbeta = rho[e] w_aj + mu[e] [j = b]`` (see
+    :func:`antisync_cli.coupling.tangent_coefficients`).
     """
     ks = _realization_ids(first, count, realizations)
     n = indptr.size - 1
@@ -518,19 +519,3 @@ def simulate_pathwise(
             int(lanes), groups, status0, steps0, frac0, dtau,
         )
     return PathwiseResult(status0, steps0, frac0, dtau)
-
-
-def tangent_coefficients(omega: np.ndarray, edges: list[tuple[int, int]], coupling: str):
-    """``(edge_a, edge_b, rho, mu)`` with ``dw_aj/dbeta = rho w_aj + mu [j = b]`` at beta = 0.
-
-    Normalized coupling: ``rho = Omega_ab / S_a``, ``mu = -Omega_ab / S_a``; raw coupling:
-    ``rho = 0``, ``mu = -Omega_ab``. (Checked against
-    :func:`antisync_cli.coupling.coupling_derivative` in the tests.)
-    """
-    a = np.array([e[0] for e in edges], dtype=np.int64)
-    b = np.array([e[1] for e in edges], dtype=np.int64)
-    wab = omega[a, b]
-    if coupling == "raw":
-        return a, b, np.zeros(len(edges)), -wab
-    strength = omega.sum(axis=1)[a]
-    return a, b, wab / strength, -wab / strength
