@@ -62,6 +62,8 @@ def simulate_job(job: Job, first: int, count: int, backend: str = "cpu", threads
     if realizations is not None:
         kwargs["realizations"] = realizations
     weights = job.variant_weights if variant_weights is None else variant_weights
+    if dyn.integrator != "euler":
+        kwargs["integrator"] = dyn.integrator
     return _kernel(backend).simulate(
         job.config.seed, first, count, job.csr.indptr, job.csr.indices, job.csr.weights, weights,
         dt=dyn.dt, threshold=dyn.threshold, max_steps=dyn.max_steps, **kwargs,
@@ -80,11 +82,11 @@ def lambda_values(job: Job, sim, first: int, count: int, threads: int | None = N
     n_edges = len(job.edges)
     if spec.method == "finite-difference":
         v = np.array([job.variant(e, job.dbeta) for e in range(n_edges)], dtype=np.int64)
-        steps = sim.steps[:, v]
+        t0, t = estimators.crossing_times(sim, dyn.interpolate)
+        t = t[:, v]
         ok = (sim.status0[:, None] == _SYNCED) & (sim.status[:, v] == _SYNCED)
         code = np.where(ok, _SYNCED, np.maximum(sim.status0[:, None], sim.status[:, v])).astype(np.int8)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            values = np.where(ok, (sim.steps0[:, None] / np.where(ok, steps, 1) - 1.0) / job.dbeta, 0.0)
+        values = np.where(ok, (t0[:, None] / np.where(ok, t, 1.0) - 1.0) / job.dbeta, 0.0)
         return values, code, np.zeros_like(ok), None
 
     from antisync_cli.kernels.cpu import simulate_pathwise
@@ -125,12 +127,15 @@ def compute_chunk(job: Job, chunk: Chunk, backend: str = "cpu", threads: int | N
         from antisync_cli.kernels.cpu import SimResult
 
         empty = np.empty((count, 0))
-        sim = SimResult(base.status0, base.steps0, empty.astype(np.int8), empty.astype(np.int64))
-    dt = job.config.dynamics.dt
-    rec, rec0, tail = estimators.block_records(sim, dt, job.block_size)
+        sim = SimResult(base.status0, base.steps0, empty.astype(np.int8), empty.astype(np.int64),
+                        base.frac0, empty)
+    dyn = job.config.dynamics
+    interpolate = dyn.interpolate
+    dt = dyn.dt
+    rec, rec0, tail = estimators.block_records(sim, dt, job.block_size, interpolate)
     lam_rec, lam_tail = estimators.lambda_block_records(values, code, flagged, job.block_size)
     hcfg = job.config.histogram
-    hist = estimators.histogram2d(sim, job.hist_variants, dt, hcfg.bins, hcfg.tau_max)
+    hist = estimators.histogram2d(sim, job.hist_variants, dt, hcfg.bins, hcfg.tau_max, interpolate)
     keep = max(0, min(job.config.keep_pairs - first, count))
     kept = None
     if keep:

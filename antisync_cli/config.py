@@ -45,7 +45,8 @@ __all__ = [
 
 BACKENDS = ("cpu", "cuda", "auto")
 EXECUTORS = ("local", "dask")
-INTEGRATORS = ("euler",)
+INTEGRATORS = ("euler", "rk4")
+CROSSINGS = ("auto", "grid", "interpolated")
 LAMBDA_METHODS = ("finite-difference", "pathwise", "hybrid")
 MEASURES = ("km",)
 
@@ -67,16 +68,27 @@ class Dynamics:
     dt: float = 0.001
     threshold: float = 0.99
     t_max: float = 200.0
+    crossing: str = "auto"
+    """``grid``: tau is the first grid time with r >= threshold (the paper's); ``interpolated``:
+    the crossing inside that step (linear in R for Euler, cubic Hermite for RK4);
+    ``auto``: grid for Euler, interpolated for RK4."""
 
     def __post_init__(self):
         _choice("dynamics.coupling", self.coupling, COUPLINGS)
         _choice("dynamics.integrator", self.integrator, INTEGRATORS)
+        _choice("dynamics.crossing", self.crossing, CROSSINGS)
+        if self.integrator == "rk4" and self.crossing == "grid":
+            raise ConfigError("dynamics.crossing grid is too coarse for rk4 steps; use interpolated")
         _positive("dynamics.dt", self.dt)
         _positive("dynamics.t_max", self.t_max)
         if not 0.0 < self.threshold < 1.0:
             raise ConfigError(f"dynamics.threshold must be in (0, 1), got {self.threshold}")
         if self.dt > self.t_max:
             raise ConfigError(f"dynamics.dt ({self.dt}) must be smaller than t_max ({self.t_max})")
+
+    @property
+    def interpolate(self) -> bool:
+        return self.crossing == "interpolated" or (self.crossing == "auto" and self.integrator == "rk4")
 
     @property
     def max_steps(self) -> int:
@@ -112,8 +124,11 @@ class Histogram:
 
     bins: int = 120
     tau_max: float = 40.0
+    betas: tuple = (0.5,)
+    """Damages whose histograms are kept (those also in the run's ``betas``)."""
 
     def __post_init__(self):
+        object.__setattr__(self, "betas", tuple(float(b) for b in (self.betas or ())))
         if not isinstance(self.bins, int) or not 2 <= self.bins <= 4096:
             raise ConfigError(f"histogram.bins must be an integer in 2..4096, got {self.bins!r}")
         _positive("histogram.tau_max", self.tau_max)
@@ -168,6 +183,11 @@ class Config:
             raise ConfigError(f"chunk_size must be 'auto' or an integer >= 1, got {self.chunk_size!r}")
         if not isinstance(self.keep_pairs, int) or self.keep_pairs < 0:
             raise ConfigError(f"keep_pairs must be an integer >= 0, got {self.keep_pairs!r}")
+        if self.lambda_.method != "finite-difference" and self.dynamics.integrator != "euler":
+            raise ConfigError(
+                f"lambda.method {self.lambda_.method} needs dynamics.integrator euler "
+                "(the tangent is written for the Euler step); use finite-difference with rk4"
+            )
         if self.threads is not None and (not isinstance(self.threads, int) or self.threads < 1):
             raise ConfigError(f"threads must be null or an integer >= 1, got {self.threads!r}")
         _check_graph(self.graph)
@@ -187,6 +207,7 @@ class Config:
         d = asdict(self)
         d["lambda"] = d.pop("lambda_")
         d["betas"] = list(self.betas)
+        d["histogram"]["betas"] = list(self.histogram.betas)
         d["measures"] = list(self.measures)
         if isinstance(d["edges"], tuple):
             d["edges"] = list(d["edges"])

@@ -29,6 +29,7 @@ __all__ = [
     "TAU0_FIELDS",
     "Estimate",
     "block_records",
+    "crossing_times",
     "estimate_mean",
     "histogram2d",
     "lambda_block_records",
@@ -54,7 +55,7 @@ _NOT = int(Status.NOT_SYNCED)
 
 
 @njit(cache=True)
-def _reduce_blocks(status0, steps0, status, steps, dt, block, edges, rec, rec0, tail):
+def _reduce_blocks(status0, t0s, status, ts, dt, block, edges, rec, rec0, tail):
     m, n_var = status.shape
     n_blocks = rec.shape[0]
     for bl in range(n_blocks):
@@ -63,7 +64,7 @@ def _reduce_blocks(status0, steps0, status, steps, dt, block, edges, rec, rec0, 
         for r in range(lo, hi):
             st0 = status0[r]
             if st0 == _SYNCED:
-                t0 = steps0[r] * dt
+                t0 = t0s[r] * dt
                 rec0[bl, 0] += 1
                 rec0[bl, 3] += t0
                 rec0[bl, 4] += t0 * t0
@@ -74,8 +75,8 @@ def _reduce_blocks(status0, steps0, status, steps, dt, block, edges, rec, rec0, 
             for v in range(n_var):
                 st = status[r, v]
                 if st0 == _SYNCED and st == _SYNCED:
-                    d = steps0[r] / steps[r, v] - 1.0
-                    t = steps[r, v] * dt
+                    d = t0s[r] / ts[r, v] - 1.0
+                    t = ts[r, v] * dt
                     rec[bl, v, 0] += 1
                     rec[bl, v, 3] += d
                     rec[bl, v, 4] += d * d
@@ -88,7 +89,16 @@ def _reduce_blocks(status0, steps0, status, steps, dt, block, edges, rec, rec0, 
                     rec[bl, v, 1] += 1
 
 
-def block_records(sim, dt: float, block: int):
+def crossing_times(sim, interpolate: bool):
+    """Crossing times in units of dt: the grid step (paper) or ``steps - 1 + frac`` (interpolated)."""
+    if not interpolate:
+        return sim.steps0.astype(np.float64), sim.steps.astype(np.float64)
+    if sim.frac0 is None:
+        raise ValueError("interpolated crossing times need the lane driver's crossing fractions")
+    return sim.steps0 - 1.0 + sim.frac0, sim.steps - 1.0 + sim.frac
+
+
+def block_records(sim, dt: float, block: int, interpolate: bool = False):
     """Reduce a batch that starts on a block boundary to block records.
 
     Parameters
@@ -113,8 +123,8 @@ def block_records(sim, dt: float, block: int):
     rec = np.zeros((n_blocks, n_var, len(BLOCK_FIELDS)))
     rec0 = np.zeros((n_blocks, len(TAU0_FIELDS)))
     tail = np.zeros((n_var, TAIL_BINS), dtype=np.int64)
-    _reduce_blocks(sim.status0, sim.steps0, sim.status, sim.steps, dt, block, TAIL_EDGES,
-                   rec, rec0, tail)
+    t0, t = crossing_times(sim, interpolate)
+    _reduce_blocks(sim.status0, t0, sim.status, t, dt, block, TAIL_EDGES, rec, rec0, tail)
     return rec, rec0, tail
 
 
@@ -173,7 +183,8 @@ def summarize_lambda(rec_e: np.ndarray) -> dict:
     }
 
 
-def histogram2d(sim, variants: np.ndarray, dt: float, bins: int, tau_max: float) -> np.ndarray:
+def histogram2d(sim, variants: np.ndarray, dt: float, bins: int, tau_max: float,
+                interpolate: bool = False) -> np.ndarray:
     """Counts of ``(tau0, tau(beta))`` pairs on a ``bins x bins`` grid over ``[0, tau_max)``.
 
     Only pairs with both times SYNCED are counted; pairs beyond ``tau_max`` go to the last bin
@@ -182,10 +193,11 @@ def histogram2d(sim, variants: np.ndarray, dt: float, bins: int, tau_max: float)
     """
     out = np.zeros((len(variants), bins, bins), dtype=np.int64)
     scale = bins / (tau_max / dt)
-    i0 = np.minimum((sim.steps0 * scale).astype(np.int64), bins - 1)
+    t0, t = crossing_times(sim, interpolate)
+    i0 = np.minimum((t0 * scale).astype(np.int64), bins - 1)
     for k, v in enumerate(variants):
         ok = (sim.status0 == _SYNCED) & (sim.status[:, v] == _SYNCED)
-        i1 = np.minimum((sim.steps[ok, v] * scale).astype(np.int64), bins - 1)
+        i1 = np.minimum((t[ok, v] * scale).astype(np.int64), bins - 1)
         np.add.at(out[k], (i0[ok], i1), 1)
     return out
 

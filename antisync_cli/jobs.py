@@ -92,8 +92,9 @@ class Job:
 
     @property
     def hist_variants(self) -> np.ndarray:
-        """Variants whose (tau0, tau(beta)) histogram is kept: the requested betas."""
-        keep = np.isin(np.round(self.variant_beta, 12), np.round(np.array(self.betas), 12))
+        """Variants whose (tau0, tau(beta)) histogram is kept: requested betas in histogram.betas."""
+        wanted = set(np.round(self.betas, 12)) & set(np.round(self.config.histogram.betas, 12))
+        keep = np.isin(np.round(self.variant_beta, 12), np.array(sorted(wanted)))
         return np.flatnonzero(keep)
 
     def chunks(self, realizations_per_chunk: int | None = None) -> list[Chunk]:

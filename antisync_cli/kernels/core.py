@@ -186,6 +186,78 @@ def make_kernels(jit):
 
     tangent_step_lanes = jit(tangent_step_lanes)
 
+    def lane_velocity(c, s, dc, ds, dtot, omega, sum_c, sum_s, lw, indptr, indices):
+        """``(dc, ds) = (-s omega, c omega)`` per node and ``dR/dt`` per lane (RK4 stages)."""
+        n, lanes = c.shape
+        lane_sums(c, s, sum_c, sum_s, omega, lw, indptr, indices, 1.0)
+        for q in range(lanes):
+            dtot[0, q] = 0.0  # d(sum c)/dt
+            dtot[1, q] = 0.0  # d(sum s)/dt
+            dtot[2, q] = 0.0  # sum c
+            dtot[3, q] = 0.0  # sum s
+        for i in range(n):
+            for q in range(lanes):
+                dc[i, q] = -s[i, q] * omega[i, q]
+                ds[i, q] = c[i, q] * omega[i, q]
+                dtot[0, q] += dc[i, q]
+                dtot[1, q] += ds[i, q]
+                dtot[2, q] += c[i, q]
+                dtot[3, q] += s[i, q]
+
+    lane_velocity = jit(lane_velocity)
+
+    def rk4_step_lanes(c, s, k, yc, ys, dtot, omega, sum_c, sum_s, lw, indptr, indices, dt, r2, dr2):
+        """Classical RK4 on ``dc/dt = -s omega, ds/dt = c omega`` (Eq. 2 in (cos, sin) form).
+
+        ``k[0], k[1]`` must hold the velocity at the current state on entry (stage 1); on exit
+        they hold it at the new state, so each step costs four right-hand sides. The state is
+        projected back to the unit circle after every step. ``r2`` and ``dr2 = dR/dt`` are
+        returned per lane for the Hermite crossing.
+        """
+        n, lanes = c.shape
+        for stage in range(1, 4):
+            h = 0.5 * dt if stage < 3 else dt
+            src = 2 * (stage - 1)
+            for i in range(n):
+                for q in range(lanes):
+                    yc[i, q] = c[i, q] + h * k[src, i, q]
+                    ys[i, q] = s[i, q] + h * k[src + 1, i, q]
+            lane_velocity(yc, ys, k[2 * stage], k[2 * stage + 1], dtot, omega, sum_c, sum_s, lw,
+                          indptr, indices)
+        for i in range(n):
+            for q in range(lanes):
+                cn = c[i, q] + dt / 6.0 * (k[0, i, q] + 2.0 * k[2, i, q] + 2.0 * k[4, i, q] + k[6, i, q])
+                sn = s[i, q] + dt / 6.0 * (k[1, i, q] + 2.0 * k[3, i, q] + 2.0 * k[5, i, q] + k[7, i, q])
+                inv = 1.0 / math.sqrt(cn * cn + sn * sn)
+                c[i, q] = cn * inv
+                s[i, q] = sn * inv
+        lane_velocity(c, s, k[0], k[1], dtot, omega, sum_c, sum_s, lw, indptr, indices)
+        for q in range(lanes):
+            r2[q] = dtot[2, q] * dtot[2, q] + dtot[3, q] * dtot[3, q]
+            dr2[q] = 2.0 * (dtot[2, q] * dtot[0, q] + dtot[3, q] * dtot[1, q])
+
+    rk4_step_lanes = jit(rk4_step_lanes)
+
+    def hermite_crossing(r0, d0, r1, d1, dt, target):
+        """Fraction ``x`` in (0, 1] of a step where the cubic Hermite interpolant of ``R``
+        (values ``r0, r1``, time derivatives ``d0, d1``) first reaches ``target``
+        (``r0 < target <= r1``), by bisection to rounding."""
+        lo = 0.0
+        hi = 1.0
+        for _ in range(60):
+            x = 0.5 * (lo + hi)
+            x2 = x * x
+            x3 = x2 * x
+            p = ((2 * x3 - 3 * x2 + 1) * r0 + (x3 - 2 * x2 + x) * dt * d0
+                 + (-2 * x3 + 3 * x2) * r1 + (x3 - x2) * dt * d1)
+            if p >= target:
+                hi = x
+            else:
+                lo = x
+        return hi
+
+    hermite_crossing = jit(hermite_crossing)
+
     def renormalize(c, s):
         for i in range(c.shape[0]):
             inv = 1.0 / math.sqrt(c[i] * c[i] + s[i] * s[i])
@@ -221,6 +293,9 @@ def make_kernels(jit):
         "euler_step": euler_step,
         "euler_step_lanes": euler_step_lanes,
         "tangent_step_lanes": tangent_step_lanes,
+        "rk4_step_lanes": rk4_step_lanes,
+        "lane_velocity": lane_velocity,
+        "hermite_crossing": hermite_crossing,
         "sync_steps": sync_steps,
         "order2": order2,
         "renormalize": renormalize,

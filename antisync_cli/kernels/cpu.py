@@ -34,6 +34,9 @@ _K = make_kernels(lambda f: njit(f, inline="always", cache=True))
 _sync_steps = _K["sync_steps"]
 _step_lanes = _K["euler_step_lanes"]
 _tangent_lanes = _K["tangent_step_lanes"]
+_rk4_lanes = _K["rk4_step_lanes"]
+_lane_velocity = _K["lane_velocity"]
+_hermite = _K["hermite_crossing"]
 
 LANES = 32
 """Trajectories stepped together per thread (the inner width of the ``[node, lane]`` layout)."""
@@ -149,7 +152,7 @@ def _renormalize_lane(c, s, q):
 @njit(parallel=True, cache=True)
 def _integrate_lanes(
     ks, indptr, indices, base_w, var_w, var_is_base, dt, r2_target, max_steps, seed, taylor,
-    lanes, n_groups, status0, steps0, frac0, status, steps, frac,
+    rk4, lanes, n_groups, status0, steps0, frac0, status, steps, frac,
 ):
     m = status0.shape[0]
     n = indptr.shape[0] - 1
@@ -171,6 +174,13 @@ def _integrate_lanes(
         tot_s = np.empty(lanes)
         r2 = np.zeros(lanes)
         r2_prev = np.zeros(lanes)
+        dr2 = np.zeros(lanes)
+        dr2_prev = np.zeros(lanes)
+        # RK4 scratch: stage velocities k[2 * stage + (0 for c, 1 for s)], stage state, sums
+        kv = np.zeros((8, n, lanes))
+        yc = np.empty((n, lanes))
+        ys = np.empty((n, lanes))
+        dtot = np.zeros((4, lanes))
         lane_r = np.full(lanes, -1, dtype=np.int64)
         lane_v = np.zeros(lanes, dtype=np.int64)
         lane_k = np.zeros(lanes, dtype=np.int64)
@@ -183,12 +193,21 @@ def _integrate_lanes(
                                         r2_target, c, s, lw, ci, si, lane_r, lane_v, lane_k,
                                         status0, steps0, frac0, status, steps, frac)
             active += filled
-            if filled:
-                r2[q] = ((ci.sum()) ** 2 + (si.sum()) ** 2)
+        if rk4:
+            _lane_velocity(c, s, kv[0], kv[1], dtot, acc, sum_c, sum_s, lw, indptr, indices)
+        for q in range(lanes):
+            r2[q] = dtot[2, q] ** 2 + dtot[3, q] ** 2
+            dr2[q] = 2.0 * (dtot[2, q] * dtot[0, q] + dtot[3, q] * dtot[1, q])
+            if not rk4 and lane_r[q] >= 0:
+                r2[q] = c[:, q].sum() ** 2 + s[:, q].sum() ** 2
         while active > 0:
             for q in range(lanes):
                 r2_prev[q] = r2[q]
-            _step_lanes(c, s, acc, sum_c, sum_s, tot_c, tot_s, lw, indptr, indices, dt, r2, taylor)
+                dr2_prev[q] = dr2[q]
+            if rk4:
+                _rk4_lanes(c, s, kv, yc, ys, dtot, acc, sum_c, sum_s, lw, indptr, indices, dt, r2, dr2)
+            else:
+                _step_lanes(c, s, acc, sum_c, sum_s, tot_c, tot_s, lw, indptr, indices, dt, r2, taylor)
             for q in range(lanes):
                 if lane_r[q] < 0:
                     continue
@@ -196,13 +215,16 @@ def _integrate_lanes(
                 k = lane_k[q]
                 if r2[q] >= r2_target:
                     st = _SYNCED
-                    # where inside the last step a straight line through R crosses the target
-                    x = (r2_target - r2_prev[q]) / (r2[q] - r2_prev[q])
+                    if rk4:
+                        x = _hermite(r2_prev[q], dr2_prev[q], r2[q], dr2[q], dt, r2_target)
+                    else:
+                        # where inside the last step a straight line through R crosses the target
+                        x = (r2_target - r2_prev[q]) / (r2[q] - r2_prev[q])
                 elif k >= max_steps:
                     st = _NOT_SYNCED
                     x = 0.0
                 else:
-                    if k % RENORM_EVERY == 0:
+                    if not rk4 and k % RENORM_EVERY == 0:
                         _renormalize_lane(c, s, q)
                     continue
                 r = lane_r[q]
@@ -222,7 +244,14 @@ def _integrate_lanes(
                                             status0, steps0, frac0, status, steps, frac)
                 active += filled
                 if filled:
-                    r2[q] = ((ci.sum()) ** 2 + (si.sum()) ** 2)
+                    if rk4:
+                        # stage 1 of the refilled lane (other lanes' velocities are recomputed
+                        # from their unchanged states, so they do not change)
+                        _lane_velocity(c, s, kv[0], kv[1], dtot, acc, sum_c, sum_s, lw, indptr, indices)
+                        r2[q] = dtot[2, q] ** 2 + dtot[3, q] ** 2
+                        dr2[q] = 2.0 * (dtot[2, q] * dtot[0, q] + dtot[3, q] * dtot[1, q])
+                    else:
+                        r2[q] = c[:, q].sum() ** 2 + s[:, q].sum() ** 2
         # variants that leave W unchanged share the undamaged result
         for r in range(r_lo, r_hi):
             for v in range(n_var):
@@ -430,6 +459,7 @@ def simulate(
     threads: int | None = None,
     lanes: int = LANES,
     realizations: np.ndarray | None = None,
+    integrator: str = "euler",
 ) -> SimResult:
     """Integrate realizations ``first .. first+count-1`` for the base network and every variant.
 
@@ -450,7 +480,14 @@ def simulate(
         time driver. Results are identical either way (same operations in the same order).
     realizations : array of int, optional
         Explicit realization indices instead of ``first .. first+count-1``.
+    integrator : {"euler", "rk4"}
+        Explicit Euler (the paper's) or classical RK4 (lane driver only; crossing times by
+        cubic Hermite interpolation, see ``frac``).
     """
+    if integrator not in ("euler", "rk4"):
+        raise ValueError(f"integrator must be 'euler' or 'rk4', got {integrator!r}")
+    if integrator == "rk4" and not lanes:
+        raise ValueError("the rk4 integrator runs in the lane driver (lanes >= 1)")
     ks = _realization_ids(first, count, realizations)
     n = indptr.size - 1
     m = ks.size
@@ -472,7 +509,8 @@ def simulate(
         frac = np.empty((m, var_w.shape[0]))
         # |alpha_i| = dt |omega_i| <= dt sum_j |w_ij|: then the Taylor rotation is always valid
         taylor = float(dt) * _row_sum_bound(indptr, base_weights, var_w) <= TAYLOR_MAX_ANGLE
-        _integrate_lanes(*args, taylor, int(lanes), groups, status0, steps0, frac0, status, steps, frac)
+        _integrate_lanes(*args, taylor, integrator == "rk4", int(lanes), groups, status0, steps0, frac0,
+                         status, steps, frac)
     return SimResult(status0, steps0, status, steps, frac0, frac)
 
 
