@@ -32,6 +32,9 @@ TASKS_PER_THREAD = 3
 #: Seconds to wait for a scheduler before giving up with a one-line error.
 CONNECT_TIMEOUT = 5.0
 
+# times one chunk may be resubmitted after the cluster cancelled it, before the run stops
+_MAX_RESUBMITS = 3
+
 # numba's workqueue threading layer aborts the process when two threads launch parallel
 # kernels at once; a worker with several threads then runs its chunks one at a time.
 _WORKQUEUE_LOCK = threading.Lock()
@@ -100,7 +103,9 @@ class DaskExecutor:
         if threads is not None and (not isinstance(threads, int) or threads < 1):
             raise AntisyncError(f"threads must be None or an integer >= 1, got {threads!r}")
         if not isinstance(tasks_per_thread, int) or tasks_per_thread < 1:
-            raise AntisyncError(f"tasks_per_thread must be an integer >= 1, got {tasks_per_thread!r}")
+            raise AntisyncError(
+                f"tasks_per_thread must be an integer >= 1, got {tasks_per_thread!r}"
+            )
         self.client = client
         self.backend = backend
         self.threads = threads
@@ -147,8 +152,9 @@ class DaskExecutor:
                 "--workers starts a local Dask cluster and --scheduler connects to a running one: "
                 "give only one of them"
             )
-        if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int)
-                                    or workers < 1):
+        if workers is not None and (
+            isinstance(workers, bool) or not isinstance(workers, int) or workers < 1
+        ):
             raise AntisyncError(f"--workers must be an integer >= 1, got {workers!r}")
         backend, _ = resolve_backend(cfg.backend)
         if workers is None and scheduler is None:
@@ -162,16 +168,20 @@ class DaskExecutor:
             cluster = None
             info = client.scheduler_info()
             n = len(info.get("workers", {}))
-            say(f"Dask: connected to {scheduler} ({n} worker{'s' if n != 1 else ''}"
-                + ("; tasks wait until workers join)" if n == 0 else ")"))
+            say(
+                f"Dask: connected to {scheduler} ({n} worker{'s' if n != 1 else ''}"
+                + ("; tasks wait until workers join)" if n == 0 else ")")
+            )
         else:
             from distributed import Client, LocalCluster
 
             n = workers or _cores()
             cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True)
             client = Client(cluster, set_as_default=False)
-            say(f"Dask: started a LocalCluster of {n} single-threaded worker process"
-                f"{'es' if n != 1 else ''} at {cluster.scheduler_address}")
+            say(
+                f"Dask: started a LocalCluster of {n} single-threaded worker process"
+                f"{'es' if n != 1 else ''} at {cluster.scheduler_address}"
+            )
         link = _dashboard(client)
         if link:
             say(f"Dask dashboard: {link}")
@@ -192,6 +202,7 @@ class DaskExecutor:
         pending: dict = {}  # future -> (job, chunk)
         done: set = set()  # (job name, first block) already yielded
         scattered: dict = {}  # job name -> [future of the Job, tasks using it]
+        resubmits: dict = {}  # (job name, first block) -> times resubmitted
         exhausted = False
         try:
             while True:
@@ -215,8 +226,18 @@ class DaskExecutor:
                 if fut.status == "cancelled":
                     # the scheduler dropped it (e.g. every copy of the scattered job was lost
                     # with its workers): scatter again and resubmit; nothing was merged yet
-                    self._say(f"Dask: chunk at block {chunk.first_block} of {job.name} was "
-                              "cancelled by the cluster; resubmitting it")
+                    key = (job.name, chunk.first_block)
+                    resubmits[key] = resubmits.get(key, 0) + 1
+                    if resubmits[key] > _MAX_RESUBMITS:
+                        raise AntisyncError(
+                            f"the Dask cluster cancelled the chunk at block {chunk.first_block} "
+                            f"of {job.name} {resubmits[key]} times (workers lost?); finished "
+                            "chunks are saved: rerun with --resume"
+                        )
+                    self._say(
+                        f"Dask: chunk at block {chunk.first_block} of {job.name} was "
+                        "cancelled by the cluster; resubmitting it"
+                    )
                     fut = self._submit(job, chunk, scattered)
                     pending[fut] = (job, chunk)
                     finished.add(fut)
@@ -243,8 +264,11 @@ class DaskExecutor:
 
     def describe(self) -> str:
         n, t = self._workers_threads()
-        return (f"dask executor, {n} worker{'s' if n != 1 else ''} / {t} thread{'s' if t != 1 else ''}, "
-                f"{self.threads or 1} numba thread{'s' if (self.threads or 1) != 1 else ''} per task")
+        k = self.threads or 1
+        return (
+            f"dask executor, {_plural(n, 'worker')} / {_plural(t, 'thread')}, "
+            f"{_plural(k, 'numba thread')} per task"
+        )
 
     def close(self) -> None:
         """Close the client and cluster made by :meth:`from_options`; a given client stays open."""
@@ -271,8 +295,15 @@ class DaskExecutor:
             entry = scattered[job.name] = [fut, entry[1] if entry else 0]
         entry[1] += 1
         key = f"antisync-chunk-{job.name}-{chunk.first_block}-{uuid.uuid4().hex[:12]}"
-        return self.client.submit(_compute_on_worker, entry[0], chunk, self.backend,
-                                  self.threads or 1, key=key, pure=False)
+        return self.client.submit(
+            _compute_on_worker,
+            entry[0],
+            chunk,
+            self.backend,
+            self.threads or 1,
+            key=key,
+            pure=False,
+        )
 
     @staticmethod
     def _unref(job: Job, scattered: dict) -> None:
@@ -295,6 +326,10 @@ class DaskExecutor:
     def _workers_threads(self) -> tuple[int, int]:
         nthreads = self.client.nthreads()
         return len(nthreads), sum(nthreads.values())
+
+
+def _plural(n: int, word: str) -> str:
+    return f"{n} {word}" + ("" if n == 1 else "s")
 
 
 def _cores() -> int:
@@ -323,7 +358,9 @@ def _connect(address: str, timeout: float):
         scheme, loc = parse_address(address)
         host, port = parse_host_port(loc) if scheme in ("tcp", "tls") else (None, None)
     except (ValueError, TypeError) as exc:
-        raise AntisyncError(f"Dask scheduler address {address!r} is not valid ({exc}); {hint}") from None
+        raise AntisyncError(
+            f"Dask scheduler address {address!r} is not valid ({exc}); {hint}"
+        ) from None
     if host is not None:
         # a plain TCP probe first: a refused connection fails at once, and no half-built
         # Client is left behind to time out again when it is garbage-collected
@@ -331,9 +368,14 @@ def _connect(address: str, timeout: float):
             with socket.create_connection((host, port), timeout=timeout):
                 pass
         except OSError as exc:
-            why = (f"no answer within {timeout:g} s" if isinstance(exc, TimeoutError)
-                   else (exc.strerror or str(exc)).lower())
-            raise AntisyncError(f"cannot reach the Dask scheduler at {address} ({why}); {hint}") from None
+            why = (
+                f"no answer within {timeout:g} s"
+                if isinstance(exc, TimeoutError)
+                else (exc.strerror or str(exc)).lower()
+            )
+            raise AntisyncError(
+                f"cannot reach the Dask scheduler at {address} ({why}); {hint}"
+            ) from None
     # ask it who it is before building a Client: a Client that fails half-way is left to
     # time out again, noisily, when it is garbage-collected
     if _identity(address, timeout) != "Scheduler":
@@ -341,7 +383,9 @@ def _connect(address: str, timeout: float):
     try:
         return Client(address, timeout=timeout, set_as_default=False)
     except (OSError, TimeoutError, ValueError) as exc:
-        raise AntisyncError(f"cannot connect to the Dask scheduler at {address} ({exc}); {hint}") from None
+        raise AntisyncError(
+            f"cannot connect to the Dask scheduler at {address} ({exc}); {hint}"
+        ) from None
 
 
 def _identity(address: str, timeout: float) -> str | None:
