@@ -183,7 +183,9 @@ def test_cli_dask_errors_are_one_line(config_path, tmp_path, args):
 @pytest.mark.filterwarnings("ignore:Port 8787 is already in use")
 def test_cli_workers_same_summary_as_local(config_path, reference, tmp_path):
     out = tmp_path / "w.h5"
-    res = CliRunner().invoke(app, ["run", str(config_path), "--workers", "2", "-o", str(out)])
+    res = CliRunner().invoke(
+        app, ["run", str(config_path), "--workers", "2", "-o", str(out), "--set", "chunk_size=100"]
+    )
     assert res.exit_code == 0, res.output
     assert "LocalCluster of 2" in res.stderr
     _assert_same(out, reference)
