@@ -12,6 +12,7 @@ how often a chunk was retried therefore cannot change the numbers.
 
 from __future__ import annotations
 
+import contextlib
 import os
 import socket
 import threading
@@ -103,9 +104,7 @@ class DaskExecutor:
         if threads is not None and (not isinstance(threads, int) or threads < 1):
             raise AntisyncError(f"threads must be None or an integer >= 1, got {threads!r}")
         if not isinstance(tasks_per_thread, int) or tasks_per_thread < 1:
-            raise AntisyncError(
-                f"tasks_per_thread must be an integer >= 1, got {tasks_per_thread!r}"
-            )
+            raise AntisyncError(f"tasks_per_thread must be an integer >= 1, got {tasks_per_thread!r}")
         self.client = client
         self.backend = backend
         self.threads = threads
@@ -152,9 +151,7 @@ class DaskExecutor:
                 "--workers starts a local Dask cluster and --scheduler connects to a running one: "
                 "give only one of them"
             )
-        if workers is not None and (
-            isinstance(workers, bool) or not isinstance(workers, int) or workers < 1
-        ):
+        if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int) or workers < 1):
             raise AntisyncError(f"--workers must be an integer >= 1, got {workers!r}")
         backend, _ = resolve_backend(cfg.backend)
         if workers is None and scheduler is None:
@@ -257,10 +254,12 @@ class DaskExecutor:
                 done.add(key)
                 yield job, res
         finally:
-            if pending:
-                self.client.cancel(list(pending))
-            for fut, _ in scattered.values():
-                fut.release()
+            # best effort: a lost scheduler must not hide the error that ended the run
+            with contextlib.suppress(Exception):
+                if pending:
+                    self.client.cancel(list(pending))
+                for fut, _ in scattered.values():
+                    fut.release()
 
     def describe(self) -> str:
         n, t = self._workers_threads()
@@ -358,9 +357,7 @@ def _connect(address: str, timeout: float):
         scheme, loc = parse_address(address)
         host, port = parse_host_port(loc) if scheme in ("tcp", "tls") else (None, None)
     except (ValueError, TypeError) as exc:
-        raise AntisyncError(
-            f"Dask scheduler address {address!r} is not valid ({exc}); {hint}"
-        ) from None
+        raise AntisyncError(f"Dask scheduler address {address!r} is not valid ({exc}); {hint}") from None
     if host is not None:
         # a plain TCP probe first: a refused connection fails at once, and no half-built
         # Client is left behind to time out again when it is garbage-collected
@@ -373,9 +370,7 @@ def _connect(address: str, timeout: float):
                 if isinstance(exc, TimeoutError)
                 else (exc.strerror or str(exc)).lower()
             )
-            raise AntisyncError(
-                f"cannot reach the Dask scheduler at {address} ({why}); {hint}"
-            ) from None
+            raise AntisyncError(f"cannot reach the Dask scheduler at {address} ({why}); {hint}") from None
     # ask it who it is before building a Client: a Client that fails half-way is left to
     # time out again, noisily, when it is garbage-collected
     if _identity(address, timeout) != "Scheduler":
@@ -383,9 +378,7 @@ def _connect(address: str, timeout: float):
     try:
         return Client(address, timeout=timeout, set_as_default=False)
     except (OSError, TimeoutError, ValueError) as exc:
-        raise AntisyncError(
-            f"cannot connect to the Dask scheduler at {address} ({exc}); {hint}"
-        ) from None
+        raise AntisyncError(f"cannot connect to the Dask scheduler at {address} ({exc}); {hint}") from None
 
 
 def _identity(address: str, timeout: float) -> str | None:
