@@ -47,7 +47,7 @@ def run(
     if resume and overwrite:
         raise AntisyncError("--resume and --overwrite exclude each other: choose one")
     dask_executor = None
-    if cfg.executor == "dask" or workers or scheduler:
+    if cfg.executor == "dask" or workers is not None or scheduler is not None:
         from antisync_cli.executors.dask import DaskExecutor
 
         dask_executor = DaskExecutor.from_options(cfg, workers=workers, scheduler=scheduler,
@@ -58,4 +58,8 @@ def run(
     except Interrupted as exc:
         info(f"antisync: {exc}")
         raise typer.Exit(130) from None
+    finally:
+        # run_jobs closes its executor, but not when it fails before starting (output exists)
+        if dask_executor is not None:
+            dask_executor.close()
     info(f"wrote {path}  (next: antisync summary {path}; antisync report {path})", quiet)

@@ -1,0 +1,204 @@
+"""The Dask executor gives the local executor's numbers exactly: with other chunk sizes, with
+a worker killed mid-chunk, and through the CLI. A real two-process LocalCluster, no mocks."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import time
+
+import h5py
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+pytest.importorskip("distributed")
+
+from antisync_cli.cli.app import app  # noqa: E402
+from antisync_cli.config import load_config  # noqa: E402
+from antisync_cli.errors import AntisyncError  # noqa: E402
+from antisync_cli.executors.dask import DaskExecutor  # noqa: E402
+from antisync_cli.executors.local import LocalExecutor  # noqa: E402
+from antisync_cli.runner import run_config  # noqa: E402
+
+TINY = """\
+name: tiny
+graph: {kind: lollipop, nodes: 5, path: 2}
+edges: ["2->1", "3->4"]
+betas: [0.5]
+realizations: 400
+block_size: 50
+seed: 3
+"""
+ARRAYS = ("block_records", "hist", "tau0_records", "blocks_done", "tail_counts")
+UNREACHABLE = "tcp://127.0.0.1:1"
+
+
+@pytest.fixture(scope="module")
+def client():
+    from distributed import Client, LocalCluster
+
+    with LocalCluster(
+        n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1", dashboard_address=None
+    ) as cluster:
+        with Client(cluster, set_as_default=False) as c:
+            yield c
+
+
+@pytest.fixture(scope="module")
+def config_path(tmp_path_factory):
+    path = tmp_path_factory.mktemp("cfg") / "tiny.yaml"
+    path.write_text(TINY)
+    return path
+
+
+@pytest.fixture(scope="module")
+def reference(config_path, tmp_path_factory):
+    """The local executor's run, in one chunk: arrays and `antisync summary --format json`."""
+    out = tmp_path_factory.mktemp("local") / "local.h5"
+    run_config(load_config(config_path), output=out, executor=LocalExecutor("cpu", None))
+    return _arrays(out), _summary(out)
+
+
+def _arrays(path) -> dict:
+    with h5py.File(path, "r") as f:
+        (name,) = f["jobs"]
+        return {k: f[f"jobs/{name}/{k}"][()] for k in ARRAYS}
+
+
+def _summary(path) -> list:
+    res = CliRunner().invoke(app, ["summary", str(path), "--format", "json"])
+    assert res.exit_code == 0, res.output
+    return json.loads(res.stdout)
+
+
+def _assert_same(path, reference) -> None:
+    arrays, summary = reference
+    got = _arrays(path)
+    for k in ARRAYS:
+        assert got[k].dtype == arrays[k].dtype, k
+        assert np.array_equal(got[k], arrays[k]), k  # exact: integers and per-block sums
+    assert _summary(path) == summary
+
+
+class Watched:
+    """An executor around another that counts the chunks it has pulled from ``work`` and calls
+    ``on_result(i, pulled)`` after the i-th result (1-based)."""
+
+    def __init__(self, inner, on_result):
+        self.inner, self.on_result, self.pulled = inner, on_result, 0
+
+    def run(self, work):
+        def counted():
+            for item in work:
+                self.pulled += 1
+                yield item
+
+        for i, item in enumerate(self.inner.run(counted()), 1):
+            self.on_result(i, self.pulled)
+            yield item
+
+    def describe(self):
+        return self.inner.describe()
+
+    def close(self):
+        self.inner.close()
+
+
+def test_same_numbers_as_local_with_bounded_in_flight(client, config_path, reference, tmp_path):
+    ex = DaskExecutor(client, "cpu", tasks_per_thread=1)
+    limit = 1 * 2  # tasks_per_thread * worker threads
+
+    def check(i, pulled):
+        assert pulled - i < limit  # never more than `limit` unfinished tasks
+
+    out = run_config(
+        load_config(config_path),
+        output=tmp_path / "d.h5",
+        executor=Watched(ex, check),
+        chunk_realizations=50,
+    )  # 8 one-block chunks
+    _assert_same(out, reference)
+    assert client.status == "running"  # a given client is not the executor's to close
+
+
+@pytest.mark.parametrize("victims", ["one", "all"])
+def test_worker_killed_mid_chunk(client, config_path, reference, tmp_path, victims):
+    """SIGKILL worker processes after the first result: their chunks are rerun elsewhere (or,
+    when every copy of the scattered job died with them, resubmitted), none merged twice."""
+    client.wait_for_workers(2, timeout=60)
+    pids = client.run(os.getpid)
+    killed = []
+
+    def kill(i, pulled):
+        if i != 1:
+            return
+        busy = {w for w, keys in client.processing().items() if keys}
+        targets = [w for w in pids if w in busy][:1] if victims == "one" else list(pids)
+        assert targets, "no worker was busy: nothing to kill mid-chunk"
+        for w in targets:
+            os.kill(pids[w], signal.SIGKILL)
+            killed.append(w)
+
+    said = []
+    out = run_config(
+        load_config(config_path),
+        output=tmp_path / "k.h5",
+        executor=Watched(DaskExecutor(client, log=said.append), kill),
+        chunk_realizations=50,
+    )
+    assert killed
+    if victims == "all":  # the scattered job died with its last copy: resubmitted, not lost
+        assert any("resubmitting" in m for m in said), said
+    _assert_same(out, reference)
+    client.wait_for_workers(2, timeout=60)  # nannies restart the killed workers
+
+
+def test_unreachable_scheduler_is_a_quick_user_error(config_path):
+    start = time.monotonic()
+    with pytest.raises(AntisyncError, match="127.0.0.1:1"):
+        DaskExecutor.from_options(load_config(config_path), scheduler=UNREACHABLE)
+    assert time.monotonic() - start < 15  # a failure-mode timeout, not a speed target
+
+
+@pytest.mark.parametrize(
+    "args",
+    [
+        ["--scheduler", UNREACHABLE],
+        ["--scheduler", "not-an-address"],
+        ["--workers", "2", "--scheduler", UNREACHABLE],
+        ["--workers", "0"],
+    ],
+)
+def test_cli_dask_errors_are_one_line(config_path, tmp_path, args):
+    res = CliRunner().invoke(app, ["run", str(config_path), "-o", str(tmp_path / "x.h5"), *args])
+    assert res.exit_code == 2, res.output
+    lines = res.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("antisync: error:"), res.stderr
+    assert "Traceback" not in res.output
+    assert not (tmp_path / "x.h5").exists()
+
+
+@pytest.mark.filterwarnings("ignore:Port 8787 is already in use")
+def test_cli_workers_same_summary_as_local(config_path, reference, tmp_path):
+    out = tmp_path / "w.h5"
+    res = CliRunner().invoke(
+        app, ["run", str(config_path), "--workers", "2", "-o", str(out), "--set", "chunk_size=100"]
+    )
+    assert res.exit_code == 0, res.output
+    assert "LocalCluster of 2" in res.stderr
+    _assert_same(out, reference)
+
+
+def test_cli_scheduler_same_summary_as_local(client, config_path, reference, tmp_path):
+    out = tmp_path / "s.h5"
+    address = client.scheduler.address
+    res = CliRunner().invoke(
+        app,
+        ["run", str(config_path), "--scheduler", address, "-o", str(out), "--set", "executor=dask"],
+    )
+    assert res.exit_code == 0, res.output
+    assert f"connected to {address}" in res.stderr
+    _assert_same(out, reference)
+    assert client.status == "running"  # closing the CLI's client leaves the cluster up
