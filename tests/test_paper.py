@@ -50,3 +50,13 @@ def test_degree_one_edge_is_exactly_neutral(lollipop_records, paper_values):
 def test_signs_of_lambda(lollipop_records):
     assert lollipop_records["2->1"]["lambda_km"] > 0
     assert lollipop_records["2->3"]["lambda_km"] < 0
+
+
+def test_table1_lambda_max_of_the_lollipop(lollipop_records, paper_values):
+    """Table 1, graph 2: Lambda^KM of 2->1 (its most antifragile edge) with the default
+    estimator (finite difference, dbeta = 0.01, as in the paper)."""
+    row = next(r for r in paper_values["table_1"]["rows"] if r[0] == 2)
+    r = lollipop_records["2->1"]
+    assert r["lambda_method"] == "finite-difference" and r["lambda_dbeta"] == 0.01
+    assert abs(r["lambda_km"] - row[2]) < Z * r["lambda_km_se"], (r["lambda_km"], r["lambda_km_se"])
+    assert abs(r["F_mean"] - row[3]) < Z * r["F_se"]

@@ -1,0 +1,181 @@
+"""Lambda^KM for all 12 directed edges of the paper's lollipop: speed and time to precision.
+
+Run with ``make bench`` (or ``python bench/bench_kernels.py [--realizations M]``). Everything is
+measured in one run on the same machine, against a baseline written the obvious way:
+
+(a) baseline: per-realization Numba Euler, dt = 0.001, over an edge list with one ``sin`` per
+    directed edge per step; tau0 and tau(dbeta) integrated anew for every edge (the paper's
+    procedure), realizations in parallel with ``prange``;
+(b) antisync finite difference (Euler dt = 0.001, lanes, tau0 shared by all edges);
+(c) antisync pathwise (forward tangents for all edges along one trajectory);
+(d) antisync hybrid (pathwise, secants where |value| > 2);
+(e) antisync finite difference with RK4 (dt = 0.04, Hermite crossing).
+
+For each: realizations/s, trajectory-steps/s (Euler or RK4 steps of any trajectory; tangents
+ride along), the worst standard error over the edges at the benchmark size (batch means), and
+the projected wall time to standard error 0.005 on every edge: t_per_realization * M_needed
+with M_needed = M * (worst_se / 0.005)^2. The baseline computes exactly the estimator of (b)
+(grid crossing times), so it shares (b)'s standard error and only its speed is timed.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import platform
+import sys
+import time
+from pathlib import Path
+
+import numba
+import numpy as np
+from numba import njit, prange
+
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
+
+from antisync_cli import estimators  # noqa: E402
+from antisync_cli.compute import compute_chunk  # noqa: E402
+from antisync_cli.config import load_config_text  # noqa: E402
+from antisync_cli.jobs import Chunk, make_job  # noqa: E402
+from antisync_cli.phases import phase  # noqa: E402
+
+TARGET_SE = 0.005
+
+
+@njit(inline="always")
+def _tau_theta(theta0, src, dst, w, n, dt, target, max_steps):
+    theta = theta0.copy()
+    vel = np.empty(n)
+    for step in range(1, max_steps + 1):
+        vel[:] = 0.0
+        for p in range(src.size):
+            vel[src[p]] += w[p] * np.sin(theta[dst[p]] - theta[src[p]])
+        for i in range(n):
+            theta[i] += dt * vel[i]
+        c = 0.0
+        s = 0.0
+        for i in range(n):
+            c += np.cos(theta[i])
+            s += np.sin(theta[i])
+        if np.sqrt(c * c + s * s) / n >= target:
+            return step
+    return -1
+
+
+@njit(parallel=True)
+def baseline(seed, m, n, src, dst, w0, w_edges, dt, target, max_steps, out):
+    """out[r, e] = tau0/tau(dbeta) - 1 for edge e, tau0 re-integrated for every edge."""
+    for r in prange(m):
+        theta0 = np.empty(n)
+        for i in range(n):
+            theta0[i] = phase(seed, r, i)
+        for e in range(w_edges.shape[0]):
+            k0 = _tau_theta(theta0, src, dst, w0, n, dt, target, max_steps)
+            k1 = _tau_theta(theta0, src, dst, w_edges[e], n, dt, target, max_steps)
+            out[r, e] = k0 / k1 - 1.0 if k0 > 0 and k1 > 0 else np.nan
+
+
+def _config(method: str, integrator: str = "euler", dt: float = 0.001, m: int = 1000):
+    return load_config_text(f"""
+graph: {{kind: lollipop, nodes: 6, path: 3}}
+edges: all
+betas: []
+lambda: {{method: {method}, dbeta: 0.01}}
+dynamics: {{integrator: {integrator}, dt: {dt}}}
+realizations: {m}
+block_size: {max(1, m // 100)}
+""")
+
+
+def run_antisync(method, integrator, dt, m):
+    job = make_job(_config(method, integrator, dt, m))
+    compute_chunk(job, Chunk(0, 1))  # compile
+    t = time.perf_counter()
+    res = compute_chunk(job, Chunk(0, job.n_blocks))
+    seconds = time.perf_counter() - t
+    from antisync_cli.kernels.cpu import simulate, simulate_pathwise  # noqa: F401
+
+    steps = _trajectory_steps(job, m, method, integrator, dt)
+    worst = 0.0
+    tails = []
+    for e in range(len(job.edges)):
+        s = estimators.summarize_lambda(res.lam_rec[:, e])
+        if s["n"]:
+            worst = max(worst, s["lambda"].se)
+            tails.append(estimators.tail_share(res.lam_tail[e]))
+    lam = [estimators.summarize_lambda(res.lam_rec[:, e])["lambda"].mean for e in range(len(job.edges))]
+    return seconds, steps, worst, max(tails), dict(zip(job.edge_labels, lam, strict=True))
+
+
+def _trajectory_steps(job, m, method, integrator, dt):
+    """Steps of every trajectory integrated (recomputed cheaply from a small sample's ratio)."""
+    from antisync_cli.compute import simulate_job
+
+    sim = simulate_job(job, 0, min(m, 300))
+    scale = m / min(m, 300)
+    base = sim.steps0[sim.status0 == 0].sum()
+    if method == "finite-difference":
+        var = sim.steps[sim.status == 0].sum()
+        return float((base + var) * scale)
+    return float(base * scale)  # pathwise/hybrid: one trajectory (secants add < 2%)
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--realizations", type=int, default=4000)
+    ap.add_argument("--baseline-realizations", type=int, default=300)
+    args = ap.parse_args()
+    m = args.realizations
+    print(f"# bench_kernels: lollipop(6,3), 12 directed edges, dbeta = 0.01, M = {m}")
+    print(f"# machine: {platform.processor() or platform.machine()}, {os.cpu_count()} cores, "
+          f"numba {numba.__version__}, {numba.get_num_threads()} threads, python {platform.python_version()}")
+
+    # (a) baseline
+    job = make_job(_config("finite-difference"))
+    rows = np.repeat(np.arange(6), np.diff(job.csr.indptr))
+    v = [job.variant(e, 0.01) for e in range(12)]
+    w_edges = job.variant_weights[v]
+    mb = args.baseline_realizations
+    out = np.empty((mb, 12))
+    baseline(np.uint64(1), 4, 6, rows, job.csr.indices, job.csr.weights, w_edges, 0.001, 0.99, 200_000, out[:4])
+    t = time.perf_counter()
+    baseline(np.uint64(1), mb, 6, rows, job.csr.indices, job.csr.weights, w_edges, 0.001, 0.99, 200_000, out)
+    base_s = time.perf_counter() - t
+    fd_check = np.nanmean(out, axis=0) / 0.01
+
+    results = {}
+    for label, method, integrator, dt in (("(b) finite difference, Euler", "finite-difference", "euler", 0.001),
+                                          ("(c) pathwise, Euler", "pathwise", "euler", 0.001),
+                                          ("(d) hybrid, Euler", "hybrid", "euler", 0.001),
+                                          ("(e) finite difference, RK4 dt=0.04", "finite-difference", "rk4", 0.04)):
+        results[label] = run_antisync(method, integrator, dt, m)
+    fd_s, fd_steps, fd_se, _, fd_lam = results["(b) finite difference, Euler"]
+    # the baseline integrates tau0 once per edge: 24 trajectories per realization vs 13 in (b)
+    base_steps = fd_steps / m * mb * 24 / 13
+    base_rate = mb / base_s
+    base_time = (m * (fd_se / TARGET_SE) ** 2) / base_rate
+    print(f"# baseline check: its Lambda on 2->1 from {mb} realizations = {fd_check[1]:.3f} "
+          f"(antisync FD, M={m}: {fd_lam['2->1']:.3f})")
+    print()
+    print("| estimator | realizations/s | traj-steps/s | worst se (M) | tail share | time to se 0.005 | "
+          "vs (a): real/s | steps/s | time to precision |")
+    print("|---|---|---|---|---|---|---|---|---|")
+    print(f"| (a) baseline (paper's procedure) | {base_rate:,.0f} | {base_steps / base_s:.3g} | "
+          f"{fd_se:.4f} (as b) | - | {base_time:,.0f} s | 1 | 1 | 1 |")
+    for label, (sec, steps, se, tail, lam) in results.items():
+        rate = m / sec
+        ttp = m * (se / TARGET_SE) ** 2 / rate
+        print(f"| {label} | {rate:,.0f} | {steps / sec:.3g} | {se:.4f} | {tail:.2f} | {ttp:,.0f} s | "
+              f"{rate / base_rate:.1f}x | {(steps / sec) / (base_steps / base_s):.1f}x | "
+              f"{base_time / ttp:.0f}x |")
+    print()
+    print("Lambda per edge (M = %d):" % m)
+    edges = list(fd_lam)
+    print("| estimator | " + " | ".join(edges) + " |")
+    print("|---|" + "---|" * len(edges))
+    for label, (*_, lam) in results.items():
+        print(f"| {label} | " + " | ".join(f"{lam[e]:+.3f}" for e in edges) + " |")
+
+
+if __name__ == "__main__":
+    main()
