@@ -36,6 +36,7 @@ test-slow: $(STAMP)
 
 bench: $(STAMP)
 	$(BIN)/python bench/bench_kernels.py
+	$(BIN)/python bench/bench_dask.py
 
 lint: $(STAMP)
 	$(BIN)/ruff check antisync_cli tests bench
