@@ -137,17 +137,19 @@ def main() -> None:
     w_edges = job.variant_weights[v]
     mb = args.baseline_realizations
     out = np.empty((mb, 12))
-    baseline(np.uint64(1), 4, 6, rows, job.csr.indices, job.csr.weights, w_edges, 0.001, 0.99, 200_000, out[:4])
+    graph = (6, rows, job.csr.indices, job.csr.weights, w_edges, 0.001, 0.99, 200_000)
+    baseline(np.uint64(1), 4, *graph, out[:4])
     t = time.perf_counter()
-    baseline(np.uint64(1), mb, 6, rows, job.csr.indices, job.csr.weights, w_edges, 0.001, 0.99, 200_000, out)
+    baseline(np.uint64(1), mb, *graph, out)
     base_s = time.perf_counter() - t
     fd_check = np.nanmean(out, axis=0) / 0.01
 
     results = {}
-    for label, method, integrator, dt in (("(b) finite difference, Euler", "finite-difference", "euler", 0.001),
-                                          ("(c) pathwise, Euler", "pathwise", "euler", 0.001),
-                                          ("(d) hybrid, Euler", "hybrid", "euler", 0.001),
-                                          ("(e) finite difference, RK4 dt=0.04", "finite-difference", "rk4", 0.04)):
+    cases = (("(b) finite difference, Euler", "finite-difference", "euler", 0.001),
+             ("(c) pathwise, Euler", "pathwise", "euler", 0.001),
+             ("(d) hybrid, Euler", "hybrid", "euler", 0.001),
+             ("(e) finite difference, RK4 dt=0.04", "finite-difference", "rk4", 0.04))
+    for label, method, integrator, dt in cases:
         results[label] = run_antisync(method, integrator, dt, m)
     fd_s, fd_steps, fd_se, _, fd_lam = results["(b) finite difference, Euler"]
     # the baseline integrates tau0 once per edge: 24 trajectories per realization vs 13 in (b)
@@ -162,14 +164,14 @@ def main() -> None:
     print("|---|---|---|---|---|---|---|---|---|")
     print(f"| (a) baseline (paper's procedure) | {base_rate:,.0f} | {base_steps / base_s:.3g} | "
           f"{fd_se:.4f} (as b) | - | {base_time:,.0f} s | 1 | 1 | 1 |")
-    for label, (sec, steps, se, tail, lam) in results.items():
+    for label, (sec, steps, se, tail, _) in results.items():
         rate = m / sec
         ttp = m * (se / TARGET_SE) ** 2 / rate
         print(f"| {label} | {rate:,.0f} | {steps / sec:.3g} | {se:.4f} | {tail:.2f} | {ttp:,.0f} s | "
               f"{rate / base_rate:.1f}x | {(steps / sec) / (base_steps / base_s):.1f}x | "
               f"{base_time / ttp:.0f}x |")
     print()
-    print("Lambda per edge (M = %d):" % m)
+    print(f"Lambda per edge (M = {m}):")
     edges = list(fd_lam)
     print("| estimator | " + " | ".join(edges) + " |")
     print("|---|" + "---|" * len(edges))
