@@ -12,8 +12,9 @@ Two drivers give identical results, bit for bit:
   ``[node, lane]`` layout so the compiler vectorizes across lanes; a finished lane is refilled
   with the next (realization, variant) item of the thread's queue.
 
-``_pathwise_lanes`` integrates the undamaged network with forward sensitivities for every
-damaged edge at once (the tangent of the Euler step, exact for the discretized dynamics).
+With tangents switched on, the lane driver integrates the undamaged network with forward
+sensitivities for every damaged edge at once (the tangent of the Euler step, exact for the
+discretized dynamics): the pathwise estimator.
 """
 
 from __future__ import annotations
@@ -149,15 +150,36 @@ def _renormalize_lane(c, s, q):
         s[i, q] *= inv
 
 
+@njit(inline="always")
+def _lane_initial(c, s, kv, dtot, acc, sum_c, sum_s, lw, indptr, indices, rk4, q, r2, dr2, u, dr2t):
+    """Order parameter (and, for RK4, stage-1 velocity) of a freshly loaded lane ``q``."""
+    if rk4:
+        # other lanes' velocities are recomputed from their unchanged states: no change for them
+        _lane_velocity(c, s, kv[0], kv[1], dtot, acc, sum_c, sum_s, lw, indptr, indices)
+        r2[q] = dtot[2, q] ** 2 + dtot[3, q] ** 2
+        dr2[q] = 2.0 * (dtot[2, q] * dtot[0, q] + dtot[3, q] * dtot[1, q])
+    else:
+        r2[q] = c[:, q].sum() ** 2 + s[:, q].sum() ** 2
+    for e in range(u.shape[0]):
+        dr2t[e, q] = 0.0
+        for i in range(u.shape[1]):
+            u[e, i, q] = 0.0
+
+
 @njit(parallel=True, cache=True)
 def _integrate_lanes(
     ks, indptr, indices, base_w, var_w, var_is_base, dt, r2_target, max_steps, seed, taylor,
     rk4, lanes, n_groups, status0, steps0, frac0, status, steps, frac,
+    edge_a, edge_b, rho, mu, dtau,
 ):
+    """Lanes of trajectories with refill. With ``edge_a`` non-empty (and no variants) every
+    trajectory also carries forward sensitivities and ``dtau[r, e]`` receives d tau0/d beta_e."""
     m = status0.shape[0]
     n = indptr.shape[0] - 1
     nnz = base_w.shape[0]
     n_var = var_w.shape[0]
+    n_edges = edge_a.shape[0]
+    tangents = n_edges > 0
     per = (m + n_groups - 1) // n_groups
     for group in prange(n_groups):
         r_lo = group * per
@@ -176,11 +198,18 @@ def _integrate_lanes(
         r2_prev = np.zeros(lanes)
         dr2 = np.zeros(lanes)
         dr2_prev = np.zeros(lanes)
-        # RK4 scratch: stage velocities k[2 * stage + (0 for c, 1 for s)], stage state, sums
-        kv = np.zeros((8, n, lanes))
+        # RK4 scratch: stage velocities kv[2 * stage + (0 for c, 1 for s)], stage state, sums
+        kv = np.zeros((8 if rk4 else 2, n, lanes))
         yc = np.empty((n, lanes))
         ys = np.empty((n, lanes))
         dtot = np.zeros((4, lanes))
+        # tangent scratch: u[e] = d theta / d beta_e, and d R / d beta_e now and one step back
+        u = np.zeros((n_edges, n, lanes))
+        du = np.empty((n, lanes))
+        cu = np.empty((n, lanes))
+        su = np.empty((n, lanes))
+        dr2t = np.zeros((n_edges, lanes))
+        dr2t_prev = np.zeros((n_edges, lanes))
         lane_r = np.full(lanes, -1, dtype=np.int64)
         lane_v = np.zeros(lanes, dtype=np.int64)
         lane_k = np.zeros(lanes, dtype=np.int64)
@@ -193,19 +222,20 @@ def _integrate_lanes(
                                         r2_target, c, s, lw, ci, si, lane_r, lane_v, lane_k,
                                         status0, steps0, frac0, status, steps, frac)
             active += filled
-        if rk4:
-            _lane_velocity(c, s, kv[0], kv[1], dtot, acc, sum_c, sum_s, lw, indptr, indices)
-        for q in range(lanes):
-            r2[q] = dtot[2, q] ** 2 + dtot[3, q] ** 2
-            dr2[q] = 2.0 * (dtot[2, q] * dtot[0, q] + dtot[3, q] * dtot[1, q])
-            if not rk4 and lane_r[q] >= 0:
-                r2[q] = c[:, q].sum() ** 2 + s[:, q].sum() ** 2
+            if filled:
+                _lane_initial(c, s, kv, dtot, acc, sum_c, sum_s, lw, indptr, indices, rk4, q, r2, dr2,
+                              u, dr2t)
         while active > 0:
             for q in range(lanes):
                 r2_prev[q] = r2[q]
                 dr2_prev[q] = dr2[q]
+                for e in range(n_edges):
+                    dr2t_prev[e, q] = dr2t[e, q]
             if rk4:
                 _rk4_lanes(c, s, kv, yc, ys, dtot, acc, sum_c, sum_s, lw, indptr, indices, dt, r2, dr2)
+            elif tangents:
+                _tangent_lanes(c, s, acc, sum_c, sum_s, tot_c, tot_s, lw, indptr, indices, dt, r2,
+                               taylor, u, du, cu, su, edge_a, edge_b, rho, mu, dr2t)
             else:
                 _step_lanes(c, s, acc, sum_c, sum_s, tot_c, tot_s, lw, indptr, indices, dt, r2, taylor)
             for q in range(lanes):
@@ -213,21 +243,28 @@ def _integrate_lanes(
                     continue
                 lane_k[q] += 1
                 k = lane_k[q]
+                r = lane_r[q]
                 if r2[q] >= r2_target:
                     st = _SYNCED
+                    span = r2[q] - r2_prev[q]
                     if rk4:
                         x = _hermite(r2_prev[q], dr2_prev[q], r2[q], dr2[q], dt, r2_target)
                     else:
                         # where inside the last step a straight line through R crosses the target
-                        x = (r2_target - r2_prev[q]) / (r2[q] - r2_prev[q])
+                        x = (r2_target - r2_prev[q]) / span
+                    # tau = dt (k - 1 + x), x linear in R between the two steps:
+                    # dx/dbeta = -((1 - x) dR_{k-1} + x dR_k) / (R_k - R_{k-1})
+                    for e in range(n_edges):
+                        dtau[r, e] = -dt * ((1.0 - x) * dr2t_prev[e, q] + x * dr2t[e, q]) / span
                 elif k >= max_steps:
                     st = _NOT_SYNCED
                     x = 0.0
+                    for e in range(n_edges):
+                        dtau[r, e] = 0.0
                 else:
                     if not rk4 and k % RENORM_EVERY == 0:
                         _renormalize_lane(c, s, q)
                     continue
-                r = lane_r[q]
                 v = lane_v[q]
                 if v < 0:
                     status0[r] = st
@@ -244,123 +281,15 @@ def _integrate_lanes(
                                             status0, steps0, frac0, status, steps, frac)
                 active += filled
                 if filled:
-                    if rk4:
-                        # stage 1 of the refilled lane (other lanes' velocities are recomputed
-                        # from their unchanged states, so they do not change)
-                        _lane_velocity(c, s, kv[0], kv[1], dtot, acc, sum_c, sum_s, lw, indptr, indices)
-                        r2[q] = dtot[2, q] ** 2 + dtot[3, q] ** 2
-                        dr2[q] = 2.0 * (dtot[2, q] * dtot[0, q] + dtot[3, q] * dtot[1, q])
-                    else:
-                        r2[q] = c[:, q].sum() ** 2 + s[:, q].sum() ** 2
-        # variants that leave W unchanged share the undamaged result
+                    _lane_initial(c, s, kv, dtot, acc, sum_c, sum_s, lw, indptr, indices, rk4, q, r2,
+                                  dr2, u, dr2t)
         for r in range(r_lo, r_hi):
+            # variants that leave W unchanged share the undamaged result
             for v in range(n_var):
                 if var_is_base[v]:
                     status[r, v] = status0[r]
                     steps[r, v] = steps0[r]
                     frac[r, v] = frac0[r]
-
-
-@njit(parallel=True, cache=True)
-def _pathwise_lanes(
-    ks, indptr, indices, base_w, dt, r2_target, max_steps, seed, taylor, edge_a, edge_b, rho, mu,
-    lanes, n_groups, status0, steps0, frac0, dtau,
-):
-    m = status0.shape[0]
-    n = indptr.shape[0] - 1
-    nnz = base_w.shape[0]
-    n_edges = edge_a.shape[0]
-    per = (m + n_groups - 1) // n_groups
-    empty_var = np.empty((0, nnz))
-    no_var = np.zeros(0, dtype=np.bool_)
-    dummy_i8 = np.empty((m, 0), dtype=np.int8)
-    dummy_i = np.empty((m, 0), dtype=np.int64)
-    dummy_f = np.empty((m, 0))
-    for group in prange(n_groups):
-        r_lo = group * per
-        r_hi = min(m, r_lo + per)
-        if r_lo >= r_hi:
-            continue
-        c = np.empty((n, lanes))
-        s = np.empty((n, lanes))
-        acc = np.empty((n, lanes))
-        sum_c = np.empty((n, lanes))
-        sum_s = np.empty((n, lanes))
-        lw = np.empty((nnz, lanes))
-        tot_c = np.empty(lanes)
-        tot_s = np.empty(lanes)
-        r2 = np.zeros(lanes)
-        r2_prev = np.zeros(lanes)
-        u = np.zeros((n_edges, n, lanes))
-        du = np.empty((n, lanes))
-        cu = np.empty((n, lanes))
-        su = np.empty((n, lanes))
-        dr2 = np.zeros((n_edges, lanes))
-        dr2_prev = np.zeros((n_edges, lanes))
-        lane_r = np.full(lanes, -1, dtype=np.int64)
-        lane_v = np.zeros(lanes, dtype=np.int64)
-        lane_k = np.zeros(lanes, dtype=np.int64)
-        ci = np.empty(n)
-        si = np.empty(n)
-        qr, qv = r_lo, -1
-        active = 0
-        for q in range(lanes):
-            qr, qv, filled = _load_lane(q, qr, qv, r_hi, seed, ks, base_w, empty_var, no_var,
-                                        r2_target, c, s, lw, ci, si, lane_r, lane_v, lane_k,
-                                        status0, steps0, frac0, dummy_i8, dummy_i, dummy_f)
-            active += filled
-            if filled:
-                r2[q] = ((ci.sum()) ** 2 + (si.sum()) ** 2)
-                for e in range(n_edges):
-                    dr2[e, q] = 0.0
-                    for i in range(n):
-                        u[e, i, q] = 0.0
-        while active > 0:
-            for q in range(lanes):
-                r2_prev[q] = r2[q]
-                for e in range(n_edges):
-                    dr2_prev[e, q] = dr2[e, q]
-            _tangent_lanes(c, s, acc, sum_c, sum_s, tot_c, tot_s, lw, indptr, indices, dt, r2, taylor,
-                           u, du, cu, su, edge_a, edge_b, rho, mu, dr2)
-            for q in range(lanes):
-                if lane_r[q] < 0:
-                    continue
-                lane_k[q] += 1
-                k = lane_k[q]
-                r = lane_r[q]
-                if r2[q] >= r2_target:
-                    span = r2[q] - r2_prev[q]
-                    x = (r2_target - r2_prev[q]) / span
-                    status0[r] = _SYNCED
-                    steps0[r] = k
-                    frac0[r] = x
-                    # tau = dt (k - 1 + x) with x linear in R between the two steps:
-                    # dx/dbeta = -((1 - x) dR_{k-1} + x dR_k) / (R_k - R_{k-1})
-                    for e in range(n_edges):
-                        dtau[r, e] = -dt * ((1.0 - x) * dr2_prev[e, q] + x * dr2[e, q]) / span
-                elif k >= max_steps:
-                    status0[r] = _NOT_SYNCED
-                    steps0[r] = k
-                    frac0[r] = 0.0
-                    for e in range(n_edges):
-                        dtau[r, e] = 0.0
-                else:
-                    if k % RENORM_EVERY == 0:
-                        _renormalize_lane(c, s, q)
-                    continue
-                lane_r[q] = -1
-                active -= 1
-                qr, qv, filled = _load_lane(q, qr, qv, r_hi, seed, ks, base_w, empty_var, no_var,
-                                            r2_target, c, s, lw, ci, si, lane_r, lane_v, lane_k,
-                                            status0, steps0, frac0, dummy_i8, dummy_i, dummy_f)
-                active += filled
-                if filled:
-                    r2[q] = ((ci.sum()) ** 2 + (si.sum()) ** 2)
-                    for e in range(n_edges):
-                        dr2[e, q] = 0.0
-                        for i in range(n):
-                            u[e, i, q] = 0.0
-        for r in range(r_lo, r_hi):
             if status0[r] == _ALREADY:
                 for e in range(n_edges):
                     dtau[r, e] = 0.0
@@ -509,8 +438,10 @@ def simulate(
         frac = np.empty((m, var_w.shape[0]))
         # |alpha_i| = dt |omega_i| <= dt sum_j |w_ij|: then the Taylor rotation is always valid
         taylor = float(dt) * _row_sum_bound(indptr, base_weights, var_w) <= TAYLOR_MAX_ANGLE
+        no_edges = np.zeros(0, dtype=np.int64)
         _integrate_lanes(*args, taylor, integrator == "rk4", int(lanes), groups, status0, steps0, frac0,
-                         status, steps, frac)
+                         status, steps, frac, no_edges, no_edges, np.zeros(0), np.zeros(0),
+                         np.empty((m, 0)))
     return SimResult(status0, steps0, status, steps, frac0, frac)
 
 
@@ -548,12 +479,14 @@ def simulate_pathwise(
     frac0 = np.empty(m)
     dtau = np.empty((m, len(edge_a)))
     taylor = float(dt) * _row_sum_bound(indptr, base_weights, []) <= TAYLOR_MAX_ANGLE
+    no_var = np.empty((0, base_weights.size))
     with _Threads(threads) as groups:
-        _pathwise_lanes(
-            ks, indptr.astype(np.int64), indices.astype(np.int64), base_weights, float(dt),
-            (threshold * n) ** 2, int(max_steps), np.uint64(seed), taylor,
+        _integrate_lanes(
+            ks, indptr.astype(np.int64), indices.astype(np.int64), base_weights, no_var,
+            np.zeros(0, dtype=np.bool_), float(dt), (threshold * n) ** 2, int(max_steps),
+            np.uint64(seed), taylor, False, int(lanes), groups, status0, steps0, frac0,
+            np.empty((m, 0), dtype=np.int8), np.empty((m, 0), dtype=np.int64), np.empty((m, 0)),
             np.asarray(edge_a, dtype=np.int64), np.asarray(edge_b, dtype=np.int64),
-            np.asarray(rho, dtype=np.float64), np.asarray(mu, dtype=np.float64),
-            int(lanes), groups, status0, steps0, frac0, dtau,
+            np.asarray(rho, dtype=np.float64), np.asarray(mu, dtype=np.float64), dtau,
         )
     return PathwiseResult(status0, steps0, frac0, dtau)
