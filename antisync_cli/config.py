@@ -39,6 +39,7 @@ __all__ = [
     "Dynamics",
     "Histogram",
     "LambdaSpec",
+    "LinearSpec",
     "load_config",
     "load_config_text",
 ]
@@ -48,7 +49,10 @@ EXECUTORS = ("local", "dask")
 INTEGRATORS = ("euler", "rk4")
 CROSSINGS = ("auto", "grid", "interpolated")
 LAMBDA_METHODS = ("finite-difference", "pathwise", "hybrid")
-MEASURES = ("km",)
+#: km: Lambda^KM from the run (Eq. 6); linear, xi2, rw: the measures of Secs. 2.3 and 3.3
+#: (Eqs. 14, 16, 25); km_nnc: the same run with raw coupling (Sec. 3.4, Eqs. 27-29).
+MEASURES = ("km", "linear", "xi2", "rw", "km_nnc")
+LINEAR_METHODS = ("exact", "euler", "derivative")
 
 _GRAPH_KEYS = {
     "lollipop": ({"nodes", "path"}, set()),
@@ -119,6 +123,28 @@ class LambdaSpec:
 
 
 @dataclass(frozen=True)
+class LinearSpec:
+    """Lambda^(linear) (Eq. 14) when ``linear`` is in ``measures``.
+
+    Realizations ``0 .. realizations-1`` of the run's seed give the initial phases, so the
+    linear model starts where the Kuramoto runs start; ``method`` is ``exact`` (exact solution,
+    root finding), ``euler`` (step ``dynamics.dt``) or ``derivative`` (exact per-realization
+    derivative, no ``dbeta``), see :func:`antisync_cli.measures.lambda_linear`.
+    """
+
+    realizations: int = 2000
+    method: str = "exact"
+
+    def __post_init__(self):
+        if isinstance(self.realizations, bool) or not isinstance(self.realizations, int) or \
+                self.realizations < 2:
+            raise ConfigError(
+                f"linear.realizations must be an integer >= 2, got {self.realizations!r}"
+            )
+        _choice("linear.method", self.method, LINEAR_METHODS)
+
+
+@dataclass(frozen=True)
 class Histogram:
     """2D histogram of (tau0, tau(beta)) pairs (Figs. 1c-f): ``bins`` x ``bins`` on [0, tau_max)."""
 
@@ -145,6 +171,7 @@ class Config:
     lambda_: LambdaSpec = field(default_factory=LambdaSpec)
     dynamics: Dynamics = field(default_factory=Dynamics)
     measures: tuple = ("km",)
+    linear: LinearSpec = field(default_factory=LinearSpec)
     realizations: int = 2000
     seed: int = 1
     block_size: Any = "auto"
@@ -169,8 +196,7 @@ class Config:
                 raise ConfigError(
                     f"edges must be 'all' or a non-empty list like [\"2->1\"], got {self.edges!r}"
                 )
-        for m in self.measures:
-            _choice("measures", m, MEASURES)
+        _check_measures(self.measures, self.dynamics.coupling)
         _choice("backend", self.backend, BACKENDS)
         _choice("executor", self.executor, EXECUTORS)
         if self.block_size != "auto" and (
@@ -225,10 +251,10 @@ class Config:
 
 
 _TOP_KEYS = {
-    "name", "graph", "edges", "betas", "lambda", "dynamics", "measures", "realizations",
+    "name", "graph", "edges", "betas", "lambda", "dynamics", "measures", "linear", "realizations",
     "seed", "block_size", "chunk_size", "keep_pairs", "histogram", "backend", "executor", "threads", "output",
 }
-_SECTIONS = {"lambda": LambdaSpec, "dynamics": Dynamics, "histogram": Histogram}
+_SECTIONS = {"lambda": LambdaSpec, "dynamics": Dynamics, "histogram": Histogram, "linear": LinearSpec}
 
 
 def load_config(path: str | Path, overrides: list[str] | None = None) -> Config:
@@ -313,6 +339,8 @@ def _from_mapping(raw: dict, source: Path | None) -> Config:
                 raise ConfigError(f"betas must be a list such as [0.1, 0.5], got {value!r}")
             kwargs["betas"] = tuple(sorted({_number("betas", b, 0.0) for b in value}))
         elif key == "measures":
+            if value is None or value == []:
+                raise ConfigError("measures must list at least km, e.g. measures: [km, xi2]")
             kwargs["measures"] = tuple(value if isinstance(value, list) else [value])
         elif key == "graph":
             kwargs["graph"] = _resolve_graph(value, source)
@@ -323,6 +351,26 @@ def _from_mapping(raw: dict, source: Path | None) -> Config:
     if not kwargs.get("output"):
         kwargs["output"] = f"results/{kwargs['name']}.h5"
     return Config(**kwargs)
+
+
+def _check_measures(measures: tuple, coupling: str) -> None:
+    """Names from :data:`MEASURES`, each once, ``km`` among them; ``km_nnc`` only beside a
+    normalized run (with raw coupling the second run would repeat the first)."""
+    for m in measures:
+        _choice("measures", m, MEASURES)
+    twice = sorted({m for m in measures if measures.count(m) > 1})
+    if twice:
+        raise ConfigError(f"measures lists {', '.join(twice)} twice")
+    if "km" not in measures:
+        raise ConfigError(
+            f"measures must include km (the Kuramoto run the others are stored beside), got "
+            f"{list(measures)}; for xi2 or rw alone call antisync_cli.measures directly"
+        )
+    if "km_nnc" in measures and coupling != "normalized":
+        raise ConfigError(
+            "measures: km_nnc adds a raw-coupling run beside a normalized one; "
+            f"it needs dynamics.coupling: normalized, got {coupling!r}"
+        )
 
 
 def _resolve_graph(value, source: Path | None) -> dict:
