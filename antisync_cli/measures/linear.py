@@ -200,6 +200,7 @@ def lambda_linear(
     *,
     dt: float = 0.001,
     t_max: float = 200.0,
+    tau0: np.ndarray | None = None,
 ) -> LinearResult:
     """``Lambda^(linear)`` of the directed link ``a -> b``, Eq. (14) of the paper.
 
@@ -226,6 +227,11 @@ def lambda_linear(
         Euler step for ``method="euler"``.
     t_max : float
         As in :func:`tau_linear_exact`.
+    tau0 : ndarray, shape (M,), optional
+        ``tau_0`` of ``theta0`` on the undamaged ``omega``, computed as this function would
+        (:func:`tau_linear_euler` with the same ``dt`` for ``"euler"``, else
+        :func:`tau_linear_exact`), so that many edges of one network share it. The result is
+        then identical to a call without it.
 
     Returns
     -------
@@ -250,7 +256,11 @@ def lambda_linear(
     if method != "derivative" and not 0 < dbeta < 1:
         raise ValueError(f"dbeta must satisfy 0 < dbeta < 1, got {dbeta}")
 
-    if method == "euler":
+    if tau0 is not None:
+        tau0 = np.asarray(tau0, dtype=np.float64)
+        if tau0.shape != (theta0.shape[0],):
+            raise ValueError(f"tau0 must have shape ({theta0.shape[0]},), got {tau0.shape}")
+    elif method == "euler":
         tau0 = tau_linear_euler(omega, theta0, threshold, coupling, dt, t_max)
     else:
         tau0 = tau_linear_exact(omega, theta0, threshold, coupling, t_max)
@@ -260,7 +270,12 @@ def lambda_linear(
         per_real = _lambda_derivative(omega, a, b, theta0, tau0, coupling)
     else:
         omega_star = damaged_omega(omega, a, b, dbeta)
-        if method == "euler":
+        if np.array_equal(laplacian(omega_star, coupling), laplacian(omega, coupling)):
+            # the damage leaves the coupling unchanged (normalized coupling, the only link of
+            # a leaf): the same dynamics, tau(beta) = tau_0 exactly. Without this shortcut the
+            # asymmetric Omega* would take another eigen-route and differ by rounding.
+            tau_b = tau0
+        elif method == "euler":
             tau_b = tau_linear_euler(omega_star, theta0, threshold, coupling, dt, t_max)
         else:
             tau_b = tau_linear_exact(omega_star, theta0, threshold, coupling, t_max)
