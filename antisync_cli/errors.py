@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-__all__ = ["AntisyncError", "ConfigError", "StoreError"]
+__all__ = ["AntisyncError", "ConfigError", "MeasureError", "StoreError"]
 
 
 class AntisyncError(Exception):
@@ -15,3 +15,7 @@ class ConfigError(AntisyncError, ValueError):
 
 class StoreError(AntisyncError):
     """A result file that cannot be used (unreadable, foreign, or from a different config)."""
+
+
+class MeasureError(AntisyncError, ValueError):
+    """A response measure that cannot be computed for a run's graph (e.g. a disconnected one)."""

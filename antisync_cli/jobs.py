@@ -57,6 +57,9 @@ class Job:
         ``(edge_a, edge_b, rho, mu)`` per edge for the pathwise kernel.
     secant_weights : ndarray (E, nnz)
         ``W(Omega*)`` at ``dbeta`` for each edge (hybrid secants).
+    nnc_of : str
+        For the raw-coupling twin of a run (``km_nnc``, Sec. 3.4), the name of the normalized
+        job it pairs with; ``""`` otherwise.
     """
 
     config: Config
@@ -74,6 +77,7 @@ class Job:
     variant_weights: np.ndarray
     tangent: tuple
     secant_weights: np.ndarray
+    nnc_of: str = ""
 
     @property
     def block_size(self) -> int:

@@ -15,6 +15,7 @@ from antisync_cli.backends import resolve_backend
 from antisync_cli.config import Config
 from antisync_cli.errors import AntisyncError
 from antisync_cli.jobs import Job, make_job
+from antisync_cli.measures.pipeline import COMPUTED, compute_measures, wants_measures, with_nnc
 from antisync_cli.store import JobState, ResultStore, command_line, git_revision
 
 __all__ = ["Interrupted", "run_config", "run_jobs"]
@@ -57,6 +58,7 @@ def run_jobs(
         Something with ``run(work)`` yielding ``(job, ChunkResult)``; default local.
     """
     say = log or (lambda msg: None)
+    jobs = with_nnc(jobs)  # measures: km_nnc adds each job's raw-coupling twin
     store = ResultStore(output or config.output)
     backend, note = resolve_backend(config.backend)
     if backend == "cuda" and config.lambda_.method != "finite-difference":
@@ -71,6 +73,8 @@ def run_jobs(
     store.prepare(resume=resume, overwrite=overwrite)
     key = config.simulation_key()
     states = store.load_states(jobs, key) if resume else {job.name: JobState(job) for job in jobs}
+    # before anything is written: a graph a measure rejects leaves no file behind
+    measured = _compute_measures(jobs, states, say)
     store.start_journal(key)
     provenance = {
         "command": command_line(),
@@ -78,6 +82,8 @@ def run_jobs(
         "git_revision": git_revision(),
         "simulation_key": _json(key),
     }
+    if measured:
+        store.checkpoint(states, provenance)  # so --resume never computes them again
     if chunk_realizations is None and config.chunk_size != "auto":
         chunk_realizations = int(config.chunk_size)
     work = [(job, c) for job in jobs for c in states[job.name].pending(job.chunks(chunk_realizations))]
@@ -112,6 +118,22 @@ def run_jobs(
         executor.close()
     store.checkpoint(states, provenance, final=True)
     return store.path
+
+
+def _compute_measures(jobs: list[Job], states: dict, say) -> bool:
+    """Lambda^(linear), Lambda^(xi2), Lambda^(RW) once per job, before any chunk (a graph they
+    reject fails the run at once); states loaded with their measures are left alone."""
+    computed = False
+    for job in jobs:
+        st = states[job.name]
+        if st.measures is None and wants_measures(job):
+            start = time.perf_counter()
+            st.measures = compute_measures(job)
+            st.measures_seconds = time.perf_counter() - start
+            names = ", ".join(m for m in job.config.measures if m in COMPUTED)
+            say(f"{job.name}: measures {names} in {st.measures_seconds:.1f} s")
+            computed = True
+    return computed
 
 
 def _json(obj) -> str:

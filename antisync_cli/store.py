@@ -23,6 +23,11 @@ Layout (one file per run or sweep)::
         kept/status0, kept/steps0, kept/status, kept/steps, kept/lambda: the first keep_pairs
                            realizations (steps are integration steps: tau = steps * dt;
                            status -1 = not run; lambda = per-realization estimate per edge)
+        measures/          only with linear, xi2 or rw in measures: one (E,) dataset per value
+                           (lambda_xi2, lambda_rw, lambda_linear, lambda_linear_se,
+                           lambda_linear_n, ...) aligned with edges; attrs measures, coupling,
+                           linear_method, linear_realizations, linear_dbeta, linear_seed, seconds
+        attrs nnc_of:      on the raw-coupling twin ``<name>_nnc`` of job <name> (km_nnc)
 
 Crash safety: while a run is going, each finished chunk is written at once to its own file in
 ``<output>.partial/`` (write to a temporary name, then an atomic rename). Every
@@ -80,6 +85,8 @@ class JobState:
         }
         self.seconds = 0.0
         self.backends: set[str] = set()
+        self.measures: dict | None = None  # Lambda^(linear, xi2, RW): see measures.pipeline
+        self.measures_seconds = 0.0
 
     def add(self, res: ChunkResult) -> None:
         """Merge a chunk; a chunk whose blocks are already done is an error, never added twice."""
@@ -318,6 +325,12 @@ def _write_state(g, st: JobState) -> None:
     kept = g.create_group("kept")
     for key, arr in st.kept.items():
         kept.create_dataset(key, data=arr, compression="gzip", compression_opts=1)
+    if job.nnc_of:
+        g.attrs["nnc_of"] = job.nnc_of
+    if st.measures is not None:
+        from antisync_cli.measures.pipeline import write_measures
+
+        write_measures(g, st.measures, cfg, st.measures_seconds)
     from antisync_cli.summary import job_records  # late: summary reads this module's layout
 
     g.attrs["summary_json"] = json.dumps(job_records(_view_from_state(st)))
@@ -337,6 +350,11 @@ def _read_state(g, st: JobState) -> None:
         st.kept[key][...] = g["kept"][key][...]
     st.seconds = float(g.attrs["seconds"])
     st.backends = set(str(g.attrs["backend"]).split(",")) - {""}
+    if "measures" in g:
+        from antisync_cli.measures.pipeline import read_measures
+
+        st.measures = read_measures(g)
+        st.measures_seconds = float(g["measures"].attrs.get("seconds", 0.0))
 
 
 def _view_from_state(st: JobState):
@@ -348,7 +366,7 @@ def _view_from_state(st: JobState):
         variant_edge=job.variant_edge, variant_beta=job.variant_beta,
         rec=st.rec, rec0=st.rec0, done=st.done, tail=st.tail,
         realizations=job.config.realizations, lam_rec=st.lam_rec, lam_tail=st.lam_tail,
-        lambda_method=job.config.lambda_.method,
+        lambda_method=job.config.lambda_.method, measures=st.measures,
     )
 
 

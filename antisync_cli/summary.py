@@ -14,8 +14,9 @@ from pathlib import Path
 import numpy as np
 
 from antisync_cli import estimators
+from antisync_cli.measures.pipeline import join_nnc, measure_fields, read_measures
 
-__all__ = ["JobView", "job_records", "read_views", "records"]
+__all__ = ["JobView", "job_records", "read_views", "records", "view_records"]
 
 # error bars are flagged when the largest 0.1% of samples carry this share of the variance
 TAIL_WARN = 0.5
@@ -45,6 +46,7 @@ class JobView:
     omega: np.ndarray | None = None
     nodes: list | None = None
     attrs: dict | None = None
+    measures: dict | None = None  # Lambda^(linear, xi2, RW) arrays, see measures.pipeline
 
     def variant(self, edge_index: int, beta: float) -> int:
         hit = np.flatnonzero((self.variant_edge == edge_index) & np.isclose(self.variant_beta, beta))
@@ -113,6 +115,7 @@ def job_records(view: JobView) -> list[dict]:
                 "tau0_n": s0["n"],
                 "realizations_done": int(s0["n"] + s0["n_already"] + s0["n_not_synced"]),
             })
+            rec.update(measure_fields(view.measures, e))
             out.append(rec)
     return out
 
@@ -149,6 +152,7 @@ def read_views(path: str | Path) -> list[JobView]:
                     lambda_method=str(g.attrs["lambda_method"]),
                     nodes=json.loads(g.attrs["nodes"]),
                     attrs={k: g.attrs[k] for k in g.attrs if k != "summary_json"},
+                    measures=read_measures(g),
                 ))
             except KeyError as exc:
                 raise StoreError(f"{path}: job {name} lacks {exc}; the file is damaged") from None
@@ -157,4 +161,9 @@ def read_views(path: str | Path) -> list[JobView]:
 
 def records(path: str | Path) -> list[dict]:
     """Summary records of every job in a result file."""
-    return [r for view in read_views(path) for r in job_records(view)]
+    return view_records(read_views(path))
+
+
+def view_records(views: list[JobView]) -> list[dict]:
+    """Records of ``views``, with each run's ``lambda_km_nnc`` taken from its raw-coupling twin."""
+    return join_nnc(views, [r for view in views for r in job_records(view)])
