@@ -5,6 +5,7 @@
 - ``<job>_F_beta``: <F_beta> against beta for every edge, coloured by Lambda^KM (Fig. 1b);
 - ``<job>_hist_<edge>_b<beta>``: log-density 2D histograms of (tau0, tau(beta)) with the
   line tau(beta) = tau0 (Figs. 1c-f).
+- ``fig5_measures``, ``<job>_fig7e_km_nnc``: see :mod:`antisync_cli.report.measures`.
 """
 
 from __future__ import annotations
@@ -163,4 +164,9 @@ def write_report(views: list[JobView], folder: str | Path, *, pdf: bool = False,
             plot_histogram(view, k, ax)
             edge = view.edges[int(view.variant_edge[v])].replace("->", "to")
             save(fig, f"{view.graph}_hist_{edge}_b{view.variant_beta[v]:g}")
+    # Figs. 5 and 7e when the file holds linear/xi2/RW measures or a km_nnc twin
+    from antisync_cli.report.measures import measure_figures
+
+    for fig, stem in measure_figures(views):
+        save(fig, stem)
     return written

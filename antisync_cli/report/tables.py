@@ -15,6 +15,12 @@ _TABLE_COLUMNS = [
     ("tau0_mean", "<tau0>", "{:.4f}"), ("tau0_se", "se", "{:.4f}"),
     ("n", "n", "{:,}"), ("n_excluded", "r0>=r", "{}"), ("n_not_synced", "unsynced", "{}"),
 ]
+# shown only when some record has them (measures: linear, xi2, rw, km_nnc)
+_MEASURE_COLUMNS = [
+    ("lambda_linear", "Lambda_lin", "{:+.4f}"), ("lambda_linear_se", "se", "{:.4f}"),
+    ("lambda_xi2", "Lambda_xi2", "{:+.4f}"), ("lambda_rw", "Lambda_RW", "{:+.4f}"),
+    ("lambda_km_nnc", "Lambda_NNC", "{:+.4f}"), ("lambda_km_nnc_se", "se", "{:.4f}"),
+]
 
 
 def format_records(records: list[dict], fmt: str = "table") -> str:
@@ -28,9 +34,11 @@ def format_records(records: list[dict], fmt: str = "table") -> str:
             writer.writeheader()
             writer.writerows(records)
         return buf.getvalue().rstrip("\n")
-    rows = [[h for _, h, _ in _TABLE_COLUMNS]]
+    columns = _TABLE_COLUMNS + [c for c in _MEASURE_COLUMNS
+                                if any(r.get(c[0]) is not None for r in records)]
+    rows = [[h for _, h, _ in columns]]
     for r in records:
-        rows.append(["-" if r.get(k) is None else f.format(r[k]) for k, _, f in _TABLE_COLUMNS])
+        rows.append(["-" if r.get(k) is None else f.format(r[k]) for k, _, f in columns])
     widths = [max(len(row[i]) for row in rows) for i in range(len(rows[0]))]
     lines = ["  ".join(c.rjust(w) for c, w in zip(row, widths, strict=True)) for row in rows]
     warnings = sorted({(r["edge"], r["lambda_km_warning"]) for r in records if r.get("lambda_km_warning")})
