@@ -13,17 +13,27 @@ rounding for ``|alpha| <= 0.05`` (truncation below 1e-16 relative); larger angle
 ``math.cos``/``math.sin``. The order parameter ``r = |sum_j (c_j, s_j)| / N`` (Eq. 3) is then
 read off without any transcendental call. Every ``RENORM_EVERY`` steps ``(c, s)`` is projected
 back to the unit circle so rounding cannot drift.
+
+In single precision (``make_kernels(jit, np.float32)``, the CUDA backend's ``precision:
+float32``) the drift is not only random: for ``|alpha| < 2.4e-4`` the Taylor cosine rounds to
+exactly 1 in float32, so each rotation lengthens ``(c_i, s_i)`` by ``alpha^2 / 2``, ``r`` reads
+high, and over 1024 steps that made float32 cross the threshold one step early in ~12% of
+trajectories (lollipop(6,3), dt = 0.001). float32 therefore renormalizes every
+``RENORM_EVERY_FLOAT32`` steps, which removes that bias (docs/cuda.md).
 """
 
 from __future__ import annotations
 
 import math
 
+import numpy as np
+
 from antisync_cli.status import Status
 
-__all__ = ["RENORM_EVERY", "TAYLOR_MAX_ANGLE", "make_kernels"]
+__all__ = ["RENORM_EVERY", "RENORM_EVERY_FLOAT32", "TAYLOR_MAX_ANGLE", "make_kernels"]
 
 RENORM_EVERY = 1024
+RENORM_EVERY_FLOAT32 = 64
 _SYNCED = int(Status.SYNCED)
 _ALREADY = int(Status.ALREADY_SYNCED)
 _NOT_SYNCED = int(Status.NOT_SYNCED)
@@ -32,8 +42,20 @@ _NOT_SYNCED = int(Status.NOT_SYNCED)
 TAYLOR_MAX_ANGLE = 0.05
 
 
-def make_kernels(jit):
+def make_kernels(jit, dtype=np.float64):
     """Compile the integrator's building blocks with ``jit``.
+
+    Parameters
+    ----------
+    jit : callable
+        A numba decorator (``njit(...)`` or ``cuda.jit(device=True)``).
+    dtype : numpy floating type, default ``np.float64``
+        Type of the state arithmetic of the one-trajectory functions (``rotation``,
+        ``euler_step``, ``renormalize``, ``order2``, ``sync_steps``): their literals are
+        constants of this type, so with ``np.float32`` (and float32 arrays, ``dt`` and
+        ``r2_target``) numba types the step in single precision instead of promoting it to
+        double. With ``np.float64`` the constants are the same doubles the literals were, so
+        results do not change. The lane, tangent and RK4 functions are for float64 only.
 
     Returns
     -------
@@ -52,16 +74,30 @@ def make_kernels(jit):
         ``tangent_step_lanes(...)`` does the same step and its forward sensitivities.
     """
 
+    # typed constants: closure values are frozen by numba with their numpy type
+    zero = dtype(0.0)
+    one = dtype(1.0)
+    half = dtype(0.5)
+    c4 = dtype(1.0 / 24.0)
+    c6 = dtype(1.0 / 720.0)
+    c8 = dtype(40320.0)
+    s3 = dtype(1.0 / 6.0)
+    s5 = dtype(1.0 / 120.0)
+    s7 = dtype(1.0 / 5040.0)
+    s9 = dtype(362880.0)
+    max_angle = dtype(TAYLOR_MAX_ANGLE)
+    renorm_every = RENORM_EVERY if dtype == np.float64 else RENORM_EVERY_FLOAT32
+
     def taylor_rotation(a):
         a2 = a * a
-        ca = 1.0 - a2 * (0.5 - a2 * (1.0 / 24.0 - a2 * (1.0 / 720.0 - a2 / 40320.0)))
-        sa = a * (1.0 - a2 * (1.0 / 6.0 - a2 * (1.0 / 120.0 - a2 * (1.0 / 5040.0 - a2 / 362880.0))))
+        ca = one - a2 * (half - a2 * (c4 - a2 * (c6 - a2 / c8)))
+        sa = a * (one - a2 * (s3 - a2 * (s5 - a2 * (s7 - a2 / s9))))
         return ca, sa
 
     taylor_rotation = jit(taylor_rotation)
 
     def rotation(a):
-        if abs(a) <= TAYLOR_MAX_ANGLE:
+        if abs(a) <= max_angle:
             return taylor_rotation(a)
         return math.cos(a), math.sin(a)
 
@@ -70,8 +106,8 @@ def make_kernels(jit):
     def euler_step(c, s, acc, indptr, indices, weights, dt):
         n = c.shape[0]
         for i in range(n):
-            sc = 0.0
-            ss = 0.0
+            sc = zero
+            ss = zero
             for p in range(indptr[i], indptr[i + 1]):
                 j = indices[p]
                 w = weights[p]
@@ -79,8 +115,8 @@ def make_kernels(jit):
                 ss += w * s[j]
             # Eq. (2) in (cos, sin) form: omega_i = c_i sum_j w_ij s_j - s_i sum_j w_ij c_j
             acc[i] = dt * (c[i] * ss - s[i] * sc)
-        sum_c = 0.0
-        sum_s = 0.0
+        sum_c = zero
+        sum_s = zero
         for i in range(n):
             ca, sa = rotation(acc[i])
             ci = c[i]
@@ -260,15 +296,15 @@ def make_kernels(jit):
 
     def renormalize(c, s):
         for i in range(c.shape[0]):
-            inv = 1.0 / math.sqrt(c[i] * c[i] + s[i] * s[i])
+            inv = one / math.sqrt(c[i] * c[i] + s[i] * s[i])
             c[i] *= inv
             s[i] *= inv
 
     renormalize = jit(renormalize)
 
     def order2(c, s):
-        sum_c = 0.0
-        sum_s = 0.0
+        sum_c = zero
+        sum_s = zero
         for i in range(c.shape[0]):
             sum_c += c[i]
             sum_s += s[i]
@@ -283,7 +319,7 @@ def make_kernels(jit):
             r2 = euler_step(c, s, acc, indptr, indices, weights, dt)
             if r2 >= r2_target:
                 return _SYNCED, step
-            if step % RENORM_EVERY == 0:
+            if step % renorm_every == 0:
                 renormalize(c, s)
         return _NOT_SYNCED, max_steps
 
