@@ -10,10 +10,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from antisync_cli import estimators
+from antisync_cli.errors import ConfigError
 from antisync_cli.jobs import Chunk, Job
 from antisync_cli.status import Status
 
-__all__ = ["ChunkResult", "compute_chunk", "lambda_values", "simulate_job"]
+__all__ = ["ChunkResult", "check_backend", "compute_chunk", "lambda_values", "simulate_job"]
 
 _SYNCED = int(Status.SYNCED)
 
@@ -54,11 +55,49 @@ def _kernel(backend: str):
     return kernel
 
 
+def check_backend(config, backend: str) -> None:
+    """Refuse options the resolved ``backend`` does not implement (before any file is written).
+
+    The CUDA backend runs the paper's procedure: Euler steps, grid crossing times,
+    finite-difference Lambda, in float64 or float32. The CPU backend runs everything but
+    float32.
+
+    Raises
+    ------
+    ConfigError
+        Naming the key, the value and what would work.
+    """
+    dyn = config.dynamics
+    if dyn.precision != "float64" and backend != "cuda":
+        raise ConfigError(
+            f"dynamics.precision {dyn.precision} is implemented only on backend cuda "
+            f"(this run uses backend {backend}); use precision float64 or backend cuda"
+        )
+    if backend != "cuda":
+        return
+    if config.lambda_.method != "finite-difference":
+        raise ConfigError(
+            f"lambda.method {config.lambda_.method} runs on the cpu backend only; "
+            "use --backend cpu or lambda.method finite-difference"
+        )
+    if dyn.integrator != "euler":
+        raise ConfigError(
+            f"dynamics.integrator {dyn.integrator} runs on the cpu backend only; "
+            "use --backend cpu or integrator euler"
+        )
+    if dyn.interpolate:
+        raise ConfigError(
+            "dynamics.crossing interpolated runs on the cpu backend only (the CUDA kernels "
+            "return grid crossing times); use --backend cpu or crossing grid"
+        )
+
+
 def simulate_job(job: Job, first: int, count: int, backend: str = "cpu", threads: int | None = None,
                  variant_weights: np.ndarray | None = None, realizations: np.ndarray | None = None):
     """Integrate realizations ``first .. first+count-1`` (or ``realizations``) of ``job``."""
     dyn = job.config.dynamics
-    kwargs = {"threads": threads} if backend != "cuda" else {}
+    check_backend(job.config, backend)
+    kwargs = {"threads": threads} if backend != "cuda" else {"precision": dyn.precision}
     if realizations is not None:
         kwargs["realizations"] = realizations
     weights = job.variant_weights if variant_weights is None else variant_weights

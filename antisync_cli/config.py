@@ -35,6 +35,7 @@ __all__ = [
     "INTEGRATORS",
     "LAMBDA_METHODS",
     "MEASURES",
+    "PRECISIONS",
     "Config",
     "Dynamics",
     "Histogram",
@@ -53,6 +54,7 @@ LAMBDA_METHODS = ("finite-difference", "pathwise", "hybrid")
 #: (Eqs. 14, 16, 25); km_nnc: the same run with raw coupling (Sec. 3.4, Eqs. 27-29).
 MEASURES = ("km", "linear", "xi2", "rw", "km_nnc")
 LINEAR_METHODS = ("exact", "euler", "derivative")
+PRECISIONS = ("float64", "float32")
 
 _GRAPH_KEYS = {
     "lollipop": ({"nodes", "path"}, set()),
@@ -76,11 +78,15 @@ class Dynamics:
     """``grid``: tau is the first grid time with r >= threshold (the paper's); ``interpolated``:
     the crossing inside that step (linear in R for Euler, cubic Hermite for RK4);
     ``auto``: grid for Euler, interpolated for RK4."""
+    precision: str = "float64"
+    """Arithmetic of the integrated state: ``float64`` (every backend) or ``float32`` (backend
+    cuda only; docs/cuda.md says how much it moves tau)."""
 
     def __post_init__(self):
         _choice("dynamics.coupling", self.coupling, COUPLINGS)
         _choice("dynamics.integrator", self.integrator, INTEGRATORS)
         _choice("dynamics.crossing", self.crossing, CROSSINGS)
+        _choice("dynamics.precision", self.precision, PRECISIONS)
         if self.integrator == "rk4" and self.crossing == "grid":
             raise ConfigError("dynamics.crossing grid is too coarse for rk4 steps; use interpolated")
         _positive("dynamics.dt", self.dt)

@@ -12,13 +12,17 @@ from collections.abc import Callable
 from pathlib import Path
 
 from antisync_cli.backends import resolve_backend
+from antisync_cli.compute import check_backend
 from antisync_cli.config import Config
-from antisync_cli.errors import AntisyncError
 from antisync_cli.jobs import Job, make_job
 from antisync_cli.measures.pipeline import COMPUTED, compute_measures, wants_measures, with_nnc
 from antisync_cli.store import JobState, ResultStore, command_line, git_revision
 
 __all__ = ["Interrupted", "run_config", "run_jobs"]
+
+# Trajectories (realizations x (1 + variants)) per chunk on a GPU: enough threads to fill it
+# many times over, one device batch of antisync_cli.kernels.cuda.simulate_reduced.
+GPU_CHUNK_TRAJECTORIES = 1 << 24
 
 
 class Interrupted(Exception):
@@ -61,11 +65,8 @@ def run_jobs(
     jobs = with_nnc(jobs)  # measures: km_nnc adds each job's raw-coupling twin
     store = ResultStore(output or config.output)
     backend, note = resolve_backend(config.backend)
-    if backend == "cuda" and config.lambda_.method != "finite-difference":
-        raise AntisyncError(
-            f"lambda.method {config.lambda_.method} runs on the cpu backend only; "
-            "use --backend cpu or lambda.method finite-difference"
-        )
+    for job in jobs:
+        check_backend(job.config, backend)
     if executor is None:
         from antisync_cli.executors.local import LocalExecutor
 
@@ -86,7 +87,11 @@ def run_jobs(
         store.checkpoint(states, provenance)  # so --resume never computes them again
     if chunk_realizations is None and config.chunk_size != "auto":
         chunk_realizations = int(config.chunk_size)
-    work = [(job, c) for job in jobs for c in states[job.name].pending(job.chunks(chunk_realizations))]
+    work = [
+        (job, c)
+        for job in jobs
+        for c in states[job.name].pending(job.chunks(_chunk_size(job, backend, chunk_realizations)))
+    ]
     done_already = sum(st.realizations_done for st in states.values())
     total = sum(job.config.realizations for job in jobs)
     say(f"{note}; {executor.describe()}; {len(jobs)} job(s), "
@@ -134,6 +139,13 @@ def _compute_measures(jobs: list[Job], states: dict, say) -> bool:
             say(f"{job.name}: measures {names} in {st.measures_seconds:.1f} s")
             computed = True
     return computed
+
+
+def _chunk_size(job: Job, backend: str, requested: int | None) -> int | None:
+    """Realizations per chunk: as requested, else the job's default (CPU) or a GPU-sized one."""
+    if requested is not None or backend != "cuda":
+        return requested
+    return max(job.block_size, GPU_CHUNK_TRAJECTORIES // (1 + len(job.variant_edge)))
 
 
 def _json(obj) -> str:
