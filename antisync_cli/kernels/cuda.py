@@ -299,10 +299,10 @@ def _integrate(a, first, count, precision):
     indices = cuda.to_device(a["indices"])
     status0 = cuda.device_array(count, dtype=np.int8)
     steps0 = cuda.device_array(count, dtype=np.int64)
-    status = cuda.device_array((count, n_var), dtype=np.int8)
-    steps = cuda.device_array((count, n_var), dtype=np.int64)
-    if count == 0:
-        return status0, steps0, status, steps
+    status = steps = None  # no variants: nothing to allocate (empty device arrays are avoided)
+    if n_var:
+        status = cuda.device_array((count, n_var), dtype=np.int8)
+        steps = cuda.device_array((count, n_var), dtype=np.int64)
     with _quiet_simulator():
         tau0_kernel[_grid(count), THREADS_PER_BLOCK](
             a["seed"], np.int64(first), np.int64(count), indptr, indices,
@@ -358,9 +358,16 @@ def simulate(
     """
     a = _prepare(seed, first, count, indptr, indices, base_weights, variant_weights, dt,
                  threshold, max_steps, precision)
+    n_var = a["var_w"].shape[0]
+    if count == 0:
+        return SimResult(np.empty(0, np.int8), np.empty(0, np.int64),
+                         np.empty((0, n_var), np.int8), np.empty((0, n_var), np.int64))
     status0, steps0, status, steps = _integrate(a, first, count, precision)
-    return SimResult(status0.copy_to_host(), steps0.copy_to_host(), status.copy_to_host(),
-                     steps.copy_to_host())
+    if not n_var:
+        status, steps = np.empty((count, 0), np.int8), np.empty((count, 0), np.int64)
+    else:
+        status, steps = status.copy_to_host(), steps.copy_to_host()
+    return SimResult(status0.copy_to_host(), steps0.copy_to_host(), status, steps)
 
 
 def simulate_reduced(
@@ -410,18 +417,23 @@ def simulate_reduced(
         raise ValueError(f"block must be >= 1, got {block}")
     a = _prepare(seed, first, count, indptr, indices, base_weights, variant_weights, dt,
                  threshold, max_steps, precision)
-    block_kernel, hist_kernel = _reducers()
     n_var = a["var_w"].shape[0]
-    n_blocks = -(-count // block)
-    variants = np.ascontiguousarray(hist_variants, dtype=np.int64)
+    if n_var == 0:
+        raise ValueError("simulate_reduced needs at least one variant (use simulate for tau0 alone)")
+    variants = np.ascontiguousarray(hist_variants, dtype=np.int64).reshape(-1)
     if variants.size and (variants.min() < 0 or variants.max() >= n_var):
         raise ValueError(f"hist_variants must index the {n_var} variants, got {variants}")
+    block_kernel, hist_kernel = _reducers()
+    n_blocks = -(-count // block)
     rec = np.zeros((n_blocks, n_var, len(BLOCK_FIELDS)))
     rec0 = np.zeros((n_blocks, len(TAU0_FIELDS)))
+    if count == 0:
+        return (rec, rec0, np.zeros((n_var, TAIL_BINS), dtype=np.int64),
+                np.zeros((variants.size, bins, bins), dtype=np.int64))
     tail = cuda.to_device(np.zeros((n_var, TAIL_BINS), dtype=np.int64))
-    hist = cuda.to_device(np.zeros((variants.size, bins, bins), dtype=np.int64))
+    hist = cuda.to_device(np.zeros((max(variants.size, 1), bins, bins), dtype=np.int64))
     edges = cuda.to_device(TAIL_EDGES)
-    variants_d = cuda.to_device(variants)
+    variants_d = cuda.to_device(variants if variants.size else np.zeros(1, np.int64))
     scale = bins / (tau_max / dt)  # the same double as estimators.histogram2d
     per = max(1, batch_pairs // ((1 + n_var) * block)) * block
     for lo in range(0, count, per):
@@ -439,4 +451,4 @@ def simulate_reduced(
             )
         rec[lo // block: lo // block + nb] = rec_d.copy_to_host()
         rec0[lo // block: lo // block + nb] = rec0_d.copy_to_host()
-    return rec, rec0, tail.copy_to_host(), hist.copy_to_host()
+    return rec, rec0, tail.copy_to_host(), hist.copy_to_host()[: variants.size]
