@@ -120,7 +120,7 @@ def lambda_values(job: Job, sim, first: int, count: int, threads: int | None = N
     dyn = job.config.dynamics
     n_edges = len(job.edges)
     if spec.method == "finite-difference":
-        v = np.array([job.variant(e, job.dbeta) for e in range(n_edges)], dtype=np.int64)
+        v = _fd_variants(job)
         t0, t = estimators.crossing_times(sim, dyn.interpolate)
         t = t[:, v]
         ok = (sim.status0[:, None] == _SYNCED) & (sim.status[:, v] == _SYNCED)
@@ -152,10 +152,40 @@ def lambda_values(job: Job, sim, first: int, count: int, threads: int | None = N
     return values, code, flagged, pw
 
 
+def _fd_variants(job: Job) -> np.ndarray:
+    """The variant at ``dbeta`` of every edge: the finite difference of Lambda^KM."""
+    return np.array([job.variant(e, job.dbeta) for e in range(len(job.edges))], dtype=np.int64)
+
+
+def _compute_on_device(job: Job, chunk: Chunk, first: int, count: int, start: float) -> ChunkResult:
+    """A chunk reduced on the GPU: only block records and histograms come back."""
+    from antisync_cli.kernels.cuda import simulate_reduced
+
+    dyn = job.config.dynamics
+    hcfg = job.config.histogram
+    red = simulate_reduced(
+        job.config.seed, first, count, job.csr.indptr, job.csr.indices, job.csr.weights,
+        job.variant_weights, dt=dyn.dt, threshold=dyn.threshold, max_steps=dyn.max_steps,
+        block=job.block_size, hist_variants=job.hist_variants, bins=hcfg.bins,
+        tau_max=hcfg.tau_max, lambda_variants=_fd_variants(job), dbeta=job.dbeta,
+        precision=dyn.precision,
+    )
+    return ChunkResult(chunk, red.rec, red.rec0, red.tail, red.hist, red.lam_rec, red.lam_tail,
+                       None, first, count, time.perf_counter() - start, "cuda")
+
+
 def compute_chunk(job: Job, chunk: Chunk, backend: str = "cpu", threads: int | None = None) -> ChunkResult:
-    """Integrate and reduce one chunk (pure: no files, no progress bars)."""
+    """Integrate and reduce one chunk (pure: no files, no progress bars).
+
+    On backend cuda a chunk that keeps no per-realization pairs (it lies beyond
+    ``keep_pairs``) is reduced on the GPU (:func:`antisync_cli.kernels.cuda.simulate_reduced`,
+    records identical to the host's), so only block records and histograms cross the bus.
+    """
     start = time.perf_counter()
     first, count = chunk.realizations(job.block_size, job.config.realizations)
+    if backend == "cuda" and job.config.keep_pairs <= first:
+        check_backend(job.config, backend)
+        return _compute_on_device(job, chunk, first, count, start)
     derivative = job.config.lambda_.method != "finite-difference"
     if derivative and len(job.variant_edge) == 0:
         sim = None  # Lambda only: the pathwise pass integrates the undamaged network itself

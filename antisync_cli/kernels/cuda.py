@@ -33,11 +33,18 @@ from __future__ import annotations
 import functools
 import math
 import warnings
+from typing import NamedTuple
 
 import numpy as np
 
 from antisync_cli.errors import AntisyncError
-from antisync_cli.estimators import BLOCK_FIELDS, TAIL_BINS, TAIL_EDGES, TAU0_FIELDS
+from antisync_cli.estimators import (
+    BLOCK_FIELDS,
+    LAMBDA_FIELDS,
+    TAIL_BINS,
+    TAIL_EDGES,
+    TAU0_FIELDS,
+)
 from antisync_cli.kernels.core import make_kernels
 from antisync_cli.kernels.cpu import SimResult
 from antisync_cli.phases import make_phase
@@ -49,7 +56,7 @@ try:  # numba-cuda is an optional dependency
 except ImportError:  # pragma: no cover - depends on the installation
     cuda = None
 
-__all__ = ["MAX_NODES", "PRECISIONS", "simulate", "simulate_reduced"]
+__all__ = ["MAX_NODES", "PRECISIONS", "Reduced", "simulate", "simulate_reduced"]
 
 MAX_NODES = 64
 """Largest graph the kernels accept: the per-thread state lives in local arrays of this size."""
@@ -219,6 +226,42 @@ def _reducers():
                 rec[bl, v, 6] = s4
 
     @cuda.jit
+    def lambda_kernel(status0, steps0, status, steps, lam_v, dbeta, block, edges, rec, tail):
+        # one thread per (block, edge): the finite difference (tau0/tau(dbeta) - 1)/dbeta of
+        # variant lam_v[e], summed in realization order as estimators._reduce_lambda does
+        m = status0.shape[0]
+        n_edges = lam_v.shape[0]
+        n_blocks = rec.shape[0]
+        for p in range(cuda.grid(1), n_blocks * n_edges, cuda.gridsize(1)):
+            bl = p // n_edges
+            e = p - bl * n_edges
+            v = lam_v[e]
+            n_ok = 0.0
+            n_already = 0.0
+            n_not = 0.0
+            s1 = 0.0
+            s2 = 0.0
+            for r in range(bl * block, min(bl * block + block, m)):
+                st0 = status0[r]
+                st = status[r, v]
+                if st0 == _SYNCED and st == _SYNCED:
+                    x = (steps0[r] / steps[r, v] - 1.0) / dbeta
+                    n_ok += 1
+                    s1 += x
+                    s2 += mul(x, x)
+                    cuda.atomic.add(tail, (e, tail_bin(edges, abs(x))), 1)
+                elif st0 == _NOT or st == _NOT:
+                    n_not += 1
+                else:
+                    n_already += 1
+            rec[bl, e, 0] = n_ok
+            rec[bl, e, 1] = n_already
+            rec[bl, e, 2] = n_not
+            rec[bl, e, 3] = s1
+            rec[bl, e, 4] = s2
+            rec[bl, e, 5] = 0.0  # n_flagged: the finite difference flags nothing
+
+    @cuda.jit
     def hist_kernel(status0, steps0, status, steps, variants, scale, hist):
         # one thread per (realization, histogram) pair; as estimators.histogram2d
         m = status0.shape[0]
@@ -233,7 +276,7 @@ def _reducers():
                 i1 = min(int(steps[r, v] * scale), bins - 1)
                 cuda.atomic.add(hist, (k, i0, i1), 1)
 
-    return block_kernel, hist_kernel
+    return block_kernel, lambda_kernel, hist_kernel
 
 
 def _grid(total: int) -> int:
@@ -370,6 +413,28 @@ def simulate(
     return SimResult(status0.copy_to_host(), steps0.copy_to_host(), status, steps)
 
 
+class Reduced(NamedTuple):
+    """Statistics of a batch reduced on the device (see :func:`simulate_reduced`).
+
+    Attributes
+    ----------
+    rec, rec0, tail
+        As returned by :func:`antisync_cli.estimators.block_records`.
+    hist
+        As returned by :func:`antisync_cli.estimators.histogram2d`.
+    lam_rec, lam_tail
+        As returned by :func:`antisync_cli.estimators.lambda_block_records` for the
+        finite-difference Lambda^KM of each edge (no edges: shapes ``(n_blocks, 0, 6)``, ``(0, B)``).
+    """
+
+    rec: np.ndarray
+    rec0: np.ndarray
+    tail: np.ndarray
+    hist: np.ndarray
+    lam_rec: np.ndarray
+    lam_tail: np.ndarray
+
+
 def simulate_reduced(
     seed: int,
     first: int,
@@ -386,17 +451,21 @@ def simulate_reduced(
     hist_variants: np.ndarray,
     bins: int,
     tau_max: float,
+    lambda_variants: np.ndarray | None = None,
+    dbeta: float | None = None,
     precision: str = "float64",
     batch_pairs: int = BATCH_PAIRS,
-):
+) -> Reduced:
     """Integrate and reduce on the device: only block records and histograms come back.
 
     Equivalent to ``sim = simulate(...)`` followed by
-    :func:`antisync_cli.estimators.block_records` ``(sim, dt, block)`` and
-    :func:`antisync_cli.estimators.histogram2d` ``(sim, hist_variants, dt, bins, tau_max)``,
-    with identical results, but per-realization outcomes never leave the GPU. Realizations
-    are processed in batches of whole blocks of about ``batch_pairs`` trajectories, so device
-    memory stays bounded whatever ``count`` is.
+    :func:`antisync_cli.estimators.block_records` ``(sim, dt, block)``,
+    :func:`antisync_cli.estimators.histogram2d` ``(sim, hist_variants, dt, bins, tau_max)`` and
+    :func:`antisync_cli.estimators.lambda_block_records` of the finite differences
+    ``(tau0/tau(dbeta) - 1)/dbeta`` (as :func:`antisync_cli.compute.lambda_values` computes
+    them), with identical results, but per-realization outcomes never leave the GPU.
+    Realizations are processed in batches of whole blocks of about ``batch_pairs``
+    trajectories, so device memory stays bounded whatever ``count`` is.
 
     Parameters
     ----------
@@ -406,12 +475,16 @@ def simulate_reduced(
         Block size ``B`` of the statistics records.
     hist_variants, bins, tau_max
         As in :func:`antisync_cli.estimators.histogram2d`.
+    lambda_variants : int array (E,), optional
+        The variant damaging edge ``e`` by ``dbeta``, for each edge whose Lambda^KM records
+        are wanted.
+    dbeta : float
+        The damage of those variants (needed with ``lambda_variants``).
 
     Returns
     -------
-    rec, rec0, tail, hist
-        In the formats of :func:`~antisync_cli.estimators.block_records` and
-        :func:`~antisync_cli.estimators.histogram2d`.
+    Reduced
+        ``(rec, rec0, tail, hist, lam_rec, lam_tail)``.
     """
     if block < 1:
         raise ValueError(f"block must be >= 1, got {block}")
@@ -420,35 +493,63 @@ def simulate_reduced(
     n_var = a["var_w"].shape[0]
     if n_var == 0:
         raise ValueError("simulate_reduced needs at least one variant (use simulate for tau0 alone)")
-    variants = np.ascontiguousarray(hist_variants, dtype=np.int64).reshape(-1)
-    if variants.size and (variants.min() < 0 or variants.max() >= n_var):
-        raise ValueError(f"hist_variants must index the {n_var} variants, got {variants}")
-    block_kernel, hist_kernel = _reducers()
+    variants = _variant_indices(hist_variants, n_var, "hist_variants")
+    lam_v = _variant_indices(lambda_variants if lambda_variants is not None else [], n_var,
+                             "lambda_variants")
+    if lam_v.size and not (dbeta is not None and 0.0 < dbeta < 1.0):
+        raise ValueError(f"lambda_variants need the damage dbeta in (0, 1), got {dbeta!r}")
+    block_kernel, lambda_kernel, hist_kernel = _reducers()
     n_blocks = -(-count // block)
-    rec = np.zeros((n_blocks, n_var, len(BLOCK_FIELDS)))
-    rec0 = np.zeros((n_blocks, len(TAU0_FIELDS)))
+    out = Reduced(
+        np.zeros((n_blocks, n_var, len(BLOCK_FIELDS))),
+        np.zeros((n_blocks, len(TAU0_FIELDS))),
+        np.zeros((n_var, TAIL_BINS), dtype=np.int64),
+        np.zeros((variants.size, bins, bins), dtype=np.int64),
+        np.zeros((n_blocks, lam_v.size, len(LAMBDA_FIELDS))),
+        np.zeros((lam_v.size, TAIL_BINS), dtype=np.int64),
+    )
     if count == 0:
-        return (rec, rec0, np.zeros((n_var, TAIL_BINS), dtype=np.int64),
-                np.zeros((variants.size, bins, bins), dtype=np.int64))
-    tail = cuda.to_device(np.zeros((n_var, TAIL_BINS), dtype=np.int64))
+        return out
+    # device accumulators; empty index arrays get a dummy slot (no zero-size device arrays)
+    tail = cuda.to_device(out.tail)
     hist = cuda.to_device(np.zeros((max(variants.size, 1), bins, bins), dtype=np.int64))
+    lam_tail = cuda.to_device(np.zeros((max(lam_v.size, 1), TAIL_BINS), dtype=np.int64))
     edges = cuda.to_device(TAIL_EDGES)
     variants_d = cuda.to_device(variants if variants.size else np.zeros(1, np.int64))
+    lam_v_d = cuda.to_device(lam_v if lam_v.size else np.zeros(1, np.int64))
     scale = bins / (tau_max / dt)  # the same double as estimators.histogram2d
     per = max(1, batch_pairs // ((1 + n_var) * block)) * block
     for lo in range(0, count, per):
         m = min(per, count - lo)
         status0, steps0, status, steps = _integrate(a, first + lo, m, precision)
         nb = -(-m // block)
+        b0 = lo // block
         rec_d = cuda.device_array((nb, n_var, len(BLOCK_FIELDS)))
         rec0_d = cuda.device_array((nb, len(TAU0_FIELDS)))
         block_kernel[_grid(nb * (n_var + 1)), THREADS_PER_BLOCK](
             status0, steps0, status, steps, float(dt), np.int64(block), edges, rec_d, rec0_d, tail,
         )
+        out.rec[b0: b0 + nb] = rec_d.copy_to_host()
+        out.rec0[b0: b0 + nb] = rec0_d.copy_to_host()
+        if lam_v.size:
+            lam_d = cuda.device_array((nb, lam_v.size, len(LAMBDA_FIELDS)))
+            lambda_kernel[_grid(nb * lam_v.size), THREADS_PER_BLOCK](
+                status0, steps0, status, steps, lam_v_d, float(dbeta), np.int64(block), edges,
+                lam_d, lam_tail,
+            )
+            out.lam_rec[b0: b0 + nb] = lam_d.copy_to_host()
         if variants.size:
             hist_kernel[_grid(m * variants.size), THREADS_PER_BLOCK](
                 status0, steps0, status, steps, variants_d, scale, hist,
             )
-        rec[lo // block: lo // block + nb] = rec_d.copy_to_host()
-        rec0[lo // block: lo // block + nb] = rec0_d.copy_to_host()
-    return rec, rec0, tail.copy_to_host(), hist.copy_to_host()[: variants.size]
+    out.tail[...] = tail.copy_to_host()
+    out.hist[...] = hist.copy_to_host()[: variants.size]
+    out.lam_tail[...] = lam_tail.copy_to_host()[: lam_v.size]
+    return out
+
+
+def _variant_indices(values, n_var: int, name: str) -> np.ndarray:
+    idx = np.ascontiguousarray(values, dtype=np.int64).reshape(-1)
+    if idx.size and (idx.min() < 0 or idx.max() >= n_var):
+        raise ValueError(f"{name} must index the {n_var} variants, got {idx}")
+    return idx
