@@ -11,6 +11,7 @@ RESULT ?= results/lollipop6.h5
 help:
 	@echo "make run        set up .venv, run $(CONFIG), write $(RESULT) and figures"
 	@echo "make test       set up .venv and run the test suite (fast; slow tests: make test-slow)"
+	@echo "make test-cuda  CUDA backend under the simulator, and PTX compilation (no GPU needed)"
 	@echo "make bench      speed benchmarks (results go to bench/RESULTS.md by hand)"
 	@echo "make lint       ruff check"
 
@@ -33,6 +34,12 @@ test: $(STAMP)
 
 test-slow: $(STAMP)
 	$(BIN)/python -m pytest -m slow
+
+# the CUDA backend under the numba simulator (part of `make test` too); on a GPU machine
+# also run: $(BIN)/python bench/gpu_check.py
+test-cuda: $(STAMP)
+	$(BIN)/python -m pytest tests/test_cuda_sim.py
+	$(BIN)/python bench/ptx_check.py || test $$? -eq 3
 
 bench: $(STAMP)
 	$(BIN)/python bench/bench_kernels.py
