@@ -20,9 +20,10 @@ On a real GPU two things can differ at the level of one rounding: NVVM contracts
 CUDA's ``cos``/``sin`` (used for the initial phases and for rotation angles above 0.05) are
 not always correctly rounded. The trajectories then differ by ~1e-16 relative, which changes
 the step at which ``r`` crosses the threshold only when ``r^2`` lands within that distance of
-the target: a rare one-step flip (``|delta tau| = dt``), never a different outcome otherwise.
-The device reductions avoid contraction (``libdevice.dmul_rn``) so, given the same steps,
-block records equal :func:`antisync_cli.estimators.block_records` exactly.
+the target (a rare one-step flip, ``|delta tau| = dt``) or, rarer still, when a trajectory
+passing near a saddle state amplifies the difference (docs/cuda.md). The device reductions
+avoid contraction (``libdevice.dmul_rn``) so, given the same steps, block and Lambda records
+equal :func:`antisync_cli.estimators.block_records` and ``lambda_block_records`` exactly.
 
 The module imports without numba-cuda, a GPU or the simulator; only calling it then raises
 :class:`~antisync_cli.errors.AntisyncError`.
