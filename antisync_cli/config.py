@@ -41,8 +41,10 @@ __all__ = [
     "Histogram",
     "LambdaSpec",
     "LinearSpec",
+    "config_from_mapping",
     "load_config",
     "load_config_text",
+    "parse_mapping",
 ]
 
 BACKENDS = ("cpu", "cuda", "auto")
@@ -287,6 +289,11 @@ def load_config(path: str | Path, overrides: list[str] | None = None) -> Config:
 
 def load_config_text(text: str, overrides: list[str] | None = None, source: Path | None = None) -> Config:
     """Like :func:`load_config` for YAML text; relative paths resolve against ``source``'s folder."""
+    return _from_mapping(parse_mapping(text, overrides), source)
+
+
+def parse_mapping(text: str, overrides: list[str] | None = None) -> dict:
+    """YAML text -> mapping with ``key=value`` overrides applied (not yet validated)."""
     try:
         raw = yaml.safe_load(text)
     except yaml.YAMLError as exc:
@@ -300,7 +307,7 @@ def load_config_text(text: str, overrides: list[str] | None = None, source: Path
         raise ConfigError("a config must be a YAML mapping of keys such as graph:, edges:, betas:")
     for item in overrides or []:
         _apply_override(raw, item)
-    return _from_mapping(raw, source)
+    return raw
 
 
 def _apply_override(raw: dict, item: str) -> None:
@@ -321,7 +328,15 @@ def _apply_override(raw: dict, item: str) -> None:
     node[parts[-1]] = parsed
 
 
+def config_from_mapping(raw: dict, source: Path | None = None) -> Config:
+    """A validated :class:`Config` from an already parsed mapping (used by sweeps)."""
+    return _from_mapping(raw, source)
+
+
 def _from_mapping(raw: dict, source: Path | None) -> Config:
+    if "sweep" in raw:
+        raise ConfigError("this is a sweep config (it has a 'sweep:' section): run it with "
+                          "`antisync sweep`, not `antisync run`")
     _unknown(raw, _TOP_KEYS, "")
     if "graph" not in raw:
         raise ConfigError("missing key 'graph' (e.g. graph: {kind: lollipop, nodes: 6, path: 3})")

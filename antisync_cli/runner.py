@@ -46,6 +46,9 @@ def run_jobs(
     chunk_realizations: int | None = None,
     checkpoint_seconds: float = 30.0,
     log: Callable[[str], None] | None = None,
+    key: dict | None = None,
+    provenance: dict | None = None,
+    extra: Callable | None = None,
 ) -> Path:
     """Run ``jobs`` to completion into ``output`` (default ``config.output``).
 
@@ -60,6 +63,13 @@ def run_jobs(
         Show a progress bar on stderr; default: only when stderr is a terminal.
     executor : object, optional
         Something with ``run(work)`` yielding ``(job, ChunkResult)``; default local.
+    key : dict, optional
+        What must match for ``resume`` (default ``config.simulation_key()``); a sweep passes
+        the key of the whole sweep.
+    provenance : dict, optional
+        Extra or replacement root attributes (a sweep stores its own ``config_yaml``).
+    extra : callable, optional
+        ``extra(h5file, states)``, called at every checkpoint to write more groups.
     """
     say = log or (lambda msg: None)
     jobs = with_nnc(jobs)  # measures: km_nnc adds each job's raw-coupling twin
@@ -72,19 +82,21 @@ def run_jobs(
 
         executor = LocalExecutor(backend, config.threads)
     store.prepare(resume=resume, overwrite=overwrite)
-    key = config.simulation_key()
+    key = config.simulation_key() if key is None else key
     states = store.load_states(jobs, key) if resume else {job.name: JobState(job) for job in jobs}
     # before anything is written: a graph a measure rejects leaves no file behind
     measured = _compute_measures(jobs, states, say)
     store.start_journal(key)
+    provenance_extra = provenance
     provenance = {
         "command": command_line(),
         "config_yaml": config.resolved().to_yaml(),
         "git_revision": git_revision(),
         "simulation_key": _json(key),
     }
+    provenance.update(provenance_extra or {})
     if measured:
-        store.checkpoint(states, provenance)  # so --resume never computes them again
+        store.checkpoint(states, provenance, extra=extra)  # so --resume never computes them again
     if chunk_realizations is None and config.chunk_size != "auto":
         chunk_realizations = int(config.chunk_size)
     work = [
@@ -94,26 +106,34 @@ def run_jobs(
     ]
     done_already = sum(st.realizations_done for st in states.values())
     total = sum(job.config.realizations for job in jobs)
+    # the bar counts integrations (tau0 plus one per damage variant): with many jobs of
+    # different sizes (a sweep) its rate and ETA stay meaningful
+    cost = {job.name: 1 + len(job.variant_edge) for job in jobs}
     say(f"{note}; {executor.describe()}; {len(jobs)} job(s), "
-        f"{sum(len(j.variant_edge) for j in jobs)} damaged variant(s), {total:,} realizations per job"
+        f"{sum(len(j.variant_edge) for j in jobs)} damaged variant(s), {total:,} realizations in all"
         + (f" ({done_already:,} already done)" if done_already else ""))
     from tqdm import tqdm
 
     show = sys.stderr.isatty() if progress is None else progress
-    bar = tqdm(total=total, initial=done_already, unit="real", unit_scale=True, delay=1.0,
-               disable=not show, file=sys.stderr, dynamic_ncols=True)
+    bar = tqdm(total=sum(job.config.realizations * cost[job.name] for job in jobs),
+               initial=sum(states[j.name].realizations_done * cost[j.name] for j in jobs),
+               unit="integ", unit_scale=True, delay=1.0, disable=not show, file=sys.stderr,
+               dynamic_ncols=True)
     last = time.monotonic()
     try:
         for job, res in executor.run(work):
             store.save_chunk(job.name, res)
             states[job.name].add(res)
-            bar.update(res.count)
+            bar.update(res.count * cost[job.name])
+            if len(jobs) > 1:
+                done_jobs = sum(st.complete for st in states.values())
+                bar.set_description(f"{job.name} ({done_jobs}/{len(jobs)} jobs)", refresh=False)
             if time.monotonic() - last > checkpoint_seconds:
-                store.checkpoint(states, provenance)
+                store.checkpoint(states, provenance, extra=extra)
                 last = time.monotonic()
     except KeyboardInterrupt:
         bar.close()
-        store.checkpoint(states, provenance)
+        store.checkpoint(states, provenance, extra=extra)
         raise Interrupted(
             f"interrupted; finished chunks are saved in {store.path}: "
             "rerun the same command with --resume to finish"
@@ -121,7 +141,7 @@ def run_jobs(
     finally:
         bar.close()
         executor.close()
-    store.checkpoint(states, provenance, final=True)
+    store.checkpoint(states, provenance, final=True, extra=extra)
     return store.path
 
 

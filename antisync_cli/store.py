@@ -211,8 +211,14 @@ class ResultStore:
             os.fsync(fh.fileno())
         os.replace(tmp, target)
 
-    def checkpoint(self, states: dict[str, JobState], provenance: dict, *, final: bool = False) -> None:
-        """Rewrite the HDF5 file from ``states`` atomically, then drop merged journal chunks."""
+    def checkpoint(self, states: dict[str, JobState], provenance: dict, *, final: bool = False,
+                   extra=None) -> None:
+        """Rewrite the HDF5 file from ``states`` atomically, then drop merged journal chunks.
+
+        ``provenance`` keys beyond the standard ones become root attributes too; ``extra``, when
+        given, is called as ``extra(h5file, states)`` before the file is closed, to add groups
+        (a sweep's screening and symmetry data) that must survive every checkpoint.
+        """
         import h5py
 
         self.path.parent.mkdir(parents=True, exist_ok=True)
@@ -225,10 +231,15 @@ class ResultStore:
             f.attrs["updated"] = _now()
             for key in ("command", "config_yaml", "git_revision", "simulation_key"):
                 f.attrs[key] = str(provenance.get(key, ""))
+            for key, value in provenance.items():
+                if key not in f.attrs:
+                    f.attrs[key] = str(value)
             f.attrs["complete"] = all(st.complete for st in states.values())
             jobs = f.create_group("jobs")
             for name, st in states.items():
                 _write_state(jobs.create_group(name), st)
+            if extra is not None:
+                extra(f, states)
             f.flush()
         os.replace(tmp, self.path)
         if self.journal.exists():
