@@ -7,6 +7,7 @@ import typer
 from antisync_cli.cli.report import report
 from antisync_cli.cli.run import run
 from antisync_cli.cli.summary import summary
+from antisync_cli.cli.sweep import sweep
 from antisync_cli.cli.validate import validate
 
 app = typer.Typer(
@@ -17,6 +18,7 @@ app = typer.Typer(
     pretty_exceptions_enable=False,
 )
 app.command()(run)
+app.command()(sweep)
 app.command()(summary)
 app.command()(report)
 app.command()(validate)

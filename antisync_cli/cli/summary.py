@@ -17,8 +17,17 @@ def summary(
     format: Annotated[Format, typer.Option("--format", "-f", help="table, json or csv.")] = "table",
     debug: DebugOpt = False,
 ) -> None:
-    """Print <F_beta>, Lambda^KM, <tau0> with standard errors and status counts."""
-    from antisync_cli.report.tables import format_records
-    from antisync_cli.summary import records
+    """Print <F_beta>, Lambda^KM, <tau0> with standard errors and status counts.
 
-    typer.echo(format_records(records(results), format))
+    For a sweep file, JSON is an object {"records": [...], "excluded": [...], "top": [...],
+    "screen": [...], "symmetry": {...}} (a run file gives a plain list of records); CSV
+    holds the records only; the table ends with the excluded graphs.
+    """
+    from antisync_cli.report.tables import format_records, format_sweep
+    from antisync_cli.summary import records
+    from antisync_cli.sweeps import is_sweep_file, sweep_summary
+
+    if is_sweep_file(results):
+        typer.echo(format_sweep(sweep_summary(results), format))
+    else:
+        typer.echo(format_records(records(results), format))
