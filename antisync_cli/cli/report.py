@@ -20,12 +20,22 @@ def report(
     quiet: QuietOpt = False,
     debug: DebugOpt = False,
 ) -> None:
-    """Write Fig. 1-style figures: graph coloured by Lambda^KM, <F_beta> vs beta, (tau0, tau) histograms."""
+    """Write Fig. 1-style figures: graph coloured by Lambda^KM, <F_beta> vs beta, (tau0, tau) histograms.
+
+    For a sweep file: the Fig. 3 ranking, Table 1 (Markdown, CSV, LaTeX), Fig. 4 histograms,
+    Fig. 2 for lollipop sweeps and Fig. 6 for threshold sweeps, with an index.md.
+    """
     from antisync_cli.report.figures import write_report
     from antisync_cli.summary import read_views
+    from antisync_cli.sweeps import is_sweep_file
 
-    views = read_views(results)
     folder = out or results.with_suffix("").with_name(results.stem + "_figures")
-    paths = write_report(views, folder, pdf=pdf)
+    if is_sweep_file(results):
+        # a sweep: Fig. 3 ranking, Table 1, Fig. 4, Fig. 2 (lollipops), Fig. 6 (thresholds)
+        from antisync_cli.report.sweep import write_sweep_report
+
+        paths = write_sweep_report(results, folder, pdf=pdf)
+    else:
+        paths = write_report(read_views(results), folder, pdf=pdf)
     for p in paths:
         info(f"wrote {p}", quiet)
