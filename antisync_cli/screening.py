@@ -33,7 +33,7 @@ from antisync_cli.kernels.core import RENORM_EVERY, make_kernels
 from antisync_cli.phases import phase
 from antisync_cli.status import Status
 
-__all__ = ["ScreenResult", "classify_state", "jacobian", "screen_graph"]
+__all__ = ["STATIONARY", "ScreenResult", "classify_state", "jacobian", "screen_graph", "screen_realizations"]
 
 _K = make_kernels(lambda f: njit(f, inline="never", cache=True))
 _euler_step = _K["euler_step"]
@@ -182,6 +182,52 @@ class ScreenResult:
                       for k, v in d.items() if k in fields})
 
 
+def screen_realizations(
+    omega: np.ndarray,
+    *,
+    seed: int = 1,
+    realizations: int = 200,
+    t_max: float = 200.0,
+    dt: float = 0.001,
+    threshold: float = 0.99,
+    coupling_kind: str = "normalized",
+    v_tol: float = 1e-6,
+    check_every: int = 250,
+    threads: int | None = None,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Per-realization outcome of the screening integration (see :func:`screen_graph`).
+
+    Returns
+    -------
+    status : int8 (m,)
+        :class:`~antisync_cli.status.Status` code, or :data:`STATIONARY` (at rest, ``r < threshold``).
+    steps : int64 (m,)
+        Steps taken; for SYNCED realizations exactly the kernels' ``steps0``.
+    vmax : float (m,)
+        Largest ``|dtheta_i/dt|`` at the end.
+    theta : float (m, N)
+        Final phases.
+    """
+    w = coupling.coupling_matrix(omega, coupling_kind)
+    csr = coupling.to_csr(w, pattern=np.asarray(omega) > 0)
+    n = csr.n_nodes
+    max_steps = int(math.ceil(t_max / dt - 1e-9))
+    status = np.empty(realizations, dtype=np.int8)
+    steps = np.empty(realizations, dtype=np.int64)
+    vmax = np.empty(realizations)
+    theta = np.empty((realizations, n))
+    previous = numba.get_num_threads()
+    if threads is not None:
+        numba.set_num_threads(max(1, min(threads, numba.config.NUMBA_NUM_THREADS)))
+    try:
+        _screen_batch(np.uint64(seed), np.uint64(0), csr.indptr, csr.indices, csr.weights,
+                      float(dt), (threshold * n) ** 2, max_steps, int(check_every), float(v_tol),
+                      status, steps, vmax, theta)
+    finally:
+        numba.set_num_threads(previous)
+    return status, steps, vmax, theta
+
+
 def screen_graph(
     omega: np.ndarray,
     *,
@@ -226,22 +272,9 @@ def screen_graph(
 
     start = time.perf_counter()
     w = coupling.coupling_matrix(omega, coupling_kind)
-    csr = coupling.to_csr(w, pattern=np.asarray(omega) > 0)
-    n = csr.n_nodes
-    max_steps = int(math.ceil(t_max / dt - 1e-9))
-    status = np.empty(realizations, dtype=np.int8)
-    steps = np.empty(realizations, dtype=np.int64)
-    vmax = np.empty(realizations)
-    theta = np.empty((realizations, n))
-    previous = numba.get_num_threads()
-    if threads is not None:
-        numba.set_num_threads(max(1, min(threads, numba.config.NUMBA_NUM_THREADS)))
-    try:
-        _screen_batch(np.uint64(seed), np.uint64(0), csr.indptr, csr.indices, csr.weights,
-                      float(dt), (threshold * n) ** 2, max_steps, int(check_every), float(v_tol),
-                      status, steps, vmax, theta)
-    finally:
-        numba.set_num_threads(previous)
+    status, steps, vmax, theta = screen_realizations(
+        omega, seed=seed, realizations=realizations, t_max=t_max, dt=dt, threshold=threshold,
+        coupling_kind=coupling_kind, v_tol=v_tol, check_every=check_every, threads=threads)
     n_stuck = n_saddle = n_slow = 0
     r_stuck = math.nan
     for r in np.flatnonzero(status >= _NOT_SYNCED):

@@ -196,7 +196,7 @@ class Sweep:
     def key(self) -> dict:
         """What determines the numbers (compared on resume)."""
         d = self.to_dict()
-        for k in ("name", "backend", "executor", "threads", "output"):
+        for k in ("name", "backend", "executor", "threads", "output", "chunk_size"):
             d.pop(k, None)
         return json.loads(json.dumps(d))
 
