@@ -1,0 +1,428 @@
+"""Sweeps: schema, families, screening, automorphism orbits, fan-out, resume, Table 1."""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import networkx as nx
+import numpy as np
+import pytest
+
+from antisync_cli import graphs
+from antisync_cli.errors import ConfigError
+from antisync_cli.sweeps import (
+    edge_orbits,
+    expand_records,
+    family_graphs,
+    load_sweep,
+    load_sweep_text,
+    ranking,
+    run_sweep,
+    sweep_summary,
+)
+
+REPO = Path(__file__).resolve().parent.parent
+
+TINY = """
+name: tiny
+sweep:
+  family: graphs
+  graphs:
+    - {kind: networkx, generator: path_graph, args: {n: 3}}
+    - {kind: lollipop, nodes: 4, path: 1}
+    - {kind: atlas, index: 18}     # K4
+    - {kind: networkx, generator: cycle_graph, args: {n: 5}, name: C5}
+betas: [0.5]
+realizations: 120
+block_size: 20
+seed: 3
+dynamics: {dt: 0.002, t_max: 60}
+screen: {realizations: 60, t_max: 60}
+top: {graphs: 2, realizations: 80}
+"""
+
+
+# ---- schema ------------------------------------------------------------------------------
+@pytest.mark.parametrize(
+    ("text", "message"),
+    [
+        ("sweep: {family: atlas, nodes: 6}\nsweeps: 1", "unknown key 'sweeps'"),
+        ("sweep: {family: atlsa, nodes: 6}", "sweep.family must be one of"),
+        ("sweep: {family: atlas, nodes: 9}", "sweep.nodes values must be integers in 2..7"),
+        ("sweep: {family: atlas, node: 6}", "unknown key 'sweep.node'"),
+        ("sweep: {family: lollipop, nodes: 6}", "needs key(s) sweep.path"),
+        ("sweep: {family: lollipop, nodes: '9..4', path: 1}", "sweep.nodes range '9..4' is empty"),
+        ("sweep: {family: atlas, nodes: 6}\nthresholds: [0.9]\ndynamics: {threshold: 0.9}",
+         "either thresholds"),
+        ("sweep: {family: atlas, nodes: 6}\nthresholds: [0.9, 1.5]", "thresholds must lie in (0, 1)"),
+        ("sweep: {family: atlas, nodes: 6}\nrepeats: 0", "repeats must be an integer >= 1"),
+        ("sweep: {family: atlas, nodes: 6}\nscreen: {realisations: 5}", "unknown key 'screen.realisations'"),
+        ("sweep: {family: atlas, nodes: 6}\ntop: {graphs: -1}", "top.graphs must be an integer >= 0"),
+        ("sweep: {family: atlas, nodes: 6}\nedges: fig2", "edges: fig2"),
+        ("sweep: {family: atlas, nodes: 6}\ngraph: {kind: atlas, index: 3}", "has no 'graph' key"),
+        ("graph: {kind: atlas, index: 3}", "missing key 'sweep'"),
+        ("sweep: {family: atlas, nodes: 6}\nrealizations: 0", "realizations must be an integer >= 1"),
+        ("sweep: {family: graphs, graphs: [{kind: atlas, index: 3}, {kind: atlas, index: 3}]}",
+         "used twice"),
+    ],
+)
+def test_schema_errors_name_the_key(text, message):
+    with pytest.raises(ConfigError) as exc:
+        load_sweep_text(text)
+    assert message in str(exc.value)
+    assert "\n" not in str(exc.value)
+
+
+def test_run_config_loader_points_sweeps_to_antisync_sweep():
+    from antisync_cli.config import load_config_text
+
+    with pytest.raises(ConfigError, match="antisync sweep"):
+        load_config_text("sweep: {family: atlas, nodes: 6}")
+
+
+@pytest.mark.parametrize("name", ["atlas6", "lollipop_L1", "threshold"])
+def test_shipped_configs_are_valid(name):
+    sw = load_sweep(REPO / "configs" / f"{name}.yaml")
+    assert sw.name == name
+    assert sw.key() == load_sweep(REPO / "configs" / f"{name}.yaml").key()
+
+
+def test_overrides_and_ranges():
+    sw = load_sweep_text("sweep: {family: lollipop, nodes: '4..20', path: 1}\nedges: fig2",
+                         overrides=["realizations=77", "sweep.path=[1, 2]", "repeats=3"])
+    assert sw.base.realizations == 77 and sw.repeats == 3
+    assert sw.family["nodes"] == list(range(4, 21)) and sw.family["path"] == [1, 2]
+    assert sw.base.keep_pairs == 0  # sweep default
+
+
+# ---- families ----------------------------------------------------------------------------
+def test_atlas_family_counts():
+    from antisync_cli.sweeps import _family_specs
+
+    counts = {n: len(_family_specs({"family": "atlas", "nodes": [n]})) for n in range(2, 8)}
+    assert counts == {2: 1, 3: 2, 4: 6, 5: 21, 6: 112, 7: 853}
+    names = [name for name, _ in _family_specs({"family": "atlas", "nodes": [6]})]
+    assert names[-1] == "G208" and "G105" in names  # K6 last; the 6-ring is G105
+
+
+def test_fig2_edge_is_the_clique_edge_away_from_the_bridge():
+    sw = load_sweep_text("sweep: {family: lollipop, nodes: '4..6', path: 1}\nedges: fig2")
+    entries = family_graphs(sw)
+    assert [e.labels for e in entries] == [["3->4"], ["3->4"], ["3->4"]]
+    for e in entries:
+        a, b = e.edges[0]
+        assert e.graph.has_edge(a, b) and not e.graph.has_edge(a, 1) and not e.graph.has_edge(b, 1)
+
+
+# ---- symmetry ----------------------------------------------------------------------------
+def _partition(orbits: dict) -> set:
+    groups: dict = {}
+    for e, r in orbits.items():
+        groups.setdefault(r, set()).add(graphs.edge_label(*e))
+    return {frozenset(g) for g in groups.values()}
+
+
+def test_orbits_lollipop_6_3():
+    parts = _partition(edge_orbits(graphs.lollipop(6, 3)))
+    assert frozenset({"4->5", "4->6"}) in parts
+    assert frozenset({"5->6", "6->5"}) in parts
+    assert frozenset({"5->4", "6->4"}) in parts
+    for single in ("1->2", "2->1", "2->3", "3->2", "3->4", "4->3"):
+        assert frozenset({single}) in parts
+    assert len(parts) == 9
+
+
+def test_orbits_complete_graph_is_one_orbit():
+    orbits = edge_orbits(nx.complete_graph(4))
+    assert len(orbits) == 12 and len(set(orbits.values())) == 1
+
+
+@pytest.mark.parametrize("index", [60, 96, 104, 127, 150, 208])
+def test_orbits_match_enumerated_automorphisms(index):
+    from networkx.algorithms.isomorphism import GraphMatcher
+
+    g = graphs.atlas(index)
+    autos = list(GraphMatcher(g, g).isomorphisms_iter())
+    orbits = edge_orbits(g)
+    for e in graphs.all_directed_edges(g):
+        expected = {(s[e[0]], s[e[1]]) for s in autos}
+        assert {f for f in orbits if orbits[f] == orbits[e]} == expected
+
+
+def test_expand_records_fans_out_to_every_orbit_member():
+    recs = [{"graph": "g", "edge": "0->1", "beta": 0.5, "lambda_km": 0.2},
+            {"graph": "g", "edge": "1->0", "beta": 0.5, "lambda_km": -0.1}]
+    orbits = {"0->1": "0->1", "1->0": "1->0", "2->1": "0->1", "0->2": "0->1"}
+    out = expand_records(recs, orbits)
+    assert [r["edge"] for r in out] == ["0->1", "1->0", "2->1", "0->2"]
+    assert [r["lambda_km"] for r in out] == [0.2, -0.1, 0.2, 0.2]
+    assert [r["orbit_size"] for r in out] == [3, 1, 3, 3]
+    assert all(r["representative"] == orbits[r["edge"]] for r in out)
+    assert recs[0]["edge"] == "0->1"  # inputs untouched
+
+
+def test_ranking_sums_positive_lambdas():
+    def rec(g, e, lam, rep=0):
+        return {"graph": g, "edge": e, "lambda_km": lam, "lambda_km_se": 0.01, "threshold": 0.99,
+                "repeat": rep, "beta": None, "tau0_mean": 1.0, "tau0_se": 0.1}
+
+    recs = [rec("A", "0->1", 0.3), rec("A", "1->0", -0.5), rec("B", "0->1", 0.2), rec("B", "1->0", 0.15),
+            rec("B", "0->1", 0.4, rep=1), rec("B", "1->0", 0.15, rep=1)]
+    rows = ranking(recs, 0.99)
+    assert [r["graph"] for r in rows] == ["B", "A"]
+    assert math.isclose(rows[0]["score"], 0.3 + 0.15) and rows[0]["max_edge"] == "0->1"
+    assert math.isclose(rows[1]["lambda_max"], 0.3)
+
+
+# ---- screening ---------------------------------------------------------------------------
+def _c5_plus(extra: list) -> nx.Graph:
+    g = nx.cycle_graph(5)
+    g.add_edges_from(extra)
+    return g
+
+
+EXPECTED_EXCLUDED = {
+    "6-ring": nx.cycle_graph(6),
+    "5-ring + pendant": _c5_plus([(0, 5)]),
+    "5-ring + node on two neighbours": _c5_plus([(0, 5), (1, 5)]),
+}
+
+
+def _which(g: nx.Graph) -> str | None:
+    return next((k for k, h in EXPECTED_EXCLUDED.items() if nx.is_isomorphic(g, h)), None)
+
+
+def test_screening_excludes_the_rings_and_keeps_slow_graphs():
+    """The three non-synchronizing 6-node graphs and the slowest synchronizing ones (G96 has a
+    4-cycle whose degenerate twisted state gives the longest transients of the atlas)."""
+    from antisync_cli.screening import screen_graph
+
+    candidates = [g for g in range(53, 209) if nx.is_connected(graphs.atlas(g))
+                  and _which(graphs.atlas(g)) is not None]
+    assert len(candidates) == 3
+    for index in candidates + [96, 126, 150, 208]:
+        g = graphs.atlas(index)
+        res = screen_graph(graphs.omega_matrix(g), graph=f"G{index}", realizations=200, t_max=200)
+        assert res.excluded == (_which(g) is not None), (index, res)
+        if res.excluded:
+            assert res.fraction_stuck > 0.02 and res.r_stuck < 0.3
+        else:
+            assert res.n_stuck == 0 and res.n_synced == 200
+
+
+def test_screening_steps_equal_the_kernel_steps():
+    from antisync_cli.compute import simulate_job
+    from antisync_cli.config import load_config_text
+    from antisync_cli.jobs import make_job
+    from antisync_cli.screening import screen_realizations
+
+    cfg = load_config_text('graph: {kind: atlas, index: 127}\nedges: ["0->2"]\nbetas: []\nseed: 5')
+    job = make_job(cfg)
+    sim = simulate_job(job, 0, 60)
+    status, steps, _, _ = screen_realizations(job.omega, seed=5, realizations=60, t_max=200)
+    ok = status == 0
+    assert ok.sum() > 50
+    np.testing.assert_array_equal(sim.steps0[ok], steps[ok])
+    np.testing.assert_array_equal(sim.status0[ok], 0)
+
+
+def test_stability_classification_of_twisted_and_synchronized_states():
+    from antisync_cli.coupling import coupling_matrix
+    from antisync_cli.screening import classify_state
+
+    w = coupling_matrix(graphs.omega_matrix(graphs.from_networkx("cycle_graph", {"n": 6})))
+    twisted = 2 * np.pi * np.arange(6) / 6
+    assert classify_state(twisted, w) == "stable"  # q = 1 on C6: |q| < N/4
+    assert classify_state(np.zeros(6), w) == "stable"
+    w4 = coupling_matrix(graphs.omega_matrix(graphs.from_networkx("cycle_graph", {"n": 4})))
+    assert classify_state(np.pi / 2 * np.arange(4), w4) != "stable"  # q = 1 on C4: degenerate
+    assert classify_state(np.array([0, np.pi, 0, np.pi]), w4) == "unstable"
+
+
+@pytest.mark.slow
+def test_screening_of_the_whole_atlas_excludes_exactly_three():
+    sw = load_sweep_text("sweep: {family: atlas, nodes: 6}")
+    from antisync_cli.screening import screen_graph
+
+    excluded = []
+    for entry in family_graphs(sw, symmetry=False):
+        res = screen_graph(graphs.omega_matrix(entry.graph), graph=entry.name, realizations=200)
+        if res.excluded:
+            excluded.append(entry.graph)
+        else:
+            assert res.n_stuck == 0
+    assert sorted(_which(g) for g in excluded) == sorted(EXPECTED_EXCLUDED)
+
+
+# ---- running and resuming ----------------------------------------------------------------
+class _CrashAfter:
+    """A local executor that dies after ``n`` chunks, in whichever stage: ``RuntimeError``
+    stands for a kill (nothing more is written), ``KeyboardInterrupt`` for Ctrl-C (the
+    runner checkpoints first)."""
+
+    def __init__(self, n: int, exc: type = RuntimeError):
+        from antisync_cli.executors.local import LocalExecutor
+
+        self.inner = LocalExecutor("cpu", None)
+        self.left = n
+        self.exc = exc
+
+    def run(self, work):
+        for item in self.inner.run(work):
+            if self.left == 0:
+                raise self.exc("killed")
+            self.left -= 1
+            yield item
+
+    def describe(self):
+        return "crashing"
+
+    def close(self):
+        pass
+
+
+def _comparable(summary: dict) -> dict:
+    out = {k: summary[k] for k in ("records", "top", "excluded", "symmetry", "complete")}
+    out["screen"] = [{k: v for k, v in s.items() if k != "seconds"} for s in summary["screen"]]
+    out["jobs"] = summary["meta"]["jobs"]
+    return json.loads(json.dumps(out))
+
+
+@pytest.fixture(scope="module")
+def tiny_reference(tmp_path_factory):
+    sw = load_sweep_text(TINY)
+    path = tmp_path_factory.mktemp("ref") / "tiny.h5"
+    run_sweep(sw, output=path, progress=False, chunk_realizations=20)
+    return sw, path, _comparable(sweep_summary(path))
+
+
+def test_tiny_sweep_contents(tiny_reference):
+    _, path, ref = tiny_reference
+    assert [e["graph"] for e in ref["excluded"]] == ["C5"]
+    assert ref["excluded"][0]["fraction_not_synced"] > 0
+    assert ref["complete"]
+    recs = ref["records"]
+    assert {r["graph"] for r in recs} == {"path_graph", "lollipop_4_1", "G18"}
+    k4 = [r for r in recs if r["graph"] == "G18"]
+    assert len(k4) == 12 and len({r["lambda_km"] for r in k4}) == 1  # one orbit, fanned out
+    assert ref["symmetry"]["representatives"] < ref["symmetry"]["directed_edges"]
+    assert len(ref["top"]) == 2 and all(r["beta"] == 0.5 for r in ref["top"])
+    assert [r["rank"] for r in ref["top"]] == [1, 2]
+
+
+@pytest.mark.parametrize(
+    ("crash_after", "exc", "stage"),
+    [(0, RuntimeError, "main"), (7, RuntimeError, "main"), (9, KeyboardInterrupt, "main"),
+     (19, RuntimeError, "top")],
+)
+def test_interrupted_sweep_resumes_to_the_same_file(tiny_reference, tmp_path, crash_after, exc,
+                                                    stage):
+    """Killed right after screening, in the main stage (3 graphs x 6 chunks of 20) or in the top
+    stage, or interrupted with Ctrl-C, then resumed: the same numbers as uninterrupted."""
+    from antisync_cli.runner import Interrupted
+
+    sw, _, ref = tiny_reference
+    path = tmp_path / "tiny.h5"
+    with pytest.raises(Interrupted if exc is KeyboardInterrupt else RuntimeError):
+        run_sweep(sw, output=path, progress=False, chunk_realizations=20,
+                  executor=_CrashAfter(crash_after, exc))
+    if stage == "main":  # screening results wait in the journal until the first checkpoint
+        assert len(list((tmp_path / "tiny.h5.partial" / "screen").glob("*.json"))) == 4
+    if exc is KeyboardInterrupt:  # the checkpoint already holds the screening
+        assert len(sweep_summary(path)["excluded"]) == 1 and not sweep_summary(path)["complete"]
+    else:
+        assert path.exists() == (stage == "top")  # the main stage ended with a checkpoint
+    run_sweep(sw, output=path, resume=True, progress=False, chunk_realizations=40)
+    assert _comparable(sweep_summary(path)) == ref
+    assert not (tmp_path / "tiny.h5.partial").exists()
+
+
+def test_resume_refuses_another_sweep(tiny_reference, tmp_path):
+    from antisync_cli.errors import StoreError
+
+    sw, path, _ = tiny_reference
+    other = load_sweep_text(TINY, overrides=["seed=4"])
+    with pytest.raises(StoreError, match="different config"):
+        run_sweep(other, output=path, resume=True, progress=False)
+
+
+def test_screening_is_resumed_not_redone(tiny_reference, tmp_path, monkeypatch):
+    import antisync_cli.screening as screening
+
+    sw, _, ref = tiny_reference
+    path = tmp_path / "tiny.h5"
+    calls = []
+    real = screening.screen_graph
+
+    def flaky(*args, **kwargs):
+        calls.append(kwargs["graph"])
+        if len(calls) == 3:
+            raise KeyboardInterrupt
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(screening, "screen_graph", flaky)
+    with pytest.raises(KeyboardInterrupt):
+        run_sweep(sw, output=path, progress=False)
+    run_sweep(sw, output=path, resume=True, progress=False, chunk_realizations=20)
+    assert calls == ["path_graph", "lollipop_4_1", "G18", "G18", "C5"]
+    assert _comparable(sweep_summary(path)) == ref
+
+
+# ---- CLI -----------------------------------------------------------------------------------
+def test_cli_sweep_summary_and_report(tmp_path):
+    from typer.testing import CliRunner
+
+    from antisync_cli.cli.app import app
+
+    cfg = tmp_path / "tiny.yaml"
+    cfg.write_text(TINY.replace("top: {graphs: 2, realizations: 80}", "top: {graphs: 1, realizations: 40}"))
+    out = tmp_path / "tiny.h5"
+    runner = CliRunner()
+    res = runner.invoke(app, ["sweep", str(cfg), "--out", str(out), "--quiet", "--realizations", "40",
+                              "--set", "screen.realizations=40"])
+    assert res.exit_code == 0, res.output
+    res = runner.invoke(app, ["summary", str(out), "--format", "json"])
+    assert res.exit_code == 0, res.output
+    data = json.loads(res.output)
+    assert {"records", "excluded"} <= set(data)
+    assert data["excluded"][0]["graph"] == "C5"
+    assert {"graph", "reason", "fraction_not_synced"} <= set(data["excluded"][0])
+    assert all("graph" in r and "edge" in r for r in data["records"])
+    res = runner.invoke(app, ["summary", str(out)])
+    assert res.exit_code == 0 and "excluded C5" in res.output
+    res = runner.invoke(app, ["report", str(out), "--out", str(tmp_path / "fig"), "--quiet"])
+    assert res.exit_code == 0, res.output
+    for name in ("fig3_ranking.png", "table1.md", "table1.csv", "table1.tex", "fig4_histograms.png",
+                 "index.md"):
+        assert (tmp_path / "fig" / name).exists(), name
+    res = runner.invoke(app, ["sweep", str(cfg), "--out", str(out), "--quiet"])
+    assert res.exit_code == 2 and "already exists" in res.output
+    res = runner.invoke(app, ["run", str(cfg)])
+    assert res.exit_code == 2 and "antisync sweep" in res.output
+
+
+# ---- Table 1 -------------------------------------------------------------------------------
+def test_table1_formats():
+    from antisync_cli.report.tables import fmt_pm, format_table1
+
+    assert fmt_pm(9.31254, 0.0123) == ("9.313", "0.012")
+    assert fmt_pm(0.1321, 0.0021) == ("0.1321", "0.0021")
+    assert fmt_pm(1.08234, None) == ("1.082", "-")
+    rows = [{"rank": 1, "graph": "G171", "edge": "2->1", "tau0_mean": 9.3125, "tau0_se": 0.0031,
+             "lambda_km": 0.1321, "lambda_km_se": 0.0042, "F_mean": 1.0823, "F_se": 0.00051,
+             "beta": 0.5, "n_tau0": 1000, "n_F": 1000},
+            {"rank": 2, "graph": "lollipop_6_3", "edge": "2->1", "tau0_mean": 9.5614, "tau0_se": 0.01,
+             "lambda_km": 0.2653, "lambda_km_se": 0.005, "F_mean": None, "F_se": None, "beta": None,
+             "n_tau0": None, "n_F": None}]
+    md = format_table1(rows, "markdown").splitlines()
+    assert md[0].startswith("| rank | graph | <tau0> |") and "<F_0.5>" in md[0]
+    assert md[2] == "| 1 | G171 | 9.3125 ± 0.0031 | 2->1 | 0.1321 ± 0.0042 | 1.08230 ± 0.00051 |"
+    assert md[3].endswith("| - |")
+    csv_lines = format_table1(rows, "csv").splitlines()
+    assert csv_lines[0].startswith("rank,graph,tau0_mean,tau0_se,edge,lambda_km")
+    assert csv_lines[1].startswith("1,G171,9.3125,0.0031,2->1,0.1321,0.0042,1.0823")
+    tex = format_table1(rows, "latex")
+    assert r"$9.3125 \pm 0.0031$" in tex and r"lollipop\_6\_3" in tex and r"$2\to1$" in tex
+    assert tex.startswith(r"\begin{tabular}") and tex.endswith(r"\end{tabular}")
