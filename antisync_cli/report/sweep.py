@@ -283,7 +283,7 @@ def plot_fig2(summary: dict):
         se = np.array([r["lambda_km_se"] for r in rows_b])
         has_sd = np.all(np.isfinite(sd))
         ax.errorbar(n, m, yerr=sd if has_sd else se, fmt="s", ms=5, capsize=3, color="C0",
-                    label=("mean ± sd over %d repeats" % rows_b[0]["n_repeats"]) if has_sd
+                    label=f"mean ± sd over {rows_b[0]['n_repeats']} repeats" if has_sd
                     else "estimate ± standard error")
         ax.axhline(0.0, color="k", lw=0.6)
         ax.legend(fontsize=8)
