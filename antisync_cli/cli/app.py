@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import typer
 
+from antisync_cli.cli.paper import paper
 from antisync_cli.cli.report import report
 from antisync_cli.cli.run import run
 from antisync_cli.cli.summary import summary
@@ -22,6 +23,7 @@ app.command()(sweep)
 app.command()(summary)
 app.command()(report)
 app.command()(validate)
+app.command()(paper)
 
 
 def main() -> None:

@@ -17,29 +17,44 @@ def sweep(
     out: Annotated[Path | None, typer.Option("--out", "-o", help="Override `output` (HDF5 path).")] = None,
     resume: Annotated[bool, typer.Option("--resume", help="Finish an interrupted sweep in the same file.")] = False,
     overwrite: Annotated[bool, typer.Option("--overwrite", help="Replace an existing output file.")] = False,
+    backend: Annotated[str | None, typer.Option(help="cpu, cuda or auto (screening is always cpu).")] = None,
+    threads: Annotated[int | None, typer.Option(help="CPU threads (default: all cores).")] = None,
+    workers: Annotated[int | None, typer.Option(help="Dask: start a LocalCluster with this many workers.")] = None,
+    scheduler: Annotated[str | None, typer.Option(help="Dask: address of an existing scheduler.")] = None,
     set_: SetOpt = None,
     quiet: QuietOpt = False,
     debug: DebugOpt = False,
 ) -> None:
     """Run the sweep of CONFIG (a config with a `sweep:` section, see configs/atlas6.yaml).
 
-    Every graph is screened first: graphs whose realizations end in a stable non-synchronized
-    state are excluded (and listed by `antisync summary`). Directed edges equivalent under
-    a graph automorphism are integrated once. Killed at any moment, `--resume` finishes it.
+    Graphs whose realizations end in a stable non-synchronized state are excluded by a screening (listed by `antisync summary`).
+
+    Directed edges mapped onto each other by a graph automorphism are integrated once.
+
+    Killed at any moment, the same command with --resume finishes it.
     """
     from antisync_cli.errors import AntisyncError
     from antisync_cli.runner import Interrupted
     from antisync_cli.sweeps import load_sweep, run_sweep
 
     overrides = list(set_ or [])
-    for key, value in (("realizations", realizations), ("output", out)):
+    for key, value in (("realizations", realizations), ("output", out), ("backend", backend),
+                       ("threads", threads)):
         if value is not None:
             overrides.append(f"{key}={value}")
     sw = load_sweep(config, overrides)
     if resume and overwrite:
         raise AntisyncError("--resume and --overwrite exclude each other: choose one")
+    dask_executor = None
+    if sw.base.executor == "dask" or workers or scheduler:
+        try:
+            from antisync_cli.executors.dask import DaskExecutor
+        except ImportError as exc:
+            raise AntisyncError(f"the dask executor is not available here ({exc})") from None
+        dask_executor = DaskExecutor.from_options(sw.base, workers=workers, scheduler=scheduler,
+                                                  log=lambda m: info(m, quiet))
     try:
-        path = run_sweep(sw, resume=resume, overwrite=overwrite,
+        path = run_sweep(sw, resume=resume, overwrite=overwrite, executor=dask_executor,
                          progress=None if not quiet else False, log=lambda m: info(m, quiet))
     except Interrupted as exc:
         info(f"antisync: {exc}")

@@ -171,7 +171,8 @@ def plot_ranking(summary: dict, ncols: int = 11):
     gms = _graph_meta(summary)
     ncols = max(1, min(ncols, len(rows)))
     nrows = max(1, -(-len(rows) // ncols))
-    fig, axes = plt.subplots(nrows, ncols, figsize=(1.3 * ncols, 1.5 * nrows + 1.2), squeeze=False)
+    fig, axes = plt.subplots(nrows, ncols, figsize=(1.3 * ncols, 1.3 * nrows + 0.9), squeeze=False,
+                             layout="constrained")
     for ax in axes.flat:
         ax.set_axis_off()
     for ax, row in zip(axes.flat, rows, strict=False):
@@ -282,9 +283,11 @@ def plot_fig2(summary: dict):
         sd = np.array([r["sd"] for r in rows_b])
         se = np.array([r["lambda_km_se"] for r in rows_b])
         has_sd = np.all(np.isfinite(sd))
-        ax.errorbar(n, m, yerr=sd if has_sd else se, fmt="s", ms=5, capsize=3, color="C0",
-                    label=f"mean ± sd over {rows_b[0]['n_repeats']} repeats" if has_sd
-                    else "estimate ± standard error")
+        if has_sd:  # the paper's error bar: the spread of single estimates
+            ax.errorbar(n, m, yerr=sd, fmt="none", capsize=3, color="C0", alpha=0.5, lw=1,
+                        label=f"sd of {rows_b[0]['n_repeats']} repeats")
+        ax.errorbar(n, m, yerr=se, fmt="s", ms=5, capsize=2, color="C0", lw=2,
+                    label="mean ± standard error of the mean" if has_sd else "estimate ± standard error")
         ax.axhline(0.0, color="k", lw=0.6)
         ax.legend(fontsize=8)
     ax.set_xlabel("N")
@@ -338,7 +341,9 @@ def plot_fig6(summary: dict):
         inset = ax.inset_axes([0.62, 0.1, 0.33, 0.3])
         inset.errorbar([f["threshold"] for f in fits], [f["gamma"] for f in fits],
                        yerr=[f["gamma_se"] for f in fits], fmt="o-", ms=3, capsize=2)
-        inset.set_xscale("function", functions=(lambda r: -np.log10(1 - r), lambda u: 1 - 10 ** (-u)))
+        # -log10(1 - r): 0.9, 0.99, 0.999 equally spaced
+        inset.set_xscale("function", functions=(lambda r: -np.log10(np.clip(1 - r, 1e-12, None)),
+                                                lambda u: 1 - 10 ** (-u)))
         inset.set_xticks(ts)
         inset.set_xticklabels([f"{t:g}" for t in ts], fontsize=6)
         inset.tick_params(labelsize=6)
