@@ -426,3 +426,30 @@ def test_table1_formats():
     tex = format_table1(rows, "latex")
     assert r"$9.3125 \pm 0.0031$" in tex and r"lollipop\_6\_3" in tex and r"$2\to1$" in tex
     assert tex.startswith(r"\begin{tabular}") and tex.endswith(r"\end{tabular}")
+
+
+def test_fit_gamma_recovers_a_line():
+    from antisync_cli.report.sweep import fit_gamma
+
+    x = np.linspace(-0.4, 0.4, 50)
+    fit = fit_gamma(x, 0.7 * x + 0.003)
+    assert math.isclose(fit["gamma"], 0.7, abs_tol=1e-12) and math.isclose(fit["C"], 0.003, abs_tol=1e-12)
+
+
+def test_paper_plan_fits_the_budget_and_readme_tolerates_missing_steps(tmp_path):
+    from antisync_cli.paper import STEPS, _readme, plan
+
+    assert sum(s.cpu_seconds() for s in STEPS) / 2 < 0.6 * 3600  # 2 cores, margin for slower CPUs
+    assert "total" in plan(0.5)
+    text = _readme(tmp_path, 1.0, {}, {})
+    assert "## Fig. 3" in text and "not produced" in text
+
+
+def test_validate_accepts_sweep_configs():
+    from typer.testing import CliRunner
+
+    from antisync_cli.cli.app import app
+
+    res = CliRunner().invoke(app, ["validate", str(REPO / "configs" / "atlas6.yaml")])
+    assert res.exit_code == 0, res.output
+    assert "# ok: sweep of 112 graph(s), 1902 directed edge(s) in 848 orbit(s)" in res.output

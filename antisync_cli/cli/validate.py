@@ -13,6 +13,18 @@ def validate(config: ConfigArg, set_: SetOpt = None, debug: DebugOpt = False) ->
     from antisync_cli.config import load_config
     from antisync_cli.jobs import make_job
 
+    if _is_sweep(config):
+        from antisync_cli.sweeps import family_graphs, load_sweep
+
+        sw = load_sweep(config, list(set_ or []))
+        entries = family_graphs(sw)  # builds every graph, selects edges, finds orbits
+        typer.echo(sw.to_yaml().rstrip())
+        typer.echo(
+            f"# ok: sweep of {len(entries)} graph(s), {sum(len(e.edges) for e in entries)} directed "
+            f"edge(s) in {sum(len(e.representatives) for e in entries)} orbit(s), "
+            f"{len(sw.thresholds)} threshold(s), {sw.repeats} repeat(s); screening not run"
+        )
+        return
     cfg = load_config(config, list(set_ or []))
     job = make_job(cfg)
     typer.echo(cfg.resolved().to_yaml().rstrip())
@@ -20,3 +32,14 @@ def validate(config: ConfigArg, set_: SetOpt = None, debug: DebugOpt = False) ->
         f"# ok: graph {job.name} with {len(job.nodes)} nodes, {len(job.edges)} directed edge(s), "
         f"{len(job.variant_edge)} damaged variant(s), {cfg.realizations:,} realizations"
     )
+
+
+def _is_sweep(path) -> bool:
+    """Whether the YAML file has a top-level ``sweep:`` key (errors are left to the loaders)."""
+    import yaml
+
+    try:
+        raw = yaml.safe_load(path.read_text())
+    except (OSError, yaml.YAMLError):
+        return False
+    return isinstance(raw, dict) and "sweep" in raw
