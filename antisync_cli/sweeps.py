@@ -871,19 +871,21 @@ def sweep_summary(path: str | Path, views=None) -> dict:
         ``screen``: the screening of every graph; ``symmetry``: integrations saved;
         ``complete``: whether every stage finished.
     """
-    from antisync_cli.summary import job_records, read_views
+    from antisync_cli.summary import read_views, view_records
 
     meta = read_meta(path)
     views = views if views is not None else read_views(path)
-    by_job = {v.graph: v for v in views}
+    by_job: dict[str, list] = {}
+    # view_records joins lambda_km_nnc from `<job>_nnc` twins (measures: [km, km_nnc])
+    for r in view_records(views):
+        by_job.setdefault(r["graph"], []).append(r)
     graphs = {g["graph"]: g for g in meta["graphs"]}
     records, top = [], []
     for jm in meta["jobs"]:
-        view = by_job.get(jm["job"])
-        if view is None:
+        if jm["job"] not in by_job:
             continue
         recs = [{**r, "graph": jm["graph"], "job": jm["job"], "threshold": jm["threshold"],
-                 "repeat": jm["repeat"]} for r in job_records(view)]
+                 "repeat": jm["repeat"]} for r in by_job[jm["job"]]]
         if jm["stage"] == "main":
             records += expand_records(recs, graphs[jm["graph"]]["orbits"])
         else:

@@ -35,6 +35,7 @@ sweep:
     - {kind: atlas, index: 18}     # K4
     - {kind: networkx, generator: cycle_graph, args: {n: 5}, name: C5}
 betas: [0.5]
+measures: [km, xi2]
 realizations: 120
 block_size: 20
 seed: 3
@@ -312,6 +313,22 @@ def test_tiny_sweep_contents(tiny_reference):
     assert [r["rank"] for r in ref["top"]] == [1, 2]
 
 
+def test_fanned_out_records_match_direct_xi2(tiny_reference):
+    """Lambda^(xi2), computed for representatives only and fanned out, equals a direct
+    computation on every orbit member: an independent check of the orbits."""
+    from antisync_cli.measures.spectral import lambda_xi2
+
+    _, _, ref = tiny_reference
+    built = {"path_graph": nx.path_graph(3), "lollipop_4_1": graphs.lollipop(4, 1),
+             "G18": graphs.atlas(18)}
+    for r in ref["records"]:
+        g = built[r["graph"]]
+        nodes = graphs.node_order(g)
+        a, b = graphs.parse_edge(r["edge"], g)
+        direct = lambda_xi2(graphs.omega_matrix(g), nodes.index(a), nodes.index(b))
+        assert math.isclose(r["lambda_xi2"], direct, rel_tol=1e-7, abs_tol=1e-8), r["edge"]
+
+
 @pytest.mark.parametrize(
     ("crash_after", "exc", "stage"),
     [(0, RuntimeError, "main"), (7, RuntimeError, "main"), (9, KeyboardInterrupt, "main"),
@@ -332,8 +349,11 @@ def test_interrupted_sweep_resumes_to_the_same_file(tiny_reference, tmp_path, cr
         assert len(list((tmp_path / "tiny.h5.partial" / "screen").glob("*.json"))) == 4
     if exc is KeyboardInterrupt:  # the checkpoint already holds the screening
         assert len(sweep_summary(path)["excluded"]) == 1 and not sweep_summary(path)["complete"]
-    else:
-        assert path.exists() == (stage == "top")  # the main stage ended with a checkpoint
+    elif stage == "top":
+        assert path.exists()  # the main stage ended with a checkpoint
+    if path.exists():  # every checkpoint (also the one after the measures) holds the screening
+        s = sweep_summary(path)
+        assert len(s["excluded"]) == 1 and not s["complete"]
     run_sweep(sw, output=path, resume=True, progress=False, chunk_realizations=40)
     assert _comparable(sweep_summary(path)) == ref
     assert not (tmp_path / "tiny.h5.partial").exists()
@@ -395,7 +415,7 @@ def test_cli_sweep_summary_and_report(tmp_path):
     res = runner.invoke(app, ["report", str(out), "--out", str(tmp_path / "fig"), "--quiet"])
     assert res.exit_code == 0, res.output
     for name in ("fig3_ranking.png", "table1.md", "table1.csv", "table1.tex", "fig4_histograms.png",
-                 "index.md"):
+                 "fig5_measures.png", "index.md"):
         assert (tmp_path / "fig" / name).exists(), name
     res = runner.invoke(app, ["sweep", str(cfg), "--out", str(out), "--quiet"])
     assert res.exit_code == 2 and "already exists" in res.output

@@ -5,6 +5,7 @@ Which outputs a sweep gets depends on what it holds:
 - every sweep: ``index.md`` (screening, exclusions, symmetry savings, what was written);
 - more than one graph, not lollipops: ``fig3_ranking`` (graphs sorted by the sum of their
   positive Lambda^KM, small multiples on one colour scale) and ``table1.{md,csv,tex}``;
+  ``fig5_measures`` when the config's ``measures`` stored Lambda^(linear, xi2, RW);
 - a top stage (or betas in the main stage): ``fig4_histograms`` of (tau0, tau(beta));
 - the lollipop family: ``fig2a_F_beta`` (<F_beta> against beta, coloured by N) and
   ``fig2b_lambda_N`` (Lambda^KM against N, mean and standard deviation over repeats);
@@ -30,6 +31,7 @@ __all__ = [
     "fit_gamma",
     "lambda_xi2_records",
     "plot_fig2",
+    "plot_fig5",
     "plot_fig6",
     "plot_ranking",
     "plot_top_histograms",
@@ -318,7 +320,7 @@ def plot_fig6(summary: dict):
     ax.set_ylabel(r"$\Lambda^{(\mathrm{KM})}$, r = r*")
     ax.legend(fontsize=8)
     try:
-        xi2 = lambda_xi2_records(summary)
+        xi2 = _stored_measure(summary, "lambda_xi2") or lambda_xi2_records(summary)
     except ImportError as exc:
         return fig_a, None, [], (f"Fig. 6b skipped: Lambda^(xi2) needs "
                                  f"antisync_cli.measures.spectral.lambda_xi2 ({exc})")
@@ -350,6 +352,60 @@ def plot_fig6(summary: dict):
         inset.set_xlabel("r*", fontsize=7)
         inset.set_ylabel(r"$\gamma^{(\xi_2-\mathrm{KM})}$", fontsize=7)
     return fig_a, fig_b, fits, ""
+
+
+def _stored_measure(summary: dict, key: str) -> dict[tuple, float]:
+    """``{(graph, edge): value}`` of a measure stored with the records (``measures:`` in the
+    config), at the ranking threshold; empty when it was not computed."""
+    t = summary["ranking_threshold"]
+    out = {}
+    for r in summary["records"]:
+        if r.get(key) is not None and math.isclose(r["threshold"], t):
+            out.setdefault((r["graph"], r["edge"]), r[key])
+    return out
+
+
+def plot_fig5(summary: dict):
+    """Fig. 5: Lambda^KM against Lambda^(linear), Lambda^(xi2), Lambda^(RW), and xi2 against RW.
+
+    Uses the measures stored with the records (``measures: [km, xi2, rw, linear]``); returns
+    ``(fig, missing)`` with ``fig = None`` when none was computed.
+    """
+    plt = _plt()
+    t = summary["ranking_threshold"]
+    km = {k: v["lambda_km"] for k, v in edge_lambdas(summary["records"], t).items()}
+    m = {name: _stored_measure(summary, f"lambda_{name}") for name in ("linear", "xi2", "rw")}
+    missing = [name for name, v in m.items() if not v]
+    if len(missing) == 3:
+        return None, missing
+    label = {"km": r"$\Lambda^{(\mathrm{KM})}$", "linear": r"$\Lambda^{(\mathrm{linear})}$",
+             "xi2": r"$\Lambda^{(\xi_2)}$", "rw": r"$\Lambda^{(\mathrm{RW})}$"}
+    data = {"km": km, **m}
+    panels = [("a", "linear", "km"), ("b", "xi2", "km"), ("c", "rw", "km"), ("d", "xi2", "rw")]
+    fig, axes = plt.subplots(2, 2, figsize=(9.5, 9), layout="constrained")
+    for ax, (tag, xk, yk) in zip(axes.flat, panels, strict=True):
+        keys = [k for k in data[xk] if k in data[yk]]
+        ax.set_xlabel(label[xk])
+        ax.set_ylabel(label[yk])
+        ax.set_title(f"({tag})", loc="left")
+        if not keys:
+            ax.text(0.5, 0.5, f"{label[xk] if xk in missing else label[yk]} not computed",
+                    ha="center", transform=ax.transAxes)
+            continue
+        x = np.array([data[xk][k] for k in keys])
+        y = np.array([data[yk][k] for k in keys])
+        ax.scatter(x, y, s=8, alpha=0.6)
+        ax.axhline(0, color="k", lw=0.5)
+        ax.axvline(0, color="k", lw=0.5)
+        if tag == "b":  # the paper: signs agree for |Lambda^KM| >= 0.1
+            bad = int(np.sum((np.abs(y) >= 0.1) & (x * y < 0)))
+            ax.text(0.02, 0.98, f"sign disagreements with |Lambda_KM| >= 0.1: {bad}",
+                    transform=ax.transAxes, va="top", fontsize=7)
+        if len(keys) > 2:
+            ax.text(0.98, 0.02, f"Pearson r = {np.corrcoef(x, y)[0, 1]:.3f}, {len(keys)} edges",
+                    transform=ax.transAxes, ha="right", fontsize=7)
+    fig.suptitle(f"response measures of every directed edge (r = {t:g})", fontsize=10)
+    return fig, missing
 
 
 # ---- the report ----------------------------------------------------------------------------
@@ -397,6 +453,12 @@ def write_sweep_report(path: str | Path, folder: str | Path, *, pdf: bool = Fals
         rows = table1_rows(summary)
         for fmt, ext in (("markdown", "md"), ("csv", "csv"), ("latex", "tex")):
             text(f"table1.{ext}", format_table1(rows, fmt))
+        fig5, missing = plot_fig5(summary)
+        if fig5 is None:
+            notes.append("Fig. 5 skipped: no measures stored (add measures: [km, xi2, rw, linear])")
+        elif missing:
+            notes.append(f"Fig. 5: {', '.join(missing)} not computed (add them to measures:)")
+        save(fig5, "fig5_measures")
         fig = plot_top_histograms(summary, views)
         if fig is None:
             notes.append("Fig. 4 skipped: no (tau0, tau(beta)) histograms (set top.graphs > 0)")
