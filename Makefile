@@ -6,7 +6,7 @@ STAMP  := $(VENV)/.installed-stamp
 CONFIG ?= configs/lollipop6.yaml
 RESULT ?= results/lollipop6.h5
 
-.PHONY: help install run test test-slow test-cuda bench lint format clean
+.PHONY: help install run test test-slow test-cuda bench lint format clean paper
 
 help:
 	@echo "make run        set up .venv, run $(CONFIG), write $(RESULT) and figures"
@@ -54,3 +54,6 @@ format: $(STAMP)
 clean:
 	rm -rf $(VENV) .pytest_cache .ruff_cache build *.egg-info
 	find . -name __pycache__ -type d -prune -exec rm -rf {} +
+
+paper: $(STAMP)
+	$(BIN)/antisync paper --out results/paper
