@@ -114,7 +114,7 @@ def lambda_values(job: Job, sim, first: int, count: int, threads: int | None = N
 
     Returns ``(values, code, flagged, base)`` with ``values``/``code``/``flagged`` of shape
     ``(count, E)`` (see :func:`antisync_cli.estimators.lambda_block_records`) and ``base`` the
-    undamaged outcome when the pathwise kernel produced it (else None).
+    undamaged outcome when the pathwise or orbit pass produced it (else None).
     """
     spec = job.config.lambda_
     dyn = job.config.dynamics
@@ -127,6 +127,9 @@ def lambda_values(job: Job, sim, first: int, count: int, threads: int | None = N
         code = np.where(ok, _SYNCED, np.maximum(sim.status0[:, None], sim.status[:, v])).astype(np.int8)
         values = np.where(ok, (t0[:, None] / np.where(ok, t, 1.0) - 1.0) / job.dbeta, 0.0)
         return values, code, np.zeros_like(ok), None
+
+    if spec.method == "orbit":
+        return _orbit_values(job, sim, first, count, threads)
 
     from antisync_cli.kernels.cpu import simulate_pathwise
 
@@ -150,6 +153,25 @@ def lambda_values(job: Job, sim, first: int, count: int, threads: int | None = N
             values[rows[good], e] = (tau0[rows[good]] / tau[good] - 1.0) / job.dbeta
             code[rows[~good], e] = sec.status[~good, 0]
     return values, code, flagged, pw
+
+
+def _orbit_values(job: Job, sim, first: int, count: int, threads: int | None):
+    """Central differences along each edge's orbit (``lambda.method: orbit``).
+
+    One pass integrates tau0 and the ``+dbeta``/``-dbeta`` variants of every orbit; its
+    undamaged outcome is returned as ``base`` (equal to ``sim``'s when both exist).
+    """
+    dyn = job.config.dynamics
+    osim = simulate_job(job, first, count, "cpu", threads, job.orbit_weights)
+    t0, t = estimators.crossing_times(osim, dyn.interpolate)
+    plus, minus = t[:, 0::2], t[:, 1::2]
+    s_plus, s_minus = osim.status[:, 0::2], osim.status[:, 1::2]
+    ok = (osim.status0[:, None] == _SYNCED) & (s_plus == _SYNCED) & (s_minus == _SYNCED)
+    code = np.where(ok, _SYNCED, np.maximum(osim.status0[:, None], np.maximum(s_plus, s_minus)))
+    inv = np.where(ok, 1.0 / np.where(ok, plus, 1.0) - 1.0 / np.where(ok, minus, 1.0), 0.0)
+    values = t0[:, None] * inv / (2.0 * job.dbeta * job.orbit_sizes[None, :])
+    values = np.where(ok, values, 0.0)
+    return values, code.astype(np.int8), np.zeros_like(ok), osim
 
 
 def _fd_variants(job: Job) -> np.ndarray:
@@ -188,7 +210,7 @@ def compute_chunk(job: Job, chunk: Chunk, backend: str = "cpu", threads: int | N
         return _compute_on_device(job, chunk, first, count, start)
     derivative = job.config.lambda_.method != "finite-difference"
     if derivative and len(job.variant_edge) == 0:
-        sim = None  # Lambda only: the pathwise pass integrates the undamaged network itself
+        sim = None  # Lambda only: the Lambda pass integrates the undamaged network itself
     else:
         sim = simulate_job(job, first, count, backend, threads)
     values, code, flagged, base = lambda_values(job, sim, first, count, threads)

@@ -51,7 +51,7 @@ BACKENDS = ("cpu", "cuda", "auto")
 EXECUTORS = ("local", "dask")
 INTEGRATORS = ("euler", "rk4")
 CROSSINGS = ("auto", "grid", "interpolated")
-LAMBDA_METHODS = ("finite-difference", "pathwise", "hybrid")
+LAMBDA_METHODS = ("finite-difference", "pathwise", "hybrid", "orbit")
 #: km: Lambda^KM from the run (Eq. 6); linear, xi2, rw: the measures of Secs. 2.3 and 3.3
 #: (Eqs. 14, 16, 25); km_nnc: the same run with raw coupling (Sec. 3.4, Eqs. 27-29).
 MEASURES = ("km", "linear", "xi2", "rw", "km_nnc")
@@ -217,10 +217,10 @@ class Config:
             raise ConfigError(f"chunk_size must be 'auto' or an integer >= 1, got {self.chunk_size!r}")
         if not isinstance(self.keep_pairs, int) or self.keep_pairs < 0:
             raise ConfigError(f"keep_pairs must be an integer >= 0, got {self.keep_pairs!r}")
-        if self.lambda_.method != "finite-difference" and self.dynamics.integrator != "euler":
+        if self.lambda_.method in ("pathwise", "hybrid") and self.dynamics.integrator != "euler":
             raise ConfigError(
                 f"lambda.method {self.lambda_.method} needs dynamics.integrator euler "
-                "(the tangent is written for the Euler step); use finite-difference with rk4"
+                "(the tangent is written for the Euler step); use finite-difference or orbit with rk4"
             )
         if self.threads is not None and (not isinstance(self.threads, int) or self.threads < 1):
             raise ConfigError(f"threads must be null or an integer >= 1, got {self.threads!r}")

@@ -29,6 +29,7 @@ __all__ = [
     "coupling_matrix",
     "damaged_omega",
     "laplacian",
+    "orbit_variant_weights",
     "tangent_coefficients",
     "to_csr",
     "variant_weights",
@@ -168,6 +169,43 @@ def variant_weights(
     for v, (a, b, beta) in enumerate(damages):
         w = coupling_matrix(damaged_omega(omega, a, b, beta), coupling)
         out[v] = to_csr(w, pattern=mask).weights
+    return out
+
+
+def orbit_variant_weights(
+    omega: np.ndarray,
+    csr: CouplingCSR,
+    orbits: list[list[tuple[int, int]]],
+    h: float,
+    coupling: Coupling = "normalized",
+) -> np.ndarray:
+    """CSR weights of ``W`` with every directed link of an orbit scaled by ``1 - h`` and ``1 + h``.
+
+    Parameters
+    ----------
+    orbits : list of lists of (a, b)
+        0-based directed links; each list is damaged (``1 - h``) and reinforced (``1 + h``) at once.
+    h : float
+        Step of the central difference, ``0 < h < 1``.
+
+    Returns
+    -------
+    ndarray, shape (2 * len(orbits), nnz)
+        Row ``2 k`` is orbit ``k`` at ``beta = +h``, row ``2 k + 1`` at ``beta = -h``.
+    """
+    if not 0.0 < h < 1.0:
+        raise ValueError(f"h must satisfy 0 < h < 1, got {h}")
+    out = np.empty((2 * len(orbits), csr.weights.size))
+    mask = np.zeros(omega.shape, dtype=bool)
+    mask[np.repeat(np.arange(csr.n_nodes), np.diff(csr.indptr)), csr.indices] = True
+    for k, links in enumerate(orbits):
+        rows, cols = np.array(links, dtype=np.int64).reshape(-1, 2).T
+        if np.any(omega[rows, cols] <= 0):
+            raise ValueError(f"orbit {links} contains a pair that is not a link")
+        for j, beta in enumerate((h, -h)):
+            damaged = np.array(omega, dtype=np.float64, copy=True)
+            damaged[rows, cols] *= 1.0 - beta
+            out[2 * k + j] = to_csr(coupling_matrix(damaged, coupling), pattern=mask).weights
     return out
 
 

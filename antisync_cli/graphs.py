@@ -21,6 +21,7 @@ __all__ = [
     "barbell",
     "build_graph",
     "edge_label",
+    "edge_orbits",
     "from_edgelist",
     "lollipop",
     "node_order",
@@ -212,3 +213,64 @@ def _is_int(token: str) -> bool:
     except ValueError:
         return False
     return True
+
+
+def _edge_invariant(g: nx.Graph, e: tuple) -> tuple:
+    a, b = e
+    return (g.degree(a), g.degree(b), tuple(sorted(g.degree(x) for x in g[a])),
+            tuple(sorted(g.degree(x) for x in g[b])))
+
+
+def _maps_onto(g: nx.Graph, e: tuple, f: tuple) -> bool:
+    """Is there an automorphism of ``g`` with ``e[0] -> f[0]`` and ``e[1] -> f[1]``?"""
+    from networkx.algorithms.isomorphism import GraphMatcher, categorical_node_match
+
+    g1, g2 = nx.Graph(g), nx.Graph(g)
+    nx.set_node_attributes(g1, 0, "pin")
+    nx.set_node_attributes(g2, 0, "pin")
+    g1.nodes[e[0]]["pin"], g1.nodes[e[1]]["pin"] = 1, 2
+    g2.nodes[f[0]]["pin"], g2.nodes[f[1]]["pin"] = 1, 2
+    match = categorical_node_match("pin", 0)
+    return GraphMatcher(g1, g2, node_match=match,
+                        edge_match=lambda x, y: x.get("weight", 1.0) == y.get("weight", 1.0)
+                        ).is_isomorphic()
+
+
+def edge_orbits(g: nx.Graph, edges: list | None = None) -> dict:
+    """Map each directed edge to the representative of its orbit under the automorphisms of ``g``.
+
+    Two directed edges ``a -> b`` and ``c -> d`` are in one orbit when an automorphism (a
+    weight-preserving relabelling of the nodes) maps ``a`` to ``c`` and ``b`` to ``d``; then
+    damaging either gives the same distribution of ``(tau0, tau(beta))`` and the same Lambda.
+
+    Parameters
+    ----------
+    g : networkx.Graph
+    edges : list of (u, v), optional
+        The directed edges to group (default: all, in :func:`~antisync_cli.graphs.all_directed_edges`
+        order). The representative of an orbit is its first edge in this order.
+
+    Returns
+    -------
+    dict
+        ``{edge: representative}`` for every edge in ``edges``.
+
+    Notes
+    -----
+    Rather than enumerating the automorphism group (18! elements for a 19-clique), each edge
+    is tested against the representatives found so far with one VF2 search in which the two
+    end nodes are pinned; edges with different degree invariants are never compared.
+    """
+    edges = list(all_directed_edges(g) if edges is None else edges)
+    reps: list[tuple] = []
+    out = {}
+    for e in edges:
+        inv = _edge_invariant(g, e)
+        for r in reps:
+            if _edge_invariant(g, r) == inv and _maps_onto(g, r, e):
+                out[e] = r
+                break
+        else:
+            reps.append(e)
+            out[e] = e
+    return out

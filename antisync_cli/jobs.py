@@ -57,6 +57,11 @@ class Job:
         ``(edge_a, edge_b, rho, mu)`` per edge for the pathwise kernel.
     secant_weights : ndarray (E, nnz)
         ``W(Omega*)`` at ``dbeta`` for each edge (hybrid secants).
+    orbit_weights : ndarray (2 E, nnz) or None
+        ``lambda.method: orbit``: each edge's automorphism orbit damaged by ``+dbeta`` (row
+        ``2 e``) and ``-dbeta`` (row ``2 e + 1``), see :func:`~antisync_cli.coupling.orbit_variant_weights`.
+    orbit_sizes : ndarray (E,) or None
+        Number of directed links in each edge's orbit.
     nnc_of : str
         For the raw-coupling twin of a run (``km_nnc``, Sec. 3.4), the name of the normalized
         job it pairs with; ``""`` otherwise.
@@ -78,6 +83,8 @@ class Job:
     tangent: tuple
     secant_weights: np.ndarray
     nnc_of: str = ""
+    orbit_weights: np.ndarray | None = None
+    orbit_sizes: np.ndarray | None = None
 
     @property
     def block_size(self) -> int:
@@ -101,11 +108,17 @@ class Job:
         keep = np.isin(np.round(self.variant_beta, 12), np.array(sorted(wanted)))
         return np.flatnonzero(keep)
 
+    @property
+    def integrations_per_realization(self) -> int:
+        """Trajectories integrated per realization (tau0, variants, orbit differences)."""
+        extra = 0 if self.orbit_weights is None else len(self.orbit_weights)
+        return 1 + len(self.variant_edge) + extra
+
     def chunks(self, realizations_per_chunk: int | None = None) -> list[Chunk]:
         """Split the job into chunks of whole blocks (sizes never change the results)."""
         if realizations_per_chunk is None:
             # aim at ~25k integrations per chunk: a few seconds on one core
-            realizations_per_chunk = max(1, 25_000 // (1 + len(self.variant_edge)))
+            realizations_per_chunk = max(1, 25_000 // self.integrations_per_realization)
         per = max(1, -(-realizations_per_chunk // self.block_size))
         return [Chunk(b, min(per, self.n_blocks - b)) for b in range(0, self.n_blocks, per)]
 
@@ -163,4 +176,18 @@ def make_job(config: Config, graph: nx.Graph | None = None, name: str | None = N
         variant_weights=vw,
         tangent=coupling.tangent_coefficients(omega, edge_idx, config.dynamics.coupling),
         secant_weights=secant,
+        **_orbit_fields(graph, nodes, omega, csr, edges, config),
     )
+
+
+def _orbit_fields(graph: nx.Graph, nodes: list, omega: np.ndarray, csr: coupling.CouplingCSR,
+                  edges: list, config: Config) -> dict:
+    """``orbit_weights`` and ``orbit_sizes`` for ``lambda.method: orbit`` (else empty)."""
+    if config.lambda_.method != "orbit":
+        return {}
+    index = {v: i for i, v in enumerate(nodes)}
+    rep = graphs.edge_orbits(graph)
+    orbits = [[(index[a], index[b]) for a, b in rep if rep[a, b] == rep[e]] for e in edges]
+    weights = coupling.orbit_variant_weights(omega, csr, orbits, config.lambda_.dbeta,
+                                             config.dynamics.coupling)
+    return {"orbit_weights": weights, "orbit_sizes": np.array([len(o) for o in orbits])}

@@ -327,7 +327,8 @@ def _readme(out: Path, scale: float, timings: dict, extra: dict) -> str:
         body.append("")
     section("Fig. 1: lollipop N = 6, L = 3", body)
 
-    body = _img(out, "lollipop_F/fig2a_F_beta.png", 560) + _img(out, "lollipop_lambda/fig2b_lambda_N.png", 520)
+    body = (_img(out, "lollipop_F/fig2a_F_beta.png", 560)
+            + _img(out, "lollipop_lambda/fig2b_lambda_N.png", 520))
     p = out / "lollipop_lambda" / "fig2b_lambda_N.md"
     if p.exists():
         body += [p.read_text(), ""]

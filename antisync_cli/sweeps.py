@@ -26,8 +26,9 @@ What a sweep does (:func:`run_sweep`):
    ``screen.realizations`` random starts; a graph with realizations that converge to a stable
    non-synchronized state (a twisted state) is excluded, with the reason and the fraction.
 2. **Symmetry**: directed edges mapped onto each other by a graph automorphism have the same
-   Lambda; one representative per orbit is integrated (:func:`edge_orbits`) and its records
-   are fanned out to the whole orbit when the file is summarized (:func:`sweep_summary`).
+   Lambda; one representative per orbit is integrated
+   (:func:`~antisync_cli.graphs.edge_orbits`) and its records are fanned out to the whole
+   orbit when the file is summarized (:func:`sweep_summary`).
 3. **Main stage**: one job per (kept graph, threshold, repeat). Repeat 0 carries ``betas``;
    later repeats estimate Lambda only.
 4. **Top stage** (optional, ``top.graphs > 0``): the graphs ranked first by the sum of their
@@ -63,6 +64,7 @@ from antisync_cli.config import (
     parse_mapping,
 )
 from antisync_cli.errors import ConfigError, StoreError
+from antisync_cli.graphs import edge_orbits
 
 __all__ = [
     "FAMILIES",
@@ -456,67 +458,6 @@ def _select_edges(sweep: Sweep, spec: dict, g: nx.Graph, name: str) -> list:
     return out
 
 
-def _edge_invariant(g: nx.Graph, e: tuple) -> tuple:
-    a, b = e
-    return (g.degree(a), g.degree(b), tuple(sorted(g.degree(x) for x in g[a])),
-            tuple(sorted(g.degree(x) for x in g[b])))
-
-
-def _maps_onto(g: nx.Graph, e: tuple, f: tuple) -> bool:
-    """Is there an automorphism of ``g`` with ``e[0] -> f[0]`` and ``e[1] -> f[1]``?"""
-    from networkx.algorithms.isomorphism import GraphMatcher, categorical_node_match
-
-    g1, g2 = nx.Graph(g), nx.Graph(g)
-    nx.set_node_attributes(g1, 0, "pin")
-    nx.set_node_attributes(g2, 0, "pin")
-    g1.nodes[e[0]]["pin"], g1.nodes[e[1]]["pin"] = 1, 2
-    g2.nodes[f[0]]["pin"], g2.nodes[f[1]]["pin"] = 1, 2
-    match = categorical_node_match("pin", 0)
-    return GraphMatcher(g1, g2, node_match=match,
-                        edge_match=lambda x, y: x.get("weight", 1.0) == y.get("weight", 1.0)
-                        ).is_isomorphic()
-
-
-def edge_orbits(g: nx.Graph, edges: list | None = None) -> dict:
-    """Map each directed edge to the representative of its orbit under the automorphisms of ``g``.
-
-    Two directed edges ``a -> b`` and ``c -> d`` are in one orbit when an automorphism (a
-    weight-preserving relabelling of the nodes) maps ``a`` to ``c`` and ``b`` to ``d``; then
-    damaging either gives the same distribution of ``(tau0, tau(beta))`` and the same Lambda.
-
-    Parameters
-    ----------
-    g : networkx.Graph
-    edges : list of (u, v), optional
-        The directed edges to group (default: all, in :func:`~antisync_cli.graphs.all_directed_edges`
-        order). The representative of an orbit is its first edge in this order.
-
-    Returns
-    -------
-    dict
-        ``{edge: representative}`` for every edge in ``edges``.
-
-    Notes
-    -----
-    Rather than enumerating the automorphism group (18! elements for a 19-clique), each edge
-    is tested against the representatives found so far with one VF2 search in which the two
-    end nodes are pinned; edges with different degree invariants are never compared.
-    """
-    edges = list(graphs_mod.all_directed_edges(g) if edges is None else edges)
-    reps: list[tuple] = []
-    out = {}
-    for e in edges:
-        inv = _edge_invariant(g, e)
-        for r in reps:
-            if _edge_invariant(g, r) == inv and _maps_onto(g, r, e):
-                out[e] = r
-                break
-        else:
-            reps.append(e)
-            out[e] = e
-    return out
-
-
 # ---- records ---------------------------------------------------------------------------
 def expand_records(records: list[dict], orbits: dict[str, str]) -> list[dict]:
     """Fan records of representative edges out to every edge of their orbits.
@@ -780,7 +721,8 @@ def _symmetry(sweep: Sweep, kept: list[GraphEntry], jobs) -> dict:
     by_graph = {e.name: e for e in kept}
     for job in jobs:
         entry = by_graph[job.graph.graph["name"]]
-        per_edge = len(job.variant_edge) // len(job.edges)  # the betas and dbeta of one edge
+        # the betas and dbeta of one edge (orbit: plus the +-dbeta pair)
+        per_edge = (job.integrations_per_realization - 1) // len(job.edges)
         m = job.config.realizations
         with_sym += (1 + per_edge * len(entry.representatives)) * m
         without += (1 + per_edge * len(entry.edges)) * m
@@ -807,7 +749,8 @@ def _meta(sweep, entries, screens, excluded, jobs_meta, saved) -> dict:
     return {
         "format": SWEEP_FORMAT, "format_version": SWEEP_FORMAT_VERSION, "name": sweep.name,
         "family": sweep.family, "thresholds": list(sweep.thresholds), "repeats": sweep.repeats,
-        "ranking_threshold": sweep.ranking_threshold(), "top": asdict(sweep.top) | {"betas": list(sweep.top.betas)},
+        "ranking_threshold": sweep.ranking_threshold(),
+        "top": asdict(sweep.top) | {"betas": list(sweep.top.betas)},
         "screen": asdict(sweep.screen), "graphs": graphs, "jobs": jobs_meta, "symmetry": saved,
         "coupling": sweep.base.dynamics.coupling, "dbeta": sweep.base.lambda_.dbeta,
         "betas": list(sweep.base.betas),

@@ -129,6 +129,7 @@ def test_float32_is_rejected_on_cpu(tmp_path):
 @pytest.mark.parametrize("setting, key", [
     ("lambda: {method: pathwise}", "lambda.method pathwise"),
     ("lambda: {method: hybrid}", "lambda.method hybrid"),
+    ("lambda: {method: orbit}", "lambda.method orbit"),
     ("dynamics: {integrator: rk4, dt: 0.04}", "dynamics.integrator rk4"),
     ("dynamics: {crossing: interpolated}", "dynamics.crossing interpolated"),
 ])

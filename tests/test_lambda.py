@@ -1,5 +1,5 @@
 """Lambda estimators: pathwise tangents against finite differences, closed-form symmetries,
-the hybrid's secants, and agreement between methods on the paper's lollipop."""
+the hybrid's secants, orbit differences, and agreement between methods on the paper's lollipop."""
 
 import numpy as np
 import pytest
@@ -91,7 +91,7 @@ def test_hybrid_uses_secants_of_interpolated_times_where_flagged():
 
 def test_methods_agree_on_the_lollipop(tmp_path):
     out = {}
-    for method in ("finite-difference", "pathwise", "hybrid"):
+    for method in ("finite-difference", "pathwise", "hybrid", "orbit"):
         cfg = load_config_text(f"""
 graph: {{kind: lollipop, nodes: 6, path: 3}}
 edges: ["2->1", "2->3", "5->6", "1->2"]
@@ -105,7 +105,7 @@ output: {tmp_path / method}.h5
         out[method] = {r["edge"]: r for r in records(cfg.output)}
     for edge in ("2->1", "2->3", "5->6"):
         ref = out["finite-difference"][edge]
-        for method in ("pathwise", "hybrid"):
+        for method in ("pathwise", "hybrid", "orbit"):
             r = out[method][edge]
             gap = abs(r["lambda_km"] - ref["lambda_km"])
             assert gap < 4 * np.hypot(r["lambda_km_se"], ref["lambda_km_se"]), (edge, method, r, ref)
@@ -113,3 +113,79 @@ output: {tmp_path / method}.h5
         assert out[method]["1->2"]["lambda_km"] == 0.0
     assert out["pathwise"]["2->1"]["lambda_km"] == pytest.approx(-out["pathwise"]["2->3"]["lambda_km"],
                                                                  rel=1e-9)
+
+
+# ---- lambda.method: orbit ------------------------------------------------------------------
+
+
+def _orbit_job(graph, edges, coupling_kind="normalized", m=400, crossing="grid"):
+    return make_job(load_config_text(f"""
+graph: {graph}
+edges: {edges}
+betas: []
+lambda: {{method: orbit}}
+dynamics: {{dt: {DT}, t_max: 100, coupling: {coupling_kind}, crossing: {crossing}}}
+realizations: {m}
+seed: 5
+"""))
+
+
+def test_orbit_of_a_single_link_is_the_central_difference():
+    """On lollipop(6, 3) the orbit of 2->1 is {2->1}: the estimate is the plain central difference
+    of that link, realization by realization; the orbit of 5->6 is {5->6, 6->5}."""
+    from antisync_cli.compute import lambda_values
+
+    job = _orbit_job("{kind: lollipop, nodes: 6, path: 3}", '["2->1", "5->6"]')
+    assert job.orbit_sizes.tolist() == [1, 2]
+    (a, b), h = (1, 0), 0.01
+    plus = coupling.variant_weights(job.omega, job.csr, [(a, b, h)])[0]
+    assert np.array_equal(job.orbit_weights[0], plus)
+    damaged = job.omega.copy()
+    damaged[a, b] *= 1 + h
+    minus = coupling.to_csr(coupling.coupling_matrix(damaged), pattern=job.omega > 0).weights
+    assert np.array_equal(job.orbit_weights[1], minus)
+    values, code, _, base = lambda_values(job, None, 0, 400)
+    ref = simulate(5, 0, 400, job.csr.indptr, job.csr.indices, job.csr.weights,
+                   np.stack([plus, minus]), **KW)
+    ok = (ref.status0 == 0) & (ref.status == 0).all(axis=1)
+    assert np.array_equal(code[:, 0] == 0, ok) and ok.mean() > 0.99
+    t0, t = ref.steps0[ok] * DT, ref.steps[ok] * DT
+    expected = t0 * (1 / t[:, 0] - 1 / t[:, 1]) / (2 * h)
+    assert np.allclose(values[ok, 0], expected, rtol=1e-12, atol=0)
+    assert np.array_equal(base.steps0, ref.steps0)
+
+
+def test_orbit_of_an_arc_transitive_graph_closed_forms():
+    """K5: every directed link is in one orbit. Normalized coupling: damaging them all leaves W
+    unchanged, so Lambda = 0 on every link. Raw coupling: it scales W by 1 - beta, so
+    tau(beta) = tau0 / (1 - beta) up to the Euler error and Lambda = -1 / 20 on every link."""
+    from antisync_cli.compute import lambda_values
+
+    norm = _orbit_job("{kind: networkx, generator: complete_graph, args: {n: 5}}", '["0->1", "3->2"]')
+    assert norm.orbit_sizes.tolist() == [20, 20]
+    assert np.allclose(norm.orbit_weights, norm.csr.weights[None, :], rtol=1e-15, atol=0)
+    values, code, _, _ = lambda_values(norm, None, 0, 200)
+    assert (code == 0).all() and np.abs(values).max() < 1e-9
+
+    raw = _orbit_job("{kind: networkx, generator: complete_graph, args: {n: 5}}", '["0->1"]', "raw",
+                     crossing="interpolated")
+    values, code, _, _ = lambda_values(raw, None, 0, 200)
+    assert (code == 0).all()
+    assert values.mean() == pytest.approx(-1 / 20, rel=2e-3)
+    assert values.std() < 2e-3
+
+
+def test_orbit_directions_of_one_node_cancel():
+    """Lollipop L = 1, N = 7: from a clique node a away from the bridge, the derivative summed over
+    all out-links of a is zero (normalized rows sum to 1), so Lambda(fig. 2 link) =
+    -Lambda(a -> bridge) / (N - 3). The two orbit estimates use different damage directions
+    and agree realization by realization up to O(dbeta^2)."""
+    from antisync_cli.compute import lambda_values
+
+    job = _orbit_job("{kind: lollipop, nodes: 7, path: 1}", '["6->7", "7->2"]', m=300)
+    assert job.orbit_sizes.tolist() == [20, 5]
+    values, code, _, _ = lambda_values(job, None, 0, 300)
+    ok = (code == 0).all(axis=1)
+    left, right = values[ok, 0], -values[ok, 1] / 4
+    assert np.median(np.abs(left - right)) < 0.02 * np.median(np.abs(left))
+    assert abs(left.mean() - right.mean()) < 0.05 * left.std() / np.sqrt(ok.sum())

@@ -15,11 +15,13 @@ def sweep(
     config: ConfigArg,
     realizations: Annotated[int | None, typer.Option(help="Override `realizations` (main stage).")] = None,
     out: Annotated[Path | None, typer.Option("--out", "-o", help="Override `output` (HDF5 path).")] = None,
-    resume: Annotated[bool, typer.Option("--resume", help="Finish an interrupted sweep in the same file.")] = False,
+    resume: Annotated[bool, typer.Option(
+        "--resume", help="Finish an interrupted sweep in the same file.")] = False,
     overwrite: Annotated[bool, typer.Option("--overwrite", help="Replace an existing output file.")] = False,
     backend: Annotated[str | None, typer.Option(help="cpu, cuda or auto (screening is always cpu).")] = None,
     threads: Annotated[int | None, typer.Option(help="CPU threads (default: all cores).")] = None,
-    workers: Annotated[int | None, typer.Option(help="Dask: start a LocalCluster with this many workers.")] = None,
+    workers: Annotated[int | None, typer.Option(
+        help="Dask: start a LocalCluster with this many workers.")] = None,
     scheduler: Annotated[str | None, typer.Option(help="Dask: address of an existing scheduler.")] = None,
     set_: SetOpt = None,
     quiet: QuietOpt = False,
@@ -27,7 +29,8 @@ def sweep(
 ) -> None:
     """Run the sweep of CONFIG (a config with a `sweep:` section, see configs/atlas6.yaml).
 
-    Graphs whose realizations end in a stable non-synchronized state are excluded by a screening (listed by `antisync summary`).
+    Graphs whose realizations end in a stable non-synchronized state are excluded by a
+    screening (listed by `antisync summary`).
 
     Directed edges mapped onto each other by a graph automorphism are integrated once.
 
