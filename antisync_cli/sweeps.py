@@ -75,6 +75,7 @@ __all__ = [
     "Top",
     "edge_lambdas",
     "edge_orbits",
+    "trend_in_n",
     "expand_records",
     "family_graphs",
     "is_sweep_file",
@@ -565,6 +566,45 @@ def edge_lambdas(records: list[dict], threshold: float) -> dict[tuple, dict]:
             "n_repeats": len(ok),
             "representative": ok[0][2],
         }
+    return out
+
+
+def trend_in_n(rows: list[dict], z: float = 4.0) -> dict:
+    """What Fig. 2b's claim needs: is Lambda positive at every N, and does it decrease with N?
+
+    ``rows`` are ``{N, lambda_km, lambda_km_se}`` sorted by N. A value is *positive* when it
+    exceeds ``z`` standard errors; a step N -> N' is a *resolved decrease* when the drop exceeds
+    ``z`` combined standard errors and a *resolved increase* when the rise does.
+
+    Returns
+    -------
+    dict
+        ``positive`` / ``not_positive`` (lists of N), ``decreases`` / ``increases`` (resolved
+        steps as ``(N, N')``), ``unresolved`` (the other steps), ``z``, and ``gap``: the
+        smallest ``k`` such that every pair ``N < N'`` with ``N' - N >= k`` is a resolved
+        decrease (``None`` if even the widest pair is not).
+    """
+    out = {"z": z, "positive": [], "not_positive": [], "decreases": [], "increases": [],
+           "unresolved": []}
+    for r in rows:
+        ok = r["lambda_km"] > z * r["lambda_km_se"]
+        out["positive" if ok else "not_positive"].append(r["N"])
+    for a, b in zip(rows, rows[1:], strict=False):
+        drop = a["lambda_km"] - b["lambda_km"]
+        se = math.hypot(a["lambda_km_se"], b["lambda_km_se"])
+        key = "decreases" if drop > z * se else "increases" if -drop > z * se else "unresolved"
+        out[key].append((a["N"], b["N"]))
+
+    def resolved_drop(a, b) -> bool:
+        return a["lambda_km"] - b["lambda_km"] > z * math.hypot(a["lambda_km_se"], b["lambda_km_se"])
+
+    out["gap"] = None
+    if len(rows) > 1:
+        for k in range(1, rows[-1]["N"] - rows[0]["N"] + 1):
+            if all(resolved_drop(a, b) for i, a in enumerate(rows) for b in rows[i + 1:]
+                   if b["N"] - a["N"] >= k):
+                out["gap"] = k
+                break
     return out
 
 

@@ -473,3 +473,55 @@ def test_validate_accepts_sweep_configs():
     res = CliRunner().invoke(app, ["validate", str(REPO / "configs" / "atlas6.yaml")])
     assert res.exit_code == 0, res.output
     assert "# ok: sweep of 112 graph(s), 1902 directed edge(s) in 848 orbit(s)" in res.output
+
+
+# ---- Fig. 2b: Lambda of the L = 1 lollipop link against N -------------------------------------
+
+
+def _fig2b(tmp_path, nodes: str, realizations: int) -> tuple[list[dict], dict]:
+    from antisync_cli.report.sweep import plot_fig2
+    from antisync_cli.sweeps import trend_in_n
+
+    sw = load_sweep(REPO / "configs" / "lollipop_L1.yaml",
+                    [f"sweep.nodes={nodes}", "betas=[]", "repeats=1", "lambda.method=orbit",
+                     "dynamics.integrator=rk4", "dynamics.dt=0.04",
+                     f"realizations={realizations}", "screen.realizations=50"])
+    path = tmp_path / "fig2b.h5"
+    run_sweep(sw, output=path, progress=False)
+    summary = sweep_summary(path)
+    _, _, rows = plot_fig2(summary)
+    return rows, trend_in_n(rows)
+
+
+def test_fig2b_lambda_positive_and_decreasing_small_n(tmp_path):
+    """N = 4..7 at 4000 realizations with the orbit estimator and RK4 at dt = 0.04 (seeded; the
+    same values as Euler at dt = 0.001 within errors, ten times faster): every Lambda is positive
+    by more than 4 standard errors, no step increases, and 4->5, 5->6 decrease resolvedly.
+    (The measured values for N = 4..20 at 50,000 realizations are in docs/sweeps.md.)"""
+    rows, trend = _fig2b(tmp_path, "4..7", 4000)
+    assert [r["N"] for r in rows] == [4, 5, 6, 7]
+    assert trend["positive"] == [4, 5, 6, 7], rows
+    assert trend["increases"] == [] and {(4, 5), (5, 6)} <= set(trend["decreases"]), (rows, trend)
+    assert all(a["lambda_km"] > b["lambda_km"] for a, b in zip(rows, rows[1:], strict=False))
+
+
+@pytest.mark.slow
+def test_fig2b_lambda_positive_and_decreasing_all_n(tmp_path):
+    """The whole of Fig. 2b, N = 4..20, at 200,000 realizations per N (about 7 minutes on two
+    cores): positive everywhere by 4 standard errors, no resolved increase."""
+    rows, trend = _fig2b(tmp_path, "4..20", 200_000)
+    assert trend["positive"] == list(range(4, 21)), rows
+    assert trend["increases"] == [], trend
+
+
+def test_trend_in_n_counts_resolved_steps_and_the_gap():
+    from antisync_cli.sweeps import trend_in_n
+
+    rows = [{"N": n, "lambda_km": v, "lambda_km_se": 1.0}
+            for n, v in zip(range(4, 9), [30.0, 20.0, 18.0, 19.0, 3.0], strict=True)]
+    tr = trend_in_n(rows, z=4.0)
+    assert tr["positive"] == [4, 5, 6, 7] and tr["not_positive"] == [8]  # 3 < 4 se
+    assert tr["decreases"] == [(4, 5), (7, 8)] and tr["unresolved"] == [(5, 6), (6, 7)]
+    assert tr["increases"] == [] and tr["gap"] == 3  # 5 -> 7 drops only 1: gap 2 is not enough
+    rows[2]["lambda_km"] = 40.0
+    assert trend_in_n(rows)["increases"] == [(5, 6)]
