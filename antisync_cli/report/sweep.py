@@ -323,7 +323,7 @@ def fig2b_verdict(summary: dict, rows_b: list[dict]) -> list[str]:
     if "orbit" in methods:
         lines.append("The orbit estimator is the derivative d<F>/dbeta at 0 (central difference "
                      "along the damage of all links of the orbit); the paper's forward difference "
-                     "at dbeta = 0.01 adds an O(dbeta) term.")
+                     "of one link at dbeta = 0.01 differs from it by an O(dbeta) term.")
     return lines
 
 
