@@ -82,7 +82,7 @@ STEPS = (
     # every N by > 4 standard errors. 0.0026 CPU s per realization summed over N = 4..20.
     Step("lollipop_lambda", "sweep", "lollipop_L1.yaml",
          ("repeats=10", "betas=[]", "name=lollipop_lambda", "lambda.method=orbit",
-          "dynamics.integrator=rk4", "dynamics.dt=0.04"), 20_000, 50.0, 0.026,
+          "dynamics.integrator=rk4", "dynamics.dt=0.04"), 20_000, 90.0, 0.026,
          figures="Fig. 2b"),
 )
 
