@@ -8,6 +8,7 @@ A :class:`Chunk` is a contiguous range of statistics blocks, the unit of work of
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import networkx as nx
@@ -180,13 +181,26 @@ def make_job(config: Config, graph: nx.Graph | None = None, name: str | None = N
     )
 
 
+@functools.lru_cache(maxsize=64)
+def _all_orbits(nodes: tuple, omega_rows: tuple) -> dict:
+    """:func:`~antisync_cli.graphs.edge_orbits` of the weighted graph, cached: the repeats and
+    thresholds of a sweep build the same graph many times (1 s for a 20-node lollipop)."""
+    g = nx.Graph()
+    g.add_nodes_from(nodes)
+    for i, row in enumerate(omega_rows):
+        for j, w in enumerate(row):
+            if j > i and w > 0:
+                g.add_edge(nodes[i], nodes[j], weight=w)
+    return graphs.edge_orbits(g)
+
+
 def _orbit_fields(graph: nx.Graph, nodes: list, omega: np.ndarray, csr: coupling.CouplingCSR,
                   edges: list, config: Config) -> dict:
     """``orbit_weights`` and ``orbit_sizes`` for ``lambda.method: orbit`` (else empty)."""
     if config.lambda_.method != "orbit":
         return {}
     index = {v: i for i, v in enumerate(nodes)}
-    rep = graphs.edge_orbits(graph)
+    rep = _all_orbits(tuple(nodes), tuple(map(tuple, omega)))
     orbits = [[(index[a], index[b]) for a, b in rep if rep[a, b] == rep[e]] for e in edges]
     weights = coupling.orbit_variant_weights(omega, csr, orbits, config.lambda_.dbeta,
                                              config.dynamics.coupling)
