@@ -13,6 +13,8 @@ help:
 	@echo "make test       set up .venv and run the test suite (fast; slow tests: make test-slow)"
 	@echo "make test-cuda  CUDA backend under the simulator, and PTX compilation (no GPU needed)"
 	@echo "make bench      speed benchmarks (results go to bench/RESULTS.md by hand)"
+	@echo "make paper      every figure and table of the paper at reduced realizations into"
+	@echo "                results/paper/ (about 40 min on 2 cores; resumes when rerun)"
 	@echo "make lint       ruff check"
 
 $(STAMP): pyproject.toml
