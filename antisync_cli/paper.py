@@ -123,6 +123,28 @@ CAPTIONS = {
               "for every link except 3->4.",
 }
 
+# The paper's realizations (1e7 per Lambda, 1e6 per beta, 1e9 for Table 1 and the
+# histograms), one command per experiment; CPU core-hours from the per-integration costs above.
+PAPER_PRECISION = """\
+# Fig. 1: Lambda^KM at 1e7 per edge (13 integrations per realization, ~8 core-hours),
+# <F_beta> at 1e6 (121 per realization, ~8 core-hours), histograms at 1e9 (~580 core-hours)
+antisync run configs/lollipop6.yaml --realizations 10000000 --set 'betas=[]' --backend cuda \\
+    --out results/fig1_lambda.h5
+antisync run configs/lollipop6.yaml --realizations 1000000 --backend cuda --out results/fig1_F.h5
+antisync run configs/lollipop6.yaml --realizations 1000000000 --set 'betas=[0.5]' \\
+    --set 'edges=["2->1", "5->6", "6->4", "2->3"]' --backend cuda --out results/fig1_hist.h5
+# Fig. 7: the same three commands with --set dynamics.coupling=raw (about half the cost)
+# Figs. 3-6, Table 1: 1e7 per edge at three thresholds (~860 core-hours), top stage at 1e9 (~830)
+antisync sweep configs/threshold.yaml --realizations 10000000 --backend cuda \\
+    --set top.graphs=7 --set top.realizations=1000000000 --set 'measures=[km, xi2, rw, linear]'
+# Fig. 2a: 1e6 per beta (~95 core-hours); Fig. 2b: 10 x 1e7 (the paper's finite difference,
+# ~430 core-hours; add --set lambda.method=orbit for the same derivative at ~1/1000 of that)
+antisync sweep configs/lollipop_L1.yaml --realizations 1000000 --set repeats=1 --out results/lollipop_F.h5
+antisync sweep configs/lollipop_L1.yaml --realizations 10000000 --set 'betas=[]' \\
+    --out results/lollipop_lambda.h5
+# on a Dask cluster instead of a GPU (docs/dask.md): replace --backend cuda by --scheduler tcp://HOST:8786
+"""
+
 PAPER_TABLE1 = [  # rank, <tau0>, Lambda^KM max, <F_0.5>
     (1, 9.3125, 1.321e-1, 1.0823), (2, 9.5614, 2.653e-1, 1.1815), (3, 9.8422, 2.258e-1, 1.1536),
     (4, 7.5638, 1.526e-1, 1.0949), (5, 8.1089, 1.202e-1, 1.0756), (6, 6.0817, 9.364e-2, 1.0665),
@@ -371,6 +393,10 @@ def _readme(out: Path, scale: float, timings: dict, extra: dict) -> str:
         body += _img(out, f"lollipop6_raw/*_hist_{e}_b0.5.png", 380)
     body += _img(out, "fig7e_km_vs_nnc.png", 480)
     section("Fig. 7: non-normalized coupling", body)
+    lines += ["## Paper precision", "",
+              "The same experiments at the paper's realizations (interrupted runs continue with "
+              "`--resume`; docs/sweeps.md and docs/cuda.md say more):", "",
+              "```", PAPER_PRECISION.rstrip(), "```", ""]
     lines.append(f"\n_Total: {sum(timings.values()) / 60:.1f} min for the steps run this time._"
                  if timings else "")
     return "\n".join(lines) + "\n"

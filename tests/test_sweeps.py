@@ -463,6 +463,31 @@ def test_paper_plan_fits_the_budget_and_readme_tolerates_missing_steps(tmp_path)
     assert "total" in plan(0.5)
     text = _readme(tmp_path, 1.0, {}, {})
     assert "## Fig. 3" in text and "not produced" in text
+    assert "## Paper precision" in text and "--realizations 1000000000" in text
+
+
+def test_paper_precision_commands_are_valid_configs():
+    """Every command printed under "Paper precision" in results/paper/README.md validates:
+    its config exists and every --set, --realizations, --backend, --out is accepted."""
+    import shlex
+
+    from typer.testing import CliRunner
+
+    from antisync_cli.cli.app import app
+    from antisync_cli.paper import PAPER_PRECISION
+
+    commands = [c for c in PAPER_PRECISION.replace("\\\n", " ").splitlines()
+                if c.startswith("antisync ")]
+    assert len(commands) == 6
+    as_set = {"--realizations": "realizations", "--backend": "backend", "--out": "output"}
+    for command in commands:
+        words = shlex.split(command)[2:]
+        args = ["validate", str(REPO / words[0])]
+        for flag, value in zip(words[1::2], words[2::2], strict=True):
+            assert flag in ("--set", *as_set), command
+            args += ["--set", value if flag == "--set" else f"{as_set[flag]}={value}"]
+        res = CliRunner().invoke(app, args)
+        assert res.exit_code == 0, (command, res.output)
 
 
 def test_validate_accepts_sweep_configs():
