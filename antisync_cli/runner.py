@@ -106,11 +106,11 @@ def run_jobs(
     ]
     done_already = sum(st.realizations_done for st in states.values())
     total = sum(job.config.realizations for job in jobs)
-    # the bar counts integrations (tau0 plus one per damage variant): with many jobs of
-    # different sizes (a sweep) its rate and ETA stay meaningful
-    cost = {job.name: 1 + len(job.variant_edge) for job in jobs}
+    # the bar counts integrations (tau0 plus one per damage variant, orbit differences
+    # included): with many jobs of different sizes (a sweep) its rate and ETA stay meaningful
+    cost = {job.name: job.integrations_per_realization for job in jobs}
     say(f"{note}; {executor.describe()}; {len(jobs)} job(s), "
-        f"{sum(len(j.variant_edge) for j in jobs)} damaged variant(s), {total:,} realizations in all"
+        f"{sum(cost.values()) - len(jobs)} damaged variant(s), {total:,} realizations in all"
         + (f" ({done_already:,} already done)" if done_already else ""))
     from tqdm import tqdm
 

@@ -73,6 +73,16 @@ def test_module_entry_point_and_validate(cfg):
     assert "# ok: graph lollipop_6_3 with 6 nodes, 2 directed edge(s)" in res.stdout
 
 
+def test_validate_counts_every_integration_per_realization():
+    """Damaged variants: one per (edge, beta) plus the dbeta one for Lambda; with
+    ``lambda.method: orbit`` the +-dbeta pair of each edge's orbit instead."""
+    lollipop6 = REPO / "configs" / "lollipop6.yaml"
+    for sets, variants in ((["betas=[]"], 12), ([], 120), (["betas=[]", "lambda.method=orbit"], 24)):
+        res = invoke("validate", lollipop6, *[a for s in sets for a in ("--set", s)])
+        assert res.exit_code == 0, res.output
+        assert f", 12 directed edge(s), {variants} damaged variant(s)" in res.output, sets
+
+
 def test_existing_result_is_never_overwritten(tmp_path, cfg):
     out = tmp_path / "r.h5"
     out.write_bytes(b"precious")

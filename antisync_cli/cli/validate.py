@@ -30,7 +30,7 @@ def validate(config: ConfigArg, set_: SetOpt = None, debug: DebugOpt = False) ->
     typer.echo(cfg.resolved().to_yaml().rstrip())
     typer.echo(
         f"# ok: graph {job.name} with {len(job.nodes)} nodes, {len(job.edges)} directed edge(s), "
-        f"{len(job.variant_edge)} damaged variant(s), {cfg.realizations:,} realizations"
+        f"{job.integrations_per_realization - 1} damaged variant(s), {cfg.realizations:,} realizations"
     )
 
 
