@@ -14,7 +14,7 @@ help:
 	@echo "make test-cuda  CUDA backend under the simulator, and PTX compilation (no GPU needed)"
 	@echo "make bench      speed benchmarks (results go to bench/RESULTS.md by hand)"
 	@echo "make paper      every figure and table of the paper at reduced realizations into"
-	@echo "                results/paper/ (about 40 min on 2 cores; resumes when rerun)"
+	@echo "                results/paper/ (35 min on 2 cores; resumes when rerun)"
 	@echo "make lint       ruff check"
 
 $(STAMP): pyproject.toml

@@ -466,6 +466,23 @@ def test_paper_plan_fits_the_budget_and_readme_tolerates_missing_steps(tmp_path)
     assert "## Paper precision" in text and "--realizations 1000000000" in text
 
 
+def test_make_paper_step_reruns_as_a_no_op_and_keeps_its_time(tmp_path):
+    """One real step of ``antisync paper`` at 100 realizations: the README shows it with its
+    minutes; a rerun finds the step finished, computes nothing and keeps the first time."""
+    from antisync_cli.paper import make_paper
+
+    out, logs = tmp_path / "paper", []
+    readme = make_paper(out, scale=0.01, only=("lollipop6",), progress=False, log=logs.append)
+    text = readme.read_text()
+    assert "| lollipop6 | 100 | Fig. 1 |" in text and "| 2->1 | 1." in text
+    assert "## Paper precision" in text and "not produced" in text  # the other steps
+    first = json.loads((out / "timings.json").read_text())
+    make_paper(out, scale=0.01, only=("lollipop6",), progress=False, log=logs.append)
+    assert json.loads((out / "timings.json").read_text()) == first
+    assert any("(already finished)" in str(line) for line in logs)
+    assert any("(100 already done)" in str(line) for line in logs)
+
+
 def test_paper_precision_commands_are_valid_configs():
     """Every command printed under "Paper precision" in results/paper/README.md validates:
     its config exists and every --set, --realizations, --backend, --out is accepted."""
