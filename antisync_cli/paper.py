@@ -233,7 +233,7 @@ def make_paper(out: str | Path = "results/paper", *, scale: float = 1.0, overwri
             write_sweep_report(h5, out / step.name)
         seconds = time.perf_counter() - start
         log(f"   {step.name} done in {seconds / 60:.1f} min" + (" (already finished)" if finished else ""))
-        if not finished or step.name not in timings:
+        if not finished:  # a finished step keeps its first time (or none, shown as "-")
             timings[step.name] = seconds
             timings_file.write_text(json.dumps(timings, indent=1))
     extra = _extra_figures(out)
@@ -448,7 +448,10 @@ def _readme(out: Path, scale: float, timings: dict, extra: dict) -> str:
               "The same experiments at the paper's realizations (interrupted runs continue with "
               "`--resume`; docs/sweeps.md and docs/cuda.md say more):", "",
               "```", PAPER_PRECISION.rstrip(), "```", ""]
+    untimed = [s.name for s in STEPS if s.name not in timings]
     lines.append(f"\n_Total: {sum(timings.values()) / 60:.1f} min of computing and reports "
-                 "(each step timed when it ran)._" if timings else "")
+                 "(each step timed when it ran"
+                 + (f"; no time recorded for {', '.join(untimed)}" if untimed else "") + ")._"
+                 if timings else "")
     return "\n".join(lines) + "\n"
 
