@@ -5,18 +5,13 @@ import pytest
 
 sys.path.insert(0, str(Path(__file__).parent))
 
-REPO = Path(__file__).resolve().parent.parent
-SHARED = REPO.parent / "shared"
-
 
 @pytest.fixture(scope="session")
 def paper_values():
-    import yaml
+    """The paper's printed numbers, shipped inside the package (nothing outside the repo is read)."""
+    from antisync_cli.reference import paper_values
 
-    path = SHARED / "reference" / "paper_values.yaml"
-    if not path.exists():
-        pytest.fail(f"reference values not found at {path}: the repo must sit beside shared/")
-    return yaml.safe_load(path.read_text())
+    return paper_values()
 
 
 @pytest.fixture
