@@ -14,7 +14,7 @@ from antisync_cli.errors import ConfigError
 from antisync_cli.jobs import Chunk, Job
 from antisync_cli.status import Status
 
-__all__ = ["ChunkResult", "check_backend", "compute_chunk", "lambda_values", "simulate_job"]
+__all__ = ["ChunkResult", "check_backend", "check_job", "compute_chunk", "lambda_values", "simulate_job"]
 
 _SYNCED = int(Status.SYNCED)
 
@@ -90,6 +90,20 @@ def check_backend(config, backend: str) -> None:
             "dynamics.crossing interpolated runs on the cpu backend only (the CUDA kernels "
             "return grid crossing times); use --backend cpu or crossing grid"
         )
+
+
+def check_job(job: Job, backend: str) -> None:
+    """:func:`check_backend` for ``job``'s config, plus what depends on its graph (the CUDA
+    kernels keep a trajectory's state in fixed-size per-thread arrays of ``MAX_NODES``)."""
+    check_backend(job.config, backend)
+    if backend == "cuda":
+        from antisync_cli.kernels.cuda import MAX_NODES
+
+        if len(job.nodes) > MAX_NODES:
+            raise ConfigError(
+                f"graph {job.name} has {len(job.nodes)} nodes; the cuda backend runs at most "
+                f"{MAX_NODES}: use --backend cpu"
+            )
 
 
 def simulate_job(job: Job, first: int, count: int, backend: str = "cpu", threads: int | None = None,

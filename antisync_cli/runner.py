@@ -12,11 +12,12 @@ from collections.abc import Callable
 from pathlib import Path
 
 from antisync_cli.backends import resolve_backend
-from antisync_cli.compute import check_backend
+from antisync_cli.compute import check_job
 from antisync_cli.config import Config
+from antisync_cli.errors import StoreError
 from antisync_cli.jobs import Job, make_job
 from antisync_cli.measures.pipeline import COMPUTED, compute_measures, wants_measures, with_nnc
-from antisync_cli.store import JobState, ResultStore, command_line, git_revision
+from antisync_cli.store import JobState, ResultStore, chunk_tag, command_line, git_revision
 
 __all__ = ["Interrupted", "run_config", "run_jobs"]
 
@@ -57,12 +58,16 @@ def run_jobs(
     resume : bool
         Continue an interrupted run in ``output``; done blocks are neither redone nor recounted.
     overwrite : bool
-        Replace an existing ``output``. Without ``resume`` or ``overwrite`` an existing file
-        is an error and is left untouched.
+        Replace an existing ``output``: only an antisync result file (a run's or a sweep's) is
+        replaced, anything else is refused. Without ``resume`` or ``overwrite`` an existing
+        file is an error and is left untouched.
     progress : bool, optional
         Show a progress bar on stderr; default: only when stderr is a terminal.
     executor : object, optional
-        Something with ``run(work)`` yielding ``(job, ChunkResult)``; default local.
+        Something with ``run(work)`` yielding ``(job, ChunkResult)``, ``describe()`` and
+        ``close()``. Default: a local executor, made here and closed here. A given executor is
+        left open (whoever makes an executor closes it): a sweep hands the same one to each of
+        its stages.
     key : dict, optional
         What must match for ``resume`` (default ``config.simulation_key()``); a sweep passes
         the key of the whole sweep.
@@ -70,20 +75,57 @@ def run_jobs(
         Extra or replacement root attributes (a sweep stores its own ``config_yaml``).
     extra : callable, optional
         ``extra(h5file, states)``, called at every checkpoint to write more groups.
+
+    Notes
+    -----
+    The output is locked for the whole call (see :meth:`ResultStore.lock`): a second writer
+    is refused before anything is deleted or modified. ``resume`` on a complete file with
+    the same key leaves it untouched (also when it or its folder is read-only). A failure
+    before any chunk finished removes what this call created (a journal with nothing in it,
+    temporary files), so the same command can simply be run again.
     """
     say = log or (lambda msg: None)
     jobs = with_nnc(jobs)  # measures: km_nnc adds each job's raw-coupling twin
     store = ResultStore(output or config.output)
     backend, note = resolve_backend(config.backend)
-    for job in jobs:
-        check_backend(job.config, backend)
-    if executor is None:
-        from antisync_cli.executors.local import LocalExecutor
-
-        executor = LocalExecutor(backend, config.threads)
-    store.prepare(resume=resume, overwrite=overwrite)
+    for job in jobs:  # the options and the graph: refused before any file or folder exists
+        check_job(job, backend)
     key = config.simulation_key() if key is None else key
-    states = store.load_states(jobs, key) if resume else {job.name: JobState(job) for job in jobs}
+    with store.lock(read_only_ok=resume) as writable:
+        store.prepare(resume=resume, overwrite=overwrite)
+        states = store.load_states(jobs, key) if resume else {job.name: JobState(job) for job in jobs}
+        if resume and store.file_complete() and all(st.complete for st in states.values()):
+            # nothing to compute: the file stays exactly as it is (inode, mtime, mode)
+            if writable:
+                store.drop_journal()  # left by a kill after the last checkpoint
+            done = sum(st.realizations_done for st in states.values())
+            say(f"{store.path} is already complete; nothing to do ({done:,} already done)")
+            return store.path
+        if not writable:
+            raise StoreError(f"cannot write to folder {store.path.parent} to finish {store.path}; "
+                             "make it writable or use --out for a new file")
+        own_executor = executor is None
+        if own_executor:
+            from antisync_cli.executors.local import LocalExecutor
+
+            executor = LocalExecutor(backend, config.threads)
+        try:
+            _execute(store, jobs, states, executor, config=config, key=key, backend=backend,
+                     note=note, say=say, progress=progress, chunk_realizations=chunk_realizations,
+                     checkpoint_seconds=checkpoint_seconds, provenance=provenance, extra=extra)
+        except BaseException:
+            store.discard_unfinished()
+            raise
+        finally:
+            if own_executor:
+                executor.close()
+    return store.path
+
+
+def _execute(store: ResultStore, jobs: list[Job], states: dict, executor, *, config: Config,
+             key: dict, backend: str, note: str, say, progress, chunk_realizations,
+             checkpoint_seconds: float, provenance, extra) -> None:
+    """Compute the pending chunks of ``jobs`` into ``store`` (locked and prepared)."""
     # before anything is written: a graph a measure rejects leaves no file behind
     measured = _compute_measures(jobs, states, say)
     store.start_journal(key)
@@ -104,6 +146,8 @@ def run_jobs(
         for job in jobs
         for c in states[job.name].pending(job.chunks(_chunk_size(job, backend, chunk_realizations)))
     ]
+    # every journal chunk carries its run's tag: --resume never merges another run's chunks
+    tags = {job.name: chunk_tag(job, key) for job in jobs}
     done_already = sum(st.realizations_done for st in states.values())
     total = sum(job.config.realizations for job in jobs)
     # the bar counts integrations (tau0 plus one per damage variant, orbit differences
@@ -122,7 +166,7 @@ def run_jobs(
     last = time.monotonic()
     try:
         for job, res in executor.run(work):
-            store.save_chunk(job.name, res)
+            store.save_chunk(job.name, res, tags[job.name])
             states[job.name].add(res)
             bar.update(res.count * cost[job.name])
             if len(jobs) > 1:
@@ -140,9 +184,7 @@ def run_jobs(
         ) from None
     finally:
         bar.close()
-        executor.close()
     store.checkpoint(states, provenance, final=True, extra=extra)
-    return store.path
 
 
 def _compute_measures(jobs: list[Job], states: dict, say) -> bool:

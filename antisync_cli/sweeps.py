@@ -62,9 +62,11 @@ from antisync_cli.config import (
     config_from_mapping,
     graph_name,
     parse_mapping,
+    read_config_text,
 )
 from antisync_cli.errors import ConfigError, StoreError
 from antisync_cli.graphs import edge_orbits
+from antisync_cli.jobs import check_step
 
 __all__ = [
     "FAMILIES",
@@ -208,26 +210,25 @@ class Sweep:
         return min(self.thresholds, key=lambda t: (abs(t - PAPER_THRESHOLD), t))
 
 
-def load_sweep(path: str | Path, overrides: list[str] | None = None) -> Sweep:
-    """Read and validate a sweep config file; errors name the file and the key."""
+def load_sweep(path: str | Path, overrides: list[str] | None = None,
+               values: dict | None = None) -> Sweep:
+    """Read and validate a sweep config file; errors name the file and the key.
+
+    ``overrides`` and ``values`` are those of :func:`antisync_cli.config.load_config`.
+    """
     path = Path(path)
+    text = read_config_text(path)
     try:
-        text = path.read_text()
-    except FileNotFoundError:
-        raise ConfigError(f"config file {path} does not exist") from None
-    except OSError as exc:
-        raise ConfigError(f"cannot read config file {path}: {exc.strerror}") from None
-    try:
-        return load_sweep_text(text, overrides, source=path)
+        return load_sweep_text(text, overrides, source=path, values=values)
     except ConfigError as exc:
         msg = str(exc)
         raise ConfigError(msg if msg.startswith(str(path)) else f"{path}: {msg}") from None
 
 
 def load_sweep_text(text: str, overrides: list[str] | None = None,
-                    source: Path | None = None) -> Sweep:
+                    source: Path | None = None, values: dict | None = None) -> Sweep:
     """Like :func:`load_sweep` for YAML text."""
-    raw = parse_mapping(text, overrides)
+    raw = parse_mapping(text, overrides, values)
     if "sweep" not in raw:
         raise ConfigError("missing key 'sweep' (e.g. sweep: {family: atlas, nodes: 6}); "
                           "a config with graph: is run with `antisync run`")
@@ -426,8 +427,12 @@ def family_graphs(sweep: Sweep, *, symmetry: bool = True) -> list[GraphEntry]:
     """Build every graph of the sweep with its selected edges and their orbits."""
     out = []
     for name, spec in _family_specs(sweep.family):
-        g = graphs_mod.build_graph(spec)
+        g = graphs_mod.build_graph(spec, seed=sweep.base.seed)
         g.graph["name"] = name
+        try:  # before the screening spends time on a step that cannot synchronize
+            check_step(graphs_mod.omega_matrix(g), sweep.base)
+        except ConfigError as exc:
+            raise ConfigError(f"graph {name}: {exc}") from None
         edges = _select_edges(sweep, spec, g, name)
         rep = edge_orbits(g, edges) if symmetry else {e: e for e in edges}
         out.append(GraphEntry(name, spec, g, edges, rep))
@@ -651,25 +656,57 @@ def run_sweep(
     """Screen, run the main stage and the top stage of ``sweep`` into one HDF5 file.
 
     Parameters are those of :func:`antisync_cli.runner.run_jobs`. Returns the file's path.
+
+    The output is locked once for the whole sweep, before ``overwrite`` deletes anything (the
+    ``run_jobs`` call of each stage takes the same lock again). A given ``executor`` is used
+    by every stage and left open. ``resume`` on a complete sweep file leaves it untouched.
+    A failure before anything was finished removes what the sweep created.
     """
+    from antisync_cli.store import ResultStore
+
+    store = ResultStore(output or sweep.output)
+    with store.lock(read_only_ok=resume) as writable:
+        store.prepare(resume=resume, overwrite=overwrite)
+        try:
+            return _run_sweep_locked(
+                sweep, store, writable, resume=resume, progress=progress, executor=executor,
+                log=log, chunk_realizations=chunk_realizations,
+                checkpoint_seconds=checkpoint_seconds,
+            )
+        except BaseException:
+            if writable:
+                store.discard_unfinished()
+            raise
+
+
+def _run_sweep_locked(sweep: Sweep, store, writable: bool, *, resume: bool, progress, executor,
+                      log, chunk_realizations, checkpoint_seconds) -> Path:
+    """The body of :func:`run_sweep`, with ``store`` locked and prepared."""
     import sys
 
     from tqdm import tqdm
 
     from antisync_cli.runner import run_jobs
     from antisync_cli.screening import ScreenResult, screen_graph
-    from antisync_cli.store import ResultStore
 
     say = log or (lambda msg: None)
-    path = Path(output or sweep.output)
-    store = ResultStore(path)
-    store.prepare(resume=resume, overwrite=overwrite)
+    path = store.path
     key = sweep.key()
     if resume:
         store.load_states([], key)  # a file or journal of another sweep is an error, now
     stored = _read_meta(path) if path.exists() else None
-    store.start_journal(key)
+    if resume and stored is not None and stored.get("complete") and store.file_complete():
+        # every stage finished with this key: the file stays exactly as it is
+        if writable:
+            store.drop_journal()  # left by a kill after the last checkpoint
+        say(f"{path} is already complete; nothing to do")
+        return path
+    if not writable:
+        raise StoreError(f"cannot write to folder {path.parent} to finish {path}; "
+                         "make it writable or use --out for a new file")
     entries = family_graphs(sweep)
+    _check_backend(sweep, entries)  # before the journal: nothing is screened in vain
+    store.start_journal(key)
     say(f"sweep {sweep.name}: {len(entries)} graph(s) of family {sweep.family['family']}, "
         f"{len(sweep.thresholds)} threshold(s), {sweep.repeats} repeat(s)")
 
@@ -722,6 +759,7 @@ def run_sweep(
     def write_meta(f, states) -> None:
         meta = _meta(sweep, entries, screens, excluded, state["jobs_meta"], saved)
         meta["complete"] = bool(state["final"] and all(st.complete for st in states.values()))
+        f.attrs["complete"] = meta["complete"]  # as for a run file: every stage finished
         grp = f.create_group("sweep")
         grp.attrs["format"] = SWEEP_FORMAT
         grp.attrs["format_version"] = SWEEP_FORMAT_VERSION
@@ -738,7 +776,9 @@ def run_sweep(
     if not main_done:
         run_jobs(jobs, sweep.base, output=path, resume=True, **common)
     if sweep.top.graphs == 0:
-        if main_done:  # already complete: rewrite so the metadata is current
+        if main_done:
+            # done, but the file did not say complete (a complete one returned above): rewrite
+            # it so that its metadata is current
             run_jobs(jobs, sweep.base, output=path, resume=True, **common)
         return path
 
@@ -752,6 +792,26 @@ def run_sweep(
             f"{list(sweep.top.betas)}, {tjobs[0].config.realizations:,} realizations")
     run_jobs(jobs + tjobs, sweep.base, output=path, resume=True, **common)
     return path
+
+
+def _check_backend(sweep: Sweep, entries: list[GraphEntry]) -> None:
+    """Refuse, before anything is written, what the sweep's backend cannot run: its options
+    (:func:`~antisync_cli.compute.check_backend`) and, on cuda, a graph with more nodes than
+    the kernels hold (the stages' ``run_jobs`` would refuse it only after the screening)."""
+    from antisync_cli.backends import resolve_backend
+    from antisync_cli.compute import check_backend
+
+    backend, _ = resolve_backend(sweep.base.backend)
+    check_backend(sweep.base, backend)
+    if backend == "cuda":
+        from antisync_cli.kernels.cuda import MAX_NODES
+
+        for e in entries:
+            if e.graph.number_of_nodes() > MAX_NODES:
+                raise ConfigError(
+                    f"graph {e.name} has {e.graph.number_of_nodes()} nodes; the cuda backend runs "
+                    f"at most {MAX_NODES}: use --backend cpu"
+                )
 
 
 def _symmetry(sweep: Sweep, kept: list[GraphEntry], jobs) -> dict:
@@ -815,21 +875,67 @@ def is_sweep_file(path: str | Path) -> bool:
     from antisync_cli.store import open_results
 
     with open_results(path) as f:
-        return "sweep" in f and f["sweep"].attrs.get("format") == SWEEP_FORMAT
+        try:
+            return "sweep" in f and f["sweep"].attrs.get("format") == SWEEP_FORMAT
+        except Exception as exc:  # h5py reports a damaged group as OSError, KeyError, ...
+            raise StoreError(f"{path} is damaged: its /sweep group cannot be read "
+                             f"({type(exc).__name__})") from None
+
+
+# what sweep_summary and the reports read from /sweep/meta_json: checked once, on reading
+_META_KEYS = {"name": str, "family": dict, "thresholds": list, "ranking_threshold": (int, float),
+              "graphs": list, "jobs": list, "symmetry": dict}
+_META_GRAPH_KEYS = ("graph", "orbits", "excluded")
+_META_JOB_KEYS = ("job", "graph", "stage", "threshold", "repeat")
 
 
 def _read_meta(path: str | Path) -> dict | None:
+    """The ``/sweep`` metadata, None for a run file; a damaged one is a :class:`StoreError`."""
     from antisync_cli.store import open_results
 
     with open_results(path) as f:
-        if "sweep" not in f:
-            return None
-        grp = f["sweep"]
-        if int(grp.attrs.get("format_version", 0)) > SWEEP_FORMAT_VERSION:
-            raise StoreError(f"{path} was written by a newer antisync (sweep format "
-                             f"{grp.attrs['format_version']})")
-        raw = grp["meta_json"][()]
-        return json.loads(raw.decode() if isinstance(raw, bytes) else raw)
+        try:
+            if "sweep" not in f:
+                return None
+            grp = f["sweep"]
+            raw_version = grp.attrs.get("format_version", 0)
+            raw = grp["meta_json"][()]
+        except Exception as exc:  # a damaged group: OSError, KeyError, ... from h5py
+            raise StoreError(f"{path} is damaged: /sweep/meta_json cannot be read "
+                             f"({type(exc).__name__})") from None
+    try:
+        version = int(raw_version)
+    except (TypeError, ValueError):
+        raise StoreError(f"{path} is damaged: /sweep attribute format_version is "
+                         f"{raw_version!r}, not an integer") from None
+    if version > SWEEP_FORMAT_VERSION:
+        raise StoreError(f"{path} was written by a newer antisync (sweep format {version}); this "
+                         f"one reads sweep format {SWEEP_FORMAT_VERSION} — upgrade antisync")
+    try:
+        meta = json.loads(raw.decode() if isinstance(raw, bytes) else raw)
+    except (TypeError, ValueError, UnicodeDecodeError) as exc:
+        why = " ".join(str(exc).split())
+        raise StoreError(f"{path} is damaged: /sweep/meta_json is not valid JSON ({why})") from None
+    problem = _meta_problem(meta)
+    if problem:
+        raise StoreError(f"{path} is damaged: /sweep/meta_json {problem}")
+    return meta
+
+
+def _meta_problem(meta) -> str | None:
+    """What is wrong with sweep metadata ``meta`` (None if it has what the readers need)."""
+    if not isinstance(meta, dict):
+        return "is not a JSON object"
+    for key, kind in _META_KEYS.items():
+        if not isinstance(meta.get(key), kind):
+            return f"lacks {key!r} or it is not a {getattr(kind, '__name__', 'number')}"
+    for name, items, keys in (("graphs", meta["graphs"], _META_GRAPH_KEYS),
+                              ("jobs", meta["jobs"], _META_JOB_KEYS)):
+        for i, item in enumerate(items):
+            missing = [k for k in keys if not isinstance(item, dict) or k not in item]
+            if missing:
+                return f"entry {i} of {name!r} lacks {', '.join(map(repr, missing))}"
+    return None
 
 
 def read_meta(path: str | Path) -> dict:

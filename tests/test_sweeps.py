@@ -6,6 +6,7 @@ import json
 import math
 from pathlib import Path
 
+import h5py
 import networkx as nx
 import numpy as np
 import pytest
@@ -64,7 +65,7 @@ top: {graphs: 2, realizations: 80}
         ("sweep: {family: atlas, nodes: 6}\nedges: fig2", "edges: fig2"),
         ("sweep: {family: atlas, nodes: 6}\ngraph: {kind: atlas, index: 3}", "has no 'graph' key"),
         ("graph: {kind: atlas, index: 3}", "missing key 'sweep'"),
-        ("sweep: {family: atlas, nodes: 6}\nrealizations: 0", "realizations must be an integer >= 1"),
+        ("sweep: {family: atlas, nodes: 6}\nrealizations: 0", "realizations must be an integer in 1..10**15"),
         ("sweep: {family: graphs, graphs: [{kind: atlas, index: 3}, {kind: atlas, index: 3}]}",
          "used twice"),
     ],
@@ -354,9 +355,13 @@ def test_interrupted_sweep_resumes_to_the_same_file(tiny_reference, tmp_path, cr
     if path.exists():  # every checkpoint (also the one after the measures) holds the screening
         s = sweep_summary(path)
         assert len(s["excluded"]) == 1 and not s["complete"]
+        with h5py.File(path, "r") as f:  # the file says so too, also between the stages
+            assert not f.attrs["complete"]
     run_sweep(sw, output=path, resume=True, progress=False, chunk_realizations=40)
     assert _comparable(sweep_summary(path)) == ref
     assert not (tmp_path / "tiny.h5.partial").exists()
+    with h5py.File(path, "r") as f:
+        assert f.attrs["complete"]
 
 
 def test_resume_refuses_another_sweep(tiny_reference, tmp_path):

@@ -270,7 +270,11 @@ class DaskExecutor:
         )
 
     def close(self) -> None:
-        """Close the client and cluster made by :meth:`from_options`; a given client stays open."""
+        """Close the client and cluster made by :meth:`from_options`; a given client stays open.
+
+        Whoever makes an executor closes it: ``run_jobs`` and ``run_sweep`` use a given
+        executor for every stage and leave it open.
+        """
         if self._owns_client and self.client is not None:
             self.client.close()
             if self._cluster is not None:

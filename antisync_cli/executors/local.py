@@ -27,4 +27,4 @@ class LocalExecutor:
         return f"local executor, {self.threads or 'all'} threads"
 
     def close(self) -> None:
-        pass
+        """Nothing to release (the interface of every executor: its creator closes it)."""
