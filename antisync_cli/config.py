@@ -53,10 +53,17 @@ INTEGRATORS = ("euler", "rk4")
 CROSSINGS = ("auto", "grid", "interpolated")
 LAMBDA_METHODS = ("finite-difference", "pathwise", "hybrid", "orbit")
 #: km: Lambda^KM from the run (Eq. 6); linear, xi2, rw: the measures of Secs. 2.3 and 3.3
-#: (Eqs. 14, 16, 25); km_nnc: the same run with raw coupling (Sec. 3.4, Eqs. 27-29).
+#: (Eqs. 14, 16, 25); km_nnc: the same run with raw coupling (Sec. 3.4, Eqs. 20-22).
 MEASURES = ("km", "linear", "xi2", "rw", "km_nnc")
 LINEAR_METHODS = ("exact", "euler", "derivative")
 PRECISIONS = ("float64", "float32")
+
+#: At most this many realizations per run: block counts, realization indices (the phase
+#: generator's counter) and float64 sums of tau stay exact far below 2**53.
+MAX_REALIZATIONS = 10**15
+#: At most this many time steps per trajectory (t_max / dt): the kernels count steps in int64
+#: and store tau as steps * dt; 2**40 steps (~1e12) is far beyond any run that can finish.
+MAX_STEPS = 2**40
 
 _GRAPH_KEYS = {
     "lollipop": ({"nodes", "path"}, set()),
@@ -69,7 +76,7 @@ _GRAPH_KEYS = {
 
 @dataclass(frozen=True)
 class Dynamics:
-    """Model and integrator (paper Eqs. 2, 27; Sec. 3: Euler, dt = 0.001, r = 0.99)."""
+    """Model and integrator (paper Eqs. 2, 20; Sec. 3: Euler, dt = 0.001, r = 0.99)."""
 
     coupling: str = "normalized"
     integrator: str = "euler"
@@ -93,10 +100,15 @@ class Dynamics:
             raise ConfigError("dynamics.crossing grid is too coarse for rk4 steps; use interpolated")
         _positive("dynamics.dt", self.dt)
         _positive("dynamics.t_max", self.t_max)
-        if not 0.0 < self.threshold < 1.0:
-            raise ConfigError(f"dynamics.threshold must be in (0, 1), got {self.threshold}")
+        _fraction("dynamics.threshold", self.threshold)
         if self.dt > self.t_max:
             raise ConfigError(f"dynamics.dt ({self.dt}) must be smaller than t_max ({self.t_max})")
+        steps = self.t_max / self.dt
+        if steps > MAX_STEPS:
+            raise ConfigError(
+                f"dynamics.t_max / dynamics.dt = {steps:.3g} steps per trajectory; antisync "
+                f"integrates at most 2**40 (~{MAX_STEPS:.1e}): raise dt or lower t_max"
+            )
 
     @property
     def interpolate(self) -> bool:
@@ -109,7 +121,7 @@ class Dynamics:
 
 @dataclass(frozen=True)
 class LambdaSpec:
-    """How Lambda^KM = d<F_beta>/dbeta at beta = 0 is estimated (Eqs. 6, 13).
+    """How Lambda^KM = d<F_beta>/dbeta at beta = 0 is estimated (Eqs. 6, 17).
 
     - ``finite-difference``: the paper's ``(tau0/tau(dbeta) - 1)/dbeta`` per realization
       (grid crossing times), one damaged trajectory per edge.
@@ -125,8 +137,7 @@ class LambdaSpec:
 
     def __post_init__(self):
         _choice("lambda.method", self.method, LAMBDA_METHODS)
-        if not 0.0 < self.dbeta < 1.0:
-            raise ConfigError(f"lambda.dbeta must be in (0, 1), got {self.dbeta}")
+        _fraction("lambda.dbeta", self.dbeta)
         _positive("lambda.hybrid_cut", self.hybrid_cut)
 
 
@@ -144,11 +155,7 @@ class LinearSpec:
     method: str = "exact"
 
     def __post_init__(self):
-        if isinstance(self.realizations, bool) or not isinstance(self.realizations, int) or \
-                self.realizations < 2:
-            raise ConfigError(
-                f"linear.realizations must be an integer >= 2, got {self.realizations!r}"
-            )
+        _integer("linear.realizations", self.realizations, 2, MAX_REALIZATIONS, "2..10**15")
         _choice("linear.method", self.method, LINEAR_METHODS)
 
 
@@ -162,8 +169,11 @@ class Histogram:
     """Damages whose histograms are kept (those also in the run's ``betas``)."""
 
     def __post_init__(self):
-        object.__setattr__(self, "betas", tuple(float(b) for b in (self.betas or ())))
-        if not isinstance(self.bins, int) or not 2 <= self.bins <= 4096:
+        betas = self.betas if self.betas is not None else ()
+        if not isinstance(betas, list | tuple):
+            raise ConfigError(f"histogram.betas must be a list such as [0.5], got {betas!r}")
+        object.__setattr__(self, "betas", tuple(_beta("histogram.betas", b) for b in betas))
+        if isinstance(self.bins, bool) or not isinstance(self.bins, int) or not 2 <= self.bins <= 4096:
             raise ConfigError(f"histogram.bins must be an integer in 2..4096, got {self.bins!r}")
         _positive("histogram.tau_max", self.tau_max)
 
@@ -192,13 +202,14 @@ class Config:
     output: str = ""
 
     def __post_init__(self):
-        if not isinstance(self.realizations, int) or self.realizations < 1:
-            raise ConfigError(f"realizations must be an integer >= 1, got {self.realizations!r}")
-        if not isinstance(self.seed, int) or not 0 <= self.seed < 2**63:
-            raise ConfigError(f"seed must be an integer in 0..2**63-1, got {self.seed!r}")
+        _integer("realizations", self.realizations, 1, MAX_REALIZATIONS, "1..10**15")
+        _integer("seed", self.seed, 0, 2**63 - 1, "0..2**63-1")
+        if not isinstance(self.name, str) or not self.name:
+            raise ConfigError(f"name must be a non-empty string, got {self.name!r}")
+        if not isinstance(self.output, str) or not self.output:
+            raise ConfigError(f"output must be a file path such as results/run.h5, got {self.output!r}")
         for b in self.betas:
-            if isinstance(b, bool) or not isinstance(b, int | float) or not 0.0 <= b < 1.0:
-                raise ConfigError(f"betas must lie in [0, 1), got {b!r}")
+            _beta("betas", b)
         if self.edges != "all":
             if not isinstance(self.edges, list | tuple) or not self.edges:
                 raise ConfigError(
@@ -207,23 +218,19 @@ class Config:
         _check_measures(self.measures, self.dynamics.coupling)
         _choice("backend", self.backend, BACKENDS)
         _choice("executor", self.executor, EXECUTORS)
-        if self.block_size != "auto" and (
-            not isinstance(self.block_size, int) or self.block_size < 1
-        ):
-            raise ConfigError(f"block_size must be 'auto' or an integer >= 1, got {self.block_size!r}")
-        if self.chunk_size != "auto" and (
-            not isinstance(self.chunk_size, int) or self.chunk_size < 1
-        ):
-            raise ConfigError(f"chunk_size must be 'auto' or an integer >= 1, got {self.chunk_size!r}")
-        if not isinstance(self.keep_pairs, int) or self.keep_pairs < 0:
-            raise ConfigError(f"keep_pairs must be an integer >= 0, got {self.keep_pairs!r}")
+        if self.block_size != "auto":
+            _integer("block_size", self.block_size, 1, MAX_REALIZATIONS, "'auto' or 1..10**15")
+        if self.chunk_size != "auto":
+            _integer("chunk_size", self.chunk_size, 1, MAX_REALIZATIONS, "'auto' or 1..10**15")
+        # kept pairs are held in memory: (keep_pairs x variants) int64 arrays
+        _integer("keep_pairs", self.keep_pairs, 0, 10**7, "0..10**7")
         if self.lambda_.method in ("pathwise", "hybrid") and self.dynamics.integrator != "euler":
             raise ConfigError(
                 f"lambda.method {self.lambda_.method} needs dynamics.integrator euler "
                 "(the tangent is written for the Euler step); use finite-difference or orbit with rk4"
             )
-        if self.threads is not None and (not isinstance(self.threads, int) or self.threads < 1):
-            raise ConfigError(f"threads must be null or an integer >= 1, got {self.threads!r}")
+        if self.threads is not None:
+            _integer("threads", self.threads, 1, 4096, "null or 1..4096")
         _check_graph(self.graph)
 
     @property
@@ -265,8 +272,19 @@ _TOP_KEYS = {
 _SECTIONS = {"lambda": LambdaSpec, "dynamics": Dynamics, "histogram": Histogram, "linear": LinearSpec}
 
 
-def load_config(path: str | Path, overrides: list[str] | None = None) -> Config:
-    """Read a YAML config file, apply ``key=value`` overrides, validate.
+def load_config(path: str | Path, overrides: list[str] | None = None,
+                values: dict | None = None) -> Config:
+    """Read a YAML config file, apply ``key=value`` overrides and ``values``, validate.
+
+    Parameters
+    ----------
+    path : str or Path
+        The YAML file.
+    overrides : list of str, optional
+        ``key=value`` strings whose values are parsed as YAML (the CLI's ``--set``).
+    values : dict, optional
+        ``{dotted key: value}`` set as they are, never parsed (the CLI's typed options such as
+        ``--out``: ``--out '#a.h5'`` is the file ``#a.h5``, not a YAML comment).
 
     Raises
     ------
@@ -274,26 +292,40 @@ def load_config(path: str | Path, overrides: list[str] | None = None) -> Config:
         With a one-line message naming the file, key or value at fault.
     """
     path = Path(path)
+    text = read_config_text(path)
     try:
-        text = path.read_text()
-    except FileNotFoundError:
-        raise ConfigError(f"config file {path} does not exist") from None
-    except OSError as exc:
-        raise ConfigError(f"cannot read config file {path}: {exc.strerror}") from None
-    try:
-        return load_config_text(text, overrides, source=path)
+        return load_config_text(text, overrides, source=path, values=values)
     except ConfigError as exc:
         msg = str(exc)
         raise ConfigError(msg if msg.startswith(str(path)) else f"{path}: {msg}") from None
 
 
-def load_config_text(text: str, overrides: list[str] | None = None, source: Path | None = None) -> Config:
+def read_config_text(path: Path) -> str:
+    """The text of a config file, or a one-line :class:`ConfigError` (missing, unreadable,
+    a folder, not UTF-8)."""
+    try:
+        return path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise ConfigError(f"config file {path} does not exist") from None
+    except IsADirectoryError:
+        raise ConfigError(f"config {path} is a folder; give a YAML file such as configs/lollipop6.yaml") \
+            from None
+    except UnicodeDecodeError as exc:
+        raise ConfigError(f"config file {path} is not UTF-8 text (byte {exc.start}); "
+                          "save it as UTF-8 YAML") from None
+    except OSError as exc:
+        raise ConfigError(f"cannot read config file {path}: {exc.strerror}") from None
+
+
+def load_config_text(text: str, overrides: list[str] | None = None, source: Path | None = None,
+                     values: dict | None = None) -> Config:
     """Like :func:`load_config` for YAML text; relative paths resolve against ``source``'s folder."""
-    return _from_mapping(parse_mapping(text, overrides), source)
+    return _from_mapping(parse_mapping(text, overrides, values), source)
 
 
-def parse_mapping(text: str, overrides: list[str] | None = None) -> dict:
-    """YAML text -> mapping with ``key=value`` overrides applied (not yet validated)."""
+def parse_mapping(text: str, overrides: list[str] | None = None, values: dict | None = None) -> dict:
+    """YAML text -> mapping with ``key=value`` overrides, then ``values``, applied (not yet
+    validated)."""
     try:
         raw = yaml.safe_load(text)
     except yaml.YAMLError as exc:
@@ -307,25 +339,31 @@ def parse_mapping(text: str, overrides: list[str] | None = None) -> dict:
         raise ConfigError("a config must be a YAML mapping of keys such as graph:, edges:, betas:")
     for item in overrides or []:
         _apply_override(raw, item)
+    for key, value in (values or {}).items():
+        _set_dotted(raw, key, value)
     return raw
 
 
 def _apply_override(raw: dict, item: str) -> None:
     key, sep, value = item.partition("=")
     key = key.strip()
-    if not sep or not key:
+    if not sep or not key or any(not p for p in key.split(".")):
         raise ConfigError(f"--set expects key=value (e.g. realizations=50000), got {item!r}")
     try:
         parsed = yaml.safe_load(value) if value.strip() else None
     except yaml.YAMLError:
         raise ConfigError(f"--set {key}: value {value!r} is not valid YAML") from None
+    _set_dotted(raw, key, parsed)
+
+
+def _set_dotted(raw: dict, key: str, value) -> None:
     parts = key.split(".")
     node = raw
     for p in parts[:-1]:
         if not isinstance(node.get(p), dict):
             node[p] = {}
         node = node[p]
-    node[parts[-1]] = parsed
+    node[parts[-1]] = value
 
 
 def config_from_mapping(raw: dict, source: Path | None = None) -> Config:
@@ -358,13 +396,22 @@ def _from_mapping(raw: dict, source: Path | None) -> Config:
                 value = []
             if not isinstance(value, list):
                 raise ConfigError(f"betas must be a list such as [0.1, 0.5], got {value!r}")
-            kwargs["betas"] = tuple(sorted({_number("betas", b, 0.0) for b in value}))
+            kwargs["betas"] = tuple(sorted({_beta("betas", _number("betas", b, 0.0)) for b in value}))
         elif key == "measures":
             if value is None or value == []:
                 raise ConfigError("measures must list at least km, e.g. measures: [km, xi2]")
-            kwargs["measures"] = tuple(value if isinstance(value, list) else [value])
+            items = value if isinstance(value, list) else [value]
+            if not all(isinstance(m, str) for m in items):
+                raise ConfigError(f"measures must be names such as [km, xi2], got {value!r}")
+            kwargs["measures"] = tuple(items)
         elif key == "graph":
             kwargs["graph"] = _resolve_graph(value, source)
+        elif key in ("name", "output"):
+            if value is not None and not isinstance(value, str | int | float) or isinstance(value, bool):
+                raise ConfigError(f"{key} must be a string, got {value!r}")
+            kwargs[key] = "" if value is None else str(value)
+        elif key in _INTEGER_KEYS:
+            kwargs[key] = _whole(key, value)
         else:
             kwargs[key] = value
     if not kwargs.get("name"):
@@ -372,6 +419,22 @@ def _from_mapping(raw: dict, source: Path | None) -> Config:
     if not kwargs.get("output"):
         kwargs["output"] = f"results/{kwargs['name']}.h5"
     return Config(**kwargs)
+
+
+_INTEGER_KEYS = {"realizations", "seed", "keep_pairs"}
+
+
+def _whole(key: str, value):
+    """``1e6`` (which YAML reads as a string) or ``1.0e6`` as the integer 1000000; other values
+    are left for the validators, which name what is wrong."""
+    if isinstance(value, str | float) and not isinstance(value, bool):
+        try:
+            x = float(value)
+        except ValueError:
+            return value
+        if math.isfinite(x) and x == int(x) and abs(x) <= 2**53:  # exact in float64
+            return int(x)
+    return value
 
 
 def _check_measures(measures: tuple, coupling: str) -> None:
@@ -409,7 +472,7 @@ def _resolve_graph(value, source: Path | None) -> dict:
 
 def _check_graph(g: dict) -> None:
     kind = g.get("kind")
-    if kind not in _GRAPH_KEYS:
+    if not isinstance(kind, str) or kind not in _GRAPH_KEYS:
         raise ConfigError(
             f"graph.kind must be one of {', '.join(_GRAPH_KEYS)}, got {kind!r}"
             + _suggest(str(kind), _GRAPH_KEYS)
@@ -443,7 +506,7 @@ def _unknown(mapping: dict, valid: set, prefix: str) -> None:
     for key in mapping:
         if key not in valid:
             raise ConfigError(
-                f"unknown key '{prefix}{key}'" + _suggest(str(key), valid, prefix)
+                f"unknown key {prefix + str(key)!r}" + _suggest(str(key), valid, prefix)
                 + f"; valid keys: {', '.join(sorted(prefix + v for v in valid))}"
             )
 
@@ -465,6 +528,27 @@ def _positive(key: str, value) -> None:
         value > 0 and math.isfinite(value)
     ):
         raise ConfigError(f"{key} must be a positive number, got {value!r}")
+
+
+def _fraction(key: str, value) -> None:
+    """A number strictly between 0 and 1 (thresholds, dbeta)."""
+    if isinstance(value, bool) or not isinstance(value, int | float) or not 0.0 < value < 1.0:
+        raise ConfigError(f"{key} must be in (0, 1), got {value!r}")
+
+
+def _beta(key: str, value) -> float:
+    """A damage in [0, 1) as a float."""
+    if isinstance(value, str):
+        value = _number(key, value, 0.0)
+    if isinstance(value, bool) or not isinstance(value, int | float) or not 0.0 <= value < 1.0:
+        raise ConfigError(f"{key} must lie in [0, 1) (e.g. [0.1, 0.5]), got {value!r}")
+    return float(value)
+
+
+def _integer(key: str, value, lo: int, hi: int, valid: str) -> None:
+    """An integer (not a bool, not a float such as 3.7 or 1e23) in ``lo..hi``."""
+    if isinstance(value, bool) or not isinstance(value, int) or not lo <= value <= hi:
+        raise ConfigError(f"{key} must be an integer in {valid}, got {value!r}")
 
 
 def _number(key: str, value, default):

@@ -1,4 +1,4 @@
-"""Weights, damage and coupling matrices: the paper's Eqs. (1), (4) and (27) in one place.
+"""Weights, damage and coupling matrices: the paper's Eqs. (1), (4) and (20) in one place.
 
 Every backend and every measure consumes what this module produces, so the direction
 convention is fixed here once: damaging the directed link ``a -> b`` multiplies
@@ -9,9 +9,9 @@ Conventions
 -----------
 - ``omega`` is a dense ``(N, N)`` float array of non-negative weights, zero diagonal.
 - ``coupling="normalized"``: ``w_ij = Omega_ij / S_i`` with ``S_i = sum_l Omega_il`` (Eq. 1).
-- ``coupling="raw"``: ``w_ij = Omega_ij`` (the non-normalized model of Eq. 27).
+- ``coupling="raw"``: ``w_ij = Omega_ij`` (the non-normalized model of Eq. 20).
 - The (generalized) Laplacian is ``L = diag(sum_j w_ij) - W``; for normalized coupling
-  this is ``I - W`` (Eq. 10).
+  this is ``I - W`` (Eq. 8).
 """
 
 from __future__ import annotations

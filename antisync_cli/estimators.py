@@ -1,4 +1,4 @@
-"""Streaming statistics of tau0, tau(beta), F_beta and Lambda^KM (paper Eqs. 5-8, 13).
+"""Streaming statistics of tau0, tau(beta), F_beta and Lambda^KM (paper Eqs. 5, 6 and 17).
 
 Realizations are grouped into fixed-size *blocks* (block ``j`` holds realizations
 ``j*B .. (j+1)*B - 1``, whatever the chunking). Each block is reduced in realization order to a

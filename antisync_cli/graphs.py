@@ -30,6 +30,8 @@ __all__ = [
 ]
 
 GRAPH_KINDS = ("lollipop", "barbell", "atlas", "networkx", "edgelist")
+#: Largest lollipop or barbell antisync builds: their cliques grow as N^2 links.
+MAX_BUILT_NODES = 2000
 
 
 class GraphError(AntisyncError, ValueError):
@@ -84,17 +86,43 @@ def atlas(index: int) -> nx.Graph:
     return _unit_weights(g)
 
 
-def from_networkx(generator: str, args: dict | None = None) -> nx.Graph:
-    """Any networkx generator by name, e.g. ``("barbell_graph", {"m1": 3, "m2": 0})``."""
+def from_networkx(generator: str, args: dict | None = None, seed: int | None = None) -> nx.Graph:
+    """Any networkx generator by name, e.g. ``("barbell_graph", {"m1": 3, "m2": 0})``.
+
+    Parameters
+    ----------
+    generator : str
+        Name of a networkx function that returns a graph.
+    args : dict, optional
+        Its keyword arguments.
+    seed : int, optional
+        For a random generator (one with a ``seed`` parameter) whose ``args`` give no seed:
+        the seed it gets, so the same config builds the same graph on every run (the runner
+        passes the run's seed). A random generator with neither is refused.
+    """
+    import inspect
+
     func = getattr(nx, generator, None)
     if func is None or not callable(func) or not generator.endswith(("graph", "_tree")):
         raise GraphError(
             f"unknown networkx generator {generator!r}; give the name of a networkx function "
             "that builds a graph, e.g. 'barbell_graph', 'path_graph', 'karate_club_graph'"
         )
+    args = dict(args or {})
     try:
-        g = func(**(args or {}))
-    except TypeError as exc:
+        random = "seed" in inspect.signature(func).parameters
+    except (TypeError, ValueError):
+        random = False
+    if random and args.get("seed") is None:
+        if seed is None:
+            raise GraphError(f"networkx.{generator} is random: give graph.args.seed (an integer) "
+                             "so that every run builds the same graph")
+        args["seed"] = seed
+    if random and (isinstance(args["seed"], bool) or not isinstance(args["seed"], int)):
+        raise GraphError(f"graph.args.seed must be an integer, got {args['seed']!r}")
+    try:
+        g = func(**args)
+    except Exception as exc:  # noqa: BLE001 -- networkx's own message names the bad argument
         raise GraphError(f"networkx.{generator} rejected args {args}: {exc}") from None
     if not isinstance(g, nx.Graph) or g.is_directed():
         raise GraphError(f"networkx.{generator} did not return an undirected graph")
@@ -105,7 +133,9 @@ def from_edgelist(path: str | Path) -> nx.Graph:
     """Read ``u v [weight]`` lines (``#`` starts a comment). Integer labels stay integers."""
     path = Path(path)
     try:
-        text = path.read_text()
+        text = path.read_text(encoding="utf-8")
+    except UnicodeDecodeError as exc:
+        raise GraphError(f"edge list {path} is not UTF-8 text (byte {exc.start})") from None
     except OSError as exc:
         raise GraphError(f"cannot read edge list {path}: {exc.strerror}") from None
     rows = []
@@ -123,33 +153,52 @@ def from_edgelist(path: str | Path) -> nx.Graph:
                 raise GraphError(f"{path}:{lineno}: weight {tokens[2]!r} is not a number") from None
             if not (weight > 0 and math.isfinite(weight)):
                 raise GraphError(f"{path}:{lineno}: weight must be positive and finite")
-        rows.append((tokens[0], tokens[1], weight))
+        rows.append((tokens[0], tokens[1], weight, lineno))
     if not rows:
         raise GraphError(f"{path}: no edges found")
-    as_int = all(_is_int(u) and _is_int(v) for u, v, _ in rows)
+    as_int = all(_is_int(u) and _is_int(v) for u, v, _, _ in rows)
     g = nx.Graph()
-    for u, v, w in rows:
+    for u, v, w, lineno in rows:
         if u == v:
-            raise GraphError(f"{path}: self-loop {u}-{v} is not allowed")
-        g.add_edge(int(u) if as_int else u, int(v) if as_int else v, weight=w)
+            raise GraphError(f"{path}:{lineno}: self-loop {u}-{v} is not allowed")
+        a, b = (int(u), int(v)) if as_int else (u, v)
+        if g.has_edge(a, b):  # a second line would silently replace the first one's weight
+            raise GraphError(f"{path}:{lineno}: edge {u}-{v} is listed twice (first on line "
+                             f"{g.edges[a, b]['line']}); give each undirected edge once")
+        g.add_edge(a, b, weight=w, line=lineno)
+    total = sum(w for _, _, w, _ in rows)
+    if not math.isfinite(total) or total > 1e100:
+        raise GraphError(f"{path}: weights sum to {total:.3g}; keep them below 1e100 "
+                         "(rescale them: normalized coupling only sees their ratios)")
+    for _, _, d in g.edges(data=True):
+        del d["line"]
     return g
 
 
-def build_graph(spec: dict) -> nx.Graph:
+def build_graph(spec: dict, seed: int | None = None) -> nx.Graph:
     """Build a graph from the config's ``graph`` mapping and check it is usable.
 
-    The graph must be connected, have at least two nodes and no self-loops.
+    The graph must be connected, have at least two nodes and no self-loops. ``seed`` seeds a
+    random networkx generator whose ``args`` give none (see :func:`from_networkx`).
     """
     kind = spec.get("kind")
     if kind == "lollipop":
-        g = lollipop(int(spec["nodes"]), int(spec["path"]))
+        g = lollipop(_int_arg(spec, "nodes", hi=MAX_BUILT_NODES), _int_arg(spec, "path"))
     elif kind == "barbell":
-        g = barbell(int(spec["m1"]), int(spec.get("m2", 0)))
+        g = barbell(_int_arg(spec, "m1", hi=MAX_BUILT_NODES), _int_arg(spec, "m2", 0, hi=MAX_BUILT_NODES))
     elif kind == "atlas":
-        g = atlas(int(spec["index"]))
+        g = atlas(_int_arg(spec, "index"))
     elif kind == "networkx":
-        g = from_networkx(str(spec["generator"]), spec.get("args") or {})
+        args = spec.get("args") or {}
+        if not isinstance(args, dict):
+            raise GraphError(f"graph.args must be a mapping of keyword arguments, got {args!r}")
+        if not isinstance(spec.get("generator"), str):
+            raise GraphError("graph.generator must be a networkx function name, "
+                             f"got {spec.get('generator')!r}")
+        g = from_networkx(spec["generator"], args, seed=seed)
     elif kind == "edgelist":
+        if not isinstance(spec.get("path"), str):
+            raise GraphError(f"graph.path must be a file path, got {spec.get('path')!r}")
         g = from_edgelist(spec["path"])
     else:
         raise GraphError(f"graph.kind must be one of {', '.join(GRAPH_KINDS)}; got {kind!r}")
@@ -200,6 +249,17 @@ def parse_edge(text: str, g: nx.Graph) -> tuple:
         sample = ", ".join(edge_label(u, v) for u, v in all_directed_edges(g)[:6])
         raise GraphError(f"edge {text!r} is not in the graph; valid edges look like {sample}, ...")
     return a, b
+
+
+def _int_arg(spec: dict, key: str, default: int | None = None, hi: int | None = None) -> int:
+    """An integer graph parameter; 6.9 or true are refused rather than truncated."""
+    value = spec.get(key, default)
+    if isinstance(value, bool) or not isinstance(value, int):
+        raise GraphError(f"graph.{key} must be an integer, got {value!r}")
+    if hi is not None and value > hi:
+        raise GraphError(f"graph.{key} must be at most {hi:,} (a clique of that size is "
+                         f"{hi * (hi - 1) // 2:,} links), got {value:,}")
+    return value
 
 
 def _unit_weights(g: nx.Graph) -> nx.Graph:

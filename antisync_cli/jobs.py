@@ -128,7 +128,7 @@ def make_job(config: Config, graph: nx.Graph | None = None, name: str | None = N
     """Build the graph, resolve edges and betas, and compute all coupling arrays."""
     if graph is None:
         try:
-            graph = graphs.build_graph(config.graph)
+            graph = graphs.build_graph(config.graph, seed=config.seed)
         except (KeyError, TypeError, ValueError) as exc:
             if isinstance(exc, graphs.GraphError):
                 raise
@@ -136,6 +136,7 @@ def make_job(config: Config, graph: nx.Graph | None = None, name: str | None = N
     nodes = graphs.node_order(graph)
     index = {v: i for i, v in enumerate(nodes)}
     omega = graphs.omega_matrix(graph)
+    check_step(omega, config)
     if config.edges == "all":
         edges = graphs.all_directed_edges(graph)
     else:
@@ -179,6 +180,40 @@ def make_job(config: Config, graph: nx.Graph | None = None, name: str | None = N
         secant_weights=secant,
         **_orbit_fields(graph, nodes, omega, csr, edges, config),
     )
+
+
+#: The real stability interval of each integrator's step for y' = -xi y: Euler is stable for
+#: dt * xi < 2, classical RK4 for dt * xi < 2.785 (the negative real axis of its region).
+STABLE_STEP = {"euler": 2.0, "rk4": 2.785}
+
+
+def check_step(omega: np.ndarray, config: Config) -> None:
+    """Refuse a ``dynamics.dt`` at which the synchronized state is unstable for the integrator.
+
+    Near synchrony the model is the linear system ``theta' = -L theta`` (Eq. 9) with ``L`` the
+    coupling's Laplacian; a step ``dt`` with ``dt * xi_max`` beyond the integrator's stability
+    interval makes that state repel, so no realization would ever synchronize (every one would
+    end NOT_SYNCED with no hint why). Raw coupling with huge weights fails here too.
+    """
+    dyn = config.dynamics
+    lap = coupling.laplacian(omega, dyn.coupling)
+    if not np.isfinite(lap).all():
+        raise ConfigError("the graph's weights overflow the coupling matrix; rescale them")
+    # L is similar to a symmetric matrix (normalized: D^-1/2 Omega D^-1/2), so eigvalsh of its
+    # symmetrized form gives its real spectrum
+    if dyn.coupling == "normalized":
+        d = np.sqrt(omega.sum(axis=1))
+        sym = np.eye(len(omega)) - omega / np.outer(d, d)
+    else:
+        sym = lap
+    xi_max = float(np.linalg.eigvalsh(sym)[-1])
+    limit = STABLE_STEP[dyn.integrator] / xi_max
+    if dyn.dt >= limit:
+        raise ConfigError(
+            f"dynamics.dt = {dyn.dt:g} is too large for this graph: {dyn.integrator} steps make the "
+            f"synchronized state unstable unless dt < {limit:.3g} ({STABLE_STEP[dyn.integrator]:g} / "
+            f"xi_max, xi_max = {xi_max:.4g} the largest Laplacian eigenvalue); the paper uses 0.001"
+        )
 
 
 @functools.lru_cache(maxsize=64)

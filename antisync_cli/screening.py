@@ -1,6 +1,6 @@
 """Synchronization screening: does a graph synchronize from random initial phases?
 
-Eqs. (5)-(7) of the paper need ``tau0`` and ``tau(beta)`` to be finite, so the paper analyses
+Eqs. (5)-(6) of the paper need ``tau0`` and ``tau(beta)`` to be finite, so the paper analyses
 only graphs that "fully synchronize from random initial conditions" (Sec. 3.3: of the 112
 connected graphs with six nodes, the 6-ring and the 5-ring with one or two more edges are left
 out). Identical Kuramoto oscillators with ``W = S^-1 Omega`` follow a gradient flow

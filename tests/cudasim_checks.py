@@ -33,7 +33,7 @@ betas: [0.5]
 lambda: {dbeta: 0.01}
 dynamics: {dt: 0.01, t_max: 50}
 """
-# a 5-node graph (square with a roof, 6 links = 12 directed edges) with the raw coupling of Eq. 27
+# a 5-node graph (square with a roof, 6 links = 12 directed edges) with the raw coupling of Eq. 20
 HOUSE_RAW = """
 graph: {kind: networkx, generator: house_graph}
 betas: [0.5]

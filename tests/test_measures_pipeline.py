@@ -171,7 +171,7 @@ def test_records_without_measures_have_null_keys(tmp_path, small_config_text):
         ("measures=[km, rw, rw]", "measures lists rw twice"),
         ("linear.method=eular", "linear.method must be one of exact, euler, derivative, got 'eular' "
                                 "(did you mean 'euler'?)"),
-        ("linear.realizations=1", "linear.realizations must be an integer >= 2"),
+        ("linear.realizations=1", "linear.realizations must be an integer in 2..10**15"),
         ("linear.runs=5", "unknown key 'linear.runs'"),
     ],
 )

@@ -1,7 +1,8 @@
-"""Shared CLI plumbing: option aliases and turning user errors into one line + exit code 2."""
+"""Shared CLI plumbing: option aliases, typed overrides, executors, and user errors as one line."""
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import sys
 from pathlib import Path
@@ -30,7 +31,8 @@ def fail(message: str) -> None:
 
 
 def user_errors(func):
-    """Print an AntisyncError as one line and exit 2 (a traceback only with --debug)."""
+    """Print an AntisyncError (or an OSError: disk full, permission denied) as one line and
+    exit 2; a traceback only with --debug."""
 
     @functools.wraps(func)
     def wrapper(*args, **kwargs):
@@ -42,12 +44,53 @@ def user_errors(func):
         except AntisyncError as exc:
             if debug:
                 raise
-            fail(str(exc).splitlines()[0] if str(exc) else type(exc).__name__)
+            # one line, always: a value quoted from the user's input may hold a newline
+            fail(" ".join(str(exc).split("\n")).strip() or type(exc).__name__)
+        except OSError as exc:  # the machine refused: a full disk, a read-only folder
+            if debug:
+                raise
+            fail(os_message(exc))
         except KeyboardInterrupt:
             typer.echo("antisync: interrupted", err=True)
             raise typer.Exit(130) from None
 
     return wrapper
+
+
+def os_message(exc: OSError) -> str:
+    """``cannot write results/x.h5: No space left on device`` from an OSError."""
+    what = exc.strerror or str(exc) or type(exc).__name__
+    name = exc.filename
+    return f"{name}: {what}" if name else what
+
+
+def typed_values(**options) -> dict:
+    """The CLI's typed options as config values, set as they are (never parsed as YAML):
+    ``--out '#x.h5'`` is the file ``#x.h5`` and ``--out null`` the file ``null``."""
+    return {key: (str(value) if isinstance(value, Path) else value)
+            for key, value in options.items() if value is not None}
+
+
+@contextlib.contextmanager
+def dask_executor(cfg, *, workers: int | None, scheduler: str | None, quiet: bool):
+    """A Dask executor when the options or ``cfg.executor`` ask for one (else ``None``),
+    closed on exit: whoever creates an executor closes it."""
+    from antisync_cli.errors import AntisyncError
+
+    if cfg.executor != "dask" and workers is None and scheduler is None:
+        yield None
+        return
+    try:
+        from antisync_cli.executors.dask import DaskExecutor
+    except ImportError as exc:
+        raise AntisyncError(f"the dask executor is not available here ({exc}); "
+                            "install antisync with its dependencies (pip install -e .)") from None
+    ex = DaskExecutor.from_options(cfg, workers=workers, scheduler=scheduler,
+                                   log=lambda m: info(m, quiet))
+    try:
+        yield ex
+    finally:
+        ex.close()
 
 
 def info(message: str, quiet: bool = False) -> None:

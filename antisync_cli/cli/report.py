@@ -25,11 +25,14 @@ def report(
     For a sweep file: the Fig. 3 ranking, Table 1 (Markdown, CSV, LaTeX), Fig. 4 histograms,
     Fig. 2 for lollipop sweeps and Fig. 6 for threshold sweeps, with an index.md.
     """
+    from antisync_cli.errors import AntisyncError
     from antisync_cli.report.figures import write_report
     from antisync_cli.summary import read_views
     from antisync_cli.sweeps import is_sweep_file
 
     folder = out or results.with_suffix("").with_name(results.stem + "_figures")
+    if folder.exists() and not folder.is_dir():
+        raise AntisyncError(f"report folder {folder} is a file; give --out a folder (new or existing)")
     if is_sweep_file(results):
         # a sweep: Fig. 3 ranking, Table 1, Fig. 4, Fig. 2 (lollipops), Fig. 6 (thresholds)
         from antisync_cli.report.sweep import write_sweep_report

@@ -7,7 +7,17 @@ from typing import Annotated
 
 import typer
 
-from antisync_cli.cli.common import ConfigArg, DebugOpt, QuietOpt, SetOpt, info, user_errors
+from antisync_cli.cli.common import (
+    ConfigArg,
+    DebugOpt,
+    QuietOpt,
+    SetOpt,
+    dask_executor,
+    info,
+    os_message,
+    typed_values,
+    user_errors,
+)
 
 
 @user_errors
@@ -38,28 +48,20 @@ def run(
     from antisync_cli.errors import AntisyncError
     from antisync_cli.runner import Interrupted, run_config
 
-    overrides = list(set_ or [])
-    for key, value in (("realizations", realizations), ("seed", seed), ("output", out),
-                       ("backend", backend), ("executor", executor), ("threads", threads)):
-        if value is not None:
-            overrides.append(f"{key}={value}")
-    cfg = load_config(config, overrides)
     if resume and overwrite:
         raise AntisyncError("--resume and --overwrite exclude each other: choose one")
-    dask_executor = None
-    if cfg.executor == "dask" or workers is not None or scheduler is not None:
-        from antisync_cli.executors.dask import DaskExecutor
-
-        dask_executor = DaskExecutor.from_options(cfg, workers=workers, scheduler=scheduler,
-                                                  log=lambda m: info(m, quiet))
-    try:
-        path = run_config(cfg, resume=resume, overwrite=overwrite, progress=None if not quiet else False,
-                          executor=dask_executor, log=lambda m: info(m, quiet))
-    except Interrupted as exc:
-        info(f"antisync: {exc}")
-        raise typer.Exit(130) from None
-    finally:
-        # run_jobs closes its executor, but not when it fails before starting (output exists)
-        if dask_executor is not None:
-            dask_executor.close()
+    values = typed_values(realizations=realizations, seed=seed, output=out, backend=backend,
+                          executor=executor, threads=threads)
+    cfg = load_config(config, list(set_ or []), values)
+    with dask_executor(cfg, workers=workers, scheduler=scheduler, quiet=quiet) as ex:
+        try:
+            path = run_config(cfg, resume=resume, overwrite=overwrite,
+                              progress=None if not quiet else False, executor=ex,
+                              log=lambda m: info(m, quiet))
+        except Interrupted as exc:
+            info(f"antisync: {exc}")
+            raise typer.Exit(130) from None
+        except OSError as exc:  # a full disk, a file size limit, a folder turned read-only
+            raise AntisyncError(f"cannot write {cfg.output}: {os_message(exc)}; finished chunks "
+                                "are kept: make room and rerun the same command with --resume") from None
     info(f"wrote {path}  (next: antisync summary {path}; antisync report {path})", quiet)

@@ -7,7 +7,17 @@ from typing import Annotated
 
 import typer
 
-from antisync_cli.cli.common import ConfigArg, DebugOpt, QuietOpt, SetOpt, info, user_errors
+from antisync_cli.cli.common import (
+    ConfigArg,
+    DebugOpt,
+    QuietOpt,
+    SetOpt,
+    dask_executor,
+    info,
+    os_message,
+    typed_values,
+    user_errors,
+)
 
 
 @user_errors
@@ -40,26 +50,18 @@ def sweep(
     from antisync_cli.runner import Interrupted
     from antisync_cli.sweeps import load_sweep, run_sweep
 
-    overrides = list(set_ or [])
-    for key, value in (("realizations", realizations), ("output", out), ("backend", backend),
-                       ("threads", threads)):
-        if value is not None:
-            overrides.append(f"{key}={value}")
-    sw = load_sweep(config, overrides)
     if resume and overwrite:
         raise AntisyncError("--resume and --overwrite exclude each other: choose one")
-    dask_executor = None
-    if sw.base.executor == "dask" or workers or scheduler:
+    values = typed_values(realizations=realizations, output=out, backend=backend, threads=threads)
+    sw = load_sweep(config, list(set_ or []), values)
+    with dask_executor(sw.base, workers=workers, scheduler=scheduler, quiet=quiet) as ex:
         try:
-            from antisync_cli.executors.dask import DaskExecutor
-        except ImportError as exc:
-            raise AntisyncError(f"the dask executor is not available here ({exc})") from None
-        dask_executor = DaskExecutor.from_options(sw.base, workers=workers, scheduler=scheduler,
-                                                  log=lambda m: info(m, quiet))
-    try:
-        path = run_sweep(sw, resume=resume, overwrite=overwrite, executor=dask_executor,
-                         progress=None if not quiet else False, log=lambda m: info(m, quiet))
-    except Interrupted as exc:
-        info(f"antisync: {exc}")
-        raise typer.Exit(130) from None
+            path = run_sweep(sw, resume=resume, overwrite=overwrite, executor=ex,
+                             progress=None if not quiet else False, log=lambda m: info(m, quiet))
+        except Interrupted as exc:
+            info(f"antisync: {exc}")
+            raise typer.Exit(130) from None
+        except OSError as exc:  # a full disk, a file size limit, a folder turned read-only
+            raise AntisyncError(f"cannot write {sw.output}: {os_message(exc)}; finished chunks "
+                                "are kept: make room and rerun the same command with --resume") from None
     info(f"wrote {path}  (next: antisync summary {path}; antisync report {path})", quiet)

@@ -18,6 +18,7 @@ def validate(config: ConfigArg, set_: SetOpt = None, debug: DebugOpt = False) ->
 
         sw = load_sweep(config, list(set_ or []))
         entries = family_graphs(sw)  # builds every graph, selects edges, finds orbits
+        preflight(sw.base, [])
         typer.echo(sw.to_yaml().rstrip())
         typer.echo(
             f"# ok: sweep of {len(entries)} graph(s), {sum(len(e.edges) for e in entries)} directed "
@@ -27,11 +28,32 @@ def validate(config: ConfigArg, set_: SetOpt = None, debug: DebugOpt = False) ->
         return
     cfg = load_config(config, list(set_ or []))
     job = make_job(cfg)
+    preflight(cfg, [job])
     typer.echo(cfg.resolved().to_yaml().rstrip())
     typer.echo(
         f"# ok: graph {job.name} with {len(job.nodes)} nodes, {len(job.edges)} directed edge(s), "
         f"{job.integrations_per_realization - 1} damaged variant(s), {cfg.realizations:,} realizations"
     )
+
+
+def preflight(cfg, jobs) -> None:
+    """The checks ``antisync run`` makes before it writes anything: the km_nnc twins and what
+    the backend implements (cuda: options and node counts), for the backend the config asks
+    for. Whether this machine has a GPU is a note, not an error: a config for the cluster is
+    valid on a laptop."""
+    from antisync_cli.backends import resolve_backend
+    from antisync_cli.compute import check_backend, check_job
+    from antisync_cli.errors import AntisyncError
+    from antisync_cli.measures.pipeline import with_nnc
+
+    backend = cfg.backend
+    try:
+        backend, _ = resolve_backend(cfg.backend)
+    except AntisyncError as exc:
+        typer.echo(f"# note: {exc}")
+    check_backend(cfg, backend)
+    for job in with_nnc(jobs):
+        check_job(job, backend)
 
 
 def _is_sweep(path) -> bool:

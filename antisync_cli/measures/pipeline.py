@@ -4,7 +4,7 @@
   damaged edge of a :class:`~antisync_cli.jobs.Job`, once per job (the runner stores them with
   the job's statistics; checkpoints rewrite them, never recompute them).
 - :func:`nnc_job` / :func:`with_nnc`: ``km_nnc`` runs the same experiment a second time with
-  raw coupling (Sec. 3.4, Eqs. 27-29), same seed and so the same initial phases, as a second
+  raw coupling (Sec. 3.4, Eqs. 20-22), same seed and so the same initial phases, as a second
   job ``<name>_nnc`` of the same file.
 - :func:`write_measures` / :func:`read_measures`: the ``measures`` subgroup of a job in HDF5.
 - :func:`measure_fields` / :func:`join_nnc`: the summary keys ``lambda_linear``,
@@ -151,7 +151,7 @@ class _naming:
 
 
 def nnc_job(job: Job) -> Job:
-    """The raw-coupling twin of ``job`` (Eqs. 27-29): same graph, edges, betas, seed, dynamics.
+    """The raw-coupling twin of ``job`` (Eqs. 20-22): same graph, edges, betas, seed, dynamics.
 
     Its config keeps only ``km`` (the twin is a Kuramoto run, nothing else), its name is
     ``job.name + "_nnc"`` and ``nnc_of`` names ``job``.

@@ -92,10 +92,12 @@ def plot_f_beta(view: JobView, ax) -> None:
     for edge in sorted(lam, key=lambda e: -(lam[e] or 0)):
         rs = sorted((r for r in recs if r["edge"] == edge), key=lambda r: r["beta"])
         beta = [0.0] + [r["beta"] for r in rs]
-        f = [1.0] + [r["F_mean"] for r in rs]
+        # a damage at which nothing synchronized has no <F_beta>: a gap in the curve
+        f = [1.0] + [np.nan if r["F_mean"] is None else r["F_mean"] for r in rs]
         se = [0.0] + [r["F_se"] or 0.0 for r in rs]
+        value = "n/a" if lam[edge] is None else f"{lam[edge]:+.3f}"
         ax.errorbar(beta, f, yerr=se, color=cmap(norm(lam[edge] or 0.0)), marker="o", ms=3,
-                    lw=1.4, capsize=2, label=f"{edge} ({lam[edge]:+.3f})")
+                    lw=1.4, capsize=2, label=f"{edge} ({value})")
     ax.axhline(1.0, color="k", ls="--", lw=0.8)
     ax.set_xlabel(r"damage $\beta$")
     ax.set_ylabel(r"$\langle \mathcal{F}_\beta \rangle = \langle \tau_0/\tau(\beta) \rangle$")

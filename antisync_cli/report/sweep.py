@@ -87,7 +87,7 @@ def table1_rows(summary: dict, n: int = 7) -> list[dict]:
 
 
 def lambda_xi2_records(summary: dict, graphs: set | None = None) -> dict[tuple, float]:
-    """``{(graph, edge): Lambda^(xi2)}`` (Eq. 22) for every fanned-out edge of the kept graphs.
+    """``{(graph, edge): Lambda^(xi2)}`` (Eq. 16) for every fanned-out edge of the kept graphs.
 
     Raises ``ImportError`` when :func:`antisync_cli.measures.spectral.lambda_xi2` is absent.
     """

@@ -43,7 +43,26 @@ def format_records(records: list[dict], fmt: str = "table") -> str:
     lines = ["  ".join(c.rjust(w) for c, w in zip(row, widths, strict=True)) for row in rows]
     warnings = sorted({(r["edge"], r["lambda_km_warning"]) for r in records if r.get("lambda_km_warning")})
     lines += [f"warning: Lambda_KM of {e}: {w}" for e, w in warnings]
+    lines += [f"warning: {w}" for w in sync_warnings(records)]
     return "\n".join(lines)
+
+
+def sync_warnings(records: list[dict]) -> list[str]:
+    """One line per graph where realizations never reached the threshold, saying what to do."""
+    out = []
+    for graph in dict.fromkeys(r["graph"] for r in records):
+        rs = [r for r in records if r["graph"] == graph]
+        worst = max(rs, key=lambda r: r.get("n_not_synced") or 0)
+        n_bad, done = worst.get("n_not_synced") or 0, worst.get("realizations_done") or 0
+        if not n_bad or not done:
+            continue
+        hint = ("raise dynamics.t_max, or check that this graph synchronizes (rings and other "
+                "graphs with stable twisted states do not)") if n_bad > done / 2 else \
+            "they are counted (unsynced) and left out of every mean"
+        out.append(f"{graph}: {n_bad:,} of {done:,} realizations did not synchronize by t_max "
+                   f"({worst['edge']}" + (f", beta {worst['beta']:g}" if worst.get("beta") else "")
+                   + f"); {hint}")
+    return out
 
 
 # ---- sweeps --------------------------------------------------------------------------------
