@@ -612,5 +612,9 @@ def test_records_of_an_interrupted_run_say_incomplete(tmp_path, cfg):
     assert all(r["realizations_done"] == 40 and r["realizations"] == 120 for r in recs)
     with h5py.File(out, "r") as f:
         assert not f.attrs["complete"]
+    from antisync_cli.report.tables import format_records
+
+    assert "is not complete (40 of 120 realizations done): rerun the same command with --resume" \
+        in format_records(recs)
     run_config(config, output=out, resume=True)
     assert all(r["complete"] is True and r["realizations_done"] == 120 for r in records(out))

@@ -44,6 +44,10 @@ def format_records(records: list[dict], fmt: str = "table") -> str:
     warnings = sorted({(r["edge"], r["lambda_km_warning"]) for r in records if r.get("lambda_km_warning")})
     lines += [f"warning: Lambda_KM of {e}: {w}" for e, w in warnings]
     lines += [f"warning: {w}" for w in sync_warnings(records)]
+    for graph in dict.fromkeys(r["graph"] for r in records if r.get("complete") is False):
+        r = next(r for r in records if r["graph"] == graph)
+        lines.append(f"warning: {graph} is not complete ({r['realizations_done']:,} of "
+                     f"{r['realizations']:,} realizations done): rerun the same command with --resume")
     return "\n".join(lines)
 
 
