@@ -48,10 +48,10 @@ bench: $(STAMP)
 	$(BIN)/python bench/bench_dask.py
 
 lint: $(STAMP)
-	$(BIN)/ruff check antisync_cli tests bench
+	$(BIN)/ruff check antisync tests bench
 
 format: $(STAMP)
-	$(BIN)/ruff format antisync_cli tests bench
+	$(BIN)/ruff format antisync tests bench
 
 clean:
 	rm -rf $(VENV) .pytest_cache .ruff_cache build *.egg-info

@@ -35,11 +35,11 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from antisync_cli.compute import compute_chunk  # noqa: E402
-from antisync_cli.config import load_config  # noqa: E402
-from antisync_cli.executors.dask import DaskExecutor  # noqa: E402
-from antisync_cli.executors.local import LocalExecutor  # noqa: E402
-from antisync_cli.jobs import Chunk, make_job  # noqa: E402
+from antisync.compute import compute_chunk  # noqa: E402
+from antisync.config import load_config  # noqa: E402
+from antisync.executors.dask import DaskExecutor  # noqa: E402
+from antisync.executors.local import LocalExecutor  # noqa: E402
+from antisync.jobs import Chunk, make_job  # noqa: E402
 
 
 def _warm(job) -> float:
@@ -129,7 +129,7 @@ def main(argv=None) -> None:
         return
     per_task, n, sample = overhead
     with tempfile.TemporaryDirectory() as tmp:
-        from antisync_cli.store import ResultStore
+        from antisync.store import ResultStore
 
         store = ResultStore(Path(tmp) / "b.h5")
         store.start_journal({})

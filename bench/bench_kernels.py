@@ -33,11 +33,11 @@ from numba import njit, prange
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-from antisync_cli import estimators  # noqa: E402
-from antisync_cli.compute import compute_chunk  # noqa: E402
-from antisync_cli.config import load_config_text  # noqa: E402
-from antisync_cli.jobs import Chunk, make_job  # noqa: E402
-from antisync_cli.phases import phase  # noqa: E402
+from antisync import estimators  # noqa: E402
+from antisync.compute import compute_chunk  # noqa: E402
+from antisync.config import load_config_text  # noqa: E402
+from antisync.jobs import Chunk, make_job  # noqa: E402
+from antisync.phases import phase  # noqa: E402
 
 TARGET_SE = 0.005
 
@@ -93,7 +93,7 @@ def run_antisync(method, integrator, dt, m):
     t = time.perf_counter()
     res = compute_chunk(job, Chunk(0, job.n_blocks))
     seconds = time.perf_counter() - t
-    from antisync_cli.kernels.cpu import simulate, simulate_pathwise  # noqa: F401
+    from antisync.kernels.cpu import simulate, simulate_pathwise  # noqa: F401
 
     steps = _trajectory_steps(job, m, method, integrator, dt)
     worst = 0.0
@@ -109,7 +109,7 @@ def run_antisync(method, integrator, dt, m):
 
 def _trajectory_steps(job, m, method, integrator, dt):
     """Steps of every trajectory integrated (recomputed cheaply from a small sample's ratio)."""
-    from antisync_cli.compute import simulate_job
+    from antisync.compute import simulate_job
 
     sim = simulate_job(job, 0, min(m, 300))
     scale = m / min(m, 300)

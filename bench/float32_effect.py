@@ -39,10 +39,10 @@ def main(argv=None) -> int:
     p.add_argument("--on", choices=("cuda", "cpu-twin"), default="cuda")
     args = p.parse_args(argv)
 
-    from antisync_cli.backends import cuda_usable
-    from antisync_cli.config import load_config_text
-    from antisync_cli.jobs import make_job
-    from antisync_cli.kernels import cuda as gpu
+    from antisync.backends import cuda_usable
+    from antisync.config import load_config_text
+    from antisync.jobs import make_job
+    from antisync.kernels import cuda as gpu
 
     if args.on == "cuda":
         ok, why = cuda_usable()
@@ -62,7 +62,7 @@ def main(argv=None) -> int:
         r64 = gpu.simulate(*a, **kw, precision="float64")
         r32 = gpu.simulate(*a, **kw, precision="float32")
     else:
-        from antisync_cli.kernels import cpu
+        from antisync.kernels import cpu
 
         r64 = cpu.simulate(*a, **kw)
         r32 = _cpu_twin32(*a, **kw)
@@ -108,9 +108,9 @@ def _cpu_twin32(seed, first, count, indptr, indices, base_weights, variant_weigh
     """The float32 step functions on the CPU (numba njit), driven like kernels.cpu."""
     from numba import njit, prange
 
-    from antisync_cli.kernels.core import make_kernels
-    from antisync_cli.kernels.cpu import SimResult
-    from antisync_cli.phases import phase
+    from antisync.kernels.core import make_kernels
+    from antisync.kernels.cpu import SimResult
+    from antisync.phases import phase
 
     sync = make_kernels(lambda f: njit(f, inline="never", fastmath=False), np.float32)["sync_steps"]
 

@@ -32,7 +32,7 @@ import numpy as np
 
 
 def _fail_no_gpu(tiny: bool) -> None:
-    from antisync_cli.backends import cuda_usable
+    from antisync.backends import cuda_usable
 
     ok, why = cuda_usable()
     if not ok:
@@ -55,8 +55,8 @@ def _device_name() -> str:
 
 
 def _job(edges, betas, dt, t_max):
-    from antisync_cli.config import load_config_text
-    from antisync_cli.jobs import make_job
+    from antisync.config import load_config_text
+    from antisync.jobs import make_job
 
     text = (
         "graph: {kind: lollipop, nodes: 6, path: 3}\n"
@@ -114,8 +114,8 @@ def main(argv=None) -> int:
     args = p.parse_args(argv)
     _fail_no_gpu(args.tiny)
 
-    from antisync_cli.kernels import cpu
-    from antisync_cli.kernels import cuda as gpu
+    from antisync.kernels import cpu
+    from antisync.kernels import cuda as gpu
 
     if args.tiny:
         dt, t_max, n_check, hist_pairs, target, cap = 0.05, 50.0, 1, 2, 0.0, 1

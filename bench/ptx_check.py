@@ -10,7 +10,7 @@ libdevice; no driver, no GPU), and checks two properties the backend relies on:
 
 - the float32 Euler step does its arithmetic in single precision (no promotion to double);
 - the block- and Lambda-record reductions contain no fused multiply-add, so their sums round
-  exactly as the CPU's :func:`antisync_cli.estimators.block_records` and
+  exactly as the CPU's :func:`antisync.estimators.block_records` and
   ``lambda_block_records`` (the GPU integrator itself *is* contracted; docs/cuda.md says what
   that means).
 
@@ -85,8 +85,8 @@ def main(argv=None) -> int:
         print(f"ptx_check: cannot compile for CUDA here: {type(exc).__name__}: {exc}")
         return 3
 
-    from antisync_cli.kernels import cuda as kc
-    from antisync_cli.kernels.core import make_kernels
+    from antisync.kernels import cuda as kc
+    from antisync.kernels.core import make_kernels
 
     i64, u64, i8, f64 = t.int64, t.uint64, t.int8, t.float64
     failed = []

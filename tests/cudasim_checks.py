@@ -21,11 +21,11 @@ if __name__ == "__main__":
 
 import numpy as np
 
-from antisync_cli import estimators
-from antisync_cli.config import load_config_text
-from antisync_cli.jobs import make_job
-from antisync_cli.kernels import cpu
-from antisync_cli.kernels import cuda as gpu
+from antisync import estimators
+from antisync.config import load_config_text
+from antisync.jobs import make_job
+from antisync.kernels import cpu
+from antisync.kernels import cuda as gpu
 
 LOLLIPOP = """
 graph: {kind: lollipop, nodes: 6, path: 3}
@@ -99,11 +99,11 @@ def check_reductions() -> None:
     """simulate_reduced equals the host's reductions of the CPU outcomes, exactly.
 
     Block records, tail counts, 2D histograms and the finite-difference Lambda records
-    (:func:`antisync_cli.compute.lambda_values` + ``lambda_block_records``). Blocks of 6 over
+    (:func:`antisync.compute.lambda_values` + ``lambda_block_records``). Blocks of 6 over
     23 realizations (a short last block) and device batches of 12 realizations, so block
     offsets, batching and accumulation across batches are exercised.
     """
-    from antisync_cli.compute import _fd_variants, lambda_values
+    from antisync.compute import _fd_variants, lambda_values
 
     job = make_job(load_config_text(HOUSE_RAW, ["histogram.bins=16", "histogram.tau_max=3.0"]))
     first, count, block = 60, 23, 6
@@ -130,8 +130,8 @@ def check_reductions() -> None:
 
 def check_runner(tmp: str) -> None:
     """``backend: cuda`` through run_config stores the same summary as ``backend: cpu``."""
-    from antisync_cli import summary
-    from antisync_cli.runner import run_config
+    from antisync import summary
+    from antisync.runner import run_config
 
     text = HOUSE_RAW + "edges: ['0->1', '2->4']\nrealizations: 30\nblock_size: 10\n"
     calls = []

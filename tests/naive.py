@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from antisync_cli.status import Status
+from antisync.status import Status
 
 
 def kuramoto_rhs(theta: np.ndarray, w: np.ndarray) -> np.ndarray:

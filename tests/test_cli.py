@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
-from antisync_cli.cli.app import app
+from antisync.cli.app import app
 
 runner = CliRunner()
 REPO = Path(__file__).resolve().parent.parent
@@ -67,7 +67,7 @@ def test_run_summary_report(tmp_path, cfg):
 
 
 def test_module_entry_point_and_validate(cfg):
-    res = subprocess.run([sys.executable, "-m", "antisync_cli", "validate", str(cfg)],
+    res = subprocess.run([sys.executable, "-m", "antisync", "validate", str(cfg)],
                          capture_output=True, text=True, cwd=REPO)
     assert res.returncode == 0, res.stderr
     assert "# ok: graph lollipop_6_3 with 6 nodes, 2 directed edge(s)" in res.stdout
@@ -113,7 +113,7 @@ def test_sigkill_then_resume_gives_identical_numbers(tmp_path, small_config_text
     assert invoke("run", cfg, "--out", ref, "--quiet").exit_code == 0
     out = tmp_path / "killed.h5"
     journal = tmp_path / "killed.h5.partial"
-    proc = subprocess.Popen([sys.executable, "-m", "antisync_cli", "run", str(cfg), "--out",
+    proc = subprocess.Popen([sys.executable, "-m", "antisync", "run", str(cfg), "--out",
                              str(out), "--quiet"], cwd=REPO)
     deadline = time.monotonic() + 120
     while time.monotonic() < deadline and len(list(journal.glob("*.npz"))) < 3:

@@ -71,14 +71,14 @@ def test_gpu_check_tiny_runs_under_simulator():
 # ---- in this process: no GPU and no simulator (skipped where a GPU is present) ----
 
 def _gpu_here() -> bool:
-    from antisync_cli.backends import cuda_usable
+    from antisync.backends import cuda_usable
 
     return cuda_usable()[0]
 
 
 def _lollipop_job(**dyn):
-    from antisync_cli.config import load_config_text
-    from antisync_cli.jobs import make_job
+    from antisync.config import load_config_text
+    from antisync.jobs import make_job
 
     extra = "".join(f", {k}: {v}" for k, v in dyn.items())
     return make_job(load_config_text(
@@ -90,8 +90,8 @@ def _lollipop_job(**dyn):
 def test_module_imports_and_refuses_without_gpu():
     if _gpu_here():
         pytest.skip("a GPU (or the simulator) is usable in this process")
-    from antisync_cli.errors import AntisyncError
-    from antisync_cli.kernels import cuda as gpu
+    from antisync.errors import AntisyncError
+    from antisync.kernels import cuda as gpu
 
     job = _lollipop_job()
     with pytest.raises(AntisyncError, match="CUDA backend cannot run here"):
@@ -100,8 +100,8 @@ def test_module_imports_and_refuses_without_gpu():
 
 
 def test_too_many_nodes_is_a_clear_error():
-    from antisync_cli.errors import AntisyncError
-    from antisync_cli.kernels import cuda as gpu
+    from antisync.errors import AntisyncError
+    from antisync.kernels import cuda as gpu
 
     n = gpu.MAX_NODES + 1
     indptr = np.arange(n + 1, dtype=np.int64)
@@ -112,9 +112,9 @@ def test_too_many_nodes_is_a_clear_error():
 
 
 def test_float32_is_rejected_on_cpu(tmp_path):
-    from antisync_cli.config import load_config_text
-    from antisync_cli.errors import ConfigError
-    from antisync_cli.runner import run_config
+    from antisync.config import load_config_text
+    from antisync.errors import ConfigError
+    from antisync.runner import run_config
 
     cfg = load_config_text(
         "graph: {kind: lollipop, nodes: 6, path: 3}\nedges: ['3->4']\nbetas: [0.5]\n"
@@ -134,9 +134,9 @@ def test_float32_is_rejected_on_cpu(tmp_path):
     ("dynamics: {crossing: interpolated}", "dynamics.crossing interpolated"),
 ])
 def test_cuda_refuses_what_only_the_cpu_implements(setting, key):
-    from antisync_cli.compute import check_backend
-    from antisync_cli.config import load_config_text
-    from antisync_cli.errors import ConfigError
+    from antisync.compute import check_backend
+    from antisync.config import load_config_text
+    from antisync.errors import ConfigError
 
     cfg = load_config_text(f"graph: {{kind: lollipop, nodes: 6, path: 3}}\n{setting}\n")
     check_backend(cfg, "cpu")
@@ -145,8 +145,8 @@ def test_cuda_refuses_what_only_the_cpu_implements(setting, key):
 
 
 def test_precision_key_is_validated():
-    from antisync_cli.config import load_config_text
-    from antisync_cli.errors import ConfigError
+    from antisync.config import load_config_text
+    from antisync.errors import ConfigError
 
     text = "graph: {kind: lollipop, nodes: 6, path: 3}\n"
     assert load_config_text(text).dynamics.precision == "float64"

@@ -15,12 +15,12 @@ from typer.testing import CliRunner
 
 pytest.importorskip("distributed")
 
-from antisync_cli.cli.app import app  # noqa: E402
-from antisync_cli.config import load_config  # noqa: E402
-from antisync_cli.errors import AntisyncError  # noqa: E402
-from antisync_cli.executors.dask import DaskExecutor  # noqa: E402
-from antisync_cli.executors.local import LocalExecutor  # noqa: E402
-from antisync_cli.runner import run_config  # noqa: E402
+from antisync.cli.app import app  # noqa: E402
+from antisync.config import load_config  # noqa: E402
+from antisync.errors import AntisyncError  # noqa: E402
+from antisync.executors.dask import DaskExecutor  # noqa: E402
+from antisync.executors.local import LocalExecutor  # noqa: E402
+from antisync.runner import run_config  # noqa: E402
 
 TINY = """\
 name: tiny

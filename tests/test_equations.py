@@ -35,7 +35,7 @@ def test_parser_reads_ranges_and_lists():
 
 def test_every_citation_is_in_the_table():
     table = _table()
-    files = [p for folder in ("antisync", "antisync_cli", "docs", "configs", "bench", "tests")
+    files = [p for folder in ("antisync", "antisync", "docs", "configs", "bench", "tests")
              for p in (REPO / folder).rglob("*") if p.suffix in (".py", ".md", ".yaml")
              and "__pycache__" not in p.parts]
     files += [REPO / "README.md"]

@@ -5,9 +5,9 @@ import math
 import numpy as np
 import pytest
 
-from antisync_cli import estimators
-from antisync_cli.kernels.cpu import SimResult
-from antisync_cli.status import Status
+from antisync import estimators
+from antisync.kernels.cpu import SimResult
+from antisync.status import Status
 
 
 def _fake_sim(seed=0, m=1000, n_var=3):

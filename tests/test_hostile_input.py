@@ -3,7 +3,7 @@
 Every case must end in one line on stderr naming what is wrong, exit code 2, no traceback,
 and no file touched (issue 13). Property-based cases (hypothesis) throw arbitrary values at
 every config key and arbitrary lines at the edge-list reader: the only outcomes allowed are a
-valid config or an :class:`~antisync_cli.errors.AntisyncError`.
+valid config or an :class:`~antisync.errors.AntisyncError`.
 """
 
 import json
@@ -20,11 +20,11 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from typer.testing import CliRunner
 
-from antisync_cli.cli.app import app
-from antisync_cli.config import load_config_text
-from antisync_cli.errors import AntisyncError
-from antisync_cli.graphs import build_graph, from_edgelist
-from antisync_cli.jobs import make_job
+from antisync.cli.app import app
+from antisync.config import load_config_text
+from antisync.errors import AntisyncError
+from antisync.graphs import build_graph, from_edgelist
+from antisync.jobs import make_job
 
 runner = CliRunner()
 REPO = Path(__file__).resolve().parent.parent
@@ -319,7 +319,7 @@ def test_disk_full_while_writing_a_chunk_is_one_line_and_resumes(tmp_path):
     def limit():
         resource.setrlimit(resource.RLIMIT_FSIZE, (20_000, 20_000))
 
-    proc = subprocess.run([sys.executable, "-m", "antisync_cli", "run", str(cfg), "--out", str(out), "-q"],
+    proc = subprocess.run([sys.executable, "-m", "antisync", "run", str(cfg), "--out", str(out), "-q"],
                           cwd=REPO, capture_output=True, text=True, preexec_fn=limit,
                           env={**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / "numba")})
     assert proc.returncode == 2, proc.stderr

@@ -4,10 +4,10 @@ import numpy as np
 import pytest
 from naive import sync_steps, two_oscillator_tau
 
-from antisync_cli import coupling, graphs
-from antisync_cli.kernels.cpu import simulate
-from antisync_cli.phases import initial_phases
-from antisync_cli.status import Status
+from antisync import coupling, graphs
+from antisync.kernels.cpu import simulate
+from antisync.phases import initial_phases
+from antisync.status import Status
 
 
 def _arrays(g, damages, kind="normalized"):

@@ -12,9 +12,9 @@ import numpy as np
 import pytest
 import scipy.linalg
 
-from antisync_cli.coupling import coupling_derivative, coupling_matrix, damaged_omega, laplacian
-from antisync_cli.graphs import all_directed_edges, lollipop, omega_matrix
-from antisync_cli.measures import (
+from antisync.coupling import coupling_derivative, coupling_matrix, damaged_omega, laplacian
+from antisync.graphs import all_directed_edges, lollipop, omega_matrix
+from antisync.measures import (
     LinearResult,
     f_rw,
     f_xi2,
@@ -28,7 +28,7 @@ from antisync_cli.measures import (
     tau_rw,
     xi2,
 )
-from antisync_cli.measures import linear as linear_mod
+from antisync.measures import linear as linear_mod
 
 # --- helpers -------------------------------------------------------------------------------
 

@@ -13,16 +13,16 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
-from antisync_cli import graphs
-from antisync_cli.cli.app import app
-from antisync_cli.config import LINEAR_METHODS, load_config_text
-from antisync_cli.errors import ConfigError, MeasureError
-from antisync_cli.jobs import make_job
-from antisync_cli.measures import lambda_linear, lambda_rw, lambda_xi2_all
-from antisync_cli.measures import linear as linear_mod
-from antisync_cli.measures.pipeline import RECORD_KEYS, compute_measures, nnc_job, with_nnc
-from antisync_cli.phases import initial_phases
-from antisync_cli.runner import run_config
+from antisync import graphs
+from antisync.cli.app import app
+from antisync.config import LINEAR_METHODS, load_config_text
+from antisync.errors import ConfigError, MeasureError
+from antisync.jobs import make_job
+from antisync.measures import lambda_linear, lambda_rw, lambda_xi2_all
+from antisync.measures import linear as linear_mod
+from antisync.measures.pipeline import RECORD_KEYS, compute_measures, nnc_job, with_nnc
+from antisync.phases import initial_phases
+from antisync.runner import run_config
 
 runner = CliRunner()
 
@@ -95,7 +95,7 @@ def test_km_nnc_is_joined_from_the_raw_coupling_twin(run):
     assert all(twin[e][k] is None for e in twin for k in RECORD_KEYS)
     # raw coupling, same seed: realization k's tau0 is the raw-coupled Kuramoto time from the
     # same initial phases (checked against a direct integration)
-    from antisync_cli.compute import simulate_job
+    from antisync.compute import simulate_job
 
     cfg = load_config_text(CONFIG)
     sim = simulate_job(nnc_job(make_job(cfg)), 0, 25)
@@ -199,7 +199,7 @@ def test_measures_on_a_disconnected_graph_fail_before_anything_is_written(tmp_pa
     job = make_job(cfg, graph=two, name="two_triangles")
     with pytest.raises(MeasureError, match=r"^graph two_triangles: measure rw, edge 0->1: .*disconnected"):
         compute_measures(job)
-    from antisync_cli.runner import run_jobs
+    from antisync.runner import run_jobs
 
     with pytest.raises(MeasureError):
         run_jobs([job], cfg, progress=False)
@@ -246,8 +246,8 @@ def test_linear_exact_and_euler_agree_with_common_phases():
 
 
 def test_measures_are_computed_once_and_survive_checkpoints_and_resume(tmp_path, monkeypatch):
-    import antisync_cli.runner as runner_mod
-    from antisync_cli.summary import records
+    import antisync.runner as runner_mod
+    from antisync.summary import records
 
     calls = []
 
@@ -299,7 +299,7 @@ def test_km_nnc_below_km_except_3to4(tmp_path):
     +0.1, the two the test cannot resolve (see UNRESOLVED): for them it asserts only that
     the data do not contradict the paper (margin > -2).
     """
-    from antisync_cli.summary import records
+    from antisync.summary import records
 
     cfg = load_config_text(SLOW_CONFIG, [f"output={tmp_path / 'nnc.h5'}"])
     recs = [r for r in records(run_config(cfg, progress=False)) if r["graph"] == "lollipop_6_3"]

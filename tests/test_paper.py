@@ -1,15 +1,15 @@
 """The paper's printed numbers for its lollipop (N=6, L=3), reproduced within 4 standard errors.
 
-Values from antisync_cli/data/paper_values.yaml (Sec. 3.1, 1e9 realizations in the paper).
+Values from antisync/data/paper_values.yaml (Sec. 3.1, 1e9 realizations in the paper).
 """
 
 import json
 
 import pytest
 
-from antisync_cli.config import load_config_text
-from antisync_cli.runner import run_config
-from antisync_cli.summary import records
+from antisync.config import load_config_text
+from antisync.runner import run_config
+from antisync.summary import records
 
 Z = 4.0  # standard errors
 
@@ -86,8 +86,8 @@ def test_table1_graphs_are_the_ones_the_text_names():
     subgraph joined to a path of two nodes."""
     import networkx as nx
 
-    from antisync_cli.graphs import lollipop
-    from antisync_cli.paper import TABLE1_ATLAS
+    from antisync.graphs import lollipop
+    from antisync.paper import TABLE1_ATLAS
 
     g = {k: nx.graph_atlas(i) for k, (i, _) in TABLE1_ATLAS.items()}
     barbell_minus = nx.barbell_graph(3, 0)
@@ -103,7 +103,7 @@ def test_table1_graphs_are_the_ones_the_text_names():
 def test_table1_row(tmp_path, paper_values, graph):
     """Table 1 (1e9 realizations for <tau0> and <F_0.5>, 1e7 for Lambda) on the most
     antifragile link, from 20,000 realizations."""
-    from antisync_cli.paper import TABLE1_ATLAS
+    from antisync.paper import TABLE1_ATLAS
 
     index, edge = TABLE1_ATLAS[graph]
     row = _table1_row(paper_values, graph)

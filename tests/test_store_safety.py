@@ -21,16 +21,16 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
-from antisync_cli import graphs
-from antisync_cli.cli.app import app
-from antisync_cli.compute import compute_chunk
-from antisync_cli.config import load_config
-from antisync_cli.errors import StoreError
-from antisync_cli.executors.local import LocalExecutor
-from antisync_cli.jobs import Chunk, make_job
-from antisync_cli.runner import Interrupted, run_config, run_jobs
-from antisync_cli.store import ResultStore, chunk_tag, graph_digest, open_results
-from antisync_cli.summary import records
+from antisync import graphs
+from antisync.cli.app import app
+from antisync.compute import compute_chunk
+from antisync.config import load_config
+from antisync.errors import StoreError
+from antisync.executors.local import LocalExecutor
+from antisync.jobs import Chunk, make_job
+from antisync.runner import Interrupted, run_config, run_jobs
+from antisync.store import ResultStore, chunk_tag, graph_digest, open_results
+from antisync.summary import records
 
 REPO = Path(__file__).resolve().parent.parent
 ARRAYS = ("block_records", "tau0_records", "hist", "tail_counts", "blocks_done", "lambda_records")
@@ -53,13 +53,13 @@ def invoke(*args):
 
 
 def cli(*args, timeout: float = 120) -> subprocess.CompletedProcess:
-    """``python -m antisync_cli ARGS`` in a process of its own."""
-    return subprocess.run([sys.executable, "-m", "antisync_cli", *map(str, args)], cwd=REPO,
+    """``python -m antisync ARGS`` in a process of its own."""
+    return subprocess.run([sys.executable, "-m", "antisync", *map(str, args)], cwd=REPO,
                           capture_output=True, text=True, timeout=timeout)
 
 
 def start(*args) -> subprocess.Popen:
-    return subprocess.Popen([sys.executable, "-m", "antisync_cli", *map(str, args)], cwd=REPO,
+    return subprocess.Popen([sys.executable, "-m", "antisync", *map(str, args)], cwd=REPO,
                             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
 
 
@@ -333,7 +333,7 @@ def test_overwrite_refuses_anything_but_a_result_file(tmp_path, cfg, kind):
 
 
 def test_overwrite_refuses_a_foreign_file_for_a_sweep_too(tmp_path):
-    from antisync_cli.sweeps import load_sweep_text, run_sweep
+    from antisync.sweeps import load_sweep_text, run_sweep
 
     target = tmp_path / "notes.txt"
     target.write_text("precious\n")
@@ -377,7 +377,7 @@ def test_resume_of_a_complete_file_changes_nothing(tmp_path, cfg):
 
 
 def test_resume_of_a_complete_sweep_changes_nothing(tmp_path, sweep_reference):
-    from antisync_cli.sweeps import run_sweep
+    from antisync.sweeps import run_sweep
 
     sw, ref_path, _ = sweep_reference
     out = tmp_path / "sweep.h5"
@@ -443,7 +443,7 @@ def test_cuda_node_limit_is_checked_before_any_file(tmp_path, command):
     """A graph too big for the CUDA kernels is refused before the lock, the journal (a sweep:
     the screening) or the output's folder exist; on the CUDA simulator, so that backend cuda
     resolves on any machine."""
-    from antisync_cli.kernels.cuda import MAX_NODES
+    from antisync.kernels.cuda import MAX_NODES
 
     n = MAX_NODES + 1
     cfg = tmp_path / "big.yaml"
@@ -454,7 +454,7 @@ def test_cuda_node_limit_is_checked_before_any_file(tmp_path, command):
         cfg.write_text("name: big\nsweep:\n  family: graphs\n  graphs:\n"
                        f"    - {{kind: networkx, generator: path_graph, args: {{n: {n}}}}}\n" + common)
     env = os.environ | {"NUMBA_ENABLE_CUDASIM": "1"}
-    res = subprocess.run([sys.executable, "-m", "antisync_cli", command, str(cfg), "--backend", "cuda",
+    res = subprocess.run([sys.executable, "-m", "antisync", command, str(cfg), "--backend", "cuda",
                           "--out", str(tmp_path / "new" / "c.h5"), "--quiet"],
                          cwd=REPO, capture_output=True, text=True, timeout=120, env=env)
     line = one_line_error(res)
@@ -525,7 +525,7 @@ def test_damaged_file_is_refused_on_resume(tmp_path, result_file, cfg):
 
 
 def test_damaged_sweep_metadata_is_one_line(tmp_path, sweep_reference):
-    from antisync_cli.sweeps import sweep_summary
+    from antisync.sweeps import sweep_summary
 
     _, ref_path, _ = sweep_reference
     p = tmp_path / "s.h5"
@@ -567,7 +567,7 @@ def _comparable(summary: dict) -> dict:
 
 @pytest.fixture(scope="module")
 def sweep_reference(tmp_path_factory):
-    from antisync_cli.sweeps import load_sweep_text, run_sweep, sweep_summary
+    from antisync.sweeps import load_sweep_text, run_sweep, sweep_summary
 
     sw = load_sweep_text(TINY_SWEEP)
     path = tmp_path_factory.mktemp("sweep") / "tiny.h5"
@@ -582,8 +582,8 @@ def test_dask_sweep_with_a_top_stage(tmp_path, sweep_reference):
     stage used to fail with 'NoneType' object has no attribute 'nthreads'). The numbers are the
     local executor's."""
     pytest.importorskip("distributed")
-    from antisync_cli.executors.dask import DaskExecutor
-    from antisync_cli.sweeps import run_sweep, sweep_summary
+    from antisync.executors.dask import DaskExecutor
+    from antisync.sweeps import run_sweep, sweep_summary
 
     sw, _, ref = sweep_reference
     assert ref["top"] and ref["complete"]
@@ -612,7 +612,7 @@ def test_records_of_an_interrupted_run_say_incomplete(tmp_path, cfg):
     assert all(r["realizations_done"] == 40 and r["realizations"] == 120 for r in recs)
     with h5py.File(out, "r") as f:
         assert not f.attrs["complete"]
-    from antisync_cli.report.tables import format_records
+    from antisync.report.tables import format_records
 
     assert "is not complete (40 of 120 realizations done): rerun the same command with --resume" \
         in format_records(recs)

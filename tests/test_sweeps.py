@@ -11,9 +11,9 @@ import networkx as nx
 import numpy as np
 import pytest
 
-from antisync_cli import graphs
-from antisync_cli.errors import ConfigError
-from antisync_cli.sweeps import (
+from antisync import graphs
+from antisync.errors import ConfigError
+from antisync.sweeps import (
     edge_orbits,
     expand_records,
     family_graphs,
@@ -78,7 +78,7 @@ def test_schema_errors_name_the_key(text, message):
 
 
 def test_run_config_loader_points_sweeps_to_antisync_sweep():
-    from antisync_cli.config import load_config_text
+    from antisync.config import load_config_text
 
     with pytest.raises(ConfigError, match="antisync sweep"):
         load_config_text("sweep: {family: atlas, nodes: 6}")
@@ -101,7 +101,7 @@ def test_overrides_and_ranges():
 
 # ---- families ----------------------------------------------------------------------------
 def test_atlas_family_counts():
-    from antisync_cli.sweeps import _family_specs
+    from antisync.sweeps import _family_specs
 
     counts = {n: len(_family_specs({"family": "atlas", "nodes": [n]})) for n in range(2, 8)}
     assert counts == {2: 1, 3: 2, 4: 6, 5: 21, 6: 112, 7: 853}
@@ -199,7 +199,7 @@ def _which(g: nx.Graph) -> str | None:
 def test_screening_excludes_the_rings_and_keeps_slow_graphs():
     """The three non-synchronizing 6-node graphs and the slowest synchronizing ones (G96 has a
     4-cycle whose degenerate twisted state gives the longest transients of the atlas)."""
-    from antisync_cli.screening import screen_graph
+    from antisync.screening import screen_graph
 
     candidates = [g for g in range(53, 209) if nx.is_connected(graphs.atlas(g))
                   and _which(graphs.atlas(g)) is not None]
@@ -215,10 +215,10 @@ def test_screening_excludes_the_rings_and_keeps_slow_graphs():
 
 
 def test_screening_steps_equal_the_kernel_steps():
-    from antisync_cli.compute import simulate_job
-    from antisync_cli.config import load_config_text
-    from antisync_cli.jobs import make_job
-    from antisync_cli.screening import screen_realizations
+    from antisync.compute import simulate_job
+    from antisync.config import load_config_text
+    from antisync.jobs import make_job
+    from antisync.screening import screen_realizations
 
     cfg = load_config_text('graph: {kind: atlas, index: 127}\nedges: ["0->2"]\nbetas: []\nseed: 5')
     job = make_job(cfg)
@@ -231,8 +231,8 @@ def test_screening_steps_equal_the_kernel_steps():
 
 
 def test_stability_classification_of_twisted_and_synchronized_states():
-    from antisync_cli.coupling import coupling_matrix
-    from antisync_cli.screening import classify_state
+    from antisync.coupling import coupling_matrix
+    from antisync.screening import classify_state
 
     w = coupling_matrix(graphs.omega_matrix(graphs.from_networkx("cycle_graph", {"n": 6})))
     twisted = 2 * np.pi * np.arange(6) / 6
@@ -246,7 +246,7 @@ def test_stability_classification_of_twisted_and_synchronized_states():
 @pytest.mark.slow
 def test_screening_of_the_whole_atlas_excludes_exactly_three():
     sw = load_sweep_text("sweep: {family: atlas, nodes: 6}")
-    from antisync_cli.screening import screen_graph
+    from antisync.screening import screen_graph
 
     excluded = []
     for entry in family_graphs(sw, symmetry=False):
@@ -265,7 +265,7 @@ class _CrashAfter:
     runner checkpoints first)."""
 
     def __init__(self, n: int, exc: type = RuntimeError):
-        from antisync_cli.executors.local import LocalExecutor
+        from antisync.executors.local import LocalExecutor
 
         self.inner = LocalExecutor("cpu", None)
         self.left = n
@@ -317,7 +317,7 @@ def test_tiny_sweep_contents(tiny_reference):
 def test_fanned_out_records_match_direct_xi2(tiny_reference):
     """Lambda^(xi2), computed for representatives only and fanned out, equals a direct
     computation on every orbit member: an independent check of the orbits."""
-    from antisync_cli.measures.spectral import lambda_xi2
+    from antisync.measures.spectral import lambda_xi2
 
     _, _, ref = tiny_reference
     built = {"path_graph": nx.path_graph(3), "lollipop_4_1": graphs.lollipop(4, 1),
@@ -339,7 +339,7 @@ def test_interrupted_sweep_resumes_to_the_same_file(tiny_reference, tmp_path, cr
                                                     stage):
     """Killed right after screening, in the main stage (3 graphs x 6 chunks of 20) or in the top
     stage, or interrupted with Ctrl-C, then resumed: the same numbers as uninterrupted."""
-    from antisync_cli.runner import Interrupted
+    from antisync.runner import Interrupted
 
     sw, _, ref = tiny_reference
     path = tmp_path / "tiny.h5"
@@ -365,7 +365,7 @@ def test_interrupted_sweep_resumes_to_the_same_file(tiny_reference, tmp_path, cr
 
 
 def test_resume_refuses_another_sweep(tiny_reference, tmp_path):
-    from antisync_cli.errors import StoreError
+    from antisync.errors import StoreError
 
     sw, path, _ = tiny_reference
     other = load_sweep_text(TINY, overrides=["seed=4"])
@@ -374,7 +374,7 @@ def test_resume_refuses_another_sweep(tiny_reference, tmp_path):
 
 
 def test_screening_is_resumed_not_redone(tiny_reference, tmp_path, monkeypatch):
-    import antisync_cli.screening as screening
+    import antisync.screening as screening
 
     sw, _, ref = tiny_reference
     path = tmp_path / "tiny.h5"
@@ -399,7 +399,7 @@ def test_screening_is_resumed_not_redone(tiny_reference, tmp_path, monkeypatch):
 def test_cli_sweep_summary_and_report(tmp_path):
     from typer.testing import CliRunner
 
-    from antisync_cli.cli.app import app
+    from antisync.cli.app import app
 
     cfg = tmp_path / "tiny.yaml"
     cfg.write_text(TINY.replace("top: {graphs: 2, realizations: 80}", "top: {graphs: 1, realizations: 40}"))
@@ -430,7 +430,7 @@ def test_cli_sweep_summary_and_report(tmp_path):
 
 # ---- Table 1 -------------------------------------------------------------------------------
 def test_table1_formats():
-    from antisync_cli.report.tables import fmt_pm, format_table1
+    from antisync.report.tables import fmt_pm, format_table1
 
     assert fmt_pm(9.31254, 0.0123) == ("9.313", "0.012")
     assert fmt_pm(0.1321, 0.0021) == ("0.1321", "0.0021")
@@ -454,7 +454,7 @@ def test_table1_formats():
 
 
 def test_fit_gamma_recovers_a_line():
-    from antisync_cli.report.sweep import fit_gamma
+    from antisync.report.sweep import fit_gamma
 
     x = np.linspace(-0.4, 0.4, 50)
     fit = fit_gamma(x, 0.7 * x + 0.003)
@@ -462,7 +462,7 @@ def test_fit_gamma_recovers_a_line():
 
 
 def test_paper_plan_fits_the_budget_and_readme_tolerates_missing_steps(tmp_path):
-    from antisync_cli.paper import STEPS, _readme, plan
+    from antisync.paper import STEPS, _readme, plan
 
     assert sum(s.cpu_seconds() for s in STEPS) / 2 < 0.6 * 3600  # 2 cores, margin for slower CPUs
     assert "total" in plan(0.5)
@@ -474,7 +474,7 @@ def test_paper_plan_fits_the_budget_and_readme_tolerates_missing_steps(tmp_path)
 def test_make_paper_step_reruns_as_a_no_op_and_keeps_its_time(tmp_path):
     """One real step of ``antisync paper`` at 100 realizations: the README shows it with its
     minutes; a rerun finds the step finished, computes nothing and keeps the first time."""
-    from antisync_cli.paper import make_paper
+    from antisync.paper import make_paper
 
     out, logs = tmp_path / "paper", []
     readme = make_paper(out, scale=0.01, only=("lollipop6",), progress=False, log=logs.append)
@@ -495,8 +495,8 @@ def test_paper_precision_commands_are_valid_configs():
 
     from typer.testing import CliRunner
 
-    from antisync_cli.cli.app import app
-    from antisync_cli.paper import PAPER_PRECISION
+    from antisync.cli.app import app
+    from antisync.paper import PAPER_PRECISION
 
     commands = [c for c in PAPER_PRECISION.replace("\\\n", " ").splitlines()
                 if c.startswith("antisync ")]
@@ -515,7 +515,7 @@ def test_paper_precision_commands_are_valid_configs():
 def test_validate_accepts_sweep_configs():
     from typer.testing import CliRunner
 
-    from antisync_cli.cli.app import app
+    from antisync.cli.app import app
 
     res = CliRunner().invoke(app, ["validate", str(REPO / "configs" / "atlas6.yaml")])
     assert res.exit_code == 0, res.output
@@ -526,8 +526,8 @@ def test_validate_accepts_sweep_configs():
 
 
 def _fig2b(tmp_path, nodes: str, realizations: int) -> tuple[list[dict], dict]:
-    from antisync_cli.report.sweep import plot_fig2
-    from antisync_cli.sweeps import trend_in_n
+    from antisync.report.sweep import plot_fig2
+    from antisync.sweeps import trend_in_n
 
     sw = load_sweep(REPO / "configs" / "lollipop_L1.yaml",
                     [f"sweep.nodes={nodes}", "betas=[]", "repeats=1", "lambda.method=orbit",
@@ -562,7 +562,7 @@ def test_fig2b_lambda_positive_and_decreasing_all_n(tmp_path):
 
 
 def test_trend_in_n_counts_resolved_steps_and_the_gap():
-    from antisync_cli.sweeps import trend_in_n
+    from antisync.sweeps import trend_in_n
 
     rows = [{"N": n, "lambda_km": v, "lambda_km_se": 1.0}
             for n, v in zip(range(4, 9), [30.0, 20.0, 18.0, 19.0, 3.0], strict=True)]

@@ -1,0 +1,3 @@
+from antisync.cli.app import main
+
+main()

@@ -1,0 +1,98 @@
+"""Shared CLI plumbing: option aliases, typed overrides, executors, and user errors as one line."""
+
+from __future__ import annotations
+
+import contextlib
+import functools
+import sys
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+EXIT_USAGE = 2
+
+ConfigArg = Annotated[Path, typer.Argument(help="YAML config file (see configs/).", show_default=False)]
+ResultArg = Annotated[
+    Path, typer.Argument(help="HDF5 result file written by `antisync run`.", show_default=False)
+]
+SetOpt = Annotated[
+    list[str] | None,
+    typer.Option("--set", help="Override a config key, value parsed as YAML: --set realizations=5000 "
+                 "--set dynamics.dt=0.0005. Repeatable."),
+]
+DebugOpt = Annotated[bool, typer.Option("--debug", help="Show tracebacks for errors.")]
+QuietOpt = Annotated[bool, typer.Option("--quiet", "-q", help="No progress bar or messages.")]
+
+
+def fail(message: str) -> None:
+    typer.echo(f"antisync: error: {message}", err=True)
+    raise typer.Exit(EXIT_USAGE)
+
+
+def user_errors(func):
+    """Print an AntisyncError (or an OSError: disk full, permission denied) as one line and
+    exit 2; a traceback only with --debug."""
+
+    @functools.wraps(func)
+    def wrapper(*args, **kwargs):
+        from antisync.errors import AntisyncError
+
+        debug = kwargs.get("debug", False)
+        try:
+            return func(*args, **kwargs)
+        except AntisyncError as exc:
+            if debug:
+                raise
+            # one line, always: a value quoted from the user's input may hold a newline
+            fail(" ".join(str(exc).split("\n")).strip() or type(exc).__name__)
+        except OSError as exc:  # the machine refused: a full disk, a read-only folder
+            if debug:
+                raise
+            fail(os_message(exc))
+        except KeyboardInterrupt:
+            typer.echo("antisync: interrupted", err=True)
+            raise typer.Exit(130) from None
+
+    return wrapper
+
+
+def os_message(exc: OSError) -> str:
+    """``cannot write results/x.h5: No space left on device`` from an OSError."""
+    what = exc.strerror or str(exc) or type(exc).__name__
+    name = exc.filename
+    return f"{name}: {what}" if name else what
+
+
+def typed_values(**options) -> dict:
+    """The CLI's typed options as config values, set as they are (never parsed as YAML):
+    ``--out '#x.h5'`` is the file ``#x.h5`` and ``--out null`` the file ``null``."""
+    return {key: (str(value) if isinstance(value, Path) else value)
+            for key, value in options.items() if value is not None}
+
+
+@contextlib.contextmanager
+def dask_executor(cfg, *, workers: int | None, scheduler: str | None, quiet: bool):
+    """A Dask executor when the options or ``cfg.executor`` ask for one (else ``None``),
+    closed on exit: whoever creates an executor closes it."""
+    from antisync.errors import AntisyncError
+
+    if cfg.executor != "dask" and workers is None and scheduler is None:
+        yield None
+        return
+    try:
+        from antisync.executors.dask import DaskExecutor
+    except ImportError as exc:
+        raise AntisyncError(f"the dask executor is not available here ({exc}); "
+                            "install antisync with its dependencies (pip install -e .)") from None
+    ex = DaskExecutor.from_options(cfg, workers=workers, scheduler=scheduler,
+                                   log=lambda m: info(m, quiet))
+    try:
+        yield ex
+    finally:
+        ex.close()
+
+
+def info(message: str, quiet: bool = False) -> None:
+    if not quiet:
+        print(message, file=sys.stderr)

@@ -1,0 +1,44 @@
+"""`antisync report RESULTS.h5`: the paper's figures from a result file."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from antisync.cli.common import DebugOpt, QuietOpt, ResultArg, info, user_errors
+
+
+@user_errors
+def report(
+    results: ResultArg,
+    out: Annotated[
+        Path | None, typer.Option("--out", "-o", help="Folder for figures (default: next to the file).")
+    ] = None,
+    pdf: Annotated[bool, typer.Option("--pdf", help="Also write PDF versions.")] = False,
+    quiet: QuietOpt = False,
+    debug: DebugOpt = False,
+) -> None:
+    """Write Fig. 1-style figures: graph coloured by Lambda^KM, <F_beta> vs beta, (tau0, tau) histograms.
+
+    For a sweep file: the Fig. 3 ranking, Table 1 (Markdown, CSV, LaTeX), Fig. 4 histograms,
+    Fig. 2 for lollipop sweeps and Fig. 6 for threshold sweeps, with an index.md.
+    """
+    from antisync.errors import AntisyncError
+    from antisync.report.figures import write_report
+    from antisync.summary import read_views
+    from antisync.sweeps import is_sweep_file
+
+    folder = out or results.with_suffix("").with_name(results.stem + "_figures")
+    if folder.exists() and not folder.is_dir():
+        raise AntisyncError(f"report folder {folder} is a file; give --out a folder (new or existing)")
+    if is_sweep_file(results):
+        # a sweep: Fig. 3 ranking, Table 1, Fig. 4, Fig. 2 (lollipops), Fig. 6 (thresholds)
+        from antisync.report.sweep import write_sweep_report
+
+        paths = write_sweep_report(results, folder, pdf=pdf)
+    else:
+        paths = write_report(read_views(results), folder, pdf=pdf)
+    for p in paths:
+        info(f"wrote {p}", quiet)

@@ -1,0 +1,67 @@
+"""`antisync run CONFIG`: run one config into an HDF5 file."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from antisync.cli.common import (
+    ConfigArg,
+    DebugOpt,
+    QuietOpt,
+    SetOpt,
+    dask_executor,
+    info,
+    os_message,
+    typed_values,
+    user_errors,
+)
+
+
+@user_errors
+def run(
+    config: ConfigArg,
+    realizations: Annotated[int | None, typer.Option(help="Override `realizations`.")] = None,
+    seed: Annotated[int | None, typer.Option(help="Override `seed`.")] = None,
+    out: Annotated[Path | None, typer.Option("--out", "-o", help="Override `output` (HDF5 path).")] = None,
+    backend: Annotated[str | None, typer.Option(help="cpu, cuda or auto.")] = None,
+    executor: Annotated[str | None, typer.Option(help="local or dask.")] = None,
+    workers: Annotated[
+        int | None, typer.Option(help="Dask: start a LocalCluster with this many workers.")
+    ] = None,
+    scheduler: Annotated[
+        str | None, typer.Option(help="Dask: address of an existing scheduler (tcp://host:8786).")
+    ] = None,
+    threads: Annotated[int | None, typer.Option(help="CPU threads (default: all cores).")] = None,
+    resume: Annotated[
+        bool, typer.Option("--resume", help="Finish an interrupted run in the same output file.")
+    ] = False,
+    overwrite: Annotated[bool, typer.Option("--overwrite", help="Replace an existing output file.")] = False,
+    set_: SetOpt = None,
+    quiet: QuietOpt = False,
+    debug: DebugOpt = False,
+) -> None:
+    """Run the experiment of CONFIG and write tau0/tau(beta) statistics, Lambda and histograms to HDF5."""
+    from antisync.config import load_config
+    from antisync.errors import AntisyncError
+    from antisync.runner import Interrupted, run_config
+
+    if resume and overwrite:
+        raise AntisyncError("--resume and --overwrite exclude each other: choose one")
+    values = typed_values(realizations=realizations, seed=seed, output=out, backend=backend,
+                          executor=executor, threads=threads)
+    cfg = load_config(config, list(set_ or []), values)
+    with dask_executor(cfg, workers=workers, scheduler=scheduler, quiet=quiet) as ex:
+        try:
+            path = run_config(cfg, resume=resume, overwrite=overwrite,
+                              progress=None if not quiet else False, executor=ex,
+                              log=lambda m: info(m, quiet))
+        except Interrupted as exc:
+            info(f"antisync: {exc}")
+            raise typer.Exit(130) from None
+        except OSError as exc:  # a full disk, a file size limit, a folder turned read-only
+            raise AntisyncError(f"cannot write {cfg.output}: {os_message(exc)}; finished chunks "
+                                "are kept: make room and rerun the same command with --resume") from None
+    info(f"wrote {path}  (next: antisync summary {path}; antisync report {path})", quiet)

@@ -1,0 +1,67 @@
+"""`antisync validate CONFIG`: check a config (and build its graph) without running it."""
+
+from __future__ import annotations
+
+import typer
+
+from antisync.cli.common import ConfigArg, DebugOpt, SetOpt, user_errors
+
+
+@user_errors
+def validate(config: ConfigArg, set_: SetOpt = None, debug: DebugOpt = False) -> None:
+    """Check CONFIG: keys, values, graph, edges. Prints the resolved config on success."""
+    from antisync.config import load_config
+    from antisync.jobs import make_job
+
+    if _is_sweep(config):
+        from antisync.sweeps import family_graphs, load_sweep
+
+        sw = load_sweep(config, list(set_ or []))
+        entries = family_graphs(sw)  # builds every graph, selects edges, finds orbits
+        preflight(sw.base, [])
+        typer.echo(sw.to_yaml().rstrip())
+        typer.echo(
+            f"# ok: sweep of {len(entries)} graph(s), {sum(len(e.edges) for e in entries)} directed "
+            f"edge(s) in {sum(len(e.representatives) for e in entries)} orbit(s), "
+            f"{len(sw.thresholds)} threshold(s), {sw.repeats} repeat(s); screening not run"
+        )
+        return
+    cfg = load_config(config, list(set_ or []))
+    job = make_job(cfg)
+    preflight(cfg, [job])
+    typer.echo(cfg.resolved().to_yaml().rstrip())
+    typer.echo(
+        f"# ok: graph {job.name} with {len(job.nodes)} nodes, {len(job.edges)} directed edge(s), "
+        f"{job.integrations_per_realization - 1} damaged variant(s), {cfg.realizations:,} realizations"
+    )
+
+
+def preflight(cfg, jobs) -> None:
+    """The checks ``antisync run`` makes before it writes anything: the km_nnc twins and what
+    the backend implements (cuda: options and node counts), for the backend the config asks
+    for. Whether this machine has a GPU is a note, not an error: a config for the cluster is
+    valid on a laptop."""
+    from antisync.backends import resolve_backend
+    from antisync.compute import check_backend, check_job
+    from antisync.errors import AntisyncError
+    from antisync.measures.pipeline import with_nnc
+
+    backend = cfg.backend
+    try:
+        backend, _ = resolve_backend(cfg.backend)
+    except AntisyncError as exc:
+        typer.echo(f"# note: {exc}")
+    check_backend(cfg, backend)
+    for job in with_nnc(jobs):
+        check_job(job, backend)
+
+
+def _is_sweep(path) -> bool:
+    """Whether the YAML file has a top-level ``sweep:`` key (errors are left to the loaders)."""
+    import yaml
+
+    try:
+        raw = yaml.safe_load(path.read_text())
+    except (OSError, yaml.YAMLError):
+        return False
+    return isinstance(raw, dict) and "sweep" in raw

@@ -1,0 +1,255 @@
+"""One chunk of work: integrate its realizations on a backend and reduce them to mergeable
+partial statistics. Executors (local, Dask) only decide *where* :func:`compute_chunk` runs.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from antisync import estimators
+from antisync.errors import ConfigError
+from antisync.jobs import Chunk, Job
+from antisync.status import Status
+
+__all__ = ["ChunkResult", "check_backend", "check_job", "compute_chunk", "lambda_values", "simulate_job"]
+
+_SYNCED = int(Status.SYNCED)
+
+
+@dataclass
+class ChunkResult:
+    """Partial statistics of one chunk; every field merges by addition or by block position.
+
+    Attributes
+    ----------
+    rec, rec0 : block records (see :func:`antisync.estimators.block_records`)
+    tail : int64 (V, TAIL_BINS)
+    hist : int64 (len(job.hist_variants), bins, bins)
+    lam_rec, lam_tail : Lambda block records and |Lambda| tail counts per edge
+    kept : dict of arrays or None
+        Per-realization steps and status for realizations below ``keep_pairs``.
+    """
+
+    chunk: Chunk
+    rec: np.ndarray
+    rec0: np.ndarray
+    tail: np.ndarray
+    hist: np.ndarray
+    lam_rec: np.ndarray
+    lam_tail: np.ndarray
+    kept: dict | None
+    first: int
+    count: int
+    seconds: float
+    backend: str
+
+
+def _kernel(backend: str):
+    if backend == "cuda":
+        from antisync.kernels import cuda as kernel
+    else:
+        from antisync.kernels import cpu as kernel
+    return kernel
+
+
+def check_backend(config, backend: str) -> None:
+    """Refuse options the resolved ``backend`` does not implement (before any file is written).
+
+    The CUDA backend runs the paper's procedure: Euler steps, grid crossing times,
+    finite-difference Lambda, in float64 or float32. The CPU backend runs everything but
+    float32.
+
+    Raises
+    ------
+    ConfigError
+        Naming the key, the value and what would work.
+    """
+    dyn = config.dynamics
+    if dyn.precision != "float64" and backend != "cuda":
+        raise ConfigError(
+            f"dynamics.precision {dyn.precision} is implemented only on backend cuda "
+            f"(this run uses backend {backend}); use precision float64 or backend cuda"
+        )
+    if backend != "cuda":
+        return
+    if config.lambda_.method != "finite-difference":
+        raise ConfigError(
+            f"lambda.method {config.lambda_.method} runs on the cpu backend only; "
+            "use --backend cpu or lambda.method finite-difference"
+        )
+    if dyn.integrator != "euler":
+        raise ConfigError(
+            f"dynamics.integrator {dyn.integrator} runs on the cpu backend only; "
+            "use --backend cpu or integrator euler"
+        )
+    if dyn.interpolate:
+        raise ConfigError(
+            "dynamics.crossing interpolated runs on the cpu backend only (the CUDA kernels "
+            "return grid crossing times); use --backend cpu or crossing grid"
+        )
+
+
+def check_job(job: Job, backend: str) -> None:
+    """:func:`check_backend` for ``job``'s config, plus what depends on its graph (the CUDA
+    kernels keep a trajectory's state in fixed-size per-thread arrays of ``MAX_NODES``)."""
+    check_backend(job.config, backend)
+    if backend == "cuda":
+        from antisync.kernels.cuda import MAX_NODES
+
+        if len(job.nodes) > MAX_NODES:
+            raise ConfigError(
+                f"graph {job.name} has {len(job.nodes)} nodes; the cuda backend runs at most "
+                f"{MAX_NODES}: use --backend cpu"
+            )
+
+
+def simulate_job(job: Job, first: int, count: int, backend: str = "cpu", threads: int | None = None,
+                 variant_weights: np.ndarray | None = None, realizations: np.ndarray | None = None):
+    """Integrate realizations ``first .. first+count-1`` (or ``realizations``) of ``job``."""
+    dyn = job.config.dynamics
+    check_backend(job.config, backend)
+    kwargs = {"threads": threads} if backend != "cuda" else {"precision": dyn.precision}
+    if realizations is not None:
+        kwargs["realizations"] = realizations
+    weights = job.variant_weights if variant_weights is None else variant_weights
+    if dyn.integrator != "euler":
+        kwargs["integrator"] = dyn.integrator
+    return _kernel(backend).simulate(
+        job.config.seed, first, count, job.csr.indptr, job.csr.indices, job.csr.weights, weights,
+        dt=dyn.dt, threshold=dyn.threshold, max_steps=dyn.max_steps, **kwargs,
+    )
+
+
+def lambda_values(job: Job, sim, first: int, count: int, threads: int | None = None):
+    """Per-realization Lambda^KM estimates for every edge of ``job`` by ``lambda.method``.
+
+    Returns ``(values, code, flagged, base)`` with ``values``/``code``/``flagged`` of shape
+    ``(count, E)`` (see :func:`antisync.estimators.lambda_block_records`) and ``base`` the
+    undamaged outcome when the pathwise or orbit pass produced it (else None).
+    """
+    spec = job.config.lambda_
+    dyn = job.config.dynamics
+    n_edges = len(job.edges)
+    if spec.method == "finite-difference":
+        v = _fd_variants(job)
+        t0, t = estimators.crossing_times(sim, dyn.interpolate)
+        t = t[:, v]
+        ok = (sim.status0[:, None] == _SYNCED) & (sim.status[:, v] == _SYNCED)
+        code = np.where(ok, _SYNCED, np.maximum(sim.status0[:, None], sim.status[:, v])).astype(np.int8)
+        values = np.where(ok, (t0[:, None] / np.where(ok, t, 1.0) - 1.0) / job.dbeta, 0.0)
+        return values, code, np.zeros_like(ok), None
+
+    if spec.method == "orbit":
+        return _orbit_values(job, sim, first, count, threads)
+
+    from antisync.kernels.cpu import simulate_pathwise
+
+    edge_a, edge_b, rho, mu = job.tangent
+    pw = simulate_pathwise(job.config.seed, first, count, job.csr.indptr, job.csr.indices,
+                           job.csr.weights, edge_a, edge_b, rho, mu, dt=dyn.dt,
+                           threshold=dyn.threshold, max_steps=dyn.max_steps, threads=threads)
+    tau0 = (pw.steps0 - 1 + pw.frac0) * dyn.dt
+    ok0 = pw.status0 == _SYNCED
+    values = np.where(ok0[:, None], -pw.dtau / np.where(ok0, tau0, 1.0)[:, None], 0.0)
+    code = np.repeat(pw.status0[:, None], n_edges, axis=1).astype(np.int8)
+    flagged = np.zeros((count, n_edges), dtype=bool)
+    if spec.method == "hybrid":
+        flagged = ok0[:, None] & (np.abs(values) > spec.hybrid_cut)
+        for e in np.flatnonzero(flagged.any(axis=0)):
+            rows = np.flatnonzero(flagged[:, e])
+            sec = simulate_job(job, 0, 0, "cpu", threads, job.secant_weights[e : e + 1],
+                               realizations=first + rows)
+            tau = (sec.steps[:, 0] - 1 + sec.frac[:, 0]) * dyn.dt
+            good = sec.status[:, 0] == _SYNCED
+            values[rows[good], e] = (tau0[rows[good]] / tau[good] - 1.0) / job.dbeta
+            code[rows[~good], e] = sec.status[~good, 0]
+    return values, code, flagged, pw
+
+
+def _orbit_values(job: Job, sim, first: int, count: int, threads: int | None):
+    """Central differences along each edge's orbit (``lambda.method: orbit``).
+
+    One pass integrates tau0 and the ``+dbeta``/``-dbeta`` variants of every orbit; its
+    undamaged outcome is returned as ``base`` (equal to ``sim``'s when both exist).
+    """
+    dyn = job.config.dynamics
+    osim = simulate_job(job, first, count, "cpu", threads, job.orbit_weights)
+    t0, t = estimators.crossing_times(osim, dyn.interpolate)
+    plus, minus = t[:, 0::2], t[:, 1::2]
+    s_plus, s_minus = osim.status[:, 0::2], osim.status[:, 1::2]
+    ok = (osim.status0[:, None] == _SYNCED) & (s_plus == _SYNCED) & (s_minus == _SYNCED)
+    code = np.where(ok, _SYNCED, np.maximum(osim.status0[:, None], np.maximum(s_plus, s_minus)))
+    inv = np.where(ok, 1.0 / np.where(ok, plus, 1.0) - 1.0 / np.where(ok, minus, 1.0), 0.0)
+    values = t0[:, None] * inv / (2.0 * job.dbeta * job.orbit_sizes[None, :])
+    values = np.where(ok, values, 0.0)
+    return values, code.astype(np.int8), np.zeros_like(ok), osim
+
+
+def _fd_variants(job: Job) -> np.ndarray:
+    """The variant at ``dbeta`` of every edge: the finite difference of Lambda^KM."""
+    return np.array([job.variant(e, job.dbeta) for e in range(len(job.edges))], dtype=np.int64)
+
+
+def _compute_on_device(job: Job, chunk: Chunk, first: int, count: int, start: float) -> ChunkResult:
+    """A chunk reduced on the GPU: only block records and histograms come back."""
+    from antisync.kernels.cuda import simulate_reduced
+
+    dyn = job.config.dynamics
+    hcfg = job.config.histogram
+    red = simulate_reduced(
+        job.config.seed, first, count, job.csr.indptr, job.csr.indices, job.csr.weights,
+        job.variant_weights, dt=dyn.dt, threshold=dyn.threshold, max_steps=dyn.max_steps,
+        block=job.block_size, hist_variants=job.hist_variants, bins=hcfg.bins,
+        tau_max=hcfg.tau_max, lambda_variants=_fd_variants(job), dbeta=job.dbeta,
+        precision=dyn.precision,
+    )
+    return ChunkResult(chunk, red.rec, red.rec0, red.tail, red.hist, red.lam_rec, red.lam_tail,
+                       None, first, count, time.perf_counter() - start, "cuda")
+
+
+def compute_chunk(job: Job, chunk: Chunk, backend: str = "cpu", threads: int | None = None) -> ChunkResult:
+    """Integrate and reduce one chunk (pure: no files, no progress bars).
+
+    On backend cuda a chunk that keeps no per-realization pairs (it lies beyond
+    ``keep_pairs``) is reduced on the GPU (:func:`antisync.kernels.cuda.simulate_reduced`,
+    records identical to the host's), so only block records and histograms cross the bus.
+    """
+    start = time.perf_counter()
+    first, count = chunk.realizations(job.block_size, job.config.realizations)
+    if backend == "cuda" and job.config.keep_pairs <= first:
+        check_backend(job.config, backend)
+        return _compute_on_device(job, chunk, first, count, start)
+    derivative = job.config.lambda_.method != "finite-difference"
+    if derivative and len(job.variant_edge) == 0:
+        sim = None  # Lambda only: the Lambda pass integrates the undamaged network itself
+    else:
+        sim = simulate_job(job, first, count, backend, threads)
+    values, code, flagged, base = lambda_values(job, sim, first, count, threads)
+    if sim is None:
+        from antisync.kernels.cpu import SimResult
+
+        empty = np.empty((count, 0))
+        sim = SimResult(base.status0, base.steps0, empty.astype(np.int8), empty.astype(np.int64),
+                        base.frac0, empty)
+    dyn = job.config.dynamics
+    interpolate = dyn.interpolate
+    dt = dyn.dt
+    rec, rec0, tail = estimators.block_records(sim, dt, job.block_size, interpolate)
+    lam_rec, lam_tail = estimators.lambda_block_records(values, code, flagged, job.block_size)
+    hcfg = job.config.histogram
+    hist = estimators.histogram2d(sim, job.hist_variants, dt, hcfg.bins, hcfg.tau_max, interpolate)
+    keep = max(0, min(job.config.keep_pairs - first, count))
+    kept = None
+    if keep:
+        kept = {
+            "status0": sim.status0[:keep].copy(),
+            "steps0": sim.steps0[:keep].copy(),
+            "status": sim.status[:keep].copy(),
+            "steps": sim.steps[:keep].copy(),
+            "lambda": values[:keep].copy(),
+        }
+    return ChunkResult(chunk, rec, rec0, tail, hist, lam_rec, lam_tail, kept, first, count,
+                       time.perf_counter() - start, backend)

@@ -1,0 +1,563 @@
+"""YAML configs and ``--set`` overrides -> frozen, validated dataclasses.
+
+Every key has a default except ``graph``. Unknown keys are errors that name the key and
+suggest the nearest valid one; every value is range-checked here, before any file is touched.
+The resolved config (defaults filled in, ``block_size`` fixed) is what gets stored with results.
+
+Example
+-------
+>>> cfg = load_config_text('''
+... graph: {kind: lollipop, nodes: 6, path: 3}
+... edges: ["2->1"]
+... betas: [0.5]
+... realizations: 1000
+... ''', overrides=["seed=7"])
+>>> cfg.seed, cfg.betas
+(7, (0.5,))
+"""
+
+from __future__ import annotations
+
+import difflib
+import math
+from dataclasses import asdict, dataclass, field, replace
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from antisync.coupling import COUPLINGS
+from antisync.errors import ConfigError
+
+__all__ = [
+    "BACKENDS",
+    "EXECUTORS",
+    "INTEGRATORS",
+    "LAMBDA_METHODS",
+    "MEASURES",
+    "PRECISIONS",
+    "Config",
+    "Dynamics",
+    "Histogram",
+    "LambdaSpec",
+    "LinearSpec",
+    "config_from_mapping",
+    "load_config",
+    "load_config_text",
+    "parse_mapping",
+]
+
+BACKENDS = ("cpu", "cuda", "auto")
+EXECUTORS = ("local", "dask")
+INTEGRATORS = ("euler", "rk4")
+CROSSINGS = ("auto", "grid", "interpolated")
+LAMBDA_METHODS = ("finite-difference", "pathwise", "hybrid", "orbit")
+#: km: Lambda^KM from the run (Eq. 6); linear, xi2, rw: the measures of Secs. 2.3 and 3.3
+#: (Eqs. 14, 16, 25); km_nnc: the same run with raw coupling (Sec. 3.4, Eqs. 20-22).
+MEASURES = ("km", "linear", "xi2", "rw", "km_nnc")
+LINEAR_METHODS = ("exact", "euler", "derivative")
+PRECISIONS = ("float64", "float32")
+
+#: At most this many realizations per run: block counts, realization indices (the phase
+#: generator's counter) and float64 sums of tau stay exact far below 2**53.
+MAX_REALIZATIONS = 10**15
+#: At most this many time steps per trajectory (t_max / dt): the kernels count steps in int64
+#: and store tau as steps * dt; 2**40 steps (~1e12) is far beyond any run that can finish.
+MAX_STEPS = 2**40
+
+_GRAPH_KEYS = {
+    "lollipop": ({"nodes", "path"}, set()),
+    "barbell": ({"m1"}, {"m2"}),
+    "atlas": ({"index"}, set()),
+    "networkx": ({"generator"}, {"args"}),
+    "edgelist": ({"path"}, set()),
+}
+
+
+@dataclass(frozen=True)
+class Dynamics:
+    """Model and integrator (paper Eqs. 2, 20; Sec. 3: Euler, dt = 0.001, r = 0.99)."""
+
+    coupling: str = "normalized"
+    integrator: str = "euler"
+    dt: float = 0.001
+    threshold: float = 0.99
+    t_max: float = 200.0
+    crossing: str = "auto"
+    """``grid``: tau is the first grid time with r >= threshold (the paper's); ``interpolated``:
+    the crossing inside that step (linear in R for Euler, cubic Hermite for RK4);
+    ``auto``: grid for Euler, interpolated for RK4."""
+    precision: str = "float64"
+    """Arithmetic of the integrated state: ``float64`` (every backend) or ``float32`` (backend
+    cuda only; docs/cuda.md says how much it moves tau)."""
+
+    def __post_init__(self):
+        _choice("dynamics.coupling", self.coupling, COUPLINGS)
+        _choice("dynamics.integrator", self.integrator, INTEGRATORS)
+        _choice("dynamics.crossing", self.crossing, CROSSINGS)
+        _choice("dynamics.precision", self.precision, PRECISIONS)
+        if self.integrator == "rk4" and self.crossing == "grid":
+            raise ConfigError("dynamics.crossing grid is too coarse for rk4 steps; use interpolated")
+        _positive("dynamics.dt", self.dt)
+        _positive("dynamics.t_max", self.t_max)
+        _fraction("dynamics.threshold", self.threshold)
+        if self.dt > self.t_max:
+            raise ConfigError(f"dynamics.dt ({self.dt}) must be smaller than t_max ({self.t_max})")
+        steps = self.t_max / self.dt
+        if steps > MAX_STEPS:
+            raise ConfigError(
+                f"dynamics.t_max / dynamics.dt = {steps:.3g} steps per trajectory; antisync "
+                f"integrates at most 2**40 (~{MAX_STEPS:.1e}): raise dt or lower t_max"
+            )
+
+    @property
+    def interpolate(self) -> bool:
+        return self.crossing == "interpolated" or (self.crossing == "auto" and self.integrator == "rk4")
+
+    @property
+    def max_steps(self) -> int:
+        return int(math.ceil(self.t_max / self.dt - 1e-9))
+
+
+@dataclass(frozen=True)
+class LambdaSpec:
+    """How Lambda^KM = d<F_beta>/dbeta at beta = 0 is estimated (Eqs. 6, 17).
+
+    - ``finite-difference``: the paper's ``(tau0/tau(dbeta) - 1)/dbeta`` per realization
+      (grid crossing times), one damaged trajectory per edge.
+    - ``pathwise``: ``-tau0'/tau0`` per realization from the forward sensitivities of the
+      undamaged trajectory (interpolated crossing), every edge from one trajectory.
+    - ``hybrid``: pathwise, except where ``|-tau0'/tau0| > hybrid_cut`` (trajectories near saddle
+      states): there the secant ``(tau0/tau(dbeta) - 1)/dbeta`` of interpolated times.
+    """
+
+    method: str = "finite-difference"
+    dbeta: float = 0.01
+    hybrid_cut: float = 2.0
+
+    def __post_init__(self):
+        _choice("lambda.method", self.method, LAMBDA_METHODS)
+        _fraction("lambda.dbeta", self.dbeta)
+        _positive("lambda.hybrid_cut", self.hybrid_cut)
+
+
+@dataclass(frozen=True)
+class LinearSpec:
+    """Lambda^(linear) (Eq. 14) when ``linear`` is in ``measures``.
+
+    Realizations ``0 .. realizations-1`` of the run's seed give the initial phases, so the
+    linear model starts where the Kuramoto runs start; ``method`` is ``exact`` (exact solution,
+    root finding), ``euler`` (step ``dynamics.dt``) or ``derivative`` (exact per-realization
+    derivative, no ``dbeta``), see :func:`antisync.measures.lambda_linear`.
+    """
+
+    realizations: int = 2000
+    method: str = "exact"
+
+    def __post_init__(self):
+        _integer("linear.realizations", self.realizations, 2, MAX_REALIZATIONS, "2..10**15")
+        _choice("linear.method", self.method, LINEAR_METHODS)
+
+
+@dataclass(frozen=True)
+class Histogram:
+    """2D histogram of (tau0, tau(beta)) pairs (Figs. 1c-f): ``bins`` x ``bins`` on [0, tau_max)."""
+
+    bins: int = 120
+    tau_max: float = 40.0
+    betas: tuple = (0.5,)
+    """Damages whose histograms are kept (those also in the run's ``betas``)."""
+
+    def __post_init__(self):
+        betas = self.betas if self.betas is not None else ()
+        if not isinstance(betas, list | tuple):
+            raise ConfigError(f"histogram.betas must be a list such as [0.5], got {betas!r}")
+        object.__setattr__(self, "betas", tuple(_beta("histogram.betas", b) for b in betas))
+        if isinstance(self.bins, bool) or not isinstance(self.bins, int) or not 2 <= self.bins <= 4096:
+            raise ConfigError(f"histogram.bins must be an integer in 2..4096, got {self.bins!r}")
+        _positive("histogram.tau_max", self.tau_max)
+
+
+@dataclass(frozen=True)
+class Config:
+    """A resolved antisync experiment: one graph, its damaged edges, the beta grid, the model."""
+
+    graph: dict
+    name: str = "run"
+    edges: Any = "all"
+    betas: tuple = (0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9)
+    lambda_: LambdaSpec = field(default_factory=LambdaSpec)
+    dynamics: Dynamics = field(default_factory=Dynamics)
+    measures: tuple = ("km",)
+    linear: LinearSpec = field(default_factory=LinearSpec)
+    realizations: int = 2000
+    seed: int = 1
+    block_size: Any = "auto"
+    chunk_size: Any = "auto"
+    keep_pairs: int = 10000
+    histogram: Histogram = field(default_factory=Histogram)
+    backend: str = "cpu"
+    executor: str = "local"
+    threads: Any = None
+    output: str = ""
+
+    def __post_init__(self):
+        _integer("realizations", self.realizations, 1, MAX_REALIZATIONS, "1..10**15")
+        _integer("seed", self.seed, 0, 2**63 - 1, "0..2**63-1")
+        if not isinstance(self.name, str) or not self.name:
+            raise ConfigError(f"name must be a non-empty string, got {self.name!r}")
+        if not isinstance(self.output, str) or not self.output:
+            raise ConfigError(f"output must be a file path such as results/run.h5, got {self.output!r}")
+        for b in self.betas:
+            _beta("betas", b)
+        if self.edges != "all":
+            if not isinstance(self.edges, list | tuple) or not self.edges:
+                raise ConfigError(
+                    f"edges must be 'all' or a non-empty list like [\"2->1\"], got {self.edges!r}"
+                )
+        _check_measures(self.measures, self.dynamics.coupling)
+        _choice("backend", self.backend, BACKENDS)
+        _choice("executor", self.executor, EXECUTORS)
+        if self.block_size != "auto":
+            _integer("block_size", self.block_size, 1, MAX_REALIZATIONS, "'auto' or 1..10**15")
+        if self.chunk_size != "auto":
+            _integer("chunk_size", self.chunk_size, 1, MAX_REALIZATIONS, "'auto' or 1..10**15")
+        # kept pairs are held in memory: (keep_pairs x variants) int64 arrays
+        _integer("keep_pairs", self.keep_pairs, 0, 10**7, "0..10**7")
+        if self.lambda_.method in ("pathwise", "hybrid") and self.dynamics.integrator != "euler":
+            raise ConfigError(
+                f"lambda.method {self.lambda_.method} needs dynamics.integrator euler "
+                "(the tangent is written for the Euler step); use finite-difference or orbit with rk4"
+            )
+        if self.threads is not None:
+            _integer("threads", self.threads, 1, 4096, "null or 1..4096")
+        _check_graph(self.graph)
+
+    @property
+    def resolved_block_size(self) -> int:
+        """Realizations per statistics block: about 1000 blocks, at least 100 per block."""
+        if self.block_size != "auto":
+            return int(self.block_size)
+        return max(100, -(-self.realizations // 1000))
+
+    def resolved(self) -> Config:
+        """This config with ``block_size`` fixed, as stored with results."""
+        return replace(self, block_size=self.resolved_block_size)
+
+    def to_dict(self) -> dict:
+        d = asdict(self)
+        d["lambda"] = d.pop("lambda_")
+        d["betas"] = list(self.betas)
+        d["histogram"]["betas"] = list(self.histogram.betas)
+        d["measures"] = list(self.measures)
+        if isinstance(d["edges"], tuple):
+            d["edges"] = list(d["edges"])
+        return d
+
+    def to_yaml(self) -> str:
+        return yaml.safe_dump(self.to_dict(), sort_keys=False)
+
+    def simulation_key(self) -> dict:
+        """The part of the config that determines the numbers (compared on ``--resume``)."""
+        d = self.resolved().to_dict()
+        for k in ("name", "backend", "executor", "threads", "output", "chunk_size"):
+            d.pop(k)
+        return d
+
+
+_TOP_KEYS = {
+    "name", "graph", "edges", "betas", "lambda", "dynamics", "measures", "linear", "realizations",
+    "seed", "block_size", "chunk_size", "keep_pairs", "histogram", "backend", "executor", "threads", "output",
+}
+_SECTIONS = {"lambda": LambdaSpec, "dynamics": Dynamics, "histogram": Histogram, "linear": LinearSpec}
+
+
+def load_config(path: str | Path, overrides: list[str] | None = None,
+                values: dict | None = None) -> Config:
+    """Read a YAML config file, apply ``key=value`` overrides and ``values``, validate.
+
+    Parameters
+    ----------
+    path : str or Path
+        The YAML file.
+    overrides : list of str, optional
+        ``key=value`` strings whose values are parsed as YAML (the CLI's ``--set``).
+    values : dict, optional
+        ``{dotted key: value}`` set as they are, never parsed (the CLI's typed options such as
+        ``--out``: ``--out '#a.h5'`` is the file ``#a.h5``, not a YAML comment).
+
+    Raises
+    ------
+    ConfigError
+        With a one-line message naming the file, key or value at fault.
+    """
+    path = Path(path)
+    text = read_config_text(path)
+    try:
+        return load_config_text(text, overrides, source=path, values=values)
+    except ConfigError as exc:
+        msg = str(exc)
+        raise ConfigError(msg if msg.startswith(str(path)) else f"{path}: {msg}") from None
+
+
+def read_config_text(path: Path) -> str:
+    """The text of a config file, or a one-line :class:`ConfigError` (missing, unreadable,
+    a folder, not UTF-8)."""
+    try:
+        return path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise ConfigError(f"config file {path} does not exist") from None
+    except IsADirectoryError:
+        raise ConfigError(f"config {path} is a folder; give a YAML file such as configs/lollipop6.yaml") \
+            from None
+    except UnicodeDecodeError as exc:
+        raise ConfigError(f"config file {path} is not UTF-8 text (byte {exc.start}); "
+                          "save it as UTF-8 YAML") from None
+    except OSError as exc:
+        raise ConfigError(f"cannot read config file {path}: {exc.strerror}") from None
+
+
+def load_config_text(text: str, overrides: list[str] | None = None, source: Path | None = None,
+                     values: dict | None = None) -> Config:
+    """Like :func:`load_config` for YAML text; relative paths resolve against ``source``'s folder."""
+    return _from_mapping(parse_mapping(text, overrides, values), source)
+
+
+def parse_mapping(text: str, overrides: list[str] | None = None, values: dict | None = None) -> dict:
+    """YAML text -> mapping with ``key=value`` overrides, then ``values``, applied (not yet
+    validated)."""
+    try:
+        raw = yaml.safe_load(text)
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, "problem_mark", None)
+        where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark else ""
+        problem = getattr(exc, "problem", None) or "not valid YAML"
+        raise ConfigError(f"invalid YAML{where}: {problem}") from None
+    if raw is None:
+        raw = {}
+    if not isinstance(raw, dict):
+        raise ConfigError("a config must be a YAML mapping of keys such as graph:, edges:, betas:")
+    for item in overrides or []:
+        _apply_override(raw, item)
+    for key, value in (values or {}).items():
+        _set_dotted(raw, key, value)
+    return raw
+
+
+def _apply_override(raw: dict, item: str) -> None:
+    key, sep, value = item.partition("=")
+    key = key.strip()
+    if not sep or not key or any(not p for p in key.split(".")):
+        raise ConfigError(f"--set expects key=value (e.g. realizations=50000), got {item!r}")
+    try:
+        parsed = yaml.safe_load(value) if value.strip() else None
+    except yaml.YAMLError:
+        raise ConfigError(f"--set {key}: value {value!r} is not valid YAML") from None
+    _set_dotted(raw, key, parsed)
+
+
+def _set_dotted(raw: dict, key: str, value) -> None:
+    parts = key.split(".")
+    node = raw
+    for p in parts[:-1]:
+        if not isinstance(node.get(p), dict):
+            node[p] = {}
+        node = node[p]
+    node[parts[-1]] = value
+
+
+def config_from_mapping(raw: dict, source: Path | None = None) -> Config:
+    """A validated :class:`Config` from an already parsed mapping (used by sweeps)."""
+    return _from_mapping(raw, source)
+
+
+def _from_mapping(raw: dict, source: Path | None) -> Config:
+    if "sweep" in raw:
+        raise ConfigError("this is a sweep config (it has a 'sweep:' section): run it with "
+                          "`antisync sweep`, not `antisync run`")
+    _unknown(raw, _TOP_KEYS, "")
+    if "graph" not in raw:
+        raise ConfigError("missing key 'graph' (e.g. graph: {kind: lollipop, nodes: 6, path: 3})")
+    kwargs: dict[str, Any] = {}
+    for key, value in raw.items():
+        if key in _SECTIONS:
+            if value is None:
+                value = {}
+            if not isinstance(value, dict):
+                raise ConfigError(f"'{key}' must be a mapping, got {value!r}")
+            cls = _SECTIONS[key]
+            valid = {f for f in cls.__dataclass_fields__}
+            _unknown(value, valid, f"{key}.")
+            value = {k: _number(f"{key}.{k}", v, cls.__dataclass_fields__[k].default)
+                     for k, v in value.items()}
+            kwargs["lambda_" if key == "lambda" else key] = cls(**value)
+        elif key == "betas":
+            if value is None:
+                value = []
+            if not isinstance(value, list):
+                raise ConfigError(f"betas must be a list such as [0.1, 0.5], got {value!r}")
+            kwargs["betas"] = tuple(sorted({_beta("betas", _number("betas", b, 0.0)) for b in value}))
+        elif key == "measures":
+            if value is None or value == []:
+                raise ConfigError("measures must list at least km, e.g. measures: [km, xi2]")
+            items = value if isinstance(value, list) else [value]
+            if not all(isinstance(m, str) for m in items):
+                raise ConfigError(f"measures must be names such as [km, xi2], got {value!r}")
+            kwargs["measures"] = tuple(items)
+        elif key == "graph":
+            kwargs["graph"] = _resolve_graph(value, source)
+        elif key in ("name", "output"):
+            if value is not None and not isinstance(value, str | int | float) or isinstance(value, bool):
+                raise ConfigError(f"{key} must be a string, got {value!r}")
+            kwargs[key] = "" if value is None else str(value)
+        elif key in _INTEGER_KEYS:
+            kwargs[key] = _whole(key, value)
+        else:
+            kwargs[key] = value
+    if not kwargs.get("name"):
+        kwargs["name"] = source.stem if source else _graph_name(kwargs["graph"])
+    if not kwargs.get("output"):
+        kwargs["output"] = f"results/{kwargs['name']}.h5"
+    return Config(**kwargs)
+
+
+_INTEGER_KEYS = {"realizations", "seed", "keep_pairs"}
+
+
+def _whole(key: str, value):
+    """``1e6`` (which YAML reads as a string) or ``1.0e6`` as the integer 1000000; other values
+    are left for the validators, which name what is wrong."""
+    if isinstance(value, str | float) and not isinstance(value, bool):
+        try:
+            x = float(value)
+        except ValueError:
+            return value
+        if math.isfinite(x) and x == int(x) and abs(x) <= 2**53:  # exact in float64
+            return int(x)
+    return value
+
+
+def _check_measures(measures: tuple, coupling: str) -> None:
+    """Names from :data:`MEASURES`, each once, ``km`` among them; ``km_nnc`` only beside a
+    normalized run (with raw coupling the second run would repeat the first)."""
+    for m in measures:
+        _choice("measures", m, MEASURES)
+    twice = sorted({m for m in measures if measures.count(m) > 1})
+    if twice:
+        raise ConfigError(f"measures lists {', '.join(twice)} twice")
+    if "km" not in measures:
+        raise ConfigError(
+            f"measures must include km (the Kuramoto run the others are stored beside), got "
+            f"{list(measures)}; for xi2 or rw alone call antisync.measures directly"
+        )
+    if "km_nnc" in measures and coupling != "normalized":
+        raise ConfigError(
+            "measures: km_nnc adds a raw-coupling run beside a normalized one; "
+            f"it needs dynamics.coupling: normalized, got {coupling!r}"
+        )
+
+
+def _resolve_graph(value, source: Path | None) -> dict:
+    if not isinstance(value, dict):
+        raise ConfigError(
+            f"graph must be a mapping such as {{kind: lollipop, nodes: 6, path: 3}}, got {value!r}"
+        )
+    g = dict(value)
+    if g.get("kind") == "edgelist" and "path" in g and source is not None:
+        p = Path(str(g["path"]))
+        if not p.is_absolute():
+            g["path"] = str((source.parent / p).resolve())
+    return g
+
+
+def _check_graph(g: dict) -> None:
+    kind = g.get("kind")
+    if not isinstance(kind, str) or kind not in _GRAPH_KEYS:
+        raise ConfigError(
+            f"graph.kind must be one of {', '.join(_GRAPH_KEYS)}, got {kind!r}"
+            + _suggest(str(kind), _GRAPH_KEYS)
+        )
+    required, optional = _GRAPH_KEYS[kind]
+    _unknown(g, required | optional | {"kind"}, "graph.")
+    missing = sorted(required - set(g))
+    if missing:
+        raise ConfigError(f"graph of kind {kind} needs key(s) {', '.join(missing)}")
+
+
+def _graph_name(g: dict) -> str:
+    kind = g.get("kind")
+    if kind == "lollipop":
+        return f"lollipop_{g.get('nodes')}_{g.get('path')}"
+    if kind == "atlas":
+        return f"G{g.get('index')}"
+    if kind == "networkx":
+        return str(g.get("generator"))
+    if kind == "edgelist":
+        return Path(str(g.get("path"))).stem
+    return str(kind)
+
+
+def graph_name(g: dict) -> str:
+    """A short name for a graph spec: ``G105`` for atlas graphs, ``lollipop_6_3``, ..."""
+    return _graph_name(g)
+
+
+def _unknown(mapping: dict, valid: set, prefix: str) -> None:
+    for key in mapping:
+        if key not in valid:
+            raise ConfigError(
+                f"unknown key {prefix + str(key)!r}" + _suggest(str(key), valid, prefix)
+                + f"; valid keys: {', '.join(sorted(prefix + v for v in valid))}"
+            )
+
+
+def _suggest(word: str, valid, prefix: str = "") -> str:
+    close = difflib.get_close_matches(word, [str(v) for v in valid], n=1, cutoff=0.5)
+    return f" (did you mean '{prefix}{close[0]}'?)" if close else ""
+
+
+def _choice(key: str, value, valid) -> None:
+    if value not in valid:
+        raise ConfigError(
+            f"{key} must be one of {', '.join(valid)}, got {value!r}" + _suggest(str(value), valid)
+        )
+
+
+def _positive(key: str, value) -> None:
+    if isinstance(value, bool) or not isinstance(value, int | float) or not (
+        value > 0 and math.isfinite(value)
+    ):
+        raise ConfigError(f"{key} must be a positive number, got {value!r}")
+
+
+def _fraction(key: str, value) -> None:
+    """A number strictly between 0 and 1 (thresholds, dbeta)."""
+    if isinstance(value, bool) or not isinstance(value, int | float) or not 0.0 < value < 1.0:
+        raise ConfigError(f"{key} must be in (0, 1), got {value!r}")
+
+
+def _beta(key: str, value) -> float:
+    """A damage in [0, 1) as a float."""
+    if isinstance(value, str):
+        value = _number(key, value, 0.0)
+    if isinstance(value, bool) or not isinstance(value, int | float) or not 0.0 <= value < 1.0:
+        raise ConfigError(f"{key} must lie in [0, 1) (e.g. [0.1, 0.5]), got {value!r}")
+    return float(value)
+
+
+def _integer(key: str, value, lo: int, hi: int, valid: str) -> None:
+    """An integer (not a bool, not a float such as 3.7 or 1e23) in ``lo..hi``."""
+    if isinstance(value, bool) or not isinstance(value, int) or not lo <= value <= hi:
+        raise ConfigError(f"{key} must be an integer in {valid}, got {value!r}")
+
+
+def _number(key: str, value, default):
+    """Coerce YAML ints to float where the default is a float; leave other types to validators."""
+    if isinstance(default, float) and isinstance(value, int) and not isinstance(value, bool):
+        return float(value)
+    if isinstance(default, float) and isinstance(value, str):
+        try:
+            return float(value)  # YAML reads 1e-3 (no dot) as a string
+        except ValueError:
+            raise ConfigError(f"{key} must be a number, got {value!r}") from None
+    return value

@@ -1,0 +1,311 @@
+"""Streaming statistics of tau0, tau(beta), F_beta and Lambda^KM (paper Eqs. 5, 6 and 17).
+
+Realizations are grouped into fixed-size *blocks* (block ``j`` holds realizations
+``j*B .. (j+1)*B - 1``, whatever the chunking). Each block is reduced in realization order to a
+small record of counts and sums; estimates combine block records in block order. So results
+do not depend on chunk size, thread count, backend or executor, memory does not grow with the
+number of realizations, and block means give batch-means standard errors that stay honest
+when per-realization values are heavy-tailed.
+
+A realization contributes to ``F_beta`` for variant ``v`` only when both ``tau0`` and
+``tau(beta)`` ended :attr:`~antisync.status.Status.SYNCED`; the others are counted, never
+averaged.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numba import njit
+
+from antisync.status import Status
+
+__all__ = [
+    "BLOCK_FIELDS",
+    "LAMBDA_FIELDS",
+    "TAIL_BINS",
+    "TAU0_FIELDS",
+    "Estimate",
+    "block_records",
+    "crossing_times",
+    "estimate_mean",
+    "histogram2d",
+    "lambda_block_records",
+    "summarize_variant",
+    "summarize_lambda",
+    "summarize_tau0",
+    "tail_share",
+]
+
+# per (block, variant) record: counts, then sums of d = F - 1, d^2, tau(beta), tau(beta)^2
+BLOCK_FIELDS = ("n", "n_already", "n_not_synced", "sum_d", "sum_d2", "sum_tau", "sum_tau2")
+# per block record for the undamaged network
+TAU0_FIELDS = ("n", "n_already", "n_not_synced", "sum_tau", "sum_tau2")
+# per (block, edge) record of the per-realization Lambda values of any estimator
+LAMBDA_FIELDS = ("n", "n_already", "n_not_synced", "sum", "sum2", "n_flagged")
+# log-spaced bins of |F - 1| for the tail diagnostic: 8 per decade from 1e-9 to 1e3
+TAIL_EDGES = np.logspace(-9, 3, 97)
+TAIL_BINS = TAIL_EDGES.size + 1  # plus underflow (|d| < 1e-9, including 0) and overflow
+
+_SYNCED = int(Status.SYNCED)
+_ALREADY = int(Status.ALREADY_SYNCED)
+_NOT = int(Status.NOT_SYNCED)
+
+
+@njit(cache=True)
+def _reduce_blocks(status0, t0s, status, ts, dt, block, edges, rec, rec0, tail):
+    m, n_var = status.shape
+    n_blocks = rec.shape[0]
+    for bl in range(n_blocks):
+        lo = bl * block
+        hi = min(lo + block, m)
+        for r in range(lo, hi):
+            st0 = status0[r]
+            if st0 == _SYNCED:
+                t0 = t0s[r] * dt
+                rec0[bl, 0] += 1
+                rec0[bl, 3] += t0
+                rec0[bl, 4] += t0 * t0
+            elif st0 == _ALREADY:
+                rec0[bl, 1] += 1
+            else:
+                rec0[bl, 2] += 1
+            for v in range(n_var):
+                st = status[r, v]
+                if st0 == _SYNCED and st == _SYNCED:
+                    d = t0s[r] / ts[r, v] - 1.0
+                    t = ts[r, v] * dt
+                    rec[bl, v, 0] += 1
+                    rec[bl, v, 3] += d
+                    rec[bl, v, 4] += d * d
+                    rec[bl, v, 5] += t
+                    rec[bl, v, 6] += t * t
+                    tail[v, np.searchsorted(edges, abs(d), side="right")] += 1
+                elif st0 == _NOT or st == _NOT:
+                    rec[bl, v, 2] += 1
+                else:
+                    rec[bl, v, 1] += 1
+
+
+def crossing_times(sim, interpolate: bool):
+    """Crossing times in units of dt: the grid step (paper) or ``steps - 1 + frac`` (interpolated)."""
+    if not interpolate:
+        return sim.steps0.astype(np.float64), sim.steps.astype(np.float64)
+    if sim.frac0 is None:
+        raise ValueError("interpolated crossing times need the lane driver's crossing fractions")
+    return sim.steps0 - 1.0 + sim.frac0, sim.steps - 1.0 + sim.frac
+
+
+def block_records(sim, dt: float, block: int, interpolate: bool = False):
+    """Reduce a batch that starts on a block boundary to block records.
+
+    Parameters
+    ----------
+    sim : :class:`antisync.kernels.cpu.SimResult`
+        Per-realization outcomes; its length need not be a multiple of ``block`` (the last
+        block of a run may be short).
+    dt : float
+        Time step, ``tau = steps * dt``.
+    block : int
+        Block size ``B``.
+
+    Returns
+    -------
+    rec : ndarray, shape (n_blocks, V, len(BLOCK_FIELDS))
+    rec0 : ndarray, shape (n_blocks, len(TAU0_FIELDS))
+    tail : int64 ndarray, shape (V, TAIL_BINS)
+        Counts of ``|F - 1|`` in log bins (integer, so it merges exactly).
+    """
+    m, n_var = sim.status.shape
+    n_blocks = -(-m // block)
+    rec = np.zeros((n_blocks, n_var, len(BLOCK_FIELDS)))
+    rec0 = np.zeros((n_blocks, len(TAU0_FIELDS)))
+    tail = np.zeros((n_var, TAIL_BINS), dtype=np.int64)
+    t0, t = crossing_times(sim, interpolate)
+    _reduce_blocks(sim.status0, t0, sim.status, t, dt, block, TAIL_EDGES, rec, rec0, tail)
+    return rec, rec0, tail
+
+
+@njit(cache=True)
+def _reduce_lambda(values, code, flagged, block, edges, rec, tail):
+    m, n_edges = values.shape
+    for bl in range(rec.shape[0]):
+        for r in range(bl * block, min(bl * block + block, m)):
+            for e in range(n_edges):
+                if code[r, e] == _SYNCED:
+                    x = values[r, e]
+                    rec[bl, e, 0] += 1
+                    rec[bl, e, 3] += x
+                    rec[bl, e, 4] += x * x
+                    rec[bl, e, 5] += flagged[r, e]
+                    tail[e, np.searchsorted(edges, abs(x), side="right")] += 1
+                elif code[r, e] == _ALREADY:
+                    rec[bl, e, 1] += 1
+                else:
+                    rec[bl, e, 2] += 1
+
+
+def lambda_block_records(values: np.ndarray, code: np.ndarray, flagged: np.ndarray, block: int):
+    """Block records of per-realization Lambda values (any estimator).
+
+    Parameters
+    ----------
+    values : float array (m, E)
+        Per-realization estimates of Lambda for each edge (used where ``code`` is SYNCED).
+    code : int8 array (m, E)
+        :class:`~antisync.status.Status` of the realization for that edge: SYNCED when every
+        time it needs was finite and positive.
+    flagged : bool array (m, E)
+        Realizations the hybrid estimator treated by a secant (counted).
+
+    Returns
+    -------
+    rec : ndarray (n_blocks, E, len(LAMBDA_FIELDS)); tail : int64 (E, TAIL_BINS) of ``|value|``.
+    """
+    m, n_edges = values.shape
+    rec = np.zeros((-(-m // block), n_edges, len(LAMBDA_FIELDS)))
+    tail = np.zeros((n_edges, TAIL_BINS), dtype=np.int64)
+    _reduce_lambda(values, code, flagged.astype(np.int64), block, TAIL_EDGES, rec, tail)
+    return rec, tail
+
+
+def summarize_lambda(rec_e: np.ndarray) -> dict:
+    """Lambda estimate for one edge from its block records ``(n_blocks, len(LAMBDA_FIELDS))``."""
+    b = _coarsen(rec_e)
+    return {
+        "lambda": estimate_mean(b[:, 0], b[:, 3], b[:, 4]),
+        "n": int(rec_e[:, 0].sum()),
+        "n_already": int(rec_e[:, 1].sum()),
+        "n_not_synced": int(rec_e[:, 2].sum()),
+        "n_flagged": int(rec_e[:, 5].sum()),
+    }
+
+
+def histogram2d(sim, variants: np.ndarray, dt: float, bins: int, tau_max: float,
+                interpolate: bool = False) -> np.ndarray:
+    """Counts of ``(tau0, tau(beta))`` pairs on a ``bins x bins`` grid over ``[0, tau_max)``.
+
+    Only pairs with both times SYNCED are counted; pairs beyond ``tau_max`` go to the last bin
+    (so counts always sum to the number of valid pairs). Returns int64, shape
+    ``(len(variants), bins, bins)``, indexed ``[v, i_tau0, i_tau_beta]``.
+    """
+    out = np.zeros((len(variants), bins, bins), dtype=np.int64)
+    scale = bins / (tau_max / dt)
+    t0, t = crossing_times(sim, interpolate)
+    i0 = np.minimum((t0 * scale).astype(np.int64), bins - 1)
+    for k, v in enumerate(variants):
+        ok = (sim.status0 == _SYNCED) & (sim.status[:, v] == _SYNCED)
+        i1 = np.minimum((t[ok, v] * scale).astype(np.int64), bins - 1)
+        np.add.at(out[k], (i0[ok], i1), 1)
+    return out
+
+
+@dataclass(frozen=True)
+class Estimate:
+    """A mean with a naive and a batch-means standard error.
+
+    ``se`` is the larger of the two, the one to quote; ``se_naive`` is the iid formula and
+    ``se_batch`` comes from the spread of block means (weighted by block counts).
+    """
+
+    mean: float
+    se: float
+    se_naive: float
+    se_batch: float
+    n: int
+    n_batches: int
+
+
+def estimate_mean(n: np.ndarray, s: np.ndarray, s2: np.ndarray, shift: float = 0.0) -> Estimate:
+    """Mean of a quantity from per-block counts ``n``, sums ``s`` and sums of squares ``s2``.
+
+    ``shift`` is added to the mean (used for ``F = 1 + d``); it does not change the errors.
+    Block arrays are combined in block order, so the result is deterministic.
+    """
+    n = np.asarray(n, dtype=np.float64)
+    total = float(n.sum())
+    if total == 0:
+        return Estimate(math.nan, math.nan, math.nan, math.nan, 0, 0)
+    mean = float(np.sum(s)) / total
+    if total < 2:
+        return Estimate(mean + shift, math.nan, math.nan, math.nan, int(total), 0)
+    var = max(float(np.sum(s2)) / total - mean * mean, 0.0) * total / (total - 1)
+    se_naive = math.sqrt(var / total)
+    used = n > 0
+    k = int(used.sum())
+    if k >= 2:
+        means = np.asarray(s)[used] / n[used]
+        w = n[used]
+        var_b = float(np.sum(w * (means - mean) ** 2)) / (k - 1)
+        se_batch = math.sqrt(var_b / total)
+    else:
+        se_batch = math.nan
+    se = se_naive if math.isnan(se_batch) else max(se_naive, se_batch)
+    return Estimate(mean + shift, se, se_naive, se_batch, int(total), k)
+
+
+def _coarsen(rec: np.ndarray, min_batches: int = 32, max_batches: int = 128) -> np.ndarray:
+    """Merge consecutive blocks into at most ``max_batches`` batches (never below ``min_batches``
+    when there are enough blocks): batch means need batches large enough to be near-normal."""
+    n_blocks = rec.shape[0]
+    if n_blocks <= max_batches:
+        return rec
+    group = -(-n_blocks // max(min_batches, max_batches))
+    pad = (-n_blocks) % group
+    padded = np.concatenate([rec, np.zeros((pad,) + rec.shape[1:])]) if pad else rec
+    return padded.reshape((-1, group) + rec.shape[1:]).sum(axis=1)
+
+
+def summarize_variant(rec_v: np.ndarray) -> dict:
+    """Estimates for one variant from its block records ``(n_blocks, len(BLOCK_FIELDS))``."""
+    b = _coarsen(rec_v)
+    f = estimate_mean(b[:, 0], b[:, 3], b[:, 4], shift=1.0)
+    tau = estimate_mean(b[:, 0], b[:, 5], b[:, 6])
+    return {
+        "F": f,
+        "tau": tau,
+        "n": int(rec_v[:, 0].sum()),
+        "n_already": int(rec_v[:, 1].sum()),
+        "n_not_synced": int(rec_v[:, 2].sum()),
+    }
+
+
+def summarize_tau0(rec0: np.ndarray) -> dict:
+    """``<tau0>`` and status counts from the undamaged blocks ``(n_blocks, len(TAU0_FIELDS))``."""
+    b = _coarsen(rec0)
+    return {
+        "tau0": estimate_mean(b[:, 0], b[:, 3], b[:, 4]),
+        "n": int(rec0[:, 0].sum()),
+        "n_already": int(rec0[:, 1].sum()),
+        "n_not_synced": int(rec0[:, 2].sum()),
+    }
+
+
+def tail_share(tail_counts: np.ndarray, top: float = 1e-3) -> float:
+    """Approximate share of ``sum (F-1)^2`` carried by the largest ``top`` fraction of samples.
+
+    Uses the integer log-histogram of ``|F - 1|`` (bin centres, 8 bins per decade), so it is a
+    diagnostic, good to about 30%: near 0 for light tails, approaching 1 when a handful of
+    realizations dominate the variance, in which case no standard error can be trusted.
+    """
+    counts = np.asarray(tail_counts, dtype=np.float64)
+    total = counts.sum()
+    if total == 0:
+        return math.nan
+    centres = np.concatenate([[0.0], np.sqrt(TAIL_EDGES[:-1] * TAIL_EDGES[1:]), [TAIL_EDGES[-1]]])
+    energy = counts * centres**2
+    if energy.sum() == 0:
+        return 0.0
+    # walk down from the largest values until `top` of the samples are taken
+    want = top * total
+    taken = 0.0
+    share = 0.0
+    for k in range(counts.size - 1, -1, -1):
+        if taken >= want:
+            break
+        take = min(counts[k], want - taken)
+        share += take * centres[k] ** 2
+        taken += take
+    return float(share / energy.sum())

@@ -1,0 +1,242 @@
+"""Config -> jobs -> chunks.
+
+A :class:`Job` is one graph with its damaged edges and beta grid, converted once into the flat
+arrays that every backend consumes (STYLE habit 2). Its *variants* are the damages actually
+integrated: every requested ``beta`` and the finite-difference ``dbeta`` for each edge.
+A :class:`Chunk` is a contiguous range of statistics blocks, the unit of work of executors.
+"""
+
+from __future__ import annotations
+
+import functools
+from dataclasses import dataclass
+
+import networkx as nx
+import numpy as np
+
+from antisync import coupling, graphs
+from antisync.config import Config, graph_name
+from antisync.errors import ConfigError
+
+__all__ = ["Chunk", "Job", "make_job"]
+
+
+@dataclass(frozen=True)
+class Chunk:
+    """Blocks ``first_block .. first_block + n_blocks - 1`` of a job."""
+
+    first_block: int
+    n_blocks: int
+
+    def realizations(self, block: int, total: int) -> tuple[int, int]:
+        """``(first, count)`` of the realizations this chunk covers."""
+        first = self.first_block * block
+        return first, min(self.n_blocks * block, total - first)
+
+
+@dataclass(frozen=True)
+class Job:
+    """One graph's experiment, ready for a kernel.
+
+    Attributes
+    ----------
+    name : str
+        Graph name (``G105``, ``lollipop_6_3``, ...) and HDF5 group name.
+    nodes : list
+        Node labels in matrix order.
+    omega : ndarray (N, N)
+        Undamaged weights.
+    edges : list of (label, label)
+        Damaged directed edges, ``edge_labels[i] == "a->b"``.
+    betas : tuple of float
+        Requested damages (may be empty: Lambda only).
+    variant_edge, variant_beta : ndarrays (V,)
+        Edge index and damage of each integrated variant.
+    csr : CouplingCSR
+        ``W(Omega)``; ``variant_weights[v]`` is ``W(Omega*)`` of variant ``v`` on its pattern.
+    tangent : tuple of arrays
+        ``(edge_a, edge_b, rho, mu)`` per edge for the pathwise kernel.
+    secant_weights : ndarray (E, nnz)
+        ``W(Omega*)`` at ``dbeta`` for each edge (hybrid secants).
+    orbit_weights : ndarray (2 E, nnz) or None
+        ``lambda.method: orbit``: each edge's automorphism orbit damaged by ``+dbeta`` (row
+        ``2 e``) and ``-dbeta`` (row ``2 e + 1``), see :func:`~antisync.coupling.orbit_variant_weights`.
+    orbit_sizes : ndarray (E,) or None
+        Number of directed links in each edge's orbit.
+    nnc_of : str
+        For the raw-coupling twin of a run (``km_nnc``, Sec. 3.4), the name of the normalized
+        job it pairs with; ``""`` otherwise.
+    """
+
+    config: Config
+    name: str
+    graph: nx.Graph
+    nodes: list
+    omega: np.ndarray
+    edges: list
+    edge_labels: list
+    betas: tuple
+    dbeta: float
+    variant_edge: np.ndarray
+    variant_beta: np.ndarray
+    csr: coupling.CouplingCSR
+    variant_weights: np.ndarray
+    tangent: tuple
+    secant_weights: np.ndarray
+    nnc_of: str = ""
+    orbit_weights: np.ndarray | None = None
+    orbit_sizes: np.ndarray | None = None
+
+    @property
+    def block_size(self) -> int:
+        return self.config.resolved_block_size
+
+    @property
+    def n_blocks(self) -> int:
+        return -(-self.config.realizations // self.block_size)
+
+    def variant(self, edge_index: int, beta: float) -> int:
+        """Index of the variant damaging ``edges[edge_index]`` by ``beta``."""
+        hit = np.flatnonzero((self.variant_edge == edge_index) & np.isclose(self.variant_beta, beta))
+        if hit.size == 0:
+            raise KeyError((edge_index, beta))
+        return int(hit[0])
+
+    @property
+    def hist_variants(self) -> np.ndarray:
+        """Variants whose (tau0, tau(beta)) histogram is kept: requested betas in histogram.betas."""
+        wanted = set(np.round(self.betas, 12)) & set(np.round(self.config.histogram.betas, 12))
+        keep = np.isin(np.round(self.variant_beta, 12), np.array(sorted(wanted)))
+        return np.flatnonzero(keep)
+
+    @property
+    def integrations_per_realization(self) -> int:
+        """Trajectories integrated per realization (tau0, variants, orbit differences)."""
+        extra = 0 if self.orbit_weights is None else len(self.orbit_weights)
+        return 1 + len(self.variant_edge) + extra
+
+    def chunks(self, realizations_per_chunk: int | None = None) -> list[Chunk]:
+        """Split the job into chunks of whole blocks (sizes never change the results)."""
+        if realizations_per_chunk is None:
+            # aim at ~25k integrations per chunk: a few seconds on one core
+            realizations_per_chunk = max(1, 25_000 // self.integrations_per_realization)
+        per = max(1, -(-realizations_per_chunk // self.block_size))
+        return [Chunk(b, min(per, self.n_blocks - b)) for b in range(0, self.n_blocks, per)]
+
+
+def make_job(config: Config, graph: nx.Graph | None = None, name: str | None = None) -> Job:
+    """Build the graph, resolve edges and betas, and compute all coupling arrays."""
+    if graph is None:
+        try:
+            graph = graphs.build_graph(config.graph, seed=config.seed)
+        except (KeyError, TypeError, ValueError) as exc:
+            if isinstance(exc, graphs.GraphError):
+                raise
+            raise graphs.GraphError(f"graph {config.graph}: {exc}") from None
+    nodes = graphs.node_order(graph)
+    index = {v: i for i, v in enumerate(nodes)}
+    omega = graphs.omega_matrix(graph)
+    check_step(omega, config)
+    if config.edges == "all":
+        edges = graphs.all_directed_edges(graph)
+    else:
+        edges = []
+        for text in config.edges:
+            e = graphs.parse_edge(text, graph)
+            if e in edges:
+                raise ConfigError(f"edge {text!r} is listed twice")
+            edges.append(e)
+    dbeta = config.lambda_.dbeta
+    fd = config.lambda_.method == "finite-difference"
+    grid = sorted(set(config.betas) | ({dbeta} if fd else set()))
+    variant_edge = np.repeat(np.arange(len(edges)), len(grid))
+    variant_beta = np.tile(np.array(grid, dtype=np.float64), len(edges))
+    w = coupling.coupling_matrix(omega, config.dynamics.coupling)
+    csr = coupling.to_csr(w, pattern=omega > 0)
+    damages = [
+        (index[edges[e][0]], index[edges[e][1]], float(b))
+        for e, b in zip(variant_edge, variant_beta, strict=True)
+    ]
+    vw = coupling.variant_weights(omega, csr, damages, config.dynamics.coupling)
+    edge_idx = [(index[a], index[b]) for a, b in edges]
+    secant = coupling.variant_weights(
+        omega, csr, [(a, b, float(dbeta)) for a, b in edge_idx], config.dynamics.coupling
+    )
+    return Job(
+        config=config.resolved(),
+        name=name or graph.graph.get("name") or graph_name(config.graph),
+        graph=graph,
+        nodes=nodes,
+        omega=omega,
+        edges=edges,
+        edge_labels=[graphs.edge_label(a, b) for a, b in edges],
+        betas=tuple(float(b) for b in config.betas),
+        dbeta=float(dbeta),
+        variant_edge=variant_edge,
+        variant_beta=variant_beta,
+        csr=csr,
+        variant_weights=vw,
+        tangent=coupling.tangent_coefficients(omega, edge_idx, config.dynamics.coupling),
+        secant_weights=secant,
+        **_orbit_fields(graph, nodes, omega, csr, edges, config),
+    )
+
+
+#: The real stability interval of each integrator's step for y' = -xi y: Euler is stable for
+#: dt * xi < 2, classical RK4 for dt * xi < 2.785 (the negative real axis of its region).
+STABLE_STEP = {"euler": 2.0, "rk4": 2.785}
+
+
+def check_step(omega: np.ndarray, config: Config) -> None:
+    """Refuse a ``dynamics.dt`` at which the synchronized state is unstable for the integrator.
+
+    Near synchrony the model is the linear system ``theta' = -L theta`` (Eq. 9) with ``L`` the
+    coupling's Laplacian; a step ``dt`` with ``dt * xi_max`` beyond the integrator's stability
+    interval makes that state repel, so no realization would ever synchronize (every one would
+    end NOT_SYNCED with no hint why). Raw coupling with huge weights fails here too.
+    """
+    dyn = config.dynamics
+    lap = coupling.laplacian(omega, dyn.coupling)
+    if not np.isfinite(lap).all():
+        raise ConfigError("the graph's weights overflow the coupling matrix; rescale them")
+    # L is similar to a symmetric matrix (normalized: D^-1/2 Omega D^-1/2), so eigvalsh of its
+    # symmetrized form gives its real spectrum
+    if dyn.coupling == "normalized":
+        d = np.sqrt(omega.sum(axis=1))
+        sym = np.eye(len(omega)) - omega / np.outer(d, d)
+    else:
+        sym = lap
+    xi_max = float(np.linalg.eigvalsh(sym)[-1])
+    limit = STABLE_STEP[dyn.integrator] / xi_max
+    if dyn.dt >= limit:
+        raise ConfigError(
+            f"dynamics.dt = {dyn.dt:g} is too large for this graph: {dyn.integrator} steps make the "
+            f"synchronized state unstable unless dt < {limit:.3g} ({STABLE_STEP[dyn.integrator]:g} / "
+            f"xi_max, xi_max = {xi_max:.4g} the largest Laplacian eigenvalue); the paper uses 0.001"
+        )
+
+
+@functools.lru_cache(maxsize=64)
+def _all_orbits(nodes: tuple, omega_rows: tuple) -> dict:
+    """:func:`~antisync.graphs.edge_orbits` of the weighted graph, cached: the repeats and
+    thresholds of a sweep build the same graph many times (1 s for a 20-node lollipop)."""
+    g = nx.Graph()
+    g.add_nodes_from(nodes)
+    for i, row in enumerate(omega_rows):
+        for j, w in enumerate(row):
+            if j > i and w > 0:
+                g.add_edge(nodes[i], nodes[j], weight=w)
+    return graphs.edge_orbits(g)
+
+
+def _orbit_fields(graph: nx.Graph, nodes: list, omega: np.ndarray, csr: coupling.CouplingCSR,
+                  edges: list, config: Config) -> dict:
+    """``orbit_weights`` and ``orbit_sizes`` for ``lambda.method: orbit`` (else empty)."""
+    if config.lambda_.method != "orbit":
+        return {}
+    index = {v: i for i, v in enumerate(nodes)}
+    rep = _all_orbits(tuple(nodes), tuple(map(tuple, omega)))
+    orbits = [[(index[a], index[b]) for a, b in rep if rep[a, b] == rep[e]] for e in edges]
+    weights = coupling.orbit_variant_weights(omega, csr, orbits, config.lambda_.dbeta,
+                                             config.dynamics.coupling)
+    return {"orbit_weights": weights, "orbit_sizes": np.array([len(o) for o in orbits])}

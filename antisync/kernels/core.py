@@ -1,0 +1,338 @@
+"""Step functions written once, compiled for every backend.
+
+:func:`make_kernels` takes a numba decorator (``njit`` for the CPU, ``cuda.jit(device=True)``
+for CUDA) and returns the compiled step and sync-time functions, so the mathematics of the
+integrator exists in one place (STYLE habit 3).
+
+The state is kept as ``(c_i, s_i) = (cos theta_i, sin theta_i)``. With
+``sin(theta_j - theta_i) = s_j c_i - c_j s_i`` the Kuramoto right-hand side (paper Eq. 2)
+is ``omega_i = c_i sum_j w_ij s_j - s_i sum_j w_ij c_j``, and the explicit Euler step
+``theta_i <- theta_i + dt omega_i`` is exactly a rotation of ``(c_i, s_i)`` by the angle
+``alpha_i = dt omega_i``. The rotation's ``cos``/``sin`` are Taylor polynomials, exact to
+rounding for ``|alpha| <= 0.05`` (truncation below 1e-16 relative); larger angles fall back to
+``math.cos``/``math.sin``. The order parameter ``r = |sum_j (c_j, s_j)| / N`` (Eq. 3) is then
+read off without any transcendental call. Every ``RENORM_EVERY`` steps ``(c, s)`` is projected
+back to the unit circle so rounding cannot drift.
+
+In single precision (``make_kernels(jit, np.float32)``, the CUDA backend's ``precision:
+float32``) the drift is not only random: for ``|alpha| < 2.4e-4`` the Taylor cosine rounds to
+exactly 1 in float32, so each rotation lengthens ``(c_i, s_i)`` by ``alpha^2 / 2``, ``r`` reads
+high, and over 1024 steps that made float32 cross the threshold one step early in ~12% of
+trajectories (lollipop(6,3), dt = 0.001). float32 therefore renormalizes every
+``RENORM_EVERY_FLOAT32`` steps, which removes that bias (docs/cuda.md).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from antisync.status import Status
+
+__all__ = ["RENORM_EVERY", "RENORM_EVERY_FLOAT32", "TAYLOR_MAX_ANGLE", "make_kernels"]
+
+RENORM_EVERY = 1024
+RENORM_EVERY_FLOAT32 = 64
+_SYNCED = int(Status.SYNCED)
+_ALREADY = int(Status.ALREADY_SYNCED)
+_NOT_SYNCED = int(Status.NOT_SYNCED)
+
+
+TAYLOR_MAX_ANGLE = 0.05
+
+
+def make_kernels(jit, dtype=np.float64):
+    """Compile the integrator's building blocks with ``jit``.
+
+    Parameters
+    ----------
+    jit : callable
+        A numba decorator (``njit(...)`` or ``cuda.jit(device=True)``).
+    dtype : numpy floating type, default ``np.float64``
+        Type of the state arithmetic of the one-trajectory functions (``rotation``,
+        ``euler_step``, ``renormalize``, ``order2``, ``sync_steps``): their literals are
+        constants of this type, so with ``np.float32`` (and float32 arrays, ``dt`` and
+        ``r2_target``) numba types the step in single precision instead of promoting it to
+        double. With ``np.float64`` the constants are the same doubles the literals were, so
+        results do not change. The lane, tangent and RK4 functions are for float64 only.
+
+    Returns
+    -------
+    dict
+        ``rotation(a) -> (cos a, sin a)`` (Taylor polynomials for ``|a| <= 0.05``);
+        ``euler_step(c, s, acc, indptr, indices, weights, dt) -> R`` advances one state in
+        place and returns ``R = |sum_j e^{i theta_j}|^2``;
+        ``sync_steps(c, s, acc, indptr, indices, weights, dt, r2_target, max_steps)
+        -> (status, steps)`` integrates until ``R >= r2_target``;
+        ``euler_step_lanes(c, s, acc, sum_c, sum_s, tot_c, tot_s, lw, indptr, indices, dt, r2,
+        taylor)`` advances
+        ``L`` independent states stored as ``[node, lane]`` (weights ``lw[nnz, lane]``), the
+        lane loop innermost so the compiler vectorizes across lanes; ``taylor=True`` promises
+        ``|alpha| <= 0.05`` for every node and lane (then results equal ``euler_step``'s bit
+        for bit, since the same operations run in the same order);
+        ``tangent_step_lanes(...)`` does the same step and its forward sensitivities.
+    """
+
+    # typed constants: closure values are frozen by numba with their numpy type
+    zero = dtype(0.0)
+    one = dtype(1.0)
+    half = dtype(0.5)
+    c4 = dtype(1.0 / 24.0)
+    c6 = dtype(1.0 / 720.0)
+    c8 = dtype(40320.0)
+    s3 = dtype(1.0 / 6.0)
+    s5 = dtype(1.0 / 120.0)
+    s7 = dtype(1.0 / 5040.0)
+    s9 = dtype(362880.0)
+    max_angle = dtype(TAYLOR_MAX_ANGLE)
+    renorm_every = RENORM_EVERY if dtype == np.float64 else RENORM_EVERY_FLOAT32
+
+    def taylor_rotation(a):
+        a2 = a * a
+        ca = one - a2 * (half - a2 * (c4 - a2 * (c6 - a2 / c8)))
+        sa = a * (one - a2 * (s3 - a2 * (s5 - a2 * (s7 - a2 / s9))))
+        return ca, sa
+
+    taylor_rotation = jit(taylor_rotation)
+
+    def rotation(a):
+        if abs(a) <= max_angle:
+            return taylor_rotation(a)
+        return math.cos(a), math.sin(a)
+
+    rotation = jit(rotation)
+
+    def euler_step(c, s, acc, indptr, indices, weights, dt):
+        n = c.shape[0]
+        for i in range(n):
+            sc = zero
+            ss = zero
+            for p in range(indptr[i], indptr[i + 1]):
+                j = indices[p]
+                w = weights[p]
+                sc += w * c[j]
+                ss += w * s[j]
+            # Eq. (2) in (cos, sin) form: omega_i = c_i sum_j w_ij s_j - s_i sum_j w_ij c_j
+            acc[i] = dt * (c[i] * ss - s[i] * sc)
+        sum_c = zero
+        sum_s = zero
+        for i in range(n):
+            ca, sa = rotation(acc[i])
+            ci = c[i]
+            si = s[i]
+            c[i] = ci * ca - si * sa
+            s[i] = si * ca + ci * sa
+            sum_c += c[i]
+            sum_s += s[i]
+        return sum_c * sum_c + sum_s * sum_s
+
+    euler_step = jit(euler_step)
+
+    def lane_sums(c, s, sum_c, sum_s, acc, lw, indptr, indices, dt):
+        """Coupling sums ``sum_j w_ij c_j``, ``sum_j w_ij s_j`` and rotation angles, per lane."""
+        n, lanes = c.shape
+        for i in range(n):
+            for q in range(lanes):
+                sum_c[i, q] = 0.0
+                sum_s[i, q] = 0.0
+            for p in range(indptr[i], indptr[i + 1]):
+                j = indices[p]
+                for q in range(lanes):
+                    w = lw[p, q]
+                    sum_c[i, q] += w * c[j, q]
+                    sum_s[i, q] += w * s[j, q]
+            for q in range(lanes):
+                acc[i, q] = dt * (c[i, q] * sum_s[i, q] - s[i, q] * sum_c[i, q])
+
+    lane_sums = jit(lane_sums)
+
+    def lane_rotate(c, s, acc, tot_c, tot_s, r2, taylor):
+        """Rotate every ``(c_i, s_i)`` by its angle; ``r2 = |sum_j e^{i theta_j}|^2`` per lane."""
+        n, lanes = c.shape
+        for q in range(lanes):
+            tot_c[q] = 0.0
+            tot_s[q] = 0.0
+        for i in range(n):
+            for q in range(lanes):
+                if taylor:
+                    ca, sa = taylor_rotation(acc[i, q])
+                else:
+                    ca, sa = rotation(acc[i, q])
+                ci = c[i, q]
+                si = s[i, q]
+                c[i, q] = ci * ca - si * sa
+                s[i, q] = si * ca + ci * sa
+                tot_c[q] += c[i, q]
+                tot_s[q] += s[i, q]
+        for q in range(lanes):
+            r2[q] = tot_c[q] * tot_c[q] + tot_s[q] * tot_s[q]
+
+    lane_rotate = jit(lane_rotate)
+
+    def euler_step_lanes(c, s, acc, sum_c, sum_s, tot_c, tot_s, lw, indptr, indices, dt, r2, taylor):
+        lane_sums(c, s, sum_c, sum_s, acc, lw, indptr, indices, dt)
+        lane_rotate(c, s, acc, tot_c, tot_s, r2, taylor)
+
+    euler_step_lanes = jit(euler_step_lanes)
+
+    def tangent_step_lanes(c, s, acc, sum_c, sum_s, tot_c, tot_s, lw, indptr, indices, dt, r2, taylor,
+                           u, du, cu, su, edge_a, edge_b, rho, mu, dr2):
+        """Euler step plus its tangents ``u[e] = dtheta/dbeta_e`` for damage on each edge ``e``.
+
+        The tangent of ``theta <- theta + dt f(theta, W(beta))`` is
+        ``u <- u + dt (J u + df/dbeta)``, with ``(J u)_i = sum_j w_ij cos(theta_j - theta_i)
+        (u_j - u_i)`` and, for damage on ``a -> b``, ``df_a/dbeta = rho omega_a + mu
+        sin(theta_b - theta_a)`` (``dw_aj/dbeta = rho w_aj + mu [j = b]``; see
+        :func:`antisync.coupling.coupling_derivative`). Afterwards
+        ``dr2[e] = d|sum_j e^{i theta_j}|^2 / dbeta_e``.
+        """
+        n, lanes = c.shape
+        lane_sums(c, s, sum_c, sum_s, acc, lw, indptr, indices, dt)
+        for e in range(u.shape[0]):
+            for j in range(n):
+                for q in range(lanes):
+                    cu[j, q] = c[j, q] * u[e, j, q]
+                    su[j, q] = s[j, q] * u[e, j, q]
+            for i in range(n):
+                for q in range(lanes):
+                    du[i, q] = 0.0
+                for p in range(indptr[i], indptr[i + 1]):
+                    j = indices[p]
+                    for q in range(lanes):
+                        du[i, q] += lw[p, q] * (c[i, q] * cu[j, q] + s[i, q] * su[j, q])
+                for q in range(lanes):
+                    diag = c[i, q] * sum_c[i, q] + s[i, q] * sum_s[i, q]
+                    du[i, q] = dt * (du[i, q] - u[e, i, q] * diag)
+            a = edge_a[e]
+            b = edge_b[e]
+            for q in range(lanes):
+                sin_ba = s[b, q] * c[a, q] - c[b, q] * s[a, q]
+                du[a, q] += rho[e] * acc[a, q] + dt * mu[e] * sin_ba
+            for i in range(n):
+                for q in range(lanes):
+                    u[e, i, q] += du[i, q]
+        lane_rotate(c, s, acc, tot_c, tot_s, r2, taylor)
+        for e in range(u.shape[0]):
+            for q in range(lanes):
+                dr2[e, q] = 0.0
+            for i in range(n):
+                for q in range(lanes):
+                    dr2[e, q] += 2.0 * (tot_s[q] * c[i, q] - tot_c[q] * s[i, q]) * u[e, i, q]
+
+    tangent_step_lanes = jit(tangent_step_lanes)
+
+    def lane_velocity(c, s, dc, ds, dtot, omega, sum_c, sum_s, lw, indptr, indices):
+        """``(dc, ds) = (-s omega, c omega)`` per node and ``dR/dt`` per lane (RK4 stages)."""
+        n, lanes = c.shape
+        lane_sums(c, s, sum_c, sum_s, omega, lw, indptr, indices, 1.0)
+        for q in range(lanes):
+            dtot[0, q] = 0.0  # d(sum c)/dt
+            dtot[1, q] = 0.0  # d(sum s)/dt
+            dtot[2, q] = 0.0  # sum c
+            dtot[3, q] = 0.0  # sum s
+        for i in range(n):
+            for q in range(lanes):
+                dc[i, q] = -s[i, q] * omega[i, q]
+                ds[i, q] = c[i, q] * omega[i, q]
+                dtot[0, q] += dc[i, q]
+                dtot[1, q] += ds[i, q]
+                dtot[2, q] += c[i, q]
+                dtot[3, q] += s[i, q]
+
+    lane_velocity = jit(lane_velocity)
+
+    def rk4_step_lanes(c, s, k, yc, ys, dtot, omega, sum_c, sum_s, lw, indptr, indices, dt, r2, dr2):
+        """Classical RK4 on ``dc/dt = -s omega, ds/dt = c omega`` (Eq. 2 in (cos, sin) form).
+
+        ``k[0], k[1]`` must hold the velocity at the current state on entry (stage 1); on exit
+        they hold it at the new state, so each step costs four right-hand sides. The state is
+        projected back to the unit circle after every step. ``r2`` and ``dr2 = dR/dt`` are
+        returned per lane for the Hermite crossing.
+        """
+        n, lanes = c.shape
+        for stage in range(1, 4):
+            h = 0.5 * dt if stage < 3 else dt
+            src = 2 * (stage - 1)
+            for i in range(n):
+                for q in range(lanes):
+                    yc[i, q] = c[i, q] + h * k[src, i, q]
+                    ys[i, q] = s[i, q] + h * k[src + 1, i, q]
+            lane_velocity(yc, ys, k[2 * stage], k[2 * stage + 1], dtot, omega, sum_c, sum_s, lw,
+                          indptr, indices)
+        for i in range(n):
+            for q in range(lanes):
+                cn = c[i, q] + dt / 6.0 * (k[0, i, q] + 2.0 * k[2, i, q] + 2.0 * k[4, i, q] + k[6, i, q])
+                sn = s[i, q] + dt / 6.0 * (k[1, i, q] + 2.0 * k[3, i, q] + 2.0 * k[5, i, q] + k[7, i, q])
+                inv = 1.0 / math.sqrt(cn * cn + sn * sn)
+                c[i, q] = cn * inv
+                s[i, q] = sn * inv
+        lane_velocity(c, s, k[0], k[1], dtot, omega, sum_c, sum_s, lw, indptr, indices)
+        for q in range(lanes):
+            r2[q] = dtot[2, q] * dtot[2, q] + dtot[3, q] * dtot[3, q]
+            dr2[q] = 2.0 * (dtot[2, q] * dtot[0, q] + dtot[3, q] * dtot[1, q])
+
+    rk4_step_lanes = jit(rk4_step_lanes)
+
+    def hermite_crossing(r0, d0, r1, d1, dt, target):
+        """Fraction ``x`` in (0, 1] of a step where the cubic Hermite interpolant of ``R``
+        (values ``r0, r1``, time derivatives ``d0, d1``) first reaches ``target``
+        (``r0 < target <= r1``), by bisection to rounding."""
+        lo = 0.0
+        hi = 1.0
+        for _ in range(60):
+            x = 0.5 * (lo + hi)
+            x2 = x * x
+            x3 = x2 * x
+            p = ((2 * x3 - 3 * x2 + 1) * r0 + (x3 - 2 * x2 + x) * dt * d0
+                 + (-2 * x3 + 3 * x2) * r1 + (x3 - x2) * dt * d1)
+            if p >= target:
+                hi = x
+            else:
+                lo = x
+        return hi
+
+    hermite_crossing = jit(hermite_crossing)
+
+    def renormalize(c, s):
+        for i in range(c.shape[0]):
+            inv = one / math.sqrt(c[i] * c[i] + s[i] * s[i])
+            c[i] *= inv
+            s[i] *= inv
+
+    renormalize = jit(renormalize)
+
+    def order2(c, s):
+        sum_c = zero
+        sum_s = zero
+        for i in range(c.shape[0]):
+            sum_c += c[i]
+            sum_s += s[i]
+        return sum_c * sum_c + sum_s * sum_s
+
+    order2 = jit(order2)
+
+    def sync_steps(c, s, acc, indptr, indices, weights, dt, r2_target, max_steps):
+        if order2(c, s) >= r2_target:
+            return _ALREADY, 0
+        for step in range(1, max_steps + 1):
+            r2 = euler_step(c, s, acc, indptr, indices, weights, dt)
+            if r2 >= r2_target:
+                return _SYNCED, step
+            if step % renorm_every == 0:
+                renormalize(c, s)
+        return _NOT_SYNCED, max_steps
+
+    sync_steps = jit(sync_steps)
+    return {
+        "rotation": rotation,
+        "euler_step": euler_step,
+        "euler_step_lanes": euler_step_lanes,
+        "tangent_step_lanes": tangent_step_lanes,
+        "rk4_step_lanes": rk4_step_lanes,
+        "lane_velocity": lane_velocity,
+        "hermite_crossing": hermite_crossing,
+        "sync_steps": sync_steps,
+        "order2": order2,
+        "renormalize": renormalize,
+    }

@@ -1,0 +1,492 @@
+"""CPU backend: numba batch drivers around the shared step functions of :mod:`.core`.
+
+Layers (as in stumpy): the step functions of :mod:`antisync.kernels.core` advance a state;
+the private drivers here run batches of realizations in parallel threads; :func:`simulate` and
+:func:`simulate_pathwise` are the public, validated entry points.
+
+Two drivers give identical results, bit for bit:
+
+- ``_integrate_batch``: one trajectory at a time per thread (the plain reference path,
+  the same loop structure as the CUDA kernel);
+- ``_integrate_lanes`` (default): each thread steps ``LANES`` trajectories together in a
+  ``[node, lane]`` layout so the compiler vectorizes across lanes; a finished lane is refilled
+  with the next (realization, variant) item of the thread's queue.
+
+With tangents switched on, the lane driver integrates the undamaged network with forward
+sensitivities for every damaged edge at once (the tangent of the Euler step, exact for the
+discretized dynamics): the pathwise estimator.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numba
+import numpy as np
+from numba import njit, prange
+
+from antisync.kernels.core import RENORM_EVERY, TAYLOR_MAX_ANGLE, make_kernels
+from antisync.phases import phase
+from antisync.status import Status
+
+__all__ = ["LANES", "PathwiseResult", "SimResult", "simulate", "simulate_pathwise"]
+
+_K = make_kernels(lambda f: njit(f, inline="always", cache=True))
+_sync_steps = _K["sync_steps"]
+_step_lanes = _K["euler_step_lanes"]
+_tangent_lanes = _K["tangent_step_lanes"]
+_rk4_lanes = _K["rk4_step_lanes"]
+_lane_velocity = _K["lane_velocity"]
+_hermite = _K["hermite_crossing"]
+
+LANES = 32
+"""Trajectories stepped together per thread (the inner width of the ``[node, lane]`` layout)."""
+_SYNCED = int(Status.SYNCED)
+_ALREADY = int(Status.ALREADY_SYNCED)
+_NOT_SYNCED = int(Status.NOT_SYNCED)
+
+
+@njit(parallel=True, cache=True)
+def _integrate_batch(
+    ks, indptr, indices, base_w, var_w, var_is_base, dt, r2_target, max_steps, seed,
+    status0, steps0, status, steps,
+):
+    m = status0.shape[0]
+    n = indptr.shape[0] - 1
+    n_var = var_w.shape[0]
+    for r in prange(m):
+        theta = np.empty(n)
+        c = np.empty(n)
+        s = np.empty(n)
+        acc = np.empty(n)
+        for i in range(n):
+            theta[i] = phase(seed, ks[r], i)
+            c[i] = np.cos(theta[i])
+            s[i] = np.sin(theta[i])
+        st, k = _sync_steps(c, s, acc, indptr, indices, base_w, dt, r2_target, max_steps)
+        status0[r] = st
+        steps0[r] = k
+        for v in range(n_var):
+            if var_is_base[v]:
+                # this damage leaves W unchanged (e.g. a link leaving a degree-1 node)
+                status[r, v] = st
+                steps[r, v] = k
+                continue
+            for i in range(n):
+                c[i] = np.cos(theta[i])
+                s[i] = np.sin(theta[i])
+            st_v, k_v = _sync_steps(c, s, acc, indptr, indices, var_w[v], dt, r2_target, max_steps)
+            status[r, v] = st_v
+            steps[r, v] = k_v
+
+
+@njit(inline="always")
+def _next_item(r, v, r_hi, var_is_base):
+    """Advance the work cursor (realization r, variant v; v = -1 is the undamaged network),
+    skipping variants whose weights equal the base (their result is copied afterwards)."""
+    n_var = var_is_base.shape[0]
+    while True:
+        v += 1
+        if v == n_var:
+            v = -1
+            r += 1
+        if r >= r_hi or v < 0 or not var_is_base[v]:
+            return r, v
+
+
+@njit(inline="always")
+def _start_state(seed, k, ci, si, r2_target):
+    """Initial (cos, sin) of realization k; returns True when r(0) already reaches the threshold."""
+    tot_c = 0.0
+    tot_s = 0.0
+    for i in range(ci.shape[0]):
+        th = phase(seed, k, i)
+        ci[i] = np.cos(th)
+        si[i] = np.sin(th)
+        tot_c += ci[i]
+        tot_s += si[i]
+    return tot_c * tot_c + tot_s * tot_s >= r2_target
+
+
+@njit(inline="always")
+def _load_lane(q, qr, qv, r_hi, seed, ks, base_w, var_w, var_is_base, r2_target, c, s, lw,
+               ci, si, lane_r, lane_v, lane_k, status0, steps0, frac0, status, steps, frac):
+    """Put the next queued item that needs integrating into lane ``q``.
+
+    Items already synchronized at t = 0 are recorded on the spot. Returns the advanced cursor
+    and 1 if the lane was filled, 0 if the queue is empty.
+    """
+    n = c.shape[0]
+    while qr < r_hi:
+        r, v = qr, qv
+        qr, qv = _next_item(qr, qv, r_hi, var_is_base)
+        if _start_state(seed, ks[r], ci, si, r2_target):
+            if v < 0:
+                status0[r] = _ALREADY
+                steps0[r] = 0
+                frac0[r] = 0.0
+            else:
+                status[r, v] = _ALREADY
+                steps[r, v] = 0
+                frac[r, v] = 0.0
+            continue
+        for i in range(n):
+            c[i, q] = ci[i]
+            s[i, q] = si[i]
+        for p in range(lw.shape[0]):
+            lw[p, q] = base_w[p] if v < 0 else var_w[v, p]
+        lane_r[q] = r
+        lane_v[q] = v
+        lane_k[q] = 0
+        return qr, qv, 1
+    return qr, qv, 0
+
+
+@njit(inline="always")
+def _renormalize_lane(c, s, q):
+    for i in range(c.shape[0]):
+        inv = 1.0 / np.sqrt(c[i, q] * c[i, q] + s[i, q] * s[i, q])
+        c[i, q] *= inv
+        s[i, q] *= inv
+
+
+@njit(inline="always")
+def _lane_initial(c, s, kv, dtot, acc, sum_c, sum_s, lw, indptr, indices, rk4, q, r2, dr2, u, dr2t):
+    """Order parameter (and, for RK4, stage-1 velocity) of a freshly loaded lane ``q``."""
+    if rk4:
+        # other lanes' velocities are recomputed from their unchanged states: no change for them
+        _lane_velocity(c, s, kv[0], kv[1], dtot, acc, sum_c, sum_s, lw, indptr, indices)
+        r2[q] = dtot[2, q] ** 2 + dtot[3, q] ** 2
+        dr2[q] = 2.0 * (dtot[2, q] * dtot[0, q] + dtot[3, q] * dtot[1, q])
+    else:
+        r2[q] = c[:, q].sum() ** 2 + s[:, q].sum() ** 2
+    for e in range(u.shape[0]):
+        dr2t[e, q] = 0.0
+        for i in range(u.shape[1]):
+            u[e, i, q] = 0.0
+
+
+@njit(parallel=True, cache=True)
+def _integrate_lanes(
+    ks, indptr, indices, base_w, var_w, var_is_base, dt, r2_target, max_steps, seed, taylor,
+    rk4, lanes, n_groups, status0, steps0, frac0, status, steps, frac,
+    edge_a, edge_b, rho, mu, dtau,
+):
+    """Lanes of trajectories with refill. With ``edge_a`` non-empty (and no variants) every
+    trajectory also carries forward sensitivities and ``dtau[r, e]`` receives d tau0/d beta_e."""
+    m = status0.shape[0]
+    n = indptr.shape[0] - 1
+    nnz = base_w.shape[0]
+    n_var = var_w.shape[0]
+    n_edges = edge_a.shape[0]
+    tangents = n_edges > 0
+    per = (m + n_groups - 1) // n_groups
+    for group in prange(n_groups):
+        r_lo = group * per
+        r_hi = min(m, r_lo + per)
+        if r_lo >= r_hi:
+            continue
+        c = np.empty((n, lanes))
+        s = np.empty((n, lanes))
+        acc = np.empty((n, lanes))
+        sum_c = np.empty((n, lanes))
+        sum_s = np.empty((n, lanes))
+        lw = np.empty((nnz, lanes))
+        tot_c = np.empty(lanes)
+        tot_s = np.empty(lanes)
+        r2 = np.zeros(lanes)
+        r2_prev = np.zeros(lanes)
+        dr2 = np.zeros(lanes)
+        dr2_prev = np.zeros(lanes)
+        # RK4 scratch: stage velocities kv[2 * stage + (0 for c, 1 for s)], stage state, sums
+        kv = np.zeros((8 if rk4 else 2, n, lanes))
+        yc = np.empty((n, lanes))
+        ys = np.empty((n, lanes))
+        dtot = np.zeros((4, lanes))
+        # tangent scratch: u[e] = d theta / d beta_e, and d R / d beta_e now and one step back
+        u = np.zeros((n_edges, n, lanes))
+        du = np.empty((n, lanes))
+        cu = np.empty((n, lanes))
+        su = np.empty((n, lanes))
+        dr2t = np.zeros((n_edges, lanes))
+        dr2t_prev = np.zeros((n_edges, lanes))
+        lane_r = np.full(lanes, -1, dtype=np.int64)
+        lane_v = np.zeros(lanes, dtype=np.int64)
+        lane_k = np.zeros(lanes, dtype=np.int64)
+        ci = np.empty(n)
+        si = np.empty(n)
+        qr, qv = r_lo, -1
+        active = 0
+        for q in range(lanes):
+            qr, qv, filled = _load_lane(q, qr, qv, r_hi, seed, ks, base_w, var_w, var_is_base,
+                                        r2_target, c, s, lw, ci, si, lane_r, lane_v, lane_k,
+                                        status0, steps0, frac0, status, steps, frac)
+            active += filled
+            if filled:
+                _lane_initial(c, s, kv, dtot, acc, sum_c, sum_s, lw, indptr, indices, rk4, q, r2, dr2,
+                              u, dr2t)
+        while active > 0:
+            for q in range(lanes):
+                r2_prev[q] = r2[q]
+                dr2_prev[q] = dr2[q]
+                for e in range(n_edges):
+                    dr2t_prev[e, q] = dr2t[e, q]
+            if rk4:
+                _rk4_lanes(c, s, kv, yc, ys, dtot, acc, sum_c, sum_s, lw, indptr, indices, dt, r2, dr2)
+            elif tangents:
+                _tangent_lanes(c, s, acc, sum_c, sum_s, tot_c, tot_s, lw, indptr, indices, dt, r2,
+                               taylor, u, du, cu, su, edge_a, edge_b, rho, mu, dr2t)
+            else:
+                _step_lanes(c, s, acc, sum_c, sum_s, tot_c, tot_s, lw, indptr, indices, dt, r2, taylor)
+            for q in range(lanes):
+                if lane_r[q] < 0:
+                    continue
+                lane_k[q] += 1
+                k = lane_k[q]
+                r = lane_r[q]
+                if r2[q] >= r2_target:
+                    st = _SYNCED
+                    span = r2[q] - r2_prev[q]
+                    if rk4:
+                        x = _hermite(r2_prev[q], dr2_prev[q], r2[q], dr2[q], dt, r2_target)
+                    else:
+                        # where inside the last step a straight line through R crosses the target
+                        x = (r2_target - r2_prev[q]) / span
+                    # tau = dt (k - 1 + x), x linear in R between the two steps:
+                    # dx/dbeta = -((1 - x) dR_{k-1} + x dR_k) / (R_k - R_{k-1})
+                    for e in range(n_edges):
+                        dtau[r, e] = -dt * ((1.0 - x) * dr2t_prev[e, q] + x * dr2t[e, q]) / span
+                elif k >= max_steps:
+                    st = _NOT_SYNCED
+                    x = 0.0
+                    for e in range(n_edges):
+                        dtau[r, e] = 0.0
+                else:
+                    if not rk4 and k % RENORM_EVERY == 0:
+                        _renormalize_lane(c, s, q)
+                    continue
+                v = lane_v[q]
+                if v < 0:
+                    status0[r] = st
+                    steps0[r] = k
+                    frac0[r] = x
+                else:
+                    status[r, v] = st
+                    steps[r, v] = k
+                    frac[r, v] = x
+                lane_r[q] = -1
+                active -= 1
+                qr, qv, filled = _load_lane(q, qr, qv, r_hi, seed, ks, base_w, var_w, var_is_base,
+                                            r2_target, c, s, lw, ci, si, lane_r, lane_v, lane_k,
+                                            status0, steps0, frac0, status, steps, frac)
+                active += filled
+                if filled:
+                    _lane_initial(c, s, kv, dtot, acc, sum_c, sum_s, lw, indptr, indices, rk4, q, r2,
+                                  dr2, u, dr2t)
+        for r in range(r_lo, r_hi):
+            # variants that leave W unchanged share the undamaged result
+            for v in range(n_var):
+                if var_is_base[v]:
+                    status[r, v] = status0[r]
+                    steps[r, v] = steps0[r]
+                    frac[r, v] = frac0[r]
+            if status0[r] == _ALREADY:
+                for e in range(n_edges):
+                    dtau[r, e] = 0.0
+
+
+@dataclass(frozen=True)
+class SimResult:
+    """Per-realization outcome of a batch (integration steps; ``tau = steps * dt``).
+
+    Attributes
+    ----------
+    status0, steps0 : arrays, shape (m,)
+        :class:`~antisync.status.Status` code and steps of the undamaged network.
+    status, steps : arrays, shape (m, V)
+        The same for each damage variant ``v``.
+    frac0, frac : arrays or None
+        Where inside the crossing step the threshold is met, ``x`` in ``(0, 1]``, from a
+        straight line through ``R = |sum_j e^{i theta_j}|^2`` at the two grid points: the
+        interpolated crossing time is ``(steps - 1 + x) dt`` (None from the plain driver).
+    """
+
+    status0: np.ndarray
+    steps0: np.ndarray
+    status: np.ndarray
+    steps: np.ndarray
+    frac0: np.ndarray | None = None
+    frac: np.ndarray | None = None
+
+
+@dataclass(frozen=True)
+class PathwiseResult:
+    """Undamaged trajectories with their sensitivities.
+
+    Attributes
+    ----------
+    status0, steps0, frac0 : arrays, shape (m,)
+        As in :class:`SimResult`; the interpolated ``tau0 = (steps0 - 1 + frac0) dt``.
+    dtau : array, shape (m, E)
+        ``d tau0 / d beta_e`` at ``beta = 0`` for damage on edge ``e`` (0 unless SYNCED).
+    """
+
+    status0: np.ndarray
+    steps0: np.ndarray
+    frac0: np.ndarray
+    dtau: np.ndarray
+
+
+def _row_sum_bound(indptr, base_w, var_w) -> float:
+    """Largest sum_j |w_ij| over rows of the base and every variant (bounds |omega_i|)."""
+    rows = np.repeat(np.arange(indptr.size - 1), np.diff(indptr))
+    best = 0.0
+    for w in (base_w, *var_w):
+        best = max(best, float(np.bincount(rows, np.abs(w), minlength=indptr.size - 1).max()))
+    return best
+
+
+def _realization_ids(first: int, count: int, realizations) -> np.ndarray:
+    if realizations is not None:
+        ks = np.asarray(realizations, dtype=np.uint64)
+        if ks.ndim != 1:
+            raise ValueError("realizations must be a 1-D array of realization indices")
+        return ks
+    if first < 0 or count < 0:
+        raise ValueError("first and count must be non-negative")
+    return np.arange(first, first + count, dtype=np.uint64)
+
+
+class _Threads:
+    """Temporarily set numba's thread count (results never depend on it)."""
+
+    def __init__(self, threads):
+        self.threads = threads
+
+    def __enter__(self):
+        self.previous = numba.get_num_threads()
+        if self.threads is not None:
+            numba.set_num_threads(max(1, min(int(self.threads), numba.config.NUMBA_NUM_THREADS)))
+        return 4 * numba.get_num_threads()
+
+    def __exit__(self, *exc):
+        numba.set_num_threads(self.previous)
+
+
+def simulate(
+    seed: int,
+    first: int,
+    count: int,
+    indptr: np.ndarray,
+    indices: np.ndarray,
+    base_weights: np.ndarray,
+    variant_weights: np.ndarray,
+    *,
+    dt: float,
+    threshold: float,
+    max_steps: int,
+    threads: int | None = None,
+    lanes: int = LANES,
+    realizations: np.ndarray | None = None,
+    integrator: str = "euler",
+) -> SimResult:
+    """Integrate realizations ``first .. first+count-1`` for the base network and every variant.
+
+    Parameters
+    ----------
+    seed, first, count : int
+        Realization ``k`` starts from :func:`antisync.phases.phase` ``(seed, k, node)``.
+    indptr, indices, base_weights : arrays
+        CSR form of ``W(Omega)`` (see :class:`antisync.coupling.CouplingCSR`).
+    variant_weights : array, shape (V, nnz)
+        CSR weights of each damaged ``W(Omega*)`` on the same pattern.
+    dt, threshold, max_steps
+        Euler step, order-parameter threshold ``r`` and the step cap (``t_max / dt``).
+    threads : int, optional
+        Numba threads for this call (results do not depend on it).
+    lanes : int
+        Trajectories stepped together per thread; ``0`` selects the plain one-trajectory-at-a-
+        time driver. Results are identical either way (same operations in the same order).
+    realizations : array of int, optional
+        Explicit realization indices instead of ``first .. first+count-1``.
+    integrator : {"euler", "rk4"}
+        Explicit Euler (the paper's) or classical RK4 (lane driver only; crossing times by
+        cubic Hermite interpolation, see ``frac``).
+    """
+    if integrator not in ("euler", "rk4"):
+        raise ValueError(f"integrator must be 'euler' or 'rk4', got {integrator!r}")
+    if integrator == "rk4" and not lanes:
+        raise ValueError("the rk4 integrator runs in the lane driver (lanes >= 1)")
+    ks = _realization_ids(first, count, realizations)
+    n = indptr.size - 1
+    m = ks.size
+    base_weights = np.ascontiguousarray(base_weights, dtype=np.float64)
+    var_w = np.ascontiguousarray(variant_weights, dtype=np.float64).reshape(-1, base_weights.size)
+    var_is_base = np.array([np.array_equal(w, base_weights) for w in var_w], dtype=np.bool_)
+    status0 = np.empty(m, dtype=np.int8)
+    steps0 = np.empty(m, dtype=np.int64)
+    status = np.empty((m, var_w.shape[0]), dtype=np.int8)
+    steps = np.empty((m, var_w.shape[0]), dtype=np.int64)
+    r2_target = (threshold * n) ** 2
+    args = (ks, indptr.astype(np.int64), indices.astype(np.int64), base_weights, var_w, var_is_base,
+            float(dt), r2_target, int(max_steps), np.uint64(seed))
+    with _Threads(threads) as groups:
+        if not lanes:
+            _integrate_batch(*args, status0, steps0, status, steps)
+            return SimResult(status0, steps0, status, steps)
+        frac0 = np.empty(m)
+        frac = np.empty((m, var_w.shape[0]))
+        # |alpha_i| = dt |omega_i| <= dt sum_j |w_ij|: then the Taylor rotation is always valid
+        taylor = float(dt) * _row_sum_bound(indptr, base_weights, var_w) <= TAYLOR_MAX_ANGLE
+        no_edges = np.zeros(0, dtype=np.int64)
+        _integrate_lanes(*args, taylor, integrator == "rk4", int(lanes), groups, status0, steps0, frac0,
+                         status, steps, frac, no_edges, no_edges, np.zeros(0), np.zeros(0),
+                         np.empty((m, 0)))
+    return SimResult(status0, steps0, status, steps, frac0, frac)
+
+
+def simulate_pathwise(
+    seed: int,
+    first: int,
+    count: int,
+    indptr: np.ndarray,
+    indices: np.ndarray,
+    base_weights: np.ndarray,
+    edge_a: np.ndarray,
+    edge_b: np.ndarray,
+    rho: np.ndarray,
+    mu: np.ndarray,
+    *,
+    dt: float,
+    threshold: float,
+    max_steps: int,
+    threads: int | None = None,
+    lanes: int = LANES,
+    realizations: np.ndarray | None = None,
+) -> PathwiseResult:
+    """Undamaged trajectories and ``d tau0 / d beta_e`` for damage on every edge ``e`` at once.
+
+    Damage on edge ``e = a -> b`` changes row ``a`` of ``W`` as
+    ``dw_aj/dbeta = rho[e] w_aj + mu[e] [j = b]`` (see
+    :func:`antisync.coupling.tangent_coefficients`).
+    """
+    ks = _realization_ids(first, count, realizations)
+    n = indptr.size - 1
+    m = ks.size
+    base_weights = np.ascontiguousarray(base_weights, dtype=np.float64)
+    status0 = np.empty(m, dtype=np.int8)
+    steps0 = np.empty(m, dtype=np.int64)
+    frac0 = np.empty(m)
+    dtau = np.empty((m, len(edge_a)))
+    taylor = float(dt) * _row_sum_bound(indptr, base_weights, []) <= TAYLOR_MAX_ANGLE
+    no_var = np.empty((0, base_weights.size))
+    with _Threads(threads) as groups:
+        _integrate_lanes(
+            ks, indptr.astype(np.int64), indices.astype(np.int64), base_weights, no_var,
+            np.zeros(0, dtype=np.bool_), float(dt), (threshold * n) ** 2, int(max_steps),
+            np.uint64(seed), taylor, False, int(lanes), groups, status0, steps0, frac0,
+            np.empty((m, 0), dtype=np.int8), np.empty((m, 0), dtype=np.int64), np.empty((m, 0)),
+            np.asarray(edge_a, dtype=np.int64), np.asarray(edge_b, dtype=np.int64),
+            np.asarray(rho, dtype=np.float64), np.asarray(mu, dtype=np.float64), dtau,
+        )
+    return PathwiseResult(status0, steps0, frac0, dtau)

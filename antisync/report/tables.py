@@ -1,0 +1,177 @@
+"""Summary records as an aligned table, JSON or CSV."""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+
+__all__ = ["fmt_pm", "format_records", "format_sweep", "format_table1"]
+
+_TABLE_COLUMNS = [
+    ("graph", "graph", "{}"), ("edge", "edge", "{}"), ("beta", "beta", "{:.3g}"),
+    ("F_mean", "<F>", "{:.4f}"), ("F_se", "se", "{:.4f}"),
+    ("lambda_km", "Lambda_KM", "{:+.4f}"), ("lambda_km_se", "se", "{:.4f}"),
+    ("tau0_mean", "<tau0>", "{:.4f}"), ("tau0_se", "se", "{:.4f}"),
+    ("n", "n", "{:,}"), ("n_excluded", "r0>=r", "{}"), ("n_not_synced", "unsynced", "{}"),
+]
+# shown only when some record has them (measures: linear, xi2, rw, km_nnc)
+_MEASURE_COLUMNS = [
+    ("lambda_linear", "Lambda_lin", "{:+.4f}"), ("lambda_linear_se", "se", "{:.4f}"),
+    ("lambda_xi2", "Lambda_xi2", "{:+.4f}"), ("lambda_rw", "Lambda_RW", "{:+.4f}"),
+    ("lambda_km_nnc", "Lambda_NNC", "{:+.4f}"), ("lambda_km_nnc_se", "se", "{:.4f}"),
+]
+
+
+def format_records(records: list[dict], fmt: str = "table") -> str:
+    """Render summary records; ``fmt`` is ``table``, ``json`` or ``csv``."""
+    if fmt == "json":
+        return json.dumps(records, indent=2)
+    if fmt == "csv":
+        buf = io.StringIO()
+        if records:
+            writer = csv.DictWriter(buf, fieldnames=list(records[0]))
+            writer.writeheader()
+            writer.writerows(records)
+        return buf.getvalue().rstrip("\n")
+    columns = _TABLE_COLUMNS + [c for c in _MEASURE_COLUMNS
+                                if any(r.get(c[0]) is not None for r in records)]
+    rows = [[h for _, h, _ in columns]]
+    for r in records:
+        rows.append(["-" if r.get(k) is None else f.format(r[k]) for k, _, f in columns])
+    widths = [max(len(row[i]) for row in rows) for i in range(len(rows[0]))]
+    lines = ["  ".join(c.rjust(w) for c, w in zip(row, widths, strict=True)) for row in rows]
+    warnings = sorted({(r["edge"], r["lambda_km_warning"]) for r in records if r.get("lambda_km_warning")})
+    lines += [f"warning: Lambda_KM of {e}: {w}" for e, w in warnings]
+    lines += [f"warning: {w}" for w in sync_warnings(records)]
+    for graph in dict.fromkeys(r["graph"] for r in records if r.get("complete") is False):
+        r = next(r for r in records if r["graph"] == graph)
+        lines.append(f"warning: {graph} is not complete ({r['realizations_done']:,} of "
+                     f"{r['realizations']:,} realizations done): rerun the same command with --resume")
+    return "\n".join(lines)
+
+
+def sync_warnings(records: list[dict]) -> list[str]:
+    """One line per graph where realizations never reached the threshold, saying what to do."""
+    out = []
+    for graph in dict.fromkeys(r["graph"] for r in records):
+        rs = [r for r in records if r["graph"] == graph]
+        worst = max(rs, key=lambda r: r.get("n_not_synced") or 0)
+        n_bad, done = worst.get("n_not_synced") or 0, worst.get("realizations_done") or 0
+        if not n_bad or not done:
+            continue
+        hint = ("raise dynamics.t_max, or check that this graph synchronizes (rings and other "
+                "graphs with stable twisted states do not)") if n_bad > done / 2 else \
+            "they are counted (unsynced) and left out of every mean"
+        out.append(f"{graph}: {n_bad:,} of {done:,} realizations did not synchronize by t_max "
+                   f"({worst['edge']}" + (f", beta {worst['beta']:g}" if worst.get("beta") else "")
+                   + f"); {hint}")
+    return out
+
+
+# ---- sweeps --------------------------------------------------------------------------------
+_SWEEP_JSON_KEYS = ("sweep", "complete", "thresholds", "ranking_threshold", "records", "excluded",
+                    "top", "screen", "symmetry")
+
+
+def format_sweep(summary: dict, fmt: str = "table") -> str:
+    """Render :func:`antisync.sweeps.sweep_summary`.
+
+    ``json``: one object with ``records`` (per directed edge, with ``graph``), ``excluded``
+    (``{graph, reason, fraction_not_synced, ...}``), ``top``, ``screen`` and ``symmetry``.
+    ``csv``: the records only. ``table``: the records, then excluded graphs and savings.
+    """
+    if fmt == "json":
+        return json.dumps({k: summary[k] for k in _SWEEP_JSON_KEYS}, indent=2)
+    if fmt == "csv":
+        return format_records(summary["records"] + summary["top"], "csv")
+    # per-edge warnings would repeat for every graph: count them instead
+    rough = sum(1 for r in summary["records"] + summary["top"] if r.get("lambda_km_warning"))
+    records = [{**r, "lambda_km_warning": None} for r in summary["records"]]
+    lines = []
+    thresholds = sorted({r["threshold"] for r in records})
+    for t in thresholds:
+        part = [r for r in records if r["threshold"] == t]
+        if len(thresholds) > 1:
+            lines.append(f"== threshold r = {t:g}")
+        lines.append(format_records(part, "table"))
+    if summary["top"]:
+        lines.append(f"== top stage (edge of largest Lambda_KM, r = {summary['ranking_threshold']:g})")
+        lines.append(format_records([{**r, "lambda_km_warning": None} for r in summary["top"]],
+                                    "table"))
+    if rough:
+        lines.append(f"warning: {rough} record(s) have rough Lambda_KM errors (few batches or heavy "
+                     "tails; see lambda_km_warning in --format json)")
+    for ex in summary["excluded"]:
+        lines.append(f"excluded {ex['graph']}: {ex['reason']} "
+                     f"(fraction not synchronized {ex['fraction_not_synced']:.3f})")
+    s = summary["symmetry"]
+    lines.append(f"symmetry: {s['directed_edges']} directed edges in {s['representatives']} orbits; "
+                 f"{s['integrations_saved']:,} of {s['integrations_without_symmetry']:,} "
+                 f"integrations saved ({s['fraction_saved']:.0%})")
+    if not summary["complete"]:
+        lines.append("warning: the sweep is not complete; rerun `antisync sweep ... --resume`")
+    return "\n".join(lines)
+
+
+def fmt_pm(value, se, digits: int = 2) -> tuple[str, str]:
+    """``(value, se)`` as strings rounded to ``digits`` significant digits of the error."""
+    import math
+
+    if value is None:
+        return "-", "-"
+    if se is None or not math.isfinite(se) or se <= 0:
+        return f"{value:.4g}", "-"
+    decimals = max(0, digits - 1 - int(math.floor(math.log10(se))))
+    return f"{value:.{decimals}f}", f"{se:.{decimals}f}"
+
+
+TABLE1_COLUMNS = ("rank", "graph", "tau0_mean", "tau0_se", "edge", "lambda_km", "lambda_km_se",
+                  "F_mean", "F_se", "beta", "n_tau0", "n_F")
+
+
+def format_table1(rows: list[dict], fmt: str = "markdown") -> str:
+    """Table 1 of the paper: rank, graph, <tau0>, max Lambda^KM and its edge, <F_beta> there.
+
+    ``rows`` come from :func:`antisync.report.sweep.table1_rows`; ``fmt`` is
+    ``markdown``, ``csv`` or ``latex``. Values carry standard errors (two significant
+    digits of the error); CSV keeps full precision.
+    """
+    if fmt == "csv":
+        buf = io.StringIO()
+        writer = csv.DictWriter(buf, fieldnames=list(TABLE1_COLUMNS), extrasaction="ignore")
+        writer.writeheader()
+        writer.writerows(rows)
+        return buf.getvalue().rstrip("\n")
+    beta = next((r["beta"] for r in rows if r.get("beta") is not None), 0.5)
+    cells = []
+    for r in rows:
+        t0, t0e = fmt_pm(r.get("tau0_mean"), r.get("tau0_se"))
+        lam, lame = fmt_pm(r.get("lambda_km"), r.get("lambda_km_se"))
+        f, fe = fmt_pm(r.get("F_mean"), r.get("F_se"))
+        cells.append((str(r["rank"]), str(r["graph"]), (t0, t0e), str(r["edge"]), (lam, lame), (f, fe)))
+    if fmt == "latex":
+        def pm(v):
+            return f"${v[0]} \\pm {v[1]}$" if v[1] != "-" else f"${v[0]}$"
+
+        edge = r"\to"
+        out = [r"\begin{tabular}{c c c c c c}",
+               r"{\bf Rank} & {\bf Graph} & $\langle \tau_0 \rangle$ & edge $a \to b$ & "
+               r"$\Lambda^{(\mathrm{KM})}$ & $\langle \mathcal{F}_{\beta=" + f"{beta:g}" + r"} \rangle$ \\",
+               r"\hline"]
+        for rank, g, t0, e, lam, f in cells:
+            g = g.replace("_", r"\_")
+            out.append(f"{rank} & {g} & {pm(t0)} & ${e.replace('->', edge)}$ & {pm(lam)} & {pm(f)} \\\\")
+        out += [r"\hline", r"\end{tabular}"]
+        return "\n".join(out)
+    if fmt != "markdown":
+        raise ValueError(f"format must be markdown, csv or latex, got {fmt!r}")
+
+    def pm(v):
+        return f"{v[0]} ± {v[1]}" if v[1] != "-" else v[0]
+
+    out = [f"| rank | graph | <tau0> | edge a->b | Lambda_KM (max) | <F_{beta:g}> on a->b |",
+           "|---:|:---|---:|:---:|---:|---:|"]
+    for rank, g, t0, e, lam, f in cells:
+        out.append(f"| {rank} | {g} | {pm(t0)} | {e} | {pm(lam)} | {pm(f)} |")
+    return "\n".join(out)

@@ -1,3 +1,0 @@
-from antisync_cli.cli.app import main
-
-main()
