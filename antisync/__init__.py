@@ -1,40 +1,38 @@
 """antisync: antifragility of Kuramoto synchronization to the damage of one link.
 
-A notebook user can compute without touching a file::
+The Python API (:mod:`antisync.api`), for notebooks and scripts::
 
-    from antisync import graphs
-    g = graphs.lollipop(6, 3)
+    import antisync
 
-See the README for the command line (``antisync run configs/lollipop6.yaml``).
+    res = antisync.run("configs/lollipop6.yaml", realizations=2000, output="l.h5")
+    res.records                      # per (edge, beta): <F_beta>, Lambda^KM, <tau0>, errors
+    antisync.load("l.h5").to_pandas()
+    antisync.measures.for_graph({"kind": "lollipop", "nodes": 6, "path": 3})  # exact xi2, RW
+
+The command line (``antisync run configs/lollipop6.yaml``) is a thin layer over the same
+functions. Importing antisync is cheap and changes nothing global: no environment variable,
+no numba setting (numba's cache for antisync's own kernels is chosen per function, see
+:mod:`antisync._numba_cache`); heavy modules load on first use.
 """
 
-import hashlib
-import os
-import sys
-from pathlib import Path
+from __future__ import annotations
+
+import importlib
+from typing import TYPE_CHECKING
 
 __version__ = "0.1.0"
 
+__all__ = ["Result", "__version__", "load", "measures", "run", "sweep"]
 
-def _numba_cache_dir() -> None:
-    """Key numba's on-disk cache by the package's source.
-
-    Numba invalidates a cached function only when the file that defines it changes, not when
-    a function it calls changes; the kernels are compiled from closures in ``kernels/core.py``
-    and ``phases.py``, so an edit there could leave stale machine code in use. A cache folder
-    named after a hash of every source file makes any edit start a fresh cache. A user's own
-    ``NUMBA_CACHE_DIR`` is respected.
-    """
-    if os.environ.get("NUMBA_CACHE_DIR"):
-        return
-    src = Path(__file__).resolve().parent
-    digest = hashlib.sha1()
-    for path in sorted(src.rglob("*.py")):
-        digest.update(path.read_bytes())
-    folder = str(src / "__pycache__" / f"numba-{digest.hexdigest()[:12]}")
-    os.environ["NUMBA_CACHE_DIR"] = folder
-    if "numba" in sys.modules:  # numba read its config already: tell it too
-        sys.modules["numba"].config.CACHE_DIR = folder
+if TYPE_CHECKING:
+    from antisync import measures
+    from antisync.api import Result, load, run, sweep
 
 
-_numba_cache_dir()
+def __getattr__(name: str):
+    """Load the API on first use, so ``import antisync`` (and ``antisync --help``) stay fast."""
+    if name in ("Result", "load", "run", "sweep"):
+        return getattr(importlib.import_module("antisync.api"), name)
+    if name == "measures":
+        return importlib.import_module("antisync.measures")
+    raise AttributeError(f"module 'antisync' has no attribute {name!r}")

@@ -3,6 +3,8 @@
 - :mod:`~antisync.measures.spectral`: ``xi2`` and ``Lambda^(xi2)`` (Eqs. 15-16), exact.
 - :mod:`~antisync.measures.randomwalk`: ``tau_RW`` and ``Lambda^(RW)`` (Appendix,
   Eqs. 23-25), exact.
+- :func:`~antisync.measures.for_graph`: ``Lambda^(xi2)`` and ``Lambda^(RW)`` of every link of
+  a graph in one call (what ``antisync.measures.for_graph(nx.karate_club_graph())`` returns).
 - :mod:`~antisync.measures.linear`: the linearized dynamics, ``tau^(linear)`` and
   ``Lambda^(linear)`` (Eqs. 7-14), over realizations of the initial phases.
 
@@ -14,6 +16,7 @@ All functions take the dense weight matrix ``Omega`` and 0-based node indices; d
 ``a -> b`` follows :mod:`antisync.coupling`.
 """
 
+from antisync.measures.graph import for_graph
 from antisync.measures.linear import (
     LinearResult,
     lambda_linear,
@@ -28,6 +31,7 @@ __all__ = [
     "LinearResult",
     "f_rw",
     "f_xi2",
+    "for_graph",
     "lambda_linear",
     "lambda_rw",
     "lambda_xi2",
