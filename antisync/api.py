@@ -88,9 +88,8 @@ def load(path: str | Path) -> Result:
     antisync.errors.StoreError
         Missing, foreign, damaged or newer-format files, with a one-line message.
     """
-    from antisync.store import open_results
-    from antisync.summary import records
-    from antisync.sweeps import is_sweep_file, sweep_summary
+    from antisync.store import is_sweep_file, open_results, records
+    from antisync.sweeps import sweep_summary
 
     path = Path(path)
     with open_results(path) as f:

@@ -195,7 +195,7 @@ def make_paper(out: str | Path = "results/paper", *, scale: float = 1.0, overwri
     from antisync.report.figures import write_report
     from antisync.report.sweep import write_sweep_report
     from antisync.runner import run_config
-    from antisync.summary import read_views
+    from antisync.store import read_views
     from antisync.sweeps import load_sweep, run_sweep
 
     out = Path(out)
@@ -244,11 +244,10 @@ def make_paper(out: str | Path = "results/paper", *, scale: float = 1.0, overwri
 def _finished(h5: Path) -> bool:
     """Whether a step's file is complete (a sweep: every stage), so rerunning it only reports."""
     from antisync.errors import AntisyncError
-    from antisync.store import open_results
+    from antisync.store import is_complete
 
     try:
-        with open_results(h5) as f:
-            return bool(f.attrs.get("complete", False))
+        return is_complete(h5)
     except AntisyncError:  # missing or unreadable: the step runs (and reports the problem)
         return False
 
@@ -256,7 +255,7 @@ def _finished(h5: Path) -> bool:
 def _extra_figures(out: Path) -> dict:
     """Fig. 7e: Lambda^KM against Lambda^KM-NNC on the lollipop of Fig. 1."""
     from antisync.report.figures import _plt
-    from antisync.summary import records
+    from antisync.store import records
 
     plt = _plt()
     made = {}
@@ -290,7 +289,8 @@ def _paper_graphs(path: Path) -> list[str]:
     the main stage. When our max Lambda differs from the paper's by more than 4 standard
     errors, the link of ours nearest to the paper's value is named.
     """
-    from antisync.sweeps import edge_lambdas, ranking, sweep_summary
+    from antisync.sweeps.analysis import edge_lambdas, ranking
+    from antisync.sweeps.results import sweep_summary
 
     if not path.exists():
         return []
@@ -332,8 +332,8 @@ def _se_stats(path: Path) -> str:
     """Typical standard errors of a result file (median and 90th percentile over edges)."""
     import numpy as np
 
-    from antisync.summary import records
-    from antisync.sweeps import is_sweep_file, sweep_summary
+    from antisync.store import is_sweep_file, records
+    from antisync.sweeps.results import sweep_summary
 
     recs = sweep_summary(path)["records"] if is_sweep_file(path) else records(path)
     lam = np.array([r["lambda_km_se"] for r in recs if r.get("lambda_km_se") is not None])
@@ -386,7 +386,7 @@ def _readme(out: Path, scale: float, timings: dict, extra: dict) -> str:
     for e in ("2to1", "5to6", "6to4", "2to3"):
         body += _img(out, f"lollipop6/*_hist_{e}_b0.5.png", 380)
     if (out / "lollipop6.h5").exists():
-        from antisync.summary import records
+        from antisync.store import records
 
         recs = {(r["edge"], r["beta"]): r for r in records(out / "lollipop6.h5")}
         body += ["| edge | <F_0.5> ours | paper |", "|:---|---:|---:|"]

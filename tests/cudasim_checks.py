@@ -130,7 +130,7 @@ def check_reductions() -> None:
 
 def check_runner(tmp: str) -> None:
     """``backend: cuda`` through run_config stores the same summary as ``backend: cpu``."""
-    from antisync import summary
+    from antisync import store
     from antisync.runner import run_config
 
     text = HOUSE_RAW + "edges: ['0->1', '2->4']\nrealizations: 30\nblock_size: 10\n"
@@ -149,7 +149,7 @@ def check_runner(tmp: str) -> None:
         cfg = load_config_text(text, [f"backend={backend}", f"keep_pairs={keep}"])
         path = run_config(cfg, output=os.path.join(tmp, f"{backend}{keep}.h5"), progress=False,
                           chunk_realizations=10)
-        out[backend, keep] = summary.records(path)
+        out[backend, keep] = store.records(path)
     assert calls == [0, 10, 20, 20], calls
     assert out["cpu", 0] == out["cuda", 0] == out["cuda", 12], out
     assert all(r["n"] > 0 for r in out["cpu", 0]), out["cpu", 0]

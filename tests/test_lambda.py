@@ -9,7 +9,7 @@ from antisync.config import load_config_text
 from antisync.jobs import make_job
 from antisync.kernels.cpu import simulate, simulate_pathwise
 from antisync.runner import run_config
-from antisync.summary import records
+from antisync.store import records
 
 DT = 0.002
 KW = dict(dt=DT, threshold=0.99, max_steps=50_000)

@@ -247,7 +247,7 @@ def test_linear_exact_and_euler_agree_with_common_phases():
 
 def test_measures_are_computed_once_and_survive_checkpoints_and_resume(tmp_path, monkeypatch):
     import antisync.runner as runner_mod
-    from antisync.summary import records
+    from antisync.store import records
 
     calls = []
 
@@ -299,7 +299,7 @@ def test_km_nnc_below_km_except_3to4(tmp_path):
     +0.1, the two the test cannot resolve (see UNRESOLVED): for them it asserts only that
     the data do not contradict the paper (margin > -2).
     """
-    from antisync.summary import records
+    from antisync.store import records
 
     cfg = load_config_text(SLOW_CONFIG, [f"output={tmp_path / 'nnc.h5'}"])
     recs = [r for r in records(run_config(cfg, progress=False)) if r["graph"] == "lollipop_6_3"]

@@ -9,7 +9,7 @@ import pytest
 
 from antisync.config import load_config_text
 from antisync.runner import run_config
-from antisync.summary import records
+from antisync.store import records
 
 Z = 4.0  # standard errors
 

@@ -29,8 +29,7 @@ from antisync.errors import StoreError
 from antisync.executors.local import LocalExecutor
 from antisync.jobs import Chunk, make_job
 from antisync.runner import Interrupted, run_config, run_jobs
-from antisync.store import ResultStore, chunk_tag, graph_digest, open_results
-from antisync.summary import records
+from antisync.store import ResultStore, chunk_tag, graph_digest, open_results, records
 
 REPO = Path(__file__).resolve().parent.parent
 ARRAYS = ("block_records", "tau0_records", "hist", "tail_counts", "blocks_done", "lambda_records")

@@ -101,11 +101,11 @@ def test_overrides_and_ranges():
 
 # ---- families ----------------------------------------------------------------------------
 def test_atlas_family_counts():
-    from antisync.sweeps import _family_specs
+    from antisync.sweeps.families import family_specs
 
-    counts = {n: len(_family_specs({"family": "atlas", "nodes": [n]})) for n in range(2, 8)}
+    counts = {n: len(family_specs({"family": "atlas", "nodes": [n]})) for n in range(2, 8)}
     assert counts == {2: 1, 3: 2, 4: 6, 5: 21, 6: 112, 7: 853}
-    names = [name for name, _ in _family_specs({"family": "atlas", "nodes": [6]})]
+    names = [name for name, _ in family_specs({"family": "atlas", "nodes": [6]})]
     assert names[-1] == "G208" and "G105" in names  # K6 last; the 6-ring is G105
 
 

@@ -27,8 +27,7 @@ def report(
     """
     from antisync.errors import AntisyncError
     from antisync.report.figures import write_report
-    from antisync.summary import read_views
-    from antisync.sweeps import is_sweep_file
+    from antisync.store import is_sweep_file, read_views
 
     folder = out or results.with_suffix("").with_name(results.stem + "_figures")
     if folder.exists() and not folder.is_dir():

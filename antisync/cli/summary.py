@@ -24,8 +24,8 @@ def summary(
     holds the records only; the table ends with the excluded graphs.
     """
     from antisync.report.tables import format_records, format_sweep
-    from antisync.summary import records
-    from antisync.sweeps import is_sweep_file, sweep_summary
+    from antisync.store import is_sweep_file, records
+    from antisync.sweeps import sweep_summary
 
     if is_sweep_file(results):
         typer.echo(format_sweep(sweep_summary(results), format))

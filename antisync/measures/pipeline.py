@@ -6,7 +6,8 @@
 - :func:`nnc_job` / :func:`with_nnc`: ``km_nnc`` runs the same experiment a second time with
   raw coupling (Sec. 3.4, Eqs. 20-22), same seed and so the same initial phases, as a second
   job ``<name>_nnc`` of the same file.
-- :func:`write_measures` / :func:`read_measures`: the ``measures`` subgroup of a job in HDF5.
+- The ``measures`` subgroup of a job in HDF5 is written and read by
+  :mod:`antisync.store.layout` (``write_measures`` / ``read_measures``).
 - :func:`measure_fields` / :func:`join_nnc`: the summary keys ``lambda_linear``,
   ``lambda_linear_se``, ``lambda_linear_n``, ``lambda_linear_n_excluded``, ``lambda_xi2``,
   ``lambda_rw``, ``lambda_km_nnc`` and ``lambda_km_nnc_se``. Every record carries all of
@@ -22,7 +23,6 @@ coupling, the Laplacian of ``Omega``). ``Lambda^(RW)`` is always the normalized 
 
 from __future__ import annotations
 
-import json
 from dataclasses import replace
 
 import numpy as np
@@ -38,10 +38,8 @@ __all__ = [
     "join_nnc",
     "measure_fields",
     "nnc_job",
-    "read_measures",
     "wants_measures",
     "with_nnc",
-    "write_measures",
 ]
 
 #: Measures computed by :func:`compute_measures` (``km`` and ``km_nnc`` are Kuramoto runs).
@@ -179,39 +177,6 @@ def with_nnc(jobs: list[Job]) -> list[Job]:
             out.append(nnc_job(job))
             names.add(twin_name)
     return out
-
-
-# --- HDF5 -------------------------------------------------------------------------------------
-
-
-def write_measures(group, values: dict, config, seconds: float = 0.0) -> None:
-    """Write ``values`` (from :func:`compute_measures`) into a new ``measures`` subgroup.
-
-    Layout: one dataset per key, length E and aligned with the job's ``edges`` attribute;
-    attrs ``measures`` (JSON list of the computed measures), ``coupling``, ``seconds`` and,
-    with ``linear``, ``linear_method``, ``linear_realizations``, ``linear_dbeta``,
-    ``linear_seed`` (realizations ``0 .. linear_realizations - 1`` of that seed).
-    """
-    m = group.create_group("measures")
-    done = [name for name in COMPUTED if any(k == f"lambda_{name}" for k in values)]
-    m.attrs["measures"] = json.dumps(done)
-    m.attrs["coupling"] = config.dynamics.coupling
-    m.attrs["rw_coupling"] = "normalized"
-    m.attrs["seconds"] = float(seconds)
-    if "linear" in done:
-        m.attrs["linear_method"] = config.linear.method
-        m.attrs["linear_realizations"] = int(config.linear.realizations)
-        m.attrs["linear_dbeta"] = float(config.lambda_.dbeta)
-        m.attrs["linear_seed"] = int(config.seed)
-    for key, arr in values.items():
-        m.create_dataset(key, data=np.asarray(arr))
-
-
-def read_measures(group) -> dict[str, np.ndarray] | None:
-    """The arrays of a job group's ``measures`` subgroup, or ``None`` if it has none."""
-    if "measures" not in group:
-        return None
-    return {key: ds[...] for key, ds in group["measures"].items()}
 
 
 # --- summary records --------------------------------------------------------------------------

@@ -25,7 +25,8 @@ import numpy as np
 
 from antisync.report.figures import CMAP, _norm, _plt, plot_histogram
 from antisync.report.tables import fmt_pm, format_table1
-from antisync.sweeps import edge_lambdas, ranking, sweep_summary, trend_in_n
+from antisync.sweeps.analysis import edge_lambdas, ranking, trend_in_n
+from antisync.sweeps.results import sweep_summary
 
 __all__ = [
     "fit_gamma",
@@ -440,7 +441,7 @@ def plot_fig5(summary: dict):
 # ---- the report ----------------------------------------------------------------------------
 def write_sweep_report(path: str | Path, folder: str | Path, *, pdf: bool = False) -> list[Path]:
     """Write every figure and table that ``path`` supports into ``folder``; return the paths."""
-    from antisync.summary import read_views
+    from antisync.store import read_views
 
     plt = _plt()
     folder = Path(folder)

@@ -1,0 +1,90 @@
+"""A job's results in memory: block records, histograms and kept pairs, merged chunk by chunk.
+
+:class:`JobState` is what a run accumulates and what a checkpoint writes
+(:mod:`antisync.store.layout`); journal chunks (:mod:`antisync.store.journal`) are merged into
+it, never twice.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from antisync import estimators
+from antisync.compute import ChunkResult
+from antisync.errors import StoreError
+from antisync.jobs import Chunk, Job
+
+__all__ = ["JobState"]
+
+
+class JobState:
+    """Everything known so far about one job: block records, histograms, kept pairs."""
+
+    def __init__(self, job: Job):
+        self.job = job
+        nb, nv = job.n_blocks, len(job.variant_edge)
+        self.rec = np.zeros((nb, nv, len(estimators.BLOCK_FIELDS)))
+        self.rec0 = np.zeros((nb, len(estimators.TAU0_FIELDS)))
+        self.done = np.zeros(nb, dtype=bool)
+        self.tail = np.zeros((nv, estimators.TAIL_BINS), dtype=np.int64)
+        ne = len(job.edges)
+        self.lam_rec = np.zeros((nb, ne, len(estimators.LAMBDA_FIELDS)))
+        self.lam_tail = np.zeros((ne, estimators.TAIL_BINS), dtype=np.int64)
+        bins = job.config.histogram.bins
+        self.hist = np.zeros((len(job.hist_variants), bins, bins), dtype=np.int64)
+        keep = min(job.config.keep_pairs, job.config.realizations)
+        self.kept = {
+            "status0": np.full(keep, -1, dtype=np.int8),
+            "steps0": np.zeros(keep, dtype=np.int64),
+            "status": np.full((keep, nv), -1, dtype=np.int8),
+            "steps": np.zeros((keep, nv), dtype=np.int64),
+            "lambda": np.zeros((keep, ne)),
+        }
+        self.seconds = 0.0
+        self.backends: set[str] = set()
+        self.measures: dict | None = None  # Lambda^(linear, xi2, RW): see measures.pipeline
+        self.measures_seconds = 0.0
+
+    def add(self, res: ChunkResult) -> None:
+        """Merge a chunk; a chunk whose blocks are already done is an error, never added twice."""
+        sl = slice(res.chunk.first_block, res.chunk.first_block + res.chunk.n_blocks)
+        if self.done[sl].any():
+            raise StoreError(f"chunk at block {res.chunk.first_block} of {self.job.name} was already merged")
+        self.rec[sl] = res.rec
+        self.rec0[sl] = res.rec0
+        self.tail += res.tail
+        self.hist += res.hist
+        self.lam_rec[sl] = res.lam_rec
+        self.lam_tail += res.lam_tail
+        if res.kept is not None:
+            k = res.kept["status0"].size
+            for key, arr in res.kept.items():
+                self.kept[key][res.first : res.first + k] = arr
+        self.done[sl] = True
+        self.seconds += res.seconds
+        self.backends.add(res.backend)
+
+    def pending(self, chunks: list[Chunk]) -> list[Chunk]:
+        """The chunks none of whose blocks are done (a chunk is all done or all pending)."""
+        out = []
+        for c in chunks:
+            sl = self.done[c.first_block : c.first_block + c.n_blocks]
+            if sl.all():
+                continue
+            if sl.any():
+                # chunk boundaries moved since the interrupted run: redo per block
+                out.extend(Chunk(b, 1) for b in range(c.first_block, c.first_block + c.n_blocks)
+                           if not self.done[b])
+            else:
+                out.append(c)
+        return out
+
+    @property
+    def realizations_done(self) -> int:
+        b = self.job.block_size
+        total = self.job.config.realizations
+        return int(sum(min(b, total - i * b) for i in np.flatnonzero(self.done)))
+
+    @property
+    def complete(self) -> bool:
+        return bool(self.done.all())

@@ -1,0 +1,38 @@
+"""A sweep's result file for its readers: the store's decoding, then the pure analysis."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from antisync.sweeps.analysis import summarize
+
+__all__ = ["sweep_summary"]
+
+
+def sweep_summary(path: str | Path, views=None) -> dict:
+    """Everything a report needs from a sweep file: :func:`~antisync.sweeps.analysis.summarize`
+    of its metadata and jobs.
+
+    Parameters
+    ----------
+    path : str or Path
+        A sweep's result file (a run's file is a :class:`~antisync.errors.StoreError`).
+    views : list of JobView, optional
+        The file's jobs when already read (:func:`antisync.store.read_views`).
+
+    Returns
+    -------
+    dict
+        ``records``: main-stage records fanned out to every selected directed edge of every
+        kept graph (keys of :func:`antisync.summary.job_records` plus ``job``,
+        ``threshold``, ``repeat``, ``representative``, ``orbit_size``);
+        ``top``: records of the top stage (plus ``rank``);
+        ``excluded``: ``{graph, reason, fraction_not_synced, fraction_stuck, screened}``;
+        ``screen``: the screening of every graph; ``symmetry``: integrations saved;
+        ``complete``: whether every stage finished.
+    """
+    from antisync.store import read_meta, read_views  # here: the store loads numba
+
+    meta = read_meta(path)
+    views = views if views is not None else read_views(path)
+    return summarize(meta, views)

@@ -1,0 +1,299 @@
+"""A sweep config: the ``sweep:``, ``thresholds``, ``repeats``, ``screen`` and ``top`` keys.
+
+:func:`load_sweep` reads and validates a sweep config into a frozen :class:`Sweep`; errors
+name the file and the key. What the keys mean is in :mod:`antisync.sweeps` and
+docs/sweeps.md.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import asdict, dataclass, replace
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from antisync.config import (
+    Config,
+    _choice,
+    _number,
+    _positive,
+    _unknown,
+    config_from_mapping,
+    parse_mapping,
+    read_config_text,
+)
+from antisync.errors import ConfigError
+from antisync.sweeps.families import FAMILIES, family_specs
+
+__all__ = ["PAPER_THRESHOLD", "Screen", "Sweep", "Top", "load_sweep", "load_sweep_text"]
+
+#: the threshold the paper uses for Figs. 3-5 and Table 1
+PAPER_THRESHOLD = 0.99
+
+_FAMILY_KEYS = {
+    "atlas": ({"nodes"}, set()),
+    "lollipop": ({"nodes", "path"}, set()),
+    "graphs": ({"graphs"}, set()),
+}
+_SWEEP_KEYS = {"sweep", "thresholds", "repeats", "screen", "top"}
+
+
+@dataclass(frozen=True)
+class Screen:
+    """Synchronization screening before any realization is spent (see :mod:`antisync.screening`).
+
+    ``exclude_fraction``: a graph is excluded when more than this fraction of its screening
+    realizations end in a stable non-synchronized state (0: any such realization excludes it).
+    """
+
+    enabled: bool = True
+    realizations: int = 200
+    t_max: float = 200.0
+    exclude_fraction: float = 0.0
+
+    def __post_init__(self):
+        if not isinstance(self.enabled, bool):
+            raise ConfigError(f"screen.enabled must be true or false, got {self.enabled!r}")
+        if isinstance(self.realizations, bool) or not isinstance(self.realizations, int) \
+                or self.realizations < 1:
+            raise ConfigError(f"screen.realizations must be an integer >= 1, got {self.realizations!r}")
+        _positive("screen.t_max", self.t_max)
+        if isinstance(self.exclude_fraction, bool) or not isinstance(self.exclude_fraction, int | float) \
+                or not 0.0 <= self.exclude_fraction < 1.0:
+            raise ConfigError(f"screen.exclude_fraction must be in [0, 1), got {self.exclude_fraction!r}")
+
+
+@dataclass(frozen=True)
+class Top:
+    """Second stage on the most antifragile edge of the ``graphs`` top-ranked graphs."""
+
+    graphs: int = 0
+    betas: tuple = (0.5,)
+    realizations: int | None = None
+
+    def __post_init__(self):
+        if isinstance(self.graphs, bool) or not isinstance(self.graphs, int) or self.graphs < 0:
+            raise ConfigError(f"top.graphs must be an integer >= 0, got {self.graphs!r}")
+        for b in self.betas:
+            if isinstance(b, bool) or not isinstance(b, int | float) or not 0.0 < b < 1.0:
+                raise ConfigError(f"top.betas must lie in (0, 1), got {b!r}")
+        if self.realizations is not None and (
+            isinstance(self.realizations, bool) or not isinstance(self.realizations, int)
+            or self.realizations < 1
+        ):
+            raise ConfigError(f"top.realizations must be null or an integer >= 1, got {self.realizations!r}")
+
+
+@dataclass(frozen=True)
+class Sweep:
+    """A resolved, validated sweep.
+
+    Attributes
+    ----------
+    family : dict
+        The ``sweep:`` section, with ``nodes``/``path`` expanded to sorted lists.
+    edges : "all", "fig2" or tuple of str
+    thresholds : tuple of float
+    repeats : int
+    screen : Screen
+    top : Top
+    base : Config
+        The run keys shared by every job (its ``graph`` is the first graph of the family).
+    """
+
+    name: str
+    family: dict
+    edges: Any
+    thresholds: tuple
+    repeats: int
+    screen: Screen
+    top: Top
+    base: Config
+
+    @property
+    def output(self) -> str:
+        return self.base.output
+
+    def to_dict(self) -> dict:
+        run = self.base.resolved().to_dict()
+        for k in ("graph", "edges", "name"):
+            run.pop(k)
+        run["dynamics"].pop("threshold")
+        return {
+            "name": self.name,
+            "sweep": self.family,
+            "edges": self.edges if isinstance(self.edges, str) else list(self.edges),
+            "thresholds": list(self.thresholds),
+            "repeats": self.repeats,
+            "screen": asdict(self.screen),
+            "top": {**asdict(self.top), "betas": list(self.top.betas)},
+            **run,
+        }
+
+    def to_yaml(self) -> str:
+        return yaml.safe_dump(self.to_dict(), sort_keys=False)
+
+    def key(self) -> dict:
+        """What determines the numbers (compared on resume)."""
+        d = self.to_dict()
+        for k in ("name", "backend", "executor", "threads", "output", "chunk_size"):
+            d.pop(k, None)
+        return json.loads(json.dumps(d))
+
+    def ranking_threshold(self) -> float:
+        """The threshold of Fig. 3 / Table 1: 0.99 when swept, else the one closest to it."""
+        return min(self.thresholds, key=lambda t: (abs(t - PAPER_THRESHOLD), t))
+
+
+def load_sweep(path: str | Path, overrides: list[str] | None = None,
+               values: dict | None = None) -> Sweep:
+    """Read and validate a sweep config file; errors name the file and the key.
+
+    ``overrides`` and ``values`` are those of :func:`antisync.config.load_config`.
+    """
+    path = Path(path)
+    text = read_config_text(path)
+    try:
+        return load_sweep_text(text, overrides, source=path, values=values)
+    except ConfigError as exc:
+        msg = str(exc)
+        raise ConfigError(msg if msg.startswith(str(path)) else f"{path}: {msg}") from None
+
+
+def load_sweep_text(text: str, overrides: list[str] | None = None,
+                    source: Path | None = None, values: dict | None = None) -> Sweep:
+    """Like :func:`load_sweep` for YAML text."""
+    raw = parse_mapping(text, overrides, values)
+    if "sweep" not in raw:
+        raise ConfigError("missing key 'sweep' (e.g. sweep: {family: atlas, nodes: 6}); "
+                          "a config with graph: is run with `antisync run`")
+    if "graph" in raw:
+        raise ConfigError("a sweep config has no 'graph' key: its graphs come from 'sweep:'")
+    family = _family(raw["sweep"])
+    specs = family_specs(family)
+    thresholds = _thresholds(raw)
+    repeats = raw.get("repeats", 1)
+    if isinstance(repeats, bool) or not isinstance(repeats, int) or repeats < 1:
+        raise ConfigError(f"repeats must be an integer >= 1, got {repeats!r}")
+    screen = _section(raw, "screen", Screen)
+    top_raw = raw.get("top")
+    if isinstance(top_raw, dict) and "betas" in top_raw:
+        betas = top_raw["betas"]
+        if not isinstance(betas, list) or not betas:
+            raise ConfigError(f"top.betas must be a non-empty list such as [0.5], got {betas!r}")
+        top_raw = {**top_raw, "betas": tuple(sorted({_number("top.betas", b, 0.0) for b in betas}))}
+        raw = {**raw, "top": top_raw}
+    top = _section(raw, "top", Top)
+    edges = raw.get("edges", "all")
+    if edges == "fig2" and family["family"] != "lollipop":
+        raise ConfigError("edges: fig2 (the clique edge away from the bridge, Fig. 2) needs "
+                          "sweep.family: lollipop")
+    rest = {k: v for k, v in raw.items() if k not in _SWEEP_KEYS}
+    rest["graph"] = specs[0][1]
+    rest.setdefault("keep_pairs", 0)  # per-realization pairs of hundreds of jobs would not fit
+    if edges == "fig2":
+        rest["edges"] = "all"
+    dyn = rest.get("dynamics")
+    if isinstance(dyn, dict):
+        rest["dynamics"] = {k: v for k, v in dyn.items() if k != "threshold"}
+    try:
+        base = config_from_mapping(rest, source)
+    except ConfigError as exc:
+        if "unknown key" in str(exc):
+            raise ConfigError(f"{exc}; sweep keys: {', '.join(sorted(_SWEEP_KEYS))}") from None
+        raise
+    base = replace(base, dynamics=replace(base.dynamics, threshold=thresholds[0]))
+    name = raw.get("name") or (source.stem if source else "sweep")
+    if not raw.get("output"):
+        base = replace(base, output=f"results/{name}.h5")
+    base = replace(base, name=str(name))
+    if edges not in ("all", "fig2"):
+        if not isinstance(edges, list) or not edges or not all(isinstance(e, str) for e in edges):
+            raise ConfigError(
+                f"edges must be 'all', 'fig2' or a non-empty list like [\"2->1\"], got {edges!r}")
+        edges = tuple(edges)
+    return Sweep(name=str(name), family=family, edges=edges, thresholds=thresholds,
+                 repeats=repeats, screen=screen, top=top, base=base)
+
+
+def _section(raw: dict, key: str, cls):
+    value = raw.get(key) or {}
+    if not isinstance(value, dict):
+        raise ConfigError(f"'{key}' must be a mapping, got {value!r}")
+    fields = cls.__dataclass_fields__
+    _unknown(value, set(fields), f"{key}.")
+    value = {k: _number(f"{key}.{k}", v, fields[k].default) for k, v in value.items()}
+    return cls(**value)
+
+
+def _thresholds(raw: dict) -> tuple:
+    dyn = raw.get("dynamics") or {}
+    if "thresholds" not in raw:
+        t = dyn.get("threshold", 0.99) if isinstance(dyn, dict) else 0.99
+        values = [t]
+    else:
+        if isinstance(dyn, dict) and "threshold" in dyn:
+            raise ConfigError("give either thresholds: [...] or dynamics.threshold, not both")
+        values = raw["thresholds"]
+        if not isinstance(values, list) or not values:
+            raise ConfigError(f"thresholds must be a non-empty list such as [0.9, 0.99], got {values!r}")
+    out = []
+    for t in values:
+        t = _number("thresholds", t, 0.0)
+        if isinstance(t, bool) or not isinstance(t, int | float) or not 0.0 < t < 1.0:
+            raise ConfigError(f"thresholds must lie in (0, 1), got {t!r}")
+        out.append(float(t))
+    if len(set(out)) != len(out):
+        raise ConfigError(f"thresholds lists a value twice: {values!r}")
+    return tuple(sorted(out))
+
+
+def _int_list(key: str, value, lo: int, hi: int) -> list[int]:
+    """``6``, ``[4, 5, 9]`` or ``"4..20"`` (inclusive) -> sorted list of ints in ``lo..hi``."""
+    if isinstance(value, str) and ".." in value:
+        a, _, b = value.partition("..")
+        try:
+            items = list(range(int(a), int(b) + 1))
+        except ValueError:
+            raise ConfigError(f"{key} range must look like \"4..20\", got {value!r}") from None
+        if not items:
+            raise ConfigError(f"{key} range {value!r} is empty")
+    elif isinstance(value, list) and value:
+        items = value
+    elif isinstance(value, int) and not isinstance(value, bool):
+        items = [value]
+    else:
+        raise ConfigError(f"{key} must be an integer, a list of integers or a range \"a..b\", got {value!r}")
+    for v in items:
+        if isinstance(v, bool) or not isinstance(v, int) or not lo <= v <= hi:
+            raise ConfigError(f"{key} values must be integers in {lo}..{hi}, got {v!r}")
+    return sorted(set(items))
+
+
+def _family(value) -> dict:
+    if not isinstance(value, dict):
+        raise ConfigError(f"sweep must be a mapping such as {{family: atlas, nodes: 6}}, got {value!r}")
+    fam = value.get("family")
+    _choice("sweep.family", fam, FAMILIES)
+    required, optional = _FAMILY_KEYS[fam]
+    _unknown(value, required | optional | {"family"}, "sweep.")
+    missing = sorted(required - set(value))
+    if missing:
+        raise ConfigError(f"sweep of family {fam} needs key(s) {', '.join('sweep.' + m for m in missing)}")
+    if fam == "atlas":
+        return {"family": fam, "nodes": _int_list("sweep.nodes", value["nodes"], 2, 7)}
+    if fam == "lollipop":
+        return {"family": fam, "nodes": _int_list("sweep.nodes", value["nodes"], 3, 500),
+                "path": _int_list("sweep.path", value["path"], 1, 498)}
+    items = value["graphs"]
+    if not isinstance(items, list) or not items:
+        raise ConfigError("sweep.graphs must be a non-empty list of graph specs such as "
+                          "[{kind: atlas, index: 105}]")
+    out = []
+    for k, spec in enumerate(items):
+        if not isinstance(spec, dict):
+            raise ConfigError(f"sweep.graphs[{k}] must be a mapping such as {{kind: atlas, index: 105}}")
+        out.append(dict(spec))
+    return {"family": fam, "graphs": out}

@@ -1,0 +1,293 @@
+"""Running a sweep: screening, the main stage and the top stage, into one result file.
+
+:func:`run_sweep` locks the output once, screens every graph of the family (cached per graph
+in the journal and in the file), runs one job per (kept graph, threshold, repeat) on the
+representative edges (:func:`main_jobs`), then the top stage on the most antifragile edge of
+the best-ranked graphs (:func:`top_jobs`). The sweep's metadata (screening, orbits, jobs) is
+written at every checkpoint (:func:`antisync.store.write_sweep_meta`), so a sweep killed at
+any moment and rerun with ``resume=True`` ends with the same numbers as an uninterrupted one.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, replace
+from pathlib import Path
+
+from antisync import graphs as graphs_mod
+from antisync.config import Config
+from antisync.errors import ConfigError, StoreError
+from antisync.jobs import make_job
+from antisync.sweeps.analysis import ranking
+from antisync.sweeps.families import GraphEntry, family_graphs
+from antisync.sweeps.schema import Sweep
+
+__all__ = ["main_jobs", "run_sweep", "top_jobs"]
+
+
+def _job_name(graph: str, threshold: float, repeat: int, sweep: Sweep) -> str:
+    name = graph
+    if len(sweep.thresholds) > 1:
+        name += f"_r{threshold:g}"
+    if sweep.repeats > 1:
+        name += f"_rep{repeat}"
+    return name
+
+
+def _job_config(sweep: Sweep, entry: GraphEntry, edges: list, *, threshold: float, seed: int,
+                betas: tuple, realizations: int | None = None, name: str) -> Config:
+    base = sweep.base
+    return replace(
+        base, name=name, graph=entry.spec, edges=[graphs_mod.edge_label(*e) for e in edges],
+        betas=tuple(betas), seed=seed, realizations=realizations or base.realizations,
+        dynamics=replace(base.dynamics, threshold=threshold),
+    )
+
+
+def main_jobs(sweep: Sweep, entries: list[GraphEntry]) -> tuple[list, list[dict]]:
+    """Jobs of the main stage (representative edges only) and their descriptions."""
+    jobs, meta = [], []
+    for entry in entries:
+        for t in sweep.thresholds:
+            for k in range(sweep.repeats):
+                name = _job_name(entry.name, t, k, sweep)
+                betas = sweep.base.betas if k == 0 else ()
+                cfg = _job_config(sweep, entry, entry.representatives, threshold=t,
+                                  seed=sweep.base.seed + k, betas=betas, name=name)
+                jobs.append(make_job(cfg, graph=entry.graph, name=name))
+                meta.append({"job": name, "graph": entry.name, "threshold": t, "repeat": k,
+                             "stage": "main"})
+    return jobs, meta
+
+
+def top_jobs(sweep: Sweep, entries: list[GraphEntry], records: list[dict]) -> tuple[list, list[dict]]:
+    """Top-stage jobs: the most antifragile edge of each of the first ``top.graphs`` graphs."""
+    if sweep.top.graphs <= 0:
+        return [], []
+    by_name = {e.name: e for e in entries}
+    t = sweep.ranking_threshold()
+    jobs, meta = [], []
+    for row in ranking(records, t)[: sweep.top.graphs]:
+        entry = by_name[row["graph"]]
+        edge = graphs_mod.parse_edge(row["max_representative"], entry.graph)
+        name = f"{entry.name}_top"
+        cfg = _job_config(sweep, entry, [edge], threshold=t, seed=sweep.base.seed,
+                          betas=sweep.top.betas, realizations=sweep.top.realizations, name=name)
+        cfg = replace(cfg, keep_pairs=0)
+        jobs.append(make_job(cfg, graph=entry.graph, name=name))
+        meta.append({"job": name, "graph": entry.name, "threshold": t, "repeat": 0,
+                     "stage": "top", "rank": row["rank"], "edge": row["max_edge"]})
+    return jobs, meta
+
+
+def run_sweep(
+    sweep: Sweep,
+    *,
+    output: str | Path | None = None,
+    resume: bool = False,
+    overwrite: bool = False,
+    progress: bool | None = None,
+    executor=None,
+    log=None,
+    chunk_realizations: int | None = None,
+    checkpoint_seconds: float = 30.0,
+) -> Path:
+    """Screen, run the main stage and the top stage of ``sweep`` into one HDF5 file.
+
+    Parameters are those of :func:`antisync.runner.run_jobs`. Returns the file's path.
+
+    The output is locked once for the whole sweep, before ``overwrite`` deletes anything (the
+    ``run_jobs`` call of each stage takes the same lock again). A given ``executor`` is used
+    by every stage and left open. ``resume`` on a complete sweep file leaves it untouched.
+    A failure before anything was finished removes what the sweep created.
+    """
+    from antisync.store import ResultStore
+
+    store = ResultStore(output or sweep.output)
+    with store.lock(read_only_ok=resume) as writable:
+        store.prepare(resume=resume, overwrite=overwrite)
+        try:
+            return _run_sweep_locked(
+                sweep, store, writable, resume=resume, progress=progress, executor=executor,
+                log=log, chunk_realizations=chunk_realizations,
+                checkpoint_seconds=checkpoint_seconds,
+            )
+        except BaseException:
+            if writable:
+                store.discard_unfinished()
+            raise
+
+
+def _run_sweep_locked(sweep: Sweep, store, writable: bool, *, resume: bool, progress, executor,
+                      log, chunk_realizations, checkpoint_seconds) -> Path:
+    """The body of :func:`run_sweep`, with ``store`` locked and prepared."""
+    import sys
+
+    from tqdm import tqdm
+
+    from antisync.runner import run_jobs
+    from antisync.screening import ScreenResult, screen_graph
+    from antisync.store import read_sweep_meta, write_sweep_meta
+    from antisync.sweeps.results import sweep_summary
+
+    say = log or (lambda msg: None)
+    path = store.path
+    key = sweep.key()
+    if resume:
+        store.load_states([], key)  # a file or journal of another sweep is an error, now
+    stored = read_sweep_meta(path) if path.exists() else None
+    if resume and stored is not None and stored.get("complete") and store.file_complete():
+        # every stage finished with this key: the file stays exactly as it is
+        if writable:
+            store.drop_journal()  # left by a kill after the last checkpoint
+        say(f"{path} is already complete; nothing to do")
+        return path
+    if not writable:
+        raise StoreError(f"cannot write to folder {path.parent} to finish {path}; "
+                         "make it writable or use --out for a new file")
+    entries = family_graphs(sweep)
+    _check_backend(sweep, entries)  # before the journal: nothing is screened in vain
+    store.start_journal(key)
+    say(f"sweep {sweep.name}: {len(entries)} graph(s) of family {sweep.family['family']}, "
+        f"{len(sweep.thresholds)} threshold(s), {sweep.repeats} repeat(s)")
+
+    # -- 1. screening, cached per graph in the journal and in the file ------------------------
+    screens: dict[str, ScreenResult] = {}
+    if stored:
+        for gm in stored["graphs"]:
+            if gm.get("screen"):
+                screens[gm["graph"]] = ScreenResult.from_dict(gm["screen"])
+    for d in store.load_screens():  # one cut off by a crash is not there: screened again
+        screens.setdefault(d["graph"], ScreenResult.from_dict(d))
+    show = sys.stderr.isatty() if progress is None else progress
+    todo = [e for e in entries if sweep.screen.enabled and e.name not in screens]
+    dyn = sweep.base.dynamics
+    bar = tqdm(total=len(entries), initial=len(entries) - len(todo), unit="graph", desc="screening",
+               disable=not show or not todo, file=sys.stderr, dynamic_ncols=True)
+    for entry in todo:
+        res = screen_graph(
+            graphs_mod.omega_matrix(entry.graph), graph=entry.name, seed=sweep.base.seed,
+            realizations=sweep.screen.realizations, t_max=sweep.screen.t_max, dt=dyn.dt,
+            threshold=max(sweep.thresholds), coupling_kind=dyn.coupling,
+            exclude_fraction=sweep.screen.exclude_fraction, threads=sweep.base.threads,
+        )
+        screens[entry.name] = res
+        store.save_screen(entry.name, res.to_dict())
+        bar.update(1)
+    bar.close()
+    excluded = {n for n, s in screens.items() if s.excluded}
+    kept = [e for e in entries if e.name not in excluded]
+    for e in entries:
+        if e.name in excluded:
+            say(f"excluded {e.name}: {screens[e.name].reason}")
+    if not kept:
+        raise ConfigError(f"sweep {sweep.name}: every graph was excluded by the screening")
+
+    # -- 2. main stage ---------------------------------------------------------------------
+    jobs, jobs_meta = main_jobs(sweep, kept)
+    saved = _symmetry(sweep, kept, jobs)
+    say(f"symmetry: {saved['directed_edges']} directed edges in {saved['representatives']} orbits; "
+        f"integrating representatives saves {saved['integrations_saved']:,} of "
+        f"{saved['integrations_without_symmetry']:,} integrations ({saved['fraction_saved']:.0%})")
+    state = {"jobs_meta": list(jobs_meta), "final": sweep.top.graphs == 0}
+
+    def write_meta(f, states) -> None:
+        meta = _meta(sweep, entries, screens, excluded, state["jobs_meta"], saved)
+        meta["complete"] = bool(state["final"] and all(st.complete for st in states.values()))
+        write_sweep_meta(f, meta)  # also the root's complete, as for a run file
+
+    common = dict(progress=progress, executor=executor, log=log,
+                  chunk_realizations=chunk_realizations, checkpoint_seconds=checkpoint_seconds,
+                  key=key, provenance={"config_yaml": sweep.to_yaml(), "sweep": sweep.name},
+                  extra=write_meta)
+    main_done = False
+    if stored is not None:
+        states = store.load_states(jobs, key)
+        main_done = all(st.complete for st in states.values())
+    if not main_done:
+        run_jobs(jobs, sweep.base, output=path, resume=True, **common)
+    if sweep.top.graphs == 0:
+        if main_done:
+            # done, but the file did not say complete (a complete one returned above): rewrite
+            # it so that its metadata is current
+            run_jobs(jobs, sweep.base, output=path, resume=True, **common)
+        return path
+
+    # -- 3. top stage ----------------------------------------------------------------------
+    records = sweep_summary(path)["records"]
+    tjobs, tmeta = top_jobs(sweep, kept, records)
+    state["jobs_meta"] = jobs_meta + tmeta
+    state["final"] = True
+    if tjobs:
+        say(f"top stage: {len(tjobs)} graph(s), edge of largest Lambda, betas "
+            f"{list(sweep.top.betas)}, {tjobs[0].config.realizations:,} realizations")
+    run_jobs(jobs + tjobs, sweep.base, output=path, resume=True, **common)
+    return path
+
+
+def _check_backend(sweep: Sweep, entries: list[GraphEntry]) -> None:
+    """Refuse, before anything is written, what the sweep's backend cannot run: its options
+    (:func:`~antisync.compute.check_backend`) and, on cuda, a graph with more nodes than
+    the kernels hold (the stages' ``run_jobs`` would refuse it only after the screening)."""
+    from antisync.backends import resolve_backend
+    from antisync.compute import check_backend
+
+    backend, _ = resolve_backend(sweep.base.backend)
+    check_backend(sweep.base, backend)
+    if backend == "cuda":
+        from antisync.kernels.cuda import MAX_NODES
+
+        for e in entries:
+            if e.graph.number_of_nodes() > MAX_NODES:
+                raise ConfigError(
+                    f"graph {e.name} has {e.graph.number_of_nodes()} nodes; the cuda backend runs "
+                    f"at most {MAX_NODES}: use --backend cpu"
+                )
+
+
+def _symmetry(sweep: Sweep, kept: list[GraphEntry], jobs) -> dict:
+    n_dir = sum(len(e.edges) for e in kept)
+    n_rep = sum(len(e.representatives) for e in kept)
+    with_sym = without = 0
+    by_graph = {e.name: e for e in kept}
+    for job in jobs:
+        entry = by_graph[job.graph.graph["name"]]
+        # the betas and dbeta of one edge (orbit: plus the +-dbeta pair)
+        per_edge = (job.integrations_per_realization - 1) // len(job.edges)
+        m = job.config.realizations
+        with_sym += (1 + per_edge * len(entry.representatives)) * m
+        without += (1 + per_edge * len(entry.edges)) * m
+    return {
+        "directed_edges": n_dir, "representatives": n_rep,
+        "integrations": with_sym, "integrations_without_symmetry": without,
+        "integrations_saved": without - with_sym,
+        "fraction_saved": (without - with_sym) / without if without else 0.0,
+    }
+
+
+def _meta(sweep, entries, screens, excluded, jobs_meta, saved) -> dict:
+    from antisync.store import SWEEP_FORMAT, SWEEP_FORMAT_VERSION
+
+    graphs = []
+    for e in entries:
+        s = screens.get(e.name)
+        graphs.append({
+            "graph": e.name, "spec": e.spec,
+            "nodes": [_jsonable(v) for v in graphs_mod.node_order(e.graph)],
+            "undirected_edges": [[_jsonable(u), _jsonable(v)] for u, v in e.graph.edges],
+            "orbits": e.orbit_labels(),
+            "excluded": e.name in excluded,
+            "screen": s.to_dict() if s is not None else None,
+        })
+    return {
+        "format": SWEEP_FORMAT, "format_version": SWEEP_FORMAT_VERSION, "name": sweep.name,
+        "family": sweep.family, "thresholds": list(sweep.thresholds), "repeats": sweep.repeats,
+        "ranking_threshold": sweep.ranking_threshold(),
+        "top": asdict(sweep.top) | {"betas": list(sweep.top.betas)},
+        "screen": asdict(sweep.screen), "graphs": graphs, "jobs": jobs_meta, "symmetry": saved,
+        "coupling": sweep.base.dynamics.coupling, "dbeta": sweep.base.lambda_.dbeta,
+        "betas": list(sweep.base.betas),
+    }
+
+
+def _jsonable(v):
+    return v if isinstance(v, int | float | str) else str(v)

@@ -1,0 +1,168 @@
+"""Architecture: the import graph of ``antisync`` has no cycles, and only the store touches HDF5.
+
+Every module under ``antisync/`` is parsed with :mod:`ast` (nothing is imported). Every
+``import`` that can run counts, at any level: module level, inside functions, under
+``if``/``try``; only the body of ``if TYPE_CHECKING:`` is left out (it never runs: names for
+annotations only). Relative imports are resolved. ``from P import name`` is an edge to
+``P.name`` when that is a module, else to ``P``. Importing ``a.b.c`` from outside package
+``a.b`` also runs ``a/b/__init__.py``, so it is an edge to ``a.b`` too (not to ``a``, the
+root every module is inside).
+"""
+
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+PACKAGE = ROOT / "antisync"
+#: the only package whose modules may import h5py (bench/ and tests/ may too)
+HDF5_OWNER = "antisync.store"
+
+
+def _modules() -> dict[str, Path]:
+    """``{dotted name: file}`` of every module of the package (``__init__`` as the package)."""
+    out = {}
+    for path in sorted(PACKAGE.rglob("*.py")):
+        parts = list(path.relative_to(ROOT).with_suffix("").parts)
+        if parts[-1] == "__init__":
+            parts.pop()
+        out[".".join(parts)] = path
+    return out
+
+
+def _imports(name: str, path: Path) -> list[str]:
+    """Every module name ``name`` imports (absolute; relative imports resolved)."""
+    is_package = path.name == "__init__.py"
+    tree = ast.parse(path.read_text(encoding="utf-8"), filename=str(path))
+    out = []
+    for node in _runtime_nodes(tree):
+        if isinstance(node, ast.Import):
+            out.extend(alias.name for alias in node.names)
+        elif isinstance(node, ast.ImportFrom):
+            if node.level:
+                base = name.split(".")
+                # a package's own name is its level-1 base; a module's level-1 base is its package
+                drop = node.level - 1 if is_package else node.level
+                base = base[: len(base) - drop] if drop else base
+                base = ".".join(base + ([node.module] if node.module else []))
+            else:
+                base = node.module
+            # base.name: a submodule, or (resolved below to base) a name defined in base
+            out.extend(f"{base}.{alias.name}" for alias in node.names)
+    return out
+
+
+def _runtime_nodes(tree: ast.AST):
+    """Every node of ``tree`` except those inside the body of ``if TYPE_CHECKING:``."""
+    todo = [tree]
+    while todo:
+        node = todo.pop()
+        yield node
+        if isinstance(node, ast.If) and _is_type_checking(node.test):
+            todo.extend(node.orelse)
+            continue
+        todo.extend(ast.iter_child_nodes(node))
+
+
+def _is_type_checking(test: ast.expr) -> bool:
+    return (isinstance(test, ast.Name) and test.id == "TYPE_CHECKING") or (
+        isinstance(test, ast.Attribute) and test.attr == "TYPE_CHECKING")
+
+
+def import_graph() -> dict[str, set[str]]:
+    """``{module: modules it imports}`` within ``antisync``."""
+    modules = _modules()
+    graph: dict[str, set[str]] = {m: set() for m in modules}
+    for name, path in modules.items():
+        for target in _imports(name, path):
+            # the longest prefix that is a module of ours: a.b.c.func -> a.b.c
+            parts = target.split(".")
+            while parts and ".".join(parts) not in modules:
+                parts.pop()
+            if not parts:
+                continue  # not ours
+            hit = ".".join(parts)
+            edges = {hit}
+            # importing a.b.c runs a/b/__init__.py first, unless we are inside a.b already
+            for k in range(1, len(parts)):
+                pkg = ".".join(parts[:k])
+                if pkg != "antisync" and not (name == pkg or name.startswith(pkg + ".")):
+                    edges.add(pkg)
+            graph[name] |= edges - {name}
+    return graph
+
+
+def find_cycle(graph: dict[str, set[str]]) -> list[str] | None:
+    """One cycle of ``graph`` as ``[a, b, ..., a]``, or None."""
+    state: dict[str, int] = {}  # 1: on the stack, 2: done
+    stack: list[str] = []
+
+    def visit(node: str) -> list[str] | None:
+        state[node] = 1
+        stack.append(node)
+        for nxt in sorted(graph.get(node, ())):
+            if state.get(nxt) == 1:
+                return stack[stack.index(nxt):] + [nxt]
+            if nxt not in state:
+                found = visit(nxt)
+                if found:
+                    return found
+        stack.pop()
+        state[node] = 2
+        return None
+
+    for node in sorted(graph):
+        if node not in state:
+            found = visit(node)
+            if found:
+                return found
+    return None
+
+
+def test_import_graph_has_no_cycles():
+    graph = import_graph()
+    assert len(graph) > 20 and "antisync.runner" in graph["antisync.cli.run"]  # the walk works
+    cycle = find_cycle(graph)
+    assert cycle is None, "import cycle: " + " -> ".join(cycle)
+
+
+def test_only_the_store_imports_h5py():
+    offenders = []
+    for name, path in _modules().items():
+        if name == HDF5_OWNER or name.startswith(HDF5_OWNER + "."):
+            continue
+        if any(t.split(".")[0] == "h5py" for t in _imports(name, path)):
+            offenders.append(name)
+    assert not offenders, f"h5py imported outside {HDF5_OWNER}: {', '.join(offenders)}"
+
+
+def test_summaries_are_pure():
+    """summary.py and the sweep analysis turn decoded jobs into records: no file, no store."""
+    graph = import_graph()
+    for name in ("antisync.summary", "antisync.sweeps.analysis"):
+        assert name in graph, name
+        reach, todo = set(), [name]
+        while todo:
+            for nxt in graph[todo.pop()] - reach:
+                reach.add(nxt)
+                todo.append(nxt)
+        assert not {m for m in reach if m == HDF5_OWNER or m.startswith(HDF5_OWNER + ".")}, name
+
+
+def test_the_walk_counts_local_imports_and_skips_type_checking(tmp_path):
+    src = (
+        "from typing import TYPE_CHECKING\n"
+        "if TYPE_CHECKING:\n    import antisync.hidden\nelse:\n    import antisync.shown\n"
+        "def f():\n    from . import local\n    from .sub import name\n"
+    )
+    path = tmp_path / "m.py"
+    path.write_text(src)
+    got = set(_imports("antisync.pkg.m", path))
+    assert {"antisync.shown", "antisync.pkg.local", "antisync.pkg.sub.name"} <= got
+    assert not any("hidden" in t for t in got)
+
+
+def test_the_cycle_finder_finds_cycles():
+    assert find_cycle({"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": set()}) == ["a", "b", "c", "a"]
+    assert find_cycle({"a": {"b"}, "b": set()}) is None
