@@ -27,8 +27,10 @@ from typing import TYPE_CHECKING, Any
 if TYPE_CHECKING:
     from antisync.config import Config
 
-__all__ = ["Result", "load", "run", "sweep"]
+__all__ = ["Result", "load", "run", "summarize", "sweep"]
 
+_SWEEP_KEYS = ("sweep", "family", "thresholds", "ranking_threshold", "excluded", "top", "screen",
+               "symmetry")
 _SECTIONS = ("dynamics", "lambda", "histogram", "linear", "screen", "top")
 
 
@@ -88,17 +90,39 @@ def load(path: str | Path) -> Result:
     antisync.errors.StoreError
         Missing, foreign, damaged or newer-format files, with a one-line message.
     """
-    from antisync.store import is_sweep_file, open_results, records
+    s = summarize(path)
+    sweep = s if s["kind"] == "sweep" else None
+    return Result(Path(path), s["kind"], s["records"], s["complete"], s["config_yaml"], sweep)
+
+
+def summarize(path: str | Path) -> dict:
+    """Everything ``antisync summary FILE --format json`` prints, for a run or a sweep file.
+
+    One schema for both: ``kind`` ("run" or "sweep"), ``file``, ``complete``, ``records``,
+    ``config_yaml``, and the sweep's ``sweep`` (name), ``family``, ``thresholds``,
+    ``ranking_threshold``, ``excluded``, ``top``, ``screen``, ``symmetry`` (for a run file:
+    ``null`` or empty lists, and ``thresholds`` the run's one threshold).
+    """
+    from antisync.store import is_sweep_file, records, root_attrs
     from antisync.sweeps import sweep_summary
 
     path = Path(path)
-    with open_results(path) as f:
-        config_yaml = str(f.attrs.get("config_yaml", ""))
-        complete = bool(f.attrs.get("complete", False))
+    root = root_attrs(path)
     if is_sweep_file(path):
         s = sweep_summary(path)
-        return Result(path, "sweep", s["records"], bool(s["complete"]), config_yaml, s)
-    return Result(path, "run", records(path), complete, config_yaml)
+        return {"kind": "sweep", "file": str(path), "complete": bool(s["complete"]),
+                "records": s["records"], "config_yaml": root["config_yaml"],
+                **{k: s[k] for k in _SWEEP_KEYS}}
+    recs = records(path)
+    import yaml
+
+    cfg = yaml.safe_load(root["config_yaml"] or "{}") or {}
+    threshold = (cfg.get("dynamics") or {}).get("threshold")
+    thresholds = [threshold] if threshold is not None else []
+    return {"kind": "run", "file": str(path), "complete": root["complete"], "records": recs,
+            "config_yaml": root["config_yaml"], "sweep": None, "family": None,
+            "thresholds": thresholds, "ranking_threshold": None, "excluded": [], "top": [],
+            "screen": [], "symmetry": None}
 
 
 def run(config: str | Path | Mapping | Config, /, *, output: str | Path | None = None,

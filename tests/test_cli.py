@@ -44,7 +44,9 @@ def test_run_summary_report(tmp_path, cfg):
     assert out.exists() and not (tmp_path / "r.h5.partial").exists()
     res = invoke("summary", out, "--format", "json")
     assert res.exit_code == 0
-    recs = json.loads(res.stdout)
+    data = json.loads(res.stdout)
+    assert data["kind"] == "run" and data["complete"] and data["excluded"] == []
+    recs = data["records"]
     assert [(r["edge"], r["beta"]) for r in recs] == [("2->1", 0.5), ("2->3", 0.5)]
     needed = {"graph", "edge", "beta", "F_mean", "F_se", "lambda_km", "lambda_km_se",
               "tau0_mean", "tau0_se", "n", "n_excluded", "n_not_synced"}

@@ -70,7 +70,7 @@ def _arrays(path) -> dict:
 def _summary(path) -> list:
     res = CliRunner().invoke(app, ["summary", str(path), "--format", "json"])
     assert res.exit_code == 0, res.output
-    return json.loads(res.stdout)
+    return json.loads(res.stdout)["records"]
 
 
 def _assert_same(path, reference) -> None:

@@ -295,7 +295,7 @@ def test_nothing_synchronized_still_reports_and_says_why(tmp_path):
     cfg.write_text(SMALL.replace("t_max: 60", "t_max: 0.5"))
     out = tmp_path / "r.h5"
     assert invoke("run", cfg, "--out", out, "-q").exit_code == 0
-    recs = json.loads(invoke("summary", out, "-f", "json").stdout)
+    recs = json.loads(invoke("summary", out, "-f", "json").stdout)["records"]
     assert recs[0]["n_not_synced"] >= 19 and recs[0]["n"] <= 1
     table = invoke("summary", out).stdout
     assert "did not synchronize by t_max" in table and "raise dynamics.t_max" in table

@@ -56,7 +56,7 @@ def run(tmp_path_factory):
     assert res.exit_code == 0, res.output
     res = invoke("summary", out, "--format", "json")
     assert res.exit_code == 0, res.output
-    recs = json.loads(res.stdout)
+    recs = json.loads(res.stdout)["records"]
     res = invoke("report", out, "--out", tmp / "fig", "--quiet")
     assert res.exit_code == 0, res.output
     return {"cfg": cfg, "out": out, "recs": recs, "fig": tmp / "fig"}
@@ -152,7 +152,7 @@ def test_records_without_measures_have_null_keys(tmp_path, small_config_text):
     cfg.write_text(small_config_text)
     out = tmp_path / "r.h5"
     assert invoke("run", cfg, "--out", out, "--quiet").exit_code == 0
-    recs = json.loads(invoke("summary", out, "--format", "json").stdout)
+    recs = json.loads(invoke("summary", out, "--format", "json").stdout)["records"]
     assert all(r[k] is None for r in recs for k in RECORD_KEYS)
     res = invoke("report", out, "--out", tmp_path / "fig", "--quiet")
     assert res.exit_code == 0

@@ -35,6 +35,7 @@ from antisync.store.layout import (
     read_sweep_meta,
     read_views,
     records,
+    root_attrs,
     write_sweep_meta,
 )
 from antisync.store.provenance import command_line, git_revision
@@ -59,5 +60,6 @@ __all__ = [
     "read_sweep_meta",
     "read_views",
     "records",
+    "root_attrs",
     "write_sweep_meta",
 ]

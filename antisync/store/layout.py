@@ -135,6 +135,16 @@ def result_file_problem(path: Path) -> str | None:
     return what
 
 
+def root_attrs(path: Path) -> dict:
+    """The provenance a reader wants without the data: ``config_yaml``, ``complete``,
+    ``antisync_version``, ``git_revision``, ``command``, ``created``, ``updated``."""
+    keys = ("config_yaml", "antisync_version", "git_revision", "command", "created", "updated")
+    with open_results(path) as f:
+        out = {k: str(f.attrs.get(k, "")) for k in keys}
+        out["complete"] = bool(f.attrs.get("complete", False))
+    return out
+
+
 def is_complete(path: Path) -> bool:
     """Whether the file ``path`` exists and says every job (every stage of a sweep) finished."""
     if not path.is_file():
