@@ -20,7 +20,7 @@ from __future__ import annotations
 import importlib
 from typing import TYPE_CHECKING
 
-__version__ = "0.1.0"
+from antisync._version import __version__
 
 __all__ = ["Result", "__version__", "load", "measures", "run", "sweep"]
 

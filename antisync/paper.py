@@ -25,11 +25,10 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
-from antisync.reference import paper_table1
+from antisync.reference import config_path, paper_table1
 
 __all__ = ["CAPTIONS", "STEPS", "Step", "make_paper", "plan"]
 
-REPO = Path(__file__).resolve().parent.parent
 
 
 @dataclass(frozen=True)
@@ -200,7 +199,8 @@ def make_paper(out: str | Path = "results/paper", *, scale: float = 1.0, overwri
 
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    folder = Path(configs) if configs else REPO / "configs"
+    # the shipped configs (package data), not the checkout's layout: works from a wheel too
+    folder = Path(configs) if configs else Path(str(config_path("lollipop6"))).parent
     if not (folder / "lollipop6.yaml").exists():
         raise ConfigError(f"configs folder {folder} has no lollipop6.yaml; pass configs=")
     log(plan(scale))
@@ -355,7 +355,7 @@ def _img(out: Path, rel: str, width: int = 700) -> list[str]:
 
 
 def _readme(out: Path, scale: float, timings: dict, extra: dict) -> str:
-    from antisync import __version__
+    from antisync._version import __version__
     from antisync.store import git_revision
 
     lines = [

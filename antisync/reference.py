@@ -1,7 +1,10 @@
-"""The numbers the paper prints, shipped with the package (``data/paper_values.yaml``).
+"""What antisync ships as data: the paper's printed numbers and the example configs.
 
-They are facts to reproduce, kept once, inside the package: the tests, ``antisync paper`` and
-its README all read them from here, so an installed wheel or a bare clone has them too.
+The numbers the paper prints live in ``data/paper_values.yaml``, the configs in
+``data/configs/`` (``configs/`` in a checkout is a link to it).
+
+Both are kept once, inside the package: the tests, ``antisync paper`` and its README read
+them from here, so an installed wheel or a bare clone has them too.
 
 Example
 -------
@@ -15,7 +18,7 @@ from __future__ import annotations
 import functools
 from importlib import resources
 
-__all__ = ["paper_table1", "paper_values"]
+__all__ = ["config_path", "paper_table1", "paper_values"]
 
 
 @functools.cache
@@ -30,3 +33,19 @@ def paper_values() -> dict:
 def paper_table1() -> list[tuple[int, float, float, float]]:
     """Table 1 rows ``(graph, <tau0>, max Lambda^KM, <F_0.5>)``, graphs 1..7."""
     return [tuple(row) for row in paper_values()["table_1"]["rows"]]
+
+
+def config_path(name: str):
+    """A config shipped with antisync (``configs/`` in a checkout), e.g. ``lollipop6``.
+
+    Returns a path-like :class:`importlib.resources.abc.Traversable`; ``str()`` of it is a file
+    path for an installed package or a checkout.
+    """
+    from antisync.errors import ConfigError
+
+    folder = resources.files("antisync").joinpath("data/configs")
+    path = folder.joinpath(f"{name}.yaml")
+    if not path.is_file():
+        names = sorted(p.name.removesuffix(".yaml") for p in folder.iterdir() if p.name.endswith(".yaml"))
+        raise ConfigError(f"no shipped config {name!r}; shipped: {', '.join(names)}")
+    return path

@@ -46,7 +46,8 @@ from pathlib import Path
 
 import numpy as np
 
-from antisync import __version__, estimators
+from antisync import estimators
+from antisync._version import __version__
 from antisync.errors import StoreError
 from antisync.jobs import Job
 from antisync.measures.pipeline import COMPUTED
