@@ -12,11 +12,10 @@ import numpy as np
 from antisync import estimators
 from antisync.errors import ConfigError
 from antisync.jobs import Chunk, Job
-from antisync.status import Status
+from antisync.status import SYNCED
 
 __all__ = ["ChunkResult", "check_backend", "check_job", "compute_chunk", "lambda_values", "simulate_job"]
 
-_SYNCED = int(Status.SYNCED)
 
 
 @dataclass
@@ -137,8 +136,8 @@ def lambda_values(job: Job, sim, first: int, count: int, threads: int | None = N
         v = _fd_variants(job)
         t0, t = estimators.crossing_times(sim, dyn.interpolate)
         t = t[:, v]
-        ok = (sim.status0[:, None] == _SYNCED) & (sim.status[:, v] == _SYNCED)
-        code = np.where(ok, _SYNCED, np.maximum(sim.status0[:, None], sim.status[:, v])).astype(np.int8)
+        ok = (sim.status0[:, None] == SYNCED) & (sim.status[:, v] == SYNCED)
+        code = np.where(ok, SYNCED, np.maximum(sim.status0[:, None], sim.status[:, v])).astype(np.int8)
         values = np.where(ok, (t0[:, None] / np.where(ok, t, 1.0) - 1.0) / job.dbeta, 0.0)
         return values, code, np.zeros_like(ok), None
 
@@ -152,7 +151,7 @@ def lambda_values(job: Job, sim, first: int, count: int, threads: int | None = N
                            job.csr.weights, edge_a, edge_b, rho, mu, dt=dyn.dt,
                            threshold=dyn.threshold, max_steps=dyn.max_steps, threads=threads)
     tau0 = (pw.steps0 - 1 + pw.frac0) * dyn.dt
-    ok0 = pw.status0 == _SYNCED
+    ok0 = pw.status0 == SYNCED
     values = np.where(ok0[:, None], -pw.dtau / np.where(ok0, tau0, 1.0)[:, None], 0.0)
     code = np.repeat(pw.status0[:, None], n_edges, axis=1).astype(np.int8)
     flagged = np.zeros((count, n_edges), dtype=bool)
@@ -163,7 +162,7 @@ def lambda_values(job: Job, sim, first: int, count: int, threads: int | None = N
             sec = simulate_job(job, 0, 0, "cpu", threads, job.secant_weights[e : e + 1],
                                realizations=first + rows)
             tau = (sec.steps[:, 0] - 1 + sec.frac[:, 0]) * dyn.dt
-            good = sec.status[:, 0] == _SYNCED
+            good = sec.status[:, 0] == SYNCED
             values[rows[good], e] = (tau0[rows[good]] / tau[good] - 1.0) / job.dbeta
             code[rows[~good], e] = sec.status[~good, 0]
     return values, code, flagged, pw
@@ -180,8 +179,8 @@ def _orbit_values(job: Job, sim, first: int, count: int, threads: int | None):
     t0, t = estimators.crossing_times(osim, dyn.interpolate)
     plus, minus = t[:, 0::2], t[:, 1::2]
     s_plus, s_minus = osim.status[:, 0::2], osim.status[:, 1::2]
-    ok = (osim.status0[:, None] == _SYNCED) & (s_plus == _SYNCED) & (s_minus == _SYNCED)
-    code = np.where(ok, _SYNCED, np.maximum(osim.status0[:, None], np.maximum(s_plus, s_minus)))
+    ok = (osim.status0[:, None] == SYNCED) & (s_plus == SYNCED) & (s_minus == SYNCED)
+    code = np.where(ok, SYNCED, np.maximum(osim.status0[:, None], np.maximum(s_plus, s_minus)))
     inv = np.where(ok, 1.0 / np.where(ok, plus, 1.0) - 1.0 / np.where(ok, minus, 1.0), 0.0)
     values = t0[:, None] * inv / (2.0 * job.dbeta * job.orbit_sizes[None, :])
     values = np.where(ok, values, 0.0)

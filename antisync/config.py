@@ -18,16 +18,45 @@ Example
 
 from __future__ import annotations
 
-import difflib
 import math
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 
 import yaml
 
-from antisync.coupling import COUPLINGS
 from antisync.errors import ConfigError
+from antisync.types import (
+    BACKENDS,
+    COUPLINGS,
+    CROSSINGS,
+    EXECUTORS,
+    INTEGRATORS,
+    LAMBDA_METHODS,
+    LINEAR_METHODS,
+    MEASURES,
+    PRECISIONS,
+    Backend,
+    Coupling,
+    Crossing,
+    Executor,
+    Integrator,
+    LambdaMethod,
+    LinearMethod,
+    Measure,
+    Precision,
+)
+from antisync.validation import (
+    beta,
+    choice,
+    fraction,
+    integer,
+    number,
+    positive,
+    suggest,
+    unknown_keys,
+    whole,
+)
 
 __all__ = [
     "BACKENDS",
@@ -41,22 +70,15 @@ __all__ = [
     "Histogram",
     "LambdaSpec",
     "LinearSpec",
+    "check_graph",
     "config_from_mapping",
     "load_config",
     "load_config_text",
     "parse_mapping",
 ]
 
-BACKENDS = ("cpu", "cuda", "auto")
-EXECUTORS = ("local", "dask")
-INTEGRATORS = ("euler", "rk4")
-CROSSINGS = ("auto", "grid", "interpolated")
-LAMBDA_METHODS = ("finite-difference", "pathwise", "hybrid", "orbit")
-#: km: Lambda^KM from the run (Eq. 6); linear, xi2, rw: the measures of Secs. 2.3 and 3.3
-#: (Eqs. 14, 16, 25); km_nnc: the same run with raw coupling (Sec. 3.4, Eqs. 20-22).
-MEASURES = ("km", "linear", "xi2", "rw", "km_nnc")
-LINEAR_METHODS = ("exact", "euler", "derivative")
-PRECISIONS = ("float64", "float32")
+# BACKENDS, EXECUTORS, INTEGRATORS, CROSSINGS, LAMBDA_METHODS, MEASURES, LINEAR_METHODS and
+# PRECISIONS (imported above) are the valid values of the Literal types of antisync.types.
 
 #: At most this many realizations per run: block counts, realization indices (the phase
 #: generator's counter) and float64 sums of tau stay exact far below 2**53.
@@ -78,29 +100,29 @@ _GRAPH_KEYS = {
 class Dynamics:
     """Model and integrator (paper Eqs. 2, 20; Sec. 3: Euler, dt = 0.001, r = 0.99)."""
 
-    coupling: str = "normalized"
-    integrator: str = "euler"
+    coupling: Coupling = "normalized"
+    integrator: Integrator = "euler"
     dt: float = 0.001
     threshold: float = 0.99
     t_max: float = 200.0
-    crossing: str = "auto"
+    crossing: Crossing = "auto"
     """``grid``: tau is the first grid time with r >= threshold (the paper's); ``interpolated``:
     the crossing inside that step (linear in R for Euler, cubic Hermite for RK4);
     ``auto``: grid for Euler, interpolated for RK4."""
-    precision: str = "float64"
+    precision: Precision = "float64"
     """Arithmetic of the integrated state: ``float64`` (every backend) or ``float32`` (backend
     cuda only; docs/cuda.md says how much it moves tau)."""
 
     def __post_init__(self):
-        _choice("dynamics.coupling", self.coupling, COUPLINGS)
-        _choice("dynamics.integrator", self.integrator, INTEGRATORS)
-        _choice("dynamics.crossing", self.crossing, CROSSINGS)
-        _choice("dynamics.precision", self.precision, PRECISIONS)
+        choice("dynamics.coupling", self.coupling, COUPLINGS)
+        choice("dynamics.integrator", self.integrator, INTEGRATORS)
+        choice("dynamics.crossing", self.crossing, CROSSINGS)
+        choice("dynamics.precision", self.precision, PRECISIONS)
         if self.integrator == "rk4" and self.crossing == "grid":
             raise ConfigError("dynamics.crossing grid is too coarse for rk4 steps; use interpolated")
-        _positive("dynamics.dt", self.dt)
-        _positive("dynamics.t_max", self.t_max)
-        _fraction("dynamics.threshold", self.threshold)
+        positive("dynamics.dt", self.dt)
+        positive("dynamics.t_max", self.t_max)
+        fraction("dynamics.threshold", self.threshold)
         if self.dt > self.t_max:
             raise ConfigError(f"dynamics.dt ({self.dt}) must be smaller than t_max ({self.t_max})")
         steps = self.t_max / self.dt
@@ -131,14 +153,14 @@ class LambdaSpec:
       states): there the secant ``(tau0/tau(dbeta) - 1)/dbeta`` of interpolated times.
     """
 
-    method: str = "finite-difference"
+    method: LambdaMethod = "finite-difference"
     dbeta: float = 0.01
     hybrid_cut: float = 2.0
 
     def __post_init__(self):
-        _choice("lambda.method", self.method, LAMBDA_METHODS)
-        _fraction("lambda.dbeta", self.dbeta)
-        _positive("lambda.hybrid_cut", self.hybrid_cut)
+        choice("lambda.method", self.method, LAMBDA_METHODS)
+        fraction("lambda.dbeta", self.dbeta)
+        positive("lambda.hybrid_cut", self.hybrid_cut)
 
 
 @dataclass(frozen=True)
@@ -152,11 +174,11 @@ class LinearSpec:
     """
 
     realizations: int = 2000
-    method: str = "exact"
+    method: LinearMethod = "exact"
 
     def __post_init__(self):
-        _integer("linear.realizations", self.realizations, 2, MAX_REALIZATIONS, "2..10**15")
-        _choice("linear.method", self.method, LINEAR_METHODS)
+        integer("linear.realizations", self.realizations, 2, MAX_REALIZATIONS, "2..10**15")
+        choice("linear.method", self.method, LINEAR_METHODS)
 
 
 @dataclass(frozen=True)
@@ -165,17 +187,17 @@ class Histogram:
 
     bins: int = 120
     tau_max: float = 40.0
-    betas: tuple = (0.5,)
+    betas: tuple[float, ...] = (0.5,)
     """Damages whose histograms are kept (those also in the run's ``betas``)."""
 
     def __post_init__(self):
         betas = self.betas if self.betas is not None else ()
         if not isinstance(betas, list | tuple):
             raise ConfigError(f"histogram.betas must be a list such as [0.5], got {betas!r}")
-        object.__setattr__(self, "betas", tuple(_beta("histogram.betas", b) for b in betas))
+        object.__setattr__(self, "betas", tuple(beta("histogram.betas", b) for b in betas))
         if isinstance(self.bins, bool) or not isinstance(self.bins, int) or not 2 <= self.bins <= 4096:
             raise ConfigError(f"histogram.bins must be an integer in 2..4096, got {self.bins!r}")
-        _positive("histogram.tau_max", self.tau_max)
+        positive("histogram.tau_max", self.tau_max)
 
 
 @dataclass(frozen=True)
@@ -184,54 +206,57 @@ class Config:
 
     graph: dict
     name: str = "run"
-    edges: Any = "all"
-    betas: tuple = (0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9)
+    edges: Literal["all"] | tuple[str, ...] = "all"
+    """``all`` (every directed link) or link labels such as ``("2->1",)``; a list is stored as a
+    tuple."""
+    betas: tuple[float, ...] = (0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9)
     lambda_: LambdaSpec = field(default_factory=LambdaSpec)
     dynamics: Dynamics = field(default_factory=Dynamics)
-    measures: tuple = ("km",)
+    measures: tuple[Measure, ...] = ("km",)
     linear: LinearSpec = field(default_factory=LinearSpec)
     realizations: int = 2000
     seed: int = 1
-    block_size: Any = "auto"
-    chunk_size: Any = "auto"
+    block_size: int | Literal["auto"] = "auto"
+    chunk_size: int | Literal["auto"] = "auto"
     keep_pairs: int = 10000
     histogram: Histogram = field(default_factory=Histogram)
-    backend: str = "cpu"
-    executor: str = "local"
-    threads: Any = None
+    backend: Backend = "cpu"
+    executor: Executor = "local"
+    threads: int | None = None
     output: str = ""
 
     def __post_init__(self):
-        _integer("realizations", self.realizations, 1, MAX_REALIZATIONS, "1..10**15")
-        _integer("seed", self.seed, 0, 2**63 - 1, "0..2**63-1")
+        integer("realizations", self.realizations, 1, MAX_REALIZATIONS, "1..10**15")
+        integer("seed", self.seed, 0, 2**63 - 1, "0..2**63-1")
         if not isinstance(self.name, str) or not self.name:
             raise ConfigError(f"name must be a non-empty string, got {self.name!r}")
         if not isinstance(self.output, str) or not self.output:
             raise ConfigError(f"output must be a file path such as results/run.h5, got {self.output!r}")
         for b in self.betas:
-            _beta("betas", b)
+            beta("betas", b)
         if self.edges != "all":
             if not isinstance(self.edges, list | tuple) or not self.edges:
                 raise ConfigError(
                     f"edges must be 'all' or a non-empty list like [\"2->1\"], got {self.edges!r}"
                 )
+            object.__setattr__(self, "edges", tuple(self.edges))
         _check_measures(self.measures, self.dynamics.coupling)
-        _choice("backend", self.backend, BACKENDS)
-        _choice("executor", self.executor, EXECUTORS)
+        choice("backend", self.backend, BACKENDS)
+        choice("executor", self.executor, EXECUTORS)
         if self.block_size != "auto":
-            _integer("block_size", self.block_size, 1, MAX_REALIZATIONS, "'auto' or 1..10**15")
+            integer("block_size", self.block_size, 1, MAX_REALIZATIONS, "'auto' or 1..10**15")
         if self.chunk_size != "auto":
-            _integer("chunk_size", self.chunk_size, 1, MAX_REALIZATIONS, "'auto' or 1..10**15")
+            integer("chunk_size", self.chunk_size, 1, MAX_REALIZATIONS, "'auto' or 1..10**15")
         # kept pairs are held in memory: (keep_pairs x variants) int64 arrays
-        _integer("keep_pairs", self.keep_pairs, 0, 10**7, "0..10**7")
+        integer("keep_pairs", self.keep_pairs, 0, 10**7, "0..10**7")
         if self.lambda_.method in ("pathwise", "hybrid") and self.dynamics.integrator != "euler":
             raise ConfigError(
                 f"lambda.method {self.lambda_.method} needs dynamics.integrator euler "
                 "(the tangent is written for the Euler step); use finite-difference or orbit with rk4"
             )
         if self.threads is not None:
-            _integer("threads", self.threads, 1, 4096, "null or 1..4096")
-        _check_graph(self.graph)
+            integer("threads", self.threads, 1, 4096, "null or 1..4096")
+        check_graph(self.graph)
 
     @property
     def resolved_block_size(self) -> int:
@@ -375,7 +400,7 @@ def _from_mapping(raw: dict, source: Path | None) -> Config:
     if "sweep" in raw:
         raise ConfigError("this is a sweep config (it has a 'sweep:' section): run it with "
                           "`antisync sweep`, not `antisync run`")
-    _unknown(raw, _TOP_KEYS, "")
+    unknown_keys(raw, _TOP_KEYS, "")
     if "graph" not in raw:
         raise ConfigError("missing key 'graph' (e.g. graph: {kind: lollipop, nodes: 6, path: 3})")
     kwargs: dict[str, Any] = {}
@@ -387,8 +412,8 @@ def _from_mapping(raw: dict, source: Path | None) -> Config:
                 raise ConfigError(f"'{key}' must be a mapping, got {value!r}")
             cls = _SECTIONS[key]
             valid = {f for f in cls.__dataclass_fields__}
-            _unknown(value, valid, f"{key}.")
-            value = {k: _number(f"{key}.{k}", v, cls.__dataclass_fields__[k].default)
+            unknown_keys(value, valid, f"{key}.")
+            value = {k: number(f"{key}.{k}", v, cls.__dataclass_fields__[k].default)
                      for k, v in value.items()}
             kwargs["lambda_" if key == "lambda" else key] = cls(**value)
         elif key == "betas":
@@ -396,7 +421,7 @@ def _from_mapping(raw: dict, source: Path | None) -> Config:
                 value = []
             if not isinstance(value, list):
                 raise ConfigError(f"betas must be a list such as [0.1, 0.5], got {value!r}")
-            kwargs["betas"] = tuple(sorted({_beta("betas", _number("betas", b, 0.0)) for b in value}))
+            kwargs["betas"] = tuple(sorted({beta("betas", number("betas", b, 0.0)) for b in value}))
         elif key == "measures":
             if value is None or value == []:
                 raise ConfigError("measures must list at least km, e.g. measures: [km, xi2]")
@@ -411,7 +436,7 @@ def _from_mapping(raw: dict, source: Path | None) -> Config:
                 raise ConfigError(f"{key} must be a string, got {value!r}")
             kwargs[key] = "" if value is None else str(value)
         elif key in _INTEGER_KEYS:
-            kwargs[key] = _whole(key, value)
+            kwargs[key] = whole(key, value)
         else:
             kwargs[key] = value
     if not kwargs.get("name"):
@@ -424,24 +449,11 @@ def _from_mapping(raw: dict, source: Path | None) -> Config:
 _INTEGER_KEYS = {"realizations", "seed", "keep_pairs"}
 
 
-def _whole(key: str, value):
-    """``1e6`` (which YAML reads as a string) or ``1.0e6`` as the integer 1000000; other values
-    are left for the validators, which name what is wrong."""
-    if isinstance(value, str | float) and not isinstance(value, bool):
-        try:
-            x = float(value)
-        except ValueError:
-            return value
-        if math.isfinite(x) and x == int(x) and abs(x) <= 2**53:  # exact in float64
-            return int(x)
-    return value
-
-
 def _check_measures(measures: tuple, coupling: str) -> None:
     """Names from :data:`MEASURES`, each once, ``km`` among them; ``km_nnc`` only beside a
     normalized run (with raw coupling the second run would repeat the first)."""
     for m in measures:
-        _choice("measures", m, MEASURES)
+        choice("measures", m, MEASURES)
     twice = sorted({m for m in measures if measures.count(m) > 1})
     if twice:
         raise ConfigError(f"measures lists {', '.join(twice)} twice")
@@ -470,15 +482,15 @@ def _resolve_graph(value, source: Path | None) -> dict:
     return g
 
 
-def _check_graph(g: dict) -> None:
+def check_graph(g: dict) -> None:
     kind = g.get("kind")
     if not isinstance(kind, str) or kind not in _GRAPH_KEYS:
         raise ConfigError(
             f"graph.kind must be one of {', '.join(_GRAPH_KEYS)}, got {kind!r}"
-            + _suggest(str(kind), _GRAPH_KEYS)
+            + suggest(str(kind), _GRAPH_KEYS)
         )
     required, optional = _GRAPH_KEYS[kind]
-    _unknown(g, required | optional | {"kind"}, "graph.")
+    unknown_keys(g, required | optional | {"kind"}, "graph.")
     missing = sorted(required - set(g))
     if missing:
         raise ConfigError(f"graph of kind {kind} needs key(s) {', '.join(missing)}")
@@ -500,64 +512,3 @@ def _graph_name(g: dict) -> str:
 def graph_name(g: dict) -> str:
     """A short name for a graph spec: ``G105`` for atlas graphs, ``lollipop_6_3``, ..."""
     return _graph_name(g)
-
-
-def _unknown(mapping: dict, valid: set, prefix: str) -> None:
-    for key in mapping:
-        if key not in valid:
-            raise ConfigError(
-                f"unknown key {prefix + str(key)!r}" + _suggest(str(key), valid, prefix)
-                + f"; valid keys: {', '.join(sorted(prefix + v for v in valid))}"
-            )
-
-
-def _suggest(word: str, valid, prefix: str = "") -> str:
-    close = difflib.get_close_matches(word, [str(v) for v in valid], n=1, cutoff=0.5)
-    return f" (did you mean '{prefix}{close[0]}'?)" if close else ""
-
-
-def _choice(key: str, value, valid) -> None:
-    if value not in valid:
-        raise ConfigError(
-            f"{key} must be one of {', '.join(valid)}, got {value!r}" + _suggest(str(value), valid)
-        )
-
-
-def _positive(key: str, value) -> None:
-    if isinstance(value, bool) or not isinstance(value, int | float) or not (
-        value > 0 and math.isfinite(value)
-    ):
-        raise ConfigError(f"{key} must be a positive number, got {value!r}")
-
-
-def _fraction(key: str, value) -> None:
-    """A number strictly between 0 and 1 (thresholds, dbeta)."""
-    if isinstance(value, bool) or not isinstance(value, int | float) or not 0.0 < value < 1.0:
-        raise ConfigError(f"{key} must be in (0, 1), got {value!r}")
-
-
-def _beta(key: str, value) -> float:
-    """A damage in [0, 1) as a float."""
-    if isinstance(value, str):
-        value = _number(key, value, 0.0)
-    if isinstance(value, bool) or not isinstance(value, int | float) or not 0.0 <= value < 1.0:
-        raise ConfigError(f"{key} must lie in [0, 1) (e.g. [0.1, 0.5]), got {value!r}")
-    return float(value)
-
-
-def _integer(key: str, value, lo: int, hi: int, valid: str) -> None:
-    """An integer (not a bool, not a float such as 3.7 or 1e23) in ``lo..hi``."""
-    if isinstance(value, bool) or not isinstance(value, int) or not lo <= value <= hi:
-        raise ConfigError(f"{key} must be an integer in {valid}, got {value!r}")
-
-
-def _number(key: str, value, default):
-    """Coerce YAML ints to float where the default is a float; leave other types to validators."""
-    if isinstance(default, float) and isinstance(value, int) and not isinstance(value, bool):
-        return float(value)
-    if isinstance(default, float) and isinstance(value, str):
-        try:
-            return float(value)  # YAML reads 1e-3 (no dot) as a string
-        except ValueError:
-            raise ConfigError(f"{key} must be a number, got {value!r}") from None
-    return value

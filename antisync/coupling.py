@@ -17,9 +17,10 @@ Conventions
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Literal
 
 import numpy as np
+
+from antisync.types import COUPLINGS, Coupling
 
 __all__ = [
     "COUPLINGS",
@@ -34,9 +35,6 @@ __all__ = [
     "to_csr",
     "variant_weights",
 ]
-
-Coupling = Literal["normalized", "raw"]
-COUPLINGS: tuple[str, ...] = ("normalized", "raw")
 
 
 def _check_coupling(coupling: str) -> None:

@@ -20,7 +20,8 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from antisync.status import Status
+from antisync import _numba_cache  # noqa: F401 -- before any cache=True function (see there)
+from antisync.status import ALREADY_SYNCED, NOT_SYNCED, SYNCED
 
 __all__ = [
     "BLOCK_FIELDS",
@@ -49,9 +50,6 @@ LAMBDA_FIELDS = ("n", "n_already", "n_not_synced", "sum", "sum2", "n_flagged")
 TAIL_EDGES = np.logspace(-9, 3, 97)
 TAIL_BINS = TAIL_EDGES.size + 1  # plus underflow (|d| < 1e-9, including 0) and overflow
 
-_SYNCED = int(Status.SYNCED)
-_ALREADY = int(Status.ALREADY_SYNCED)
-_NOT = int(Status.NOT_SYNCED)
 
 
 @njit(cache=True)
@@ -63,18 +61,18 @@ def _reduce_blocks(status0, t0s, status, ts, dt, block, edges, rec, rec0, tail):
         hi = min(lo + block, m)
         for r in range(lo, hi):
             st0 = status0[r]
-            if st0 == _SYNCED:
+            if st0 == SYNCED:
                 t0 = t0s[r] * dt
                 rec0[bl, 0] += 1
                 rec0[bl, 3] += t0
                 rec0[bl, 4] += t0 * t0
-            elif st0 == _ALREADY:
+            elif st0 == ALREADY_SYNCED:
                 rec0[bl, 1] += 1
             else:
                 rec0[bl, 2] += 1
             for v in range(n_var):
                 st = status[r, v]
-                if st0 == _SYNCED and st == _SYNCED:
+                if st0 == SYNCED and st == SYNCED:
                     d = t0s[r] / ts[r, v] - 1.0
                     t = ts[r, v] * dt
                     rec[bl, v, 0] += 1
@@ -83,7 +81,7 @@ def _reduce_blocks(status0, t0s, status, ts, dt, block, edges, rec, rec0, tail):
                     rec[bl, v, 5] += t
                     rec[bl, v, 6] += t * t
                     tail[v, np.searchsorted(edges, abs(d), side="right")] += 1
-                elif st0 == _NOT or st == _NOT:
+                elif st0 == NOT_SYNCED or st == NOT_SYNCED:
                     rec[bl, v, 2] += 1
                 else:
                     rec[bl, v, 1] += 1
@@ -134,14 +132,14 @@ def _reduce_lambda(values, code, flagged, block, edges, rec, tail):
     for bl in range(rec.shape[0]):
         for r in range(bl * block, min(bl * block + block, m)):
             for e in range(n_edges):
-                if code[r, e] == _SYNCED:
+                if code[r, e] == SYNCED:
                     x = values[r, e]
                     rec[bl, e, 0] += 1
                     rec[bl, e, 3] += x
                     rec[bl, e, 4] += x * x
                     rec[bl, e, 5] += flagged[r, e]
                     tail[e, np.searchsorted(edges, abs(x), side="right")] += 1
-                elif code[r, e] == _ALREADY:
+                elif code[r, e] == ALREADY_SYNCED:
                     rec[bl, e, 1] += 1
                 else:
                     rec[bl, e, 2] += 1
@@ -196,7 +194,7 @@ def histogram2d(sim, variants: np.ndarray, dt: float, bins: int, tau_max: float,
     t0, t = crossing_times(sim, interpolate)
     i0 = np.minimum((t0 * scale).astype(np.int64), bins - 1)
     for k, v in enumerate(variants):
-        ok = (sim.status0 == _SYNCED) & (sim.status[:, v] == _SYNCED)
+        ok = (sim.status0 == SYNCED) & (sim.status[:, v] == SYNCED)
         i1 = np.minimum((t[ok, v] * scale).astype(np.int64), bins - 1)
         np.add.at(out[k], (i0[ok], i1), 1)
     return out

@@ -15,6 +15,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from antisync import _numba_cache  # noqa: F401 -- before any cache=True function (see there)
+
 __all__ = ["initial_phases", "make_phase", "phase"]
 
 _GOLDEN = np.uint64(0x9E3779B97F4A7C15)

@@ -28,30 +28,23 @@ import numba
 import numpy as np
 from numba import njit, prange
 
-from antisync import coupling
+from antisync import (
+    _numba_cache,  # noqa: F401 -- before any cache=True function (see there)
+    coupling,
+)
 from antisync.kernels.core import RENORM_EVERY, make_kernels
 from antisync.phases import phase
-from antisync.status import Status
+from antisync.status import ALREADY_SYNCED, NOT_SYNCED, SYNCED
 
 __all__ = ["STATIONARY", "ScreenResult", "classify_state", "jacobian", "screen_graph", "screen_realizations"]
 
 _K = make_kernels(lambda f: njit(f, inline="never", cache=True))
-_euler_step = _K["euler_step"]
-_order2 = _K["order2"]
+_euler_step = _K.euler_step
+_order2 = _K.order2
+_renormalize = _K.renormalize
 
-_SYNCED = int(Status.SYNCED)
-_ALREADY = int(Status.ALREADY_SYNCED)
-_NOT_SYNCED = int(Status.NOT_SYNCED)
 #: internal outcome of the screening kernel: at rest (all |dtheta/dt| < v_tol) with r < threshold
 STATIONARY = 3
-
-
-@njit(cache=True)
-def _renormalize(c, s):
-    for i in range(c.shape[0]):
-        inv = 1.0 / math.sqrt(c[i] * c[i] + s[i] * s[i])
-        c[i] *= inv
-        s[i] *= inv
 
 
 @njit(parallel=True, cache=True)
@@ -67,16 +60,16 @@ def _screen_batch(seed, first, indptr, indices, weights, dt, r2_target, max_step
             th = phase(seed, first + r, i)
             c[i] = np.cos(th)
             s[i] = np.sin(th)
-        st = _NOT_SYNCED
+        st = NOT_SYNCED
         k = max_steps
         if _order2(c, s) >= r2_target:
-            st = _ALREADY
+            st = ALREADY_SYNCED
             k = 0
         else:
             for step in range(1, max_steps + 1):
                 r2 = _euler_step(c, s, acc, indptr, indices, weights, dt)
                 if r2 >= r2_target:
-                    st = _SYNCED
+                    st = SYNCED
                     k = step
                     break
                 if step % RENORM_EVERY == 0:
@@ -277,7 +270,7 @@ def screen_graph(
         coupling_kind=coupling_kind, v_tol=v_tol, check_every=check_every, threads=threads)
     n_stuck = n_saddle = n_slow = 0
     r_stuck = math.nan
-    for r in np.flatnonzero(status >= _NOT_SYNCED):
+    for r in np.flatnonzero(status >= NOT_SYNCED):
         # still creeping at t_max counts as stuck too when it sits next to a stable
         # equilibrium: twisted states contract at rates down to ~0.09 on six nodes, so coming
         # to rest can take longer than t_max, and a gradient flow cannot leave that basin
@@ -291,7 +284,7 @@ def screen_graph(
             n_saddle += 1
         else:
             n_slow += 1
-    synced = status == _SYNCED
+    synced = status == SYNCED
     taus = steps[synced] * dt
     frac = n_stuck / realizations
     excluded = n_stuck > 0 and frac > exclude_fraction
@@ -301,7 +294,7 @@ def screen_graph(
                   f"{n_stuck} of {realizations} random starts")
     return ScreenResult(
         graph=graph, realizations=realizations,
-        n_synced=int(synced.sum()), n_already=int((status == _ALREADY).sum()),
+        n_synced=int(synced.sum()), n_already=int((status == ALREADY_SYNCED).sum()),
         n_stuck=n_stuck, n_saddle=n_saddle, n_slow=n_slow,
         tau_max=float(taus.max()) if taus.size else math.nan,
         tau_mean=float(taus.mean()) if taus.size else math.nan,

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from enum import IntEnum
 
-__all__ = ["Status"]
+__all__ = ["ALREADY_SYNCED", "NOT_SYNCED", "SYNCED", "Status"]
 
 
 class Status(IntEnum):
@@ -24,3 +24,14 @@ class Status(IntEnum):
             Status.ALREADY_SYNCED: "r(0) >= threshold (tau = 0); excluded from F",
             Status.NOT_SYNCED: "not synchronized by t_max; excluded from F (increase t_max?)",
         }[self]
+
+
+# The codes as plain ints: the constants for numba-jitted code (CPU and CUDA kernels freeze
+# module globals at compile time; plain ints type as integers there, with no enum member
+# types involved). Python code can use either: Status.SYNCED == SYNCED.
+SYNCED: int = int(Status.SYNCED)
+""":attr:`Status.SYNCED` as an int, for jitted code."""
+ALREADY_SYNCED: int = int(Status.ALREADY_SYNCED)
+""":attr:`Status.ALREADY_SYNCED` as an int, for jitted code."""
+NOT_SYNCED: int = int(Status.NOT_SYNCED)
+""":attr:`Status.NOT_SYNCED` as an int, for jitted code."""

@@ -112,7 +112,7 @@ def _cpu_twin32(seed, first, count, indptr, indices, base_weights, variant_weigh
     from antisync.kernels.cpu import SimResult
     from antisync.phases import phase
 
-    sync = make_kernels(lambda f: njit(f, inline="never", fastmath=False), np.float32)["sync_steps"]
+    sync = make_kernels(lambda f: njit(f, inline="never", fastmath=False), np.float32).sync_steps
 
     @njit(parallel=True)
     def run(seed, first, indptr, indices, base_w, var_w, dt, r2, max_steps, st0, k0, st, k):

@@ -103,7 +103,7 @@ def main(argv=None) -> int:
             ops = _ops(cuda.compile_ptx(k.py_func, sig, cc=cc)[0])
             print(f"  {prec} {name}: ok ({sum(ops.values())} instructions, "
                   f"{ops['fma.rn.f64'] + ops['fma.rn.f32']} fma)")
-        step = make_kernels(cuda.jit(device=True), ft)["euler_step"]
+        step = make_kernels(cuda.jit(device=True), ft).euler_step
         ops = _ops(cuda.compile_ptx(step.py_func, (nt[::1],) * 3 + (i64[::1],) * 2 + (nt[::1], nt),
                                     device=True, cc=cc)[0])
         fp = {k: v for k, v in ops.items() if re.search(r"\.f(32|64)$", k)}

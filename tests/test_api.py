@@ -23,6 +23,12 @@ def test_docs_example_runs_as_written(tmp_path, monkeypatch):
     for code in blocks:
         exec(compile(code, "docs/api.md", "exec"), namespace)  # noqa: S102 -- our own docs
     assert (tmp_path / "lollipop.h5").exists() and (tmp_path / "fig2.h5").exists()
+    # `antisync summary --format json`: one schema for a run file and a sweep file
+    from antisync.api import summarize
+
+    run, sweep = summarize(tmp_path / "lollipop.h5"), summarize(tmp_path / "fig2.h5")
+    assert set(run) == set(sweep) and (run["kind"], sweep["kind"]) == ("run", "sweep")
+    assert run["thresholds"] == [0.99] and run["excluded"] == [] and sweep["symmetry"]
 
 
 def test_import_changes_nothing_global():
@@ -71,3 +77,27 @@ def test_measures_for_graph_match_the_measures_of_a_run():
         antisync.measures.for_graph(nx.Graph([(0, 1), (2, 3)]))
     with pytest.raises(AntisyncError, match="need realizations"):
         antisync.measures.for_graph(g, which=("km",))
+
+
+def test_numba_cache_is_keyed_by_source_for_antisync_only(tmp_path):
+    """antisync's kernels cache under a folder named after a hash of its sources (an edit to
+    kernels/core.py must not reuse machine code compiled from the old closures); any other
+    numba code in the process caches where numba would cache it anyway."""
+    user = tmp_path / "user_mod.py"
+    user.write_text("from numba import njit\n\n@njit(cache=True)\ndef f(x):\n    return x + 1\n")
+    code = (
+        f"import sys; sys.path.insert(0, {str(tmp_path)!r})\n"
+        "from antisync._numba_cache import cache_dir\n"
+        "from antisync.phases import initial_phases\n"
+        "import user_mod; user_mod.f(1)\n"
+        "initial_phases(3, 0, 2, 4)\n"
+        "print(cache_dir())\n"
+    )
+    env = {k: v for k, v in os.environ.items() if k != "NUMBA_CACHE_DIR"}
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env,
+                         check=True).stdout.strip()
+    folder = Path(out)
+    assert folder.parent == REPO / "antisync" / "__pycache__" and folder.name.startswith("numba-")
+    assert any(folder.rglob("phases.*.nbi"))  # antisync's function: in the keyed folder
+    assert any((tmp_path / "__pycache__").glob("user_mod.f-*.nbi"))  # the user's: numba's default
+    assert not any(folder.rglob("user_mod*"))

@@ -172,6 +172,24 @@ def test_out_is_a_path_never_yaml(tmp_path, monkeypatch, name):
     assert (tmp_path / "results" / "ok.h5").read_bytes() == b"precious"
 
 
+@pytest.mark.parametrize("option,value,message", [
+    ("--backend", "gpu", "--backend must be one of cpu, cuda, auto, got 'gpu'"),
+    ("--executor", "ray", "--executor must be one of local, dask, got 'ray'"),
+    ("--threads", "0", "threads must be an integer in null or 1..4096"),
+    ("--realizations", "many", ""),
+])
+def test_bad_choice_options_are_one_line(tmp_path, option, value, message):
+    cfg = tmp_path / "c.yaml"
+    cfg.write_text(SMALL)
+    before = snapshot(tmp_path)
+    res = invoke("run", cfg, option, value, "--out", tmp_path / "o.h5", "-q")
+    if option == "--realizations":  # click's own type check: exit 2, usage text, no traceback
+        assert res.exit_code == 2 and "Traceback" not in res.output
+    else:
+        assert_one_line(res, message)
+    assert snapshot(tmp_path) == before
+
+
 def test_output_inside_a_file_is_one_line(tmp_path):
     cfg = tmp_path / "c.yaml"
     cfg.write_text(SMALL)

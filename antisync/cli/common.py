@@ -5,10 +5,15 @@ from __future__ import annotations
 import contextlib
 import functools
 import sys
+from collections.abc import Callable
 from pathlib import Path
-from typing import Annotated
+from typing import Annotated, Any, get_args
 
 import typer
+
+from antisync.errors import ConfigError
+from antisync.types import Backend, Executor
+from antisync.validation import choice
 
 EXIT_USAGE = 2
 
@@ -23,6 +28,38 @@ SetOpt = Annotated[
 ]
 DebugOpt = Annotated[bool, typer.Option("--debug", help="Show tracebacks for errors.")]
 QuietOpt = Annotated[bool, typer.Option("--quiet", "-q", help="No progress bar or messages.")]
+
+
+def one_of(option: str, literal: Any) -> Callable[[str], str]:
+    """A Typer ``parser`` admitting the values of the ``Literal`` type ``literal``.
+
+    Typer lists the choices in ``--help`` from the annotation; a value outside them is refused
+    here as the CLI's one line (``antisync: error: --executor must be one of local, dask,
+    got 'ray'``, exit 2) instead of Typer's multi-line usage box.
+    """
+    valid = get_args(literal)
+
+    def parse(value: str) -> str:
+        try:
+            choice(option, value, valid)
+        except ConfigError as exc:
+            fail(str(exc))
+        return value
+
+    return parse
+
+
+def backend_option(help_text: str) -> Any:
+    """``--backend``, one of :data:`antisync.types.BACKENDS`."""
+    return typer.Option(parser=one_of("--backend", Backend), help=help_text)
+
+
+BackendOpt = Annotated[
+    Backend | None, backend_option("Override `backend` (auto: cuda when a GPU is usable).")
+]
+ExecutorOpt = Annotated[
+    Executor | None, typer.Option(parser=one_of("--executor", Executor), help="Override `executor`.")
+]
 
 
 def fail(message: str) -> None:

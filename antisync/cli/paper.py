@@ -7,7 +7,8 @@ from typing import Annotated
 
 import typer
 
-from antisync.cli.common import DebugOpt, QuietOpt, info, user_errors
+from antisync.cli.common import DebugOpt, QuietOpt, backend_option, info, user_errors
+from antisync.types import Backend
 
 
 @user_errors
@@ -18,7 +19,8 @@ def paper(
     = 1.0,
     only: Annotated[list[str] | None, typer.Option(help="Run only this step (repeatable).")] = None,
     threads: Annotated[int | None, typer.Option(help="CPU threads (default: all cores).")] = None,
-    backend: Annotated[str, typer.Option(help="cpu, cuda or auto.")] = "cpu",
+    backend: Annotated[Backend, backend_option(
+        "Backend of every step (auto: cuda when a GPU is usable).")] = "cpu",
     overwrite: Annotated[bool, typer.Option("--overwrite", help="Start again instead of resuming.")] = False,
     dry_run: Annotated[bool, typer.Option("--dry-run", help="Print the plan and its time estimate.")] = False,
     quiet: QuietOpt = False,

@@ -8,8 +8,10 @@ from typing import Annotated
 import typer
 
 from antisync.cli.common import (
+    BackendOpt,
     ConfigArg,
     DebugOpt,
+    ExecutorOpt,
     QuietOpt,
     SetOpt,
     dask_executor,
@@ -26,8 +28,8 @@ def run(
     realizations: Annotated[int | None, typer.Option(help="Override `realizations`.")] = None,
     seed: Annotated[int | None, typer.Option(help="Override `seed`.")] = None,
     out: Annotated[Path | None, typer.Option("--out", "-o", help="Override `output` (HDF5 path).")] = None,
-    backend: Annotated[str | None, typer.Option(help="cpu, cuda or auto.")] = None,
-    executor: Annotated[str | None, typer.Option(help="local or dask.")] = None,
+    backend: BackendOpt = None,
+    executor: ExecutorOpt = None,
     workers: Annotated[
         int | None, typer.Option(help="Dask: start a LocalCluster with this many workers.")
     ] = None,

@@ -12,12 +12,14 @@ from antisync.cli.common import (
     DebugOpt,
     QuietOpt,
     SetOpt,
+    backend_option,
     dask_executor,
     info,
     os_message,
     typed_values,
     user_errors,
 )
+from antisync.types import Backend
 
 
 @user_errors
@@ -28,7 +30,8 @@ def sweep(
     resume: Annotated[bool, typer.Option(
         "--resume", help="Finish an interrupted sweep in the same file.")] = False,
     overwrite: Annotated[bool, typer.Option("--overwrite", help="Replace an existing output file.")] = False,
-    backend: Annotated[str | None, typer.Option(help="cpu, cuda or auto (screening is always cpu).")] = None,
+    backend: Annotated[Backend | None, backend_option(
+        "Override `backend` (auto: cuda when a GPU is usable; screening is always cpu).")] = None,
     threads: Annotated[int | None, typer.Option(help="CPU threads (default: all cores).")] = None,
     workers: Annotated[int | None, typer.Option(
         help="Dask: start a LocalCluster with this many workers.")] = None,

@@ -25,24 +25,42 @@ trajectories (lollipop(6,3), dt = 0.001). float32 therefore renormalizes every
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
+from typing import NamedTuple
 
 import numpy as np
 
-from antisync.status import Status
+from antisync.status import ALREADY_SYNCED, NOT_SYNCED, SYNCED
 
-__all__ = ["RENORM_EVERY", "RENORM_EVERY_FLOAT32", "TAYLOR_MAX_ANGLE", "make_kernels"]
+__all__ = ["RENORM_EVERY", "RENORM_EVERY_FLOAT32", "TAYLOR_MAX_ANGLE", "Kernels", "make_kernels"]
 
 RENORM_EVERY = 1024
 RENORM_EVERY_FLOAT32 = 64
-_SYNCED = int(Status.SYNCED)
-_ALREADY = int(Status.ALREADY_SYNCED)
-_NOT_SYNCED = int(Status.NOT_SYNCED)
 
 
 TAYLOR_MAX_ANGLE = 0.05
 
 
-def make_kernels(jit, dtype=np.float64):
+class Kernels(NamedTuple):
+    """The compiled functions of :func:`make_kernels`, by name (see there for each signature).
+
+    Jitted drivers call them as module-level names bound once (``_sync_steps =
+    _K.sync_steps``): numba resolves a driver's callees among its module's globals.
+    """
+
+    rotation: Callable
+    euler_step: Callable
+    euler_step_lanes: Callable
+    tangent_step_lanes: Callable
+    rk4_step_lanes: Callable
+    lane_velocity: Callable
+    hermite_crossing: Callable
+    sync_steps: Callable
+    order2: Callable
+    renormalize: Callable
+
+
+def make_kernels(jit, dtype=np.float64) -> Kernels:
     """Compile the integrator's building blocks with ``jit``.
 
     Parameters
@@ -59,7 +77,8 @@ def make_kernels(jit, dtype=np.float64):
 
     Returns
     -------
-    dict
+    Kernels
+        A named tuple of the compiled functions:
         ``rotation(a) -> (cos a, sin a)`` (Taylor polynomials for ``|a| <= 0.05``);
         ``euler_step(c, s, acc, indptr, indices, weights, dt) -> R`` advances one state in
         place and returns ``R = |sum_j e^{i theta_j}|^2``;
@@ -71,7 +90,9 @@ def make_kernels(jit, dtype=np.float64):
         lane loop innermost so the compiler vectorizes across lanes; ``taylor=True`` promises
         ``|alpha| <= 0.05`` for every node and lane (then results equal ``euler_step``'s bit
         for bit, since the same operations run in the same order);
-        ``tangent_step_lanes(...)`` does the same step and its forward sensitivities.
+        ``tangent_step_lanes(...)`` does the same step and its forward sensitivities;
+        ``renormalize(c, s)`` projects every ``(c_i, s_i)`` back to the unit circle (the lane
+        drivers pass one lane's column, ``renormalize(c[:, q], s[:, q])``).
     """
 
     # typed constants: closure values are frozen by numba with their numpy type
@@ -295,6 +316,7 @@ def make_kernels(jit, dtype=np.float64):
     hermite_crossing = jit(hermite_crossing)
 
     def renormalize(c, s):
+        """``(c_i, s_i) /= |(c_i, s_i)|`` for every node (``c``, ``s`` may be strided views)."""
         for i in range(c.shape[0]):
             inv = one / math.sqrt(c[i] * c[i] + s[i] * s[i])
             c[i] *= inv
@@ -314,25 +336,25 @@ def make_kernels(jit, dtype=np.float64):
 
     def sync_steps(c, s, acc, indptr, indices, weights, dt, r2_target, max_steps):
         if order2(c, s) >= r2_target:
-            return _ALREADY, 0
+            return ALREADY_SYNCED, 0
         for step in range(1, max_steps + 1):
             r2 = euler_step(c, s, acc, indptr, indices, weights, dt)
             if r2 >= r2_target:
-                return _SYNCED, step
+                return SYNCED, step
             if step % renorm_every == 0:
                 renormalize(c, s)
-        return _NOT_SYNCED, max_steps
+        return NOT_SYNCED, max_steps
 
     sync_steps = jit(sync_steps)
-    return {
-        "rotation": rotation,
-        "euler_step": euler_step,
-        "euler_step_lanes": euler_step_lanes,
-        "tangent_step_lanes": tangent_step_lanes,
-        "rk4_step_lanes": rk4_step_lanes,
-        "lane_velocity": lane_velocity,
-        "hermite_crossing": hermite_crossing,
-        "sync_steps": sync_steps,
-        "order2": order2,
-        "renormalize": renormalize,
-    }
+    return Kernels(
+        rotation=rotation,
+        euler_step=euler_step,
+        euler_step_lanes=euler_step_lanes,
+        tangent_step_lanes=tangent_step_lanes,
+        rk4_step_lanes=rk4_step_lanes,
+        lane_velocity=lane_velocity,
+        hermite_crossing=hermite_crossing,
+        sync_steps=sync_steps,
+        order2=order2,
+        renormalize=renormalize,
+    )

@@ -20,37 +20,116 @@ discretized dynamics): the pathwise estimator.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numba
 import numpy as np
 from numba import njit, prange
 
+from antisync import _numba_cache  # noqa: F401 -- before any cache=True function (see there)
 from antisync.kernels.core import RENORM_EVERY, TAYLOR_MAX_ANGLE, make_kernels
 from antisync.phases import phase
-from antisync.status import Status
+from antisync.status import ALREADY_SYNCED, NOT_SYNCED, SYNCED
+from antisync.types import Integrator
 
 __all__ = ["LANES", "PathwiseResult", "SimResult", "simulate", "simulate_pathwise"]
 
 _K = make_kernels(lambda f: njit(f, inline="always", cache=True))
-_sync_steps = _K["sync_steps"]
-_step_lanes = _K["euler_step_lanes"]
-_tangent_lanes = _K["tangent_step_lanes"]
-_rk4_lanes = _K["rk4_step_lanes"]
-_lane_velocity = _K["lane_velocity"]
-_hermite = _K["hermite_crossing"]
+_sync_steps = _K.sync_steps
+_step_lanes = _K.euler_step_lanes
+_tangent_lanes = _K.tangent_step_lanes
+_rk4_lanes = _K.rk4_step_lanes
+_lane_velocity = _K.lane_velocity
+_hermite = _K.hermite_crossing
+_renormalize = _K.renormalize
 
 LANES = 32
 """Trajectories stepped together per thread (the inner width of the ``[node, lane]`` layout)."""
-_SYNCED = int(Status.SYNCED)
-_ALREADY = int(Status.ALREADY_SYNCED)
-_NOT_SYNCED = int(Status.NOT_SYNCED)
+
+
+class _Graph(NamedTuple):
+    """The drivers' network: ``W`` in CSR form and the CSR weights of every damage variant."""
+
+    indptr: np.ndarray
+    """int64 (N + 1,)"""
+    indices: np.ndarray
+    """int64 (nnz,)"""
+    base_w: np.ndarray
+    """float64 (nnz,): the undamaged ``W``."""
+    var_w: np.ndarray
+    """float64 (V, nnz): each damaged ``W(Omega*)``."""
+    var_is_base: np.ndarray
+    """bool (V,): variant ``v`` leaves ``W`` unchanged (its result is copied from tau0)."""
+
+
+class _Run(NamedTuple):
+    """The constants of one batch."""
+
+    seed: np.uint64
+    dt: float
+    r2_target: float
+    """``(threshold N)^2``: ``R = |sum_j e^{i theta_j}|^2`` at the threshold."""
+    max_steps: int
+    taylor: bool
+    """Every rotation angle is within the Taylor polynomials' range (lane driver)."""
+    rk4: bool
+    """RK4 with Hermite crossing instead of Euler (lane driver)."""
+    lanes: int
+    """Trajectories stepped together per thread (lane driver)."""
+
+
+class _Outputs(NamedTuple):
+    """Arrays the lane driver fills, one row per realization."""
+
+    status0: np.ndarray
+    """int8 (m,)"""
+    steps0: np.ndarray
+    """int64 (m,)"""
+    frac0: np.ndarray
+    """float64 (m,)"""
+    status: np.ndarray
+    """int8 (m, V)"""
+    steps: np.ndarray
+    """int64 (m, V)"""
+    frac: np.ndarray
+    """float64 (m, V)"""
+    dtau: np.ndarray
+    """float64 (m, E): d tau0 / d beta_e (E = 0 without tangents)."""
+
+
+class _Tangents(NamedTuple):
+    """The damaged edges whose forward sensitivities ride along (all empty: none).
+
+    Damage on edge ``e = a -> b`` changes row ``a`` of ``W`` as ``dw_aj/dbeta = rho[e] w_aj +
+    mu[e] [j = b]``.
+    """
+
+    edge_a: np.ndarray
+    """int64 (E,)"""
+    edge_b: np.ndarray
+    """int64 (E,)"""
+    rho: np.ndarray
+    """float64 (E,)"""
+    mu: np.ndarray
+    """float64 (E,)"""
+
+
+_NO_TANGENTS = _Tangents(np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64), np.zeros(0),
+                         np.zeros(0))
 
 
 @njit(parallel=True, cache=True)
-def _integrate_batch(
-    ks, indptr, indices, base_w, var_w, var_is_base, dt, r2_target, max_steps, seed,
-    status0, steps0, status, steps,
-):
+def _integrate_batch(ks, graph, run, status0, steps0, status, steps):
+    # fields as locals before the prange (see _integrate_lanes)
+    indptr = graph.indptr
+    indices = graph.indices
+    base_w = graph.base_w
+    var_w = graph.var_w
+    var_is_base = graph.var_is_base
+    seed = run.seed
+    dt = run.dt
+    r2_target = run.r2_target
+    max_steps = run.max_steps
     m = status0.shape[0]
     n = indptr.shape[0] - 1
     n_var = var_w.shape[0]
@@ -122,11 +201,11 @@ def _load_lane(q, qr, qv, r_hi, seed, ks, base_w, var_w, var_is_base, r2_target,
         qr, qv = _next_item(qr, qv, r_hi, var_is_base)
         if _start_state(seed, ks[r], ci, si, r2_target):
             if v < 0:
-                status0[r] = _ALREADY
+                status0[r] = ALREADY_SYNCED
                 steps0[r] = 0
                 frac0[r] = 0.0
             else:
-                status[r, v] = _ALREADY
+                status[r, v] = ALREADY_SYNCED
                 steps[r, v] = 0
                 frac[r, v] = 0.0
             continue
@@ -140,14 +219,6 @@ def _load_lane(q, qr, qv, r_hi, seed, ks, base_w, var_w, var_is_base, r2_target,
         lane_k[q] = 0
         return qr, qv, 1
     return qr, qv, 0
-
-
-@njit(inline="always")
-def _renormalize_lane(c, s, q):
-    for i in range(c.shape[0]):
-        inv = 1.0 / np.sqrt(c[i, q] * c[i, q] + s[i, q] * s[i, q])
-        c[i, q] *= inv
-        s[i, q] *= inv
 
 
 @njit(inline="always")
@@ -167,19 +238,43 @@ def _lane_initial(c, s, kv, dtot, acc, sum_c, sum_s, lw, indptr, indices, rk4, q
 
 
 @njit(parallel=True, cache=True)
-def _integrate_lanes(
-    ks, indptr, indices, base_w, var_w, var_is_base, dt, r2_target, max_steps, seed, taylor,
-    rk4, lanes, n_groups, status0, steps0, frac0, status, steps, frac,
-    edge_a, edge_b, rho, mu, dtau,
-):
-    """Lanes of trajectories with refill. With ``edge_a`` non-empty (and no variants) every
-    trajectory also carries forward sensitivities and ``dtau[r, e]`` receives d tau0/d beta_e."""
+def _integrate_lanes(ks, graph, run, out, tangents, n_groups):
+    """Lanes of trajectories with refill: realizations ``ks`` (split into ``n_groups`` ranges,
+    one per parallel task) of ``graph`` (a :class:`_Graph`) with the constants ``run`` (a
+    :class:`_Run`), results into ``out`` (:class:`_Outputs`). With ``tangents.edge_a`` non-empty
+    (and no variants) every trajectory also carries forward sensitivities and ``out.dtau[r, e]``
+    receives d tau0/d beta_e."""
+    # every field as a local before the prange: a parallel loop that writes to an array
+    # reached through a named tuple loses the writes (numba issues #5872, #7135, #10338)
+    indptr = graph.indptr
+    indices = graph.indices
+    base_w = graph.base_w
+    var_w = graph.var_w
+    var_is_base = graph.var_is_base
+    seed = run.seed
+    dt = run.dt
+    r2_target = run.r2_target
+    max_steps = run.max_steps
+    taylor = run.taylor
+    rk4 = run.rk4
+    lanes = run.lanes
+    status0 = out.status0
+    steps0 = out.steps0
+    frac0 = out.frac0
+    status = out.status
+    steps = out.steps
+    frac = out.frac
+    dtau = out.dtau
+    edge_a = tangents.edge_a
+    edge_b = tangents.edge_b
+    rho = tangents.rho
+    mu = tangents.mu
     m = status0.shape[0]
     n = indptr.shape[0] - 1
     nnz = base_w.shape[0]
     n_var = var_w.shape[0]
     n_edges = edge_a.shape[0]
-    tangents = n_edges > 0
+    tangent = n_edges > 0
     per = (m + n_groups - 1) // n_groups
     for group in prange(n_groups):
         r_lo = group * per
@@ -233,7 +328,7 @@ def _integrate_lanes(
                     dr2t_prev[e, q] = dr2t[e, q]
             if rk4:
                 _rk4_lanes(c, s, kv, yc, ys, dtot, acc, sum_c, sum_s, lw, indptr, indices, dt, r2, dr2)
-            elif tangents:
+            elif tangent:
                 _tangent_lanes(c, s, acc, sum_c, sum_s, tot_c, tot_s, lw, indptr, indices, dt, r2,
                                taylor, u, du, cu, su, edge_a, edge_b, rho, mu, dr2t)
             else:
@@ -245,7 +340,7 @@ def _integrate_lanes(
                 k = lane_k[q]
                 r = lane_r[q]
                 if r2[q] >= r2_target:
-                    st = _SYNCED
+                    st = SYNCED
                     span = r2[q] - r2_prev[q]
                     if rk4:
                         x = _hermite(r2_prev[q], dr2_prev[q], r2[q], dr2[q], dt, r2_target)
@@ -257,13 +352,13 @@ def _integrate_lanes(
                     for e in range(n_edges):
                         dtau[r, e] = -dt * ((1.0 - x) * dr2t_prev[e, q] + x * dr2t[e, q]) / span
                 elif k >= max_steps:
-                    st = _NOT_SYNCED
+                    st = NOT_SYNCED
                     x = 0.0
                     for e in range(n_edges):
                         dtau[r, e] = 0.0
                 else:
                     if not rk4 and k % RENORM_EVERY == 0:
-                        _renormalize_lane(c, s, q)
+                        _renormalize(c[:, q], s[:, q])
                     continue
                 v = lane_v[q]
                 if v < 0:
@@ -290,7 +385,7 @@ def _integrate_lanes(
                     status[r, v] = status0[r]
                     steps[r, v] = steps0[r]
                     frac[r, v] = frac0[r]
-            if status0[r] == _ALREADY:
+            if status0[r] == ALREADY_SYNCED:
                 for e in range(n_edges):
                     dtau[r, e] = 0.0
 
@@ -388,7 +483,7 @@ def simulate(
     threads: int | None = None,
     lanes: int = LANES,
     realizations: np.ndarray | None = None,
-    integrator: str = "euler",
+    integrator: Integrator = "euler",
 ) -> SimResult:
     """Integrate realizations ``first .. first+count-1`` for the base network and every variant.
 
@@ -427,21 +522,19 @@ def simulate(
     steps0 = np.empty(m, dtype=np.int64)
     status = np.empty((m, var_w.shape[0]), dtype=np.int8)
     steps = np.empty((m, var_w.shape[0]), dtype=np.int64)
-    r2_target = (threshold * n) ** 2
-    args = (ks, indptr.astype(np.int64), indices.astype(np.int64), base_weights, var_w, var_is_base,
-            float(dt), r2_target, int(max_steps), np.uint64(seed))
+    graph = _Graph(indptr.astype(np.int64), indices.astype(np.int64), base_weights, var_w, var_is_base)
+    # |alpha_i| = dt |omega_i| <= dt sum_j |w_ij|: then the Taylor rotation is always valid
+    taylor = float(dt) * _row_sum_bound(indptr, base_weights, var_w) <= TAYLOR_MAX_ANGLE
+    run = _Run(np.uint64(seed), float(dt), (threshold * n) ** 2, int(max_steps), taylor,
+               integrator == "rk4", int(lanes))
     with _Threads(threads) as groups:
         if not lanes:
-            _integrate_batch(*args, status0, steps0, status, steps)
+            _integrate_batch(ks, graph, run, status0, steps0, status, steps)
             return SimResult(status0, steps0, status, steps)
         frac0 = np.empty(m)
         frac = np.empty((m, var_w.shape[0]))
-        # |alpha_i| = dt |omega_i| <= dt sum_j |w_ij|: then the Taylor rotation is always valid
-        taylor = float(dt) * _row_sum_bound(indptr, base_weights, var_w) <= TAYLOR_MAX_ANGLE
-        no_edges = np.zeros(0, dtype=np.int64)
-        _integrate_lanes(*args, taylor, integrator == "rk4", int(lanes), groups, status0, steps0, frac0,
-                         status, steps, frac, no_edges, no_edges, np.zeros(0), np.zeros(0),
-                         np.empty((m, 0)))
+        out = _Outputs(status0, steps0, frac0, status, steps, frac, np.empty((m, 0)))
+        _integrate_lanes(ks, graph, run, out, _NO_TANGENTS, groups)
     return SimResult(status0, steps0, status, steps, frac0, frac)
 
 
@@ -474,19 +567,16 @@ def simulate_pathwise(
     n = indptr.size - 1
     m = ks.size
     base_weights = np.ascontiguousarray(base_weights, dtype=np.float64)
-    status0 = np.empty(m, dtype=np.int8)
-    steps0 = np.empty(m, dtype=np.int64)
-    frac0 = np.empty(m)
-    dtau = np.empty((m, len(edge_a)))
+    out = _Outputs(np.empty(m, dtype=np.int8), np.empty(m, dtype=np.int64), np.empty(m),
+                   np.empty((m, 0), dtype=np.int8), np.empty((m, 0), dtype=np.int64), np.empty((m, 0)),
+                   np.empty((m, len(edge_a))))
+    graph = _Graph(indptr.astype(np.int64), indices.astype(np.int64), base_weights,
+                   np.empty((0, base_weights.size)), np.zeros(0, dtype=np.bool_))
     taylor = float(dt) * _row_sum_bound(indptr, base_weights, []) <= TAYLOR_MAX_ANGLE
-    no_var = np.empty((0, base_weights.size))
+    run = _Run(np.uint64(seed), float(dt), (threshold * n) ** 2, int(max_steps), taylor, False,
+               int(lanes))
+    tangents = _Tangents(np.asarray(edge_a, dtype=np.int64), np.asarray(edge_b, dtype=np.int64),
+                         np.asarray(rho, dtype=np.float64), np.asarray(mu, dtype=np.float64))
     with _Threads(threads) as groups:
-        _integrate_lanes(
-            ks, indptr.astype(np.int64), indices.astype(np.int64), base_weights, no_var,
-            np.zeros(0, dtype=np.bool_), float(dt), (threshold * n) ** 2, int(max_steps),
-            np.uint64(seed), taylor, False, int(lanes), groups, status0, steps0, frac0,
-            np.empty((m, 0), dtype=np.int8), np.empty((m, 0), dtype=np.int64), np.empty((m, 0)),
-            np.asarray(edge_a, dtype=np.int64), np.asarray(edge_b, dtype=np.int64),
-            np.asarray(rho, dtype=np.float64), np.asarray(mu, dtype=np.float64), dtau,
-        )
-    return PathwiseResult(status0, steps0, frac0, dtau)
+        _integrate_lanes(ks, graph, run, out, tangents, groups)
+    return PathwiseResult(out.status0, out.steps0, out.frac0, out.dtau)

@@ -49,7 +49,8 @@ from antisync.estimators import (
 from antisync.kernels.core import make_kernels
 from antisync.kernels.cpu import SimResult
 from antisync.phases import make_phase
-from antisync.status import Status
+from antisync.status import ALREADY_SYNCED, NOT_SYNCED, SYNCED
+from antisync.types import PRECISIONS, Precision
 
 try:  # numba-cuda is an optional dependency
     import numba
@@ -62,15 +63,11 @@ __all__ = ["MAX_NODES", "PRECISIONS", "Reduced", "simulate", "simulate_reduced"]
 MAX_NODES = 64
 """Largest graph the kernels accept: the per-thread state lives in local arrays of this size."""
 
-PRECISIONS = ("float64", "float32")
 THREADS_PER_BLOCK = 128
 BATCH_PAIRS = 1 << 24
 """Trajectories per device batch in :func:`simulate_reduced` (~150 MB of per-pair results)."""
 
 _MAX_GRID = 1 << 20
-_SYNCED = int(Status.SYNCED)
-_ALREADY = int(Status.ALREADY_SYNCED)
-_NOT = int(Status.NOT_SYNCED)
 
 
 def _simulated() -> bool:
@@ -86,12 +83,12 @@ def _require_cuda() -> None:
 
 
 @functools.cache
-def _kernels(precision: str):
+def _kernels(precision: Precision):
     """Compile (once per process and precision) the device functions and kernels."""
     ftype = np.float32 if precision == "float32" else np.float64
     nbtype = numba.float32 if precision == "float32" else numba.float64
     device = cuda.jit(device=True)
-    sync_steps = make_kernels(device, ftype)["sync_steps"]
+    sync_steps = make_kernels(device, ftype).sync_steps
     phase = make_phase(device)
 
     @cuda.jit(device=True)
@@ -187,18 +184,18 @@ def _reducers():
             for r in range(lo, hi):
                 st0 = status0[r]
                 if v < 0:
-                    if st0 == _SYNCED:
+                    if st0 == SYNCED:
                         t0 = mul(steps0[r], dt)
                         n_ok += 1
                         s1 += t0
                         s2 += mul(t0, t0)
-                    elif st0 == _ALREADY:
+                    elif st0 == ALREADY_SYNCED:
                         n_already += 1
                     else:
                         n_not += 1
                     continue
                 st = status[r, v]
-                if st0 == _SYNCED and st == _SYNCED:
+                if st0 == SYNCED and st == SYNCED:
                     d = steps0[r] / steps[r, v] - 1.0
                     t = mul(steps[r, v], dt)
                     n_ok += 1
@@ -207,7 +204,7 @@ def _reducers():
                     s3 += t
                     s4 += mul(t, t)
                     cuda.atomic.add(tail, (v, tail_bin(edges, abs(d))), 1)
-                elif st0 == _NOT or st == _NOT:
+                elif st0 == NOT_SYNCED or st == NOT_SYNCED:
                     n_not += 1
                 else:
                     n_already += 1
@@ -245,13 +242,13 @@ def _reducers():
             for r in range(bl * block, min(bl * block + block, m)):
                 st0 = status0[r]
                 st = status[r, v]
-                if st0 == _SYNCED and st == _SYNCED:
+                if st0 == SYNCED and st == SYNCED:
                     x = (steps0[r] / steps[r, v] - 1.0) / dbeta
                     n_ok += 1
                     s1 += x
                     s2 += mul(x, x)
                     cuda.atomic.add(tail, (e, tail_bin(edges, abs(x))), 1)
-                elif st0 == _NOT or st == _NOT:
+                elif st0 == NOT_SYNCED or st == NOT_SYNCED:
                     n_not += 1
                 else:
                     n_already += 1
@@ -272,7 +269,7 @@ def _reducers():
             r = p // n_h
             k = p - r * n_h
             v = variants[k]
-            if status0[r] == _SYNCED and status[r, v] == _SYNCED:
+            if status0[r] == SYNCED and status[r, v] == SYNCED:
                 i0 = min(int(steps0[r] * scale), bins - 1)
                 i1 = min(int(steps[r, v] * scale), bins - 1)
                 cuda.atomic.add(hist, (k, i0, i1), 1)
@@ -285,7 +282,7 @@ def _grid(total: int) -> int:
 
 
 def _prepare(seed, first, count, indptr, indices, base_weights, variant_weights, dt, threshold,
-             max_steps, precision):
+             max_steps, precision: Precision):
     """Validate the public arguments; return the device-ready host arrays and scalars."""
     if precision not in PRECISIONS:
         raise AntisyncError(f"precision must be one of {', '.join(PRECISIONS)}, got {precision!r}")
@@ -373,7 +370,7 @@ def simulate(
     dt: float,
     threshold: float,
     max_steps: int,
-    precision: str = "float64",
+    precision: Precision = "float64",
 ) -> SimResult:
     """Integrate realizations ``first .. first+count-1`` for the base network and every variant.
 
@@ -454,7 +451,7 @@ def simulate_reduced(
     tau_max: float,
     lambda_variants: np.ndarray | None = None,
     dbeta: float | None = None,
-    precision: str = "float64",
+    precision: Precision = "float64",
     batch_pairs: int = BATCH_PAIRS,
 ) -> Reduced:
     """Integrate and reduce on the device: only block records and histograms come back.

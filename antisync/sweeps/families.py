@@ -48,13 +48,13 @@ def family_specs(family: dict) -> list[tuple[str, dict]]:
             raise ConfigError("sweep.nodes and sweep.path give no lollipop with nodes - path >= 2")
         return out
     out, seen = [], set()
-    from antisync.config import _check_graph
+    from antisync.config import check_graph
 
     for k, spec in enumerate(family["graphs"]):
         spec = dict(spec)
         name = spec.pop("name", None)
         try:
-            _check_graph(spec)
+            check_graph(spec)
         except ConfigError as exc:
             raise ConfigError(f"sweep.graphs[{k}]: {exc}") from None
         name = str(name or graph_name(spec))

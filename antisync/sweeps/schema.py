@@ -14,18 +14,10 @@ from typing import Any
 
 import yaml
 
-from antisync.config import (
-    Config,
-    _choice,
-    _number,
-    _positive,
-    _unknown,
-    config_from_mapping,
-    parse_mapping,
-    read_config_text,
-)
+from antisync.config import Config, config_from_mapping, parse_mapping, read_config_text
 from antisync.errors import ConfigError
 from antisync.sweeps.families import FAMILIES, family_specs
+from antisync.validation import choice, number, positive, unknown_keys
 
 __all__ = ["PAPER_THRESHOLD", "Screen", "Sweep", "Top", "load_sweep", "load_sweep_text"]
 
@@ -59,7 +51,7 @@ class Screen:
         if isinstance(self.realizations, bool) or not isinstance(self.realizations, int) \
                 or self.realizations < 1:
             raise ConfigError(f"screen.realizations must be an integer >= 1, got {self.realizations!r}")
-        _positive("screen.t_max", self.t_max)
+        positive("screen.t_max", self.t_max)
         if isinstance(self.exclude_fraction, bool) or not isinstance(self.exclude_fraction, int | float) \
                 or not 0.0 <= self.exclude_fraction < 1.0:
             raise ConfigError(f"screen.exclude_fraction must be in [0, 1), got {self.exclude_fraction!r}")
@@ -183,7 +175,7 @@ def load_sweep_text(text: str, overrides: list[str] | None = None,
         betas = top_raw["betas"]
         if not isinstance(betas, list) or not betas:
             raise ConfigError(f"top.betas must be a non-empty list such as [0.5], got {betas!r}")
-        top_raw = {**top_raw, "betas": tuple(sorted({_number("top.betas", b, 0.0) for b in betas}))}
+        top_raw = {**top_raw, "betas": tuple(sorted({number("top.betas", b, 0.0) for b in betas}))}
         raw = {**raw, "top": top_raw}
     top = _section(raw, "top", Top)
     edges = raw.get("edges", "all")
@@ -223,8 +215,8 @@ def _section(raw: dict, key: str, cls):
     if not isinstance(value, dict):
         raise ConfigError(f"'{key}' must be a mapping, got {value!r}")
     fields = cls.__dataclass_fields__
-    _unknown(value, set(fields), f"{key}.")
-    value = {k: _number(f"{key}.{k}", v, fields[k].default) for k, v in value.items()}
+    unknown_keys(value, set(fields), f"{key}.")
+    value = {k: number(f"{key}.{k}", v, fields[k].default) for k, v in value.items()}
     return cls(**value)
 
 
@@ -241,7 +233,7 @@ def _thresholds(raw: dict) -> tuple:
             raise ConfigError(f"thresholds must be a non-empty list such as [0.9, 0.99], got {values!r}")
     out = []
     for t in values:
-        t = _number("thresholds", t, 0.0)
+        t = number("thresholds", t, 0.0)
         if isinstance(t, bool) or not isinstance(t, int | float) or not 0.0 < t < 1.0:
             raise ConfigError(f"thresholds must lie in (0, 1), got {t!r}")
         out.append(float(t))
@@ -276,9 +268,9 @@ def _family(value) -> dict:
     if not isinstance(value, dict):
         raise ConfigError(f"sweep must be a mapping such as {{family: atlas, nodes: 6}}, got {value!r}")
     fam = value.get("family")
-    _choice("sweep.family", fam, FAMILIES)
+    choice("sweep.family", fam, FAMILIES)
     required, optional = _FAMILY_KEYS[fam]
-    _unknown(value, required | optional | {"family"}, "sweep.")
+    unknown_keys(value, required | optional | {"family"}, "sweep.")
     missing = sorted(required - set(value))
     if missing:
         raise ConfigError(f"sweep of family {fam} needs key(s) {', '.join('sweep.' + m for m in missing)}")

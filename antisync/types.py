@@ -1,0 +1,65 @@
+"""The choices antisync accepts, each declared once as a ``Literal`` type.
+
+Config fields (:mod:`antisync.config`) and CLI options (:mod:`antisync.cli`) are annotated with
+these types; the tuples of valid values that the validators and ``click`` check against are
+derived from them with :func:`typing.get_args`, so a new choice is added in one place.
+
+Example
+-------
+>>> BACKENDS
+('cpu', 'cuda', 'auto')
+"""
+
+from __future__ import annotations
+
+from typing import Literal, get_args
+
+__all__ = [
+    "BACKENDS",
+    "COUPLINGS",
+    "CROSSINGS",
+    "EXECUTORS",
+    "INTEGRATORS",
+    "LAMBDA_METHODS",
+    "LINEAR_METHODS",
+    "MEASURES",
+    "PRECISIONS",
+    "Backend",
+    "Coupling",
+    "Crossing",
+    "Executor",
+    "Integrator",
+    "LambdaMethod",
+    "LinearMethod",
+    "Measure",
+    "Precision",
+]
+
+Backend = Literal["cpu", "cuda", "auto"]
+"""Where chunks are integrated; ``auto`` is CUDA when a GPU is usable (:mod:`antisync.backends`)."""
+Executor = Literal["local", "dask"]
+"""Who runs the chunks: this process or a Dask cluster."""
+Integrator = Literal["euler", "rk4"]
+Crossing = Literal["auto", "grid", "interpolated"]
+"""How tau is read off the step grid (see :class:`antisync.config.Dynamics`)."""
+LambdaMethod = Literal["finite-difference", "pathwise", "hybrid", "orbit"]
+"""Estimator of Lambda^KM (see :class:`antisync.config.LambdaSpec`)."""
+Measure = Literal["km", "linear", "xi2", "rw", "km_nnc"]
+"""km: Lambda^KM from the run (Eq. 6); linear, xi2, rw: the measures of Secs. 2.3 and 3.3
+(Eqs. 14, 16, 25); km_nnc: the same run with raw coupling (Sec. 3.4, Eqs. 20-22)."""
+LinearMethod = Literal["exact", "euler", "derivative"]
+"""How Lambda^(linear) is computed (see :class:`antisync.config.LinearSpec`)."""
+Precision = Literal["float64", "float32"]
+"""Arithmetic of the integrated state (float32 on backend cuda only)."""
+Coupling = Literal["normalized", "raw"]
+"""``W = S^-1 Omega`` (Eq. 1) or ``W = Omega`` (Eq. 20), see :mod:`antisync.coupling`."""
+
+BACKENDS: tuple[Backend, ...] = get_args(Backend)
+EXECUTORS: tuple[Executor, ...] = get_args(Executor)
+INTEGRATORS: tuple[Integrator, ...] = get_args(Integrator)
+CROSSINGS: tuple[Crossing, ...] = get_args(Crossing)
+LAMBDA_METHODS: tuple[LambdaMethod, ...] = get_args(LambdaMethod)
+MEASURES: tuple[Measure, ...] = get_args(Measure)
+LINEAR_METHODS: tuple[LinearMethod, ...] = get_args(LinearMethod)
+PRECISIONS: tuple[Precision, ...] = get_args(Precision)
+COUPLINGS: tuple[Coupling, ...] = get_args(Coupling)
