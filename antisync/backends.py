@@ -5,6 +5,7 @@ from __future__ import annotations
 import os
 
 from antisync.errors import AntisyncError
+from antisync.types import Backend
 
 __all__ = ["cuda_usable", "resolve_backend"]
 
@@ -27,7 +28,7 @@ def cuda_usable() -> tuple[bool, str]:
     return False, "numba.cuda.is_available() is False: no NVIDIA driver or GPU was found"
 
 
-def resolve_backend(backend: str) -> tuple[str, str]:
+def resolve_backend(backend: Backend) -> tuple[str, str]:
     """Turn ``auto`` into a concrete backend; ``cuda`` without a GPU is an :class:`AntisyncError`.
 
     Returns ``(backend, note)`` where ``note`` says what was chosen and why.
