@@ -15,7 +15,8 @@ help:
 	@echo "make bench      speed benchmarks (results go to bench/RESULTS.md by hand)"
 	@echo "make paper      every figure and table of the paper at reduced realizations into"
 	@echo "                results/paper/ (35 min on 2 cores; resumes when rerun)"
-	@echo "make lint       ruff check"
+	@echo "make lint       ruff check and ruff format --check (part of make test)"
+	@echo "make format     ruff format (rewrites files)"
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -31,7 +32,10 @@ run: $(STAMP)
 	$(BIN)/antisync summary $(RESULT)
 	$(BIN)/antisync report $(RESULT)
 
+# lint and format checks first (seconds), then the suite; pytest's exit 5 (no tests) fails too
 test: $(STAMP)
+	$(BIN)/ruff check antisync tests bench
+	$(BIN)/ruff format --check antisync tests bench
 	$(BIN)/python -m pytest
 
 test-slow: $(STAMP)
@@ -49,6 +53,7 @@ bench: $(STAMP)
 
 lint: $(STAMP)
 	$(BIN)/ruff check antisync tests bench
+	$(BIN)/ruff format --check antisync tests bench
 
 format: $(STAMP)
 	$(BIN)/ruff format antisync tests bench

@@ -29,8 +29,7 @@ if TYPE_CHECKING:
 
 __all__ = ["Result", "load", "run", "summarize", "sweep"]
 
-_SWEEP_KEYS = ("sweep", "family", "thresholds", "ranking_threshold", "excluded", "top", "screen",
-               "symmetry")
+_SWEEP_KEYS = ("sweep", "family", "thresholds", "ranking_threshold", "excluded", "top", "screen", "symmetry")
 _SECTIONS = ("dynamics", "lambda", "histogram", "linear", "screen", "top")
 
 
@@ -71,15 +70,19 @@ class Result:
         except ImportError:
             from antisync.errors import AntisyncError
 
-            raise AntisyncError("Result.to_pandas needs pandas (pip install pandas); "
-                                "Result.records holds the same data as dicts") from None
+            raise AntisyncError(
+                "Result.to_pandas needs pandas (pip install pandas); "
+                "Result.records holds the same data as dicts"
+            ) from None
         return pd.DataFrame.from_records(self.records)
 
     def __repr__(self) -> str:
         graphs = sorted({r["graph"] for r in self.records})
         shown = ", ".join(graphs[:3]) + (", ..." if len(graphs) > 3 else "")
-        return (f"Result({self.kind} {str(self.path)!r}, {len(self.records)} records, "
-                f"graphs {shown or '-'}, complete={self.complete})")
+        return (
+            f"Result({self.kind} {str(self.path)!r}, {len(self.records)} records, "
+            f"graphs {shown or '-'}, complete={self.complete})"
+        )
 
 
 def load(path: str | Path) -> Result:
@@ -110,24 +113,49 @@ def summarize(path: str | Path) -> dict:
     root = root_attrs(path)
     if is_sweep_file(path):
         s = sweep_summary(path)
-        return {"kind": "sweep", "file": str(path), "complete": bool(s["complete"]),
-                "records": s["records"], "config_yaml": root["config_yaml"],
-                **{k: s[k] for k in _SWEEP_KEYS}}
+        return {
+            "kind": "sweep",
+            "file": str(path),
+            "complete": bool(s["complete"]),
+            "records": s["records"],
+            "config_yaml": root["config_yaml"],
+            **{k: s[k] for k in _SWEEP_KEYS},
+        }
     recs = records(path)
     import yaml
 
     cfg = yaml.safe_load(root["config_yaml"] or "{}") or {}
     threshold = (cfg.get("dynamics") or {}).get("threshold")
     thresholds = [threshold] if threshold is not None else []
-    return {"kind": "run", "file": str(path), "complete": root["complete"], "records": recs,
-            "config_yaml": root["config_yaml"], "sweep": None, "family": None,
-            "thresholds": thresholds, "ranking_threshold": None, "excluded": [], "top": [],
-            "screen": [], "symmetry": None}
+    return {
+        "kind": "run",
+        "file": str(path),
+        "complete": root["complete"],
+        "records": recs,
+        "config_yaml": root["config_yaml"],
+        "sweep": None,
+        "family": None,
+        "thresholds": thresholds,
+        "ranking_threshold": None,
+        "excluded": [],
+        "top": [],
+        "screen": [],
+        "symmetry": None,
+    }
 
 
-def run(config: str | Path | Mapping | Config, /, *, output: str | Path | None = None,
-        resume: bool = False, overwrite: bool = False, progress: bool = False, executor=None,
-        log: Callable[[str], None] | None = None, **overrides: Any) -> Result:
+def run(
+    config: str | Path | Mapping | Config,
+    /,
+    *,
+    output: str | Path | None = None,
+    resume: bool = False,
+    overwrite: bool = False,
+    progress: bool = False,
+    executor=None,
+    log: Callable[[str], None] | None = None,
+    **overrides: Any,
+) -> Result:
     """Run one config (one graph) into an HDF5 file and return its :class:`Result`.
 
     Parameters
@@ -164,14 +192,22 @@ def run(config: str | Path | Mapping | Config, /, *, output: str | Path | None =
     from antisync.runner import run_config
 
     cfg = _config(config, overrides, output)
-    path = run_config(cfg, resume=resume, overwrite=overwrite, progress=progress,
-                      executor=executor, log=log)
+    path = run_config(cfg, resume=resume, overwrite=overwrite, progress=progress, executor=executor, log=log)
     return load(path)
 
 
-def sweep(config: str | Path | Mapping, /, *, output: str | Path | None = None,
-          resume: bool = False, overwrite: bool = False, progress: bool = False, executor=None,
-          log: Callable[[str], None] | None = None, **overrides: Any) -> Result:
+def sweep(
+    config: str | Path | Mapping,
+    /,
+    *,
+    output: str | Path | None = None,
+    resume: bool = False,
+    overwrite: bool = False,
+    progress: bool = False,
+    executor=None,
+    log: Callable[[str], None] | None = None,
+    **overrides: Any,
+) -> Result:
     """Run a sweep (a config with a ``sweep:`` section, see ``configs/atlas6.yaml``): screen
     the family's graphs, integrate one edge per automorphism orbit, run the top stage.
 
@@ -186,8 +222,7 @@ def sweep(config: str | Path | Mapping, /, *, output: str | Path | None = None,
         sw = load_sweep_text(yaml.safe_dump(dict(config)), values=values)
     else:
         sw = load_sweep(config, values=values)
-    path = run_sweep(sw, resume=resume, overwrite=overwrite, progress=progress, executor=executor,
-                     log=log)
+    path = run_sweep(sw, resume=resume, overwrite=overwrite, progress=progress, executor=executor, log=log)
     return load(path)
 
 

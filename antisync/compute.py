@@ -17,7 +17,6 @@ from antisync.status import SYNCED
 __all__ = ["ChunkResult", "check_backend", "check_job", "compute_chunk", "lambda_values", "simulate_job"]
 
 
-
 @dataclass
 class ChunkResult:
     """Partial statistics of one chunk; every field merges by addition or by block position.
@@ -105,8 +104,15 @@ def check_job(job: Job, backend: str) -> None:
             )
 
 
-def simulate_job(job: Job, first: int, count: int, backend: str = "cpu", threads: int | None = None,
-                 variant_weights: np.ndarray | None = None, realizations: np.ndarray | None = None):
+def simulate_job(
+    job: Job,
+    first: int,
+    count: int,
+    backend: str = "cpu",
+    threads: int | None = None,
+    variant_weights: np.ndarray | None = None,
+    realizations: np.ndarray | None = None,
+):
     """Integrate realizations ``first .. first+count-1`` (or ``realizations``) of ``job``."""
     dyn = job.config.dynamics
     check_backend(job.config, backend)
@@ -117,8 +123,17 @@ def simulate_job(job: Job, first: int, count: int, backend: str = "cpu", threads
     if dyn.integrator != "euler":
         kwargs["integrator"] = dyn.integrator
     return _kernel(backend).simulate(
-        job.config.seed, first, count, job.csr.indptr, job.csr.indices, job.csr.weights, weights,
-        dt=dyn.dt, threshold=dyn.threshold, max_steps=dyn.max_steps, **kwargs,
+        job.config.seed,
+        first,
+        count,
+        job.csr.indptr,
+        job.csr.indices,
+        job.csr.weights,
+        weights,
+        dt=dyn.dt,
+        threshold=dyn.threshold,
+        max_steps=dyn.max_steps,
+        **kwargs,
     )
 
 
@@ -147,9 +162,22 @@ def lambda_values(job: Job, sim, first: int, count: int, threads: int | None = N
     from antisync.kernels.cpu import simulate_pathwise
 
     edge_a, edge_b, rho, mu = job.tangent
-    pw = simulate_pathwise(job.config.seed, first, count, job.csr.indptr, job.csr.indices,
-                           job.csr.weights, edge_a, edge_b, rho, mu, dt=dyn.dt,
-                           threshold=dyn.threshold, max_steps=dyn.max_steps, threads=threads)
+    pw = simulate_pathwise(
+        job.config.seed,
+        first,
+        count,
+        job.csr.indptr,
+        job.csr.indices,
+        job.csr.weights,
+        edge_a,
+        edge_b,
+        rho,
+        mu,
+        dt=dyn.dt,
+        threshold=dyn.threshold,
+        max_steps=dyn.max_steps,
+        threads=threads,
+    )
     tau0 = (pw.steps0 - 1 + pw.frac0) * dyn.dt
     ok0 = pw.status0 == SYNCED
     values = np.where(ok0[:, None], -pw.dtau / np.where(ok0, tau0, 1.0)[:, None], 0.0)
@@ -159,8 +187,9 @@ def lambda_values(job: Job, sim, first: int, count: int, threads: int | None = N
         flagged = ok0[:, None] & (np.abs(values) > spec.hybrid_cut)
         for e in np.flatnonzero(flagged.any(axis=0)):
             rows = np.flatnonzero(flagged[:, e])
-            sec = simulate_job(job, 0, 0, "cpu", threads, job.secant_weights[e : e + 1],
-                               realizations=first + rows)
+            sec = simulate_job(
+                job, 0, 0, "cpu", threads, job.secant_weights[e : e + 1], realizations=first + rows
+            )
             tau = (sec.steps[:, 0] - 1 + sec.frac[:, 0]) * dyn.dt
             good = sec.status[:, 0] == SYNCED
             values[rows[good], e] = (tau0[rows[good]] / tau[good] - 1.0) / job.dbeta
@@ -199,14 +228,38 @@ def _compute_on_device(job: Job, chunk: Chunk, first: int, count: int, start: fl
     dyn = job.config.dynamics
     hcfg = job.config.histogram
     red = simulate_reduced(
-        job.config.seed, first, count, job.csr.indptr, job.csr.indices, job.csr.weights,
-        job.variant_weights, dt=dyn.dt, threshold=dyn.threshold, max_steps=dyn.max_steps,
-        block=job.block_size, hist_variants=job.hist_variants, bins=hcfg.bins,
-        tau_max=hcfg.tau_max, lambda_variants=_fd_variants(job), dbeta=job.dbeta,
+        job.config.seed,
+        first,
+        count,
+        job.csr.indptr,
+        job.csr.indices,
+        job.csr.weights,
+        job.variant_weights,
+        dt=dyn.dt,
+        threshold=dyn.threshold,
+        max_steps=dyn.max_steps,
+        block=job.block_size,
+        hist_variants=job.hist_variants,
+        bins=hcfg.bins,
+        tau_max=hcfg.tau_max,
+        lambda_variants=_fd_variants(job),
+        dbeta=job.dbeta,
         precision=dyn.precision,
     )
-    return ChunkResult(chunk, red.rec, red.rec0, red.tail, red.hist, red.lam_rec, red.lam_tail,
-                       None, first, count, time.perf_counter() - start, "cuda")
+    return ChunkResult(
+        chunk,
+        red.rec,
+        red.rec0,
+        red.tail,
+        red.hist,
+        red.lam_rec,
+        red.lam_tail,
+        None,
+        first,
+        count,
+        time.perf_counter() - start,
+        "cuda",
+    )
 
 
 def compute_chunk(job: Job, chunk: Chunk, backend: str = "cpu", threads: int | None = None) -> ChunkResult:
@@ -231,8 +284,9 @@ def compute_chunk(job: Job, chunk: Chunk, backend: str = "cpu", threads: int | N
         from antisync.kernels.cpu import SimResult
 
         empty = np.empty((count, 0))
-        sim = SimResult(base.status0, base.steps0, empty.astype(np.int8), empty.astype(np.int64),
-                        base.frac0, empty)
+        sim = SimResult(
+            base.status0, base.steps0, empty.astype(np.int8), empty.astype(np.int64), base.frac0, empty
+        )
     dyn = job.config.dynamics
     interpolate = dyn.interpolate
     dt = dyn.dt
@@ -250,5 +304,17 @@ def compute_chunk(job: Job, chunk: Chunk, backend: str = "cpu", threads: int | N
             "steps": sim.steps[:keep].copy(),
             "lambda": values[:keep].copy(),
         }
-    return ChunkResult(chunk, rec, rec0, tail, hist, lam_rec, lam_tail, kept, first, count,
-                       time.perf_counter() - start, backend)
+    return ChunkResult(
+        chunk,
+        rec,
+        rec0,
+        tail,
+        hist,
+        lam_rec,
+        lam_tail,
+        kept,
+        first,
+        count,
+        time.perf_counter() - start,
+        backend,
+    )

@@ -291,14 +291,29 @@ class Config:
 
 
 _TOP_KEYS = {
-    "name", "graph", "edges", "betas", "lambda", "dynamics", "measures", "linear", "realizations",
-    "seed", "block_size", "chunk_size", "keep_pairs", "histogram", "backend", "executor", "threads", "output",
+    "name",
+    "graph",
+    "edges",
+    "betas",
+    "lambda",
+    "dynamics",
+    "measures",
+    "linear",
+    "realizations",
+    "seed",
+    "block_size",
+    "chunk_size",
+    "keep_pairs",
+    "histogram",
+    "backend",
+    "executor",
+    "threads",
+    "output",
 }
 _SECTIONS = {"lambda": LambdaSpec, "dynamics": Dynamics, "histogram": Histogram, "linear": LinearSpec}
 
 
-def load_config(path: str | Path, overrides: list[str] | None = None,
-                values: dict | None = None) -> Config:
+def load_config(path: str | Path, overrides: list[str] | None = None, values: dict | None = None) -> Config:
     """Read a YAML config file, apply ``key=value`` overrides and ``values``, validate.
 
     Parameters
@@ -333,17 +348,20 @@ def read_config_text(path: Path) -> str:
     except FileNotFoundError:
         raise ConfigError(f"config file {path} does not exist") from None
     except IsADirectoryError:
-        raise ConfigError(f"config {path} is a folder; give a YAML file such as configs/lollipop6.yaml") \
-            from None
+        raise ConfigError(
+            f"config {path} is a folder; give a YAML file such as configs/lollipop6.yaml"
+        ) from None
     except UnicodeDecodeError as exc:
-        raise ConfigError(f"config file {path} is not UTF-8 text (byte {exc.start}); "
-                          "save it as UTF-8 YAML") from None
+        raise ConfigError(
+            f"config file {path} is not UTF-8 text (byte {exc.start}); save it as UTF-8 YAML"
+        ) from None
     except OSError as exc:
         raise ConfigError(f"cannot read config file {path}: {exc.strerror}") from None
 
 
-def load_config_text(text: str, overrides: list[str] | None = None, source: Path | None = None,
-                     values: dict | None = None) -> Config:
+def load_config_text(
+    text: str, overrides: list[str] | None = None, source: Path | None = None, values: dict | None = None
+) -> Config:
     """Like :func:`load_config` for YAML text; relative paths resolve against ``source``'s folder."""
     return _from_mapping(parse_mapping(text, overrides, values), source)
 
@@ -398,8 +416,10 @@ def config_from_mapping(raw: dict, source: Path | None = None) -> Config:
 
 def _from_mapping(raw: dict, source: Path | None) -> Config:
     if "sweep" in raw:
-        raise ConfigError("this is a sweep config (it has a 'sweep:' section): run it with "
-                          "`antisync sweep`, not `antisync run`")
+        raise ConfigError(
+            "this is a sweep config (it has a 'sweep:' section): run it with "
+            "`antisync sweep`, not `antisync run`"
+        )
     unknown_keys(raw, _TOP_KEYS, "")
     if "graph" not in raw:
         raise ConfigError("missing key 'graph' (e.g. graph: {kind: lollipop, nodes: 6, path: 3})")
@@ -413,8 +433,9 @@ def _from_mapping(raw: dict, source: Path | None) -> Config:
             cls = _SECTIONS[key]
             valid = {f for f in cls.__dataclass_fields__}
             unknown_keys(value, valid, f"{key}.")
-            value = {k: number(f"{key}.{k}", v, cls.__dataclass_fields__[k].default)
-                     for k, v in value.items()}
+            value = {
+                k: number(f"{key}.{k}", v, cls.__dataclass_fields__[k].default) for k, v in value.items()
+            }
             kwargs["lambda_" if key == "lambda" else key] = cls(**value)
         elif key == "betas":
             if value is None:

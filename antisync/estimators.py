@@ -51,7 +51,6 @@ TAIL_EDGES = np.logspace(-9, 3, 97)
 TAIL_BINS = TAIL_EDGES.size + 1  # plus underflow (|d| < 1e-9, including 0) and overflow
 
 
-
 @njit(cache=True)
 def _reduce_blocks(status0, t0s, status, ts, dt, block, edges, rec, rec0, tail):
     m, n_var = status.shape
@@ -181,8 +180,9 @@ def summarize_lambda(rec_e: np.ndarray) -> dict:
     }
 
 
-def histogram2d(sim, variants: np.ndarray, dt: float, bins: int, tau_max: float,
-                interpolate: bool = False) -> np.ndarray:
+def histogram2d(
+    sim, variants: np.ndarray, dt: float, bins: int, tau_max: float, interpolate: bool = False
+) -> np.ndarray:
     """Counts of ``(tau0, tau(beta))`` pairs on a ``bins x bins`` grid over ``[0, tau_max)``.
 
     Only pairs with both times SYNCED are counted; pairs beyond ``tau_max`` go to the last bin

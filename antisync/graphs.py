@@ -56,9 +56,7 @@ def lollipop(n_nodes: int, path: int) -> nx.Graph:
         1-2, 2-3, 3-4, 4-5, 4-6, 5-6, so ``"2->1"`` means what the paper's Fig. 1 means.
     """
     if path < 1 or n_nodes - path < 2:
-        raise GraphError(
-            f"lollipop needs 1 <= path <= nodes - 2, got nodes={n_nodes}, path={path}"
-        )
+        raise GraphError(f"lollipop needs 1 <= path <= nodes - 2, got nodes={n_nodes}, path={path}")
     g = nx.Graph()
     g.add_nodes_from(range(1, n_nodes + 1))
     # the stick: 1 - 2 - ... - L, then the bridge L - (L+1)
@@ -115,8 +113,10 @@ def from_networkx(generator: str, args: dict | None = None, seed: int | None = N
         random = False
     if random and args.get("seed") is None:
         if seed is None:
-            raise GraphError(f"networkx.{generator} is random: give graph.args.seed (an integer) "
-                             "so that every run builds the same graph")
+            raise GraphError(
+                f"networkx.{generator} is random: give graph.args.seed (an integer) "
+                "so that every run builds the same graph"
+            )
         args["seed"] = seed
     if random and (isinstance(args["seed"], bool) or not isinstance(args["seed"], int)):
         raise GraphError(f"graph.args.seed must be an integer, got {args['seed']!r}")
@@ -163,13 +163,17 @@ def from_edgelist(path: str | Path) -> nx.Graph:
             raise GraphError(f"{path}:{lineno}: self-loop {u}-{v} is not allowed")
         a, b = (int(u), int(v)) if as_int else (u, v)
         if g.has_edge(a, b):  # a second line would silently replace the first one's weight
-            raise GraphError(f"{path}:{lineno}: edge {u}-{v} is listed twice (first on line "
-                             f"{g.edges[a, b]['line']}); give each undirected edge once")
+            raise GraphError(
+                f"{path}:{lineno}: edge {u}-{v} is listed twice (first on line "
+                f"{g.edges[a, b]['line']}); give each undirected edge once"
+            )
         g.add_edge(a, b, weight=w, line=lineno)
     total = sum(w for _, _, w, _ in rows)
     if not math.isfinite(total) or total > 1e100:
-        raise GraphError(f"{path}: weights sum to {total:.3g}; keep them below 1e100 "
-                         "(rescale them: normalized coupling only sees their ratios)")
+        raise GraphError(
+            f"{path}: weights sum to {total:.3g}; keep them below 1e100 "
+            "(rescale them: normalized coupling only sees their ratios)"
+        )
     for _, _, d in g.edges(data=True):
         del d["line"]
     return g
@@ -193,8 +197,9 @@ def build_graph(spec: dict, seed: int | None = None) -> nx.Graph:
         if not isinstance(args, dict):
             raise GraphError(f"graph.args must be a mapping of keyword arguments, got {args!r}")
         if not isinstance(spec.get("generator"), str):
-            raise GraphError("graph.generator must be a networkx function name, "
-                             f"got {spec.get('generator')!r}")
+            raise GraphError(
+                f"graph.generator must be a networkx function name, got {spec.get('generator')!r}"
+            )
         g = from_networkx(spec["generator"], args, seed=seed)
     elif kind == "edgelist":
         if not isinstance(spec.get("path"), str):
@@ -257,8 +262,10 @@ def _int_arg(spec: dict, key: str, default: int | None = None, hi: int | None = 
     if isinstance(value, bool) or not isinstance(value, int):
         raise GraphError(f"graph.{key} must be an integer, got {value!r}")
     if hi is not None and value > hi:
-        raise GraphError(f"graph.{key} must be at most {hi:,} (a clique of that size is "
-                         f"{hi * (hi - 1) // 2:,} links), got {value:,}")
+        raise GraphError(
+            f"graph.{key} must be at most {hi:,} (a clique of that size is "
+            f"{hi * (hi - 1) // 2:,} links), got {value:,}"
+        )
     return value
 
 
@@ -277,8 +284,12 @@ def _is_int(token: str) -> bool:
 
 def _edge_invariant(g: nx.Graph, e: tuple) -> tuple:
     a, b = e
-    return (g.degree(a), g.degree(b), tuple(sorted(g.degree(x) for x in g[a])),
-            tuple(sorted(g.degree(x) for x in g[b])))
+    return (
+        g.degree(a),
+        g.degree(b),
+        tuple(sorted(g.degree(x) for x in g[a])),
+        tuple(sorted(g.degree(x) for x in g[b])),
+    )
 
 
 def _maps_onto(g: nx.Graph, e: tuple, f: tuple) -> bool:
@@ -291,9 +302,9 @@ def _maps_onto(g: nx.Graph, e: tuple, f: tuple) -> bool:
     g1.nodes[e[0]]["pin"], g1.nodes[e[1]]["pin"] = 1, 2
     g2.nodes[f[0]]["pin"], g2.nodes[f[1]]["pin"] = 1, 2
     match = categorical_node_match("pin", 0)
-    return GraphMatcher(g1, g2, node_match=match,
-                        edge_match=lambda x, y: x.get("weight", 1.0) == y.get("weight", 1.0)
-                        ).is_isomorphic()
+    return GraphMatcher(
+        g1, g2, node_match=match, edge_match=lambda x, y: x.get("weight", 1.0) == y.get("weight", 1.0)
+    ).is_isomorphic()
 
 
 def edge_orbits(g: nx.Graph, edges: list | None = None) -> dict:

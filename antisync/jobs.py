@@ -229,14 +229,16 @@ def _all_orbits(nodes: tuple, omega_rows: tuple) -> dict:
     return graphs.edge_orbits(g)
 
 
-def _orbit_fields(graph: nx.Graph, nodes: list, omega: np.ndarray, csr: coupling.CouplingCSR,
-                  edges: list, config: Config) -> dict:
+def _orbit_fields(
+    graph: nx.Graph, nodes: list, omega: np.ndarray, csr: coupling.CouplingCSR, edges: list, config: Config
+) -> dict:
     """``orbit_weights`` and ``orbit_sizes`` for ``lambda.method: orbit`` (else empty)."""
     if config.lambda_.method != "orbit":
         return {}
     index = {v: i for i, v in enumerate(nodes)}
     rep = _all_orbits(tuple(nodes), tuple(map(tuple, omega)))
     orbits = [[(index[a], index[b]) for a, b in rep if rep[a, b] == rep[e]] for e in edges]
-    weights = coupling.orbit_variant_weights(omega, csr, orbits, config.lambda_.dbeta,
-                                             config.dynamics.coupling)
+    weights = coupling.orbit_variant_weights(
+        omega, csr, orbits, config.lambda_.dbeta, config.dynamics.coupling
+    )
     return {"orbit_weights": weights, "orbit_sizes": np.array([len(o) for o in orbits])}

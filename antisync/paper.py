@@ -30,7 +30,6 @@ from antisync.reference import config_path, paper_table1
 __all__ = ["CAPTIONS", "STEPS", "Step", "make_paper", "plan"]
 
 
-
 @dataclass(frozen=True)
 class Step:
     """One experiment of the paper run.
@@ -51,8 +50,10 @@ class Step:
     figures: str = ""
 
     def scaled(self, scale: float) -> tuple[int, int]:
-        return (max(10, int(round(self.realizations * scale))),
-                max(10, int(round(self.top_realizations * scale))) if self.top_realizations else 0)
+        return (
+            max(10, int(round(self.realizations * scale))),
+            max(10, int(round(self.top_realizations * scale))) if self.top_realizations else 0,
+        )
 
     def cpu_seconds(self, scale: float = 1.0) -> float:
         m, t = self.scaled(scale)
@@ -66,63 +67,99 @@ class Step:
 # 0.345 s per realization with the 49-beta grid.
 STEPS = (
     Step("lollipop6", "run", "lollipop6.yaml", (), 10_000, 2.0, 0.028, figures="Fig. 1"),
-    Step("lollipop6_raw", "run", "lollipop6.yaml", ("dynamics.coupling=raw", "name=lollipop6_raw"),
-         10_000, 2.0, 0.015, figures="Fig. 7"),
+    Step(
+        "lollipop6_raw",
+        "run",
+        "lollipop6.yaml",
+        ("dynamics.coupling=raw", "name=lollipop6_raw"),
+        10_000,
+        2.0,
+        0.015,
+        figures="Fig. 7",
+    ),
     # measures for Fig. 5: Lambda^(xi2), Lambda^(RW) and Lambda^(linear) (500 realizations);
     # they took 245 s wall on two cores, mostly on one, so they count twice in fixed_s
-    Step("threshold", "sweep", "threshold.yaml",
-         ("top.graphs=7", "measures=[km, xi2, rw, linear]", "linear.realizations=500"), 5_000,
-         510.0, 0.31,
-         top_realizations=50_000, top_per_realization_s=0.003,
-         figures="Figs. 3, 4, 5, 6, Table 1"),
+    Step(
+        "threshold",
+        "sweep",
+        "threshold.yaml",
+        ("top.graphs=7", "measures=[km, xi2, rw, linear]", "linear.realizations=500"),
+        5_000,
+        510.0,
+        0.31,
+        top_realizations=50_000,
+        top_per_realization_s=0.003,
+        figures="Figs. 3, 4, 5, 6, Table 1",
+    ),
     # Fig. 2a shows 5 <= N <= 20 (Fig. 2b 4 <= N <= 20)
-    Step("lollipop_F", "sweep", "lollipop_L1.yaml",
-         ("repeats=1", "name=lollipop_F", "sweep.nodes=5..20"), 1_000, 8.0, 0.34, figures="Fig. 2a"),
+    Step(
+        "lollipop_F",
+        "sweep",
+        "lollipop_L1.yaml",
+        ("repeats=1", "name=lollipop_F", "sweep.nodes=5..20"),
+        1_000,
+        8.0,
+        0.34,
+        figures="Fig. 2a",
+    ),
     # Fig. 2b with the orbit estimator (the derivative; the variance of the clique link's
     # Lambda drops by ~1e4 at N = 20) and RK4 at dt = 0.04 (the same values as Euler at
     # dt = 0.001 within errors, ten times faster): 10 repeats of 20,000 resolve Lambda > 0 at
     # every N by > 4 standard errors. 0.0026 CPU s per realization summed over N = 4..20.
-    Step("lollipop_lambda", "sweep", "lollipop_L1.yaml",
-         ("repeats=10", "betas=[]", "name=lollipop_lambda", "lambda.method=orbit",
-          "dynamics.integrator=rk4", "dynamics.dt=0.04"), 20_000, 90.0, 0.026,
-         figures="Fig. 2b"),
+    Step(
+        "lollipop_lambda",
+        "sweep",
+        "lollipop_L1.yaml",
+        (
+            "repeats=10",
+            "betas=[]",
+            "name=lollipop_lambda",
+            "lambda.method=orbit",
+            "dynamics.integrator=rk4",
+            "dynamics.dt=0.04",
+        ),
+        20_000,
+        90.0,
+        0.026,
+        figures="Fig. 2b",
+    ),
 )
 
 # What the paper's captions say (shortened), and the numbers it prints.
 CAPTIONS = {
     "Fig. 1": "Antifragile response in a lollipop graph with N = 6 nodes. (a) The graph with edges "
-              "coloured by Lambda^KM (dbeta = 0.01, 1e7 realizations). (b) <F_beta> against beta for "
-              "all edges (1e6 realizations). (c)-(f) Histograms of (tau0, tau(beta)) at beta = 0.5 "
-              "for 2->1, 5->6, 6->4 and 2->3 (1e9 realizations); dashed: tau(beta) = tau0. "
-              "Text: <F_0.5> = 1.181 (2->1, most antifragile), 1.056 (5->6), 0.836 (2->3, most "
-              "fragile); Lambda^KM(1->2) = 0.",
+    "coloured by Lambda^KM (dbeta = 0.01, 1e7 realizations). (b) <F_beta> against beta for "
+    "all edges (1e6 realizations). (c)-(f) Histograms of (tau0, tau(beta)) at beta = 0.5 "
+    "for 2->1, 5->6, 6->4 and 2->3 (1e9 realizations); dashed: tau(beta) = tau0. "
+    "Text: <F_0.5> = 1.181 (2->1, most antifragile), 1.056 (5->6), 0.836 (2->3, most "
+    "fragile); Lambda^KM(1->2) = 0.",
     "Fig. 2": "Antifragility in lollipop graphs with L = 1. (a) <F_beta> against beta, colour = N "
-              "(5 <= N <= 20), 1e6 realizations per beta, step 0.02; <F_beta> > 1 throughout, more "
-              "so for small graphs. (b) Lambda^KM against N (4 <= N <= 20) for the clique link not "
-              "touching the bridge node: squares are the mean of 10 estimates of 1e7 realizations, "
-              "error bars their standard deviation (~1e-4). Lambda^KM > 0 and decreases with N, "
-              "steeply up to N ~ 15.",
+    "(5 <= N <= 20), 1e6 realizations per beta, step 0.02; <F_beta> > 1 throughout, more "
+    "so for small graphs. (b) Lambda^KM against N (4 <= N <= 20) for the clique link not "
+    "touching the bridge node: squares are the mean of 10 estimates of 1e7 realizations, "
+    "error bars their standard deviation (~1e-4). Lambda^KM > 0 and decreases with N, "
+    "steeply up to N ~ 15.",
     "Fig. 3": "Lambda^KM (dbeta = 0.01, 1e7 realizations) on every link of the 109 connected "
-              "non-isomorphic graphs with N = 6 that synchronize (the 6-ring and the 5-ring plus "
-              "one or two edges are excluded), sorted by the sum of their positive Lambda^KM. "
-              "Graph 1 is the barbell (two triangles), 2 the lollipop of Fig. 1; graphs 2 and 8 "
-              "are lollipops, 3 and 5 trees.",
+    "non-isomorphic graphs with N = 6 that synchronize (the 6-ring and the 5-ring plus "
+    "one or two edges are excluded), sorted by the sum of their positive Lambda^KM. "
+    "Graph 1 is the barbell (two triangles), 2 the lollipop of Fig. 1; graphs 2 and 8 "
+    "are lollipops, 3 and 5 trees.",
     "Table 1": "<tau0>, the largest Lambda^KM and <F_0.5> on that link for the first seven graphs "
-               "of Fig. 3 (1e9 realizations; Lambda from 1e7).",
+    "of Fig. 3 (1e9 realizations; Lambda from 1e7).",
     "Fig. 4": "Graphs 1 and 3-7 of Fig. 3 with the nodes a, b of their most antifragile link, and "
-              "the histograms of (tau0, tau(0.5)) for damage on a->b: more pairs fall below the "
-              "line tau(beta) = tau0.",
+    "the histograms of (tau0, tau(0.5)) for damage on a->b: more pairs fall below the "
+    "line tau(beta) = tau0.",
     "Fig. 5": "(a) Lambda^KM vs Lambda^linear, (b) Lambda^KM vs Lambda^(xi2), (c) Lambda^RW vs "
-              "Lambda^KM, (d) Lambda^(xi2) vs Lambda^RW for the 109 graphs. (b): linear trend with "
-              "sign disagreements only for |Lambda^KM| < 0.1.",
+    "Lambda^KM, (d) Lambda^(xi2) vs Lambda^RW for the 109 graphs. (b): linear trend with "
+    "sign disagreements only for |Lambda^KM| < 0.1.",
     "Fig. 6": "(a) Lambda^KM at r = 0.99 against Lambda^KM at r* = 0.9, 0.99, 0.999 (1e7 "
-              "realizations): strongly linear, |Lambda^KM| grows as r -> 1. (b) Lambda^KM(r*) "
-              "against Lambda^(xi2) with fits Lambda^KM = gamma Lambda^(xi2) + C, C ~ 0.003; inset: "
-              "gamma grows with r*.",
+    "realizations): strongly linear, |Lambda^KM| grows as r -> 1. (b) Lambda^KM(r*) "
+    "against Lambda^(xi2) with fits Lambda^KM = gamma Lambda^(xi2) + C, C ~ 0.003; inset: "
+    "gamma grows with r*.",
     "Fig. 7": "Non-normalized coupling (Eq. 20) on the lollipop of Fig. 1: (a) edges coloured by "
-              "Lambda^KM-NNC (1e7), (b) <F_beta> against beta (1e6), (c)-(d) histograms for 2->1 and "
-              "2->3 at beta = 0.5, (e) Lambda^KM against Lambda^KM-NNC: Lambda^KM-NNC < Lambda^KM "
-              "for every link except 3->4.",
+    "Lambda^KM-NNC (1e7), (b) <F_beta> against beta (1e6), (c)-(d) histograms for 2->1 and "
+    "2->3 at beta = 0.5, (e) Lambda^KM against Lambda^KM-NNC: Lambda^KM-NNC < Lambda^KM "
+    "for every link except 3->4.",
 }
 
 # The paper's realizations (1e7 per Lambda, 1e6 per beta, 1e9 for Table 1 and the
@@ -155,8 +192,15 @@ antisync sweep configs/lollipop_L1.yaml --realizations 10000000 --set 'betas=[]'
 # nodes") and 7 ("a subgraph with four nodes densely connected to a linear graph with two
 # nodes") are the only graphs of those shapes whose <tau0> and max Lambda^KM match
 # (docs/sweeps.md, "Table 1: which graph is which"; tests/test_paper.py runs each).
-TABLE1_ATLAS = {1: (130, "0->1"), 2: (102, "0->5"), 3: (83, "0->1"), 4: (100, "0->1"),
-                5: (81, "0->5"), 6: (150, "0->5"), 7: (103, "0->5")}
+TABLE1_ATLAS = {
+    1: (130, "0->1"),
+    2: (102, "0->5"),
+    3: (83, "0->1"),
+    4: (100, "0->1"),
+    5: (81, "0->5"),
+    6: (150, "0->5"),
+    7: (103, "0->5"),
+}
 
 PAPER_TABLE1 = paper_table1()  # rank, <tau0>, Lambda^KM max, <F_0.5>: the shipped reference
 
@@ -170,14 +214,25 @@ def plan(scale: float = 1.0, cores: int = 2) -> str:
         cpu = s.cpu_seconds(scale)
         total += cpu
         lines.append(f"{s.name:<16} {m:>12,} {t or '-':>8} {cpu:>8.0f}  {s.figures}")
-    lines.append(f"total {total:,.0f} CPU s: about {total / cores / 60:.0f} min on {cores} cores "
-                 "(plus about 2 min of figures), measured at 0.23 ms per lollipop6 integration")
+    lines.append(
+        f"total {total:,.0f} CPU s: about {total / cores / 60:.0f} min on {cores} cores "
+        "(plus about 2 min of figures), measured at 0.23 ms per lollipop6 integration"
+    )
     return "\n".join(lines)
 
 
-def make_paper(out: str | Path = "results/paper", *, scale: float = 1.0, overwrite: bool = False,
-               threads: int | None = None, backend: str = "cpu", configs: str | Path | None = None,
-               only: tuple = (), progress: bool | None = None, log=print) -> Path:
+def make_paper(
+    out: str | Path = "results/paper",
+    *,
+    scale: float = 1.0,
+    overwrite: bool = False,
+    threads: int | None = None,
+    backend: str = "cpu",
+    configs: str | Path | None = None,
+    only: tuple = (),
+    progress: bool | None = None,
+    log=print,
+) -> Path:
     """Run (or resume) every step and write the reports and ``README.md`` into ``out``.
 
     Parameters
@@ -226,8 +281,7 @@ def make_paper(out: str | Path = "results/paper", *, scale: float = 1.0, overwri
             write_report(read_views(h5), out / step.name)
         else:
             sw = load_sweep(folder / step.config, overrides)
-            run_sweep(sw, output=h5, resume=not overwrite, overwrite=overwrite, progress=progress,
-                      log=log)
+            run_sweep(sw, output=h5, resume=not overwrite, overwrite=overwrite, progress=progress, log=log)
             write_sweep_report(h5, out / step.name)
         seconds = time.perf_counter() - start
         log(f"   {step.name} done in {seconds / 60:.1f} min" + (" (already finished)" if finished else ""))
@@ -267,8 +321,15 @@ def _extra_figures(out: Path) -> dict:
         fig, ax = plt.subplots(figsize=(5.2, 4.8))
         x = [km[e]["lambda_km"] for e in edges]
         y = [nnc[e]["lambda_km"] for e in edges]
-        ax.errorbar(x, y, xerr=[km[e]["lambda_km_se"] for e in edges],
-                    yerr=[nnc[e]["lambda_km_se"] for e in edges], fmt="o", ms=4, capsize=2)
+        ax.errorbar(
+            x,
+            y,
+            xerr=[km[e]["lambda_km_se"] for e in edges],
+            yerr=[nnc[e]["lambda_km_se"] for e in edges],
+            fmt="o",
+            ms=4,
+            capsize=2,
+        )
         for e, xi, yi in zip(edges, x, y, strict=True):
             ax.annotate(e, (xi, yi), fontsize=7, xytext=(3, 3), textcoords="offset points")
         lim = max(abs(v) for v in x + y) * 1.1
@@ -301,8 +362,11 @@ def _paper_graphs(path: Path) -> list[str]:
     rows = {r["graph"]: r for r in ranking(s["records"], thr)}
     top = {t["graph"]: t for t in s["top"] if t.get("beta") == 0.5}
     lambdas = edge_lambdas(s["records"], thr)
-    out = ["| paper graph | ours | our rank | <tau0> ours / paper | max Lambda_KM ours (link) / paper "
-           "| <F_0.5> ours / paper |", "|:---|:---|---:|:---|:---|:---|"]
+    out = [
+        "| paper graph | ours | our rank | <tau0> ours / paper | max Lambda_KM ours (link) / paper "
+        "| <F_0.5> ours / paper |",
+        "|:---|:---|---:|:---|:---|:---|",
+    ]
     notes = []
     for number, (index, _) in TABLE1_ATLAS.items():
         _, t0, lam, f05 = PAPER_TABLE1[number - 1]
@@ -313,19 +377,33 @@ def _paper_graphs(path: Path) -> list[str]:
         tau0, tau0_se = (t["tau0_mean"], t["tau0_se"]) if t else (r["tau0_mean"], r["tau0_se"])
         lmax, lmax_se = (t["lambda_km"], t["lambda_km_se"]) if t else (r["lambda_max"], r["lambda_max_se"])
         f = f"{t['F_mean']:.4f} ± {t['F_se']:.4f}" if t else "-"
-        out.append(f"| {number} | {graph} | {r['rank']} | {tau0:.3f} ± {tau0_se:.3f} / "
-                   f"{t0} | {lmax:.3f} ± {lmax_se:.3f} ({r['max_edge']}) / {lam:.4g} | {f} / {f05} |")
+        out.append(
+            f"| {number} | {graph} | {r['rank']} | {tau0:.3f} ± {tau0_se:.3f} / "
+            f"{t0} | {lmax:.3f} ± {lmax_se:.3f} ({r['max_edge']}) / {lam:.4g} | {f} / {f05} |"
+        )
         if abs(lmax - lam) > 4 * lmax_se:
-            (_, edge), v = min(((k, v) for k, v in lambdas.items() if k[0] == graph),
-                               key=lambda kv: abs(kv[1]["lambda_km"] - lam))
+            (_, edge), v = min(
+                ((k, v) for k, v in lambdas.items() if k[0] == graph),
+                key=lambda kv: abs(kv[1]["lambda_km"] - lam),
+            )
             off = abs(lmax - lam) / lmax_se
-            notes.append(f"- Paper graph {number}: its max Lambda_KM {lam:.4g} is {off:.0f} "
-                         f"standard errors from ours on {r['max_edge']}; our link with the nearest value "
-                         f"is {edge} ({v['lambda_km']:.3f} ± {v['lambda_km_se']:.3f}).")
-    return (["The paper's seven graphs in our sweep (identified in docs/sweeps.md, \"Table 1: which "
-             "graph is which\"); values from the top stage when the graph is in our top seven. "
-             "The ranking sums noisy positive parts, so at low realizations graphs with "
-             "heavy-tailed estimates rise:", ""] + out + [""] + (notes + [""] if notes else []))
+            notes.append(
+                f"- Paper graph {number}: its max Lambda_KM {lam:.4g} is {off:.0f} "
+                f"standard errors from ours on {r['max_edge']}; our link with the nearest value "
+                f"is {edge} ({v['lambda_km']:.3f} ± {v['lambda_km_se']:.3f})."
+            )
+    return (
+        [
+            "The paper's seven graphs in our sweep (identified in docs/sweeps.md, \"Table 1: which "
+            'graph is which"); values from the top stage when the graph is in our top seven. '
+            "The ranking sums noisy positive parts, so at low realizations graphs with "
+            "heavy-tailed estimates rise:",
+            "",
+        ]
+        + out
+        + [""]
+        + (notes + [""] if notes else [])
+    )
 
 
 def _se_stats(path: Path) -> str:
@@ -359,12 +437,15 @@ def _readme(out: Path, scale: float, timings: dict, extra: dict) -> str:
     from antisync.store import git_revision
 
     lines = [
-        "# The paper's figures and tables, at reduced realizations", "",
+        "# The paper's figures and tables, at reduced realizations",
+        "",
         f"Made by `antisync paper --scale {scale:g}` (antisync {__version__}, git "
         f"{git_revision() or 'unknown'}). Each section quotes what the paper's caption says, then "
         "shows ours. Realizations are far below the paper's (1e6-1e9), so compare within the "
-        "standard errors given; docs/sweeps.md has the commands for paper precision.", "",
-        "| step | realizations | figures | standard errors | minutes |", "|:---|---:|:---|:---|---:|",
+        "standard errors given; docs/sweeps.md has the commands for paper precision.",
+        "",
+        "| step | realizations | figures | standard errors | minutes |",
+        "|:---|---:|:---|:---|---:|",
     ]
     for s in STEPS:
         h5 = out / f"{s.name}.h5"
@@ -372,8 +453,10 @@ def _readme(out: Path, scale: float, timings: dict, extra: dict) -> str:
             continue
         m, t = s.scaled(scale)
         mins = f"{timings[s.name] / 60:.1f}" if s.name in timings else "-"
-        lines.append(f"| {s.name} | {m:,}" + (f" (top {t:,})" if t else "") + f" | {s.figures} | "
-                     f"{_se_stats(h5)} | {mins} |")
+        lines.append(
+            f"| {s.name} | {m:,}" + (f" (top {t:,})" if t else "") + f" | {s.figures} | "
+            f"{_se_stats(h5)} | {mins} |"
+        )
     lines.append("")
 
     def section(title: str, body: list[str]) -> None:
@@ -400,8 +483,9 @@ def _readme(out: Path, scale: float, timings: dict, extra: dict) -> str:
         body.append("")
     section("Fig. 1: lollipop N = 6, L = 3", body)
 
-    body = (_img(out, "lollipop_F/fig2a_F_beta.png", 560)
-            + _img(out, "lollipop_lambda/fig2b_lambda_N.png", 520))
+    body = _img(out, "lollipop_F/fig2a_F_beta.png", 560) + _img(
+        out, "lollipop_lambda/fig2b_lambda_N.png", 520
+    )
     p = out / "lollipop_lambda" / "fig2b_lambda_N.md"
     if p.exists():
         body += [p.read_text(), ""]
@@ -418,10 +502,17 @@ def _readme(out: Path, scale: float, timings: dict, extra: dict) -> str:
     body = []
     p = out / "threshold" / "table1.md"
     if p.exists():
-        body += ["Ours (r = 0.99):", "", p.read_text(), "",
-                 "Paper (graphs numbered by its Fig. 3 ranking, which our ranking need not repeat "
-                 "at these realizations):", "",
-                 "| rank | <tau0> | Lambda_KM (max) | <F_0.5> |", "|---:|---:|---:|---:|"]
+        body += [
+            "Ours (r = 0.99):",
+            "",
+            p.read_text(),
+            "",
+            "Paper (graphs numbered by its Fig. 3 ranking, which our ranking need not repeat "
+            "at these realizations):",
+            "",
+            "| rank | <tau0> | Lambda_KM (max) | <F_0.5> |",
+            "|---:|---:|---:|---:|",
+        ]
         body += [f"| {r} | {t0} | {lam:.4g} | {f} |" for r, t0, lam, f in PAPER_TABLE1]
         body += ["", "Also as [CSV](threshold/table1.csv) and [LaTeX](threshold/table1.tex).", ""]
         body += _paper_graphs(out / "threshold.h5")
@@ -439,14 +530,24 @@ def _readme(out: Path, scale: float, timings: dict, extra: dict) -> str:
         body += _img(out, f"lollipop6_raw/*_hist_{e}_b0.5.png", 380)
     body += _img(out, "fig7e_km_vs_nnc.png", 480)
     section("Fig. 7: non-normalized coupling", body)
-    lines += ["## Paper precision", "",
-              "The same experiments at the paper's realizations (interrupted runs continue with "
-              "`--resume`; docs/sweeps.md and docs/cuda.md say more):", "",
-              "```", PAPER_PRECISION.rstrip(), "```", ""]
+    lines += [
+        "## Paper precision",
+        "",
+        "The same experiments at the paper's realizations (interrupted runs continue with "
+        "`--resume`; docs/sweeps.md and docs/cuda.md say more):",
+        "",
+        "```",
+        PAPER_PRECISION.rstrip(),
+        "```",
+        "",
+    ]
     untimed = [s.name for s in STEPS if s.name not in timings]
-    lines.append(f"\n_Total: {sum(timings.values()) / 60:.1f} min of computing and reports "
-                 "(each step timed when it ran"
-                 + (f"; no time recorded for {', '.join(untimed)}" if untimed else "") + ")._"
-                 if timings else "")
+    lines.append(
+        f"\n_Total: {sum(timings.values()) / 60:.1f} min of computing and reports "
+        "(each step timed when it ran"
+        + (f"; no time recorded for {', '.join(untimed)}" if untimed else "")
+        + ")._"
+        if timings
+        else ""
+    )
     return "\n".join(lines) + "\n"
-

@@ -102,17 +102,32 @@ def run_jobs(
             say(f"{store.path} is already complete; nothing to do ({done:,} already done)")
             return store.path
         if not writable:
-            raise StoreError(f"cannot write to folder {store.path.parent} to finish {store.path}; "
-                             "make it writable or use --out for a new file")
+            raise StoreError(
+                f"cannot write to folder {store.path.parent} to finish {store.path}; "
+                "make it writable or use --out for a new file"
+            )
         own_executor = executor is None
         if own_executor:
             from antisync.executors.local import LocalExecutor
 
             executor = LocalExecutor(backend, config.threads)
         try:
-            _execute(store, jobs, states, executor, config=config, key=key, backend=backend,
-                     note=note, say=say, progress=progress, chunk_realizations=chunk_realizations,
-                     checkpoint_seconds=checkpoint_seconds, provenance=provenance, extra=extra)
+            _execute(
+                store,
+                jobs,
+                states,
+                executor,
+                config=config,
+                key=key,
+                backend=backend,
+                note=note,
+                say=say,
+                progress=progress,
+                chunk_realizations=chunk_realizations,
+                checkpoint_seconds=checkpoint_seconds,
+                provenance=provenance,
+                extra=extra,
+            )
         except BaseException:
             store.discard_unfinished()
             raise
@@ -122,9 +137,23 @@ def run_jobs(
     return store.path
 
 
-def _execute(store: ResultStore, jobs: list[Job], states: dict, executor, *, config: Config,
-             key: dict, backend: str, note: str, say, progress, chunk_realizations,
-             checkpoint_seconds: float, provenance, extra) -> None:
+def _execute(
+    store: ResultStore,
+    jobs: list[Job],
+    states: dict,
+    executor,
+    *,
+    config: Config,
+    key: dict,
+    backend: str,
+    note: str,
+    say,
+    progress,
+    chunk_realizations,
+    checkpoint_seconds: float,
+    provenance,
+    extra,
+) -> None:
     """Compute the pending chunks of ``jobs`` into ``store`` (locked and prepared)."""
     # before anything is written: a graph a measure rejects leaves no file behind
     measured = _compute_measures(jobs, states, say)
@@ -153,16 +182,24 @@ def _execute(store: ResultStore, jobs: list[Job], states: dict, executor, *, con
     # the bar counts integrations (tau0 plus one per damage variant, orbit differences
     # included): with many jobs of different sizes (a sweep) its rate and ETA stay meaningful
     cost = {job.name: job.integrations_per_realization for job in jobs}
-    say(f"{note}; {executor.describe()}; {len(jobs)} job(s), "
+    say(
+        f"{note}; {executor.describe()}; {len(jobs)} job(s), "
         f"{sum(cost.values()) - len(jobs)} damaged variant(s), {total:,} realizations in all"
-        + (f" ({done_already:,} already done)" if done_already else ""))
+        + (f" ({done_already:,} already done)" if done_already else "")
+    )
     from tqdm import tqdm
 
     show = sys.stderr.isatty() if progress is None else progress
-    bar = tqdm(total=sum(job.config.realizations * cost[job.name] for job in jobs),
-               initial=sum(states[j.name].realizations_done * cost[j.name] for j in jobs),
-               unit="integ", unit_scale=True, delay=1.0, disable=not show, file=sys.stderr,
-               dynamic_ncols=True)
+    bar = tqdm(
+        total=sum(job.config.realizations * cost[job.name] for job in jobs),
+        initial=sum(states[j.name].realizations_done * cost[j.name] for j in jobs),
+        unit="integ",
+        unit_scale=True,
+        delay=1.0,
+        disable=not show,
+        file=sys.stderr,
+        dynamic_ncols=True,
+    )
     last = time.monotonic()
     try:
         for job, res in executor.run(work):

@@ -48,8 +48,22 @@ STATIONARY = 3
 
 
 @njit(parallel=True, cache=True)
-def _screen_batch(seed, first, indptr, indices, weights, dt, r2_target, max_steps, check_every,
-                  v_tol, status, steps, vmax, theta_end):
+def _screen_batch(
+    seed,
+    first,
+    indptr,
+    indices,
+    weights,
+    dt,
+    r2_target,
+    max_steps,
+    check_every,
+    v_tol,
+    status,
+    steps,
+    vmax,
+    theta_end,
+):
     m = status.shape[0]
     n = indptr.shape[0] - 1
     for r in prange(m):
@@ -171,8 +185,13 @@ class ScreenResult:
     @classmethod
     def from_dict(cls, d: dict) -> ScreenResult:
         fields = set(cls.__dataclass_fields__)
-        return cls(**{k: (math.nan if v is None and k in ("tau_max", "tau_mean", "r_stuck") else v)
-                      for k, v in d.items() if k in fields})
+        return cls(
+            **{
+                k: (math.nan if v is None and k in ("tau_max", "tau_mean", "r_stuck") else v)
+                for k, v in d.items()
+                if k in fields
+            }
+        )
 
 
 def screen_realizations(
@@ -213,9 +232,22 @@ def screen_realizations(
     if threads is not None:
         numba.set_num_threads(max(1, min(threads, numba.config.NUMBA_NUM_THREADS)))
     try:
-        _screen_batch(np.uint64(seed), np.uint64(0), csr.indptr, csr.indices, csr.weights,
-                      float(dt), (threshold * n) ** 2, max_steps, int(check_every), float(v_tol),
-                      status, steps, vmax, theta)
+        _screen_batch(
+            np.uint64(seed),
+            np.uint64(0),
+            csr.indptr,
+            csr.indices,
+            csr.weights,
+            float(dt),
+            (threshold * n) ** 2,
+            max_steps,
+            int(check_every),
+            float(v_tol),
+            status,
+            steps,
+            vmax,
+            theta,
+        )
     finally:
         numba.set_num_threads(previous)
     return status, steps, vmax, theta
@@ -266,8 +298,17 @@ def screen_graph(
     start = time.perf_counter()
     w = coupling.coupling_matrix(omega, coupling_kind)
     status, steps, vmax, theta = screen_realizations(
-        omega, seed=seed, realizations=realizations, t_max=t_max, dt=dt, threshold=threshold,
-        coupling_kind=coupling_kind, v_tol=v_tol, check_every=check_every, threads=threads)
+        omega,
+        seed=seed,
+        realizations=realizations,
+        t_max=t_max,
+        dt=dt,
+        threshold=threshold,
+        coupling_kind=coupling_kind,
+        v_tol=v_tol,
+        check_every=check_every,
+        threads=threads,
+    )
     n_stuck = n_saddle = n_slow = 0
     r_stuck = math.nan
     for r in np.flatnonzero(status >= NOT_SYNCED):
@@ -290,14 +331,22 @@ def screen_graph(
     excluded = n_stuck > 0 and frac > exclude_fraction
     reason = ""
     if excluded:
-        reason = (f"stable non-synchronized state (twisted, r = {r_stuck:.3f}) reached from "
-                  f"{n_stuck} of {realizations} random starts")
+        reason = (
+            f"stable non-synchronized state (twisted, r = {r_stuck:.3f}) reached from "
+            f"{n_stuck} of {realizations} random starts"
+        )
     return ScreenResult(
-        graph=graph, realizations=realizations,
-        n_synced=int(synced.sum()), n_already=int((status == ALREADY_SYNCED).sum()),
-        n_stuck=n_stuck, n_saddle=n_saddle, n_slow=n_slow,
+        graph=graph,
+        realizations=realizations,
+        n_synced=int(synced.sum()),
+        n_already=int((status == ALREADY_SYNCED).sum()),
+        n_stuck=n_stuck,
+        n_saddle=n_saddle,
+        n_slow=n_slow,
         tau_max=float(taus.max()) if taus.size else math.nan,
         tau_mean=float(taus.mean()) if taus.size else math.nan,
-        r_stuck=r_stuck, excluded=bool(excluded), reason=reason,
+        r_stuck=r_stuck,
+        excluded=bool(excluded),
+        reason=reason,
         seconds=time.perf_counter() - start,
     )

@@ -64,8 +64,10 @@ def _lambda(view: JobView, e: int) -> dict:
     share = estimators.tail_share(view.lam_tail[e])
     warning = None
     if s["n"] < 2:
-        warning = (f"{s['n']} synchronized realization{'s' if s['n'] != 1 else ''}: no "
-                   "standard error (see the unsynced count)")
+        warning = (
+            f"{s['n']} synchronized realization{'s' if s['n'] != 1 else ''}: no "
+            "standard error (see the unsynced count)"
+        )
     elif est.n_batches < 10:
         warning = f"only {est.n_batches} batches: standard error is rough"
     elif not math.isnan(share) and share > TAIL_WARN:
@@ -98,31 +100,44 @@ def job_records(view: JobView) -> list[dict]:
             rec = {"graph": view.graph, "edge": label, "beta": beta}
             if beta is not None:
                 s = estimators.summarize_variant(view.rec[view.done, view.variant(e, beta)])
-                rec.update({
-                    "F_mean": _num(s["F"].mean),
-                    "F_se": _num(s["F"].se),
-                    "F_se_naive": _num(s["F"].se_naive),
-                    "tau_mean": _num(s["tau"].mean),
-                    "tau_se": _num(s["tau"].se),
-                    "n": s["n"],
-                    "n_excluded": s["n_already"],
-                    "n_not_synced": s["n_not_synced"],
-                })
+                rec.update(
+                    {
+                        "F_mean": _num(s["F"].mean),
+                        "F_se": _num(s["F"].se),
+                        "F_se_naive": _num(s["F"].se_naive),
+                        "tau_mean": _num(s["tau"].mean),
+                        "tau_se": _num(s["tau"].se),
+                        "n": s["n"],
+                        "n_excluded": s["n_already"],
+                        "n_not_synced": s["n_not_synced"],
+                    }
+                )
             else:
                 s = estimators.summarize_lambda(view.lam_rec[view.done, e])
-                rec.update({"F_mean": None, "F_se": None, "F_se_naive": None, "tau_mean": None,
-                            "tau_se": None, "n": s["n"], "n_excluded": s["n_already"],
-                            "n_not_synced": s["n_not_synced"]})
+                rec.update(
+                    {
+                        "F_mean": None,
+                        "F_se": None,
+                        "F_se_naive": None,
+                        "tau_mean": None,
+                        "tau_se": None,
+                        "n": s["n"],
+                        "n_excluded": s["n_already"],
+                        "n_not_synced": s["n_not_synced"],
+                    }
+                )
             rec.update(lam)
-            rec.update({
-                "tau0_mean": _num(t0.mean),
-                "tau0_se": _num(t0.se),
-                "tau0_n": s0["n"],
-                "realizations_done": int(s0["n"] + s0["n_already"] + s0["n_not_synced"]),
-                # an interrupted run's estimates are partial: say so in every record
-                "realizations": int(view.realizations),
-                "complete": complete,
-            })
+            rec.update(
+                {
+                    "tau0_mean": _num(t0.mean),
+                    "tau0_se": _num(t0.se),
+                    "tau0_n": s0["n"],
+                    "realizations_done": int(s0["n"] + s0["n_already"] + s0["n_not_synced"]),
+                    # an interrupted run's estimates are partial: say so in every record
+                    "realizations": int(view.realizations),
+                    "complete": complete,
+                }
+            )
             rec.update(measure_fields(view.measures, e))
             out.append(rec)
     return out

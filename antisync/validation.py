@@ -52,7 +52,8 @@ def unknown_keys(mapping: dict, valid: set, prefix: str) -> None:
     for key in mapping:
         if key not in valid:
             raise ConfigError(
-                f"unknown key {prefix + str(key)!r}" + suggest(str(key), valid, prefix)
+                f"unknown key {prefix + str(key)!r}"
+                + suggest(str(key), valid, prefix)
                 + f"; valid keys: {', '.join(sorted(prefix + v for v in valid))}"
             )
 
@@ -94,8 +95,10 @@ def positive(key: str, value) -> None:
     ------
     ConfigError
     """
-    if isinstance(value, bool) or not isinstance(value, int | float) or not (
-        value > 0 and math.isfinite(value)
+    if (
+        isinstance(value, bool)
+        or not isinstance(value, int | float)
+        or not (value > 0 and math.isfinite(value))
     ):
         raise ConfigError(f"{key} must be a positive number, got {value!r}")
 

@@ -55,10 +55,13 @@ def main() -> None:
     ap.add_argument("--realizations", type=int, default=3000)
     args = ap.parse_args()
     m = args.realizations
-    print(f"# bench_estimators: M = {m} common realizations per graph, Euler dt = 0.001, "
-          "interpolated crossing")
-    print("| graph | edge | FD 0.01 | FD 0.003 | FD 0.001 | pathwise | hybrid | "
-          "(FD 0.01 - pathwise)/se_paired |")
+    print(
+        f"# bench_estimators: M = {m} common realizations per graph, Euler dt = 0.001, interpolated crossing"
+    )
+    print(
+        "| graph | edge | FD 0.01 | FD 0.003 | FD 0.001 | pathwise | hybrid | "
+        "(FD 0.01 - pathwise)/se_paired |"
+    )
     print("|---|---|---|---|---|---|---|---|")
     start = time.perf_counter()
     for name, g in GRAPHS.items():
@@ -66,8 +69,13 @@ def main() -> None:
         path = Path(f"/tmp/antisync_bench_{name}.edges")
         path.write_text("".join(f"{u} {v}\n" for u, v in g.edges))
         per = {}
-        for method, dbeta in (("finite-difference", 0.01), ("finite-difference", 0.003),
-                              ("finite-difference", 0.001), ("pathwise", 0.01), ("hybrid", 0.01)):
+        for method, dbeta in (
+            ("finite-difference", 0.01),
+            ("finite-difference", 0.003),
+            ("finite-difference", 0.001),
+            ("pathwise", 0.01),
+            ("hybrid", 0.01),
+        ):
             cfg = load_config_text(f"""
 graph: {{kind: edgelist, path: {path}}}
 betas: []

@@ -127,8 +127,10 @@ def main() -> None:
     args = ap.parse_args()
     m = args.realizations
     print(f"# bench_kernels: lollipop(6,3), 12 directed edges, dbeta = 0.01, M = {m}")
-    print(f"# machine: {platform.processor() or platform.machine()}, {os.cpu_count()} cores, "
-          f"numba {numba.__version__}, {numba.get_num_threads()} threads, python {platform.python_version()}")
+    print(
+        f"# machine: {platform.processor() or platform.machine()}, {os.cpu_count()} cores, "
+        f"numba {numba.__version__}, {numba.get_num_threads()} threads, python {platform.python_version()}"
+    )
 
     # (a) baseline
     job = make_job(_config("finite-difference"))
@@ -145,10 +147,12 @@ def main() -> None:
     fd_check = np.nanmean(out, axis=0) / 0.01
 
     results = {}
-    cases = (("(b) finite difference, Euler", "finite-difference", "euler", 0.001),
-             ("(c) pathwise, Euler", "pathwise", "euler", 0.001),
-             ("(d) hybrid, Euler", "hybrid", "euler", 0.001),
-             ("(e) finite difference, RK4 dt=0.04", "finite-difference", "rk4", 0.04))
+    cases = (
+        ("(b) finite difference, Euler", "finite-difference", "euler", 0.001),
+        ("(c) pathwise, Euler", "pathwise", "euler", 0.001),
+        ("(d) hybrid, Euler", "hybrid", "euler", 0.001),
+        ("(e) finite difference, RK4 dt=0.04", "finite-difference", "rk4", 0.04),
+    )
     for label, method, integrator, dt in cases:
         results[label] = run_antisync(method, integrator, dt, m)
     fd_s, fd_steps, fd_se, _, fd_lam = results["(b) finite difference, Euler"]
@@ -156,20 +160,28 @@ def main() -> None:
     base_steps = fd_steps / m * mb * 24 / 13
     base_rate = mb / base_s
     base_time = (m * (fd_se / TARGET_SE) ** 2) / base_rate
-    print(f"# baseline check: its Lambda on 2->1 from {mb} realizations = {fd_check[1]:.3f} "
-          f"(antisync FD, M={m}: {fd_lam['2->1']:.3f})")
+    print(
+        f"# baseline check: its Lambda on 2->1 from {mb} realizations = {fd_check[1]:.3f} "
+        f"(antisync FD, M={m}: {fd_lam['2->1']:.3f})"
+    )
     print()
-    print("| estimator | realizations/s | traj-steps/s | worst se (M) | tail share | time to se 0.005 | "
-          "vs (a): real/s | steps/s | time to precision |")
+    print(
+        "| estimator | realizations/s | traj-steps/s | worst se (M) | tail share | time to se 0.005 | "
+        "vs (a): real/s | steps/s | time to precision |"
+    )
     print("|---|---|---|---|---|---|---|---|---|")
-    print(f"| (a) baseline (paper's procedure) | {base_rate:,.0f} | {base_steps / base_s:.3g} | "
-          f"{fd_se:.4f} (as b) | - | {base_time:,.0f} s | 1 | 1 | 1 |")
+    print(
+        f"| (a) baseline (paper's procedure) | {base_rate:,.0f} | {base_steps / base_s:.3g} | "
+        f"{fd_se:.4f} (as b) | - | {base_time:,.0f} s | 1 | 1 | 1 |"
+    )
     for label, (sec, steps, se, tail, _) in results.items():
         rate = m / sec
         ttp = m * (se / TARGET_SE) ** 2 / rate
-        print(f"| {label} | {rate:,.0f} | {steps / sec:.3g} | {se:.4f} | {tail:.2f} | {ttp:,.0f} s | "
-              f"{rate / base_rate:.1f}x | {(steps / sec) / (base_steps / base_s):.1f}x | "
-              f"{base_time / ttp:.0f}x |")
+        print(
+            f"| {label} | {rate:,.0f} | {steps / sec:.3g} | {se:.4f} | {tail:.2f} | {ttp:,.0f} s | "
+            f"{rate / base_rate:.1f}x | {(steps / sec) / (base_steps / base_s):.1f}x | "
+            f"{base_time / ttp:.0f}x |"
+        )
     print()
     print(f"Lambda per edge (M = {m}):")
     edges = list(fd_lam)

@@ -20,9 +20,7 @@ def atlas_timing(repeats: int = 5) -> tuple[int, int, float]:
     prepared = []
     for g in graphs:
         omega = omega_matrix(g)
-        prepared.append(
-            (omega, [(int(a), int(b)) for a, b in zip(*np.nonzero(omega), strict=True)])
-        )
+        prepared.append((omega, [(int(a), int(b)) for a, b in zip(*np.nonzero(omega), strict=True)]))
     best = np.inf
     for _ in range(repeats):
         start = time.perf_counter()

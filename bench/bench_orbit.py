@@ -25,16 +25,19 @@ from antisync.jobs import make_job  # noqa: E402
 
 
 def measure(graph: str, edge: str, method: str, m: int) -> tuple[np.ndarray, float, int]:
-    job = make_job(load_config_text(f"""
+    job = make_job(
+        load_config_text(f"""
 graph: {graph}
 edges: ["{edge}"]
 betas: []
 lambda: {{method: {method}}}
 realizations: {m}
 seed: 11
-"""))
-    lambda_values(job, simulate_job(job, 0, 2, threads=1) if method != "orbit" else None, 0, 2,
-                  threads=1)  # compile
+""")
+    )
+    lambda_values(
+        job, simulate_job(job, 0, 2, threads=1) if method != "orbit" else None, 0, 2, threads=1
+    )  # compile
     start = time.perf_counter()
     sim = simulate_job(job, 0, m, threads=1) if method != "orbit" else None
     values, code, _, _ = lambda_values(job, sim, 0, m, threads=1)
@@ -49,22 +52,29 @@ def main() -> None:
     ap.add_argument("--nodes", default="5,8,12,20")
     args = ap.parse_args()
     m = args.realizations
-    cases = [("{kind: lollipop, nodes: 6, path: 3}", "5->6", "lollipop N=6 L=3"),
-             ("{kind: lollipop, nodes: 6, path: 3}", "2->1", "lollipop N=6 L=3")]
+    cases = [
+        ("{kind: lollipop, nodes: 6, path: 3}", "5->6", "lollipop N=6 L=3"),
+        ("{kind: lollipop, nodes: 6, path: 3}", "2->1", "lollipop N=6 L=3"),
+    ]
     for n in (int(x) for x in args.nodes.split(",")):
         cases.append((f"{{kind: lollipop, nodes: {n}, path: 1}}", f"{n - 1}->{n}", f"lollipop N={n} L=1"))
     print(f"# bench_orbit: M = {m} realizations, one thread, Euler dt = 0.001, grid crossing")
-    print("| graph | link | orbit size | Lambda FD 0.01 | Lambda orbit | sd FD | sd orbit | "
-          "ms/real FD | ms/real orbit | time-to-precision ratio |")
+    print(
+        "| graph | link | orbit size | Lambda FD 0.01 | Lambda orbit | sd FD | sd orbit | "
+        "ms/real FD | ms/real orbit | time-to-precision ratio |"
+    )
     print("|:---|:---|---:|---:|---:|---:|---:|---:|---:|---:|")
     for graph, edge, label in cases:
         fd, t_fd, _ = measure(graph, edge, "finite-difference", m)
         orb, t_orb, size = measure(graph, edge, "orbit", m)
         se = lambda x: x.std() / np.sqrt(x.size)  # noqa: E731
         ratio = (fd.var() * t_fd) / (orb.var() * t_orb)
-        print(f"| {label} | {edge} | {size} | {fd.mean():+.5f} ± {se(fd):.5f} | "
-              f"{orb.mean():+.5f} ± {se(orb):.5f} | {fd.std():.4f} | {orb.std():.4f} | "
-              f"{1e3 * t_fd:.3f} | {1e3 * t_orb:.3f} | {ratio:,.1f}x |", flush=True)
+        print(
+            f"| {label} | {edge} | {size} | {fd.mean():+.5f} ± {se(fd):.5f} | "
+            f"{orb.mean():+.5f} ± {se(orb):.5f} | {fd.std():.4f} | {orb.std():.4f} | "
+            f"{1e3 * t_fd:.3f} | {1e3 * t_orb:.3f} | {ratio:,.1f}x |",
+            flush=True,
+        )
 
 
 if __name__ == "__main__":

@@ -49,13 +49,22 @@ def main(argv=None) -> int:
         if not ok:
             print(f"float32_effect: {why}", file=sys.stderr)
             return 2
-    job = make_job(load_config_text(
-        f"graph: {{kind: lollipop, nodes: 6, path: 3}}\nedges: {args.edges}\nbetas: {args.betas}\n"
-        f"lambda: {{dbeta: 0.01}}\ndynamics: {{dt: {args.dt}, t_max: {args.t_max}}}\n"
-    ))
+    job = make_job(
+        load_config_text(
+            f"graph: {{kind: lollipop, nodes: 6, path: 3}}\nedges: {args.edges}\nbetas: {args.betas}\n"
+            f"lambda: {{dbeta: 0.01}}\ndynamics: {{dt: {args.dt}, t_max: {args.t_max}}}\n"
+        )
+    )
     dyn = job.config.dynamics
-    a = (args.seed, args.first, args.realizations, job.csr.indptr, job.csr.indices,
-         job.csr.weights, job.variant_weights)
+    a = (
+        args.seed,
+        args.first,
+        args.realizations,
+        job.csr.indptr,
+        job.csr.indices,
+        job.csr.weights,
+        job.variant_weights,
+    )
     kw = {"dt": dyn.dt, "threshold": dyn.threshold, "max_steps": dyn.max_steps}
     start = time.perf_counter()
     if args.on == "cuda":
@@ -73,16 +82,20 @@ def main(argv=None) -> int:
     st64 = np.concatenate([r64.status0[:, None], r64.status], axis=1)
     st32 = np.concatenate([r32.status0[:, None], r32.status], axis=1)
     diff = steps32 - steps64
-    print(f"[{args.on}] lollipop(6,3), {args.realizations} realizations from {args.first}, dt = {dyn.dt}, "
-          f"t_max = {dyn.t_max}, {steps64.shape[1]} trajectories each ({secs:.1f} s)")
+    print(
+        f"[{args.on}] lollipop(6,3), {args.realizations} realizations from {args.first}, dt = {dyn.dt}, "
+        f"t_max = {dyn.t_max}, {steps64.shape[1]} trajectories each ({secs:.1f} s)"
+    )
     print(f"  status differs: {int((st64 != st32).sum())} of {st64.size} trajectories")
     for name, cols in (("tau0", [0]), ("all variants", list(range(1, steps64.shape[1])))):
         d = diff[:, cols]
-        print(f"  {name}: steps differ in {int((d != 0).sum())} of {d.size} trajectories "
-              f"({(d != 0).mean():.1%}); realizations with any difference "
-              f"{int((d != 0).any(axis=1).sum())} of {d.shape[0]}; max |delta tau| = "
-              f"{np.abs(d).max() * dyn.dt:.4g} ({int(np.abs(d).max())} steps); mean delta steps "
-              f"{d.mean():+.3f}; mean tau {steps64[:, cols].mean() * dyn.dt:.3f}")
+        print(
+            f"  {name}: steps differ in {int((d != 0).sum())} of {d.size} trajectories "
+            f"({(d != 0).mean():.1%}); realizations with any difference "
+            f"{int((d != 0).any(axis=1).sum())} of {d.shape[0]}; max |delta tau| = "
+            f"{np.abs(d).max() * dyn.dt:.4g} ({int(np.abs(d).max())} steps); mean delta steps "
+            f"{d.mean():+.3f}; mean tau {steps64[:, cols].mean() * dyn.dt:.3f}"
+        )
     fd = np.flatnonzero(np.isclose(job.variant_beta, job.dbeta))
     ok64 = (r64.status0[:, None] == 0) & (r64.status[:, fd] == 0)
     g64 = (r64.steps0[:, None] / r64.steps[:, fd] - 1.0) / job.dbeta
@@ -92,19 +105,27 @@ def main(argv=None) -> int:
     n = np.maximum(ok64.sum(axis=0), 1)
     shift = dg.sum(axis=0) / n
     se = np.sqrt(np.maximum((dg**2).sum(axis=0) / n - shift**2, 0.0) / n)
-    sd = np.sqrt(np.maximum(np.where(ok64, g64**2, 0).sum(axis=0) / n
-                            - (np.where(ok64, g64, 0).sum(axis=0) / n) ** 2, 0.0))
-    print(f"  (F_dbeta - 1)/dbeta per realization: largest per-edge sd {sd.max():.3f}; "
-          f"max |float32 - float64| {np.abs(dg).max():.4f}, mean |.| {np.abs(dg)[ok64].mean():.5f}")
+    sd = np.sqrt(
+        np.maximum(
+            np.where(ok64, g64**2, 0).sum(axis=0) / n - (np.where(ok64, g64, 0).sum(axis=0) / n) ** 2, 0.0
+        )
+    )
+    print(
+        f"  (F_dbeta - 1)/dbeta per realization: largest per-edge sd {sd.max():.3f}; "
+        f"max |float32 - float64| {np.abs(dg).max():.4f}, mean |.| {np.abs(dg)[ok64].mean():.5f}"
+    )
     for e in range(len(fd)):
-        print(f"    {job.edge_labels[job.variant_edge[fd[e]]]:>5}: mean (F-1)/dbeta "
-              f"{np.where(ok64[:, e], g64[:, e], 0).sum() / n[e]:+.4f}, float32 shift "
-              f"{shift[e]:+.2e} +- {se[e]:.1e}")
+        print(
+            f"    {job.edge_labels[job.variant_edge[fd[e]]]:>5}: mean (F-1)/dbeta "
+            f"{np.where(ok64[:, e], g64[:, e], 0).sum() / n[e]:+.4f}, float32 shift "
+            f"{shift[e]:+.2e} +- {se[e]:.1e}"
+        )
     return 0
 
 
-def _cpu_twin32(seed, first, count, indptr, indices, base_weights, variant_weights, *, dt,
-                threshold, max_steps):
+def _cpu_twin32(
+    seed, first, count, indptr, indices, base_weights, variant_weights, *, dt, threshold, max_steps
+):
     """The float32 step functions on the CPU (numba njit), driven like kernels.cpu."""
     from numba import njit, prange
 
@@ -136,12 +157,28 @@ def _cpu_twin32(seed, first, count, indptr, indices, base_weights, variant_weigh
                     k[r, v] = b
 
     n_var = variant_weights.shape[0]
-    out = SimResult(np.empty(count, np.int8), np.empty(count, np.int64),
-                    np.empty((count, n_var), np.int8), np.empty((count, n_var), np.int64))
+    out = SimResult(
+        np.empty(count, np.int8),
+        np.empty(count, np.int64),
+        np.empty((count, n_var), np.int8),
+        np.empty((count, n_var), np.int64),
+    )
     n = indptr.size - 1
-    run(np.uint64(seed), np.int64(first), indptr, indices, base_weights.astype(np.float32),
-        variant_weights.astype(np.float32), np.float32(dt), np.float32((threshold * n) ** 2),
-        max_steps, out.status0, out.steps0, out.status, out.steps)
+    run(
+        np.uint64(seed),
+        np.int64(first),
+        indptr,
+        indices,
+        base_weights.astype(np.float32),
+        variant_weights.astype(np.float32),
+        np.float32(dt),
+        np.float32((threshold * n) ** 2),
+        max_steps,
+        out.status0,
+        out.steps0,
+        out.status,
+        out.steps,
+    )
     return out
 
 

@@ -39,8 +39,11 @@ def _fail_no_gpu(tiny: bool) -> None:
         print(f"gpu_check: no GPU to check: {why}", file=sys.stderr)
         sys.exit(2)
     if os.environ.get("NUMBA_ENABLE_CUDASIM") == "1" and not tiny:
-        print("gpu_check: NUMBA_ENABLE_CUDASIM=1 is set: the simulator gives no meaningful "
-              "timings; pass --tiny to exercise the code path only", file=sys.stderr)
+        print(
+            "gpu_check: NUMBA_ENABLE_CUDASIM=1 is set: the simulator gives no meaningful "
+            "timings; pass --tiny to exercise the code path only",
+            file=sys.stderr,
+        )
         sys.exit(2)
 
 
@@ -70,7 +73,10 @@ def _common(job, variant_weights=None):
     dyn = job.config.dynamics
     vw = job.variant_weights if variant_weights is None else variant_weights
     return (job.csr.indptr, job.csr.indices, job.csr.weights, vw), {
-        "dt": dyn.dt, "threshold": dyn.threshold, "max_steps": dyn.max_steps}
+        "dt": dyn.dt,
+        "threshold": dyn.threshold,
+        "max_steps": dyn.max_steps,
+    }
 
 
 def _timed(fn, *args):
@@ -121,7 +127,13 @@ def main(argv=None) -> int:
         dt, t_max, n_check, hist_pairs, target, cap = 0.05, 50.0, 1, 2, 0.0, 1
     else:
         dt, t_max, n_check, hist_pairs, target, cap = (
-            0.001, 200.0, args.check, args.hist_pairs, args.seconds, 1 << 26)
+            0.001,
+            200.0,
+            args.check,
+            args.hist_pairs,
+            args.seconds,
+            1 << 26,
+        )
     seed = args.seed
     full = _job("all", [0.5], dt, t_max)
     lam = _job("all", [], dt, t_max)  # the 12 dbeta variants only
@@ -136,8 +148,9 @@ def main(argv=None) -> int:
     for prec in ("float64", "float32"):
         a, kw = _common(lam)
         gpu.simulate(seed, 0, 1, *a, **kw, precision=prec)
-        gpu.simulate_reduced(seed, 0, 1, *a, **kw, block=1, hist_variants=[0], bins=8,
-                             tau_max=40.0, precision=prec)
+        gpu.simulate_reduced(
+            seed, 0, 1, *a, **kw, block=1, hist_variants=[0], bins=8, tau_max=40.0, precision=prec
+        )
 
     # 1. agreement with the CPU backend
     a, kw = _common(full)
@@ -150,26 +163,39 @@ def main(argv=None) -> int:
         d = np.concatenate([(got.steps0 - ref.steps0)[:, None], got.steps - ref.steps], axis=1)
         st = np.concatenate([(got.status0 != ref.status0)[:, None], got.status != ref.status], axis=1)
         n_diff = int((d != 0).sum())
-        agree[prec] = (f"{n_diff} of {d.size} trajectories differ; max abs delta steps "
-                       f"{int(np.abs(d).max())}; {int(st.sum())} statuses differ")
+        agree[prec] = (
+            f"{n_diff} of {d.size} trajectories differ; max abs delta steps "
+            f"{int(np.abs(d).max())}; {int(st.sum())} statuses differ"
+        )
         if prec == "float64" and (st.any() or np.abs(d).max() > 1 or n_diff > max(1, d.size // 1000)):
             ok = False
-    rows.append((f"agreement with CPU float64 ({n_check} realizations x 25)", agree["float64"],
-                 agree["float32"]))
-    rows.append(("CPU backend, same check (realizations/s)",
-                 f"{n_check / cpu_s:,.0f} ({os.cpu_count()} cores)", ""))
+    rows.append(
+        (f"agreement with CPU float64 ({n_check} realizations x 25)", agree["float64"], agree["float32"])
+    )
+    rows.append(
+        ("CPU backend, same check (realizations/s)", f"{n_check / cpu_s:,.0f} ({os.cpu_count()} cores)", "")
+    )
 
     # 2./3. throughput and the projected time to se 1e-4 on every edge's Lambda^KM
     res = {}
     for prec in ("float64", "float32"):
         a, kw = _common(lam, variant_weights=np.empty((0, lam.csr.weights.size)))
-        n0, s0, _ = _sized(lambda m, a=a, kw=kw, prec=prec: gpu.simulate(
-            seed, 0, m, *a, **kw, precision=prec), target, 1 << 12 if not args.tiny else 1, cap)
+        n0, s0, _ = _sized(
+            lambda m, a=a, kw=kw, prec=prec: gpu.simulate(seed, 0, m, *a, **kw, precision=prec),
+            target,
+            1 << 12 if not args.tiny else 1,
+            cap,
+        )
         a, kw = _common(lam)
         block = 1000 if not args.tiny else 1
-        n1, s1, red = _sized(lambda m, a=a, kw=kw, prec=prec, block=block: gpu.simulate_reduced(
-            seed, 0, m, *a, **kw, block=block, hist_variants=[], bins=2, tau_max=40.0,
-            precision=prec), target, 1 << 10 if not args.tiny else 1, max(1, cap // 16))
+        n1, s1, red = _sized(
+            lambda m, a=a, kw=kw, prec=prec, block=block: gpu.simulate_reduced(
+                seed, 0, m, *a, **kw, block=block, hist_variants=[], bins=2, tau_max=40.0, precision=prec
+            ),
+            target,
+            1 << 10 if not args.tiny else 1,
+            max(1, cap // 16),
+        )
         rec = red[0].sum(axis=0)  # (V, fields): n, n_already, n_not, sum_d, sum_d2, ...
         n = np.maximum(rec[:, 0], 1)
         sd = np.sqrt(np.maximum(rec[:, 4] / n - (rec[:, 3] / n) ** 2, 0.0)) / lam.dbeta
@@ -177,10 +203,15 @@ def main(argv=None) -> int:
         need = (sd.max() / 1e-4) ** 2
         res[prec] = (n0 / s0, n1 / s1, sd, worst, need, need / (n1 / s1))
     rows.append(("tau0 alone (realizations/s)", *(f"{res[p][0]:,.0f}" for p in res)))
-    rows.append(("all-edge Lambda^KM, 12 edges, dbeta 0.01 (realizations/s)",
-                 *(f"{res[p][1]:,.0f}" for p in res)))
-    rows.append(("max over edges of sd((F_dbeta - 1)/dbeta) [edge]",
-                 *(f"{res[p][2].max():.3f} [{lam.edge_labels[res[p][3]]}]" for p in res)))
+    rows.append(
+        ("all-edge Lambda^KM, 12 edges, dbeta 0.01 (realizations/s)", *(f"{res[p][1]:,.0f}" for p in res))
+    )
+    rows.append(
+        (
+            "max over edges of sd((F_dbeta - 1)/dbeta) [edge]",
+            *(f"{res[p][2].max():.3f} [{lam.edge_labels[res[p][3]]}]" for p in res),
+        )
+    )
     rows.append(("realizations for se 1e-4 on every edge", *(f"{res[p][4]:.3g}" for p in res)))
     rows.append(("projected time to se 1e-4 on every edge", *(_fmt_time(res[p][5]) for p in res)))
 
@@ -189,16 +220,31 @@ def main(argv=None) -> int:
     for prec in ("float64", "float32"):
         a, kw = _common(hjob, variant_weights=hw)
         block = 10_000 if not args.tiny else 1
-        out, secs = _timed(lambda a=a, kw=kw, prec=prec, block=block: gpu.simulate_reduced(
-            seed, 0, hist_pairs, *a, **kw, block=block, hist_variants=[0], bins=120,
-            tau_max=40.0, precision=prec))
-        hist_row.append(f"{_fmt_time(secs * 1e9 / hist_pairs)} ({hist_pairs:.0e} pairs in "
-                        f"{secs:.2f} s; {int(out[3].sum()):,} counted)")
+        out, secs = _timed(
+            lambda a=a, kw=kw, prec=prec, block=block: gpu.simulate_reduced(
+                seed,
+                0,
+                hist_pairs,
+                *a,
+                **kw,
+                block=block,
+                hist_variants=[0],
+                bins=120,
+                tau_max=40.0,
+                precision=prec,
+            )
+        )
+        hist_row.append(
+            f"{_fmt_time(secs * 1e9 / hist_pairs)} ({hist_pairs:.0e} pairs in "
+            f"{secs:.2f} s; {int(out[3].sum()):,} counted)"
+        )
     rows.append((f"2D histogram of 1e9 (tau0, tau(0.5)) pairs, edge {args.hist_edge}", *hist_row))
 
     print(f"## antisync CUDA check: {_device_name()}\n")
-    print(f"lollipop(6, 3), dt = {dt}, t_max = {t_max}, r = 0.99, seed {seed}; "
-          f"numba-cuda {_numba_cuda_version()}\n")
+    print(
+        f"lollipop(6, 3), dt = {dt}, t_max = {t_max}, r = 0.99, seed {seed}; "
+        f"numba-cuda {_numba_cuda_version()}\n"
+    )
     print("| quantity | float64 | float32 |")
     print("|---|---|---|")
     for r in rows:

@@ -94,18 +94,39 @@ def main(argv=None) -> int:
     for prec, ft, nt in (("float64", np.float64, t.float64), ("float32", np.float32, t.float32)):
         tau0, variant = kc._kernels(prec)
         sigs = {
-            "tau0": (tau0, (u64, i64, i64, i64[::1], i64[::1], nt[::1], nt, nt, i64, i8[::1],
-                            i64[::1])),
-            "variants": (variant, (u64, i64, i64, i64[::1], i64[::1], nt[:, ::1], t.boolean[::1],
-                                   nt, nt, i64, i8[::1], i64[::1], i8[:, ::1], i64[:, ::1])),
+            "tau0": (tau0, (u64, i64, i64, i64[::1], i64[::1], nt[::1], nt, nt, i64, i8[::1], i64[::1])),
+            "variants": (
+                variant,
+                (
+                    u64,
+                    i64,
+                    i64,
+                    i64[::1],
+                    i64[::1],
+                    nt[:, ::1],
+                    t.boolean[::1],
+                    nt,
+                    nt,
+                    i64,
+                    i8[::1],
+                    i64[::1],
+                    i8[:, ::1],
+                    i64[:, ::1],
+                ),
+            ),
         }
         for name, (k, sig) in sigs.items():
             ops = _ops(cuda.compile_ptx(k.py_func, sig, cc=cc)[0])
-            print(f"  {prec} {name}: ok ({sum(ops.values())} instructions, "
-                  f"{ops['fma.rn.f64'] + ops['fma.rn.f32']} fma)")
+            print(
+                f"  {prec} {name}: ok ({sum(ops.values())} instructions, "
+                f"{ops['fma.rn.f64'] + ops['fma.rn.f32']} fma)"
+            )
         step = make_kernels(cuda.jit(device=True), ft).euler_step
-        ops = _ops(cuda.compile_ptx(step.py_func, (nt[::1],) * 3 + (i64[::1],) * 2 + (nt[::1], nt),
-                                    device=True, cc=cc)[0])
+        ops = _ops(
+            cuda.compile_ptx(
+                step.py_func, (nt[::1],) * 3 + (i64[::1],) * 2 + (nt[::1], nt), device=True, cc=cc
+            )[0]
+        )
         fp = {k: v for k, v in ops.items() if re.search(r"\.f(32|64)$", k)}
         if args.show:
             print(f"  {prec} euler_step floating-point ops: {dict(sorted(fp.items()))}")
@@ -116,14 +137,34 @@ def main(argv=None) -> int:
             if n64 > 8:
                 failed.append(f"float32 euler_step has {n64} double-precision ops")
     block_kernel, lambda_kernel, hist_kernel = kc._reducers()
-    sig = (i8[::1], i64[::1], i8[:, ::1], i64[:, ::1], f64, i64, f64[::1], f64[:, :, ::1],
-           f64[:, ::1], i64[:, ::1])
+    sig = (
+        i8[::1],
+        i64[::1],
+        i8[:, ::1],
+        i64[:, ::1],
+        f64,
+        i64,
+        f64[::1],
+        f64[:, :, ::1],
+        f64[:, ::1],
+        i64[:, ::1],
+    )
     ops = _ops(cuda.compile_ptx(block_kernel.py_func, sig, cc=cc)[0])
     print(f"  block records: ok ({ops['fma.rn.f64']} fma, {ops['mul.rn.f64']} mul.rn)")
     if ops["fma.rn.f64"]:
         failed.append("the block-record reduction contains fused multiply-adds")
-    sig = (i8[::1], i64[::1], i8[:, ::1], i64[:, ::1], i64[::1], f64, i64, f64[::1],
-           f64[:, :, ::1], i64[:, ::1])
+    sig = (
+        i8[::1],
+        i64[::1],
+        i8[:, ::1],
+        i64[:, ::1],
+        i64[::1],
+        f64,
+        i64,
+        f64[::1],
+        f64[:, :, ::1],
+        i64[:, ::1],
+    )
     ops = _ops(cuda.compile_ptx(lambda_kernel.py_func, sig, cc=cc)[0])
     print(f"  Lambda records: ok ({ops['fma.rn.f64']} fma, {ops['mul.rn.f64']} mul.rn)")
     if ops["fma.rn.f64"]:

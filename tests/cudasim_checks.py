@@ -45,8 +45,15 @@ dynamics: {coupling: raw, dt: 0.01, t_max: 50}
 def _args(job, first, count):
     dyn = job.config.dynamics
     return (
-        (job.config.seed, first, count, job.csr.indptr, job.csr.indices, job.csr.weights,
-         job.variant_weights),
+        (
+            job.config.seed,
+            first,
+            count,
+            job.csr.indptr,
+            job.csr.indices,
+            job.csr.weights,
+            job.variant_weights,
+        ),
         {"dt": dyn.dt, "threshold": dyn.threshold, "max_steps": dyn.max_steps},
     )
 
@@ -69,8 +76,10 @@ def check_equal(text: str, count: int, first: int = 0) -> None:
     got = gpu.simulate(*args, **kw)
     _same(ref, got, job.name)
     assert (ref.status0 == 0).all(), "the check should exercise synchronized realizations"
-    print(f"{job.name}: {count} realizations x {len(job.variant_edge)} variants identical; "
-          f"mean tau0 = {ref.steps0.mean() * job.config.dynamics.dt:.3f}")
+    print(
+        f"{job.name}: {count} realizations x {len(job.variant_edge)} variants identical; "
+        f"mean tau0 = {ref.steps0.mean() * job.config.dynamics.dt:.3f}"
+    )
 
 
 def check_lollipop() -> None:
@@ -84,8 +93,9 @@ def check_house_raw() -> None:
 def check_statuses() -> None:
     """ALREADY_SYNCED and NOT_SYNCED come out as on the CPU (threshold and t_max at extremes)."""
     # r(0) >= 0.3 happens for some random starts on 5 nodes; t_max = 0.05 stops everyone else
-    job = make_job(load_config_text(HOUSE_RAW, ["edges=['0->1']", "dynamics.threshold=0.3",
-                                                "dynamics.t_max=0.05"]))
+    job = make_job(
+        load_config_text(HOUSE_RAW, ["edges=['0->1']", "dynamics.threshold=0.3", "dynamics.t_max=0.05"])
+    )
     args, kw = _args(job, 0, 40)
     ref = cpu.simulate(*args, **kw)
     got = gpu.simulate(*args, **kw)
@@ -115,17 +125,27 @@ def check_reductions() -> None:
     hist = estimators.histogram2d(ref, hv, kw["dt"], 16, 3.0)
     values, code, flagged, _ = lambda_values(job, ref, first, count)
     lam_rec, lam_tail = estimators.lambda_block_records(values, code, flagged, block)
-    got = gpu.simulate_reduced(*args, **kw, block=block, hist_variants=hv, bins=16, tau_max=3.0,
-                               lambda_variants=_fd_variants(job), dbeta=job.dbeta,
-                               batch_pairs=12 * 25)
+    got = gpu.simulate_reduced(
+        *args,
+        **kw,
+        block=block,
+        hist_variants=hv,
+        bins=16,
+        tau_max=3.0,
+        lambda_variants=_fd_variants(job),
+        dbeta=job.dbeta,
+        batch_pairs=12 * 25,
+    )
     names = ("rec", "rec0", "tail", "hist", "lam_rec", "lam_tail")
     for name, x, y in zip(names, (rec, rec0, tail, hist, lam_rec, lam_tail), got, strict=True):
         assert x.dtype == y.dtype and x.shape == y.shape, (name, x.dtype, y.dtype, x.shape, y.shape)
         # exact: the same operations, summed in the same order
         assert np.array_equal(x, y), (name, np.argwhere(x != y)[:5].tolist())
     assert hist.sum() > 0 and tail.sum() > 0 and lam_tail.sum() > 0 and rec0[:, 0].sum() == count
-    print(f"reductions identical: rec {rec.shape}, lam_rec {lam_rec.shape}, tail {tail.sum()}, "
-          f"hist {hist.sum()} pairs")
+    print(
+        f"reductions identical: rec {rec.shape}, lam_rec {lam_rec.shape}, tail {tail.sum()}, "
+        f"hist {hist.sum()} pairs"
+    )
 
 
 def check_runner(tmp: str) -> None:
@@ -147,8 +167,9 @@ def check_runner(tmp: str) -> None:
         # keep_pairs 0: every chunk is reduced on the device; 12: the first two chunks
         # (realizations 0-19) keep pairs, so they are reduced on the host
         cfg = load_config_text(text, [f"backend={backend}", f"keep_pairs={keep}"])
-        path = run_config(cfg, output=os.path.join(tmp, f"{backend}{keep}.h5"), progress=False,
-                          chunk_realizations=10)
+        path = run_config(
+            cfg, output=os.path.join(tmp, f"{backend}{keep}.h5"), progress=False, chunk_realizations=10
+        )
         out[backend, keep] = store.records(path)
     assert calls == [0, 10, 20, 20], calls
     assert out["cpu", 0] == out["cuda", 0] == out["cuda", 12], out

@@ -33,11 +33,14 @@ def test_docs_example_runs_as_written(tmp_path, monkeypatch):
 
 def test_import_changes_nothing_global():
     """No NUMBA_CACHE_DIR, no numba, no h5py: a notebook's other libraries are left alone."""
-    code = ("import os, sys; import antisync; "
-            "print(os.environ.get('NUMBA_CACHE_DIR'), 'numba' in sys.modules, 'h5py' in sys.modules)")
+    code = (
+        "import os, sys; import antisync; "
+        "print(os.environ.get('NUMBA_CACHE_DIR'), 'numba' in sys.modules, 'h5py' in sys.modules)"
+    )
     env = {k: v for k, v in os.environ.items() if k != "NUMBA_CACHE_DIR"}
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env,
-                         check=True).stdout.split()
+    out = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, env=env, check=True
+    ).stdout.split()
     assert out == ["None", "False", "False"]
 
 
@@ -45,8 +48,11 @@ def test_overrides_merge_into_sections_and_are_validated(tmp_path):
     from antisync.api import _config
 
     base = {"graph": {"kind": "lollipop", "nodes": 6, "path": 3}, "dynamics": {"t_max": 50.0}}
-    cfg = _config(base, {"dynamics": {"dt": 0.002}, "lambda_": {"method": "orbit"},
-                         "realizations": 10}, tmp_path / "x.h5")
+    cfg = _config(
+        base,
+        {"dynamics": {"dt": 0.002}, "lambda_": {"method": "orbit"}, "realizations": 10},
+        tmp_path / "x.h5",
+    )
     assert (cfg.dynamics.dt, cfg.dynamics.t_max) == (0.002, 50.0)  # merged, not replaced
     assert cfg.lambda_.method == "orbit" and cfg.realizations == 10
     assert cfg.output == str(tmp_path / "x.h5")
@@ -94,8 +100,9 @@ def test_numba_cache_is_keyed_by_source_for_antisync_only(tmp_path):
         "print(cache_dir())\n"
     )
     env = {k: v for k, v in os.environ.items() if k != "NUMBA_CACHE_DIR"}
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env,
-                         check=True).stdout.strip()
+    out = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, env=env, check=True
+    ).stdout.strip()
     folder = Path(out)
     assert folder.parent == REPO / "antisync" / "__pycache__" and folder.name.startswith("numba-")
     assert any(folder.rglob("phases.*.nbi"))  # antisync's function: in the keyed folder

@@ -33,8 +33,9 @@ def cfg(tmp_path, small_config_text):
 def _arrays(path):
     with h5py.File(path, "r") as f:
         (g,) = f["jobs"].values()
-        return {k: g[k][...] for k in ("block_records", "tau0_records", "hist", "tail_counts",
-                                       "blocks_done")} | {"kept": g["kept/steps"][...]}
+        return {
+            k: g[k][...] for k in ("block_records", "tau0_records", "hist", "tail_counts", "blocks_done")
+        } | {"kept": g["kept/steps"][...]}
 
 
 def test_run_summary_report(tmp_path, cfg):
@@ -48,8 +49,20 @@ def test_run_summary_report(tmp_path, cfg):
     assert data["kind"] == "run" and data["complete"] and data["excluded"] == []
     recs = data["records"]
     assert [(r["edge"], r["beta"]) for r in recs] == [("2->1", 0.5), ("2->3", 0.5)]
-    needed = {"graph", "edge", "beta", "F_mean", "F_se", "lambda_km", "lambda_km_se",
-              "tau0_mean", "tau0_se", "n", "n_excluded", "n_not_synced"}
+    needed = {
+        "graph",
+        "edge",
+        "beta",
+        "F_mean",
+        "F_se",
+        "lambda_km",
+        "lambda_km_se",
+        "tau0_mean",
+        "tau0_se",
+        "n",
+        "n_excluded",
+        "n_not_synced",
+    }
     assert needed <= set(recs[0])
     assert recs[0]["n"] + recs[0]["n_excluded"] + recs[0]["n_not_synced"] == 120
     assert recs[0]["F_mean"] > 1 > recs[1]["F_mean"]  # 2->1 antifragile, 2->3 fragile
@@ -69,8 +82,9 @@ def test_run_summary_report(tmp_path, cfg):
 
 
 def test_module_entry_point_and_validate(cfg):
-    res = subprocess.run([sys.executable, "-m", "antisync", "validate", str(cfg)],
-                         capture_output=True, text=True, cwd=REPO)
+    res = subprocess.run(
+        [sys.executable, "-m", "antisync", "validate", str(cfg)], capture_output=True, text=True, cwd=REPO
+    )
     assert res.returncode == 0, res.stderr
     assert "# ok: graph lollipop_6_3 with 6 nodes, 2 directed edge(s)" in res.stdout
 
@@ -96,9 +110,13 @@ def test_existing_result_is_never_overwritten(tmp_path, cfg):
 
 def test_same_numbers_for_threads_and_chunk_sizes(tmp_path, cfg):
     outs = []
-    for i, extra in enumerate([["--threads", "1", "--set", "chunk_size=20"],
-                               ["--threads", "2", "--set", "chunk_size=60"],
-                               ["--threads", "2"]]):
+    for i, extra in enumerate(
+        [
+            ["--threads", "1", "--set", "chunk_size=20"],
+            ["--threads", "2", "--set", "chunk_size=60"],
+            ["--threads", "2"],
+        ]
+    ):
         out = tmp_path / f"r{i}.h5"
         assert invoke("run", cfg, "--out", out, "--quiet", *extra).exit_code == 0
         outs.append(_arrays(out))
@@ -109,14 +127,14 @@ def test_same_numbers_for_threads_and_chunk_sizes(tmp_path, cfg):
 
 def test_sigkill_then_resume_gives_identical_numbers(tmp_path, small_config_text):
     cfg = tmp_path / "kill.yaml"
-    cfg.write_text(small_config_text.replace("realizations: 120", "realizations: 600")
-                   + "chunk_size: 20\n")
+    cfg.write_text(small_config_text.replace("realizations: 120", "realizations: 600") + "chunk_size: 20\n")
     ref = tmp_path / "ref.h5"
     assert invoke("run", cfg, "--out", ref, "--quiet").exit_code == 0
     out = tmp_path / "killed.h5"
     journal = tmp_path / "killed.h5.partial"
-    proc = subprocess.Popen([sys.executable, "-m", "antisync", "run", str(cfg), "--out",
-                             str(out), "--quiet"], cwd=REPO)
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "antisync", "run", str(cfg), "--out", str(out), "--quiet"], cwd=REPO
+    )
     deadline = time.monotonic() + 120
     while time.monotonic() < deadline and len(list(journal.glob("*.npz"))) < 3:
         time.sleep(0.05)
@@ -155,7 +173,7 @@ BAD_CONFIGS = [
     (G + "dynamics: {dt: 0}\n", "dynamics.dt must be a positive"),
     (G + "dynamics: {t_max: -5}\n", "dynamics.t_max must be a positive"),
     (G + "realizations: 0\n", "realizations must be an integer in 1..10**15"),
-    (G + "edges: [\"1->3\"]\n", "edge '1->3' is not in the graph"),
+    (G + 'edges: ["1->3"]\n', "edge '1->3' is not in the graph"),
     ("graph: {kind: lolipop, nodes: 6, path: 3}\n", "did you mean 'lollipop'"),
     ("graph: {kind: lollipop, nodes: 6}\n", "needs key(s) path"),
     ("graph: {kind: networkx, generator: not_a_graph}\n", "unknown networkx generator"),
@@ -206,8 +224,11 @@ def test_bad_result_files(tmp_path, kind):
         res = invoke(command, p)
         assert res.exit_code == 2
         assert len(res.stderr.strip().splitlines()) == 1
-        assert {"text": "not a readable HDF5", "foreign": "not an antisync result",
-                "missing": "does not exist"}[kind] in res.stderr
+        assert {
+            "text": "not a readable HDF5",
+            "foreign": "not an antisync result",
+            "missing": "does not exist",
+        }[kind] in res.stderr
 
 
 def test_debug_shows_traceback(tmp_path):

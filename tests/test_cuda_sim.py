@@ -31,8 +31,9 @@ def _simulated(*argv: str, timeout: float = 240) -> subprocess.CompletedProcess:
     env = {k: v for k, v in os.environ.items() if not k.startswith("NUMBA_")}
     env["NUMBA_ENABLE_CUDASIM"] = "1"
     env["PYTHONPATH"] = os.pathsep.join([str(ROOT), env.get("PYTHONPATH", "")]).rstrip(os.pathsep)
-    return subprocess.run([sys.executable, *argv], env=env, cwd=ROOT, capture_output=True,
-                          text=True, timeout=timeout)
+    return subprocess.run(
+        [sys.executable, *argv], env=env, cwd=ROOT, capture_output=True, text=True, timeout=timeout
+    )
 
 
 def _check(name: str, *args: str) -> str:
@@ -70,6 +71,7 @@ def test_gpu_check_tiny_runs_under_simulator():
 
 # ---- in this process: no GPU and no simulator (skipped where a GPU is present) ----
 
+
 def _gpu_here() -> bool:
     from antisync.backends import cuda_usable
 
@@ -81,10 +83,12 @@ def _lollipop_job(**dyn):
     from antisync.jobs import make_job
 
     extra = "".join(f", {k}: {v}" for k, v in dyn.items())
-    return make_job(load_config_text(
-        "graph: {kind: lollipop, nodes: 6, path: 3}\nedges: ['3->4']\nbetas: [0.5]\n"
-        f"dynamics: {{dt: 0.01, t_max: 1{extra}}}\nrealizations: 10\n"
-    ))
+    return make_job(
+        load_config_text(
+            "graph: {kind: lollipop, nodes: 6, path: 3}\nedges: ['3->4']\nbetas: [0.5]\n"
+            f"dynamics: {{dt: 0.01, t_max: 1{extra}}}\nrealizations: 10\n"
+        )
+    )
 
 
 def test_module_imports_and_refuses_without_gpu():
@@ -95,8 +99,18 @@ def test_module_imports_and_refuses_without_gpu():
 
     job = _lollipop_job()
     with pytest.raises(AntisyncError, match="CUDA backend cannot run here"):
-        gpu.simulate(1, 0, 2, job.csr.indptr, job.csr.indices, job.csr.weights,
-                     job.variant_weights, dt=0.01, threshold=0.99, max_steps=100)
+        gpu.simulate(
+            1,
+            0,
+            2,
+            job.csr.indptr,
+            job.csr.indices,
+            job.csr.weights,
+            job.variant_weights,
+            dt=0.01,
+            threshold=0.99,
+            max_steps=100,
+        )
 
 
 def test_too_many_nodes_is_a_clear_error():
@@ -126,13 +140,16 @@ def test_float32_is_rejected_on_cpu(tmp_path):
     assert not out.exists()
 
 
-@pytest.mark.parametrize("setting, key", [
-    ("lambda: {method: pathwise}", "lambda.method pathwise"),
-    ("lambda: {method: hybrid}", "lambda.method hybrid"),
-    ("lambda: {method: orbit}", "lambda.method orbit"),
-    ("dynamics: {integrator: rk4, dt: 0.04}", "dynamics.integrator rk4"),
-    ("dynamics: {crossing: interpolated}", "dynamics.crossing interpolated"),
-])
+@pytest.mark.parametrize(
+    "setting, key",
+    [
+        ("lambda: {method: pathwise}", "lambda.method pathwise"),
+        ("lambda: {method: hybrid}", "lambda.method hybrid"),
+        ("lambda: {method: orbit}", "lambda.method orbit"),
+        ("dynamics: {integrator: rk4, dt: 0.04}", "dynamics.integrator rk4"),
+        ("dynamics: {crossing: interpolated}", "dynamics.crossing interpolated"),
+    ],
+)
 def test_cuda_refuses_what_only_the_cpu_implements(setting, key):
     from antisync.compute import check_backend
     from antisync.config import load_config_text
@@ -160,8 +177,14 @@ def test_kernels_compile_for_a_real_gpu():
     whether numba-cuda types and lowers the kernels for hardware; this does."""
     env = {k: v for k, v in os.environ.items() if k != "NUMBA_ENABLE_CUDASIM"}
     env["PYTHONPATH"] = os.pathsep.join([str(ROOT), env.get("PYTHONPATH", "")]).rstrip(os.pathsep)
-    proc = subprocess.run([sys.executable, str(ROOT / "bench" / "ptx_check.py"), "--cc", "9.0"],
-                          env=env, cwd=ROOT, capture_output=True, text=True, timeout=300)
+    proc = subprocess.run(
+        [sys.executable, str(ROOT / "bench" / "ptx_check.py"), "--cc", "9.0"],
+        env=env,
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
     if proc.returncode == 3:
         pytest.skip(proc.stdout.strip() or "no CUDA toolkit")
     assert proc.returncode == 0, proc.stdout + proc.stderr[-4000:]

@@ -29,15 +29,27 @@ def test_table_lists_the_papers_25_equations():
 
 
 def test_parser_reads_ranges_and_lists():
-    assert _cited("Eqs. 20-22 and Eq. (6); Eqs. (9)-(11), Eqs. 1, 4 and 20") == {1, 4, 6, 9, 10, 11,
-                                                                                  20, 21, 22}
+    assert _cited("Eqs. 20-22 and Eq. (6); Eqs. (9)-(11), Eqs. 1, 4 and 20") == {
+        1,
+        4,
+        6,
+        9,
+        10,
+        11,
+        20,
+        21,
+        22,
+    }
 
 
 def test_every_citation_is_in_the_table():
     table = _table()
-    files = [p for folder in ("antisync", "antisync", "docs", "configs", "bench", "tests")
-             for p in (REPO / folder).rglob("*") if p.suffix in (".py", ".md", ".yaml")
-             and "__pycache__" not in p.parts]
+    files = [
+        p
+        for folder in ("antisync", "antisync", "docs", "configs", "bench", "tests")
+        for p in (REPO / folder).rglob("*")
+        if p.suffix in (".py", ".md", ".yaml") and "__pycache__" not in p.parts
+    ]
     files += [REPO / "README.md"]
     bad = {}
     for p in files:

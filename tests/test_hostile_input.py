@@ -38,8 +38,10 @@ def invoke(*args):
 
 def snapshot(folder: Path) -> dict:
     """Every path below ``folder`` with its size and mtime: 'no file touched' is equality."""
-    return {str(p.relative_to(folder)): (p.stat().st_size, p.stat().st_mtime_ns) if p.is_file() else None
-            for p in sorted(folder.rglob("*"))}
+    return {
+        str(p.relative_to(folder)): (p.stat().st_size, p.stat().st_mtime_ns) if p.is_file() else None
+        for p in sorted(folder.rglob("*"))
+    }
 
 
 def assert_one_line(res, message: str = "") -> None:
@@ -83,8 +85,10 @@ BAD_OVERRIDES = [
     ("graph={kind: networkx, generator: barbell_graph, args: {m1: 1, m2: 0}}", "networkx.barbell_graph"),
     ("graph={kind: networkx, generator: path_graph, args: {n: -1}}", "networkx.path_graph"),
     ("graph={kind: networkx, generator: path_graph, args: [3]}", "graph.args must be a mapping"),
-    ("graph={kind: networkx, generator: random_regular_graph, args: {d: 3, n: 8, seed: x}}",
-     "graph.args.seed must be an integer"),
+    (
+        "graph={kind: networkx, generator: random_regular_graph, args: {d: 3, n: 8, seed: x}}",
+        "graph.args.seed must be an integer",
+    ),
     ("graph={kind: networkx, generator: 7}", "graph.generator must be a networkx function name"),
     ("dynamics.coupling=raw", ""),  # with the weights below: raw coupling at 1e99 is too stiff
     # `validate` used to say ok to these, which `run` then refused
@@ -99,15 +103,14 @@ def test_bad_override_is_one_line_in_run_and_validate(tmp_path, monkeypatch, ove
     cfg = tmp_path / "c.yaml"
     if override == "dynamics.coupling=raw":
         (tmp_path / "heavy.edges").write_text("1 2 1e99\n2 3\n")
-        cfg.write_text('graph: {kind: edgelist, path: heavy.edges}\nrealizations: 20\n')
+        cfg.write_text("graph: {kind: edgelist, path: heavy.edges}\nrealizations: 20\n")
         message = "too large for this graph"
     else:
         cfg.write_text(SMALL)
     out = tmp_path / "out.h5"
     before = snapshot(tmp_path)
     out_option = [] if override.startswith("output=") else ["--out", out]
-    for command in (["run", cfg, "--set", override, *out_option, "-q"],
-                    ["validate", cfg, "--set", override]):
+    for command in (["run", cfg, "--set", override, *out_option, "-q"], ["validate", cfg, "--set", override]):
         assert_one_line(invoke(*command), message)
     assert snapshot(tmp_path) == before  # no output, no journal, nothing else
 
@@ -126,23 +129,61 @@ def test_realizations_in_scientific_notation_are_integers():
 
 
 # arbitrary values at every key: a valid config or an AntisyncError, nothing else
-KEYS = ["realizations", "seed", "betas", "edges", "name", "output", "block_size", "chunk_size",
-        "keep_pairs", "threads", "backend", "executor", "measures", "dynamics.dt",
-        "dynamics.t_max", "dynamics.threshold", "dynamics.integrator", "dynamics.coupling",
-        "dynamics.crossing", "dynamics.precision", "lambda.method", "lambda.dbeta",
-        "lambda.hybrid_cut", "histogram.bins", "histogram.tau_max", "histogram.betas",
-        "linear.realizations", "linear.method", "graph.nodes", "graph.path", "graph.kind",
-        "dynamics", "lambda", "histogram", "graph"]
-scalars = st.one_of(st.none(), st.booleans(), st.integers(-2**70, 2**70), st.floats(),
-                    st.text(max_size=8), st.sampled_from(["1e23", "0.5", "2->1", "all", "auto"]))
-values = st.recursive(scalars, lambda inner: st.one_of(st.lists(inner, max_size=3),
-                                                       st.dictionaries(st.text(max_size=4), inner,
-                                                                       max_size=2)),
-                      max_leaves=5)
+KEYS = [
+    "realizations",
+    "seed",
+    "betas",
+    "edges",
+    "name",
+    "output",
+    "block_size",
+    "chunk_size",
+    "keep_pairs",
+    "threads",
+    "backend",
+    "executor",
+    "measures",
+    "dynamics.dt",
+    "dynamics.t_max",
+    "dynamics.threshold",
+    "dynamics.integrator",
+    "dynamics.coupling",
+    "dynamics.crossing",
+    "dynamics.precision",
+    "lambda.method",
+    "lambda.dbeta",
+    "lambda.hybrid_cut",
+    "histogram.bins",
+    "histogram.tau_max",
+    "histogram.betas",
+    "linear.realizations",
+    "linear.method",
+    "graph.nodes",
+    "graph.path",
+    "graph.kind",
+    "dynamics",
+    "lambda",
+    "histogram",
+    "graph",
+]
+scalars = st.one_of(
+    st.none(),
+    st.booleans(),
+    st.integers(-(2**70), 2**70),
+    st.floats(),
+    st.text(max_size=8),
+    st.sampled_from(["1e23", "0.5", "2->1", "all", "auto"]),
+)
+values = st.recursive(
+    scalars,
+    lambda inner: st.one_of(
+        st.lists(inner, max_size=3), st.dictionaries(st.text(max_size=4), inner, max_size=2)
+    ),
+    max_leaves=5,
+)
 
 
-@settings(max_examples=300, deadline=None, derandomize=True,
-          suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=300, deadline=None, derandomize=True, suppress_health_check=[HealthCheck.too_slow])
 @given(key=st.sampled_from(KEYS), value=values, typed=st.booleans())
 def test_any_value_at_any_key_is_valid_or_one_clear_error(key, value, typed):
     """Set as YAML text (``--set``) or as a typed value (the CLI's options)."""
@@ -150,8 +191,10 @@ def test_any_value_at_any_key_is_valid_or_one_clear_error(key, value, typed):
         if typed:
             cfg = load_config_text(SMALL, values={key: value})
         else:
-            cfg = load_config_text(SMALL, [f"{key}={yaml.safe_dump(value, default_flow_style=True).strip()}"
-                                           .replace("\n...", "")])
+            cfg = load_config_text(
+                SMALL,
+                [f"{key}={yaml.safe_dump(value, default_flow_style=True).strip()}".replace("\n...", "")],
+            )
         make_job(cfg)
     except AntisyncError as exc:
         assert str(exc) and "\n" not in str(exc).strip()
@@ -172,12 +215,15 @@ def test_out_is_a_path_never_yaml(tmp_path, monkeypatch, name):
     assert (tmp_path / "results" / "ok.h5").read_bytes() == b"precious"
 
 
-@pytest.mark.parametrize("option,value,message", [
-    ("--backend", "gpu", "--backend must be one of cpu, cuda, auto, got 'gpu'"),
-    ("--executor", "ray", "--executor must be one of local, dask, got 'ray'"),
-    ("--threads", "0", "threads must be an integer in null or 1..4096"),
-    ("--realizations", "many", ""),
-])
+@pytest.mark.parametrize(
+    "option,value,message",
+    [
+        ("--backend", "gpu", "--backend must be one of cpu, cuda, auto, got 'gpu'"),
+        ("--executor", "ray", "--executor must be one of local, dask, got 'ray'"),
+        ("--threads", "0", "threads must be an integer in null or 1..4096"),
+        ("--realizations", "many", ""),
+    ],
+)
 def test_bad_choice_options_are_one_line(tmp_path, option, value, message):
     cfg = tmp_path / "c.yaml"
     cfg.write_text(SMALL)
@@ -199,19 +245,22 @@ def test_output_inside_a_file_is_one_line(tmp_path):
 
 
 # ---- graph files --------------------------------------------------------------------------
-@pytest.mark.parametrize("text,message", [
-    ("1 2 1.0\n2 3\n1 2 5.0\n", "edge 1-2 is listed twice (first on line 1)"),
-    ("1 2\n2 1\n2 3\n", "edge 2-1 is listed twice"),
-    ("1 2 nan\n", "weight must be positive and finite"),
-    ("1 2 -1\n", "weight must be positive and finite"),
-    ("1 2 0\n", "weight must be positive and finite"),
-    ("1 2 inf\n", "weight must be positive and finite"),
-    ("1 2 1e300\n2 3 1e300\n", "weights sum to"),
-    ("1 1\n", "self-loop"),
-    ("1\n", "expected 'u v' or 'u v weight'"),
-    ("# nothing\n", "no edges found"),
-    ("1 2\n3 4\n", "disconnected"),
-])
+@pytest.mark.parametrize(
+    "text,message",
+    [
+        ("1 2 1.0\n2 3\n1 2 5.0\n", "edge 1-2 is listed twice (first on line 1)"),
+        ("1 2\n2 1\n2 3\n", "edge 2-1 is listed twice"),
+        ("1 2 nan\n", "weight must be positive and finite"),
+        ("1 2 -1\n", "weight must be positive and finite"),
+        ("1 2 0\n", "weight must be positive and finite"),
+        ("1 2 inf\n", "weight must be positive and finite"),
+        ("1 2 1e300\n2 3 1e300\n", "weights sum to"),
+        ("1 1\n", "self-loop"),
+        ("1\n", "expected 'u v' or 'u v weight'"),
+        ("# nothing\n", "no edges found"),
+        ("1 2\n3 4\n", "disconnected"),
+    ],
+)
 def test_bad_edge_lists(tmp_path, text, message):
     (tmp_path / "g.edges").write_text(text)
     cfg = tmp_path / "c.yaml"
@@ -227,8 +276,10 @@ def test_edge_list_not_utf8(tmp_path):
         from_edgelist(tmp_path / "g.edges")
 
 
-tokens = st.one_of(st.sampled_from(["1", "2", "3", "a", "1.5", "-1", "nan", "inf", "1e400", "0",
-                                    "#", "1e-320"]), st.text(max_size=4))
+tokens = st.one_of(
+    st.sampled_from(["1", "2", "3", "a", "1.5", "-1", "nan", "inf", "1e400", "0", "#", "1e-320"]),
+    st.text(max_size=4),
+)
 
 
 @settings(max_examples=200, deadline=None, derandomize=True)
@@ -247,8 +298,10 @@ def test_any_edge_list_is_a_graph_or_one_clear_error(tmp_path_factory, lines):
 
 def test_random_generators_take_the_run_seed():
     """An unseeded random graph used to differ on every run (and --resume mixed graphs)."""
-    text = G.replace("{kind: lollipop, nodes: 6, path: 3}",
-                     "{kind: networkx, generator: random_regular_graph, args: {d: 3, n: 8}}")
+    text = G.replace(
+        "{kind: lollipop, nodes: 6, path: 3}",
+        "{kind: networkx, generator: random_regular_graph, args: {d: 3, n: 8}}",
+    )
     a = make_job(load_config_text(text + "seed: 5\n"))
     b = make_job(load_config_text(text + "seed: 5\n"))
     c = make_job(load_config_text(text + "seed: 6\n"))
@@ -267,14 +320,17 @@ def _result(tmp_path) -> Path:
     return out
 
 
-@pytest.mark.parametrize("damage,message", [
-    ("format_version", "newer antisync"),
-    ("edges", "damaged"),
-    ("nodes", "damaged"),
-    ("drop_records", "damaged"),
-    ("empty", "not a readable HDF5"),
-    ("folder", ""),
-])
+@pytest.mark.parametrize(
+    "damage,message",
+    [
+        ("format_version", "newer antisync"),
+        ("edges", "damaged"),
+        ("nodes", "damaged"),
+        ("drop_records", "damaged"),
+        ("empty", "not a readable HDF5"),
+        ("folder", ""),
+    ],
+)
 def test_damaged_result_files(tmp_path, damage, message):
     out = _result(tmp_path)
     if damage == "empty":
@@ -292,8 +348,11 @@ def test_damaged_result_files(tmp_path, damage, message):
             else:
                 g.attrs[damage] = "[not json"
     before = snapshot(tmp_path)
-    for command in (["summary", out], ["summary", out, "-f", "json"],
-                    ["report", out, "--out", tmp_path / "f"]):
+    for command in (
+        ["summary", out],
+        ["summary", out, "-f", "json"],
+        ["report", out, "--out", tmp_path / "f"],
+    ):
         assert_one_line(invoke(*command), message)
     assert snapshot(tmp_path) == before
 
@@ -337,9 +396,14 @@ def test_disk_full_while_writing_a_chunk_is_one_line_and_resumes(tmp_path):
     def limit():
         resource.setrlimit(resource.RLIMIT_FSIZE, (20_000, 20_000))
 
-    proc = subprocess.run([sys.executable, "-m", "antisync", "run", str(cfg), "--out", str(out), "-q"],
-                          cwd=REPO, capture_output=True, text=True, preexec_fn=limit,
-                          env={**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / "numba")})
+    proc = subprocess.run(
+        [sys.executable, "-m", "antisync", "run", str(cfg), "--out", str(out), "-q"],
+        cwd=REPO,
+        capture_output=True,
+        text=True,
+        preexec_fn=limit,
+        env={**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / "numba")},
+    )
     assert proc.returncode == 2, proc.stderr
     assert "Traceback" not in proc.stderr and len(proc.stderr.strip().splitlines()) == 1, proc.stderr
     assert "File too large" in proc.stderr

@@ -22,8 +22,9 @@ def test_cpu_kernel_matches_naive_reference(kind):
     damages = [(1, 0, 0.5), (4, 5, 0.3), (1, 2, 0.01), (0, 1, 0.5)]
     omega, csr, vw = _arrays(g, damages, kind)
     dt, thr, max_steps, m = 0.002, 0.99, 40_000, 24
-    res = simulate(9, 0, m, csr.indptr, csr.indices, csr.weights, vw, dt=dt, threshold=thr,
-                   max_steps=max_steps)
+    res = simulate(
+        9, 0, m, csr.indptr, csr.indices, csr.weights, vw, dt=dt, threshold=thr, max_steps=max_steps
+    )
     theta0 = initial_phases(9, 0, m, 6)
     w0 = coupling.coupling_matrix(omega, kind)
     mismatched = 0
@@ -56,8 +57,9 @@ def test_two_oscillators_closed_form_and_first_order_convergence():
     dts = np.array([0.004, 0.002, 0.001, 0.0005])
     errors = []
     for dt in dts:
-        res = simulate(2, 0, 200, csr.indptr, csr.indices, csr.weights, vw, dt=dt,
-                       threshold=thr, max_steps=200_000)
+        res = simulate(
+            2, 0, 200, csr.indptr, csr.indices, csr.weights, vw, dt=dt, threshold=thr, max_steps=200_000
+        )
         assert np.all(res.status0[keep] == Status.SYNCED)
         errors.append(np.abs(res.steps0[keep] * dt - exact).mean())
     order = np.polyfit(np.log(dts), np.log(errors), 1)[0]
@@ -70,8 +72,7 @@ def test_already_synced_and_not_synced_status():
     omega, csr, vw = _arrays(g, [])
     theta0 = initial_phases(2, 0, 200, 2)
     r0 = np.abs(np.exp(1j * theta0).mean(axis=1))
-    res = simulate(2, 0, 200, csr.indptr, csr.indices, csr.weights, vw, dt=0.01, threshold=0.99,
-                   max_steps=5)
+    res = simulate(2, 0, 200, csr.indptr, csr.indices, csr.weights, vw, dt=0.01, threshold=0.99, max_steps=5)
     assert np.array_equal(res.status0 == Status.ALREADY_SYNCED, r0 >= 0.99)
     assert np.all(res.steps0[res.status0 == Status.ALREADY_SYNCED] == 0)
     assert np.any(res.status0 == Status.NOT_SYNCED)
@@ -113,12 +114,25 @@ def test_rk4_converges_with_fourth_order_and_euler_interpolated_with_first():
     phi0 = np.angle(np.exp(1j * (theta0[:, 1] - theta0[:, 0])))
     keep = np.flatnonzero((np.abs(phi0) > 0.8) & (np.abs(phi0) < 2.6))[:6]
     exact = np.array([two_oscillator_tau(phi0[r], 0.99) for r in keep])
-    for integrator, dts, expected in (("euler", [0.004, 0.002, 0.001], 1.0),
-                                      ("rk4", [0.2, 0.1, 0.05, 0.025], 4.0)):
+    for integrator, dts, expected in (
+        ("euler", [0.004, 0.002, 0.001], 1.0),
+        ("rk4", [0.2, 0.1, 0.05, 0.025], 4.0),
+    ):
         errors = []
         for dt in dts:
-            res = simulate(2, 0, 200, csr.indptr, csr.indices, csr.weights, vw, dt=dt,
-                           threshold=0.99, max_steps=int(100 / dt), integrator=integrator)
+            res = simulate(
+                2,
+                0,
+                200,
+                csr.indptr,
+                csr.indices,
+                csr.weights,
+                vw,
+                dt=dt,
+                threshold=0.99,
+                max_steps=int(100 / dt),
+                integrator=integrator,
+            )
             tau = (res.steps0 - 1 + res.frac0) * dt
             errors.append(np.abs(tau[keep] - exact).max())
         order = np.polyfit(np.log(dts), np.log(errors), 1)[0]

@@ -62,7 +62,8 @@ def test_degree_two_and_degree_one_nodes():
 
 
 def _job(method, extra=""):
-    return make_job(load_config_text(f"""
+    return make_job(
+        load_config_text(f"""
 graph: {{kind: lollipop, nodes: 6, path: 3}}
 edges: ["2->1", "2->3", "5->6", "1->2"]
 betas: []
@@ -70,7 +71,8 @@ lambda: {{method: {method}, hybrid_cut: 1.0}}
 dynamics: {{dt: {DT}, t_max: 100}}
 realizations: 400
 seed: 5
-{extra}"""))
+{extra}""")
+    )
 
 
 def test_hybrid_uses_secants_of_interpolated_times_where_flagged():
@@ -83,8 +85,17 @@ def test_hybrid_uses_secants_of_interpolated_times_where_flagged():
     assert np.array_equal(values[~flagged], pathwise_values[~flagged])
     tau0 = (base.steps0 - 1 + base.frac0) * DT
     for r, e in zip(*np.nonzero(flagged), strict=True):
-        sec = simulate(5, 0, 0, hybrid.csr.indptr, hybrid.csr.indices, hybrid.csr.weights,
-                       hybrid.secant_weights[e : e + 1], realizations=np.array([r]), **KW)
+        sec = simulate(
+            5,
+            0,
+            0,
+            hybrid.csr.indptr,
+            hybrid.csr.indices,
+            hybrid.csr.weights,
+            hybrid.secant_weights[e : e + 1],
+            realizations=np.array([r]),
+            **KW,
+        )
         tau = (sec.steps[0, 0] - 1 + sec.frac[0, 0]) * DT
         assert values[r, e] == pytest.approx((tau0[r] / tau - 1) / 0.01, rel=1e-12)
 
@@ -111,15 +122,17 @@ output: {tmp_path / method}.h5
             assert gap < 4 * np.hypot(r["lambda_km_se"], ref["lambda_km_se"]), (edge, method, r, ref)
     for method in out:
         assert out[method]["1->2"]["lambda_km"] == 0.0
-    assert out["pathwise"]["2->1"]["lambda_km"] == pytest.approx(-out["pathwise"]["2->3"]["lambda_km"],
-                                                                 rel=1e-9)
+    assert out["pathwise"]["2->1"]["lambda_km"] == pytest.approx(
+        -out["pathwise"]["2->3"]["lambda_km"], rel=1e-9
+    )
 
 
 # ---- lambda.method: orbit ------------------------------------------------------------------
 
 
 def _orbit_job(graph, edges, coupling_kind="normalized", m=400, crossing="grid"):
-    return make_job(load_config_text(f"""
+    return make_job(
+        load_config_text(f"""
 graph: {graph}
 edges: {edges}
 betas: []
@@ -127,7 +140,8 @@ lambda: {{method: orbit}}
 dynamics: {{dt: {DT}, t_max: 100, coupling: {coupling_kind}, crossing: {crossing}}}
 realizations: {m}
 seed: 5
-"""))
+""")
+    )
 
 
 def test_orbit_of_a_single_link_is_the_central_difference():
@@ -145,8 +159,7 @@ def test_orbit_of_a_single_link_is_the_central_difference():
     minus = coupling.to_csr(coupling.coupling_matrix(damaged), pattern=job.omega > 0).weights
     assert np.array_equal(job.orbit_weights[1], minus)
     values, code, _, base = lambda_values(job, None, 0, 400)
-    ref = simulate(5, 0, 400, job.csr.indptr, job.csr.indices, job.csr.weights,
-                   np.stack([plus, minus]), **KW)
+    ref = simulate(5, 0, 400, job.csr.indptr, job.csr.indices, job.csr.weights, np.stack([plus, minus]), **KW)
     ok = (ref.status0 == 0) & (ref.status == 0).all(axis=1)
     assert np.array_equal(code[:, 0] == 0, ok) and ok.mean() > 0.99
     t0, t = ref.steps0[ok] * DT, ref.steps[ok] * DT
@@ -167,8 +180,12 @@ def test_orbit_of_an_arc_transitive_graph_closed_forms():
     values, code, _, _ = lambda_values(norm, None, 0, 200)
     assert (code == 0).all() and np.abs(values).max() < 1e-9
 
-    raw = _orbit_job("{kind: networkx, generator: complete_graph, args: {n: 5}}", '["0->1"]', "raw",
-                     crossing="interpolated")
+    raw = _orbit_job(
+        "{kind: networkx, generator: complete_graph, args: {n: 5}}",
+        '["0->1"]',
+        "raw",
+        crossing="interpolated",
+    )
     values, code, _, _ = lambda_values(raw, None, 0, 200)
     assert (code == 0).all()
     assert values.mean() == pytest.approx(-1 / 20, rel=2e-3)

@@ -287,9 +287,7 @@ def check_derivatives(omega, coupling, report):
     if coupling == "normalized":
         t0 = tau_rw(omega)
         for a, b in directed_edges(omega):
-            fd = central_difference(
-                lambda beta, a=a, b=b: t0 / tau_rw(scaled(omega, a, b, 1 - beta)), h
-            )
+            fd = central_difference(lambda beta, a=a, b=b: t0 / tau_rw(scaled(omega, a, b, 1 - beta)), h)
             assert lambda_rw(omega, a, b) == pytest.approx(fd, rel=1e-6, abs=1e-9), (a, b)
 
 
@@ -451,8 +449,7 @@ def test_lambda_linear_finite_difference_converges_to_derivative(lollipop_phases
     theta0 = theta0[:100]
     deriv = lambda_linear(omega, 1, 0, theta0, method="derivative")
     errors = [
-        abs(lambda_linear(omega, 1, 0, theta0, dbeta=d).lambda_ - deriv.lambda_)
-        for d in (1e-2, 1e-3, 1e-4)
+        abs(lambda_linear(omega, 1, 0, theta0, dbeta=d).lambda_ - deriv.lambda_) for d in (1e-2, 1e-3, 1e-4)
     ]
     assert errors[1] < errors[0] / 5 and errors[2] < errors[1] / 5
     assert errors[2] < 1e-4 * max(1.0, abs(deriv.lambda_))

@@ -125,8 +125,14 @@ def test_hdf5_measures_group(run):
         assert json.loads(m.attrs["measures"]) == ["linear", "xi2", "rw"]
         assert m.attrs["linear_method"] == "exact" and m.attrs["linear_realizations"] == M_LINEAR
         assert m.attrs["linear_seed"] == SEED and m.attrs["linear_dbeta"] == 0.01
-        for key in ("lambda_xi2", "lambda_rw", "lambda_linear", "lambda_linear_se",
-                    "lambda_linear_n", "lambda_linear_n_excluded"):
+        for key in (
+            "lambda_xi2",
+            "lambda_rw",
+            "lambda_linear",
+            "lambda_linear_se",
+            "lambda_linear_n",
+            "lambda_linear_n_excluded",
+        ):
             assert m[key].shape == (len(edges),), key
         i = edges.index("2->1")
         recs = _by_edge(run["recs"], "lollipop_6_3")
@@ -165,12 +171,16 @@ def test_records_without_measures_have_null_keys(tmp_path, small_config_text):
 @pytest.mark.parametrize(
     ("override", "expect"),
     [
-        ("measures=[km, xi_2]", "measures must be one of km, linear, xi2, rw, km_nnc, got 'xi_2' "
-                                "(did you mean 'xi2'?)"),
+        (
+            "measures=[km, xi_2]",
+            "measures must be one of km, linear, xi2, rw, km_nnc, got 'xi_2' (did you mean 'xi2'?)",
+        ),
         ("measures=[xi2, rw]", "measures must include km"),
         ("measures=[km, rw, rw]", "measures lists rw twice"),
-        ("linear.method=eular", "linear.method must be one of exact, euler, derivative, got 'eular' "
-                                "(did you mean 'euler'?)"),
+        (
+            "linear.method=eular",
+            "linear.method must be one of exact, euler, derivative, got 'eular' (did you mean 'euler'?)",
+        ),
         ("linear.realizations=1", "linear.realizations must be an integer in 2..10**15"),
         ("linear.runs=5", "unknown key 'linear.runs'"),
     ],
@@ -256,8 +266,16 @@ def test_measures_are_computed_once_and_survive_checkpoints_and_resume(tmp_path,
         return compute_measures(job, config)
 
     monkeypatch.setattr(runner_mod, "compute_measures", counting)
-    cfg = load_config_text(CONFIG, ["measures=[km, xi2, km_nnc]", "realizations=60", "block_size=10",
-                                    "edges=[\"2->1\"]", f"output={tmp_path / 'r.h5'}"])
+    cfg = load_config_text(
+        CONFIG,
+        [
+            "measures=[km, xi2, km_nnc]",
+            "realizations=60",
+            "block_size=10",
+            'edges=["2->1"]',
+            f"output={tmp_path / 'r.h5'}",
+        ],
+    )
     # many chunks, a checkpoint after each: the measures are still computed once
     path = run_config(cfg, progress=False, chunk_realizations=10, checkpoint_seconds=0.0)
     assert calls == ["lollipop_6_3"]  # the twin has no measures of its own
@@ -307,9 +325,11 @@ def test_km_nnc_below_km_except_3to4(tmp_path):
     for r in recs:
         diff = r["lambda_km"] - r["lambda_km_nnc"]
         margins[r["edge"]] = diff / np.hypot(r["lambda_km_se"], r["lambda_km_nnc_se"])
-        print(f"{r['edge']}: KM {r['lambda_km']:+.4f} +- {r['lambda_km_se']:.4f}, "
-              f"NNC {r['lambda_km_nnc']:+.4f} +- {r['lambda_km_nnc_se']:.4f}, "
-              f"margin {margins[r['edge']]:+.1f}")
+        print(
+            f"{r['edge']}: KM {r['lambda_km']:+.4f} +- {r['lambda_km_se']:.4f}, "
+            f"NNC {r['lambda_km_nnc']:+.4f} +- {r['lambda_km_nnc_se']:.4f}, "
+            f"margin {margins[r['edge']]:+.1f}"
+        )
     assert len(margins) == 12
     assert margins.pop("3->4") < -3  # the paper's one exception: NNC above KM
     for edge in UNRESOLVED:

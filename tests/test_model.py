@@ -41,8 +41,12 @@ def test_edgelist_keeps_labels_and_weights(tmp_path):
 
 @pytest.mark.parametrize(
     "text,match",
-    [("a b c d\n", "expected 'u v'"), ("a b x\n", "not a number"), ("a a\n", "self-loop"),
-     ("# nothing\n", "no edges")],
+    [
+        ("a b c d\n", "expected 'u v'"),
+        ("a b x\n", "not a number"),
+        ("a a\n", "self-loop"),
+        ("# nothing\n", "no edges"),
+    ],
 )
 def test_edgelist_errors(tmp_path, text, match):
     p = tmp_path / "bad.edges"
@@ -100,8 +104,9 @@ def test_coupling_derivative_matches_finite_difference(kind):
         for beta in (0.0, 0.4):
             h = 1e-6
             low = coupling.damaged_omega(omega, a, b, beta - h) if beta else omega
-            fd = (coupling.coupling_matrix(coupling.damaged_omega(omega, a, b, beta + h), kind)
-                  - coupling.coupling_matrix(low, kind))
+            fd = coupling.coupling_matrix(
+                coupling.damaged_omega(omega, a, b, beta + h), kind
+            ) - coupling.coupling_matrix(low, kind)
             fd /= 2 * h if beta else h
             exact = coupling.coupling_derivative(omega, a, b, kind, beta)
             assert np.allclose(exact, fd, atol=1e-5 if beta == 0 else 1e-8)

@@ -37,8 +37,11 @@ def _assert_row(r: dict, row: list, what: str) -> None:
     """<tau0>, Lambda^KM (finite difference, dbeta = 0.01) and <F_0.5> within Z standard errors."""
     _, tau0, lam, f05 = row
     assert r["lambda_method"] == "finite-difference" and r["lambda_dbeta"] == 0.01
-    for key, se, paper in (("tau0_mean", "tau0_se", tau0), ("lambda_km", "lambda_km_se", lam),
-                           ("F_mean", "F_se", f05)):
+    for key, se, paper in (
+        ("tau0_mean", "tau0_se", tau0),
+        ("lambda_km", "lambda_km_se", lam),
+        ("F_mean", "F_se", f05),
+    ):
         assert abs(r[key] - paper) < Z * r[se], (what, key, r[key], r[se], paper)
 
 

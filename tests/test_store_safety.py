@@ -53,13 +53,22 @@ def invoke(*args):
 
 def cli(*args, timeout: float = 120) -> subprocess.CompletedProcess:
     """``python -m antisync ARGS`` in a process of its own."""
-    return subprocess.run([sys.executable, "-m", "antisync", *map(str, args)], cwd=REPO,
-                          capture_output=True, text=True, timeout=timeout)
+    return subprocess.run(
+        [sys.executable, "-m", "antisync", *map(str, args)],
+        cwd=REPO,
+        capture_output=True,
+        text=True,
+        timeout=timeout,
+    )
 
 
 def start(*args) -> subprocess.Popen:
-    return subprocess.Popen([sys.executable, "-m", "antisync", *map(str, args)], cwd=REPO,
-                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    return subprocess.Popen(
+        [sys.executable, "-m", "antisync", *map(str, args)],
+        cwd=REPO,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+    )
 
 
 def wait_for_chunks(journal: Path, n: int, proc: subprocess.Popen, timeout: float = 120) -> None:
@@ -315,12 +324,26 @@ def _make_target(tmp_path: Path, kind: str) -> Path:
 
 
 def _tree(tmp_path: Path) -> dict:
-    return {str(p): (p.is_symlink(), p.read_bytes() if p.is_file() and not p.is_symlink() else None)
-            for p in sorted(tmp_path.rglob("*"))}
+    return {
+        str(p): (p.is_symlink(), p.read_bytes() if p.is_file() and not p.is_symlink() else None)
+        for p in sorted(tmp_path.rglob("*"))
+    }
 
 
-@pytest.mark.parametrize("kind", ["text", "yaml", "directory", "symlink", "dangling", "foreign-hdf5",
-                                  "devnull", "below-a-file", "foreign-journal"])
+@pytest.mark.parametrize(
+    "kind",
+    [
+        "text",
+        "yaml",
+        "directory",
+        "symlink",
+        "dangling",
+        "foreign-hdf5",
+        "devnull",
+        "below-a-file",
+        "foreign-journal",
+    ],
+)
 def test_overwrite_refuses_anything_but_a_result_file(tmp_path, cfg, kind):
     target = _make_target(tmp_path, kind)
     before = _tree(tmp_path)
@@ -450,12 +473,30 @@ def test_cuda_node_limit_is_checked_before_any_file(tmp_path, command):
     if command == "run":
         cfg.write_text(f"graph: {{kind: lollipop, nodes: {n}, path: 3}}\nedges: ['2->1']\n" + common)
     else:
-        cfg.write_text("name: big\nsweep:\n  family: graphs\n  graphs:\n"
-                       f"    - {{kind: networkx, generator: path_graph, args: {{n: {n}}}}}\n" + common)
+        cfg.write_text(
+            "name: big\nsweep:\n  family: graphs\n  graphs:\n"
+            f"    - {{kind: networkx, generator: path_graph, args: {{n: {n}}}}}\n" + common
+        )
     env = os.environ | {"NUMBA_ENABLE_CUDASIM": "1"}
-    res = subprocess.run([sys.executable, "-m", "antisync", command, str(cfg), "--backend", "cuda",
-                          "--out", str(tmp_path / "new" / "c.h5"), "--quiet"],
-                         cwd=REPO, capture_output=True, text=True, timeout=120, env=env)
+    res = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "antisync",
+            command,
+            str(cfg),
+            "--backend",
+            "cuda",
+            "--out",
+            str(tmp_path / "new" / "c.h5"),
+            "--quiet",
+        ],
+        cwd=REPO,
+        capture_output=True,
+        text=True,
+        timeout=120,
+        env=env,
+    )
     line = one_line_error(res)
     assert f"{n} nodes" in line and f"at most {MAX_NODES}" in line and "--backend cpu" in line
     assert sorted(p.name for p in tmp_path.iterdir()) == ["big.yaml"]
@@ -482,15 +523,21 @@ def _set(obj, key, value):
 
 
 DAMAGES = {
-    "newer format": (lambda f, g: _set(f, "format_version", 99),
-                     "written by a newer antisync (format 99); this one reads format 1"),
-    "edges not JSON": (lambda f, g: _set(g, "edges", "[\"2->1\", "), "damaged attribute 'edges'"),
+    "newer format": (
+        lambda f, g: _set(f, "format_version", 99),
+        "written by a newer antisync (format 99); this one reads format 1",
+    ),
+    "edges not JSON": (lambda f, g: _set(g, "edges", '["2->1", '), "damaged attribute 'edges'"),
     "edges not a list": (lambda f, g: _set(g, "edges", "{}"), "damaged attribute 'edges'"),
     "no block records": (lambda f, g: g.__delitem__("block_records"), "lacks dataset 'block_records'"),
-    "realizations not a number": (lambda f, g: _set(g, "realizations", "many"),
-                                  "damaged attribute 'realizations'"),
-    "shapes": (lambda f, g: (g.__delitem__("blocks_done"), g.create_dataset("blocks_done", data=[True])),
-               "dataset 'block_records' has shape"),
+    "realizations not a number": (
+        lambda f, g: _set(g, "realizations", "many"),
+        "damaged attribute 'realizations'",
+    ),
+    "shapes": (
+        lambda f, g: (g.__delitem__("blocks_done"), g.create_dataset("blocks_done", data=[True])),
+        "dataset 'block_records' has shape",
+    ),
 }
 
 
@@ -531,7 +578,7 @@ def test_damaged_sweep_metadata_is_one_line(tmp_path, sweep_reference):
     shutil.copy(ref_path, p)
     with h5py.File(p, "a") as f:
         del f["sweep/meta_json"]
-        f["sweep"].create_dataset("meta_json", data="{\"graphs\": ")
+        f["sweep"].create_dataset("meta_json", data='{"graphs": ')
     with pytest.raises(StoreError, match="meta_json is not valid JSON"):
         sweep_summary(p)
     one_line_error(invoke("summary", p))
@@ -613,7 +660,9 @@ def test_records_of_an_interrupted_run_say_incomplete(tmp_path, cfg):
         assert not f.attrs["complete"]
     from antisync.report.tables import format_records
 
-    assert "is not complete (40 of 120 realizations done): rerun the same command with --resume" \
+    assert (
+        "is not complete (40 of 120 realizations done): rerun the same command with --resume"
         in format_records(recs)
+    )
     run_config(config, output=out, resume=True)
     assert all(r["complete"] is True and r["realizations_done"] == 120 for r in records(out))

@@ -56,8 +56,10 @@ top: {graphs: 2, realizations: 80}
         ("sweep: {family: atlas, node: 6}", "unknown key 'sweep.node'"),
         ("sweep: {family: lollipop, nodes: 6}", "needs key(s) sweep.path"),
         ("sweep: {family: lollipop, nodes: '9..4', path: 1}", "sweep.nodes range '9..4' is empty"),
-        ("sweep: {family: atlas, nodes: 6}\nthresholds: [0.9]\ndynamics: {threshold: 0.9}",
-         "either thresholds"),
+        (
+            "sweep: {family: atlas, nodes: 6}\nthresholds: [0.9]\ndynamics: {threshold: 0.9}",
+            "either thresholds",
+        ),
         ("sweep: {family: atlas, nodes: 6}\nthresholds: [0.9, 1.5]", "thresholds must lie in (0, 1)"),
         ("sweep: {family: atlas, nodes: 6}\nrepeats: 0", "repeats must be an integer >= 1"),
         ("sweep: {family: atlas, nodes: 6}\nscreen: {realisations: 5}", "unknown key 'screen.realisations'"),
@@ -66,8 +68,7 @@ top: {graphs: 2, realizations: 80}
         ("sweep: {family: atlas, nodes: 6}\ngraph: {kind: atlas, index: 3}", "has no 'graph' key"),
         ("graph: {kind: atlas, index: 3}", "missing key 'sweep'"),
         ("sweep: {family: atlas, nodes: 6}\nrealizations: 0", "realizations must be an integer in 1..10**15"),
-        ("sweep: {family: graphs, graphs: [{kind: atlas, index: 3}, {kind: atlas, index: 3}]}",
-         "used twice"),
+        ("sweep: {family: graphs, graphs: [{kind: atlas, index: 3}, {kind: atlas, index: 3}]}", "used twice"),
     ],
 )
 def test_schema_errors_name_the_key(text, message):
@@ -92,8 +93,10 @@ def test_shipped_configs_are_valid(name):
 
 
 def test_overrides_and_ranges():
-    sw = load_sweep_text("sweep: {family: lollipop, nodes: '4..20', path: 1}\nedges: fig2",
-                         overrides=["realizations=77", "sweep.path=[1, 2]", "repeats=3"])
+    sw = load_sweep_text(
+        "sweep: {family: lollipop, nodes: '4..20', path: 1}\nedges: fig2",
+        overrides=["realizations=77", "sweep.path=[1, 2]", "repeats=3"],
+    )
     assert sw.base.realizations == 77 and sw.repeats == 3
     assert sw.family["nodes"] == list(range(4, 21)) and sw.family["path"] == [1, 2]
     assert sw.base.keep_pairs == 0  # sweep default
@@ -154,8 +157,10 @@ def test_orbits_match_enumerated_automorphisms(index):
 
 
 def test_expand_records_fans_out_to_every_orbit_member():
-    recs = [{"graph": "g", "edge": "0->1", "beta": 0.5, "lambda_km": 0.2},
-            {"graph": "g", "edge": "1->0", "beta": 0.5, "lambda_km": -0.1}]
+    recs = [
+        {"graph": "g", "edge": "0->1", "beta": 0.5, "lambda_km": 0.2},
+        {"graph": "g", "edge": "1->0", "beta": 0.5, "lambda_km": -0.1},
+    ]
     orbits = {"0->1": "0->1", "1->0": "1->0", "2->1": "0->1", "0->2": "0->1"}
     out = expand_records(recs, orbits)
     assert [r["edge"] for r in out] == ["0->1", "1->0", "2->1", "0->2"]
@@ -167,11 +172,26 @@ def test_expand_records_fans_out_to_every_orbit_member():
 
 def test_ranking_sums_positive_lambdas():
     def rec(g, e, lam, rep=0):
-        return {"graph": g, "edge": e, "lambda_km": lam, "lambda_km_se": 0.01, "threshold": 0.99,
-                "repeat": rep, "beta": None, "tau0_mean": 1.0, "tau0_se": 0.1}
+        return {
+            "graph": g,
+            "edge": e,
+            "lambda_km": lam,
+            "lambda_km_se": 0.01,
+            "threshold": 0.99,
+            "repeat": rep,
+            "beta": None,
+            "tau0_mean": 1.0,
+            "tau0_se": 0.1,
+        }
 
-    recs = [rec("A", "0->1", 0.3), rec("A", "1->0", -0.5), rec("B", "0->1", 0.2), rec("B", "1->0", 0.15),
-            rec("B", "0->1", 0.4, rep=1), rec("B", "1->0", 0.15, rep=1)]
+    recs = [
+        rec("A", "0->1", 0.3),
+        rec("A", "1->0", -0.5),
+        rec("B", "0->1", 0.2),
+        rec("B", "1->0", 0.15),
+        rec("B", "0->1", 0.4, rep=1),
+        rec("B", "1->0", 0.15, rep=1),
+    ]
     rows = ranking(recs, 0.99)
     assert [r["graph"] for r in rows] == ["B", "A"]
     assert math.isclose(rows[0]["score"], 0.3 + 0.15) and rows[0]["max_edge"] == "0->1"
@@ -201,8 +221,9 @@ def test_screening_excludes_the_rings_and_keeps_slow_graphs():
     4-cycle whose degenerate twisted state gives the longest transients of the atlas)."""
     from antisync.screening import screen_graph
 
-    candidates = [g for g in range(53, 209) if nx.is_connected(graphs.atlas(g))
-                  and _which(graphs.atlas(g)) is not None]
+    candidates = [
+        g for g in range(53, 209) if nx.is_connected(graphs.atlas(g)) and _which(graphs.atlas(g)) is not None
+    ]
     assert len(candidates) == 3
     for index in candidates + [96, 126, 150, 208]:
         g = graphs.atlas(index)
@@ -320,8 +341,7 @@ def test_fanned_out_records_match_direct_xi2(tiny_reference):
     from antisync.measures.spectral import lambda_xi2
 
     _, _, ref = tiny_reference
-    built = {"path_graph": nx.path_graph(3), "lollipop_4_1": graphs.lollipop(4, 1),
-             "G18": graphs.atlas(18)}
+    built = {"path_graph": nx.path_graph(3), "lollipop_4_1": graphs.lollipop(4, 1), "G18": graphs.atlas(18)}
     for r in ref["records"]:
         g = built[r["graph"]]
         nodes = graphs.node_order(g)
@@ -332,11 +352,14 @@ def test_fanned_out_records_match_direct_xi2(tiny_reference):
 
 @pytest.mark.parametrize(
     ("crash_after", "exc", "stage"),
-    [(0, RuntimeError, "main"), (7, RuntimeError, "main"), (9, KeyboardInterrupt, "main"),
-     (19, RuntimeError, "top")],
+    [
+        (0, RuntimeError, "main"),
+        (7, RuntimeError, "main"),
+        (9, KeyboardInterrupt, "main"),
+        (19, RuntimeError, "top"),
+    ],
 )
-def test_interrupted_sweep_resumes_to_the_same_file(tiny_reference, tmp_path, crash_after, exc,
-                                                    stage):
+def test_interrupted_sweep_resumes_to_the_same_file(tiny_reference, tmp_path, crash_after, exc, stage):
     """Killed right after screening, in the main stage (3 graphs x 6 chunks of 20) or in the top
     stage, or interrupted with Ctrl-C, then resumed: the same numbers as uninterrupted."""
     from antisync.runner import Interrupted
@@ -344,8 +367,9 @@ def test_interrupted_sweep_resumes_to_the_same_file(tiny_reference, tmp_path, cr
     sw, _, ref = tiny_reference
     path = tmp_path / "tiny.h5"
     with pytest.raises(Interrupted if exc is KeyboardInterrupt else RuntimeError):
-        run_sweep(sw, output=path, progress=False, chunk_realizations=20,
-                  executor=_CrashAfter(crash_after, exc))
+        run_sweep(
+            sw, output=path, progress=False, chunk_realizations=20, executor=_CrashAfter(crash_after, exc)
+        )
     if stage == "main":  # screening results wait in the journal until the first checkpoint
         assert len(list((tmp_path / "tiny.h5.partial" / "screen").glob("*.json"))) == 4
     if exc is KeyboardInterrupt:  # the checkpoint already holds the screening
@@ -405,8 +429,20 @@ def test_cli_sweep_summary_and_report(tmp_path):
     cfg.write_text(TINY.replace("top: {graphs: 2, realizations: 80}", "top: {graphs: 1, realizations: 40}"))
     out = tmp_path / "tiny.h5"
     runner = CliRunner()
-    res = runner.invoke(app, ["sweep", str(cfg), "--out", str(out), "--quiet", "--realizations", "40",
-                              "--set", "screen.realizations=40"])
+    res = runner.invoke(
+        app,
+        [
+            "sweep",
+            str(cfg),
+            "--out",
+            str(out),
+            "--quiet",
+            "--realizations",
+            "40",
+            "--set",
+            "screen.realizations=40",
+        ],
+    )
     assert res.exit_code == 0, res.output
     res = runner.invoke(app, ["summary", str(out), "--format", "json"])
     assert res.exit_code == 0, res.output
@@ -419,8 +455,15 @@ def test_cli_sweep_summary_and_report(tmp_path):
     assert res.exit_code == 0 and "excluded C5" in res.output
     res = runner.invoke(app, ["report", str(out), "--out", str(tmp_path / "fig"), "--quiet"])
     assert res.exit_code == 0, res.output
-    for name in ("fig3_ranking.png", "table1.md", "table1.csv", "table1.tex", "fig4_histograms.png",
-                 "fig5_measures.png", "index.md"):
+    for name in (
+        "fig3_ranking.png",
+        "table1.md",
+        "table1.csv",
+        "table1.tex",
+        "fig4_histograms.png",
+        "fig5_measures.png",
+        "index.md",
+    ):
         assert (tmp_path / "fig" / name).exists(), name
     res = runner.invoke(app, ["sweep", str(cfg), "--out", str(out), "--quiet"])
     assert res.exit_code == 2 and "already exists" in res.output
@@ -435,12 +478,36 @@ def test_table1_formats():
     assert fmt_pm(9.31254, 0.0123) == ("9.313", "0.012")
     assert fmt_pm(0.1321, 0.0021) == ("0.1321", "0.0021")
     assert fmt_pm(1.08234, None) == ("1.082", "-")
-    rows = [{"rank": 1, "graph": "G171", "edge": "2->1", "tau0_mean": 9.3125, "tau0_se": 0.0031,
-             "lambda_km": 0.1321, "lambda_km_se": 0.0042, "F_mean": 1.0823, "F_se": 0.00051,
-             "beta": 0.5, "n_tau0": 1000, "n_F": 1000},
-            {"rank": 2, "graph": "lollipop_6_3", "edge": "2->1", "tau0_mean": 9.5614, "tau0_se": 0.01,
-             "lambda_km": 0.2653, "lambda_km_se": 0.005, "F_mean": None, "F_se": None, "beta": None,
-             "n_tau0": None, "n_F": None}]
+    rows = [
+        {
+            "rank": 1,
+            "graph": "G171",
+            "edge": "2->1",
+            "tau0_mean": 9.3125,
+            "tau0_se": 0.0031,
+            "lambda_km": 0.1321,
+            "lambda_km_se": 0.0042,
+            "F_mean": 1.0823,
+            "F_se": 0.00051,
+            "beta": 0.5,
+            "n_tau0": 1000,
+            "n_F": 1000,
+        },
+        {
+            "rank": 2,
+            "graph": "lollipop_6_3",
+            "edge": "2->1",
+            "tau0_mean": 9.5614,
+            "tau0_se": 0.01,
+            "lambda_km": 0.2653,
+            "lambda_km_se": 0.005,
+            "F_mean": None,
+            "F_se": None,
+            "beta": None,
+            "n_tau0": None,
+            "n_F": None,
+        },
+    ]
     md = format_table1(rows, "markdown").splitlines()
     assert md[0].startswith("| rank | graph | <tau0> |") and "<F_0.5>" in md[0]
     assert md[2] == "| 1 | G171 | 9.3125 ± 0.0031 | 2->1 | 0.1321 ± 0.0042 | 1.08230 ± 0.00051 |"
@@ -498,8 +565,7 @@ def test_paper_precision_commands_are_valid_configs():
     from antisync.cli.app import app
     from antisync.paper import PAPER_PRECISION
 
-    commands = [c for c in PAPER_PRECISION.replace("\\\n", " ").splitlines()
-                if c.startswith("antisync ")]
+    commands = [c for c in PAPER_PRECISION.replace("\\\n", " ").splitlines() if c.startswith("antisync ")]
     assert len(commands) == 6
     as_set = {"--realizations": "realizations", "--backend": "backend", "--out": "output"}
     for command in commands:
@@ -529,10 +595,19 @@ def _fig2b(tmp_path, nodes: str, realizations: int) -> tuple[list[dict], dict]:
     from antisync.report.sweep import plot_fig2
     from antisync.sweeps import trend_in_n
 
-    sw = load_sweep(REPO / "configs" / "lollipop_L1.yaml",
-                    [f"sweep.nodes={nodes}", "betas=[]", "repeats=1", "lambda.method=orbit",
-                     "dynamics.integrator=rk4", "dynamics.dt=0.04",
-                     f"realizations={realizations}", "screen.realizations=50"])
+    sw = load_sweep(
+        REPO / "configs" / "lollipop_L1.yaml",
+        [
+            f"sweep.nodes={nodes}",
+            "betas=[]",
+            "repeats=1",
+            "lambda.method=orbit",
+            "dynamics.integrator=rk4",
+            "dynamics.dt=0.04",
+            f"realizations={realizations}",
+            "screen.realizations=50",
+        ],
+    )
     path = tmp_path / "fig2b.h5"
     run_sweep(sw, output=path, progress=False)
     summary = sweep_summary(path)
@@ -564,8 +639,10 @@ def test_fig2b_lambda_positive_and_decreasing_all_n(tmp_path):
 def test_trend_in_n_counts_resolved_steps_and_the_gap():
     from antisync.sweeps import trend_in_n
 
-    rows = [{"N": n, "lambda_km": v, "lambda_km_se": 1.0}
-            for n, v in zip(range(4, 9), [30.0, 20.0, 18.0, 19.0, 3.0], strict=True)]
+    rows = [
+        {"N": n, "lambda_km": v, "lambda_km_se": 1.0}
+        for n, v in zip(range(4, 9), [30.0, 20.0, 18.0, 19.0, 3.0], strict=True)
+    ]
     tr = trend_in_n(rows, z=4.0)
     assert tr["positive"] == [4, 5, 6, 7] and tr["not_positive"] == [8]  # 3 < 4 se
     assert tr["decreases"] == [(4, 5), (7, 8)] and tr["unresolved"] == [(5, 6), (6, 7)]

@@ -23,8 +23,11 @@ ResultArg = Annotated[
 ]
 SetOpt = Annotated[
     list[str] | None,
-    typer.Option("--set", help="Override a config key, value parsed as YAML: --set realizations=5000 "
-                 "--set dynamics.dt=0.0005. Repeatable."),
+    typer.Option(
+        "--set",
+        help="Override a config key, value parsed as YAML: --set realizations=5000 "
+        "--set dynamics.dt=0.0005. Repeatable.",
+    ),
 ]
 DebugOpt = Annotated[bool, typer.Option("--debug", help="Show tracebacks for errors.")]
 QuietOpt = Annotated[bool, typer.Option("--quiet", "-q", help="No progress bar or messages.")]
@@ -104,8 +107,11 @@ def os_message(exc: OSError) -> str:
 def typed_values(**options) -> dict:
     """The CLI's typed options as config values, set as they are (never parsed as YAML):
     ``--out '#x.h5'`` is the file ``#x.h5`` and ``--out null`` the file ``null``."""
-    return {key: (str(value) if isinstance(value, Path) else value)
-            for key, value in options.items() if value is not None}
+    return {
+        key: (str(value) if isinstance(value, Path) else value)
+        for key, value in options.items()
+        if value is not None
+    }
 
 
 @contextlib.contextmanager
@@ -120,10 +126,11 @@ def dask_executor(cfg, *, workers: int | None, scheduler: str | None, quiet: boo
     try:
         from antisync.executors.dask import DaskExecutor
     except ImportError as exc:
-        raise AntisyncError(f"the dask executor is not available here ({exc}); "
-                            "install antisync with its dependencies (pip install -e .)") from None
-    ex = DaskExecutor.from_options(cfg, workers=workers, scheduler=scheduler,
-                                   log=lambda m: info(m, quiet))
+        raise AntisyncError(
+            f"the dask executor is not available here ({exc}); "
+            "install antisync with its dependencies (pip install -e .)"
+        ) from None
+    ex = DaskExecutor.from_options(cfg, workers=workers, scheduler=scheduler, log=lambda m: info(m, quiet))
     try:
         yield ex
     finally:

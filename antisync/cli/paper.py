@@ -13,14 +13,17 @@ from antisync.types import Backend
 
 @user_errors
 def paper(
-    out: Annotated[Path, typer.Option("--out", "-o", help="Folder for files, figures and README.md.")]
-    = Path("results/paper"),
-    scale: Annotated[float, typer.Option(help="Multiply every step's realizations (1: ~30 min on 2 cores).")]
-    = 1.0,
+    out: Annotated[Path, typer.Option("--out", "-o", help="Folder for files, figures and README.md.")] = Path(
+        "results/paper"
+    ),
+    scale: Annotated[
+        float, typer.Option(help="Multiply every step's realizations (1: ~30 min on 2 cores).")
+    ] = 1.0,
     only: Annotated[list[str] | None, typer.Option(help="Run only this step (repeatable).")] = None,
     threads: Annotated[int | None, typer.Option(help="CPU threads (default: all cores).")] = None,
-    backend: Annotated[Backend, backend_option(
-        "Backend of every step (auto: cuda when a GPU is usable).")] = "cpu",
+    backend: Annotated[
+        Backend, backend_option("Backend of every step (auto: cuda when a GPU is usable).")
+    ] = "cpu",
     overwrite: Annotated[bool, typer.Option("--overwrite", help="Start again instead of resuming.")] = False,
     dry_run: Annotated[bool, typer.Option("--dry-run", help="Print the plan and its time estimate.")] = False,
     quiet: QuietOpt = False,
@@ -42,6 +45,13 @@ def paper(
     if dry_run:
         typer.echo(plan(scale))
         return
-    make_paper(out, scale=scale, overwrite=overwrite, threads=threads, backend=backend,
-               only=tuple(only or ()), progress=None if not quiet else False,
-               log=lambda m: info(m, quiet))
+    make_paper(
+        out,
+        scale=scale,
+        overwrite=overwrite,
+        threads=threads,
+        backend=backend,
+        only=tuple(only or ()),
+        progress=None if not quiet else False,
+        log=lambda m: info(m, quiet),
+    )

@@ -52,18 +52,26 @@ def run(
 
     if resume and overwrite:
         raise AntisyncError("--resume and --overwrite exclude each other: choose one")
-    values = typed_values(realizations=realizations, seed=seed, output=out, backend=backend,
-                          executor=executor, threads=threads)
+    values = typed_values(
+        realizations=realizations, seed=seed, output=out, backend=backend, executor=executor, threads=threads
+    )
     cfg = load_config(config, list(set_ or []), values)
     with dask_executor(cfg, workers=workers, scheduler=scheduler, quiet=quiet) as ex:
         try:
-            path = run_config(cfg, resume=resume, overwrite=overwrite,
-                              progress=None if not quiet else False, executor=ex,
-                              log=lambda m: info(m, quiet))
+            path = run_config(
+                cfg,
+                resume=resume,
+                overwrite=overwrite,
+                progress=None if not quiet else False,
+                executor=ex,
+                log=lambda m: info(m, quiet),
+            )
         except Interrupted as exc:
             info(f"antisync: {exc}")
             raise typer.Exit(130) from None
         except OSError as exc:  # a full disk, a file size limit, a folder turned read-only
-            raise AntisyncError(f"cannot write {cfg.output}: {os_message(exc)}; finished chunks "
-                                "are kept: make room and rerun the same command with --resume") from None
+            raise AntisyncError(
+                f"cannot write {cfg.output}: {os_message(exc)}; finished chunks "
+                "are kept: make room and rerun the same command with --resume"
+            ) from None
     info(f"wrote {path}  (next: antisync summary {path}; antisync report {path})", quiet)

@@ -27,14 +27,18 @@ def sweep(
     config: ConfigArg,
     realizations: Annotated[int | None, typer.Option(help="Override `realizations` (main stage).")] = None,
     out: Annotated[Path | None, typer.Option("--out", "-o", help="Override `output` (HDF5 path).")] = None,
-    resume: Annotated[bool, typer.Option(
-        "--resume", help="Finish an interrupted sweep in the same file.")] = False,
+    resume: Annotated[
+        bool, typer.Option("--resume", help="Finish an interrupted sweep in the same file.")
+    ] = False,
     overwrite: Annotated[bool, typer.Option("--overwrite", help="Replace an existing output file.")] = False,
-    backend: Annotated[Backend | None, backend_option(
-        "Override `backend` (auto: cuda when a GPU is usable; screening is always cpu).")] = None,
+    backend: Annotated[
+        Backend | None,
+        backend_option("Override `backend` (auto: cuda when a GPU is usable; screening is always cpu)."),
+    ] = None,
     threads: Annotated[int | None, typer.Option(help="CPU threads (default: all cores).")] = None,
-    workers: Annotated[int | None, typer.Option(
-        help="Dask: start a LocalCluster with this many workers.")] = None,
+    workers: Annotated[
+        int | None, typer.Option(help="Dask: start a LocalCluster with this many workers.")
+    ] = None,
     scheduler: Annotated[str | None, typer.Option(help="Dask: address of an existing scheduler.")] = None,
     set_: SetOpt = None,
     quiet: QuietOpt = False,
@@ -59,12 +63,20 @@ def sweep(
     sw = load_sweep(config, list(set_ or []), values)
     with dask_executor(sw.base, workers=workers, scheduler=scheduler, quiet=quiet) as ex:
         try:
-            path = run_sweep(sw, resume=resume, overwrite=overwrite, executor=ex,
-                             progress=None if not quiet else False, log=lambda m: info(m, quiet))
+            path = run_sweep(
+                sw,
+                resume=resume,
+                overwrite=overwrite,
+                executor=ex,
+                progress=None if not quiet else False,
+                log=lambda m: info(m, quiet),
+            )
         except Interrupted as exc:
             info(f"antisync: {exc}")
             raise typer.Exit(130) from None
         except OSError as exc:  # a full disk, a file size limit, a folder turned read-only
-            raise AntisyncError(f"cannot write {sw.output}: {os_message(exc)}; finished chunks "
-                                "are kept: make room and rerun the same command with --resume") from None
+            raise AntisyncError(
+                f"cannot write {sw.output}: {os_message(exc)}; finished chunks "
+                "are kept: make room and rerun the same command with --resume"
+            ) from None
     info(f"wrote {path}  (next: antisync summary {path}; antisync report {path})", quiet)

@@ -197,8 +197,30 @@ def make_kernels(jit, dtype=np.float64) -> Kernels:
 
     euler_step_lanes = jit(euler_step_lanes)
 
-    def tangent_step_lanes(c, s, acc, sum_c, sum_s, tot_c, tot_s, lw, indptr, indices, dt, r2, taylor,
-                           u, du, cu, su, edge_a, edge_b, rho, mu, dr2):
+    def tangent_step_lanes(
+        c,
+        s,
+        acc,
+        sum_c,
+        sum_s,
+        tot_c,
+        tot_s,
+        lw,
+        indptr,
+        indices,
+        dt,
+        r2,
+        taylor,
+        u,
+        du,
+        cu,
+        su,
+        edge_a,
+        edge_b,
+        rho,
+        mu,
+        dr2,
+    ):
         """Euler step plus its tangents ``u[e] = dtheta/dbeta_e`` for damage on each edge ``e``.
 
         The tangent of ``theta <- theta + dt f(theta, W(beta))`` is
@@ -279,8 +301,9 @@ def make_kernels(jit, dtype=np.float64) -> Kernels:
                 for q in range(lanes):
                     yc[i, q] = c[i, q] + h * k[src, i, q]
                     ys[i, q] = s[i, q] + h * k[src + 1, i, q]
-            lane_velocity(yc, ys, k[2 * stage], k[2 * stage + 1], dtot, omega, sum_c, sum_s, lw,
-                          indptr, indices)
+            lane_velocity(
+                yc, ys, k[2 * stage], k[2 * stage + 1], dtot, omega, sum_c, sum_s, lw, indptr, indices
+            )
         for i in range(n):
             for q in range(lanes):
                 cn = c[i, q] + dt / 6.0 * (k[0, i, q] + 2.0 * k[2, i, q] + 2.0 * k[4, i, q] + k[6, i, q])
@@ -305,8 +328,12 @@ def make_kernels(jit, dtype=np.float64) -> Kernels:
             x = 0.5 * (lo + hi)
             x2 = x * x
             x3 = x2 * x
-            p = ((2 * x3 - 3 * x2 + 1) * r0 + (x3 - 2 * x2 + x) * dt * d0
-                 + (-2 * x3 + 3 * x2) * r1 + (x3 - x2) * dt * d1)
+            p = (
+                (2 * x3 - 3 * x2 + 1) * r0
+                + (x3 - 2 * x2 + x) * dt * d0
+                + (-2 * x3 + 3 * x2) * r1
+                + (x3 - x2) * dt * d1
+            )
             if p >= target:
                 hi = x
             else:

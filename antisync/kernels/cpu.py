@@ -114,8 +114,7 @@ class _Tangents(NamedTuple):
     """float64 (E,)"""
 
 
-_NO_TANGENTS = _Tangents(np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64), np.zeros(0),
-                         np.zeros(0))
+_NO_TANGENTS = _Tangents(np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64), np.zeros(0), np.zeros(0))
 
 
 @njit(parallel=True, cache=True)
@@ -188,8 +187,32 @@ def _start_state(seed, k, ci, si, r2_target):
 
 
 @njit(inline="always")
-def _load_lane(q, qr, qv, r_hi, seed, ks, base_w, var_w, var_is_base, r2_target, c, s, lw,
-               ci, si, lane_r, lane_v, lane_k, status0, steps0, frac0, status, steps, frac):
+def _load_lane(
+    q,
+    qr,
+    qv,
+    r_hi,
+    seed,
+    ks,
+    base_w,
+    var_w,
+    var_is_base,
+    r2_target,
+    c,
+    s,
+    lw,
+    ci,
+    si,
+    lane_r,
+    lane_v,
+    lane_k,
+    status0,
+    steps0,
+    frac0,
+    status,
+    steps,
+    frac,
+):
     """Put the next queued item that needs integrating into lane ``q``.
 
     Items already synchronized at t = 0 are recorded on the spot. Returns the advanced cursor
@@ -313,13 +336,37 @@ def _integrate_lanes(ks, graph, run, out, tangents, n_groups):
         qr, qv = r_lo, -1
         active = 0
         for q in range(lanes):
-            qr, qv, filled = _load_lane(q, qr, qv, r_hi, seed, ks, base_w, var_w, var_is_base,
-                                        r2_target, c, s, lw, ci, si, lane_r, lane_v, lane_k,
-                                        status0, steps0, frac0, status, steps, frac)
+            qr, qv, filled = _load_lane(
+                q,
+                qr,
+                qv,
+                r_hi,
+                seed,
+                ks,
+                base_w,
+                var_w,
+                var_is_base,
+                r2_target,
+                c,
+                s,
+                lw,
+                ci,
+                si,
+                lane_r,
+                lane_v,
+                lane_k,
+                status0,
+                steps0,
+                frac0,
+                status,
+                steps,
+                frac,
+            )
             active += filled
             if filled:
-                _lane_initial(c, s, kv, dtot, acc, sum_c, sum_s, lw, indptr, indices, rk4, q, r2, dr2,
-                              u, dr2t)
+                _lane_initial(
+                    c, s, kv, dtot, acc, sum_c, sum_s, lw, indptr, indices, rk4, q, r2, dr2, u, dr2t
+                )
         while active > 0:
             for q in range(lanes):
                 r2_prev[q] = r2[q]
@@ -329,8 +376,30 @@ def _integrate_lanes(ks, graph, run, out, tangents, n_groups):
             if rk4:
                 _rk4_lanes(c, s, kv, yc, ys, dtot, acc, sum_c, sum_s, lw, indptr, indices, dt, r2, dr2)
             elif tangent:
-                _tangent_lanes(c, s, acc, sum_c, sum_s, tot_c, tot_s, lw, indptr, indices, dt, r2,
-                               taylor, u, du, cu, su, edge_a, edge_b, rho, mu, dr2t)
+                _tangent_lanes(
+                    c,
+                    s,
+                    acc,
+                    sum_c,
+                    sum_s,
+                    tot_c,
+                    tot_s,
+                    lw,
+                    indptr,
+                    indices,
+                    dt,
+                    r2,
+                    taylor,
+                    u,
+                    du,
+                    cu,
+                    su,
+                    edge_a,
+                    edge_b,
+                    rho,
+                    mu,
+                    dr2t,
+                )
             else:
                 _step_lanes(c, s, acc, sum_c, sum_s, tot_c, tot_s, lw, indptr, indices, dt, r2, taylor)
             for q in range(lanes):
@@ -371,13 +440,37 @@ def _integrate_lanes(ks, graph, run, out, tangents, n_groups):
                     frac[r, v] = x
                 lane_r[q] = -1
                 active -= 1
-                qr, qv, filled = _load_lane(q, qr, qv, r_hi, seed, ks, base_w, var_w, var_is_base,
-                                            r2_target, c, s, lw, ci, si, lane_r, lane_v, lane_k,
-                                            status0, steps0, frac0, status, steps, frac)
+                qr, qv, filled = _load_lane(
+                    q,
+                    qr,
+                    qv,
+                    r_hi,
+                    seed,
+                    ks,
+                    base_w,
+                    var_w,
+                    var_is_base,
+                    r2_target,
+                    c,
+                    s,
+                    lw,
+                    ci,
+                    si,
+                    lane_r,
+                    lane_v,
+                    lane_k,
+                    status0,
+                    steps0,
+                    frac0,
+                    status,
+                    steps,
+                    frac,
+                )
                 active += filled
                 if filled:
-                    _lane_initial(c, s, kv, dtot, acc, sum_c, sum_s, lw, indptr, indices, rk4, q, r2,
-                                  dr2, u, dr2t)
+                    _lane_initial(
+                        c, s, kv, dtot, acc, sum_c, sum_s, lw, indptr, indices, rk4, q, r2, dr2, u, dr2t
+                    )
         for r in range(r_lo, r_hi):
             # variants that leave W unchanged share the undamaged result
             for v in range(n_var):
@@ -525,8 +618,15 @@ def simulate(
     graph = _Graph(indptr.astype(np.int64), indices.astype(np.int64), base_weights, var_w, var_is_base)
     # |alpha_i| = dt |omega_i| <= dt sum_j |w_ij|: then the Taylor rotation is always valid
     taylor = float(dt) * _row_sum_bound(indptr, base_weights, var_w) <= TAYLOR_MAX_ANGLE
-    run = _Run(np.uint64(seed), float(dt), (threshold * n) ** 2, int(max_steps), taylor,
-               integrator == "rk4", int(lanes))
+    run = _Run(
+        np.uint64(seed),
+        float(dt),
+        (threshold * n) ** 2,
+        int(max_steps),
+        taylor,
+        integrator == "rk4",
+        int(lanes),
+    )
     with _Threads(threads) as groups:
         if not lanes:
             _integrate_batch(ks, graph, run, status0, steps0, status, steps)
@@ -567,16 +667,30 @@ def simulate_pathwise(
     n = indptr.size - 1
     m = ks.size
     base_weights = np.ascontiguousarray(base_weights, dtype=np.float64)
-    out = _Outputs(np.empty(m, dtype=np.int8), np.empty(m, dtype=np.int64), np.empty(m),
-                   np.empty((m, 0), dtype=np.int8), np.empty((m, 0), dtype=np.int64), np.empty((m, 0)),
-                   np.empty((m, len(edge_a))))
-    graph = _Graph(indptr.astype(np.int64), indices.astype(np.int64), base_weights,
-                   np.empty((0, base_weights.size)), np.zeros(0, dtype=np.bool_))
+    out = _Outputs(
+        np.empty(m, dtype=np.int8),
+        np.empty(m, dtype=np.int64),
+        np.empty(m),
+        np.empty((m, 0), dtype=np.int8),
+        np.empty((m, 0), dtype=np.int64),
+        np.empty((m, 0)),
+        np.empty((m, len(edge_a))),
+    )
+    graph = _Graph(
+        indptr.astype(np.int64),
+        indices.astype(np.int64),
+        base_weights,
+        np.empty((0, base_weights.size)),
+        np.zeros(0, dtype=np.bool_),
+    )
     taylor = float(dt) * _row_sum_bound(indptr, base_weights, []) <= TAYLOR_MAX_ANGLE
-    run = _Run(np.uint64(seed), float(dt), (threshold * n) ** 2, int(max_steps), taylor, False,
-               int(lanes))
-    tangents = _Tangents(np.asarray(edge_a, dtype=np.int64), np.asarray(edge_b, dtype=np.int64),
-                         np.asarray(rho, dtype=np.float64), np.asarray(mu, dtype=np.float64))
+    run = _Run(np.uint64(seed), float(dt), (threshold * n) ** 2, int(max_steps), taylor, False, int(lanes))
+    tangents = _Tangents(
+        np.asarray(edge_a, dtype=np.int64),
+        np.asarray(edge_b, dtype=np.int64),
+        np.asarray(rho, dtype=np.float64),
+        np.asarray(mu, dtype=np.float64),
+    )
     with _Threads(threads) as groups:
         _integrate_lanes(ks, graph, run, out, tangents, groups)
     return PathwiseResult(out.status0, out.steps0, out.frac0, out.dtau)

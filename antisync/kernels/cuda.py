@@ -100,8 +100,7 @@ def _kernels(precision: Precision):
             s[i] = math.sin(th)
 
     @cuda.jit
-    def tau0_kernel(seed, first, count, indptr, indices, weights, dt, r2_target, max_steps,
-                    status0, steps0):
+    def tau0_kernel(seed, first, count, indptr, indices, weights, dt, r2_target, max_steps, status0, steps0):
         n = indptr.shape[0] - 1
         c = cuda.local.array(MAX_NODES, nbtype)[:n]
         s = cuda.local.array(MAX_NODES, nbtype)[:n]
@@ -113,8 +112,22 @@ def _kernels(precision: Precision):
             steps0[r] = k
 
     @cuda.jit
-    def variant_kernel(seed, first, count, indptr, indices, var_w, var_is_base, dt, r2_target,
-                       max_steps, status0, steps0, status, steps):
+    def variant_kernel(
+        seed,
+        first,
+        count,
+        indptr,
+        indices,
+        var_w,
+        var_is_base,
+        dt,
+        r2_target,
+        max_steps,
+        status0,
+        steps0,
+        status,
+        steps,
+    ):
         n = indptr.shape[0] - 1
         n_var = var_w.shape[0]
         c = cuda.local.array(MAX_NODES, nbtype)[:n]
@@ -140,6 +153,7 @@ def _kernels(precision: Precision):
 def _reducers():
     """Kernels for block records, the tail histogram and the (tau0, tau(beta)) histograms."""
     if _simulated():
+
         def mul(x, y):
             return x * y
     else:
@@ -281,8 +295,19 @@ def _grid(total: int) -> int:
     return max(1, min(-(-total // THREADS_PER_BLOCK), _MAX_GRID))
 
 
-def _prepare(seed, first, count, indptr, indices, base_weights, variant_weights, dt, threshold,
-             max_steps, precision: Precision):
+def _prepare(
+    seed,
+    first,
+    count,
+    indptr,
+    indices,
+    base_weights,
+    variant_weights,
+    dt,
+    threshold,
+    max_steps,
+    precision: Precision,
+):
     """Validate the public arguments; return the device-ready host arrays and scalars."""
     if precision not in PRECISIONS:
         raise AntisyncError(f"precision must be one of {', '.join(PRECISIONS)}, got {precision!r}")
@@ -295,8 +320,9 @@ def _prepare(seed, first, count, indptr, indices, base_weights, variant_weights,
             "(antisync.kernels.cuda.MAX_NODES); use backend cpu"
         )
     if not dt > 0 or not 0 < threshold < 1 or max_steps < 1:
-        raise ValueError(f"need dt > 0, 0 < threshold < 1, max_steps >= 1; got {dt}, {threshold}, "
-                         f"{max_steps}")
+        raise ValueError(
+            f"need dt > 0, 0 < threshold < 1, max_steps >= 1; got {dt}, {threshold}, {max_steps}"
+        )
     base = np.ascontiguousarray(base_weights, dtype=np.float64)
     var_w = np.ascontiguousarray(variant_weights, dtype=np.float64).reshape(-1, base.size)
     if indices.size != base.size:
@@ -346,14 +372,34 @@ def _integrate(a, first, count, precision):
         steps = cuda.device_array((count, n_var), dtype=np.int64)
     with _quiet_simulator():
         tau0_kernel[_grid(count), THREADS_PER_BLOCK](
-            a["seed"], np.int64(first), np.int64(count), indptr, indices,
-            cuda.to_device(a["base"]), a["dt"], a["r2_target"], a["max_steps"], status0, steps0,
+            a["seed"],
+            np.int64(first),
+            np.int64(count),
+            indptr,
+            indices,
+            cuda.to_device(a["base"]),
+            a["dt"],
+            a["r2_target"],
+            a["max_steps"],
+            status0,
+            steps0,
         )
         if n_var:
             variant_kernel[_grid(count * n_var), THREADS_PER_BLOCK](
-                a["seed"], np.int64(first), np.int64(count), indptr, indices,
-                cuda.to_device(a["var_w"]), cuda.to_device(a["var_is_base"]), a["dt"],
-                a["r2_target"], a["max_steps"], status0, steps0, status, steps,
+                a["seed"],
+                np.int64(first),
+                np.int64(count),
+                indptr,
+                indices,
+                cuda.to_device(a["var_w"]),
+                cuda.to_device(a["var_is_base"]),
+                a["dt"],
+                a["r2_target"],
+                a["max_steps"],
+                status0,
+                steps0,
+                status,
+                steps,
             )
     return status0, steps0, status, steps
 
@@ -397,12 +443,27 @@ def simulate(
     AntisyncError
         No usable GPU (or simulator), more than ``MAX_NODES`` nodes, or an unknown precision.
     """
-    a = _prepare(seed, first, count, indptr, indices, base_weights, variant_weights, dt,
-                 threshold, max_steps, precision)
+    a = _prepare(
+        seed,
+        first,
+        count,
+        indptr,
+        indices,
+        base_weights,
+        variant_weights,
+        dt,
+        threshold,
+        max_steps,
+        precision,
+    )
     n_var = a["var_w"].shape[0]
     if count == 0:
-        return SimResult(np.empty(0, np.int8), np.empty(0, np.int64),
-                         np.empty((0, n_var), np.int8), np.empty((0, n_var), np.int64))
+        return SimResult(
+            np.empty(0, np.int8),
+            np.empty(0, np.int64),
+            np.empty((0, n_var), np.int8),
+            np.empty((0, n_var), np.int64),
+        )
     status0, steps0, status, steps = _integrate(a, first, count, precision)
     if not n_var:
         status, steps = np.empty((count, 0), np.int8), np.empty((count, 0), np.int64)
@@ -486,14 +547,24 @@ def simulate_reduced(
     """
     if block < 1:
         raise ValueError(f"block must be >= 1, got {block}")
-    a = _prepare(seed, first, count, indptr, indices, base_weights, variant_weights, dt,
-                 threshold, max_steps, precision)
+    a = _prepare(
+        seed,
+        first,
+        count,
+        indptr,
+        indices,
+        base_weights,
+        variant_weights,
+        dt,
+        threshold,
+        max_steps,
+        precision,
+    )
     n_var = a["var_w"].shape[0]
     if n_var == 0:
         raise ValueError("simulate_reduced needs at least one variant (use simulate for tau0 alone)")
     variants = _variant_indices(hist_variants, n_var, "hist_variants")
-    lam_v = _variant_indices(lambda_variants if lambda_variants is not None else [], n_var,
-                             "lambda_variants")
+    lam_v = _variant_indices(lambda_variants if lambda_variants is not None else [], n_var, "lambda_variants")
     if lam_v.size and not (dbeta is not None and 0.0 < dbeta < 1.0):
         raise ValueError(f"lambda_variants need the damage dbeta in (0, 1), got {dbeta!r}")
     block_kernel, lambda_kernel, hist_kernel = _reducers()
@@ -525,20 +596,43 @@ def simulate_reduced(
         rec_d = cuda.device_array((nb, n_var, len(BLOCK_FIELDS)))
         rec0_d = cuda.device_array((nb, len(TAU0_FIELDS)))
         block_kernel[_grid(nb * (n_var + 1)), THREADS_PER_BLOCK](
-            status0, steps0, status, steps, float(dt), np.int64(block), edges, rec_d, rec0_d, tail,
+            status0,
+            steps0,
+            status,
+            steps,
+            float(dt),
+            np.int64(block),
+            edges,
+            rec_d,
+            rec0_d,
+            tail,
         )
-        out.rec[b0: b0 + nb] = rec_d.copy_to_host()
-        out.rec0[b0: b0 + nb] = rec0_d.copy_to_host()
+        out.rec[b0 : b0 + nb] = rec_d.copy_to_host()
+        out.rec0[b0 : b0 + nb] = rec0_d.copy_to_host()
         if lam_v.size:
             lam_d = cuda.device_array((nb, lam_v.size, len(LAMBDA_FIELDS)))
             lambda_kernel[_grid(nb * lam_v.size), THREADS_PER_BLOCK](
-                status0, steps0, status, steps, lam_v_d, float(dbeta), np.int64(block), edges,
-                lam_d, lam_tail,
+                status0,
+                steps0,
+                status,
+                steps,
+                lam_v_d,
+                float(dbeta),
+                np.int64(block),
+                edges,
+                lam_d,
+                lam_tail,
             )
-            out.lam_rec[b0: b0 + nb] = lam_d.copy_to_host()
+            out.lam_rec[b0 : b0 + nb] = lam_d.copy_to_host()
         if variants.size:
             hist_kernel[_grid(m * variants.size), THREADS_PER_BLOCK](
-                status0, steps0, status, steps, variants_d, scale, hist,
+                status0,
+                steps0,
+                status,
+                steps,
+                variants_d,
+                scale,
+                hist,
             )
     out.tail[...] = tail.copy_to_host()
     out.hist[...] = hist.copy_to_host()[: variants.size]

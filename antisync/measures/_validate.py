@@ -21,9 +21,7 @@ def as_omega(omega, *, symmetric: bool = False, name: str = "omega") -> np.ndarr
     """
     omega = np.asarray(omega, dtype=np.float64)
     if omega.ndim != 2 or omega.shape[0] != omega.shape[1] or omega.shape[0] < 2:
-        raise ValueError(
-            f"{name} must be a square (N, N) matrix with N >= 2, got shape {omega.shape}"
-        )
+        raise ValueError(f"{name} must be a square (N, N) matrix with N >= 2, got shape {omega.shape}")
     if not np.all(np.isfinite(omega)) or np.any(omega < 0):
         raise ValueError(f"{name} must have finite, non-negative weights")
     if np.any(np.diag(omega) != 0):

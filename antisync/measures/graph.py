@@ -15,8 +15,13 @@ if TYPE_CHECKING:
 __all__ = ["for_graph"]
 
 
-def for_graph(graph: nx.Graph | Mapping, *, which: tuple[str, ...] = ("xi2", "rw"),
-             edges: str | list[str] = "all", coupling: str = "normalized") -> list[dict]:
+def for_graph(
+    graph: nx.Graph | Mapping,
+    *,
+    which: tuple[str, ...] = ("xi2", "rw"),
+    edges: str | list[str] = "all",
+    coupling: str = "normalized",
+) -> list[dict]:
     """Exact ``Lambda^(xi2)`` (Eq. 16) and ``Lambda^(RW)`` (Eq. 25) of directed links, no
     integration.
 
@@ -51,8 +56,10 @@ def for_graph(graph: nx.Graph | Mapping, *, which: tuple[str, ...] = ("xi2", "rw
 
     for m in which:
         if m not in ("xi2", "rw"):
-            raise ConfigError(f"measures: which must name xi2 or rw, got {m!r} (Lambda^KM and "
-                              "Lambda^linear need realizations: use antisync.run)")
+            raise ConfigError(
+                f"measures: which must name xi2 or rw, got {m!r} (Lambda^KM and "
+                "Lambda^linear need realizations: use antisync.run)"
+            )
     if coupling not in ("normalized", "raw"):
         raise ConfigError(f"coupling must be normalized or raw, got {coupling!r}")
     if "rw" in which and coupling != "normalized":
@@ -68,8 +75,7 @@ def for_graph(graph: nx.Graph | Mapping, *, which: tuple[str, ...] = ("xi2", "rw
     nodes = graphs.node_order(g)
     index = {v: i for i, v in enumerate(nodes)}
     omega = graphs.omega_matrix(g)
-    pairs = (graphs.all_directed_edges(g) if edges == "all"
-             else [graphs.parse_edge(e, g) for e in edges])
+    pairs = graphs.all_directed_edges(g) if edges == "all" else [graphs.parse_edge(e, g) for e in edges]
     idx = [(index[a], index[b]) for a, b in pairs]
     rows = [{"edge": graphs.edge_label(a, b)} for a, b in pairs]
     if "xi2" in which:

@@ -532,9 +532,7 @@ def _as_theta0(theta0, n: int) -> np.ndarray:
     if theta0.ndim == 1:
         theta0 = theta0[None, :]
     if theta0.ndim != 2 or theta0.shape[1] != n:
-        raise ValueError(
-            f"theta0 must have shape (M, {n}) for this {n}-node network, got {theta0.shape}"
-        )
+        raise ValueError(f"theta0 must have shape (M, {n}) for this {n}-node network, got {theta0.shape}")
     if not np.all(np.isfinite(theta0)):
         raise ValueError("theta0 must be finite")
     return np.ascontiguousarray(theta0)

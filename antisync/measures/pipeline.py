@@ -47,8 +47,14 @@ COMPUTED = ("linear", "xi2", "rw")
 NNC_SUFFIX = "_nnc"
 #: Summary keys added to every record, ``None`` where not computed.
 RECORD_KEYS = (
-    "lambda_linear", "lambda_linear_se", "lambda_linear_n", "lambda_linear_n_excluded",
-    "lambda_xi2", "lambda_rw", "lambda_km_nnc", "lambda_km_nnc_se",
+    "lambda_linear",
+    "lambda_linear_se",
+    "lambda_linear_n",
+    "lambda_linear_n_excluded",
+    "lambda_xi2",
+    "lambda_rw",
+    "lambda_km_nnc",
+    "lambda_km_nnc_se",
 )
 _INT_KEYS = {"lambda_linear_n", "lambda_linear_n_excluded", "lambda_linear_n_already_synced"}
 
@@ -116,10 +122,21 @@ def compute_measures(job: Job, config=None) -> dict[str, np.ndarray]:
         results = []
         for (a, b), label in zip(pairs, job.edge_labels, strict=True):
             with _naming(job, "linear", label):
-                results.append(lambda_linear(
-                    omega, a, b, theta0, dyn.threshold, dyn.coupling, job.dbeta, spec.method,
-                    dt=dyn.dt, t_max=dyn.t_max, tau0=tau0,
-                ))
+                results.append(
+                    lambda_linear(
+                        omega,
+                        a,
+                        b,
+                        theta0,
+                        dyn.threshold,
+                        dyn.coupling,
+                        job.dbeta,
+                        spec.method,
+                        dt=dyn.dt,
+                        t_max=dyn.t_max,
+                        tau0=tau0,
+                    )
+                )
         out["lambda_linear"] = np.array([r.lambda_ for r in results], dtype=float)
         out["lambda_linear_se"] = np.array([r.se for r in results], dtype=float)
         out["lambda_linear_n"] = np.array([r.n for r in results], dtype=np.int64)

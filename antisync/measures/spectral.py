@@ -56,9 +56,7 @@ def xi2(omega: np.ndarray, coupling: Coupling = "normalized") -> float:
     return float(rest.real.min())
 
 
-def f_xi2(
-    omega: np.ndarray, a: int, b: int, beta: float, coupling: Coupling = "normalized"
-) -> float:
+def f_xi2(omega: np.ndarray, a: int, b: int, beta: float, coupling: Coupling = "normalized") -> float:
     """Functionality ``F^(xi2)_beta = Re xi2(Omega*) / xi2(Omega)``, Eq. (15) of the paper.
 
     Parameters
@@ -155,9 +153,7 @@ def lambda_xi2_all(
     return dxi / xi_2
 
 
-def _symmetrized_spectrum(
-    omega: np.ndarray, coupling: Coupling
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _symmetrized_spectrum(omega: np.ndarray, coupling: Coupling) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Eigenpairs of ``Ls = D L D^-1`` for symmetric ``omega``, and the diagonal ``d`` of ``D``.
 
     Raises ``ValueError`` when ``xi_2`` is (numerically) zero: the graph is disconnected.
@@ -171,9 +167,7 @@ def _symmetrized_spectrum(
         ls = np.diag(strength) - omega
     evals, x = np.linalg.eigh(ls)
     if evals[1] <= 1e-12 * abs(evals[-1]):
-        raise ValueError(
-            "xi_2 is zero: the graph is disconnected; the measures need a connected network"
-        )
+        raise ValueError("xi_2 is zero: the graph is disconnected; the measures need a connected network")
     return evals, x, d
 
 

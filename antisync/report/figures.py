@@ -68,9 +68,18 @@ def plot_graph(view: JobView, ax) -> None:
         a, b = label.split("->")
         value = lam.get(label)
         color = cmap(norm(value)) if value is not None else "grey"
-        nx.draw_networkx_edges(g, pos, edgelist=[(a, b)], ax=ax, edge_color=[color], width=2.5,
-                               arrows=True, arrowsize=14, node_size=420,
-                               connectionstyle="arc3,rad=0.18")
+        nx.draw_networkx_edges(
+            g,
+            pos,
+            edgelist=[(a, b)],
+            ax=ax,
+            edge_color=[color],
+            width=2.5,
+            arrows=True,
+            arrowsize=14,
+            node_size=420,
+            connectionstyle="arc3,rad=0.18",
+        )
         # the value sits beside the arrow, on the side its curvature bends to
         pa, pb = np.array(pos[a]), np.array(pos[b])
         mid = (pa + pb) / 2 + 0.12 * np.array([pb[1] - pa[1], pa[0] - pb[0]])
@@ -96,8 +105,17 @@ def plot_f_beta(view: JobView, ax) -> None:
         f = [1.0] + [np.nan if r["F_mean"] is None else r["F_mean"] for r in rs]
         se = [0.0] + [r["F_se"] or 0.0 for r in rs]
         value = "n/a" if lam[edge] is None else f"{lam[edge]:+.3f}"
-        ax.errorbar(beta, f, yerr=se, color=cmap(norm(lam[edge] or 0.0)), marker="o", ms=3,
-                    lw=1.4, capsize=2, label=f"{edge} ({value})")
+        ax.errorbar(
+            beta,
+            f,
+            yerr=se,
+            color=cmap(norm(lam[edge] or 0.0)),
+            marker="o",
+            ms=3,
+            lw=1.4,
+            capsize=2,
+            label=f"{edge} ({value})",
+        )
     ax.axhline(1.0, color="k", ls="--", lw=0.8)
     ax.set_xlabel(r"damage $\beta$")
     ax.set_ylabel(r"$\langle \mathcal{F}_\beta \rangle = \langle \tau_0/\tau(\beta) \rangle$")
@@ -122,21 +140,30 @@ def plot_histogram(view: JobView, k: int, ax) -> None:
     bins = h.shape[0]
     dens = h / (total * (tmax / bins) ** 2)
     dens[dens == 0] = np.nan
-    img = ax.imshow(dens.T, origin="lower", extent=(0, tmax, 0, tmax), norm=LogNorm(),
-                    cmap="viridis", aspect="equal", interpolation="nearest")
+    img = ax.imshow(
+        dens.T,
+        origin="lower",
+        extent=(0, tmax, 0, tmax),
+        norm=LogNorm(),
+        cmap="viridis",
+        aspect="equal",
+        interpolation="nearest",
+    )
     ax.plot([0, tmax], [0, tmax], "w--", lw=1)
     edge = view.edges[int(view.variant_edge[v])]
     beta = float(view.variant_beta[v])
     below = np.tril(h, -1).sum() / total  # tau(beta) < tau0: the antifragile side
-    ax.set_title(f"{edge}, beta={beta:g}: {below:.1%} of pairs below the line ({int(total):,} pairs)",
-                 fontsize=9)
+    ax.set_title(
+        f"{edge}, beta={beta:g}: {below:.1%} of pairs below the line ({int(total):,} pairs)", fontsize=9
+    )
     ax.set_xlabel(r"$\tau_0$")
     ax.set_ylabel(r"$\tau(\beta)$")
     plt.colorbar(img, ax=ax, label="probability density (log)")
 
 
-def write_report(views: list[JobView], folder: str | Path, *, pdf: bool = False,
-                 hist_betas: tuple = (0.5,)) -> list[Path]:
+def write_report(
+    views: list[JobView], folder: str | Path, *, pdf: bool = False, hist_betas: tuple = (0.5,)
+) -> list[Path]:
     """Write every figure for every job into ``folder``; returns the written paths."""
     plt = _plt()
     folder = Path(folder)
@@ -158,8 +185,11 @@ def write_report(views: list[JobView], folder: str | Path, *, pdf: bool = False,
             fig, ax = plt.subplots(figsize=(7.5, 5))
             plot_f_beta(view, ax)
             save(fig, f"{view.graph}_F_beta")
-        chosen = [k for k, v in enumerate(view.hist_variants)
-                  if np.any(np.isclose(view.variant_beta[v], hist_betas))]
+        chosen = [
+            k
+            for k, v in enumerate(view.hist_variants)
+            if np.any(np.isclose(view.variant_beta[v], hist_betas))
+        ]
         for k in chosen:
             v = int(view.hist_variants[k])
             fig, ax = plt.subplots(figsize=(5.5, 4.8))

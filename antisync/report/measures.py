@@ -34,8 +34,7 @@ LABELS = {
     "lambda_rw": r"$\Lambda^{(\mathrm{RW})}$",
     "lambda_km_nnc": r"$\Lambda^{(\mathrm{KM-NNC})}$",
 }
-_SE = {"lambda_km": "lambda_km_se", "lambda_linear": "lambda_linear_se",
-       "lambda_km_nnc": "lambda_km_nnc_se"}
+_SE = {"lambda_km": "lambda_km_se", "lambda_linear": "lambda_linear_se", "lambda_km_nnc": "lambda_km_nnc_se"}
 _MEASURE = {"lambda_linear": "linear", "lambda_xi2": "xi2", "lambda_rw": "rw"}
 #: |Lambda| at or below this counts as neutral (0) when classifying signs: exact zeros such
 #: as 1->2 on the lollipop come out as 0 or 1e-17, never as a small statistical value.
@@ -92,8 +91,15 @@ def plot_pair(recs: list[dict], kx: str, ky: str, ax, *, label_points: bool = Fa
     ax.set_ylabel(LABELS[ky])
     if not ok.any():
         missing = [_MEASURE[k] for k in (kx, ky) if k in _MEASURE and not np.isfinite(_column(recs, k)).any()]
-        ax.text(0.5, 0.5, "not computed" + (f": add {', '.join(missing)} to measures" if missing else ""),
-                ha="center", va="center", transform=ax.transAxes, fontsize=9)
+        ax.text(
+            0.5,
+            0.5,
+            "not computed" + (f": add {', '.join(missing)} to measures" if missing else ""),
+            ha="center",
+            va="center",
+            transform=ax.transAxes,
+            fontsize=9,
+        )
         return
     x, y = x[ok], y[ok]
     sx = _column(recs, _SE[kx])[ok] if kx in _SE else np.zeros_like(x)
@@ -106,15 +112,32 @@ def plot_pair(recs: list[dict], kx: str, ky: str, ax, *, label_points: bool = Fa
     ax.axvline(0, color="k", lw=0.6)
     lo, hi = max(xlim[0], ylim[0]), min(xlim[1], ylim[1])
     ax.plot([lo, hi], [lo, hi], "k--", lw=0.8, label="$y = x$")
-    ax.errorbar(x, y, xerr=np.nan_to_num(sx), yerr=np.nan_to_num(sy), fmt="o", ms=3.5,
-                color="#1f77b4", ecolor="#9ecae1", elinewidth=0.8, capsize=0)
+    ax.errorbar(
+        x,
+        y,
+        xerr=np.nan_to_num(sx),
+        yerr=np.nan_to_num(sy),
+        fmt="o",
+        ms=3.5,
+        color="#1f77b4",
+        ecolor="#9ecae1",
+        elinewidth=0.8,
+        capsize=0,
+    )
     if label_points:
         for r, xi, yi in zip([r for r, k in zip(recs, ok, strict=True) if k], x, y, strict=True):
             ax.annotate(r["edge"], (xi, yi), fontsize=7, xytext=(3, 3), textcoords="offset points")
     agree, total = sign_agreement(x, y)
-    ax.text(0.03, 0.97, f"sign agrees: {agree}/{total} edges ({agree / total:.0%})",
-            transform=ax.transAxes, ha="left", va="top", fontsize=8,
-            bbox={"facecolor": "white", "alpha": 0.8, "lw": 0})
+    ax.text(
+        0.03,
+        0.97,
+        f"sign agrees: {agree}/{total} edges ({agree / total:.0%})",
+        transform=ax.transAxes,
+        ha="left",
+        va="top",
+        fontsize=8,
+        bbox={"facecolor": "white", "alpha": 0.8, "lw": 0},
+    )
     ax.set_xlim(*xlim)
     ax.set_ylim(*ylim)
     ax.legend(loc="lower right", fontsize=7)
@@ -135,8 +158,12 @@ def plot_fig7e(recs: list[dict], ax) -> None:
     x, y = _column(recs, "lambda_km"), _column(recs, "lambda_km_nnc")
     ok = np.isfinite(x) & np.isfinite(y)
     below = int(np.sum(y[ok] < x[ok]))
-    ax.set_title(f"{recs[0]['graph']}: " + r"$\Lambda^{(\mathrm{KM-NNC})} < \Lambda^{(\mathrm{KM})}$"
-                 + f" on {below}/{int(ok.sum())} edges", fontsize=10)
+    ax.set_title(
+        f"{recs[0]['graph']}: "
+        + r"$\Lambda^{(\mathrm{KM-NNC})} < \Lambda^{(\mathrm{KM})}$"
+        + f" on {below}/{int(ok.sum())} edges",
+        fontsize=10,
+    )
 
 
 def measure_figures(views: list[JobView]) -> Iterator[tuple[object, str]]:

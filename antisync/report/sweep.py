@@ -72,17 +72,34 @@ def table1_rows(summary: dict, n: int = 7) -> list[dict]:
             main_f.setdefault((r["graph"], r["edge"]), []).append(r)
     out = []
     for row in rows:
-        rec = {"rank": row["rank"], "graph": row["graph"], "edge": row["max_edge"],
-               "lambda_km": row["lambda_max"], "lambda_km_se": row["lambda_max_se"],
-               "tau0_mean": row["tau0_mean"], "tau0_se": row["tau0_se"],
-               "F_mean": None, "F_se": None, "beta": None, "n_tau0": None, "n_F": None}
+        rec = {
+            "rank": row["rank"],
+            "graph": row["graph"],
+            "edge": row["max_edge"],
+            "lambda_km": row["lambda_max"],
+            "lambda_km_se": row["lambda_max_se"],
+            "tau0_mean": row["tau0_mean"],
+            "tau0_se": row["tau0_se"],
+            "F_mean": None,
+            "F_se": None,
+            "beta": None,
+            "n_tau0": None,
+            "n_F": None,
+        }
         src = top.get(row["graph"])
         if src is None:
             cands = main_f.get((row["graph"], row["max_edge"]), [])
             src = min(cands, key=lambda r: abs(r["beta"] - 0.5)) if cands else None
         if src is not None:
-            rec.update(F_mean=src["F_mean"], F_se=src["F_se"], beta=src["beta"], n_F=src["n"],
-                       n_tau0=src["tau0_n"], tau0_mean=src["tau0_mean"], tau0_se=src["tau0_se"])
+            rec.update(
+                F_mean=src["F_mean"],
+                F_se=src["F_se"],
+                beta=src["beta"],
+                n_F=src["n"],
+                n_tau0=src["tau0_n"],
+                tau0_mean=src["tau0_mean"],
+                tau0_se=src["tau0_se"],
+            )
         out.append(rec)
     return out
 
@@ -121,13 +138,29 @@ def fit_gamma(x: np.ndarray, y: np.ndarray) -> dict:
     dof = max(n - 2, 1)
     cov = np.linalg.inv(a.T @ a) * float(resid @ resid) / dof
     r = float(np.corrcoef(x, y)[0, 1]) if n > 2 else math.nan
-    return {"gamma": float(coef[0]), "gamma_se": float(math.sqrt(cov[0, 0])),
-            "C": float(coef[1]), "C_se": float(math.sqrt(cov[1, 1])), "n": int(n), "pearson_r": r}
+    return {
+        "gamma": float(coef[0]),
+        "gamma_se": float(math.sqrt(cov[0, 0])),
+        "C": float(coef[1]),
+        "C_se": float(math.sqrt(cov[1, 1])),
+        "n": int(n),
+        "pearson_r": r,
+    }
 
 
 # ---- drawing -------------------------------------------------------------------------------
-def _draw_halves(ax, gm: dict, lam: dict, norm, cmap, *, width: float = 2.2, node_size: float = 18,
-                 labels: bool = False, mark: tuple | None = None) -> None:
+def _draw_halves(
+    ax,
+    gm: dict,
+    lam: dict,
+    norm,
+    cmap,
+    *,
+    width: float = 2.2,
+    node_size: float = 18,
+    labels: bool = False,
+    mark: tuple | None = None,
+) -> None:
     """Each link u-v as two halves: the half at u coloured by Lambda(u->v), the other by Lambda(v->u)."""
     from matplotlib.collections import LineCollection
 
@@ -142,8 +175,7 @@ def _draw_halves(ax, gm: dict, lam: dict, norm, cmap, *, width: float = 2.2, nod
             value = lam.get(f"{a}->{b}")
             segs.append([pa, mid])
             colors.append(cmap(norm(value)) if value is not None else (0.75, 0.75, 0.75, 1.0))
-    ax.add_collection(LineCollection(segs, colors=colors, linewidths=width, zorder=1,
-                                     capstyle="butt"))
+    ax.add_collection(LineCollection(segs, colors=colors, linewidths=width, zorder=1, capstyle="butt"))
     xy = np.array([pos[str(v)] for v in gm["nodes"]])
     ax.scatter(xy[:, 0], xy[:, 1], s=node_size, c="white", edgecolors="k", linewidths=0.6, zorder=2)
     if labels or mark:
@@ -152,8 +184,15 @@ def _draw_halves(ax, gm: dict, lam: dict, norm, cmap, *, width: float = 2.2, nod
             if mark and str(v) in mark:
                 text = "a" if str(v) == mark[0] else "b"
             if labels or (mark and str(v) in mark):
-                ax.annotate(text, pos[str(v)], ha="center", va="center", fontsize=8, zorder=3,
-                            fontweight="bold" if mark and str(v) in mark else "normal")
+                ax.annotate(
+                    text,
+                    pos[str(v)],
+                    ha="center",
+                    va="center",
+                    fontsize=8,
+                    zorder=3,
+                    fontweight="bold" if mark and str(v) in mark else "normal",
+                )
     # one square frame for every graph, so small multiples line up
     c = (xy.max(axis=0) + xy.min(axis=0)) / 2
     half = max(float(np.max(xy.max(axis=0) - xy.min(axis=0))) / 2, 0.5) + 0.22
@@ -174,22 +213,39 @@ def plot_ranking(summary: dict, ncols: int = 11):
     gms = _graph_meta(summary)
     ncols = max(1, min(ncols, len(rows)))
     nrows = max(1, -(-len(rows) // ncols))
-    fig, axes = plt.subplots(nrows, ncols, figsize=(1.3 * ncols, 1.3 * nrows + 0.9), squeeze=False,
-                             layout="constrained")
+    fig, axes = plt.subplots(
+        nrows, ncols, figsize=(1.3 * ncols, 1.3 * nrows + 0.9), squeeze=False, layout="constrained"
+    )
     for ax in axes.flat:
         ax.set_axis_off()
     for ax, row in zip(axes.flat, rows, strict=False):
         lam = {e: v["lambda_km"] for (g, e), v in lam_all.items() if g == row["graph"]}
         _draw_halves(ax, gms[row["graph"]], lam, norm, cmap)
-        ax.text(0.5, -0.02, f"{row['rank']}: {row['graph']}", transform=ax.transAxes,
-                ha="center", va="top", fontsize=7)
+        ax.text(
+            0.5,
+            -0.02,
+            f"{row['rank']}: {row['graph']}",
+            transform=ax.transAxes,
+            ha="center",
+            va="top",
+            fontsize=7,
+        )
     sm = plt.cm.ScalarMappable(norm=norm, cmap=cmap)
-    fig.colorbar(sm, ax=axes.ravel().tolist(), location="bottom", shrink=0.6, aspect=45, pad=0.07,
-                 label=r"$\Lambda^{(\mathrm{KM})}$ of $a\to b$, drawn on the half of the link at $a$")
+    fig.colorbar(
+        sm,
+        ax=axes.ravel().tolist(),
+        location="bottom",
+        shrink=0.6,
+        aspect=45,
+        pad=0.07,
+        label=r"$\Lambda^{(\mathrm{KM})}$ of $a\to b$, drawn on the half of the link at $a$",
+    )
     n_ex = len(summary["excluded"])
-    fig.suptitle(f"{len(rows)} graphs ranked by the sum of positive "
-                 r"$\Lambda^{(\mathrm{KM})}$" + f" (r = {t:g}; {n_ex} excluded by screening)",
-                 fontsize=10)
+    fig.suptitle(
+        f"{len(rows)} graphs ranked by the sum of positive "
+        r"$\Lambda^{(\mathrm{KM})}$" + f" (r = {t:g}; {n_ex} excluded by screening)",
+        fontsize=10,
+    )
     return fig
 
 
@@ -204,37 +260,64 @@ def plot_top_histograms(summary: dict, views: list, n: int = 7):
     cmap = plt.get_cmap(CMAP)
     panels = []
     for row in table1_rows(summary, n):
-        job = next((jm["job"] for jm in summary["meta"]["jobs"]
-                    if jm["graph"] == row["graph"] and jm["stage"] == "top"), None)
+        job = next(
+            (
+                jm["job"]
+                for jm in summary["meta"]["jobs"]
+                if jm["graph"] == row["graph"] and jm["stage"] == "top"
+            ),
+            None,
+        )
         if job is None:
-            job = next((jm["job"] for jm in summary["meta"]["jobs"] if jm["graph"] == row["graph"]
-                        and jm["stage"] == "main" and jm["repeat"] == 0
-                        and math.isclose(jm["threshold"], t)), None)
+            job = next(
+                (
+                    jm["job"]
+                    for jm in summary["meta"]["jobs"]
+                    if jm["graph"] == row["graph"]
+                    and jm["stage"] == "main"
+                    and jm["repeat"] == 0
+                    and math.isclose(jm["threshold"], t)
+                ),
+                None,
+            )
         view = by_job.get(job)
         if view is None or view.hist is None or not len(view.hist_variants):
             continue
-        rep = next((r["representative"] for r in summary["records"]
-                    if r["graph"] == row["graph"] and r["edge"] == row["edge"]), row["edge"])
-        ks = [k for k, v in enumerate(view.hist_variants)
-              if view.edges[int(view.variant_edge[v])] == rep]
+        rep = next(
+            (
+                r["representative"]
+                for r in summary["records"]
+                if r["graph"] == row["graph"] and r["edge"] == row["edge"]
+            ),
+            row["edge"],
+        )
+        ks = [k for k, v in enumerate(view.hist_variants) if view.edges[int(view.variant_edge[v])] == rep]
         if ks:
             k = min(ks, key=lambda k: abs(view.variant_beta[view.hist_variants[k]] - 0.5))
             panels.append((row, view, k))
     if not panels:
         return None
-    fig, axes = plt.subplots(len(panels), 2, figsize=(8.5, 4.0 * len(panels)), squeeze=False,
-                             gridspec_kw={"width_ratios": [1, 1.4], "hspace": 0.4})
+    fig, axes = plt.subplots(
+        len(panels),
+        2,
+        figsize=(8.5, 4.0 * len(panels)),
+        squeeze=False,
+        gridspec_kw={"width_ratios": [1, 1.4], "hspace": 0.4},
+    )
     for (row, view, k), (ax_g, ax_h) in zip(panels, axes, strict=True):
         lam = {e: v["lambda_km"] for (g, e), v in lam_all.items() if g == row["graph"]}
         a, b = row["edge"].split("->")
         _draw_halves(ax_g, gms[row["graph"]], lam, norm, cmap, width=4, node_size=160, mark=(a, b))
         lm, ls = fmt_pm(row["lambda_km"], row["lambda_km_se"])
-        ax_g.set_title(f"rank {row['rank']}: {row['graph']}, a->b = {row['edge']}\n"
-                       + r"$\Lambda^{(\mathrm{KM})}$" + f" = {lm} ± {ls}", fontsize=9)
+        ax_g.set_title(
+            f"rank {row['rank']}: {row['graph']}, a->b = {row['edge']}\n"
+            + r"$\Lambda^{(\mathrm{KM})}$"
+            + f" = {lm} ± {ls}",
+            fontsize=9,
+        )
         plot_histogram(view, k, ax_h)
     sm = plt.cm.ScalarMappable(norm=norm, cmap=cmap)
-    fig.colorbar(sm, ax=axes[:, 0].tolist(), location="left", shrink=0.5,
-                 label=r"$\Lambda^{(\mathrm{KM})}$")
+    fig.colorbar(sm, ax=axes[:, 0].tolist(), location="left", shrink=0.5, label=r"$\Lambda^{(\mathrm{KM})}$")
     return fig
 
 
@@ -287,10 +370,28 @@ def plot_fig2(summary: dict):
         se = np.array([r["lambda_km_se"] for r in rows_b])
         has_sd = np.all(np.isfinite(sd))
         if has_sd:  # the paper's error bar: the spread of single estimates
-            ax.errorbar(n, m, yerr=sd, fmt="none", capsize=3, color="C0", alpha=0.5, lw=1,
-                        label=f"sd of {rows_b[0]['n_repeats']} repeats")
-        ax.errorbar(n, m, yerr=se, fmt="s", ms=5, capsize=2, color="C0", lw=2,
-                    label="mean ± standard error of the mean" if has_sd else "estimate ± standard error")
+            ax.errorbar(
+                n,
+                m,
+                yerr=sd,
+                fmt="none",
+                capsize=3,
+                color="C0",
+                alpha=0.5,
+                lw=1,
+                label=f"sd of {rows_b[0]['n_repeats']} repeats",
+            )
+        ax.errorbar(
+            n,
+            m,
+            yerr=se,
+            fmt="s",
+            ms=5,
+            capsize=2,
+            color="C0",
+            lw=2,
+            label="mean ± standard error of the mean" if has_sd else "estimate ± standard error",
+        )
         if np.all(m - se > 0):  # Lambda spans decades (0.06 at N = 4, 1e-4 near N = 20)
             ax.set_yscale("log")
         else:
@@ -313,18 +414,23 @@ def fig2b_verdict(summary: dict, rows_b: list[dict]) -> list[str]:
     def ns(items) -> str:
         return ", ".join(str(x) if isinstance(x, int) else f"{x[0]}->{x[1]}" for x in items) or "none"
 
-    lines = [f"Estimator: lambda.method {', '.join(methods)} (dbeta {summary['meta'].get('dbeta', 0.01):g}).",
-             f"Positive by more than {tr['z']:g} standard errors at N = {ns(tr['positive'])}; "
-             f"not resolved at N = {ns(tr['not_positive'])}.",
-             f"Resolved decreases (> {tr['z']:g} combined standard errors): {ns(tr['decreases'])}; "
-             f"resolved increases: {ns(tr['increases'])}; unresolved steps: {ns(tr['unresolved'])}.",
-             "Every pair of sizes at least "
-             f"{tr['gap']} apart decreases by more than {tr['z']:g} combined standard errors."
-             if tr["gap"] else "Not every pair of sizes, however far apart, resolves a decrease."]
+    lines = [
+        f"Estimator: lambda.method {', '.join(methods)} (dbeta {summary['meta'].get('dbeta', 0.01):g}).",
+        f"Positive by more than {tr['z']:g} standard errors at N = {ns(tr['positive'])}; "
+        f"not resolved at N = {ns(tr['not_positive'])}.",
+        f"Resolved decreases (> {tr['z']:g} combined standard errors): {ns(tr['decreases'])}; "
+        f"resolved increases: {ns(tr['increases'])}; unresolved steps: {ns(tr['unresolved'])}.",
+        "Every pair of sizes at least "
+        f"{tr['gap']} apart decreases by more than {tr['z']:g} combined standard errors."
+        if tr["gap"]
+        else "Not every pair of sizes, however far apart, resolves a decrease.",
+    ]
     if "orbit" in methods:
-        lines.append("The orbit estimator is the derivative d<F>/dbeta at 0 (central difference "
-                     "along the damage of all links of the orbit); the paper's forward difference "
-                     "of one link at dbeta = 0.01 differs from it by an O(dbeta) term.")
+        lines.append(
+            "The orbit estimator is the derivative d<F>/dbeta at 0 (central difference "
+            "along the damage of all links of the orbit); the paper's forward difference "
+            "of one link at dbeta = 0.01 differs from it by an O(dbeta) term."
+        )
     return lines
 
 
@@ -352,8 +458,12 @@ def plot_fig6(summary: dict):
     try:
         xi2 = _stored_measure(summary, "lambda_xi2") or lambda_xi2_records(summary)
     except ImportError as exc:
-        return fig_a, None, [], (f"Fig. 6b skipped: Lambda^(xi2) needs "
-                                 f"antisync.measures.spectral.lambda_xi2 ({exc})")
+        return (
+            fig_a,
+            None,
+            [],
+            (f"Fig. 6b skipped: Lambda^(xi2) needs antisync.measures.spectral.lambda_xi2 ({exc})"),
+        )
     fig_b, ax = plt.subplots(figsize=(5.6, 5.0))
     fits = []
     for i, t in enumerate(ts):
@@ -371,11 +481,18 @@ def plot_fig6(summary: dict):
     ax.legend(fontsize=8, loc="upper left")
     if fits:
         inset = ax.inset_axes([0.62, 0.1, 0.33, 0.3])
-        inset.errorbar([f["threshold"] for f in fits], [f["gamma"] for f in fits],
-                       yerr=[f["gamma_se"] for f in fits], fmt="o-", ms=3, capsize=2)
+        inset.errorbar(
+            [f["threshold"] for f in fits],
+            [f["gamma"] for f in fits],
+            yerr=[f["gamma_se"] for f in fits],
+            fmt="o-",
+            ms=3,
+            capsize=2,
+        )
         # -log10(1 - r): 0.9, 0.99, 0.999 equally spaced
-        inset.set_xscale("function", functions=(lambda r: -np.log10(np.clip(1 - r, 1e-12, None)),
-                                                lambda u: 1 - 10 ** (-u)))
+        inset.set_xscale(
+            "function", functions=(lambda r: -np.log10(np.clip(1 - r, 1e-12, None)), lambda u: 1 - 10 ** (-u))
+        )
         inset.set_xticks(ts)
         inset.set_xticklabels([f"{t:g}" for t in ts], fontsize=6)
         inset.tick_params(labelsize=6)
@@ -408,8 +525,12 @@ def plot_fig5(summary: dict):
     missing = [name for name, v in m.items() if not v]
     if len(missing) == 3:
         return None, missing
-    label = {"km": r"$\Lambda^{(\mathrm{KM})}$", "linear": r"$\Lambda^{(\mathrm{linear})}$",
-             "xi2": r"$\Lambda^{(\xi_2)}$", "rw": r"$\Lambda^{(\mathrm{RW})}$"}
+    label = {
+        "km": r"$\Lambda^{(\mathrm{KM})}$",
+        "linear": r"$\Lambda^{(\mathrm{linear})}$",
+        "xi2": r"$\Lambda^{(\xi_2)}$",
+        "rw": r"$\Lambda^{(\mathrm{RW})}$",
+    }
     data = {"km": km, **m}
     panels = [("a", "linear", "km"), ("b", "xi2", "km"), ("c", "rw", "km"), ("d", "xi2", "rw")]
     fig, axes = plt.subplots(2, 2, figsize=(9.5, 9), layout="constrained")
@@ -419,8 +540,13 @@ def plot_fig5(summary: dict):
         ax.set_ylabel(label[yk])
         ax.set_title(f"({tag})", loc="left")
         if not keys:
-            ax.text(0.5, 0.5, f"{label[xk] if xk in missing else label[yk]} not computed",
-                    ha="center", transform=ax.transAxes)
+            ax.text(
+                0.5,
+                0.5,
+                f"{label[xk] if xk in missing else label[yk]} not computed",
+                ha="center",
+                transform=ax.transAxes,
+            )
             continue
         x = np.array([data[xk][k] for k in keys])
         y = np.array([data[yk][k] for k in keys])
@@ -429,11 +555,23 @@ def plot_fig5(summary: dict):
         ax.axvline(0, color="k", lw=0.5)
         if tag == "b":  # the paper: signs agree for |Lambda^KM| >= 0.1
             bad = int(np.sum((np.abs(y) >= 0.1) & (x * y < 0)))
-            ax.text(0.02, 0.98, f"sign disagreements with |Lambda_KM| >= 0.1: {bad}",
-                    transform=ax.transAxes, va="top", fontsize=7)
+            ax.text(
+                0.02,
+                0.98,
+                f"sign disagreements with |Lambda_KM| >= 0.1: {bad}",
+                transform=ax.transAxes,
+                va="top",
+                fontsize=7,
+            )
         if len(keys) > 2:
-            ax.text(0.98, 0.02, f"Pearson r = {np.corrcoef(x, y)[0, 1]:.3f}, {len(keys)} edges",
-                    transform=ax.transAxes, ha="right", fontsize=7)
+            ax.text(
+                0.98,
+                0.02,
+                f"Pearson r = {np.corrcoef(x, y)[0, 1]:.3f}, {len(keys)} edges",
+                transform=ax.transAxes,
+                ha="right",
+                fontsize=7,
+            )
     fig.suptitle(f"response measures of every directed edge (r = {t:g})", fontsize=10)
     return fig, missing
 
@@ -471,8 +609,10 @@ def write_sweep_report(path: str | Path, folder: str | Path, *, pdf: bool = Fals
         fig_a, fig_b, rows_b = plot_fig2(summary)
         save(fig_a, "fig2a_F_beta")
         save(fig_b, "fig2b_lambda_N")
-        lines = ["| N | Lambda_KM (mean) | sd over repeats | standard error | repeats |",
-                 "|---:|---:|---:|---:|---:|"]
+        lines = [
+            "| N | Lambda_KM (mean) | sd over repeats | standard error | repeats |",
+            "|---:|---:|---:|---:|---:|",
+        ]
         for r in rows_b:
             m, se = fmt_pm(r["lambda_km"], r["lambda_km_se"])
             sd = "-" if math.isnan(r["sd"]) else f"{r['sd']:.2g}"
@@ -505,8 +645,9 @@ def write_sweep_report(path: str | Path, folder: str | Path, *, pdf: bool = Fals
             for f in fits:
                 g, ge = fmt_pm(f["gamma"], f["gamma_se"])
                 c, ce = fmt_pm(f["C"], f["C_se"])
-                lines.append(f"| {f['threshold']:g} | {g} ± {ge} | {c} ± {ce} | {f['n']} | "
-                             f"{f['pearson_r']:.3f} |")
+                lines.append(
+                    f"| {f['threshold']:g} | {g} ± {ge} | {c} ± {ce} | {f['n']} | {f['pearson_r']:.3f} |"
+                )
             text("fig6b_fits.md", "\n".join(lines))
     text("index.md", _index(summary, written, notes))
     return written
@@ -519,20 +660,29 @@ def _index(summary: dict, written: list[Path], notes: list[str]) -> str:
     lines = [f"# Sweep {summary['sweep']}", ""]
     if not summary["complete"]:
         lines += ["**Incomplete**: rerun `antisync sweep ... --resume`.", ""]
-    lines += [f"- graphs: {len(summary['meta']['graphs'])} ({summary['family']['family']}), "
-              f"excluded by screening: {len(summary['excluded'])}",
-              f"- thresholds: {', '.join(f'{t:g}' for t in summary['thresholds'])}",
-              f"- symmetry: {s['directed_edges']} directed edges in {s['representatives']} orbits; "
-              f"{s['integrations_saved']:,} of {s['integrations_without_symmetry']:,} integrations "
-              f"saved ({s['fraction_saved']:.0%})"]
+    lines += [
+        f"- graphs: {len(summary['meta']['graphs'])} ({summary['family']['family']}), "
+        f"excluded by screening: {len(summary['excluded'])}",
+        f"- thresholds: {', '.join(f'{t:g}' for t in summary['thresholds'])}",
+        f"- symmetry: {s['directed_edges']} directed edges in {s['representatives']} orbits; "
+        f"{s['integrations_saved']:,} of {s['integrations_without_symmetry']:,} integrations "
+        f"saved ({s['fraction_saved']:.0%})",
+    ]
     if kept:
         worst = max(kept, key=lambda x: x["fraction_not_synced"])
         slow = max(kept, key=lambda x: x["tau_max"] or 0)
-        lines.append(f"- kept graphs: largest unsynchronized fraction {worst['fraction_not_synced']:.3f} "
-                     f"({worst['graph']}); slowest screening tau {slow['tau_max']:.1f} ({slow['graph']})")
+        lines.append(
+            f"- kept graphs: largest unsynchronized fraction {worst['fraction_not_synced']:.3f} "
+            f"({worst['graph']}); slowest screening tau {slow['tau_max']:.1f} ({slow['graph']})"
+        )
     if summary["excluded"]:
-        lines += ["", "## Excluded graphs", "", "| graph | fraction not synchronized | reason |",
-                  "|:---|---:|:---|"]
+        lines += [
+            "",
+            "## Excluded graphs",
+            "",
+            "| graph | fraction not synchronized | reason |",
+            "|:---|---:|:---|",
+        ]
         for ex in summary["excluded"]:
             lines.append(f"| {ex['graph']} | {ex['fraction_not_synced']:.3f} | {ex['reason']} |")
     lines += ["", "## Files", ""] + [f"- [{p.name}]({p.name})" for p in written]

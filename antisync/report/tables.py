@@ -9,17 +9,27 @@ import json
 __all__ = ["fmt_pm", "format_records", "format_sweep", "format_table1"]
 
 _TABLE_COLUMNS = [
-    ("graph", "graph", "{}"), ("edge", "edge", "{}"), ("beta", "beta", "{:.3g}"),
-    ("F_mean", "<F>", "{:.4f}"), ("F_se", "se", "{:.4f}"),
-    ("lambda_km", "Lambda_KM", "{:+.4f}"), ("lambda_km_se", "se", "{:.4f}"),
-    ("tau0_mean", "<tau0>", "{:.4f}"), ("tau0_se", "se", "{:.4f}"),
-    ("n", "n", "{:,}"), ("n_excluded", "r0>=r", "{}"), ("n_not_synced", "unsynced", "{}"),
+    ("graph", "graph", "{}"),
+    ("edge", "edge", "{}"),
+    ("beta", "beta", "{:.3g}"),
+    ("F_mean", "<F>", "{:.4f}"),
+    ("F_se", "se", "{:.4f}"),
+    ("lambda_km", "Lambda_KM", "{:+.4f}"),
+    ("lambda_km_se", "se", "{:.4f}"),
+    ("tau0_mean", "<tau0>", "{:.4f}"),
+    ("tau0_se", "se", "{:.4f}"),
+    ("n", "n", "{:,}"),
+    ("n_excluded", "r0>=r", "{}"),
+    ("n_not_synced", "unsynced", "{}"),
 ]
 # shown only when some record has them (measures: linear, xi2, rw, km_nnc)
 _MEASURE_COLUMNS = [
-    ("lambda_linear", "Lambda_lin", "{:+.4f}"), ("lambda_linear_se", "se", "{:.4f}"),
-    ("lambda_xi2", "Lambda_xi2", "{:+.4f}"), ("lambda_rw", "Lambda_RW", "{:+.4f}"),
-    ("lambda_km_nnc", "Lambda_NNC", "{:+.4f}"), ("lambda_km_nnc_se", "se", "{:.4f}"),
+    ("lambda_linear", "Lambda_lin", "{:+.4f}"),
+    ("lambda_linear_se", "se", "{:.4f}"),
+    ("lambda_xi2", "Lambda_xi2", "{:+.4f}"),
+    ("lambda_rw", "Lambda_RW", "{:+.4f}"),
+    ("lambda_km_nnc", "Lambda_NNC", "{:+.4f}"),
+    ("lambda_km_nnc_se", "se", "{:.4f}"),
 ]
 
 
@@ -34,8 +44,7 @@ def format_records(records: list[dict], fmt: str = "table") -> str:
             writer.writeheader()
             writer.writerows(records)
         return buf.getvalue().rstrip("\n")
-    columns = _TABLE_COLUMNS + [c for c in _MEASURE_COLUMNS
-                                if any(r.get(c[0]) is not None for r in records)]
+    columns = _TABLE_COLUMNS + [c for c in _MEASURE_COLUMNS if any(r.get(c[0]) is not None for r in records)]
     rows = [[h for _, h, _ in columns]]
     for r in records:
         rows.append(["-" if r.get(k) is None else f.format(r[k]) for k, _, f in columns])
@@ -46,8 +55,10 @@ def format_records(records: list[dict], fmt: str = "table") -> str:
     lines += [f"warning: {w}" for w in sync_warnings(records)]
     for graph in dict.fromkeys(r["graph"] for r in records if r.get("complete") is False):
         r = next(r for r in records if r["graph"] == graph)
-        lines.append(f"warning: {graph} is not complete ({r['realizations_done']:,} of "
-                     f"{r['realizations']:,} realizations done): rerun the same command with --resume")
+        lines.append(
+            f"warning: {graph} is not complete ({r['realizations_done']:,} of "
+            f"{r['realizations']:,} realizations done): rerun the same command with --resume"
+        )
     return "\n".join(lines)
 
 
@@ -60,18 +71,33 @@ def sync_warnings(records: list[dict]) -> list[str]:
         n_bad, done = worst.get("n_not_synced") or 0, worst.get("realizations_done") or 0
         if not n_bad or not done:
             continue
-        hint = ("raise dynamics.t_max, or check that this graph synchronizes (rings and other "
-                "graphs with stable twisted states do not)") if n_bad > done / 2 else \
-            "they are counted (unsynced) and left out of every mean"
-        out.append(f"{graph}: {n_bad:,} of {done:,} realizations did not synchronize by t_max "
-                   f"({worst['edge']}" + (f", beta {worst['beta']:g}" if worst.get("beta") else "")
-                   + f"); {hint}")
+        hint = (
+            (
+                "raise dynamics.t_max, or check that this graph synchronizes (rings and other "
+                "graphs with stable twisted states do not)"
+            )
+            if n_bad > done / 2
+            else "they are counted (unsynced) and left out of every mean"
+        )
+        out.append(
+            f"{graph}: {n_bad:,} of {done:,} realizations did not synchronize by t_max "
+            f"({worst['edge']}" + (f", beta {worst['beta']:g}" if worst.get("beta") else "") + f"); {hint}"
+        )
     return out
 
 
 # ---- sweeps --------------------------------------------------------------------------------
-_SWEEP_JSON_KEYS = ("sweep", "complete", "thresholds", "ranking_threshold", "records", "excluded",
-                    "top", "screen", "symmetry")
+_SWEEP_JSON_KEYS = (
+    "sweep",
+    "complete",
+    "thresholds",
+    "ranking_threshold",
+    "records",
+    "excluded",
+    "top",
+    "screen",
+    "symmetry",
+)
 
 
 def format_sweep(summary: dict, fmt: str = "table") -> str:
@@ -97,18 +123,23 @@ def format_sweep(summary: dict, fmt: str = "table") -> str:
         lines.append(format_records(part, "table"))
     if summary["top"]:
         lines.append(f"== top stage (edge of largest Lambda_KM, r = {summary['ranking_threshold']:g})")
-        lines.append(format_records([{**r, "lambda_km_warning": None} for r in summary["top"]],
-                                    "table"))
+        lines.append(format_records([{**r, "lambda_km_warning": None} for r in summary["top"]], "table"))
     if rough:
-        lines.append(f"warning: {rough} record(s) have rough Lambda_KM errors (few batches or heavy "
-                     "tails; see lambda_km_warning in --format json)")
+        lines.append(
+            f"warning: {rough} record(s) have rough Lambda_KM errors (few batches or heavy "
+            "tails; see lambda_km_warning in --format json)"
+        )
     for ex in summary["excluded"]:
-        lines.append(f"excluded {ex['graph']}: {ex['reason']} "
-                     f"(fraction not synchronized {ex['fraction_not_synced']:.3f})")
+        lines.append(
+            f"excluded {ex['graph']}: {ex['reason']} "
+            f"(fraction not synchronized {ex['fraction_not_synced']:.3f})"
+        )
     s = summary["symmetry"]
-    lines.append(f"symmetry: {s['directed_edges']} directed edges in {s['representatives']} orbits; "
-                 f"{s['integrations_saved']:,} of {s['integrations_without_symmetry']:,} "
-                 f"integrations saved ({s['fraction_saved']:.0%})")
+    lines.append(
+        f"symmetry: {s['directed_edges']} directed edges in {s['representatives']} orbits; "
+        f"{s['integrations_saved']:,} of {s['integrations_without_symmetry']:,} "
+        f"integrations saved ({s['fraction_saved']:.0%})"
+    )
     if not summary["complete"]:
         lines.append("warning: the sweep is not complete; rerun `antisync sweep ... --resume`")
     return "\n".join(lines)
@@ -126,8 +157,20 @@ def fmt_pm(value, se, digits: int = 2) -> tuple[str, str]:
     return f"{value:.{decimals}f}", f"{se:.{decimals}f}"
 
 
-TABLE1_COLUMNS = ("rank", "graph", "tau0_mean", "tau0_se", "edge", "lambda_km", "lambda_km_se",
-                  "F_mean", "F_se", "beta", "n_tau0", "n_F")
+TABLE1_COLUMNS = (
+    "rank",
+    "graph",
+    "tau0_mean",
+    "tau0_se",
+    "edge",
+    "lambda_km",
+    "lambda_km_se",
+    "F_mean",
+    "F_se",
+    "beta",
+    "n_tau0",
+    "n_F",
+)
 
 
 def format_table1(rows: list[dict], fmt: str = "markdown") -> str:
@@ -151,14 +194,17 @@ def format_table1(rows: list[dict], fmt: str = "markdown") -> str:
         f, fe = fmt_pm(r.get("F_mean"), r.get("F_se"))
         cells.append((str(r["rank"]), str(r["graph"]), (t0, t0e), str(r["edge"]), (lam, lame), (f, fe)))
     if fmt == "latex":
+
         def pm(v):
             return f"${v[0]} \\pm {v[1]}$" if v[1] != "-" else f"${v[0]}$"
 
         edge = r"\to"
-        out = [r"\begin{tabular}{c c c c c c}",
-               r"{\bf Rank} & {\bf Graph} & $\langle \tau_0 \rangle$ & edge $a \to b$ & "
-               r"$\Lambda^{(\mathrm{KM})}$ & $\langle \mathcal{F}_{\beta=" + f"{beta:g}" + r"} \rangle$ \\",
-               r"\hline"]
+        out = [
+            r"\begin{tabular}{c c c c c c}",
+            r"{\bf Rank} & {\bf Graph} & $\langle \tau_0 \rangle$ & edge $a \to b$ & "
+            r"$\Lambda^{(\mathrm{KM})}$ & $\langle \mathcal{F}_{\beta=" + f"{beta:g}" + r"} \rangle$ \\",
+            r"\hline",
+        ]
         for rank, g, t0, e, lam, f in cells:
             g = g.replace("_", r"\_")
             out.append(f"{rank} & {g} & {pm(t0)} & ${e.replace('->', edge)}$ & {pm(lam)} & {pm(f)} \\\\")
@@ -170,8 +216,10 @@ def format_table1(rows: list[dict], fmt: str = "markdown") -> str:
     def pm(v):
         return f"{v[0]} ± {v[1]}" if v[1] != "-" else v[0]
 
-    out = [f"| rank | graph | <tau0> | edge a->b | Lambda_KM (max) | <F_{beta:g}> on a->b |",
-           "|---:|:---|---:|:---:|---:|---:|"]
+    out = [
+        f"| rank | graph | <tau0> | edge a->b | Lambda_KM (max) | <F_{beta:g}> on a->b |",
+        "|---:|:---|---:|:---:|---:|---:|",
+    ]
     for rank, g, t0, e, lam, f in cells:
         out.append(f"| {rank} | {g} | {pm(t0)} | {e} | {pm(lam)} | {pm(f)} |")
     return "\n".join(out)

@@ -58,8 +58,9 @@ def graph_digest(job: Job) -> str:
     networkx generator such as ``random_regular_graph`` without a seed builds another graph on
     each run from the same config, and results of two graphs must never be merged.
     """
-    return digest_graph([jsonable(v) for v in job.nodes], list(job.edge_labels), job.omega,
-                        job.variant_edge, job.variant_beta)
+    return digest_graph(
+        [jsonable(v) for v in job.nodes], list(job.edge_labels), job.omega, job.variant_edge, job.variant_beta
+    )
 
 
 def chunk_tag(job: Job, key: dict) -> str:
@@ -68,8 +69,11 @@ def chunk_tag(job: Job, key: dict) -> str:
     A digest of ``key`` (the config's or the sweep's), the job's name and own simulation key,
     and :func:`graph_digest`: equal only for chunks that may be merged into this job.
     """
-    payload = json.dumps({"key": key, "job": job.name, "config": job.config.simulation_key(),
-                          "graph": graph_digest(job)}, sort_keys=True, default=str)
+    payload = json.dumps(
+        {"key": key, "job": job.name, "config": job.config.simulation_key(), "graph": graph_digest(job)},
+        sort_keys=True,
+        default=str,
+    )
     return hashlib.sha256(payload.encode()).hexdigest()
 
 
@@ -114,8 +118,12 @@ def save_chunk(folder: Path, name: str, res: ChunkResult, tag: str = "") -> None
     tag differs from the job's is never merged (so an untagged one never is).
     """
     arrays = {
-        "rec": res.rec, "rec0": res.rec0, "tail": res.tail, "hist": res.hist,
-        "lam_rec": res.lam_rec, "lam_tail": res.lam_tail,
+        "rec": res.rec,
+        "rec0": res.rec0,
+        "tail": res.tail,
+        "hist": res.hist,
+        "lam_rec": res.lam_rec,
+        "lam_tail": res.lam_tail,
         "meta": np.array([res.chunk.first_block, res.chunk.n_blocks, res.first, res.count]),
         "seconds": np.array([res.seconds]),
         "backend": np.array([res.backend]),
@@ -174,8 +182,17 @@ def _load_chunk(p: Path, tag: str) -> ChunkResult | None:
             if "kept_status0" in z:
                 kept = {k: z[f"kept_{k}"] for k in ("status0", "steps0", "status", "steps", "lambda")}
             return ChunkResult(
-                Chunk(first_block, n_blocks), z["rec"], z["rec0"], z["tail"], z["hist"],
-                z["lam_rec"], z["lam_tail"], kept, first, count, float(z["seconds"][0]),
+                Chunk(first_block, n_blocks),
+                z["rec"],
+                z["rec0"],
+                z["tail"],
+                z["hist"],
+                z["lam_rec"],
+                z["lam_tail"],
+                kept,
+                first,
+                count,
+                float(z["seconds"][0]),
                 str(z["backend"][0]),
             )
     except Exception:  # any damage (a zip cut off, EOF, a bad header, a missing array, a
@@ -189,9 +206,14 @@ def _chunk_fits(st: JobState, res: ChunkResult) -> bool:
         return False
     if (res.first, res.count) != c.realizations(st.job.block_size, st.job.config.realizations):
         return False
-    shapes = [(res.rec, (c.n_blocks, *st.rec.shape[1:])), (res.rec0, (c.n_blocks, *st.rec0.shape[1:])),
-              (res.lam_rec, (c.n_blocks, *st.lam_rec.shape[1:])), (res.tail, st.tail.shape),
-              (res.hist, st.hist.shape), (res.lam_tail, st.lam_tail.shape)]
+    shapes = [
+        (res.rec, (c.n_blocks, *st.rec.shape[1:])),
+        (res.rec0, (c.n_blocks, *st.rec0.shape[1:])),
+        (res.lam_rec, (c.n_blocks, *st.lam_rec.shape[1:])),
+        (res.tail, st.tail.shape),
+        (res.hist, st.hist.shape),
+        (res.lam_tail, st.lam_tail.shape),
+    ]
     if res.kept is not None:
         for k, arr in st.kept.items():
             got = res.kept[k]

@@ -99,8 +99,9 @@ def open_results(path: str | Path):
         raw_version = f.attrs.get("format_version", 0)
     except Exception as exc:  # damaged attribute storage: h5py raises OSError, KeyError, ...
         f.close()
-        raise StoreError(f"{path} is damaged: its root attributes cannot be read "
-                         f"({type(exc).__name__})") from None
+        raise StoreError(
+            f"{path} is damaged: its root attributes cannot be read ({type(exc).__name__})"
+        ) from None
     if fmt != FORMAT:
         f.close()
         raise StoreError(f"{path} is an HDF5 file but not an antisync result file (no format={FORMAT!r})")
@@ -108,12 +109,15 @@ def open_results(path: str | Path):
         version = int(raw_version)
     except (TypeError, ValueError):
         f.close()
-        raise StoreError(f"{path} is damaged: root attribute format_version is {raw_version!r}, "
-                         "not an integer") from None
+        raise StoreError(
+            f"{path} is damaged: root attribute format_version is {raw_version!r}, not an integer"
+        ) from None
     if version > FORMAT_VERSION:
         f.close()  # the attributes were read above: after close() they cannot be
-        raise StoreError(f"{path} was written by a newer antisync (format {version}); this one "
-                         f"reads format {FORMAT_VERSION} — upgrade antisync")
+        raise StoreError(
+            f"{path} was written by a newer antisync (format {version}); this one "
+            f"reads format {FORMAT_VERSION} — upgrade antisync"
+        )
     return f
 
 
@@ -198,8 +202,9 @@ def read_states(path: Path, states: dict[str, JobState], config_key: dict) -> No
         fit its job's shapes.
     """
     with open_results(path) as f:
-        stored = _read(path, "root attribute simulation_key",
-                       lambda: json.loads(f.attrs.get("simulation_key", "{}")))
+        stored = _read(
+            path, "root attribute simulation_key", lambda: json.loads(f.attrs.get("simulation_key", "{}"))
+        )
         if stored != config_key:
             raise StoreError(
                 f"{path} was made with a different config (graph, edges, betas, "
@@ -259,9 +264,15 @@ def _write_state(g, st: JobState) -> None:
 
 def _read_state(path: Path, g, st: JobState) -> None:
     """Fill ``st`` from job group ``g`` of ``path``; a damaged or mismatched group is an error."""
-    arrays = {"block_records": st.rec, "tau0_records": st.rec0, "blocks_done": st.done,
-              "tail_counts": st.tail, "lambda_records": st.lam_rec,
-              "lambda_tail_counts": st.lam_tail, "hist": st.hist}
+    arrays = {
+        "block_records": st.rec,
+        "tau0_records": st.rec0,
+        "blocks_done": st.done,
+        "tail_counts": st.tail,
+        "lambda_records": st.lam_rec,
+        "lambda_tail_counts": st.lam_tail,
+        "hist": st.hist,
+    }
     arrays.update({f"kept/{k}": v for k, v in st.kept.items()})
     for name, target in arrays.items():
         data = _read(path, f"{g.name}/{name}", lambda name=name: g[name][...])
@@ -277,27 +288,48 @@ def _read_state(path: Path, g, st: JobState) -> None:
     st.backends = set(backends.split(",")) - {""}
     if "measures" in g:
         st.measures = _read(path, f"{g.name}/measures", lambda: read_measures(g))
-        st.measures_seconds = _read(path, f"{g.name}/measures attribute seconds",
-                                    lambda: float(g["measures"].attrs.get("seconds", 0.0)))
+        st.measures_seconds = _read(
+            path,
+            f"{g.name}/measures attribute seconds",
+            lambda: float(g["measures"].attrs.get("seconds", 0.0)),
+        )
 
 
 def _view_from_state(st: JobState) -> JobView:
     job = st.job
     return JobView(
-        graph=job.name, edges=job.edge_labels, betas=job.betas, dbeta=job.dbeta,
-        variant_edge=job.variant_edge, variant_beta=job.variant_beta,
-        rec=st.rec, rec0=st.rec0, done=st.done, tail=st.tail,
-        realizations=job.config.realizations, lam_rec=st.lam_rec, lam_tail=st.lam_tail,
-        lambda_method=job.config.lambda_.method, measures=st.measures,
+        graph=job.name,
+        edges=job.edge_labels,
+        betas=job.betas,
+        dbeta=job.dbeta,
+        variant_edge=job.variant_edge,
+        variant_beta=job.variant_beta,
+        rec=st.rec,
+        rec0=st.rec0,
+        done=st.done,
+        tail=st.tail,
+        realizations=job.config.realizations,
+        lam_rec=st.lam_rec,
+        lam_tail=st.lam_tail,
+        lambda_method=job.config.lambda_.method,
+        measures=st.measures,
     )
 
 
 def _check_graph(path: Path, g, job: Job) -> None:
     stored = _read(path, f"{g.name} graph_digest", lambda: g.attrs.get("graph_digest"))
     if stored is None:  # written before graph digests: digest what the group stores
-        stored = _read(path, f"{g.name} graph", lambda: digest_graph(
-            json.loads(g.attrs["nodes"]), json.loads(g.attrs["edges"]), g["omega"][...],
-            g["variant_edge"][...], g["variant_beta"][...]))
+        stored = _read(
+            path,
+            f"{g.name} graph",
+            lambda: digest_graph(
+                json.loads(g.attrs["nodes"]),
+                json.loads(g.attrs["edges"]),
+                g["omega"][...],
+                g["variant_edge"][...],
+                g["variant_beta"][...],
+            ),
+        )
     if str(stored) != graph_digest(job):
         raise StoreError(
             f"{path} was made with a different graph for {job.name} (nodes, weights or damaged "
@@ -314,8 +346,9 @@ def _read(path: Path, what: str, read):
         raise StoreError(f"{path} is damaged: {what} is missing; use --out for a new file") from None
     except (OSError, ValueError, TypeError) as exc:
         why = " ".join(str(exc).split()) or type(exc).__name__
-        raise StoreError(f"{path} is damaged: {what} cannot be read ({why}); "
-                         "use --out for a new file") from None
+        raise StoreError(
+            f"{path} is damaged: {what} cannot be read ({why}); use --out for a new file"
+        ) from None
 
 
 # ---- a job's measures (Lambda^(linear, xi2, RW), see antisync.measures.pipeline) -----------
@@ -488,13 +521,21 @@ def is_sweep_file(path: str | Path) -> bool:
         try:
             return "sweep" in f and f["sweep"].attrs.get("format") == SWEEP_FORMAT
         except Exception as exc:  # h5py reports a damaged group as OSError, KeyError, ...
-            raise StoreError(f"{path} is damaged: its /sweep group cannot be read "
-                             f"({type(exc).__name__})") from None
+            raise StoreError(
+                f"{path} is damaged: its /sweep group cannot be read ({type(exc).__name__})"
+            ) from None
 
 
 # what sweep_summary and the reports read from /sweep/meta_json: checked once, on reading
-_META_KEYS = {"name": str, "family": dict, "thresholds": list, "ranking_threshold": (int, float),
-              "graphs": list, "jobs": list, "symmetry": dict}
+_META_KEYS = {
+    "name": str,
+    "family": dict,
+    "thresholds": list,
+    "ranking_threshold": (int, float),
+    "graphs": list,
+    "jobs": list,
+    "symmetry": dict,
+}
 _META_GRAPH_KEYS = ("graph", "orbits", "excluded")
 _META_JOB_KEYS = ("job", "graph", "stage", "threshold", "repeat")
 
@@ -509,16 +550,20 @@ def read_sweep_meta(path: str | Path) -> dict | None:
             raw_version = grp.attrs.get("format_version", 0)
             raw = grp["meta_json"][()]
         except Exception as exc:  # a damaged group: OSError, KeyError, ... from h5py
-            raise StoreError(f"{path} is damaged: /sweep/meta_json cannot be read "
-                             f"({type(exc).__name__})") from None
+            raise StoreError(
+                f"{path} is damaged: /sweep/meta_json cannot be read ({type(exc).__name__})"
+            ) from None
     try:
         version = int(raw_version)
     except (TypeError, ValueError):
-        raise StoreError(f"{path} is damaged: /sweep attribute format_version is "
-                         f"{raw_version!r}, not an integer") from None
+        raise StoreError(
+            f"{path} is damaged: /sweep attribute format_version is {raw_version!r}, not an integer"
+        ) from None
     if version > SWEEP_FORMAT_VERSION:
-        raise StoreError(f"{path} was written by a newer antisync (sweep format {version}); this "
-                         f"one reads sweep format {SWEEP_FORMAT_VERSION} — upgrade antisync")
+        raise StoreError(
+            f"{path} was written by a newer antisync (sweep format {version}); this "
+            f"one reads sweep format {SWEEP_FORMAT_VERSION} — upgrade antisync"
+        )
     try:
         meta = json.loads(raw.decode() if isinstance(raw, bytes) else raw)
     except (TypeError, ValueError, UnicodeDecodeError) as exc:
@@ -537,8 +582,10 @@ def _meta_problem(meta) -> str | None:
     for key, kind in _META_KEYS.items():
         if not isinstance(meta.get(key), kind):
             return f"lacks {key!r} or it is not a {getattr(kind, '__name__', 'number')}"
-    for name, items, keys in (("graphs", meta["graphs"], _META_GRAPH_KEYS),
-                              ("jobs", meta["jobs"], _META_JOB_KEYS)):
+    for name, items, keys in (
+        ("graphs", meta["graphs"], _META_GRAPH_KEYS),
+        ("jobs", meta["jobs"], _META_JOB_KEYS),
+    ):
         for i, item in enumerate(items):
             missing = [k for k in keys if not isinstance(item, dict) or k not in item]
             if missing:

@@ -77,21 +77,27 @@ class OutputLock:
         if p.is_dir():
             raise StoreError(f"output {p} is a directory; give a file path ending in .h5")
         if p.exists() and not p.is_file():
-            raise StoreError(f"output {p} is not a regular file (a device, FIFO or socket); "
-                             "give --out a file path ending in .h5")
+            raise StoreError(
+                f"output {p} is not a regular file (a device, FIFO or socket); "
+                "give --out a file path ending in .h5"
+            )
         ancestor = p.parent
         while not os.path.lexists(ancestor) and ancestor != ancestor.parent:
             ancestor = ancestor.parent
         if not ancestor.is_dir():
-            raise StoreError(f"cannot write {p}: {ancestor} is a file, not a folder; "
-                             "give --out a path inside a folder")
+            raise StoreError(
+                f"cannot write {p}: {ancestor} is a file, not a folder; give --out a path inside a folder"
+            )
         for side in (self.journal, self.lock_path):
             if side.is_symlink():
-                raise StoreError(f"{side} is a symbolic link, not antisync's; move it away or use "
-                                 "--out for another file")
+                raise StoreError(
+                    f"{side} is a symbolic link, not antisync's; move it away or use --out for another file"
+                )
         if os.path.lexists(self.journal) and not self.journal.is_dir():
-            raise StoreError(f"{self.journal} is a file, not antisync's journal folder; move it "
-                             "away or use --out for another file")
+            raise StoreError(
+                f"{self.journal} is a file, not antisync's journal folder; move it "
+                "away or use --out for another file"
+            )
         if self.journal.is_dir():
             foreign = foreign_entry(self.journal)
             if foreign is not None:
@@ -171,8 +177,10 @@ class OutputLock:
                 raise StoreError(self._busy_message(holder)) from None
             except OSError as exc:
                 os.close(fd)
-                raise StoreError(f"cannot lock {self.lock_path} ({exc.strerror}); antisync needs a "
-                                 "file system with flock for its output: use --out elsewhere") from None
+                raise StoreError(
+                    f"cannot lock {self.lock_path} ({exc.strerror}); antisync needs a "
+                    "file system with flock for its output: use --out elsewhere"
+                ) from None
             # The previous holder unlinks the file before it closes it: if it did so between our
             # open and our flock, we now hold a lock on a deleted file. Only a lock on the file
             # the path names counts; otherwise open the new one and try again.
@@ -235,12 +243,15 @@ class OutputLock:
                     f"cannot write to folder {self.path.parent} (creating {self.lock_path.name}: "
                     f"{exc.strerror}); use --out in a folder you can write"
                 ) from None
-            raise StoreError(f"cannot use {self.lock_path} as the lock file of {self.path} "
-                             f"({exc.strerror}); move it away or use --out for another file") from None
+            raise StoreError(
+                f"cannot use {self.lock_path} as the lock file of {self.path} "
+                f"({exc.strerror}); move it away or use --out for another file"
+            ) from None
         if not stat.S_ISREG(os.fstat(fd).st_mode):
             os.close(fd)
-            raise StoreError(f"{self.lock_path} is not a regular file; move it away or use --out "
-                             "for another file")
+            raise StoreError(
+                f"{self.lock_path} is not a regular file; move it away or use --out for another file"
+            )
         return fd
 
     def _claim(self, fd: int) -> None:
@@ -253,10 +264,16 @@ class OutputLock:
                 previous = None
             ours = isinstance(previous, dict) and "pid" in previous  # a holder killed by -9
             if not ours:
-                raise StoreError(f"{self.lock_path} exists and is not an antisync lock file; move "
-                                 "it away or use --out for another file")
-        holder = {"pid": os.getpid(), "host": socket.gethostname(), "started": now(),
-                  "command": command_line()}
+                raise StoreError(
+                    f"{self.lock_path} exists and is not an antisync lock file; move "
+                    "it away or use --out for another file"
+                )
+        holder = {
+            "pid": os.getpid(),
+            "host": socket.gethostname(),
+            "started": now(),
+            "command": command_line(),
+        }
         os.ftruncate(fd, 0)
         os.pwrite(fd, json.dumps(holder).encode(), 0)
 

@@ -14,8 +14,12 @@ def git_revision() -> str:
     """The source checkout's git revision, or '' when antisync does not run from a checkout."""
     here = Path(__file__).resolve().parent.parent.parent  # antisync/store/ -> the checkout
     try:
-        out = subprocess.run(["git", "-C", str(here), "rev-parse", "--short", "HEAD"],
-                             capture_output=True, text=True, timeout=5)
+        out = subprocess.run(
+            ["git", "-C", str(here), "rev-parse", "--short", "HEAD"],
+            capture_output=True,
+            text=True,
+            timeout=5,
+        )
     except (OSError, subprocess.SubprocessError):
         return ""
     return out.stdout.strip() if out.returncode == 0 else ""

@@ -129,9 +129,7 @@ class ResultStore:
         else:
             stored = _journal.stored_key(self.journal)
             if stored is not None and stored != wanted:
-                raise StoreError(
-                    f"{self.journal} holds chunks of a different config; remove it or use --out"
-                )
+                raise StoreError(f"{self.journal} holds chunks of a different config; remove it or use --out")
         for st in states.values():
             for res in _journal.chunks(self.journal, st, _journal.chunk_tag(st.job, config_key)):
                 sl = slice(res.chunk.first_block, res.chunk.first_block + res.chunk.n_blocks)
@@ -161,8 +159,9 @@ class ResultStore:
         """Save the screening of ``graph`` in the journal at once (atomic rename)."""
         _journal.save_screen(self.journal, graph, result)
 
-    def checkpoint(self, states: dict[str, JobState], provenance: dict, *, final: bool = False,
-                   extra=None) -> None:
+    def checkpoint(
+        self, states: dict[str, JobState], provenance: dict, *, final: bool = False, extra=None
+    ) -> None:
         """Rewrite the HDF5 file from ``states`` atomically, then drop merged journal chunks.
 
         ``provenance`` keys beyond the standard ones become root attributes too; ``extra``, when
@@ -203,4 +202,3 @@ class ResultStore:
         journal's removal leaves one; every block it holds is in the file). Under :meth:`lock`."""
         if self.journal.is_dir() and not self.journal.is_symlink():
             shutil.rmtree(self.journal, ignore_errors=True)
-

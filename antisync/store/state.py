@@ -73,8 +73,9 @@ class JobState:
                 continue
             if sl.any():
                 # chunk boundaries moved since the interrupted run: redo per block
-                out.extend(Chunk(b, 1) for b in range(c.first_block, c.first_block + c.n_blocks)
-                           if not self.done[b])
+                out.extend(
+                    Chunk(b, 1) for b in range(c.first_block, c.first_block + c.n_blocks) if not self.done[b]
+                )
             else:
                 out.append(c)
         return out

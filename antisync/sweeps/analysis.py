@@ -70,28 +70,51 @@ def summarize(meta: dict, views: list) -> dict:
     for jm in meta["jobs"]:
         if jm["job"] not in by_job:
             continue
-        recs = [{**r, "graph": jm["graph"], "job": jm["job"], "threshold": jm["threshold"],
-                 "repeat": jm["repeat"]} for r in by_job[jm["job"]]]
+        recs = [
+            {
+                **r,
+                "graph": jm["graph"],
+                "job": jm["job"],
+                "threshold": jm["threshold"],
+                "repeat": jm["repeat"],
+            }
+            for r in by_job[jm["job"]]
+        ]
         if jm["stage"] == "main":
             records += expand_records(recs, graphs[jm["graph"]]["orbits"])
         else:
             orbits = graphs[jm["graph"]]["orbits"]
             for r in recs:
-                r.update(rank=jm["rank"], edge=jm["edge"], representative=r["edge"],
-                         orbit_size=sum(1 for x in orbits.values() if x == r["edge"]))
+                r.update(
+                    rank=jm["rank"],
+                    edge=jm["edge"],
+                    representative=r["edge"],
+                    orbit_size=sum(1 for x in orbits.values() if x == r["edge"]),
+                )
             top += recs
     excluded = [
-        {"graph": g["graph"], "reason": g["screen"]["reason"],
-         "fraction_not_synced": g["screen"]["fraction_not_synced"],
-         "fraction_stuck": g["screen"]["fraction_stuck"], "screened": g["screen"]["realizations"]}
-        for g in meta["graphs"] if g["excluded"]
+        {
+            "graph": g["graph"],
+            "reason": g["screen"]["reason"],
+            "fraction_not_synced": g["screen"]["fraction_not_synced"],
+            "fraction_stuck": g["screen"]["fraction_stuck"],
+            "screened": g["screen"]["realizations"],
+        }
+        for g in meta["graphs"]
+        if g["excluded"]
     ]
     return {
-        "sweep": meta["name"], "family": meta["family"], "thresholds": meta["thresholds"],
-        "ranking_threshold": meta["ranking_threshold"], "complete": meta.get("complete", False),
-        "records": records, "top": top, "excluded": excluded,
+        "sweep": meta["name"],
+        "family": meta["family"],
+        "thresholds": meta["thresholds"],
+        "ranking_threshold": meta["ranking_threshold"],
+        "complete": meta.get("complete", False),
+        "records": records,
+        "top": top,
+        "excluded": excluded,
         "screen": [g["screen"] for g in meta["graphs"] if g.get("screen")],
-        "symmetry": meta["symmetry"], "meta": meta,
+        "symmetry": meta["symmetry"],
+        "meta": meta,
     }
 
 
@@ -107,7 +130,8 @@ def edge_lambdas(records: list[dict], threshold: float) -> dict[tuple, dict]:
             continue
         # one value per (edge, repeat): the records of different betas repeat the same Lambda
         per.setdefault((r["graph"], r["edge"]), {}).setdefault(
-            r.get("repeat", 0), (r["lambda_km"], r["lambda_km_se"], r.get("representative", r["edge"])))
+            r.get("repeat", 0), (r["lambda_km"], r["lambda_km_se"], r.get("representative", r["edge"]))
+        )
     out = {}
     for key, reps in per.items():
         ok = [v for v in reps.values() if v[0] is not None]
@@ -139,8 +163,7 @@ def trend_in_n(rows: list[dict], z: float = 4.0) -> dict:
         smallest ``k`` such that every pair ``N < N'`` with ``N' - N >= k`` is a resolved
         decrease (``None`` if even the widest pair is not).
     """
-    out = {"z": z, "positive": [], "not_positive": [], "decreases": [], "increases": [],
-           "unresolved": []}
+    out = {"z": z, "positive": [], "not_positive": [], "decreases": [], "increases": [], "unresolved": []}
     for r in rows:
         ok = r["lambda_km"] > z * r["lambda_km_se"]
         out["positive" if ok else "not_positive"].append(r["N"])
@@ -156,8 +179,9 @@ def trend_in_n(rows: list[dict], z: float = 4.0) -> dict:
     out["gap"] = None
     if len(rows) > 1:
         for k in range(1, rows[-1]["N"] - rows[0]["N"] + 1):
-            if all(resolved_drop(a, b) for i, a in enumerate(rows) for b in rows[i + 1:]
-                   if b["N"] - a["N"] >= k):
+            if all(
+                resolved_drop(a, b) for i, a in enumerate(rows) for b in rows[i + 1 :] if b["N"] - a["N"] >= k
+            ):
                 out["gap"] = k
                 break
     return out
@@ -182,8 +206,12 @@ def ranking(records: list[dict], threshold: float) -> list[dict]:
         if v["lambda_km"] > 0:
             row["score"] += v["lambda_km"]
         if v["lambda_km"] > row["lambda_max"]:
-            row.update(lambda_max=v["lambda_km"], lambda_max_se=v["lambda_km_se"], max_edge=edge,
-                       max_representative=v["representative"])
+            row.update(
+                lambda_max=v["lambda_km"],
+                lambda_max_se=v["lambda_km_se"],
+                max_edge=edge,
+                max_representative=v["representative"],
+            )
     rows = sorted(graphs.values(), key=lambda r: (-r["score"], r["graph"]))
     for k, row in enumerate(rows, 1):
         row["rank"] = k

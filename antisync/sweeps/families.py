@@ -59,8 +59,9 @@ def family_specs(family: dict) -> list[tuple[str, dict]]:
             raise ConfigError(f"sweep.graphs[{k}]: {exc}") from None
         name = str(name or graph_name(spec))
         if name in seen:
-            raise ConfigError(f"sweep.graphs[{k}]: graph name {name!r} is used twice; "
-                              "give the graphs distinct name: keys")
+            raise ConfigError(
+                f"sweep.graphs[{k}]: graph name {name!r} is used twice; give the graphs distinct name: keys"
+            )
         seen.add(name)
         out.append((name, spec))
     return out
@@ -117,8 +118,10 @@ def fig2_edge(n_nodes: int, path: int) -> tuple[int, int]:
     """The edge of the paper's Fig. 2 in ``lollipop(N, L)``: a clique edge ``a -> b`` not touching
     the bridge node ``L + 1``, here ``(L + 2) -> (L + 3)`` (all such edges are one orbit)."""
     if n_nodes - path < 3:
-        raise ConfigError(f"edges: fig2 needs a clique of at least 3 nodes; lollipop N={n_nodes}, "
-                          f"L={path} has {n_nodes - path}")
+        raise ConfigError(
+            f"edges: fig2 needs a clique of at least 3 nodes; lollipop N={n_nodes}, "
+            f"L={path} has {n_nodes - path}"
+        )
     return (path + 2, path + 3)
 
 

@@ -48,12 +48,18 @@ class Screen:
     def __post_init__(self):
         if not isinstance(self.enabled, bool):
             raise ConfigError(f"screen.enabled must be true or false, got {self.enabled!r}")
-        if isinstance(self.realizations, bool) or not isinstance(self.realizations, int) \
-                or self.realizations < 1:
+        if (
+            isinstance(self.realizations, bool)
+            or not isinstance(self.realizations, int)
+            or self.realizations < 1
+        ):
             raise ConfigError(f"screen.realizations must be an integer >= 1, got {self.realizations!r}")
         positive("screen.t_max", self.t_max)
-        if isinstance(self.exclude_fraction, bool) or not isinstance(self.exclude_fraction, int | float) \
-                or not 0.0 <= self.exclude_fraction < 1.0:
+        if (
+            isinstance(self.exclude_fraction, bool)
+            or not isinstance(self.exclude_fraction, int | float)
+            or not 0.0 <= self.exclude_fraction < 1.0
+        ):
             raise ConfigError(f"screen.exclude_fraction must be in [0, 1), got {self.exclude_fraction!r}")
 
 
@@ -72,7 +78,8 @@ class Top:
             if isinstance(b, bool) or not isinstance(b, int | float) or not 0.0 < b < 1.0:
                 raise ConfigError(f"top.betas must lie in (0, 1), got {b!r}")
         if self.realizations is not None and (
-            isinstance(self.realizations, bool) or not isinstance(self.realizations, int)
+            isinstance(self.realizations, bool)
+            or not isinstance(self.realizations, int)
             or self.realizations < 1
         ):
             raise ConfigError(f"top.realizations must be null or an integer >= 1, got {self.realizations!r}")
@@ -139,8 +146,7 @@ class Sweep:
         return min(self.thresholds, key=lambda t: (abs(t - PAPER_THRESHOLD), t))
 
 
-def load_sweep(path: str | Path, overrides: list[str] | None = None,
-               values: dict | None = None) -> Sweep:
+def load_sweep(path: str | Path, overrides: list[str] | None = None, values: dict | None = None) -> Sweep:
     """Read and validate a sweep config file; errors name the file and the key.
 
     ``overrides`` and ``values`` are those of :func:`antisync.config.load_config`.
@@ -154,13 +160,16 @@ def load_sweep(path: str | Path, overrides: list[str] | None = None,
         raise ConfigError(msg if msg.startswith(str(path)) else f"{path}: {msg}") from None
 
 
-def load_sweep_text(text: str, overrides: list[str] | None = None,
-                    source: Path | None = None, values: dict | None = None) -> Sweep:
+def load_sweep_text(
+    text: str, overrides: list[str] | None = None, source: Path | None = None, values: dict | None = None
+) -> Sweep:
     """Like :func:`load_sweep` for YAML text."""
     raw = parse_mapping(text, overrides, values)
     if "sweep" not in raw:
-        raise ConfigError("missing key 'sweep' (e.g. sweep: {family: atlas, nodes: 6}); "
-                          "a config with graph: is run with `antisync run`")
+        raise ConfigError(
+            "missing key 'sweep' (e.g. sweep: {family: atlas, nodes: 6}); "
+            "a config with graph: is run with `antisync run`"
+        )
     if "graph" in raw:
         raise ConfigError("a sweep config has no 'graph' key: its graphs come from 'sweep:'")
     family = _family(raw["sweep"])
@@ -180,8 +189,9 @@ def load_sweep_text(text: str, overrides: list[str] | None = None,
     top = _section(raw, "top", Top)
     edges = raw.get("edges", "all")
     if edges == "fig2" and family["family"] != "lollipop":
-        raise ConfigError("edges: fig2 (the clique edge away from the bridge, Fig. 2) needs "
-                          "sweep.family: lollipop")
+        raise ConfigError(
+            "edges: fig2 (the clique edge away from the bridge, Fig. 2) needs sweep.family: lollipop"
+        )
     rest = {k: v for k, v in raw.items() if k not in _SWEEP_KEYS}
     rest["graph"] = specs[0][1]
     rest.setdefault("keep_pairs", 0)  # per-realization pairs of hundreds of jobs would not fit
@@ -204,10 +214,19 @@ def load_sweep_text(text: str, overrides: list[str] | None = None,
     if edges not in ("all", "fig2"):
         if not isinstance(edges, list) or not edges or not all(isinstance(e, str) for e in edges):
             raise ConfigError(
-                f"edges must be 'all', 'fig2' or a non-empty list like [\"2->1\"], got {edges!r}")
+                f"edges must be 'all', 'fig2' or a non-empty list like [\"2->1\"], got {edges!r}"
+            )
         edges = tuple(edges)
-    return Sweep(name=str(name), family=family, edges=edges, thresholds=thresholds,
-                 repeats=repeats, screen=screen, top=top, base=base)
+    return Sweep(
+        name=str(name),
+        family=family,
+        edges=edges,
+        thresholds=thresholds,
+        repeats=repeats,
+        screen=screen,
+        top=top,
+        base=base,
+    )
 
 
 def _section(raw: dict, key: str, cls):
@@ -249,7 +268,7 @@ def _int_list(key: str, value, lo: int, hi: int) -> list[int]:
         try:
             items = list(range(int(a), int(b) + 1))
         except ValueError:
-            raise ConfigError(f"{key} range must look like \"4..20\", got {value!r}") from None
+            raise ConfigError(f'{key} range must look like "4..20", got {value!r}') from None
         if not items:
             raise ConfigError(f"{key} range {value!r} is empty")
     elif isinstance(value, list) and value:
@@ -257,7 +276,7 @@ def _int_list(key: str, value, lo: int, hi: int) -> list[int]:
     elif isinstance(value, int) and not isinstance(value, bool):
         items = [value]
     else:
-        raise ConfigError(f"{key} must be an integer, a list of integers or a range \"a..b\", got {value!r}")
+        raise ConfigError(f'{key} must be an integer, a list of integers or a range "a..b", got {value!r}')
     for v in items:
         if isinstance(v, bool) or not isinstance(v, int) or not lo <= v <= hi:
             raise ConfigError(f"{key} values must be integers in {lo}..{hi}, got {v!r}")
@@ -277,12 +296,16 @@ def _family(value) -> dict:
     if fam == "atlas":
         return {"family": fam, "nodes": _int_list("sweep.nodes", value["nodes"], 2, 7)}
     if fam == "lollipop":
-        return {"family": fam, "nodes": _int_list("sweep.nodes", value["nodes"], 3, 500),
-                "path": _int_list("sweep.path", value["path"], 1, 498)}
+        return {
+            "family": fam,
+            "nodes": _int_list("sweep.nodes", value["nodes"], 3, 500),
+            "path": _int_list("sweep.path", value["path"], 1, 498),
+        }
     items = value["graphs"]
     if not isinstance(items, list) or not items:
-        raise ConfigError("sweep.graphs must be a non-empty list of graph specs such as "
-                          "[{kind: atlas, index: 105}]")
+        raise ConfigError(
+            "sweep.graphs must be a non-empty list of graph specs such as [{kind: atlas, index: 105}]"
+        )
     out = []
     for k, spec in enumerate(items):
         if not isinstance(spec, dict):

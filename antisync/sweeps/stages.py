@@ -33,12 +33,26 @@ def _job_name(graph: str, threshold: float, repeat: int, sweep: Sweep) -> str:
     return name
 
 
-def _job_config(sweep: Sweep, entry: GraphEntry, edges: list, *, threshold: float, seed: int,
-                betas: tuple, realizations: int | None = None, name: str) -> Config:
+def _job_config(
+    sweep: Sweep,
+    entry: GraphEntry,
+    edges: list,
+    *,
+    threshold: float,
+    seed: int,
+    betas: tuple,
+    realizations: int | None = None,
+    name: str,
+) -> Config:
     base = sweep.base
     return replace(
-        base, name=name, graph=entry.spec, edges=[graphs_mod.edge_label(*e) for e in edges],
-        betas=tuple(betas), seed=seed, realizations=realizations or base.realizations,
+        base,
+        name=name,
+        graph=entry.spec,
+        edges=[graphs_mod.edge_label(*e) for e in edges],
+        betas=tuple(betas),
+        seed=seed,
+        realizations=realizations or base.realizations,
         dynamics=replace(base.dynamics, threshold=threshold),
     )
 
@@ -51,11 +65,17 @@ def main_jobs(sweep: Sweep, entries: list[GraphEntry]) -> tuple[list, list[dict]
             for k in range(sweep.repeats):
                 name = _job_name(entry.name, t, k, sweep)
                 betas = sweep.base.betas if k == 0 else ()
-                cfg = _job_config(sweep, entry, entry.representatives, threshold=t,
-                                  seed=sweep.base.seed + k, betas=betas, name=name)
+                cfg = _job_config(
+                    sweep,
+                    entry,
+                    entry.representatives,
+                    threshold=t,
+                    seed=sweep.base.seed + k,
+                    betas=betas,
+                    name=name,
+                )
                 jobs.append(make_job(cfg, graph=entry.graph, name=name))
-                meta.append({"job": name, "graph": entry.name, "threshold": t, "repeat": k,
-                             "stage": "main"})
+                meta.append({"job": name, "graph": entry.name, "threshold": t, "repeat": k, "stage": "main"})
     return jobs, meta
 
 
@@ -70,12 +90,29 @@ def top_jobs(sweep: Sweep, entries: list[GraphEntry], records: list[dict]) -> tu
         entry = by_name[row["graph"]]
         edge = graphs_mod.parse_edge(row["max_representative"], entry.graph)
         name = f"{entry.name}_top"
-        cfg = _job_config(sweep, entry, [edge], threshold=t, seed=sweep.base.seed,
-                          betas=sweep.top.betas, realizations=sweep.top.realizations, name=name)
+        cfg = _job_config(
+            sweep,
+            entry,
+            [edge],
+            threshold=t,
+            seed=sweep.base.seed,
+            betas=sweep.top.betas,
+            realizations=sweep.top.realizations,
+            name=name,
+        )
         cfg = replace(cfg, keep_pairs=0)
         jobs.append(make_job(cfg, graph=entry.graph, name=name))
-        meta.append({"job": name, "graph": entry.name, "threshold": t, "repeat": 0,
-                     "stage": "top", "rank": row["rank"], "edge": row["max_edge"]})
+        meta.append(
+            {
+                "job": name,
+                "graph": entry.name,
+                "threshold": t,
+                "repeat": 0,
+                "stage": "top",
+                "rank": row["rank"],
+                "edge": row["max_edge"],
+            }
+        )
     return jobs, meta
 
 
@@ -107,8 +144,14 @@ def run_sweep(
         store.prepare(resume=resume, overwrite=overwrite)
         try:
             return _run_sweep_locked(
-                sweep, store, writable, resume=resume, progress=progress, executor=executor,
-                log=log, chunk_realizations=chunk_realizations,
+                sweep,
+                store,
+                writable,
+                resume=resume,
+                progress=progress,
+                executor=executor,
+                log=log,
+                chunk_realizations=chunk_realizations,
                 checkpoint_seconds=checkpoint_seconds,
             )
         except BaseException:
@@ -117,8 +160,18 @@ def run_sweep(
             raise
 
 
-def _run_sweep_locked(sweep: Sweep, store, writable: bool, *, resume: bool, progress, executor,
-                      log, chunk_realizations, checkpoint_seconds) -> Path:
+def _run_sweep_locked(
+    sweep: Sweep,
+    store,
+    writable: bool,
+    *,
+    resume: bool,
+    progress,
+    executor,
+    log,
+    chunk_realizations,
+    checkpoint_seconds,
+) -> Path:
     """The body of :func:`run_sweep`, with ``store`` locked and prepared."""
     import sys
 
@@ -142,13 +195,17 @@ def _run_sweep_locked(sweep: Sweep, store, writable: bool, *, resume: bool, prog
         say(f"{path} is already complete; nothing to do")
         return path
     if not writable:
-        raise StoreError(f"cannot write to folder {path.parent} to finish {path}; "
-                         "make it writable or use --out for a new file")
+        raise StoreError(
+            f"cannot write to folder {path.parent} to finish {path}; "
+            "make it writable or use --out for a new file"
+        )
     entries = family_graphs(sweep)
     _check_backend(sweep, entries)  # before the journal: nothing is screened in vain
     store.start_journal(key)
-    say(f"sweep {sweep.name}: {len(entries)} graph(s) of family {sweep.family['family']}, "
-        f"{len(sweep.thresholds)} threshold(s), {sweep.repeats} repeat(s)")
+    say(
+        f"sweep {sweep.name}: {len(entries)} graph(s) of family {sweep.family['family']}, "
+        f"{len(sweep.thresholds)} threshold(s), {sweep.repeats} repeat(s)"
+    )
 
     # -- 1. screening, cached per graph in the journal and in the file ------------------------
     screens: dict[str, ScreenResult] = {}
@@ -161,14 +218,27 @@ def _run_sweep_locked(sweep: Sweep, store, writable: bool, *, resume: bool, prog
     show = sys.stderr.isatty() if progress is None else progress
     todo = [e for e in entries if sweep.screen.enabled and e.name not in screens]
     dyn = sweep.base.dynamics
-    bar = tqdm(total=len(entries), initial=len(entries) - len(todo), unit="graph", desc="screening",
-               disable=not show or not todo, file=sys.stderr, dynamic_ncols=True)
+    bar = tqdm(
+        total=len(entries),
+        initial=len(entries) - len(todo),
+        unit="graph",
+        desc="screening",
+        disable=not show or not todo,
+        file=sys.stderr,
+        dynamic_ncols=True,
+    )
     for entry in todo:
         res = screen_graph(
-            graphs_mod.omega_matrix(entry.graph), graph=entry.name, seed=sweep.base.seed,
-            realizations=sweep.screen.realizations, t_max=sweep.screen.t_max, dt=dyn.dt,
-            threshold=max(sweep.thresholds), coupling_kind=dyn.coupling,
-            exclude_fraction=sweep.screen.exclude_fraction, threads=sweep.base.threads,
+            graphs_mod.omega_matrix(entry.graph),
+            graph=entry.name,
+            seed=sweep.base.seed,
+            realizations=sweep.screen.realizations,
+            t_max=sweep.screen.t_max,
+            dt=dyn.dt,
+            threshold=max(sweep.thresholds),
+            coupling_kind=dyn.coupling,
+            exclude_fraction=sweep.screen.exclude_fraction,
+            threads=sweep.base.threads,
         )
         screens[entry.name] = res
         store.save_screen(entry.name, res.to_dict())
@@ -185,9 +255,11 @@ def _run_sweep_locked(sweep: Sweep, store, writable: bool, *, resume: bool, prog
     # -- 2. main stage ---------------------------------------------------------------------
     jobs, jobs_meta = main_jobs(sweep, kept)
     saved = _symmetry(sweep, kept, jobs)
-    say(f"symmetry: {saved['directed_edges']} directed edges in {saved['representatives']} orbits; "
+    say(
+        f"symmetry: {saved['directed_edges']} directed edges in {saved['representatives']} orbits; "
         f"integrating representatives saves {saved['integrations_saved']:,} of "
-        f"{saved['integrations_without_symmetry']:,} integrations ({saved['fraction_saved']:.0%})")
+        f"{saved['integrations_without_symmetry']:,} integrations ({saved['fraction_saved']:.0%})"
+    )
     state = {"jobs_meta": list(jobs_meta), "final": sweep.top.graphs == 0}
 
     def write_meta(f, states) -> None:
@@ -195,10 +267,16 @@ def _run_sweep_locked(sweep: Sweep, store, writable: bool, *, resume: bool, prog
         meta["complete"] = bool(state["final"] and all(st.complete for st in states.values()))
         write_sweep_meta(f, meta)  # also the root's complete, as for a run file
 
-    common = dict(progress=progress, executor=executor, log=log,
-                  chunk_realizations=chunk_realizations, checkpoint_seconds=checkpoint_seconds,
-                  key=key, provenance={"config_yaml": sweep.to_yaml(), "sweep": sweep.name},
-                  extra=write_meta)
+    common = dict(
+        progress=progress,
+        executor=executor,
+        log=log,
+        chunk_realizations=chunk_realizations,
+        checkpoint_seconds=checkpoint_seconds,
+        key=key,
+        provenance={"config_yaml": sweep.to_yaml(), "sweep": sweep.name},
+        extra=write_meta,
+    )
     main_done = False
     if stored is not None:
         states = store.load_states(jobs, key)
@@ -218,8 +296,10 @@ def _run_sweep_locked(sweep: Sweep, store, writable: bool, *, resume: bool, prog
     state["jobs_meta"] = jobs_meta + tmeta
     state["final"] = True
     if tjobs:
-        say(f"top stage: {len(tjobs)} graph(s), edge of largest Lambda, betas "
-            f"{list(sweep.top.betas)}, {tjobs[0].config.realizations:,} realizations")
+        say(
+            f"top stage: {len(tjobs)} graph(s), edge of largest Lambda, betas "
+            f"{list(sweep.top.betas)}, {tjobs[0].config.realizations:,} realizations"
+        )
     run_jobs(jobs + tjobs, sweep.base, output=path, resume=True, **common)
     return path
 
@@ -257,8 +337,10 @@ def _symmetry(sweep: Sweep, kept: list[GraphEntry], jobs) -> dict:
         with_sym += (1 + per_edge * len(entry.representatives)) * m
         without += (1 + per_edge * len(entry.edges)) * m
     return {
-        "directed_edges": n_dir, "representatives": n_rep,
-        "integrations": with_sym, "integrations_without_symmetry": without,
+        "directed_edges": n_dir,
+        "representatives": n_rep,
+        "integrations": with_sym,
+        "integrations_without_symmetry": without,
         "integrations_saved": without - with_sym,
         "fraction_saved": (without - with_sym) / without if without else 0.0,
     }
@@ -270,21 +352,32 @@ def _meta(sweep, entries, screens, excluded, jobs_meta, saved) -> dict:
     graphs = []
     for e in entries:
         s = screens.get(e.name)
-        graphs.append({
-            "graph": e.name, "spec": e.spec,
-            "nodes": [_jsonable(v) for v in graphs_mod.node_order(e.graph)],
-            "undirected_edges": [[_jsonable(u), _jsonable(v)] for u, v in e.graph.edges],
-            "orbits": e.orbit_labels(),
-            "excluded": e.name in excluded,
-            "screen": s.to_dict() if s is not None else None,
-        })
+        graphs.append(
+            {
+                "graph": e.name,
+                "spec": e.spec,
+                "nodes": [_jsonable(v) for v in graphs_mod.node_order(e.graph)],
+                "undirected_edges": [[_jsonable(u), _jsonable(v)] for u, v in e.graph.edges],
+                "orbits": e.orbit_labels(),
+                "excluded": e.name in excluded,
+                "screen": s.to_dict() if s is not None else None,
+            }
+        )
     return {
-        "format": SWEEP_FORMAT, "format_version": SWEEP_FORMAT_VERSION, "name": sweep.name,
-        "family": sweep.family, "thresholds": list(sweep.thresholds), "repeats": sweep.repeats,
+        "format": SWEEP_FORMAT,
+        "format_version": SWEEP_FORMAT_VERSION,
+        "name": sweep.name,
+        "family": sweep.family,
+        "thresholds": list(sweep.thresholds),
+        "repeats": sweep.repeats,
         "ranking_threshold": sweep.ranking_threshold(),
         "top": asdict(sweep.top) | {"betas": list(sweep.top.betas)},
-        "screen": asdict(sweep.screen), "graphs": graphs, "jobs": jobs_meta, "symmetry": saved,
-        "coupling": sweep.base.dynamics.coupling, "dbeta": sweep.base.lambda_.dbeta,
+        "screen": asdict(sweep.screen),
+        "graphs": graphs,
+        "jobs": jobs_meta,
+        "symmetry": saved,
+        "coupling": sweep.base.dynamics.coupling,
+        "dbeta": sweep.base.lambda_.dbeta,
         "betas": list(sweep.base.betas),
     }
 
