@@ -7,7 +7,6 @@ valid config or an :class:`~antisync.errors.AntisyncError`.
 """
 
 import json
-import os
 import subprocess
 import sys
 from pathlib import Path
