@@ -137,6 +137,26 @@ def dask_executor(cfg, *, workers: int | None, scheduler: str | None, quiet: boo
         ex.close()
 
 
+@contextlib.contextmanager
+def writing(output: str):
+    """What ``run`` and ``sweep`` do when the work stops early: Ctrl-C exits 130 saying how to
+    resume; an OSError (a full disk, a file size limit, a folder turned read-only) is one line
+    naming the output."""
+    from antisync.errors import AntisyncError
+    from antisync.runner import Interrupted
+
+    try:
+        yield
+    except Interrupted as exc:
+        info(f"antisync: {exc}")
+        raise typer.Exit(130) from None
+    except OSError as exc:
+        raise AntisyncError(
+            f"cannot write {output}: {os_message(exc)}; finished chunks are kept: make room and "
+            "rerun the same command with --resume"
+        ) from None
+
+
 def info(message: str, quiet: bool = False) -> None:
     if not quiet:
         print(message, file=sys.stderr)

@@ -16,9 +16,9 @@ from antisync.cli.common import (
     SetOpt,
     dask_executor,
     info,
-    os_message,
     typed_values,
     user_errors,
+    writing,
 )
 
 
@@ -48,7 +48,7 @@ def run(
     """Run the experiment of CONFIG and write tau0/tau(beta) statistics, Lambda and histograms to HDF5."""
     from antisync.config import load_config
     from antisync.errors import AntisyncError
-    from antisync.runner import Interrupted, run_config
+    from antisync.runner import run_config
 
     if resume and overwrite:
         raise AntisyncError("--resume and --overwrite exclude each other: choose one")
@@ -57,7 +57,7 @@ def run(
     )
     cfg = load_config(config, list(set_ or []), values)
     with dask_executor(cfg, workers=workers, scheduler=scheduler, quiet=quiet) as ex:
-        try:
+        with writing(cfg.output):
             path = run_config(
                 cfg,
                 resume=resume,
@@ -66,12 +66,4 @@ def run(
                 executor=ex,
                 log=lambda m: info(m, quiet),
             )
-        except Interrupted as exc:
-            info(f"antisync: {exc}")
-            raise typer.Exit(130) from None
-        except OSError as exc:  # a full disk, a file size limit, a folder turned read-only
-            raise AntisyncError(
-                f"cannot write {cfg.output}: {os_message(exc)}; finished chunks "
-                "are kept: make room and rerun the same command with --resume"
-            ) from None
     info(f"wrote {path}  (next: antisync summary {path}; antisync report {path})", quiet)

@@ -15,9 +15,9 @@ from antisync.cli.common import (
     backend_option,
     dask_executor,
     info,
-    os_message,
     typed_values,
     user_errors,
+    writing,
 )
 from antisync.types import Backend
 
@@ -54,7 +54,6 @@ def sweep(
     Killed at any moment, the same command with --resume finishes it.
     """
     from antisync.errors import AntisyncError
-    from antisync.runner import Interrupted
     from antisync.sweeps import load_sweep, run_sweep
 
     if resume and overwrite:
@@ -62,7 +61,7 @@ def sweep(
     values = typed_values(realizations=realizations, output=out, backend=backend, threads=threads)
     sw = load_sweep(config, list(set_ or []), values)
     with dask_executor(sw.base, workers=workers, scheduler=scheduler, quiet=quiet) as ex:
-        try:
+        with writing(sw.output):
             path = run_sweep(
                 sw,
                 resume=resume,
@@ -71,12 +70,4 @@ def sweep(
                 progress=None if not quiet else False,
                 log=lambda m: info(m, quiet),
             )
-        except Interrupted as exc:
-            info(f"antisync: {exc}")
-            raise typer.Exit(130) from None
-        except OSError as exc:  # a full disk, a file size limit, a folder turned read-only
-            raise AntisyncError(
-                f"cannot write {sw.output}: {os_message(exc)}; finished chunks "
-                "are kept: make room and rerun the same command with --resume"
-            ) from None
     info(f"wrote {path}  (next: antisync summary {path}; antisync report {path})", quiet)

@@ -23,13 +23,7 @@ def sweep_summary(path: str | Path, views=None) -> dict:
     Returns
     -------
     dict
-        ``records``: main-stage records fanned out to every selected directed edge of every
-        kept graph (keys of :func:`antisync.summary.job_records` plus ``job``,
-        ``threshold``, ``repeat``, ``representative``, ``orbit_size``);
-        ``top``: records of the top stage (plus ``rank``);
-        ``excluded``: ``{graph, reason, fraction_not_synced, fraction_stuck, screened}``;
-        ``screen``: the screening of every graph; ``symmetry``: integrations saved;
-        ``complete``: whether every stage finished.
+        See :func:`antisync.sweeps.analysis.summarize`.
     """
     from antisync.store import read_meta, read_views  # here: the store loads numba
 
