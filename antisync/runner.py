@@ -15,6 +15,7 @@ from antisync.backends import resolve_backend
 from antisync.compute import check_job
 from antisync.config import Config
 from antisync.errors import StoreError
+from antisync.executors import Executor
 from antisync.jobs import Job, make_job
 from antisync.measures.pipeline import COMPUTED, compute_measures, wants_measures, with_nnc
 from antisync.store import JobState, ResultStore, chunk_tag, command_line, git_revision
@@ -43,7 +44,7 @@ def run_jobs(
     resume: bool = False,
     overwrite: bool = False,
     progress: bool | None = None,
-    executor=None,
+    executor: Executor | None = None,
     chunk_realizations: int | None = None,
     checkpoint_seconds: float = 30.0,
     log: Callable[[str], None] | None = None,

@@ -202,3 +202,14 @@ def test_cli_scheduler_same_summary_as_local(client, config_path, reference, tmp
     assert f"connected to {address}" in res.stderr
     _assert_same(out, reference)
     assert client.status == "running"  # closing the CLI's client leaves the cluster up
+
+
+def test_both_executors_satisfy_the_executor_protocol():
+    from antisync.executors import Executor
+    from antisync.executors.dask import DaskExecutor
+    from antisync.executors.local import LocalExecutor
+
+    assert isinstance(LocalExecutor("cpu", 1), Executor)
+    for name in ("run", "describe", "close"):
+        assert callable(getattr(DaskExecutor, name))
+    assert issubclass(DaskExecutor, Executor)

@@ -10,7 +10,7 @@ from __future__ import annotations
 import json
 from dataclasses import asdict, dataclass, replace
 from pathlib import Path
-from typing import Any
+from typing import Literal
 
 import yaml
 
@@ -104,7 +104,7 @@ class Sweep:
 
     name: str
     family: dict
-    edges: Any
+    edges: Literal["all", "fig2"] | tuple[str, ...]
     thresholds: tuple
     repeats: int
     screen: Screen
