@@ -27,6 +27,7 @@ __all__ = [
     "Coupling",
     "CouplingCSR",
     "coupling_derivative",
+    "coupling_derivative_row",
     "coupling_matrix",
     "damaged_omega",
     "laplacian",
@@ -92,19 +93,28 @@ def coupling_derivative(
     ``d w_ab / dbeta = -Omega_ab (S_a - Omega_ab) / S(beta)^2``.
     For raw coupling, ``d Omega*_ab / dbeta = -Omega_ab``.
     """
+    omega = np.asarray(omega, dtype=np.float64)
+    d = np.zeros(omega.shape)
+    d[a] = coupling_derivative_row(omega, a, b, coupling, beta)
+    return d
+
+
+def coupling_derivative_row(
+    omega: np.ndarray, a: int, b: int, coupling: Coupling = "normalized", beta: float = 0.0
+) -> np.ndarray:
+    """Row ``a`` of :func:`coupling_derivative`, the only nonzero one (``O(N)``, for many links)."""
     _check_coupling(coupling)
     omega = np.asarray(omega, dtype=np.float64)
-    n = omega.shape[0]
-    d = np.zeros((n, n))
     wab = omega[a, b]
     if coupling == "raw":
-        d[a, b] = -wab
-        return d
+        row = np.zeros(omega.shape[0])
+        row[b] = -wab
+        return row
     s_a = omega[a].sum()
     s_beta = s_a - beta * wab
-    d[a] = omega[a] * wab / s_beta**2
-    d[a, b] = -wab * (s_a - wab) / s_beta**2
-    return d
+    row = omega[a] * wab / s_beta**2
+    row[b] = -wab * (s_a - wab) / s_beta**2
+    return row
 
 
 @dataclass(frozen=True)

@@ -24,7 +24,13 @@ from antisync.measures.linear import (
     tau_linear_euler,
     tau_linear_exact,
 )
-from antisync.measures.randomwalk import f_rw, lambda_rw, stationary_and_fundamental, tau_rw
+from antisync.measures.randomwalk import (
+    f_rw,
+    lambda_rw,
+    lambda_rw_all,
+    stationary_and_fundamental,
+    tau_rw,
+)
 from antisync.measures.spectral import f_xi2, lambda_xi2, lambda_xi2_all, xi2
 
 __all__ = [
@@ -34,6 +40,7 @@ __all__ = [
     "for_graph",
     "lambda_linear",
     "lambda_rw",
+    "lambda_rw_all",
     "lambda_xi2",
     "lambda_xi2_all",
     "order_parameter",

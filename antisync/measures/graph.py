@@ -51,7 +51,7 @@ def for_graph(
 
     from antisync import graphs
     from antisync.errors import ConfigError
-    from antisync.measures.randomwalk import lambda_rw
+    from antisync.measures.randomwalk import lambda_rw_all
     from antisync.measures.spectral import lambda_xi2_all
 
     for m in which:
@@ -82,6 +82,6 @@ def for_graph(
         for row, value in zip(rows, lambda_xi2_all(omega, idx, coupling), strict=True):
             row["lambda_xi2"] = float(value)
     if "rw" in which:
-        for row, (a, b) in zip(rows, idx, strict=True):
-            row["lambda_rw"] = float(lambda_rw(omega, a, b))
+        for row, value in zip(rows, lambda_rw_all(omega, idx), strict=True):
+            row["lambda_rw"] = float(value)
     return rows

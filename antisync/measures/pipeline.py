@@ -89,7 +89,7 @@ def compute_measures(job: Job, config=None) -> dict[str, np.ndarray]:
         disconnected graph.
     """
     from antisync.measures.linear import lambda_linear, tau_linear_euler, tau_linear_exact
-    from antisync.measures.randomwalk import lambda_rw
+    from antisync.measures.randomwalk import lambda_rw_all
     from antisync.measures.spectral import lambda_xi2_all
     from antisync.phases import initial_phases
 
@@ -105,11 +105,8 @@ def compute_measures(job: Job, config=None) -> dict[str, np.ndarray]:
         with _naming(job, "xi2"):
             out["lambda_xi2"] = np.asarray(lambda_xi2_all(omega, pairs, dyn.coupling), dtype=float)
     if "rw" in wanted:
-        values = []
-        for (a, b), label in zip(pairs, job.edge_labels, strict=True):
-            with _naming(job, "rw", label):
-                values.append(lambda_rw(omega, a, b))
-        out["lambda_rw"] = np.array(values, dtype=float)
+        with _naming(job, "rw"):  # every link from one factorization
+            out["lambda_rw"] = np.asarray(lambda_rw_all(omega, pairs), dtype=float)
     if "linear" in wanted:
         spec = cfg.linear
         theta0 = initial_phases(cfg.seed, 0, spec.realizations, len(job.nodes))

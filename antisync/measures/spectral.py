@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from antisync.coupling import Coupling, coupling_derivative, damaged_omega, laplacian
+from antisync.coupling import Coupling, coupling_derivative, coupling_derivative_row, damaged_omega, laplacian
 from antisync.measures._validate import as_omega, check_coupling, check_edge
 
 __all__ = ["f_xi2", "lambda_xi2", "lambda_xi2_all", "xi2"]
@@ -147,8 +147,11 @@ def lambda_xi2_all(
     u = x2 * d[:, None]  # left eigenvectors of L, u^T v = I
     if not edges:
         return np.empty(0)
-    dl = np.stack([_laplacian_derivative(omega, a, b, coupling) for a, b in edges])
-    m = np.einsum("ik,eij,jl->ekl", u, dl, v)
+    # dL = e_a l^T has one nonzero row, so M = u_a (l^T v) needs O(N) per link, never an
+    # N x N matrix per link (a 1000-node graph's 4000 links would need 32 GB stacked)
+    rows = np.stack([_laplacian_derivative_row(omega, a, b, coupling) for a, b in edges])
+    heads = np.array([a for a, _ in edges])
+    m = u[heads][:, :, None] * (rows @ v)[:, None, :]
     dxi = np.linalg.eigvals(m).real.min(axis=1)
     return dxi / xi_2
 
@@ -175,3 +178,11 @@ def _laplacian_derivative(omega: np.ndarray, a: int, b: int, coupling: Coupling)
     """``dL/dbeta`` at ``beta = 0`` for damage on ``a -> b``: ``diag(dW 1) - dW``."""
     dw = coupling_derivative(omega, a, b, coupling)
     return np.diag(dw.sum(axis=1)) - dw
+
+
+def _laplacian_derivative_row(omega: np.ndarray, a: int, b: int, coupling: Coupling) -> np.ndarray:
+    """Row ``a`` of ``dL/dbeta`` (:func:`_laplacian_derivative`; every other row is zero)."""
+    dw_row = coupling_derivative_row(omega, a, b, coupling)
+    row = -dw_row
+    row[a] += dw_row.sum()
+    return row
