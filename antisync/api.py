@@ -244,7 +244,7 @@ def _values(overrides: Mapping, output) -> dict:
 def _config(config, overrides: Mapping, output) -> Config:
     import copy
 
-    from antisync.config import Config, config_from_mapping, load_config
+    from antisync.config import Config, apply_values, config_from_mapping, load_config
 
     values = _values(overrides, output)
     if isinstance(config, Config):
@@ -253,11 +253,5 @@ def _config(config, overrides: Mapping, output) -> Config:
         raw = copy.deepcopy(dict(config))
     else:
         return load_config(config, values=values)
-    for key, value in values.items():  # as load_config applies them to a file's mapping
-        node = raw
-        *parents, last = key.split(".")
-        for p in parents:
-            node[p] = dict(node[p]) if isinstance(node.get(p), Mapping) else {}
-            node = node[p]
-        node[last] = value
+    apply_values(raw, values)  # as load_config applies them to a file's mapping
     return config_from_mapping(raw)

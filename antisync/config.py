@@ -70,6 +70,7 @@ __all__ = [
     "Histogram",
     "LambdaSpec",
     "LinearSpec",
+    "apply_values",
     "check_graph",
     "config_from_mapping",
     "load_config",
@@ -382,8 +383,7 @@ def parse_mapping(text: str, overrides: list[str] | None = None, values: dict | 
         raise ConfigError("a config must be a YAML mapping of keys such as graph:, edges:, betas:")
     for item in overrides or []:
         _apply_override(raw, item)
-    for key, value in (values or {}).items():
-        _set_dotted(raw, key, value)
+    apply_values(raw, values or {})
     return raw
 
 
@@ -397,6 +397,14 @@ def _apply_override(raw: dict, item: str) -> None:
     except yaml.YAMLError:
         raise ConfigError(f"--set {key}: value {value!r} is not valid YAML") from None
     _set_dotted(raw, key, parsed)
+
+
+def apply_values(raw: dict, values: dict) -> dict:
+    """Set ``{dotted key: value}`` in the mapping ``raw`` as they are (no YAML parsing);
+    a missing or non-mapping section on the way becomes a new mapping. Returns ``raw``."""
+    for key, value in values.items():
+        _set_dotted(raw, key, value)
+    return raw
 
 
 def _set_dotted(raw: dict, key: str, value) -> None:

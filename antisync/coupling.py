@@ -31,6 +31,7 @@ __all__ = [
     "coupling_matrix",
     "damaged_omega",
     "laplacian",
+    "symmetrized_laplacian",
     "orbit_variant_weights",
     "tangent_coefficients",
     "to_csr",
@@ -81,6 +82,17 @@ def laplacian(omega: np.ndarray, coupling: Coupling = "normalized") -> np.ndarra
     """Laplacian ``L = diag(W 1) - W`` of the linearized dynamics ``dtheta/dt = -L theta``."""
     w = coupling_matrix(omega, coupling)
     return np.diag(w.sum(axis=1)) - w
+
+
+def symmetrized_laplacian(omega: np.ndarray, coupling: Coupling = "normalized"):
+    """``(Ls, d)``: the symmetric matrix ``Ls = D L D^-1`` similar to :func:`laplacian` for a
+    symmetric ``omega`` (``D = diag(d)``, ``d = sqrt(S)`` for normalized coupling, ones for raw),
+    so ``eigh(Ls)`` gives ``L``'s real spectrum."""
+    strength = omega.sum(axis=1)
+    if coupling == "normalized":
+        d = np.sqrt(strength)
+        return np.eye(omega.shape[0]) - omega / np.outer(d, d), d
+    return np.diag(strength) - omega, np.ones(omega.shape[0])
 
 
 def coupling_derivative(

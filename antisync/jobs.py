@@ -196,16 +196,9 @@ def check_step(omega: np.ndarray, config: Config) -> None:
     end NOT_SYNCED with no hint why). Raw coupling with huge weights fails here too.
     """
     dyn = config.dynamics
-    lap = coupling.laplacian(omega, dyn.coupling)
-    if not np.isfinite(lap).all():
+    sym, _ = coupling.symmetrized_laplacian(omega, dyn.coupling)
+    if not np.isfinite(sym).all():
         raise ConfigError("the graph's weights overflow the coupling matrix; rescale them")
-    # L is similar to a symmetric matrix (normalized: D^-1/2 Omega D^-1/2), so eigvalsh of its
-    # symmetrized form gives its real spectrum
-    if dyn.coupling == "normalized":
-        d = np.sqrt(omega.sum(axis=1))
-        sym = np.eye(len(omega)) - omega / np.outer(d, d)
-    else:
-        sym = lap
     xi_max = float(np.linalg.eigvalsh(sym)[-1])
     limit = STABLE_STEP[dyn.integrator] / xi_max
     if dyn.dt >= limit:

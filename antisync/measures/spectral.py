@@ -16,7 +16,14 @@ from __future__ import annotations
 
 import numpy as np
 
-from antisync.coupling import Coupling, coupling_derivative, coupling_derivative_row, damaged_omega, laplacian
+from antisync.coupling import (
+    Coupling,
+    coupling_derivative,
+    coupling_derivative_row,
+    damaged_omega,
+    laplacian,
+    symmetrized_laplacian,
+)
 from antisync.measures._validate import as_omega, check_coupling, check_edge
 
 __all__ = ["f_xi2", "lambda_xi2", "lambda_xi2_all", "xi2"]
@@ -161,13 +168,7 @@ def _symmetrized_spectrum(omega: np.ndarray, coupling: Coupling) -> tuple[np.nda
 
     Raises ``ValueError`` when ``xi_2`` is (numerically) zero: the graph is disconnected.
     """
-    strength = omega.sum(axis=1)
-    if coupling == "normalized":
-        d = np.sqrt(strength)
-        ls = np.eye(omega.shape[0]) - omega / np.outer(d, d)
-    else:
-        d = np.ones(omega.shape[0])
-        ls = np.diag(strength) - omega
+    ls, d = symmetrized_laplacian(omega, coupling)
     evals, x = np.linalg.eigh(ls)
     if evals[1] <= 1e-12 * abs(evals[-1]):
         raise ValueError("xi_2 is zero: the graph is disconnected; the measures need a connected network")
