@@ -19,6 +19,7 @@ import h5py
 import networkx as nx
 import numpy as np
 import pytest
+from helpers import comparable
 from typer.testing import CliRunner
 
 from antisync import graphs
@@ -604,13 +605,6 @@ top: {graphs: 2, realizations: 40}
 """
 
 
-def _comparable(summary: dict) -> dict:
-    out = {k: summary[k] for k in ("records", "top", "excluded", "symmetry", "complete")}
-    out["screen"] = [{k: v for k, v in s.items() if k != "seconds"} for s in summary["screen"]]
-    out["jobs"] = summary["meta"]["jobs"]
-    return json.loads(json.dumps(out))
-
-
 @pytest.fixture(scope="module")
 def sweep_reference(tmp_path_factory):
     from antisync.sweeps import load_sweep_text, run_sweep, sweep_summary
@@ -618,7 +612,7 @@ def sweep_reference(tmp_path_factory):
     sw = load_sweep_text(TINY_SWEEP)
     path = tmp_path_factory.mktemp("sweep") / "tiny.h5"
     run_sweep(sw, output=path, progress=False, chunk_realizations=20)
-    return sw, path, _comparable(sweep_summary(path))
+    return sw, path, comparable(sweep_summary(path))
 
 
 @pytest.mark.filterwarnings("ignore:Port 8787 is already in use")
@@ -640,7 +634,7 @@ def test_dask_sweep_with_a_top_stage(tmp_path, sweep_reference):
         client = ex.client
         run_sweep(sw, output=out, progress=False, chunk_realizations=20, executor=ex)
         assert ex.client is client and client.status == "running"
-        assert _comparable(sweep_summary(out)) == ref
+        assert comparable(sweep_summary(out)) == ref
     finally:
         ex.close()  # its creator closes it
     assert ex.client is None and client.status == "closed"

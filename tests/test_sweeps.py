@@ -10,6 +10,7 @@ import h5py
 import networkx as nx
 import numpy as np
 import pytest
+from helpers import comparable
 
 from antisync import graphs
 from antisync.errors import ConfigError
@@ -306,19 +307,12 @@ class _CrashAfter:
         pass
 
 
-def _comparable(summary: dict) -> dict:
-    out = {k: summary[k] for k in ("records", "top", "excluded", "symmetry", "complete")}
-    out["screen"] = [{k: v for k, v in s.items() if k != "seconds"} for s in summary["screen"]]
-    out["jobs"] = summary["meta"]["jobs"]
-    return json.loads(json.dumps(out))
-
-
 @pytest.fixture(scope="module")
 def tiny_reference(tmp_path_factory):
     sw = load_sweep_text(TINY)
     path = tmp_path_factory.mktemp("ref") / "tiny.h5"
     run_sweep(sw, output=path, progress=False, chunk_realizations=20)
-    return sw, path, _comparable(sweep_summary(path))
+    return sw, path, comparable(sweep_summary(path))
 
 
 def test_tiny_sweep_contents(tiny_reference):
@@ -382,7 +376,7 @@ def test_interrupted_sweep_resumes_to_the_same_file(tiny_reference, tmp_path, cr
         with h5py.File(path, "r") as f:  # the file says so too, also between the stages
             assert not f.attrs["complete"]
     run_sweep(sw, output=path, resume=True, progress=False, chunk_realizations=40)
-    assert _comparable(sweep_summary(path)) == ref
+    assert comparable(sweep_summary(path)) == ref
     assert not (tmp_path / "tiny.h5.partial").exists()
     with h5py.File(path, "r") as f:
         assert f.attrs["complete"]
@@ -416,7 +410,7 @@ def test_screening_is_resumed_not_redone(tiny_reference, tmp_path, monkeypatch):
         run_sweep(sw, output=path, progress=False)
     run_sweep(sw, output=path, resume=True, progress=False, chunk_realizations=20)
     assert calls == ["path_graph", "lollipop_4_1", "G18", "G18", "C5"]
-    assert _comparable(sweep_summary(path)) == ref
+    assert comparable(sweep_summary(path)) == ref
 
 
 # ---- CLI -----------------------------------------------------------------------------------
