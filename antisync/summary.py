@@ -16,10 +16,13 @@ import numpy as np
 from antisync import estimators
 from antisync.measures.pipeline import join_nnc, measure_fields
 
-__all__ = ["JobView", "job_records", "view_records"]
+__all__ = ["CI_LEVEL", "JobView", "job_records", "sign_resolved", "view_records"]
 
 # error bars are flagged when the largest 0.1% of samples carry this share of the variance
 TAIL_WARN = 0.5
+#: level of the ``lambda_km_ci_low`` / ``lambda_km_ci_high`` interval of every record
+CI_LEVEL = 0.95
+_Z = {0.95: 1.959963984540054}
 
 
 @dataclass
@@ -79,6 +82,10 @@ def _lambda(view: JobView, e: int) -> dict:
         "lambda_km_se": _num(est.se),
         "lambda_km_se_naive": _num(est.se_naive),
         "lambda_km_se_batch": _num(est.se_batch),
+        "lambda_km_ci_low": _num(est.mean - _Z[CI_LEVEL] * est.se),
+        "lambda_km_ci_high": _num(est.mean + _Z[CI_LEVEL] * est.se),
+        "lambda_km_ci_level": CI_LEVEL,
+        "lambda_km_ci_method": "batch-means",
         "lambda_km_tail_share": _num(share),
         "lambda_km_warning": warning,
         "lambda_method": view.lambda_method,
@@ -86,6 +93,15 @@ def _lambda(view: JobView, e: int) -> dict:
         "lambda_n": s["n"],
         "lambda_n_flagged": s["n_flagged"],
     }
+
+
+def sign_resolved(record: dict) -> int:
+    """``+1`` (antifragile) or ``-1`` (fragile) when the record's ``lambda_km_ci_low`` ..
+    ``lambda_km_ci_high`` interval excludes 0; ``0`` when it does not or is missing."""
+    lo, hi = record.get("lambda_km_ci_low"), record.get("lambda_km_ci_high")
+    if lo is None or hi is None:
+        return 0
+    return 1 if lo > 0 else -1 if hi < 0 else 0
 
 
 def job_records(view: JobView) -> list[dict]:
