@@ -20,6 +20,8 @@ __all__ = ["CI_LEVEL", "JobView", "job_records", "sign_resolved", "view_records"
 
 # error bars are flagged when the largest 0.1% of samples carry this share of the variance
 TAIL_WARN = 0.5
+# the interval warns when it rests on fewer tail values than this
+TAIL_EVENTS = 10
 #: level of the ``lambda_km_ci_low`` / ``lambda_km_ci_high`` interval of every record
 CI_LEVEL = 0.95
 _Z = {0.95: 1.959963984540054}
@@ -61,10 +63,15 @@ def _num(x: float):
     return None if x is None or (isinstance(x, float) and math.isnan(x)) else float(x)
 
 
-def _lambda(view: JobView, e: int) -> dict:
+def _lambda(view: JobView, e: int, pooled: np.ndarray) -> dict:
     s = estimators.summarize_lambda(view.lam_rec[view.done, e])
-    est = s["lambda"]
     share = estimators.tail_share(view.lam_tail[e])
+    est, low, high, method, iv = estimators.lambda_ci(
+        view.lam_rec[view.done, e], view.lam_tail[e], pooled, view.dbeta, estimator=view.lambda_method
+    )
+    # the standard error to quote: the interval's half-width over z (decisions at other levels,
+    # e.g. the sweeps' 4-sigma trend, scale it)
+    se = (high - low) / (2 * _Z[CI_LEVEL]) if iv is not None else est.se
     warning = None
     if s["n"] < 2:
         warning = (
@@ -73,19 +80,33 @@ def _lambda(view: JobView, e: int) -> dict:
         )
     elif est.n_batches < 10:
         warning = f"only {est.n_batches} batches: standard error is rough"
-    elif not math.isnan(share) and share > TAIL_WARN:
-        warning = f"heavy tail: top 0.1% of samples carry {share:.0%} of the variance"
-    elif not math.isnan(est.se_batch) and est.se_batch > 2 * est.se_naive:
-        warning = "batch-means error exceeds twice the naive one: tail not yet sampled"
+    elif iv is not None and iv.tail_events < TAIL_EVENTS and se > 1.5 * est.se:
+        need = int(math.ceil(est.n * TAIL_EVENTS / max(iv.tail_events, 1) / 1000.0)) * 1000
+        warning = (
+            f"heavy tail: the interval rests on {iv.tail_events} values beyond |Lambda| = "
+            f"{iv.u:.3g} and is {se / est.se:.1f}x the batch-means one; about {need:,} "
+            f"realizations would sample {TAIL_EVENTS} of them"
+        )
+    elif iv is None and view.lam_tail.shape[-1] != estimators.LAMBDA_TAIL_BINS:
+        warning = (
+            "interval from batch means (a format-1 file has no signed tail counts), which "
+            "undercovers heavy tails: rerun with this antisync for the tail model's interval"
+        )
+    elif iv is None and not math.isnan(share) and share > TAIL_WARN:
+        warning = (
+            f"heavy tail: top 0.1% of samples carry {share:.0%} of the variance and too few "
+            "values for the tail model: run more realizations"
+        )
     return {
         "lambda_km": _num(est.mean),
-        "lambda_km_se": _num(est.se),
+        "lambda_km_se": _num(se),
         "lambda_km_se_naive": _num(est.se_naive),
         "lambda_km_se_batch": _num(est.se_batch),
-        "lambda_km_ci_low": _num(est.mean - _Z[CI_LEVEL] * est.se),
-        "lambda_km_ci_high": _num(est.mean + _Z[CI_LEVEL] * est.se),
+        "lambda_km_ci_low": _num(low),
+        "lambda_km_ci_high": _num(high),
         "lambda_km_ci_level": CI_LEVEL,
-        "lambda_km_ci_method": "batch-means",
+        "lambda_km_ci_method": method,
+        "lambda_km_tail_events": None if iv is None else iv.tail_events,
         "lambda_km_tail_share": _num(share),
         "lambda_km_warning": warning,
         "lambda_method": view.lambda_method,
@@ -110,8 +131,9 @@ def job_records(view: JobView) -> list[dict]:
     t0 = s0["tau0"]
     complete = bool(view.done.size and view.done.all())
     out = []
+    pooled = view.lam_tail[:, :].sum(axis=0) if view.lam_tail.size else view.lam_tail
     for e, label in enumerate(view.edges):
-        lam = _lambda(view, e)
+        lam = _lambda(view, e, pooled)
         for beta in view.betas or (None,):
             rec = {"graph": view.graph, "edge": label, "beta": beta}
             if beta is not None:

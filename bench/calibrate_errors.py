@@ -1,34 +1,32 @@
 """Calibration harness for Lambda's error bars (issue 18): do the reported 95% intervals cover?
 
-One long run keeps every realization's Lambda estimate (``keep_pairs``); it is cut into ``R``
-disjoint runs of ``n`` realizations (independent: realization ``k``'s phases depend only on
-``(seed, k, node)``). Each run's interval is computed by each candidate method and compared
-with the mean of all the *other* runs (leave-one-out, so a run is never judged against
-itself). Coverage per link is the fraction of runs whose interval holds that reference.
+A *pool* is one long run that keeps every realization's Lambda estimate (``keep_pairs``),
+cached as ``<cache>/<name>.npz``. Runs of ``n`` realizations are drawn from the pool with
+replacement, so the truth each interval must hold is exactly the pool's mean, and as many runs
+as wanted can be drawn (a pool of 2,000,000 holds the rare values that carry the variance,
+|Lambda| > 50 at probability ~1e-4, a few hundred times). Each run is reduced to block records
+and signed tail counts by the package's own functions, and its interval computed as the
+summary computes it:
 
-Methods:
+- ``batch-means``: ``mean +- 1.96 se`` with ``se = max(naive, batch-means)`` (before issue 18);
+- ``reported``: what ``antisync summary`` reports now, ``estimators.lambda_ci`` (a Pareto model
+  of the tail pooled over the job's links, united with the batch-means interval).
 
-- ``summary``: what ``antisync summary`` reports today, ``mean +- 1.96 lambda_km_se`` with
-  ``lambda_km_se = max(naive, batch-means)`` computed from the run's block records exactly
-  as the summary computes it;
-- ``pooled-tail`` (prototype): the variance with the sample's tail replaced by a Pareto tail,
-  the tail index fitted once per run by Hill's estimator on the top 1% of ``|Lambda|`` pooled
-  over all links of the graph (the grazing crossings that make the tail are shared by every
-  link), extrapolated up to the run's largest ``|Lambda|``; never below the naive error.
+Coverage per link is the fraction of runs whose interval holds the pool mean (its sd is
+``sqrt(0.95 * 0.05 / runs)``, 0.011 at 400 runs). Links whose every value is 0 are skipped.
 
 Usage::
 
-    python bench/calibrate_errors.py --realizations 200000 --sizes 2000
-    python bench/calibrate_errors.py --graph "{kind: barbell, m1: 3}" --realizations 400000
+    python bench/calibrate_errors.py lollipop --realizations 2000000 --sizes 2000 20000
+    python bench/calibrate_errors.py barbell --graph "{kind: barbell, m1: 3}" --realizations 1000000
 
-Findings so far are in bench/RESULTS.md ("Calibration of Lambda's error bars").
+Results and the chosen method: bench/RESULTS.md ("Calibration of Lambda's error bars").
 """
 
 from __future__ import annotations
 
 import argparse
 import json
-import math
 import sys
 import tempfile
 import time
@@ -40,14 +38,13 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 from antisync import estimators  # noqa: E402
 
-METHODS = ("summary", "pooled-tail")
-Z95 = 1.959964
+Z95 = 1.959963984540054
+LOLLIPOP = "{kind: lollipop, nodes: 6, path: 3}"
 
 
-def kept_lambdas(
-    graph: str, realizations: int, seed: int, method: str, integrator: str, dt: float, threads: int | None
-) -> tuple[list[str], np.ndarray, np.ndarray]:
-    """Every realization's Lambda estimate per link: ``(edges, values (m, E), ok (m, E))``."""
+def kept_lambdas(graph: str, realizations: int, seed: int, method: str, integrator: str, dt: float):
+    """Every realization's Lambda estimate per link: ``(edges, values (m, E))`` for the
+    realizations whose tau0 and every tau(beta) synchronized."""
     import h5py
     import yaml
 
@@ -62,7 +59,6 @@ def kept_lambdas(
         "keep_pairs": realizations,
         "lambda": {"method": method},
         "dynamics": {"integrator": integrator, "dt": dt, "t_max": 400.0},
-        "threads": threads,
     }
     antisync.run(cfg, realizations=realizations, output=out, progress=True)
     with h5py.File(out, "r") as f:
@@ -70,108 +66,90 @@ def kept_lambdas(
         edges = json.loads(g.attrs["edges"])
         lam = g["kept/lambda"][...]
         ok = (g["kept/status0"][...] == 0)[:, None] & np.isfinite(lam)
-    return edges, lam, ok
+    return edges, lam[ok.all(axis=1)]
 
 
-def summary_se(x: np.ndarray, block: int) -> float:
-    """``lambda_km_se`` of a run whose per-realization values are ``x``, as the summary has it."""
-    n = x.size
-    rec, _ = estimators.lambda_block_records(
-        x[:, None], np.zeros((n, 1), np.int8), np.zeros((n, 1), bool), block
+def pool(args) -> tuple[list[str], np.ndarray, float]:
+    """The cached pool ``(edges, values, dbeta)``, made on first use."""
+    path = Path(args.cache) / f"{args.name}.npz"
+    if not path.exists():
+        t = time.perf_counter()
+        edges, values = kept_lambdas(
+            args.graph, args.realizations, args.seed, args.method, args.integrator, args.dt
+        )
+        path.parent.mkdir(parents=True, exist_ok=True)
+        np.savez(path, edges=np.array(edges, dtype=object), lam=values, ok=np.ones(values.shape, bool))
+        print(
+            f"# pool {args.name}: {len(values):,} realizations in {time.perf_counter() - t:.0f} s", flush=True
+        )
+    d = np.load(path, allow_pickle=True)
+    values = d["lam"][d["ok"].all(axis=1)]
+    keep = ~np.all(values == 0, axis=0)
+    return list(d["edges"][keep]), values[:, keep], 0.01
+
+
+def intervals(run: np.ndarray, dbeta: float, estimator: str) -> dict[str, np.ndarray]:
+    """``{method: (E, 2) array of (low, high)}`` for one run, computed as the summary does."""
+    n = run.shape[0]
+    block = max(100, -(-n // 1000))  # the config's automatic block size
+    rec, tail = estimators.lambda_block_records(
+        run, np.zeros(run.shape, np.int8), np.zeros(run.shape, bool), block
     )
-    return estimators.summarize_lambda(rec[:, 0, :])["lambda"].se
-
-
-def pooled_tail_se(x: np.ndarray, run: np.ndarray, top: float = 0.01) -> float:
-    """Prototype: the naive variance with the tail beyond ``u`` (the pooled top ``top``
-    quantile of ``|Lambda|`` over every link of the run) replaced by a Pareto tail whose index
-    is fitted by Hill's estimator on the pooled values, cut at the run's largest value."""
-    pooled = np.abs(run).ravel()
-    pooled = pooled[pooled > 0]
-    u = np.quantile(pooled, 1 - top)
-    above = pooled[pooled > u]
-    alpha = above.size / np.sum(np.log(above / u))
-    cap = pooled.max()
-    ax = np.abs(x)
-    p = np.mean(ax > u)
-    body = np.mean(np.where(ax <= u, x * x, 0.0))
-    if abs(alpha - 2.0) < 1e-9:
-        tail = p * u * u * (1.0 + 2.0 * math.log(cap / u))
-    else:
-        tail = p * (u * u + u**alpha * alpha / (2.0 - alpha) * (cap ** (2.0 - alpha) - u ** (2.0 - alpha)))
-    var = max(body + tail - x.mean() ** 2, 0.0)
-    naive = x.std(ddof=1)
-    return max(math.sqrt(var), naive) / math.sqrt(x.size)
-
-
-def coverage(values: np.ndarray, ok: np.ndarray, n: int) -> dict:
-    """Per link and method: coverage of the leave-one-out mean by runs of ``n`` realizations,
-    and the spread (sd) of the run means over the median standard error."""
-    usable = ok.all(axis=1)  # realizations whose tau0 synchronized (all links share it)
-    v = values[usable]
-    runs = v.shape[0] // n
-    v = v[: runs * n].reshape(runs, n, -1)
-    block = max(100, -(-n // 1000))
-    means = v.mean(axis=1)
-    loo = (means.sum(axis=0) - means) / (runs - 1)
-    out: dict = {}
-    for e in range(v.shape[2]):
-        if np.all(v[:, :, e] == 0):
-            continue  # an exactly neutral link (Lambda = 0 in every realization)
-        for name in METHODS:
-            se = np.array(
-                [
-                    summary_se(v[r, :, e], block) if name == "summary" else pooled_tail_se(v[r, :, e], v[r])
-                    for r in range(runs)
-                ]
-            )
-            hit = np.abs(means[:, e] - loo[:, e]) <= Z95 * se
-            out.setdefault(e, {})[name] = {
-                "coverage": float(hit.mean()),
-                "runs": runs,
-                "spread_over_se": float(np.std(means[:, e], ddof=1) / np.median(se)),
-            }
+    pooled = tail.sum(axis=0)
+    out = {"batch-means": np.empty((run.shape[1], 2)), "reported": np.empty((run.shape[1], 2))}
+    for e in range(run.shape[1]):
+        est, low, high, _, _ = estimators.lambda_ci(rec[:, e, :], tail[e], pooled, dbeta, estimator=estimator)
+        out["batch-means"][e] = est.mean - Z95 * est.se, est.mean + Z95 * est.se
+        out["reported"][e] = low, high
     return out
+
+
+def coverage(
+    values: np.ndarray, dbeta: float, n: int, runs: int, seed: int, estimator: str = "finite-difference"
+) -> dict[str, np.ndarray]:
+    """Per method, per link: the fraction of ``runs`` runs of ``n`` whose interval holds the pool mean."""
+    truth = values.mean(axis=0)
+    rng = np.random.default_rng(seed)
+    hits: dict[str, np.ndarray] = {}
+    for _ in range(runs):
+        run = values[rng.integers(0, values.shape[0], n)]
+        for name, iv in intervals(run, dbeta, estimator).items():
+            hits.setdefault(name, np.zeros(values.shape[1]))
+            hits[name] += (iv[:, 0] <= truth) & (truth <= iv[:, 1])
+    return {k: v / runs for k, v in hits.items()}
 
 
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("--graph", default="{kind: lollipop, nodes: 6, path: 3}")
-    p.add_argument("--realizations", type=int, default=200_000)
-    p.add_argument("--sizes", type=int, nargs="+", default=[2000])
-    p.add_argument("--seed", type=int, default=1001)
+    p.add_argument("name", help="pool name (cache file <cache>/<name>.npz)")
+    p.add_argument("--graph", default=LOLLIPOP)
+    p.add_argument("--realizations", type=int, default=2_000_000, help="pool size")
+    p.add_argument("--sizes", type=int, nargs="+", default=[2000, 20000])
+    p.add_argument("--runs", type=int, default=400)
+    p.add_argument("--seed", type=int, default=1001, help="pool seed")
+    p.add_argument("--draw-seed", type=int, default=7, help="seed of the runs drawn from the pool")
     p.add_argument("--method", default="finite-difference")
     p.add_argument("--integrator", default="rk4")
     p.add_argument("--dt", type=float, default=0.04)
-    p.add_argument("--threads", type=int, default=None)
+    p.add_argument("--cache", default=str(Path(__file__).resolve().parent / ".cache"))
     args = p.parse_args()
-    t = time.perf_counter()
-    edges, lam, ok = kept_lambdas(
-        args.graph, args.realizations, args.seed, args.method, args.integrator, args.dt, args.threads
-    )
+    edges, values, dbeta = pool(args)
     print(
-        f"# {args.graph}: {args.realizations:,} realizations, {args.method}, {args.integrator} "
-        f"dt {args.dt}, {time.perf_counter() - t:.0f} s",
-        flush=True,
+        f"# {args.name} ({args.graph}): pool of {len(values):,}, "
+        f"{args.method}, {args.integrator} dt {args.dt}"
     )
     for n in args.sizes:
-        cov = coverage(lam, ok, n)
-        runs = next(iter(cov.values()))[METHODS[0]]["runs"]
-        print(f"\n## runs of {n:,} realizations ({runs} runs)\n")
+        t = time.perf_counter()
+        cov = coverage(values, dbeta, n, args.runs, args.draw_seed, args.method)
+        print(f"\n## runs of {n:,} realizations ({args.runs} runs, {time.perf_counter() - t:.0f} s)\n")
+        print("| link | " + " | ".join(cov) + " |")
+        print("|---|" + "---:|" * len(cov))
+        for e, label in enumerate(edges):
+            print(f"| {label} | " + " | ".join(f"{c[e]:.3f}" for c in cov.values()) + " |")
+        print("| all | " + " | ".join(f"{c.mean():.3f}" for c in cov.values()) + " |")
         print(
-            "| link | "
-            + " | ".join(f"{m} coverage" for m in METHODS)
-            + " | sd of means / median summary se |"
+            "| range | " + " | ".join(f"{c.min():.3f}-{c.max():.3f}" for c in cov.values()) + " |", flush=True
         )
-        print("|---|" + "---:|" * (len(METHODS) + 1))
-        for e, c in cov.items():
-            print(
-                f"| {edges[e]} | "
-                + " | ".join(f"{c[m]['coverage']:.3f}" for m in METHODS)
-                + f" | {c['summary']['spread_over_se']:.2f} |"
-            )
-        mean = {m: np.mean([c[m]["coverage"] for c in cov.values()]) for m in METHODS}
-        print("| all | " + " | ".join(f"{mean[m]:.3f}" for m in METHODS) + " | |", flush=True)
 
 
 if __name__ == "__main__":

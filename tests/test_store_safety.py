@@ -30,7 +30,7 @@ from antisync.errors import StoreError
 from antisync.executors.local import LocalExecutor
 from antisync.jobs import Chunk, make_job
 from antisync.runner import Interrupted, run_config, run_jobs
-from antisync.store import ResultStore, chunk_tag, graph_digest, open_results, records
+from antisync.store import FORMAT_VERSION, ResultStore, chunk_tag, graph_digest, open_results, records
 
 REPO = Path(__file__).resolve().parent.parent
 ARRAYS = ("block_records", "tau0_records", "hist", "tail_counts", "blocks_done", "lambda_records")
@@ -72,7 +72,8 @@ def start(*args) -> subprocess.Popen:
     )
 
 
-def wait_for_chunks(journal: Path, n: int, proc: subprocess.Popen, timeout: float = 120) -> None:
+def wait_for_chunks(journal: Path, n: int, proc: subprocess.Popen, timeout: float = 600) -> None:
+    # generous: a fresh process may first compile every kernel (numba cache keyed by source)
     deadline = time.monotonic() + timeout
     while len(list(journal.glob("*.npz"))) < n:
         assert proc.poll() is None, "the run ended before it saved the chunks the test needs"
@@ -526,7 +527,7 @@ def _set(obj, key, value):
 DAMAGES = {
     "newer format": (
         lambda f, g: _set(f, "format_version", 99),
-        "written by a newer antisync (format 99); this one reads format 1",
+        f"written by a newer antisync (format 99); this one reads format {FORMAT_VERSION}",
     ),
     "edges not JSON": (lambda f, g: _set(g, "edges", '["2->1", '), "damaged attribute 'edges'"),
     "edges not a list": (lambda f, g: _set(g, "edges", "{}"), "damaged attribute 'edges'"),

@@ -42,6 +42,7 @@ from antisync.errors import AntisyncError
 from antisync.estimators import (
     BLOCK_FIELDS,
     LAMBDA_FIELDS,
+    LAMBDA_TAIL_BINS,
     TAIL_BINS,
     TAIL_EDGES,
     TAU0_FIELDS,
@@ -261,7 +262,9 @@ def _reducers():
                     n_ok += 1
                     s1 += x
                     s2 += mul(x, x)
-                    cuda.atomic.add(tail, (e, tail_bin(edges, abs(x))), 1)
+                    # the signed histogram of estimators._reduce_lambda
+                    b = tail_bin(edges, abs(x)) + (edges.shape[0] + 1 if x < 0 else 0)
+                    cuda.atomic.add(tail, (e, b), 1)
                 elif st0 == NOT_SYNCED or st == NOT_SYNCED:
                     n_not += 1
                 else:
@@ -575,14 +578,14 @@ def simulate_reduced(
         np.zeros((n_var, TAIL_BINS), dtype=np.int64),
         np.zeros((variants.size, bins, bins), dtype=np.int64),
         np.zeros((n_blocks, lam_v.size, len(LAMBDA_FIELDS))),
-        np.zeros((lam_v.size, TAIL_BINS), dtype=np.int64),
+        np.zeros((lam_v.size, LAMBDA_TAIL_BINS), dtype=np.int64),
     )
     if count == 0:
         return out
     # device accumulators; empty index arrays get a dummy slot (no zero-size device arrays)
     tail = cuda.to_device(out.tail)
     hist = cuda.to_device(np.zeros((max(variants.size, 1), bins, bins), dtype=np.int64))
-    lam_tail = cuda.to_device(np.zeros((max(lam_v.size, 1), TAIL_BINS), dtype=np.int64))
+    lam_tail = cuda.to_device(np.zeros((max(lam_v.size, 1), LAMBDA_TAIL_BINS), dtype=np.int64))
     edges = cuda.to_device(TAIL_EDGES)
     variants_d = cuda.to_device(variants if variants.size else np.zeros(1, np.int64))
     lam_v_d = cuda.to_device(lam_v if lam_v.size else np.zeros(1, np.int64))

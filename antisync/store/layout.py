@@ -18,7 +18,7 @@ Layout (one file per run or sweep)::
         lambda_records     (n_blocks, E, 6)  n, n_already, n_not_synced, sum L, sum L^2, n_flagged
                                              of the per-realization Lambda estimates (attr
                                              lambda_method says which estimator)
-        lambda_tail_counts (E, bins) int64   log histogram of |Lambda| per realization
+        lambda_tail_counts (E, 2 bins) int64 signed log histogram of Lambda per realization
         hist               (H, bins, bins) int64, [v, i_tau0, i_tau_beta] on [0, tau_max)
         kept/status0, kept/steps0, kept/status, kept/steps, kept/lambda: the first keep_pairs
                            realizations (steps are integration steps: tau = steps * dt;
@@ -77,9 +77,11 @@ __all__ = [
 ]
 
 FORMAT = "antisync-results"
-FORMAT_VERSION = 1
+# format 2: lambda_tail_counts is signed, (E, 2 TAIL_BINS); format-1 files ((E, TAIL_BINS)) are
+# read, and their Lambda intervals fall back to batch means (summary.py says so in the record)
+FORMAT_VERSION = 2
 SWEEP_FORMAT = "antisync-sweep"
-SWEEP_FORMAT_VERSION = 1
+SWEEP_FORMAT_VERSION = 2
 
 
 # ---- opening ---------------------------------------------------------------------------------
@@ -482,9 +484,11 @@ def _shape_problem(view: JobView) -> str | None:
         "tau0_records": (view.rec0, (nb, len(estimators.TAU0_FIELDS))),
         "lambda_records": (view.lam_rec, (nb, ne, len(estimators.LAMBDA_FIELDS))),
         "tail_counts": (view.tail, (nv, estimators.TAIL_BINS)),
-        "lambda_tail_counts": (view.lam_tail, (ne, estimators.TAIL_BINS)),
+        "lambda_tail_counts": (view.lam_tail, (ne, estimators.LAMBDA_TAIL_BINS)),
         "hist": (view.hist, (len(view.hist_variants), bins, bins)),
     }
+    if view.lam_tail.shape == (ne, estimators.TAIL_BINS):  # a format-1 file: |Lambda| only
+        del expected["lambda_tail_counts"]
     for key, (arr, shape) in expected.items():
         if arr.shape != shape:
             return f"dataset {key!r} has shape {arr.shape}, expected {shape} from its edges and blocks"

@@ -29,7 +29,7 @@ class JobState:
         self.tail = np.zeros((nv, estimators.TAIL_BINS), dtype=np.int64)
         ne = len(job.edges)
         self.lam_rec = np.zeros((nb, ne, len(estimators.LAMBDA_FIELDS)))
-        self.lam_tail = np.zeros((ne, estimators.TAIL_BINS), dtype=np.int64)
+        self.lam_tail = np.zeros((ne, estimators.LAMBDA_TAIL_BINS), dtype=np.int64)
         bins = job.config.histogram.bins
         self.hist = np.zeros((len(job.hist_variants), bins, bins), dtype=np.int64)
         keep = min(job.config.keep_pairs, job.config.realizations)
