@@ -92,7 +92,7 @@ _GRAPH_KEYS = {
     "lollipop": ({"nodes", "path"}, set()),
     "barbell": ({"m1"}, {"m2"}),
     "atlas": ({"index"}, set()),
-    "networkx": ({"generator"}, {"args"}),
+    "networkx": ({"generator"}, {"args", "weighted"}),
     "edgelist": ({"path"}, set()),
 }
 
