@@ -150,10 +150,17 @@ def plot_sorted(recs: list[dict], key: str, ax, *, graph: str = "") -> None:
                 color=COLORS[s],
                 label=f"{NAMES[s]}: {int(m.sum())} links",
             )
-    # the extremes are named: the most antifragile and most fragile links
-    for i in list(range(min(3, len(ranked)))) + list(range(max(3, len(ranked) - 3), len(ranked))):
-        ax.annotate(
-            ranked[i]["edge"], (rank[i], vals[i]), fontsize=7, xytext=(4, 0), textcoords="offset points"
+    # the extremes are named in a corner (beside the points their labels would overlap)
+    if ranked:
+        ax.text(
+            0.02,
+            0.03,
+            f"largest: {', '.join(r['edge'] for r in ranked[:3])}\n"
+            f"smallest: {', '.join(r['edge'] for r in ranked[-3:][::-1])}",
+            transform=ax.transAxes,
+            fontsize=8,
+            va="bottom",
+            bbox={"facecolor": "white", "alpha": 0.8, "lw": 0},
         )
     ax.axhline(0, color="k", lw=0.7)
     interval = " with its 95% interval" if key == "lambda_km" else " (exact)"
