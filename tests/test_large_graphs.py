@@ -257,3 +257,6 @@ def test_bad_input_is_one_line(exact, tmp_path):
     ]:
         assert_one_line(invoke("run", cfg, "--out", out, "--set", override, "-q"), message)
     assert not out.exists()
+    sweep = tmp_path / "sweep.yaml"
+    sweep.write_text("sweep: {family: lollipop, nodes: [4], path: 1}\nmeasures: [xi2, rw]\n")
+    assert_one_line(invoke("validate", sweep), "a sweep screens and ranks its graphs by Lambda^KM")
