@@ -7,7 +7,8 @@ Layout (one file per run or sweep)::
     /jobs/<name>/          one group per graph (``lollipop6``, ``G105``, ...)
         attrs:             graph, nodes (JSON), edges (JSON), betas, dbeta, seed, backend,
                            block_size, realizations, realizations_done, seconds, complete,
-                           tau0 status counts, summary_json
+                           tau0 status counts, summary_json, kuramoto (false for measures
+                           without km: no blocks, no variants, realizations 0)
         omega              (N, N) weights
         variant_edge       (V,) index into edges          variant_beta  (V,) damage
         blocks_done        (n_blocks,) bool               hist_variants (H,) variant indices
