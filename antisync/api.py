@@ -104,7 +104,9 @@ def summarize(path: str | Path) -> dict:
     One schema for both: ``kind`` ("run" or "sweep"), ``file``, ``complete``, ``records``,
     ``config_yaml``, and the sweep's ``sweep`` (name), ``family``, ``thresholds``,
     ``ranking_threshold``, ``excluded``, ``top``, ``screen``, ``symmetry`` (for a run file:
-    ``null`` or empty lists, and ``thresholds`` the run's one threshold).
+    ``null`` or empty lists, and ``thresholds`` the run's one threshold). The CLI adds to each
+    record its ``sign_resolved`` (:func:`antisync.records.flag_signs`) and orders them with
+    ``--sort`` (:func:`antisync.records.sort_records`).
     """
     from antisync.store import is_sweep_file, records, root_attrs
     from antisync.sweeps import sweep_summary

@@ -92,7 +92,7 @@ _GRAPH_KEYS = {
     "lollipop": ({"nodes", "path"}, set()),
     "barbell": ({"m1"}, {"m2"}),
     "atlas": ({"index"}, set()),
-    "networkx": ({"generator"}, {"args"}),
+    "networkx": ({"generator"}, {"args", "weighted"}),
     "edgelist": ({"path"}, set()),
 }
 
@@ -453,7 +453,7 @@ def _from_mapping(raw: dict, source: Path | None) -> Config:
             kwargs["betas"] = tuple(sorted({beta("betas", number("betas", b, 0.0)) for b in value}))
         elif key == "measures":
             if value is None or value == []:
-                raise ConfigError("measures must list at least km, e.g. measures: [km, xi2]")
+                raise ConfigError("measures must list at least one measure, e.g. measures: [km, xi2]")
             items = value if isinstance(value, list) else [value]
             if not all(isinstance(m, str) for m in items):
                 raise ConfigError(f"measures must be names such as [km, xi2], got {value!r}")
@@ -479,17 +479,19 @@ _INTEGER_KEYS = {"realizations", "seed", "keep_pairs"}
 
 
 def _check_measures(measures: tuple, coupling: str) -> None:
-    """Names from :data:`MEASURES`, each once, ``km`` among them; ``km_nnc`` only beside a
-    normalized run (with raw coupling the second run would repeat the first)."""
+    """Names from :data:`MEASURES`, each once; ``km_nnc`` only beside a normalized ``km`` run
+    (with raw coupling the second run would repeat the first). Without ``km`` no Kuramoto
+    integration runs: the file holds the other measures only."""
     for m in measures:
         choice("measures", m, MEASURES)
     twice = sorted({m for m in measures if measures.count(m) > 1})
     if twice:
         raise ConfigError(f"measures lists {', '.join(twice)} twice")
-    if "km" not in measures:
+    if not measures:
+        raise ConfigError(f"measures must list at least one of {', '.join(MEASURES)}")
+    if "km_nnc" in measures and "km" not in measures:
         raise ConfigError(
-            f"measures must include km (the Kuramoto run the others are stored beside), got "
-            f"{list(measures)}; for xi2 or rw alone call antisync.measures directly"
+            f"measures: km_nnc is a raw-coupling twin of the km run; add km, got {list(measures)}"
         )
     if "km_nnc" in measures and coupling != "normalized":
         raise ConfigError(

@@ -84,7 +84,9 @@ def atlas(index: int) -> nx.Graph:
     return _unit_weights(g)
 
 
-def from_networkx(generator: str, args: dict | None = None, seed: int | None = None) -> nx.Graph:
+def from_networkx(
+    generator: str, args: dict | None = None, seed: int | None = None, weighted: bool = False
+) -> nx.Graph:
     """Any networkx generator by name, e.g. ``("barbell_graph", {"m1": 3, "m2": 0})``.
 
     Parameters
@@ -97,6 +99,9 @@ def from_networkx(generator: str, args: dict | None = None, seed: int | None = N
         For a random generator (one with a ``seed`` parameter) whose ``args`` give no seed:
         the seed it gets, so the same config builds the same graph on every run (the runner
         passes the run's seed). A random generator with neither is refused.
+    weighted : bool
+        Keep the generator's edge attribute ``weight`` (an edge without one weighs 1), e.g. the
+        co-occurrence counts of ``les_miserables_graph``. Default: every weight is 1.
     """
     import inspect
 
@@ -126,7 +131,18 @@ def from_networkx(generator: str, args: dict | None = None, seed: int | None = N
         raise GraphError(f"networkx.{generator} rejected args {args}: {exc}") from None
     if not isinstance(g, nx.Graph) or g.is_directed():
         raise GraphError(f"networkx.{generator} did not return an undirected graph")
-    return _unit_weights(nx.Graph(g))
+    if not weighted:
+        return _unit_weights(nx.Graph(g))
+    out = nx.Graph(g)
+    for u, v, d in out.edges(data=True):
+        w = d.get("weight", 1.0)
+        if isinstance(w, bool) or not isinstance(w, int | float) or not (w > 0 and math.isfinite(w)):
+            raise GraphError(
+                f"networkx.{generator}: edge {u}-{v} has weight {w!r}; weighted graphs need "
+                "positive finite weights (or graph.weighted: false for unit weights)"
+            )
+        d["weight"] = float(w)
+    return out
 
 
 def from_edgelist(path: str | Path) -> nx.Graph:
@@ -200,7 +216,10 @@ def build_graph(spec: dict, seed: int | None = None) -> nx.Graph:
             raise GraphError(
                 f"graph.generator must be a networkx function name, got {spec.get('generator')!r}"
             )
-        g = from_networkx(spec["generator"], args, seed=seed)
+        weighted = spec.get("weighted", False)
+        if not isinstance(weighted, bool):
+            raise GraphError(f"graph.weighted must be true or false, got {weighted!r}")
+        g = from_networkx(spec["generator"], args, seed=seed, weighted=weighted)
     elif kind == "edgelist":
         if not isinstance(spec.get("path"), str):
             raise GraphError(f"graph.path must be a file path, got {spec.get('path')!r}")

@@ -88,12 +88,24 @@ class Job:
     orbit_sizes: np.ndarray | None = None
 
     @property
+    def kuramoto(self) -> bool:
+        """Whether the job integrates the Kuramoto model (``km`` in ``measures``). Without it
+        the job has no blocks, no chunks and no variants: only the exact measures are
+        computed."""
+        return "km" in self.config.measures
+
+    @property
+    def realizations(self) -> int:
+        """Realizations integrated: ``config.realizations``, or 0 without ``km``."""
+        return self.config.realizations if self.kuramoto else 0
+
+    @property
     def block_size(self) -> int:
         return self.config.resolved_block_size
 
     @property
     def n_blocks(self) -> int:
-        return -(-self.config.realizations // self.block_size)
+        return -(-self.realizations // self.block_size)
 
     def variant(self, edge_index: int, beta: float) -> int:
         """Index of the variant damaging ``edges[edge_index]`` by ``beta``."""
@@ -136,7 +148,9 @@ def make_job(config: Config, graph: nx.Graph | None = None, name: str | None = N
     nodes = graphs.node_order(graph)
     index = {v: i for i, v in enumerate(nodes)}
     omega = graphs.omega_matrix(graph)
-    check_step(omega, config)
+    kuramoto = "km" in config.measures
+    if kuramoto:  # without km nothing is integrated: dt does not matter
+        check_step(omega, config)
     if config.edges == "all":
         edges = graphs.all_directed_edges(graph)
     else:
@@ -148,7 +162,7 @@ def make_job(config: Config, graph: nx.Graph | None = None, name: str | None = N
             edges.append(e)
     dbeta = config.lambda_.dbeta
     fd = config.lambda_.method == "finite-difference"
-    grid = sorted(set(config.betas) | ({dbeta} if fd else set()))
+    grid = sorted(set(config.betas) | ({dbeta} if fd else set())) if kuramoto else []
     variant_edge = np.repeat(np.arange(len(edges)), len(grid))
     variant_beta = np.tile(np.array(grid, dtype=np.float64), len(edges))
     w = coupling.coupling_matrix(omega, config.dynamics.coupling)
@@ -160,7 +174,7 @@ def make_job(config: Config, graph: nx.Graph | None = None, name: str | None = N
     vw = coupling.variant_weights(omega, csr, damages, config.dynamics.coupling)
     edge_idx = [(index[a], index[b]) for a, b in edges]
     secant = coupling.variant_weights(
-        omega, csr, [(a, b, float(dbeta)) for a, b in edge_idx], config.dynamics.coupling
+        omega, csr, [(a, b, float(dbeta)) for a, b in edge_idx] if kuramoto else [], config.dynamics.coupling
     )
     return Job(
         config=config.resolved(),
@@ -170,7 +184,7 @@ def make_job(config: Config, graph: nx.Graph | None = None, name: str | None = N
         omega=omega,
         edges=edges,
         edge_labels=[graphs.edge_label(a, b) for a, b in edges],
-        betas=tuple(float(b) for b in config.betas),
+        betas=tuple(float(b) for b in config.betas) if kuramoto else (),
         dbeta=float(dbeta),
         variant_edge=variant_edge,
         variant_beta=variant_beta,
@@ -226,7 +240,7 @@ def _orbit_fields(
     graph: nx.Graph, nodes: list, omega: np.ndarray, csr: coupling.CouplingCSR, edges: list, config: Config
 ) -> dict:
     """``orbit_weights`` and ``orbit_sizes`` for ``lambda.method: orbit`` (else empty)."""
-    if config.lambda_.method != "orbit":
+    if config.lambda_.method != "orbit" or "km" not in config.measures:
         return {}
     index = {v: i for i, v in enumerate(nodes)}
     rep = _all_orbits(tuple(nodes), tuple(map(tuple, omega)))

@@ -179,7 +179,7 @@ def _execute(
     # every journal chunk carries its run's tag: --resume never merges another run's chunks
     tags = {job.name: chunk_tag(job, key) for job in jobs}
     done_already = sum(st.realizations_done for st in states.values())
-    total = sum(job.config.realizations for job in jobs)
+    total = sum(job.realizations for job in jobs)  # 0 for a job without km: nothing integrated
     # the bar counts integrations (tau0 plus one per damage variant, orbit differences
     # included): with many jobs of different sizes (a sweep) its rate and ETA stay meaningful
     cost = {job.name: job.integrations_per_realization for job in jobs}
@@ -192,7 +192,7 @@ def _execute(
 
     show = sys.stderr.isatty() if progress is None else progress
     bar = tqdm(
-        total=sum(job.config.realizations * cost[job.name] for job in jobs),
+        total=sum(job.realizations * cost[job.name] for job in jobs),
         initial=sum(states[j.name].realizations_done * cost[j.name] for j in jobs),
         unit="integ",
         unit_scale=True,

@@ -175,7 +175,8 @@ def test_records_without_measures_have_null_keys(tmp_path, small_config_text):
             "measures=[km, xi_2]",
             "measures must be one of km, linear, xi2, rw, km_nnc, got 'xi_2' (did you mean 'xi2'?)",
         ),
-        ("measures=[xi2, rw]", "measures must include km"),
+        ("measures=[xi2, km_nnc]", "measures: km_nnc is a raw-coupling twin of the km run; add km"),
+        ("measures=[]", "measures must list at least one measure"),
         ("measures=[km, rw, rw]", "measures lists rw twice"),
         (
             "linear.method=eular",

@@ -86,11 +86,32 @@ def test_run_config_loader_points_sweeps_to_antisync_sweep():
         load_config_text("sweep: {family: atlas, nodes: 6}")
 
 
-@pytest.mark.parametrize("name", ["atlas6", "lollipop_L1", "threshold"])
+SHIPPED = sorted(p.stem for p in (REPO / "configs").glob("*.yaml"))
+
+
+def test_every_config_is_shipped_and_checked():
+    assert {"atlas6", "lollipop_L1", "threshold", "lollipop6", "karate", "lesmis"} <= set(SHIPPED)
+
+
+@pytest.mark.parametrize("name", SHIPPED)
 def test_shipped_configs_are_valid(name):
-    sw = load_sweep(REPO / "configs" / f"{name}.yaml")
-    assert sw.name == name
-    assert sw.key() == load_sweep(REPO / "configs" / f"{name}.yaml").key()
+    """Every shipped config loads, and builds its graph and damaged links (a run's) or its
+    family (a sweep's), as `antisync validate` does."""
+    import yaml
+
+    from antisync.config import load_config
+    from antisync.jobs import make_job
+
+    path = REPO / "configs" / f"{name}.yaml"
+    if "sweep" in yaml.safe_load(path.read_text()):
+        sw = load_sweep(path)
+        assert sw.name == name
+        assert sw.key() == load_sweep(path).key()
+    else:
+        cfg = load_config(path)
+        assert cfg.name == name
+        job = make_job(cfg)
+        assert job.edges and job.kuramoto == ("km" in cfg.measures)
 
 
 def test_overrides_and_ranges():

@@ -17,10 +17,23 @@ def report(
         Path | None, typer.Option("--out", "-o", help="Folder for figures (default: next to the file).")
     ] = None,
     pdf: Annotated[bool, typer.Option("--pdf", help="Also write PDF versions.")] = False,
+    top: Annotated[
+        int,
+        typer.Option(
+            "--top",
+            help="Graphs of more than 20 nodes or 40 links: draw the TOP most antifragile and TOP "
+            "most fragile links strong.",
+        ),
+    ] = 10,
     quiet: QuietOpt = False,
     debug: DebugOpt = False,
 ) -> None:
     """Write Fig. 1-style figures: graph coloured by Lambda^KM, <F_beta> vs beta, (tau0, tau) histograms.
+
+    For a graph of more than 20 nodes or 40 links, instead of the per-link labels of Fig. 1a:
+    every link's Lambda sorted with its 95% interval, the network with the --top most
+    antifragile and most fragile links strong, and Lambda^KM against Lambda^xi2 and Lambda^RW
+    (Spearman rho, sign agreement over resolved links).
 
     For a sweep file: the Fig. 3 ranking, Table 1 (Markdown, CSV, LaTeX), Fig. 4 histograms,
     Fig. 2 for lollipop sweeps and Fig. 6 for threshold sweeps, with an index.md.
@@ -29,6 +42,8 @@ def report(
     from antisync.report.figures import write_report
     from antisync.store import is_sweep_file, read_views
 
+    if top < 1:
+        raise AntisyncError(f"--top must be a positive number of links, got {top}")
     folder = out or results.with_suffix("").with_name(results.stem + "_figures")
     if folder.exists() and not folder.is_dir():
         raise AntisyncError(f"report folder {folder} is a file; give --out a folder (new or existing)")
@@ -38,6 +53,6 @@ def report(
 
         paths = write_sweep_report(results, folder, pdf=pdf)
     else:
-        paths = write_report(read_views(results), folder, pdf=pdf)
+        paths = write_report(read_views(results), folder, pdf=pdf, top=top)
     for p in paths:
         info(f"wrote {p}", quiet)

@@ -6,7 +6,8 @@ from typing import Annotated, Literal
 
 import typer
 
-from antisync.cli.common import DebugOpt, ResultArg, user_errors
+from antisync.cli.common import DebugOpt, ResultArg, one_of, user_errors
+from antisync.records import SortKey
 
 Format = Literal["table", "json", "csv"]
 
@@ -14,26 +15,45 @@ Format = Literal["table", "json", "csv"]
 @user_errors
 def summary(
     results: ResultArg,
-    format: Annotated[Format, typer.Option("--format", "-f", help="table, json or csv.")] = "table",
+    format: Annotated[
+        Format, typer.Option("--format", "-f", parser=one_of("--format", Format), help="table, json or csv.")
+    ] = "table",
+    sort: Annotated[
+        SortKey | None,
+        typer.Option(
+            "--sort",
+            parser=one_of("--sort", SortKey),
+            help="Order records by a measure, largest (most antifragile) first: lambda (Lambda^KM, "
+            "or the first exact measure computed when the file has no km), km, xi2, rw, linear, km_nnc.",
+        ),
+    ] = None,
     debug: DebugOpt = False,
 ) -> None:
     """Print <F_beta>, Lambda^KM, <tau0> with standard errors and status counts.
 
     JSON is one object for run and sweep files alike: {"kind": "run" | "sweep", "file",
     "complete", "records": [...], "config_yaml", and for sweeps "excluded", "top", "screen",
-    "symmetry", "thresholds", ...} (see antisync.api.summarize). CSV holds the records only;
+    "symmetry", "thresholds", ...} (see antisync.api.summarize). Every record printed here also
+    carries sign_resolved: +1 antifragile, -1 fragile, 0 unresolved (from its 95% interval
+    lambda_km_ci_low..lambda_km_ci_high), null without Lambda^KM. CSV holds the records only;
     the table ends with warnings and, for a sweep, the excluded graphs.
     """
     import json
 
     from antisync.api import summarize
+    from antisync.records import flag_signs, sort_records
     from antisync.report.tables import format_records, format_sweep
     from antisync.store import is_sweep_file, records
     from antisync.sweeps import sweep_summary
 
+    def listed(recs: list[dict]) -> list[dict]:
+        return flag_signs(sort_records(recs, sort) if sort else recs)
+
     if format == "json":
-        typer.echo(json.dumps(summarize(results), indent=2))
+        s = summarize(results)
+        typer.echo(json.dumps({**s, "records": listed(s["records"])}, indent=2))
     elif is_sweep_file(results):
-        typer.echo(format_sweep(sweep_summary(results), format))
+        s = sweep_summary(results)
+        typer.echo(format_sweep({**s, "records": listed(s["records"])}, format))
     else:
-        typer.echo(format_records(records(results), format))
+        typer.echo(format_records(listed(records(results)), format))

@@ -30,9 +30,13 @@ def validate(config: ConfigArg, set_: SetOpt = None, debug: DebugOpt = False) ->
     job = make_job(cfg)
     preflight(cfg, [job])
     typer.echo(cfg.resolved().to_yaml().rstrip())
-    typer.echo(
-        f"# ok: graph {job.name} with {len(job.nodes)} nodes, {len(job.edges)} directed edge(s), "
+    run = (
         f"{job.integrations_per_realization - 1} damaged variant(s), {cfg.realizations:,} realizations"
+        if job.kuramoto
+        else f"no Kuramoto integration (measures: {', '.join(cfg.measures)})"
+    )
+    typer.echo(
+        f"# ok: graph {job.name} with {len(job.nodes)} nodes, {len(job.edges)} directed edge(s), {run}"
     )
 
 

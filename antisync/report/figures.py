@@ -1,10 +1,16 @@
 """Figures from a result file (never from a live run): the paper's Fig. 1 panels per job.
 
 - ``<job>_graph``: the graph with each directed edge drawn as an arrow coloured by Lambda^KM
-  (Fig. 1a), its value written beside it;
-- ``<job>_F_beta``: <F_beta> against beta for every edge, coloured by Lambda^KM (Fig. 1b);
+  (Fig. 1a), its value written beside it (small graphs only; a file run without ``km`` colours
+  by its first exact measure, Lambda^(xi2) or Lambda^(RW));
+- ``<job>_F_beta``: <F_beta> against beta for every edge, coloured by Lambda^KM (Fig. 1b; no
+  legend for a large graph);
 - ``<job>_hist_<edge>_b<beta>``: log-density 2D histograms of (tau0, tau(beta)) with the
-  line tau(beta) = tau0 (Figs. 1c-f).
+  line tau(beta) = tau0 (Figs. 1c-f; for a large graph only of the links drawn strong in
+  ``<job>_top_links``);
+- for a graph with more than 20 nodes or 40 links, instead of ``<job>_graph``:
+  ``<job>_lambda_sorted``, ``<job>_top_links``, ``<job>_measure_pairs``, see
+  :mod:`antisync.report.links`;
 - ``fig5_measures``, ``<job>_fig7e_km_nnc``: see :mod:`antisync.report.measures`.
 """
 
@@ -14,7 +20,10 @@ from pathlib import Path
 
 import numpy as np
 
-from antisync.summary import JobView, job_records
+from antisync.records import job_records, primary_measure
+from antisync.report.links import is_large, link_figures, top_links
+from antisync.report.measures import LABELS
+from antisync.summary import JobView
 
 __all__ = ["write_report"]
 
@@ -40,8 +49,11 @@ def _norm(values):
 CMAP = "coolwarm"
 
 
-def _lambdas(view: JobView) -> dict[str, float]:
-    return {r["edge"]: r["lambda_km"] for r in job_records(view)}
+def _lambdas(view: JobView) -> tuple[str, dict[str, float]]:
+    """``(key, {edge: value})``: Lambda^KM, or the first exact measure of a job without km."""
+    recs = job_records(view)
+    key = primary_measure(recs) or "lambda_km"
+    return key, {r["edge"]: r[key] for r in recs}
 
 
 def plot_graph(view: JobView, ax) -> None:
@@ -49,7 +61,7 @@ def plot_graph(view: JobView, ax) -> None:
     import networkx as nx
 
     plt = _plt()
-    lam = _lambdas(view)
+    key, lam = _lambdas(view)
     g = nx.DiGraph()
     g.add_nodes_from(str(n) for n in view.nodes)
     for label in view.edges:
@@ -86,16 +98,16 @@ def plot_graph(view: JobView, ax) -> None:
         if value is not None:
             ax.text(*mid, f"{value:+.3f}", fontsize=7, ha="center", va="center", color="k")
     sm = plt.cm.ScalarMappable(norm=norm, cmap=cmap)
-    plt.colorbar(sm, ax=ax, label=r"$\Lambda^{(\mathrm{KM})}$", shrink=0.8)
-    ax.set_title(f"{view.graph}: damaged link a->b coloured by " + r"$\Lambda^{(\mathrm{KM})}$")
+    plt.colorbar(sm, ax=ax, label=LABELS[key], shrink=0.8)
+    ax.set_title(f"{view.graph}: damaged link a->b coloured by " + LABELS[key])
     ax.set_axis_off()
 
 
-def plot_f_beta(view: JobView, ax) -> None:
+def plot_f_beta(view: JobView, ax, *, legend: bool = True) -> None:
     """Fig. 1b: <F_beta> with standard errors against beta, one curve per directed edge."""
     plt = _plt()
     recs = [r for r in job_records(view) if r["beta"] is not None]
-    lam = _lambdas(view)
+    lam = {r["edge"]: r["lambda_km"] for r in recs}
     norm = _norm(lam.values())
     cmap = plt.get_cmap(CMAP)
     for edge in sorted(lam, key=lambda e: -(lam[e] or 0)):
@@ -119,8 +131,11 @@ def plot_f_beta(view: JobView, ax) -> None:
     ax.axhline(1.0, color="k", ls="--", lw=0.8)
     ax.set_xlabel(r"damage $\beta$")
     ax.set_ylabel(r"$\langle \mathcal{F}_\beta \rangle = \langle \tau_0/\tau(\beta) \rangle$")
-    ax.set_title(r"global functionality; legend: edge ($\Lambda^{(\mathrm{KM})}$)")
-    ax.legend(fontsize=7, ncol=2)
+    if legend:
+        ax.set_title(r"global functionality; legend: edge ($\Lambda^{(\mathrm{KM})}$)")
+        ax.legend(fontsize=7, ncol=2)
+    else:
+        ax.set_title(f"global functionality of {len(lam)} links, coloured by " + r"$\Lambda^{(\mathrm{KM})}$")
     sm = plt.cm.ScalarMappable(norm=norm, cmap=cmap)
     plt.colorbar(sm, ax=ax, label=r"$\Lambda^{(\mathrm{KM})}$")
 
@@ -162,9 +177,13 @@ def plot_histogram(view: JobView, k: int, ax) -> None:
 
 
 def write_report(
-    views: list[JobView], folder: str | Path, *, pdf: bool = False, hist_betas: tuple = (0.5,)
+    views: list[JobView], folder: str | Path, *, pdf: bool = False, hist_betas: tuple = (0.5,), top: int = 10
 ) -> list[Path]:
-    """Write every figure for every job into ``folder``; returns the written paths."""
+    """Write every figure for every job into ``folder``; returns the written paths.
+
+    ``top``: for a large graph (:func:`~antisync.report.links.is_large`), how many of the most
+    antifragile and of the most fragile links ``<job>_top_links`` draws strong.
+    """
     plt = _plt()
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
@@ -178,17 +197,32 @@ def write_report(
         plt.close(fig)
 
     for view in views:
-        fig, ax = plt.subplots(figsize=(7, 5.5))
-        plot_graph(view, ax)
-        save(fig, f"{view.graph}_graph")
+        large = is_large(view)
+        hist_edges = None  # every edge's histograms
+        if large:
+            first: dict[str, dict] = {}  # one record per link: Lambda does not depend on beta
+            for r in job_records(view):
+                first.setdefault(r["edge"], r)
+            links = list(first.values())
+            for fig, stem in link_figures(view, links, k=top):
+                save(fig, stem)
+            key = primary_measure(links)
+            if key is not None:
+                strong = top_links(links, key, top)
+                hist_edges = {r["edge"] for r in strong[0] + strong[1]}
+        else:
+            fig, ax = plt.subplots(figsize=(7, 5.5))
+            plot_graph(view, ax)
+            save(fig, f"{view.graph}_graph")
         if view.betas:
             fig, ax = plt.subplots(figsize=(7.5, 5))
-            plot_f_beta(view, ax)
+            plot_f_beta(view, ax, legend=not large)
             save(fig, f"{view.graph}_F_beta")
         chosen = [
             k
             for k, v in enumerate(view.hist_variants)
             if np.any(np.isclose(view.variant_beta[v], hist_betas))
+            and (hist_edges is None or view.edges[int(view.variant_edge[v])] in hist_edges)
         ]
         for k in chosen:
             v = int(view.hist_variants[k])

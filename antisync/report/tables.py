@@ -16,12 +16,26 @@ _TABLE_COLUMNS = [
     ("F_se", "se", "{:.4f}"),
     ("lambda_km", "Lambda_KM", "{:+.4f}"),
     ("lambda_km_se", "se", "{:.4f}"),
+    ("sign_resolved", "sign", "{:+d}"),
     ("tau0_mean", "<tau0>", "{:.4f}"),
     ("tau0_se", "se", "{:.4f}"),
     ("n", "n", "{:,}"),
     ("n_excluded", "r0>=r", "{}"),
     ("n_not_synced", "unsynced", "{}"),
 ]
+# the Kuramoto run's columns: left out when no record has a realization (a file run without km)
+_KM_KEYS = {
+    "beta",
+    "F_mean",
+    "F_se",
+    "lambda_km",
+    "lambda_km_se",
+    "tau0_mean",
+    "tau0_se",
+    "n",
+    "n_excluded",
+    "n_not_synced",
+}
 # shown only when some record has them (measures: linear, xi2, rw, km_nnc)
 _MEASURE_COLUMNS = [
     ("lambda_linear", "Lambda_lin", "{:+.4f}"),
@@ -44,14 +58,19 @@ def format_records(records: list[dict], fmt: str = "table") -> str:
             writer.writeheader()
             writer.writerows(records)
         return buf.getvalue().rstrip("\n")
-    columns = _TABLE_COLUMNS + [c for c in _MEASURE_COLUMNS if any(r.get(c[0]) is not None for r in records)]
+    kuramoto = not records or any(r.get("realizations") for r in records)
+    columns = [
+        c
+        for c in _TABLE_COLUMNS
+        if (kuramoto or c[0] not in _KM_KEYS) and (c[0] != "sign_resolved" or _has(records, c[0]))
+    ]
+    columns += [c for c in _MEASURE_COLUMNS if _has(records, c[0])]
     rows = [[h for _, h, _ in columns]]
     for r in records:
-        rows.append(["-" if r.get(k) is None else f.format(r[k]) for k, _, f in columns])
+        rows.append([_cell(r.get(k), f) for k, _, f in columns])
     widths = [max(len(row[i]) for row in rows) for i in range(len(rows[0]))]
     lines = ["  ".join(c.rjust(w) for c, w in zip(row, widths, strict=True)) for row in rows]
-    warnings = sorted({(r["edge"], r["lambda_km_warning"]) for r in records if r.get("lambda_km_warning")})
-    lines += [f"warning: Lambda_KM of {e}: {w}" for e, w in warnings]
+    lines += lambda_warnings(records)
     lines += [f"warning: {w}" for w in sync_warnings(records)]
     for graph in dict.fromkeys(r["graph"] for r in records if r.get("complete") is False):
         r = next(r for r in records if r["graph"] == graph)
@@ -60,6 +79,31 @@ def format_records(records: list[dict], fmt: str = "table") -> str:
             f"{r['realizations']:,} realizations done): rerun the same command with --resume"
         )
     return "\n".join(lines)
+
+
+def lambda_warnings(records: list[dict], most: int = 5) -> list[str]:
+    """``warning: Lambda_KM of <edge>: <why>`` lines; a reason shared by more than ``most``
+    links is one line that counts them and names the first ``most`` (a graph of 500 links)."""
+    edges: dict[str, list[str]] = {}
+    for e, w in sorted({(r["edge"], r["lambda_km_warning"]) for r in records if r.get("lambda_km_warning")}):
+        edges.setdefault(w, []).append(e)
+    lines = []
+    for w, es in sorted(edges.items(), key=lambda item: item[1][0]):
+        if len(es) <= most:
+            lines += [f"warning: Lambda_KM of {e}: {w}" for e in es]
+        else:
+            lines.append(f"warning: Lambda_KM of {len(es)} links ({', '.join(es[:most])}, ...): {w}")
+    return lines
+
+
+def _cell(value, fmt: str) -> str:
+    if value is None:
+        return "-"
+    return "0" if fmt == "{:+d}" and value == 0 else fmt.format(value)
+
+
+def _has(records: list[dict], key: str) -> bool:
+    return any(r.get(key) is not None for r in records)
 
 
 def sync_warnings(records: list[dict]) -> list[str]:

@@ -7,7 +7,8 @@ Layout (one file per run or sweep)::
     /jobs/<name>/          one group per graph (``lollipop6``, ``G105``, ...)
         attrs:             graph, nodes (JSON), edges (JSON), betas, dbeta, seed, backend,
                            block_size, realizations, realizations_done, seconds, complete,
-                           tau0 status counts, summary_json
+                           tau0 status counts, summary_json, kuramoto (false for measures
+                           without km: no blocks, no variants, realizations 0)
         omega              (N, N) weights
         variant_edge       (V,) index into edges          variant_beta  (V,) damage
         blocks_done        (n_blocks,) bool               hist_variants (H,) variant indices
@@ -51,10 +52,11 @@ from antisync._version import __version__
 from antisync.errors import StoreError
 from antisync.jobs import Job
 from antisync.measures.pipeline import COMPUTED
+from antisync.records import job_records, view_records
 from antisync.store.journal import digest_graph, graph_digest, jsonable
 from antisync.store.provenance import now
 from antisync.store.state import JobState
-from antisync.summary import JobView, job_records, view_records
+from antisync.summary import JobView
 
 __all__ = [
     "FORMAT",
@@ -236,23 +238,24 @@ def _write_state(g, st: JobState) -> None:
     g.attrs["tau_max_hist"] = cfg.histogram.tau_max
     g.attrs["backend"] = ",".join(sorted(st.backends)) or cfg.backend
     g.attrs["block_size"] = job.block_size
-    g.attrs["realizations"] = cfg.realizations
+    g.attrs["realizations"] = job.realizations  # 0 without km: no Kuramoto integration
+    g.attrs["kuramoto"] = job.kuramoto
     g.attrs["realizations_done"] = st.realizations_done
     g.attrs["seconds"] = st.seconds
     g.attrs["complete"] = st.complete
     g.attrs["block_fields"] = json.dumps(list(estimators.BLOCK_FIELDS))
     g.attrs["tau0_fields"] = json.dumps(list(estimators.TAU0_FIELDS))
     g.attrs["lambda_fields"] = json.dumps(list(estimators.LAMBDA_FIELDS))
-    g.create_dataset("omega", data=job.omega)
+    g.create_dataset("omega", data=job.omega, compression="gzip", compression_opts=1)
     g.create_dataset("variant_edge", data=job.variant_edge)
     g.create_dataset("variant_beta", data=job.variant_beta)
     g.create_dataset("hist_variants", data=job.hist_variants)
     g.create_dataset("blocks_done", data=st.done)
     g.create_dataset("block_records", data=st.rec, compression="gzip", compression_opts=1)
     g.create_dataset("tau0_records", data=st.rec0, compression="gzip", compression_opts=1)
-    g.create_dataset("tail_counts", data=st.tail)
+    g.create_dataset("tail_counts", data=st.tail, compression="gzip", compression_opts=1)
     g.create_dataset("lambda_records", data=st.lam_rec, compression="gzip", compression_opts=1)
-    g.create_dataset("lambda_tail_counts", data=st.lam_tail)
+    g.create_dataset("lambda_tail_counts", data=st.lam_tail, compression="gzip", compression_opts=1)
     g.create_dataset("hist", data=st.hist, compression="gzip", compression_opts=1)
     kept = g.create_group("kept")
     for key, arr in st.kept.items():
@@ -310,7 +313,7 @@ def _view_from_state(st: JobState) -> JobView:
         rec0=st.rec0,
         done=st.done,
         tail=st.tail,
-        realizations=job.config.realizations,
+        realizations=job.realizations,
         lam_rec=st.lam_rec,
         lam_tail=st.lam_tail,
         lambda_method=job.config.lambda_.method,
@@ -500,8 +503,9 @@ def _shape_problem(view: JobView) -> str | None:
 
 
 def records(path: str | Path) -> list[dict]:
-    """Summary records of every job in a result file (see :func:`antisync.summary.job_records`);
-    each run's ``lambda_km_nnc`` comes from its raw-coupling twin."""
+    """Summary records of every job in a result file (see :func:`antisync.summary.job_records`
+    and, for a job run without ``km``, :func:`antisync.records.job_records`); each run's
+    ``lambda_km_nnc`` comes from its raw-coupling twin."""
     return view_records(read_views(path))
 
 

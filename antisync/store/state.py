@@ -32,7 +32,7 @@ class JobState:
         self.lam_tail = np.zeros((ne, estimators.LAMBDA_TAIL_BINS), dtype=np.int64)
         bins = job.config.histogram.bins
         self.hist = np.zeros((len(job.hist_variants), bins, bins), dtype=np.int64)
-        keep = min(job.config.keep_pairs, job.config.realizations)
+        keep = min(job.config.keep_pairs, job.realizations)
         self.kept = {
             "status0": np.full(keep, -1, dtype=np.int8),
             "steps0": np.zeros(keep, dtype=np.int64),
@@ -83,7 +83,7 @@ class JobState:
     @property
     def realizations_done(self) -> int:
         b = self.job.block_size
-        total = self.job.config.realizations
+        total = self.job.realizations
         return int(sum(min(b, total - i * b) for i in np.flatnonzero(self.done)))
 
     @property

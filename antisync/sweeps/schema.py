@@ -206,6 +206,11 @@ def load_sweep_text(
         if "unknown key" in str(exc):
             raise ConfigError(f"{exc}; sweep keys: {', '.join(sorted(_SWEEP_KEYS))}") from None
         raise
+    if "km" not in base.measures:  # a run may omit km (exact measures only); a sweep may not
+        raise ConfigError(
+            f"a sweep screens and ranks its graphs by Lambda^KM: measures must include km, got "
+            f"{list(base.measures)}; for exact measures only use `antisync run` or antisync.measures"
+        )
     base = replace(base, dynamics=replace(base.dynamics, threshold=thresholds[0]))
     name = raw.get("name") or (source.stem if source else "sweep")
     if not raw.get("output"):
