@@ -132,3 +132,44 @@ def test_coverage_on_a_known_heavy_tail(a):
         hit_bm += abs(est.mean - mean) <= 1.96 * est.se
     assert 0.93 <= hit / runs <= 0.99, (hit / runs, hit_bm / runs)
     assert hit >= hit_bm
+
+
+def test_a_format1_file_is_read_with_batch_means_and_says_so(tmp_path):
+    """A file written before the signed tail counts (format 1) still gives records: the
+    interval is batch means, named as such, with a warning that says how to get the other."""
+    import h5py
+
+    import antisync
+    from antisync.store import records
+
+    out = tmp_path / "r.h5"
+    cfg = {
+        "graph": {"kind": "lollipop", "nodes": 6, "path": 3},
+        "edges": ["5->6", "6->5"],
+        "betas": [],
+        "seed": 3,
+    }
+    antisync.run(cfg, realizations=2000, output=out, progress=False)
+    new = records(out)
+    assert {r["lambda_km_ci_method"] for r in new} == {estimators.TAIL_MODEL}
+    with h5py.File(out, "a") as f:
+        f.attrs["format_version"] = 1
+        for g in f["jobs"].values():
+            signed = g["lambda_tail_counts"][...]
+            del g["lambda_tail_counts"]
+            g.create_dataset(
+                "lambda_tail_counts",
+                data=signed[:, : estimators.TAIL_BINS] + signed[:, estimators.TAIL_BINS :],
+            )
+    old = records(out)
+    for a, b in zip(new, old, strict=True):
+        assert b["lambda_km"] == a["lambda_km"]
+        assert b["lambda_km_ci_method"] == "batch-means"
+        assert b["lambda_km_se"] == pytest.approx(b["lambda_km_se_batch"]) or b[
+            "lambda_km_se"
+        ] == pytest.approx(b["lambda_km_se_naive"])
+        assert "format-1" in b["lambda_km_warning"]
+        assert (
+            a["lambda_km_ci_low"] <= b["lambda_km_ci_low"]
+            and b["lambda_km_ci_high"] <= a["lambda_km_ci_high"]
+        )
