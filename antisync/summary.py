@@ -97,6 +97,13 @@ def _lambda(view: JobView, e: int, pooled: np.ndarray) -> dict:
             f"heavy tail: top 0.1% of samples carry {share:.0%} of the variance and too few "
             "values for the tail model: run more realizations"
         )
+    elif view.lambda_method == "pathwise":
+        # measured: bench/RESULTS.md, calibration of Lambda's error bars
+        warning = (
+            "pathwise derivatives have an unbounded tail (values to ~1e4 at probability "
+            "~1e-5): this interval covered only 74-98% of runs on the lollipop; use "
+            "lambda.method hybrid or finite-difference for error bars to trust"
+        )
     return {
         "lambda_km": _num(est.mean),
         "lambda_km_se": _num(se),
