@@ -66,6 +66,10 @@ def check_backend(config, backend: str) -> None:
         Naming the key, the value and what would work.
     """
     dyn = config.dynamics
+    if config.generalized and backend == "cuda":
+        raise ConfigError(
+            "the model:/sync: sections (docs/models.md) run on the cpu backend only; use --backend cpu"
+        )
     if dyn.precision != "float64" and backend != "cuda":
         raise ConfigError(
             f"dynamics.precision {dyn.precision} is implemented only on backend cuda "
@@ -116,6 +120,8 @@ def simulate_job(
     """Integrate realizations ``first .. first+count-1`` (or ``realizations``) of ``job``."""
     dyn = job.config.dynamics
     check_backend(job.config, backend)
+    if job.model is not None:
+        return _simulate_model(job, first, count, backend, threads, variant_weights, realizations)
     kwargs = {"threads": threads} if backend != "cuda" else {"precision": dyn.precision}
     if realizations is not None:
         kwargs["realizations"] = realizations
@@ -134,6 +140,43 @@ def simulate_job(
         threshold=dyn.threshold,
         max_steps=dyn.max_steps,
         **kwargs,
+    )
+
+
+def _simulate_model(job, first, count, backend, threads, variant_weights, realizations):
+    """:func:`simulate_job` for a generalized model (docs/models.md)."""
+    from antisync.kernels import model_cpu
+
+    setup = job.model
+    if variant_weights is not None:
+        raise ValueError("the model kernels integrate the job's own variants only")
+    n = len(job.nodes)
+    ks = model_cpu._realization_ids(first, count, realizations)
+    if job.config.model.drawn:
+        freqs = model_cpu.draw_frequencies(job.config.model.frequencies, job.config.seed, ks, n)
+        freqs -= freqs.mean(axis=1, keepdims=True)  # the rotating frame of docs/models.md
+    elif setup.freqs is not None:
+        freqs = setup.freqs[None, :]
+    else:
+        freqs = np.zeros((1, n))
+    params = model_cpu.ModelParams(
+        freqs, setup.cos_lag, setup.sin_lag, setup.inertia, setup.damping, setup.criterion, setup.targets
+    )
+    dyn = job.config.dynamics
+    return model_cpu.simulate_model(
+        job.config.seed,
+        0,
+        0,
+        job.csr.indptr,
+        job.csr.indices,
+        job.csr.weights,
+        job.variant_weights,
+        params,
+        dt=dyn.dt,
+        max_steps=dyn.max_steps,
+        integrator=dyn.integrator,
+        threads=threads,
+        realizations=ks,
     )
 
 

@@ -31,19 +31,17 @@ from pathlib import Path
 from typing import Literal, get_args
 
 import numpy as np
-from numba import njit
 
-from antisync import _numba_cache  # noqa: F401 -- before any cache=True function (see there)
 from antisync.errors import ConfigError
-from antisync.phases import make_uniform
 from antisync.validation import choice, fraction, positive
 
 __all__ = [
     "CRITERIA",
     "DISTRIBUTIONS",
     "Model",
+    "ModelSetup",
     "Sync",
-    "draw_frequencies",
+    "model_setup",
     "node_frequencies",
 ]
 
@@ -51,11 +49,6 @@ Criterion = Literal["order-parameter", "relative", "frequency"]
 CRITERIA: tuple[Criterion, ...] = get_args(Criterion)
 Distribution = Literal["normal", "uniform"]
 DISTRIBUTIONS: tuple[Distribution, ...] = get_args(Distribution)
-
-#: Counter streams of :func:`antisync.phases.make_uniform` used by the frequencies (the initial
-#: phases are the separate hash :func:`antisync.phases.phase`).
-STREAM_FREQ_A = 1
-STREAM_FREQ_B = 2
 
 _FREQ_KEYS = {"normal": {"distribution", "sd", "mean"}, "uniform": {"distribution", "width", "mean"}}
 
@@ -199,38 +192,6 @@ class Sync:
         return self.criterion == "order-parameter" and self.threshold is None
 
 
-_uniform = make_uniform(lambda f: njit(f, inline="always"))
-
-
-@njit(cache=True)
-def _fill_frequencies(seed, ks, n, normal, mean, scale, out):
-    for r in range(ks.shape[0]):
-        for i in range(n):
-            u1 = _uniform(seed, ks[r], i, STREAM_FREQ_A)
-            if normal:
-                # Box-Muller: 1 - u1 in (0, 1], so the logarithm is finite
-                u2 = _uniform(seed, ks[r], i, STREAM_FREQ_B)
-                z = math.sqrt(-2.0 * math.log(1.0 - u1)) * math.cos(2.0 * math.pi * u2)
-                out[r, i] = mean + scale * z
-            else:
-                out[r, i] = mean + scale * (2.0 * u1 - 1.0)
-
-
-def draw_frequencies(spec: dict, seed: int, ks: np.ndarray, n: int) -> np.ndarray:
-    """Natural frequencies of realizations ``ks`` (shape ``(len(ks), n)``), mean not removed.
-
-    ``normal``: ``mean + sd z`` with ``z`` from Box-Muller on two counter streams;
-    ``uniform``: ``mean + width (2 u - 1)``. Keyed by ``(seed, k, node)`` like the phases, so
-    chunks, threads and backends cannot change them.
-    """
-    ks = np.ascontiguousarray(ks, dtype=np.uint64)
-    out = np.empty((ks.size, n))
-    normal = spec["distribution"] == "normal"
-    scale = spec["sd"] if normal else spec["width"]
-    _fill_frequencies(np.uint64(seed), ks, n, normal, float(spec.get("mean", 0.0)), float(scale), out)
-    return out
-
-
 def node_frequencies(model: Model, n: int) -> np.ndarray | None:
     """Fixed natural frequencies in node order (``None`` when drawn or absent); the file of
     ``{"file": path}`` has one number per line (``#`` comments allowed).
@@ -262,3 +223,99 @@ def node_frequencies(model: Model, n: int) -> np.ndarray | None:
     if not np.isfinite(values).all():
         raise ConfigError(f"{source} contains a value that is not finite")
     return values
+
+
+@dataclass(frozen=True)
+class ModelSetup:
+    """A job's model resolved for the kernels (:func:`model_setup`).
+
+    Attributes
+    ----------
+    freqs : ndarray (N,) or None
+        Fixed natural frequencies, mean removed (``None``: drawn per realization, or none).
+    cos_lag, sin_lag, inertia, damping : float
+    criterion : int
+        :data:`antisync.kernels.core.CRIT_ORDER` or ``CRIT_FREQUENCY``.
+    targets : ndarray (1 + V,)
+        Per trajectory kind (undamaged, then each variant): ``R = (r N)^2`` at the threshold, or
+        the frequency tolerance.
+    r_star : ndarray (1 + V,) or None
+        ``relative``: the order parameter of each one's stable locked state.
+    """
+
+    freqs: np.ndarray | None
+    cos_lag: float
+    sin_lag: float
+    inertia: float
+    damping: float
+    criterion: int
+    targets: np.ndarray
+    r_star: np.ndarray | None
+
+
+def model_setup(config, indptr: np.ndarray, indices: np.ndarray, weights: list, labels: list) -> ModelSetup:
+    """Resolve ``config.model`` and ``config.sync`` for a graph whose coupling ``W`` (CSR
+    ``indptr``, ``indices``) takes the CSR ``weights[0]`` undamaged and ``weights[1 + v]`` in
+    variant ``v`` (``labels[v]`` names it in messages).
+
+    Raises
+    ------
+    ConfigError
+        A frequency list or file of the wrong length, or (``relative``) a network without a
+        stable phase-locked state.
+    """
+    from antisync.kernels.core import CRIT_FREQUENCY, CRIT_ORDER
+
+    model, sync = config.model, config.sync
+    n = indptr.size - 1
+    fixed = node_frequencies(model, n)
+    freqs = None if fixed is None else fixed - fixed.mean()
+    lag = float(model.phase_lag)
+    n_kinds = len(weights)
+    r_star = None
+    if sync.criterion == "frequency":
+        criterion = CRIT_FREQUENCY
+        targets = np.full(n_kinds, float(sync.tolerance))
+    elif sync.criterion == "order-parameter":
+        criterion = CRIT_ORDER
+        targets = np.full(n_kinds, (config.dynamics.threshold * n) ** 2)
+    else:
+        from antisync.locked import locked_state
+
+        criterion = CRIT_ORDER
+        p = np.zeros(n) if freqs is None else freqs
+        rows = np.repeat(np.arange(n), np.diff(indptr))
+        r_star = np.empty(n_kinds)
+        cache: dict = {}
+        for v, w_csr in enumerate(weights):
+            key = np.asarray(w_csr).tobytes()
+            if key not in cache:
+                w = np.zeros((n, n))
+                w[rows, indices] = w_csr
+                cache[key] = locked_state(w, p, lag, model.inertia, model.damping)
+            state = cache[key]
+            if state is None or not state.stable:
+                what = "the undamaged network" if v == 0 else f"variant {labels[v - 1]}"
+                why = (
+                    "no phase-locked state connected to synchrony"
+                    if state is None
+                    else f"its locked state is unstable (largest eigenvalue real part {state.max_real:.3g})"
+                )
+                spread = float(np.max(np.abs(p))) if p.size else 0.0
+                raise ConfigError(
+                    f"sync.criterion relative: {what} has {why}; the natural frequencies "
+                    f"(max |P_i - mean| = {spread:.3g}) may be too spread for the coupling: use "
+                    "sync.criterion frequency or order-parameter, or smaller frequencies"
+                )
+            r_star[v] = state.r
+        targets = (sync.fraction * r_star * n) ** 2
+    return ModelSetup(
+        freqs=freqs,
+        cos_lag=math.cos(lag),
+        sin_lag=math.sin(lag),
+        inertia=float(model.inertia),
+        damping=float(model.damping),
+        criterion=criterion,
+        targets=targets,
+        r_star=r_star,
+    )

@@ -16,10 +16,15 @@ from numba import njit, prange
 
 from antisync import _numba_cache  # noqa: F401 -- before any cache=True function (see there)
 from antisync.kernels.core import CRIT_FREQUENCY, CRIT_ORDER, make_kernels, make_model_kernels
-from antisync.kernels.cpu import SimResult, _Threads, _realization_ids
-from antisync.phases import phase
+from antisync.kernels.cpu import SimResult, _realization_ids, _Threads
+from antisync.phases import make_uniform, phase
 
-__all__ = ["ModelParams", "simulate_model"]
+__all__ = ["ModelParams", "draw_frequencies", "simulate_model"]
+
+#: Counter streams of :func:`antisync.phases.make_uniform` used by the natural frequencies (the
+#: initial phases are the separate hash :func:`antisync.phases.phase`).
+STREAM_FREQ_A = 1
+STREAM_FREQ_B = 2
 
 _jit = lambda f: njit(f, inline="always", cache=True)  # noqa: E731
 _MK = make_model_kernels(_jit, make_kernels(_jit))
@@ -206,3 +211,35 @@ def simulate_model(
 def lag_terms(phase_lag: float) -> tuple[float, float]:
     """``(cos alpha, sin alpha)``; exactly ``(1.0, 0.0)`` for ``alpha = 0``."""
     return math.cos(phase_lag), math.sin(phase_lag)
+
+
+_uniform = make_uniform(lambda f: njit(f, inline="always"))
+
+
+@njit(cache=True)
+def _fill_frequencies(seed, ks, n, normal, mean, scale, out):
+    for r in range(ks.shape[0]):
+        for i in range(n):
+            u1 = _uniform(seed, ks[r], i, STREAM_FREQ_A)
+            if normal:
+                # Box-Muller: 1 - u1 in (0, 1], so the logarithm is finite
+                u2 = _uniform(seed, ks[r], i, STREAM_FREQ_B)
+                z = math.sqrt(-2.0 * math.log(1.0 - u1)) * math.cos(2.0 * math.pi * u2)
+                out[r, i] = mean + scale * z
+            else:
+                out[r, i] = mean + scale * (2.0 * u1 - 1.0)
+
+
+def draw_frequencies(spec: dict, seed: int, ks: np.ndarray, n: int) -> np.ndarray:
+    """Natural frequencies of realizations ``ks`` (shape ``(len(ks), n)``), mean not removed.
+
+    ``normal``: ``mean + sd z`` with ``z`` from Box-Muller on two counter streams;
+    ``uniform``: ``mean + width (2 u - 1)``. Keyed by ``(seed, k, node)`` like the phases, so
+    chunks, threads and backends cannot change them.
+    """
+    ks = np.ascontiguousarray(ks, dtype=np.uint64)
+    out = np.empty((ks.size, n))
+    normal = spec["distribution"] == "normal"
+    scale = spec["sd"] if normal else spec["width"]
+    _fill_frequencies(np.uint64(seed), ks, n, normal, float(spec.get("mean", 0.0)), float(scale), out)
+    return out
