@@ -43,6 +43,7 @@ __all__ = [
     "Sync",
     "model_setup",
     "node_frequencies",
+    "unsynced_hint",
 ]
 
 Criterion = Literal["order-parameter", "relative", "frequency"]
@@ -319,3 +320,16 @@ def model_setup(config, indptr: np.ndarray, indices: np.ndarray, weights: list, 
         targets=targets,
         r_star=r_star,
     )
+
+
+def unsynced_hint(config) -> str | None:
+    """Why a generalized run may not lock, for the summary's warning when (almost) nothing
+    synchronized; ``None`` for the paper's model."""
+    if config.model.frequencies is None:
+        return None
+    if config.sync.criterion == "order-parameter":
+        return (
+            "the natural frequencies may be too spread for the coupling (no locked state, or "
+            "its r* below the threshold: try sync.criterion relative or frequency)"
+        )
+    return "the natural frequencies may be too spread for the coupling (no locked state)"
