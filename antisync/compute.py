@@ -4,6 +4,7 @@ partial statistics. Executors (local, Dask) only decide *where* :func:`compute_c
 
 from __future__ import annotations
 
+import functools
 import time
 from dataclasses import dataclass
 
@@ -66,10 +67,13 @@ def check_backend(config, backend: str) -> None:
         Naming the key, the value and what would work.
     """
     dyn = config.dynamics
-    if config.generalized and backend == "cuda":
-        raise ConfigError(
-            "the model:/sync: sections (docs/models.md) run on the cpu backend only; use --backend cpu"
-        )
+    if config.generalized:
+        # the model kernels run Euler or RK4 with either crossing on both backends, float64 only
+        if dyn.precision != "float64":
+            raise ConfigError(
+                "the model:/sync: sections (docs/models.md) run in dynamics.precision float64 only"
+            )
+        return
     if dyn.precision != "float64" and backend != "cuda":
         raise ConfigError(
             f"dynamics.precision {dyn.precision} is implemented only on backend cuda "
@@ -147,6 +151,11 @@ def _simulate_model(job, first, count, backend, threads, variant_weights, realiz
     """:func:`simulate_job` for a generalized model (docs/models.md)."""
     from antisync.kernels import model_cpu
 
+    if backend == "cuda":
+        from antisync.kernels.model_cuda import simulate_model
+    else:
+        simulate_model = functools.partial(model_cpu.simulate_model, threads=threads)
+
     setup = job.model
     if variant_weights is not None:
         raise ValueError("the model kernels integrate the job's own variants only")
@@ -163,7 +172,7 @@ def _simulate_model(job, first, count, backend, threads, variant_weights, realiz
         freqs, setup.cos_lag, setup.sin_lag, setup.inertia, setup.damping, setup.criterion, setup.targets
     )
     dyn = job.config.dynamics
-    return model_cpu.simulate_model(
+    return simulate_model(
         job.config.seed,
         0,
         0,
@@ -175,7 +184,6 @@ def _simulate_model(job, first, count, backend, threads, variant_weights, realiz
         dt=dyn.dt,
         max_steps=dyn.max_steps,
         integrator=dyn.integrator,
-        threads=threads,
         realizations=ks,
     )
 
@@ -314,7 +322,7 @@ def compute_chunk(job: Job, chunk: Chunk, backend: str = "cpu", threads: int | N
     """
     start = time.perf_counter()
     first, count = chunk.realizations(job.block_size, job.config.realizations)
-    if backend == "cuda" and job.config.keep_pairs <= first:
+    if backend == "cuda" and job.config.keep_pairs <= first and job.model is None:
         check_backend(job.config, backend)
         return _compute_on_device(job, chunk, first, count, start)
     derivative = job.config.lambda_.method != "finite-difference"

@@ -381,11 +381,16 @@ def test_bad_model_input_is_one_line(tmp_path, extra, message, files):
     _one_line(tmp_path, SMALL + extra, message, files)
 
 
-def test_generalized_models_are_refused_on_cuda():
+def test_generalized_models_run_in_float64_only():
     from antisync.compute import check_backend
 
-    with pytest.raises(ConfigError, match="cpu backend only"):
-        check_backend(load_config_text(SMALL + "model: {phase_lag: 0.1}\n"), "cuda")
+    cfg = load_config_text(SMALL + "model: {phase_lag: 0.1}\ndynamics: {precision: float32}\n")
+    with pytest.raises(ConfigError, match="float64 only"):
+        check_backend(cfg, "cuda")
+    # rk4 and interpolated crossings, CPU-only for the default model, run on the model kernels
+    check_backend(
+        load_config_text(SMALL + "model: {phase_lag: 0.1}\ndynamics: {integrator: rk4, dt: 0.01}\n"), "cuda"
+    )
 
 
 def test_relative_criterion_without_a_stable_locked_state_is_one_line(tmp_path):

@@ -509,7 +509,22 @@ def make_model_kernels(jit, base: Kernels) -> ModelKernels:
                 work[12, i] = c[i] + h * work[stage - 1, i]
                 work[13, i] = s[i] + h * work[stage + 3, i]
                 work[14, i] = nu[i] + h * work[stage + 7, i]
-            rhs(work[12], work[13], work[14], p, indptr, indices, weights, cl, sl, inertia, damping, th, dnu)
+            # rows cut to n: on CUDA ``work`` is a (15, MAX_NODES) local array
+            rhs(
+                work[12, :n],
+                work[13, :n],
+                work[14, :n],
+                p,
+                indptr,
+                indices,
+                weights,
+                cl,
+                sl,
+                inertia,
+                damping,
+                th,
+                dnu,
+            )
             for i in range(n):
                 work[stage, i] = -work[13, i] * th[i]
                 work[stage + 4, i] = work[12, i] * th[i]
