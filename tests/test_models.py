@@ -412,3 +412,20 @@ def test_frequency_file_is_read_relative_to_the_config(tmp_path):
     np.testing.assert_allclose(job.model.freqs, [0.1, -0.1, 0.05, 0, 0, -0.05])
     assert Path(job.config.model.frequencies["file"]).is_absolute()
     assert graphs.node_order(job.graph) == [1, 2, 3, 4, 5, 6]
+
+
+def test_power_grid_example_config():
+    """configs/ieee14_grid.yaml: bus i is node i, injections from the file in bus order, and
+    its first realizations frequency-lock."""
+    from antisync.config import load_config
+
+    root = Path(__file__).resolve().parents[1]
+    job = make_job(load_config(root / "configs" / "ieee14_grid.yaml"))
+    assert job.nodes == list(range(1, 15)) and job.graph.number_of_edges() == 20
+    p = np.array(
+        [2.324, 0.183, -0.942, -0.478, -0.076, -0.112, 0, 0, -0.295, -0.09, -0.035, -0.061, -0.135, -0.149]
+    )
+    np.testing.assert_allclose(job.model.freqs, p - p.mean(), atol=1e-12)
+    assert job.omega[0, 1] == 2.5 and job.omega[0, 4] == 2.5 and job.omega[0, 2] == 0
+    sim = simulate_job(job, 0, 4)
+    assert (sim.status0 == Status.SYNCED).all() and (sim.status == Status.SYNCED).all()
