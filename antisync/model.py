@@ -221,8 +221,8 @@ def node_frequencies(model: Model, n: int) -> np.ndarray | None:
         source = "model.frequencies"
     if values.ndim != 1 or values.size != n:
         raise ConfigError(f"{source} has {values.size} values; the graph has {n} nodes (one value per node)")
-    if not np.isfinite(values).all():
-        raise ConfigError(f"{source} contains a value that is not finite")
+    if not np.isfinite(values).all() or not np.isfinite(values.sum()):
+        raise ConfigError(f"{source} contains a value that is not finite (or too large to sum)")
     return values
 
 

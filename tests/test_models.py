@@ -429,3 +429,63 @@ def test_power_grid_example_config():
     assert job.omega[0, 1] == 2.5 and job.omega[0, 4] == 2.5 and job.omega[0, 2] == 0
     sim = simulate_job(job, 0, 4)
     assert (sim.status0 == Status.SYNCED).all() and (sim.status == Status.SYNCED).all()
+
+
+MODEL_KEYS = [
+    "model",
+    "model.frequencies",
+    "model.frequencies.distribution",
+    "model.frequencies.sd",
+    "model.frequencies.file",
+    "model.phase_lag",
+    "model.inertia",
+    "model.damping",
+    "sync",
+    "sync.criterion",
+    "sync.threshold",
+    "sync.fraction",
+    "sync.tolerance",
+]
+
+
+def test_any_value_at_any_model_key_is_valid_or_one_clear_error():
+    """As tests/test_hostile_input.py does for the other keys: set as YAML text or as a typed
+    value, every value gives a job or one line (here with the relative criterion, so Newton
+    runs on whatever frequencies get through)."""
+    import yaml
+    from hypothesis import HealthCheck, given, settings
+    from hypothesis import strategies as st
+
+    from antisync.errors import AntisyncError
+
+    scalars = st.one_of(
+        st.none(),
+        st.booleans(),
+        st.integers(-(2**70), 2**70),
+        st.floats(),
+        st.text(max_size=8),
+        st.sampled_from(["1e23", "0.5", "normal", "uniform", "relative", "frequency", "-1.5"]),
+    )
+    values = st.recursive(
+        scalars,
+        lambda inner: st.one_of(
+            st.lists(inner, min_size=0, max_size=7), st.dictionaries(st.text(max_size=4), inner, max_size=2)
+        ),
+        max_leaves=8,
+    )
+    base = SMALL + "sync: {criterion: relative}\nmodel: {frequencies: [0.1, 0, 0, 0, 0, -0.1]}\n"
+
+    @settings(max_examples=300, deadline=None, derandomize=True, suppress_health_check=[HealthCheck.too_slow])
+    @given(key=st.sampled_from(MODEL_KEYS), value=values, typed=st.booleans())
+    def check(key, value, typed):
+        try:
+            if typed:
+                cfg = load_config_text(base, values={key: value})
+            else:
+                text = yaml.safe_dump(value, default_flow_style=True).strip().replace("\n...", "")
+                cfg = load_config_text(base, [f"{key}={text}"])
+            make_job(cfg)
+        except AntisyncError as exc:
+            assert str(exc) and "\n" not in str(exc).strip()
+
+    check()
