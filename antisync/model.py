@@ -269,6 +269,8 @@ def model_setup(config, indptr: np.ndarray, indices: np.ndarray, weights: list, 
 
     model, sync = config.model, config.sync
     n = indptr.size - 1
+    if model.second_order:
+        _check_second_order_step(config, indptr, indices, weights[0])
     fixed = node_frequencies(model, n)
     freqs = None if fixed is None else fixed - fixed.mean()
     lag = float(model.phase_lag)
@@ -333,3 +335,32 @@ def unsynced_hint(config) -> str | None:
             "its r* below the threshold: try sync.criterion relative or frequency)"
         )
     return "the natural frequencies may be too spread for the coupling (no locked state)"
+
+
+def _check_second_order_step(config, indptr, indices, weights) -> None:
+    """Refuse a ``dt`` at which the explicit integrator is unstable near synchrony.
+
+    Linearized at the in-phase state, ``m u'' + gamma u' = -L u`` (``L`` the coupling's
+    Laplacian) has, for each eigenvalue ``xi`` of ``L``, the rates ``lambda`` with ``m lambda^2
+    + gamma lambda + xi = 0``. An explicit step multiplies such a mode by ``R(dt lambda)``
+    (Euler ``1 + z``, RK4 its 4th-order polynomial); ``|R| > 1`` makes synchrony repel (the
+    damping mode ``-gamma/m`` of a small inertia, or weakly damped oscillations under Euler).
+    The first-order model's check is :func:`antisync.jobs.check_step`.
+    """
+    m, gamma = config.model.inertia, config.model.damping
+    dyn = config.dynamics
+    n = indptr.size - 1
+    w = np.zeros((n, n))
+    w[np.repeat(np.arange(n), np.diff(indptr)), indices] = weights
+    xi = np.linalg.eigvals(np.diag(w.sum(axis=1)) - w)
+    disc = np.sqrt(gamma * gamma - 4 * m * xi.astype(complex))
+    lam = np.concatenate([(-gamma + disc) / (2 * m), (-gamma - disc) / (2 * m)])
+    z = dyn.dt * lam[np.abs(lam) > 1e-12]
+    growth = 1 + z if dyn.integrator == "euler" else 1 + z + z**2 / 2 + z**3 / 6 + z**4 / 24
+    worst = float(np.max(np.abs(growth))) if z.size else 0.0
+    if worst > 1 + 1e-12:
+        raise ConfigError(
+            f"dynamics.dt = {dyn.dt:g} is unstable for the second-order model (inertia {m:g}, damping "
+            f"{gamma:g}): an explicit {dyn.integrator} step amplifies a mode near synchrony by "
+            f"{worst:.6g} per step; lower dt"
+        )

@@ -368,6 +368,8 @@ TWO = "graph: {kind: networkx, generator: path_graph, args: {n: 2}}\nbetas: []\n
         ("model: {frequencies: {distribution: cauchy, sd: 1}}\n", "must be one of normal, uniform", None),
         ("model: {frequencies: {distribution: normal}}\n", "needs sd", None),
         ("model: {spin: 1}\n", "unknown key 'model.spin'", None),
+        ("model: {inertia: 0.01}\ndynamics: {dt: 0.05}\n", "is unstable for the second-order model", None),
+        ("model: {inertia: 1, damping: 0.01}\ndynamics: {dt: 0.01}\n", "unstable for the second-order", None),
         ("sync: {criterion: psychic}\n", "sync.criterion must be one of", None),
         ("model: {phase_lag: 0.1}\nlambda: {method: pathwise}\n", "use lambda.method finite-diff", None),
         (
