@@ -324,6 +324,10 @@ class Config:
         d = self.resolved().to_dict()
         for k in ("name", "backend", "executor", "threads", "output", "chunk_size"):
             d.pop(k)
+        freq = self.model.frequencies
+        if isinstance(freq, dict) and "file" in freq:
+            # the file's content decides the numbers, not its name: an edited file is another run
+            d["model"]["frequencies"] = {**freq, "sha256": _file_digest(freq["file"])}
         return d
 
 
@@ -524,6 +528,16 @@ def _from_mapping(raw: dict, source: Path | None) -> Config:
 
 
 _INTEGER_KEYS = {"realizations", "seed", "keep_pairs"}
+
+
+def _file_digest(path: str) -> str:
+    """SHA-256 of a file's bytes (``""`` when it cannot be read: reading it later says why)."""
+    import hashlib
+
+    try:
+        return hashlib.sha256(Path(path).read_bytes()).hexdigest()
+    except OSError:
+        return ""
 
 
 def _resolve_frequency_file(value: dict, source: Path | None) -> dict:

@@ -413,6 +413,10 @@ def test_frequency_file_is_read_relative_to_the_config(tmp_path):
     job = make_job(load_config(cfg))
     np.testing.assert_allclose(job.model.freqs, [0.1, -0.1, 0.05, 0, 0, -0.05])
     assert Path(job.config.model.frequencies["file"]).is_absolute()
+    # an edited frequency file is another simulation: --resume refuses to merge the two
+    key = load_config(cfg).simulation_key()
+    (tmp_path / "sub" / "p.txt").write_text("0.2\n-0.1\n0.05\n0\n0\n-0.15\n")
+    assert load_config(cfg).simulation_key() != key
     assert graphs.node_order(job.graph) == [1, 2, 3, 4, 5, 6]
 
 
