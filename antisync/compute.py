@@ -4,6 +4,7 @@ partial statistics. Executors (local, Dask) only decide *where* :func:`compute_c
 
 from __future__ import annotations
 
+import functools
 import time
 from dataclasses import dataclass
 
@@ -26,7 +27,7 @@ class ChunkResult:
     rec, rec0 : block records (see :func:`antisync.estimators.block_records`)
     tail : int64 (V, TAIL_BINS)
     hist : int64 (len(job.hist_variants), bins, bins)
-    lam_rec, lam_tail : Lambda block records and |Lambda| tail counts per edge
+    lam_rec, lam_tail : Lambda block records and signed Lambda tail counts per edge
     kept : dict of arrays or None
         Per-realization steps and status for realizations below ``keep_pairs``.
     """
@@ -66,6 +67,13 @@ def check_backend(config, backend: str) -> None:
         Naming the key, the value and what would work.
     """
     dyn = config.dynamics
+    if config.generalized:
+        # the model kernels run Euler or RK4 with either crossing on both backends, float64 only
+        if dyn.precision != "float64":
+            raise ConfigError(
+                "the model:/sync: sections (docs/models.md) run in dynamics.precision float64 only"
+            )
+        return
     if dyn.precision != "float64" and backend != "cuda":
         raise ConfigError(
             f"dynamics.precision {dyn.precision} is implemented only on backend cuda "
@@ -116,6 +124,8 @@ def simulate_job(
     """Integrate realizations ``first .. first+count-1`` (or ``realizations``) of ``job``."""
     dyn = job.config.dynamics
     check_backend(job.config, backend)
+    if job.model is not None:
+        return _simulate_model(job, first, count, backend, threads, variant_weights, realizations)
     kwargs = {"threads": threads} if backend != "cuda" else {"precision": dyn.precision}
     if realizations is not None:
         kwargs["realizations"] = realizations
@@ -134,6 +144,47 @@ def simulate_job(
         threshold=dyn.threshold,
         max_steps=dyn.max_steps,
         **kwargs,
+    )
+
+
+def _simulate_model(job, first, count, backend, threads, variant_weights, realizations):
+    """:func:`simulate_job` for a generalized model (docs/models.md)."""
+    from antisync.kernels import model_cpu
+
+    if backend == "cuda":
+        from antisync.kernels.model_cuda import simulate_model
+    else:
+        simulate_model = functools.partial(model_cpu.simulate_model, threads=threads)
+
+    setup = job.model
+    if variant_weights is not None:
+        raise ValueError("the model kernels integrate the job's own variants only")
+    n = len(job.nodes)
+    ks = model_cpu._realization_ids(first, count, realizations)
+    if job.config.model.drawn:
+        freqs = model_cpu.draw_frequencies(job.config.model.frequencies, job.config.seed, ks, n)
+        freqs -= freqs.mean(axis=1, keepdims=True)  # the rotating frame of docs/models.md
+    elif setup.freqs is not None:
+        freqs = setup.freqs[None, :]
+    else:
+        freqs = np.zeros((1, n))
+    params = model_cpu.ModelParams(
+        freqs, setup.cos_lag, setup.sin_lag, setup.inertia, setup.damping, setup.criterion, setup.targets
+    )
+    dyn = job.config.dynamics
+    return simulate_model(
+        job.config.seed,
+        0,
+        0,
+        job.csr.indptr,
+        job.csr.indices,
+        job.csr.weights,
+        job.variant_weights,
+        params,
+        dt=dyn.dt,
+        max_steps=dyn.max_steps,
+        integrator=dyn.integrator,
+        realizations=ks,
     )
 
 
@@ -271,7 +322,7 @@ def compute_chunk(job: Job, chunk: Chunk, backend: str = "cpu", threads: int | N
     """
     start = time.perf_counter()
     first, count = chunk.realizations(job.block_size, job.config.realizations)
-    if backend == "cuda" and job.config.keep_pairs <= first:
+    if backend == "cuda" and job.config.keep_pairs <= first and job.model is None:
         check_backend(job.config, backend)
         return _compute_on_device(job, chunk, first, count, start)
     derivative = job.config.lambda_.method != "finite-difference"

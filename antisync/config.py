@@ -26,6 +26,7 @@ from typing import Any, Literal
 import yaml
 
 from antisync.errors import ConfigError
+from antisync.model import Model, Sync
 from antisync.types import (
     BACKENDS,
     COUPLINGS,
@@ -221,6 +222,10 @@ class Config:
     chunk_size: int | Literal["auto"] = "auto"
     keep_pairs: int = 10000
     histogram: Histogram = field(default_factory=Histogram)
+    model: Model = field(default_factory=Model)
+    """Natural frequencies, phase lag, inertia (docs/models.md); default: Eq. 2."""
+    sync: Sync = field(default_factory=Sync)
+    """When a trajectory counts as synchronized (docs/models.md); default: r >= threshold."""
     backend: Backend = "cpu"
     executor: Executor = "local"
     threads: int | None = None
@@ -258,6 +263,29 @@ class Config:
         if self.threads is not None:
             integer("threads", self.threads, 1, 4096, "null or 1..4096")
         check_graph(self.graph)
+        self._check_model()
+
+    @property
+    def generalized(self) -> bool:
+        """Runs on the model kernels (docs/models.md): a ``model:`` other than Eq. 2's identical
+        oscillators, or a ``sync.criterion`` other than ``order-parameter``."""
+        return not self.model.is_default or self.sync.criterion != "order-parameter"
+
+    def _check_model(self) -> None:
+        if not self.generalized:
+            return
+        if self.lambda_.method != "finite-difference":
+            raise ConfigError(
+                f"lambda.method {self.lambda_.method} is written for identical first-order "
+                "oscillators with sync.criterion order-parameter; use lambda.method "
+                "finite-difference with this model/sync section"
+            )
+        if self.sync.criterion == "relative" and self.model.drawn:
+            raise ConfigError(
+                "sync.criterion relative needs fixed model.frequencies (a list or a file): with "
+                "frequencies drawn per realization every realization has its own locked state; "
+                "use criterion frequency or order-parameter"
+            )
 
     @property
     def resolved_block_size(self) -> int:
@@ -278,6 +306,14 @@ class Config:
         d["measures"] = list(self.measures)
         if isinstance(d["edges"], tuple):
             d["edges"] = list(d["edges"])
+        # the default model and criterion are not written, so configs and result files of the
+        # paper's model read (and --resume) exactly as before these sections existed
+        if self.model.is_default and self.model.damping == 1.0:
+            d.pop("model")
+        elif isinstance(self.model.frequencies, tuple):
+            d["model"]["frequencies"] = list(self.model.frequencies)
+        if self.sync == Sync():
+            d.pop("sync")
         return d
 
     def to_yaml(self) -> str:
@@ -288,6 +324,10 @@ class Config:
         d = self.resolved().to_dict()
         for k in ("name", "backend", "executor", "threads", "output", "chunk_size"):
             d.pop(k)
+        freq = self.model.frequencies
+        if isinstance(freq, dict) and "file" in freq:
+            # the file's content decides the numbers, not its name: an edited file is another run
+            d["model"]["frequencies"] = {**freq, "sha256": _file_digest(freq["file"])}
         return d
 
 
@@ -306,12 +346,21 @@ _TOP_KEYS = {
     "chunk_size",
     "keep_pairs",
     "histogram",
+    "model",
+    "sync",
     "backend",
     "executor",
     "threads",
     "output",
 }
-_SECTIONS = {"lambda": LambdaSpec, "dynamics": Dynamics, "histogram": Histogram, "linear": LinearSpec}
+_SECTIONS = {
+    "lambda": LambdaSpec,
+    "dynamics": Dynamics,
+    "histogram": Histogram,
+    "linear": LinearSpec,
+    "model": Model,
+    "sync": Sync,
+}
 
 
 def load_config(path: str | Path, overrides: list[str] | None = None, values: dict | None = None) -> Config:
@@ -444,6 +493,8 @@ def _from_mapping(raw: dict, source: Path | None) -> Config:
             value = {
                 k: number(f"{key}.{k}", v, cls.__dataclass_fields__[k].default) for k, v in value.items()
             }
+            if key == "model":
+                value = _resolve_frequency_file(value, source)
             kwargs["lambda_" if key == "lambda" else key] = cls(**value)
         elif key == "betas":
             if value is None:
@@ -468,6 +519,7 @@ def _from_mapping(raw: dict, source: Path | None) -> Config:
             kwargs[key] = whole(key, value)
         else:
             kwargs[key] = value
+    _move_sync_threshold(kwargs, raw)
     if not kwargs.get("name"):
         kwargs["name"] = source.stem if source else _graph_name(kwargs["graph"])
     if not kwargs.get("output"):
@@ -476,6 +528,48 @@ def _from_mapping(raw: dict, source: Path | None) -> Config:
 
 
 _INTEGER_KEYS = {"realizations", "seed", "keep_pairs"}
+
+
+def _file_digest(path: str) -> str:
+    """SHA-256 of a file's bytes (``""`` when it cannot be read: reading it later says why)."""
+    import hashlib
+
+    try:
+        return hashlib.sha256(Path(path).read_bytes()).hexdigest()
+    except OSError:
+        return ""
+
+
+def _resolve_frequency_file(value: dict, source: Path | None) -> dict:
+    """``model.frequencies: {file: PATH}`` relative to the config's folder (like edge lists)."""
+    freq = value.get("frequencies")
+    if isinstance(freq, dict) and set(freq) == {"file"} and isinstance(freq["file"], str) and source:
+        p = Path(freq["file"])
+        if not p.is_absolute():
+            value = {**value, "frequencies": {"file": str((source.parent / p).resolve())}}
+    return value
+
+
+def _move_sync_threshold(kwargs: dict, raw: dict) -> None:
+    """``sync.threshold`` is another spelling of ``dynamics.threshold`` (which stays valid):
+    the value moves there, so one field holds the threshold everywhere."""
+    sync = kwargs.get("sync")
+    if sync is None or sync.threshold is None:
+        return
+    dyn = kwargs.get("dynamics", Dynamics())
+    given = isinstance(raw.get("dynamics"), dict) and "threshold" in raw["dynamics"]
+    if given and dyn.threshold != sync.threshold:
+        raise ConfigError(
+            f"sync.threshold ({sync.threshold}) and dynamics.threshold ({dyn.threshold}) disagree; "
+            "give one of them"
+        )
+    if sync.criterion != "order-parameter":
+        raise ConfigError(
+            f"sync.threshold belongs to criterion order-parameter; criterion {sync.criterion} "
+            "uses " + ("sync.fraction" if sync.criterion == "relative" else "sync.tolerance")
+        )
+    kwargs["dynamics"] = replace(dyn, threshold=sync.threshold)
+    kwargs["sync"] = replace(sync, threshold=None)
 
 
 def _check_measures(measures: tuple, coupling: str) -> None:

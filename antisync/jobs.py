@@ -17,6 +17,7 @@ import numpy as np
 from antisync import coupling, graphs
 from antisync.config import Config, graph_name
 from antisync.errors import ConfigError
+from antisync.model import ModelSetup, model_setup
 
 __all__ = ["Chunk", "Job", "make_job"]
 
@@ -63,6 +64,9 @@ class Job:
         ``2 e``) and ``-dbeta`` (row ``2 e + 1``), see :func:`~antisync.coupling.orbit_variant_weights`.
     orbit_sizes : ndarray (E,) or None
         Number of directed links in each edge's orbit.
+    model : ModelSetup or None
+        The ``model:`` and ``sync:`` sections resolved for the kernels (docs/models.md);
+        ``None`` for the paper's model, which runs on the default kernels.
     nnc_of : str
         For the raw-coupling twin of a run (``km_nnc``, Sec. 3.4), the name of the normalized
         job it pairs with; ``""`` otherwise.
@@ -86,6 +90,7 @@ class Job:
     nnc_of: str = ""
     orbit_weights: np.ndarray | None = None
     orbit_sizes: np.ndarray | None = None
+    model: ModelSetup | None = None
 
     @property
     def kuramoto(self) -> bool:
@@ -176,6 +181,11 @@ def make_job(config: Config, graph: nx.Graph | None = None, name: str | None = N
     secant = coupling.variant_weights(
         omega, csr, [(a, b, float(dbeta)) for a, b in edge_idx] if kuramoto else [], config.dynamics.coupling
     )
+    model = None
+    if config.generalized:
+        pairs = zip(variant_edge, variant_beta, strict=True)
+        labels = [f"{graphs.edge_label(*edges[e])} beta {b:g}" for e, b in pairs]
+        model = model_setup(config, csr.indptr, csr.indices, [csr.weights, *vw], labels)
     return Job(
         config=config.resolved(),
         name=name or graph.graph.get("name") or graph_name(config.graph),
@@ -192,6 +202,7 @@ def make_job(config: Config, graph: nx.Graph | None = None, name: str | None = N
         variant_weights=vw,
         tangent=coupling.tangent_coefficients(omega, edge_idx, config.dynamics.coupling),
         secant_weights=secant,
+        model=model,
         **_orbit_fields(graph, nodes, omega, csr, edges, config),
     )
 

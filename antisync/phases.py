@@ -17,7 +17,7 @@ from numba import njit
 
 from antisync import _numba_cache  # noqa: F401 -- before any cache=True function (see there)
 
-__all__ = ["initial_phases", "make_phase", "phase"]
+__all__ = ["initial_phases", "make_phase", "make_uniform", "phase"]
 
 _GOLDEN = np.uint64(0x9E3779B97F4A7C15)
 _M1 = np.uint64(0xBF58476D1CE4E5B9)
@@ -27,6 +27,7 @@ _S27 = np.uint64(27)
 _S31 = np.uint64(31)
 _S11 = np.uint64(11)
 _TWO_PI_2M53 = 2.0 * np.pi / 9007199254740992.0  # 2 pi / 2**53
+_INV_2M53 = 1.0 / 9007199254740992.0  # 2**-53
 
 
 def _mix(z):
@@ -50,6 +51,23 @@ def make_phase(jit):
 
 
 phase = make_phase(lambda f: njit(f, inline="always"))
+
+
+def make_uniform(jit):
+    """Compile ``uniform(seed, k, node, stream)``: a number in ``[0, 1)`` (53 random bits) keyed
+    by ``(seed, k, node)`` like :func:`phase` and by a ``stream >= 1`` (natural frequencies use
+    streams 1 and 2, :mod:`antisync.model`). The stream is mixed in after the seed with its own
+    offset, so no stream reproduces the phases' numbers."""
+    mix = jit(_mix)
+
+    def uniform(seed, k, node, stream):
+        z = mix(np.uint64(seed) * _GOLDEN + np.uint64(1))
+        z = mix(z ^ (np.uint64(stream) * _GOLDEN + np.uint64(4)))
+        z = mix(z ^ (np.uint64(k) * _GOLDEN + np.uint64(2)))
+        z = mix(z ^ (np.uint64(node) * _GOLDEN + np.uint64(3)))
+        return np.float64(z >> _S11) * _INV_2M53
+
+    return jit(uniform)
 
 
 @njit(cache=True)

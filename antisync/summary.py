@@ -53,6 +53,7 @@ class JobView:
     nodes: list | None = None
     attrs: dict | None = None
     measures: dict | None = None  # Lambda^(linear, xi2, RW) arrays, see measures.pipeline
+    unsynced_hint: str | None = None  # why nothing may lock (antisync.model.unsynced_hint)
 
     def variant(self, edge_index: int, beta: float) -> int:
         hit = np.flatnonzero((self.variant_edge == edge_index) & np.isclose(self.variant_beta, beta))
@@ -78,6 +79,8 @@ def _lambda(view: JobView, e: int, pooled: np.ndarray) -> dict:
             f"{s['n']} synchronized realization{'s' if s['n'] != 1 else ''}: no "
             "standard error (see the unsynced count)"
         )
+        if view.unsynced_hint and s["n_not_synced"]:
+            warning += f"; {view.unsynced_hint}"
     elif est.n_batches < 10:
         warning = f"only {est.n_batches} batches: standard error is rough"
     elif iv is not None and iv.tail_events < TAIL_EVENTS and se > 1.5 * est.se:

@@ -32,7 +32,17 @@ import numpy as np
 
 from antisync.status import ALREADY_SYNCED, NOT_SYNCED, SYNCED
 
-__all__ = ["RENORM_EVERY", "RENORM_EVERY_FLOAT32", "TAYLOR_MAX_ANGLE", "Kernels", "make_kernels"]
+__all__ = [
+    "CRIT_FREQUENCY",
+    "CRIT_ORDER",
+    "RENORM_EVERY",
+    "RENORM_EVERY_FLOAT32",
+    "TAYLOR_MAX_ANGLE",
+    "Kernels",
+    "ModelKernels",
+    "make_kernels",
+    "make_model_kernels",
+]
 
 RENORM_EVERY = 1024
 RENORM_EVERY_FLOAT32 = 64
@@ -385,3 +395,239 @@ def make_kernels(jit, dtype=np.float64) -> Kernels:
         order2=order2,
         renormalize=renormalize,
     )
+
+
+#: Criterion codes of :func:`make_model_kernels`' ``sync_steps``: ``R >= r2_target`` (the
+#: order-parameter and relative criteria differ only in the target), or every
+#: ``|theta_i' - mean theta'| < tolerance``.
+CRIT_ORDER = 0
+CRIT_FREQUENCY = 1
+
+
+class ModelKernels(NamedTuple):
+    """The compiled functions of :func:`make_model_kernels`, by name."""
+
+    rhs: Callable
+    euler_step: Callable
+    rk4_step: Callable
+    sync_steps: Callable
+
+
+def make_model_kernels(jit, base: Kernels) -> ModelKernels:
+    """Compile the generalized model's step functions with ``jit`` (docs/models.md).
+
+    The model is ``m theta_i'' + gamma theta_i' = P_i + sum_j w_ij sin(theta_j - theta_i -
+    alpha)`` (first order: ``m = 0``, ``theta_i' = P_i + ...``). With ``sin(a - alpha) = sin a
+    cos alpha - cos a sin alpha`` the coupling is ``cos alpha (c_i S_i - s_i C_i) - sin alpha
+    (c_i C_i + s_i S_i)`` from the same sums ``C_i = sum_j w_ij c_j``, ``S_i = sum_j w_ij s_j``
+    as Eq. 2's, at no extra transcendental cost. The state is ``(c_i, s_i)`` as in
+    :func:`make_kernels` plus ``nu_i = theta_i'`` for ``m > 0``.
+
+    With ``P = 0``, ``alpha = 0`` (``cos alpha = 1``, ``sin alpha = 0``) and ``m = 0`` the Euler
+    step performs exactly the default step's operations (``0 + 1 x - 0 y = x`` in floating
+    point) and renormalizes at the same steps, so it reproduces :func:`make_kernels`'
+    ``sync_steps`` bit for bit (tests/test_models.py).
+
+    Parameters
+    ----------
+    jit : callable
+        A numba decorator (``njit(...)`` or ``cuda.jit(device=True)``).
+    base : Kernels
+        :func:`make_kernels` compiled with the same ``jit`` (its rotation and renormalization).
+
+    Returns
+    -------
+    ModelKernels
+        ``rhs(c, s, nu, p, indptr, indices, weights, cl, sl, inertia, damping, th, dnu)``
+        fills ``th = theta'`` and, for ``m > 0``, ``dnu = nu'``;
+        ``euler_step(c, s, nu, th, dnu, dt, second) -> R`` advances one explicit Euler step
+        from the rates in ``th``/``dnu`` (a rotation of ``(c_i, s_i)`` by ``dt theta_i'``);
+        ``rk4_step(c, s, nu, th, dnu, work, p, indptr, indices, weights, cl, sl, inertia,
+        damping, dt)`` classical RK4 on ``(c, s, nu)`` (``th``/``dnu`` at the current state on
+        entry), projecting ``(c_i, s_i)`` back to the unit circle after the step;
+        ``sync_steps(c, s, nu, th, dnu, work, p, indptr, indices, weights, cl, sl, inertia,
+        damping, dt, rk4, criterion, target, max_steps) -> (status, steps, frac)``
+        integrates until the criterion holds (``target``: ``R = |sum_j e^{i theta_j}|^2`` for
+        :data:`CRIT_ORDER`, the tolerance for :data:`CRIT_FREQUENCY`); ``frac`` in ``(0, 1]``
+        locates the crossing inside the last step (linear in ``R`` or in the largest frequency
+        deviation; cubic Hermite in ``R`` for RK4 and the order-parameter criteria).
+    """
+    rotation = base.rotation
+    renormalize = base.renormalize
+    order2 = base.order2
+    hermite = base.hermite_crossing
+
+    def rhs(c, s, nu, p, indptr, indices, weights, cl, sl, inertia, damping, th, dnu):
+        n = c.shape[0]
+        for i in range(n):
+            sc = 0.0
+            ss = 0.0
+            for q in range(indptr[i], indptr[i + 1]):
+                j = indices[q]
+                w = weights[q]
+                sc += w * c[j]
+                ss += w * s[j]
+            # sum_j w_ij sin(theta_j - theta_i - alpha), from the sums of Eq. 2
+            k = cl * (c[i] * ss - s[i] * sc) - sl * (c[i] * sc + s[i] * ss)
+            if inertia > 0.0:
+                th[i] = nu[i]
+                dnu[i] = (p[i] + k - damping * nu[i]) / inertia
+            else:
+                th[i] = p[i] + k
+
+    rhs = jit(rhs)
+
+    def euler_step(c, s, nu, th, dnu, dt, second):
+        n = c.shape[0]
+        sum_c = 0.0
+        sum_s = 0.0
+        for i in range(n):
+            ca, sa = rotation(dt * th[i])
+            ci = c[i]
+            si = s[i]
+            c[i] = ci * ca - si * sa
+            s[i] = si * ca + ci * sa
+            sum_c += c[i]
+            sum_s += s[i]
+            if second:
+                nu[i] += dt * dnu[i]
+        return sum_c * sum_c + sum_s * sum_s
+
+    euler_step = jit(euler_step)
+
+    def rk4_step(c, s, nu, th, dnu, work, p, indptr, indices, weights, cl, sl, inertia, damping, dt):
+        # work rows: 0-3 dc of the stages, 4-7 ds, 8-11 dnu, 12-14 the stage state (c, s, nu)
+        n = c.shape[0]
+        second = inertia > 0.0
+        for i in range(n):
+            work[0, i] = -s[i] * th[i]
+            work[4, i] = c[i] * th[i]
+            work[8, i] = dnu[i] if second else 0.0
+        for stage in range(1, 4):
+            h = 0.5 * dt if stage < 3 else dt
+            for i in range(n):
+                work[12, i] = c[i] + h * work[stage - 1, i]
+                work[13, i] = s[i] + h * work[stage + 3, i]
+                work[14, i] = nu[i] + h * work[stage + 7, i]
+            # rows cut to n: on CUDA ``work`` is a (15, MAX_NODES) local array
+            rhs(
+                work[12, :n],
+                work[13, :n],
+                work[14, :n],
+                p,
+                indptr,
+                indices,
+                weights,
+                cl,
+                sl,
+                inertia,
+                damping,
+                th,
+                dnu,
+            )
+            for i in range(n):
+                work[stage, i] = -work[13, i] * th[i]
+                work[stage + 4, i] = work[12, i] * th[i]
+                work[stage + 8, i] = dnu[i] if second else 0.0
+        for i in range(n):
+            cn = c[i] + dt / 6.0 * (work[0, i] + 2.0 * work[1, i] + 2.0 * work[2, i] + work[3, i])
+            sn = s[i] + dt / 6.0 * (work[4, i] + 2.0 * work[5, i] + 2.0 * work[6, i] + work[7, i])
+            inv = 1.0 / math.sqrt(cn * cn + sn * sn)
+            c[i] = cn * inv
+            s[i] = sn * inv
+            if second:
+                nu[i] += dt / 6.0 * (work[8, i] + 2.0 * work[9, i] + 2.0 * work[10, i] + work[11, i])
+
+    rk4_step = jit(rk4_step)
+
+    def measure(c, s, th, dnu, relax):
+        """``(dR/dt, deviation)`` of the current state: the largest ``|theta_i' - mean|``, and
+        for ``m > 0`` (``relax = m / gamma > 0``) also the largest deviation of ``theta_i' +
+        relax nu_i' = (P_i + coupling_i) / gamma``, the frequency node ``i`` relaxes to (else
+        ``theta' = 0`` at ``t = 0`` would count as locked)."""
+        n = c.shape[0]
+        tc = 0.0
+        ts = 0.0
+        dc = 0.0
+        ds = 0.0
+        mean = 0.0
+        mean2 = 0.0
+        for i in range(n):
+            tc += c[i]
+            ts += s[i]
+            dc -= s[i] * th[i]
+            ds += c[i] * th[i]
+            mean += th[i]
+            if relax > 0.0:
+                mean2 += th[i] + relax * dnu[i]
+        mean /= n
+        mean2 /= n
+        dev = 0.0
+        for i in range(n):
+            dev = max(dev, abs(th[i] - mean))
+            if relax > 0.0:
+                dev = max(dev, abs(th[i] + relax * dnu[i] - mean2))
+        return 2.0 * (tc * dc + ts * ds), dev
+
+    measure = jit(measure)
+
+    def sync_steps(
+        c,
+        s,
+        nu,
+        th,
+        dnu,
+        work,
+        p,
+        indptr,
+        indices,
+        weights,
+        cl,
+        sl,
+        inertia,
+        damping,
+        dt,
+        rk4,
+        criterion,
+        target,
+        max_steps,
+    ):
+        second = inertia > 0.0
+        relax = inertia / damping
+        rhs(c, s, nu, p, indptr, indices, weights, cl, sl, inertia, damping, th, dnu)
+        r2 = order2(c, s)
+        dr2, dev = measure(c, s, th, dnu, relax)
+        if criterion == CRIT_ORDER:
+            if r2 >= target:
+                return ALREADY_SYNCED, 0, 0.0
+        elif dev < target:
+            return ALREADY_SYNCED, 0, 0.0
+        for step in range(1, max_steps + 1):
+            r2_prev = r2
+            dr2_prev = dr2
+            dev_prev = dev
+            if rk4:
+                rk4_step(c, s, nu, th, dnu, work, p, indptr, indices, weights, cl, sl, inertia, damping, dt)
+                r2 = order2(c, s)
+            else:
+                r2 = euler_step(c, s, nu, th, dnu, dt, second)
+                if step % RENORM_EVERY == 0:
+                    renormalize(c, s)
+            rhs(c, s, nu, p, indptr, indices, weights, cl, sl, inertia, damping, th, dnu)
+            if rk4 or criterion != CRIT_ORDER:
+                # Euler with an order-parameter target needs neither dR/dt nor the deviation
+                dr2, dev = measure(c, s, th, dnu, relax)
+            if criterion == CRIT_ORDER:
+                if r2 >= target:
+                    if rk4:
+                        x = hermite(r2_prev, dr2_prev, r2, dr2, dt, target)
+                    else:
+                        x = (target - r2_prev) / (r2 - r2_prev)
+                    return SYNCED, step, x
+            elif dev < target:
+                # the largest deviation, linear between the two steps
+                return SYNCED, step, (dev_prev - target) / (dev_prev - dev)
+        return NOT_SYNCED, max_steps, 0.0
+
+    sync_steps = jit(sync_steps)
+    return ModelKernels(rhs=rhs, euler_step=euler_step, rk4_step=rk4_step, sync_steps=sync_steps)

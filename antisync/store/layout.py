@@ -52,6 +52,7 @@ from antisync._version import __version__
 from antisync.errors import StoreError
 from antisync.jobs import Job
 from antisync.measures.pipeline import COMPUTED
+from antisync.model import unsynced_hint
 from antisync.records import job_records, view_records
 from antisync.store.journal import digest_graph, graph_digest, jsonable
 from antisync.store.provenance import now
@@ -262,6 +263,9 @@ def _write_state(g, st: JobState) -> None:
         kept.create_dataset(key, data=arr, compression="gzip", compression_opts=1)
     if job.nnc_of:
         g.attrs["nnc_of"] = job.nnc_of
+    hint = unsynced_hint(cfg)
+    if hint:
+        g.attrs["unsynced_hint"] = hint
     if st.measures is not None:
         write_measures(g, st.measures, cfg, st.measures_seconds)
     g.attrs["summary_json"] = json.dumps(job_records(_view_from_state(st)))
@@ -318,6 +322,7 @@ def _view_from_state(st: JobState) -> JobView:
         lam_tail=st.lam_tail,
         lambda_method=job.config.lambda_.method,
         measures=st.measures,
+        unsynced_hint=unsynced_hint(job.config),
     )
 
 
@@ -429,6 +434,7 @@ def read_views(path: str | Path) -> list[JobView]:
                 nodes=nodes,
                 attrs=r.read("attributes", r.plain_attrs),
                 measures=r.read("measures group", r.measures),
+                unsynced_hint=str(g.attrs["unsynced_hint"]) if "unsynced_hint" in g.attrs else None,
             )
             problem = _shape_problem(view)
             if problem:

@@ -1,0 +1,366 @@
+"""Beyond identical oscillators: the ``model:`` and ``sync:`` config sections (docs/models.md).
+
+``model:`` chooses the dynamics. Its default is the paper's identical first-order Kuramoto
+model (Eq. 2), which runs on the unchanged default kernels; anything else runs on the model
+kernels of :mod:`antisync.kernels.model_cpu`:
+
+- natural frequencies ``P_i`` (``frequencies``: fixed values, a file, or drawn per
+  realization from a counter-based stream of their own, so ``tau0`` and every ``tau(beta)`` of a
+  realization share them as they share the initial phases);
+- a phase lag ``alpha`` (Kuramoto-Sakaguchi): coupling ``sin(theta_j - theta_i - alpha)``;
+- inertia ``m`` and damping ``gamma`` (second-order, swing-equation model)
+  ``m theta_i'' + gamma theta_i' = P_i + sum_j w_ij sin(theta_j - theta_i - alpha)``,
+  started from the usual random phases with ``theta_i'(0) = 0``.
+
+The mean of the natural frequencies is removed before integrating (``P_i - mean_j P_j``): for
+both models that is a frame rotating at a constant rate, which changes neither ``r(t)`` nor
+the frequency criterion (it measures deviations from the mean frequency); in the second-order
+model it means the initial frequencies are zero in that frame.
+
+``sync:`` chooses when a trajectory counts as synchronized: ``order-parameter`` (``r >=
+threshold``, the paper's), ``relative`` (``r >= fraction r*`` with ``r*`` the order parameter
+of the stable phase-locked state of the weights in use, :mod:`antisync.locked`) or ``frequency``
+(every ``|theta_i' - mean_j theta_j'| < tolerance``).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Literal, get_args
+
+import numpy as np
+
+from antisync.errors import ConfigError
+from antisync.validation import choice, fraction, positive
+
+__all__ = [
+    "CRITERIA",
+    "DISTRIBUTIONS",
+    "Model",
+    "ModelSetup",
+    "Sync",
+    "model_setup",
+    "node_frequencies",
+    "unsynced_hint",
+]
+
+Criterion = Literal["order-parameter", "relative", "frequency"]
+CRITERIA: tuple[Criterion, ...] = get_args(Criterion)
+Distribution = Literal["normal", "uniform"]
+DISTRIBUTIONS: tuple[Distribution, ...] = get_args(Distribution)
+
+_FREQ_KEYS = {"normal": {"distribution", "sd", "mean"}, "uniform": {"distribution", "width", "mean"}}
+
+
+def _check_frequencies(value):
+    """``None``, a tuple of floats, ``{"file": path}`` or ``{"distribution": ..., ...}``."""
+    if value is None:
+        return None
+    if isinstance(value, list | tuple):
+        out = []
+        for x in value:
+            if isinstance(x, bool) or not isinstance(x, int | float) or not math.isfinite(x):
+                raise ConfigError(f"model.frequencies must be finite numbers, got {x!r}")
+            out.append(float(x))
+        if not out:
+            raise ConfigError("model.frequencies is an empty list; give one value per node or null")
+        return tuple(out)
+    if isinstance(value, dict):
+        if set(value) == {"file"}:
+            if not isinstance(value["file"], str) or not value["file"]:
+                raise ConfigError(f"model.frequencies.file must be a path, got {value['file']!r}")
+            return {"file": value["file"]}
+        dist = value.get("distribution")
+        if "file" in value or dist is None:
+            raise ConfigError(
+                "model.frequencies must be a list, {file: PATH} or {distribution: normal, sd: S} "
+                f"/ {{distribution: uniform, width: W}}, got {value!r}"
+            )
+        choice("model.frequencies.distribution", dist, DISTRIBUTIONS)
+        extra = sorted(set(value) - _FREQ_KEYS[dist])
+        if extra:
+            raise ConfigError(
+                f"unknown key 'model.frequencies.{extra[0]}' for distribution {dist}; valid keys: "
+                + ", ".join(sorted(_FREQ_KEYS[dist]))
+            )
+        scale_key = "sd" if dist == "normal" else "width"
+        if scale_key not in value:
+            raise ConfigError(f"model.frequencies with distribution {dist} needs {scale_key}")
+        out = {"distribution": dist}
+        for k in ("mean", scale_key):
+            x = value.get(k, 0.0)
+            if isinstance(x, str):
+                try:
+                    x = float(x)
+                except ValueError:
+                    raise ConfigError(f"model.frequencies.{k} must be a number, got {x!r}") from None
+            if isinstance(x, bool) or not isinstance(x, int | float) or not math.isfinite(x):
+                raise ConfigError(f"model.frequencies.{k} must be a number, got {x!r}")
+            out[k] = float(x)
+        if out[scale_key] < 0:
+            raise ConfigError(f"model.frequencies.{scale_key} must be >= 0, got {out[scale_key]}")
+        return out
+    raise ConfigError(
+        "model.frequencies must be null, a list of numbers, {file: PATH} or "
+        f"{{distribution: normal, sd: S}}, got {value!r}"
+    )
+
+
+@dataclass(frozen=True)
+class Model:
+    """The oscillators' dynamics (docs/models.md); the defaults are the paper's Eq. 2.
+
+    Attributes
+    ----------
+    frequencies : None, tuple of float, dict
+        Natural frequencies (power injections ``P_i`` of the second-order model): ``None`` (all
+        zero), one value per node in node order, ``{"file": path}`` (one value per line, path
+        relative to the config) or ``{"distribution": "normal", "sd": s, "mean": 0}`` /
+        ``{"distribution": "uniform", "width": w, "mean": 0}`` (uniform on ``mean +- w``),
+        drawn per realization. The mean over nodes is removed (module docstring).
+    phase_lag : float
+        ``alpha`` in ``(-pi/2, pi/2)``: coupling ``sin(theta_j - theta_i - alpha)``.
+    inertia : float
+        ``m >= 0``; ``0`` is the first-order model.
+    damping : float
+        ``gamma > 0`` of the second-order model (unused when ``inertia`` is 0).
+    """
+
+    frequencies: None | tuple | dict = None
+    phase_lag: float = 0.0
+    inertia: float = 0.0
+    damping: float = 1.0
+
+    def __post_init__(self):
+        object.__setattr__(self, "frequencies", _check_frequencies(self.frequencies))
+        lag = self.phase_lag
+        if isinstance(lag, bool) or not isinstance(lag, int | float) or not -math.pi / 2 < lag < math.pi / 2:
+            raise ConfigError(
+                f"model.phase_lag must be a number in (-pi/2, pi/2) = (-1.5708, 1.5708), got {lag!r}"
+            )
+        m = self.inertia
+        if isinstance(m, bool) or not isinstance(m, int | float) or not (m >= 0 and math.isfinite(m)):
+            raise ConfigError(f"model.inertia must be a number >= 0 (0: first order), got {m!r}")
+        positive("model.damping", self.damping)
+
+    @property
+    def is_default(self) -> bool:
+        """The paper's identical first-order model (runs on the default kernels)."""
+        return self.frequencies is None and self.phase_lag == 0 and self.inertia == 0
+
+    @property
+    def drawn(self) -> bool:
+        """Frequencies drawn per realization."""
+        return isinstance(self.frequencies, dict) and "distribution" in self.frequencies
+
+    @property
+    def second_order(self) -> bool:
+        return self.inertia > 0
+
+
+@dataclass(frozen=True)
+class Sync:
+    """When a trajectory counts as synchronized (docs/models.md).
+
+    Attributes
+    ----------
+    criterion : {"order-parameter", "relative", "frequency"}
+    threshold : float or None
+        ``order-parameter``: ``r >= threshold``; ``None`` uses ``dynamics.threshold`` (a
+        value given here is moved there when the config is read).
+    fraction : float
+        ``relative``: ``r >= fraction r*``, ``r*`` of the stable locked state of each variant.
+    tolerance : float
+        ``frequency``: every ``|theta_i' - mean_j theta_j'| < tolerance``.
+    """
+
+    criterion: Criterion = "order-parameter"
+    threshold: float | None = None
+    fraction: float = 0.99
+    tolerance: float = 1e-3
+
+    def __post_init__(self):
+        choice("sync.criterion", self.criterion, CRITERIA)
+        if self.threshold is not None:
+            fraction("sync.threshold", self.threshold)
+        fraction("sync.fraction", self.fraction)
+        positive("sync.tolerance", self.tolerance)
+
+    @property
+    def is_default(self) -> bool:
+        return self.criterion == "order-parameter" and self.threshold is None
+
+
+def node_frequencies(model: Model, n: int) -> np.ndarray | None:
+    """Fixed natural frequencies in node order (``None`` when drawn or absent); the file of
+    ``{"file": path}`` has one number per line (``#`` comments allowed).
+
+    Raises
+    ------
+    ConfigError
+        A file that cannot be read, is not numbers, or does not have ``n`` values.
+    """
+    spec = model.frequencies
+    if spec is None or model.drawn:
+        return None
+    if isinstance(spec, dict):
+        path = Path(spec["file"])
+        try:
+            values = np.loadtxt(path, comments="#", ndmin=1, dtype=np.float64)
+        except OSError as exc:
+            raise ConfigError(f"model.frequencies.file {path}: {exc.strerror or exc}") from None
+        except ValueError:
+            raise ConfigError(
+                f"model.frequencies.file {path}: not a column of numbers (one value per node)"
+            ) from None
+        source = f"model.frequencies.file {path}"
+    else:
+        values = np.array(spec, dtype=np.float64)
+        source = "model.frequencies"
+    if values.ndim != 1 or values.size != n:
+        raise ConfigError(f"{source} has {values.size} values; the graph has {n} nodes (one value per node)")
+    if not np.isfinite(values).all() or not np.isfinite(values.sum()):
+        raise ConfigError(f"{source} contains a value that is not finite (or too large to sum)")
+    return values
+
+
+@dataclass(frozen=True)
+class ModelSetup:
+    """A job's model resolved for the kernels (:func:`model_setup`).
+
+    Attributes
+    ----------
+    freqs : ndarray (N,) or None
+        Fixed natural frequencies, mean removed (``None``: drawn per realization, or none).
+    cos_lag, sin_lag, inertia, damping : float
+    criterion : int
+        :data:`antisync.kernels.core.CRIT_ORDER` or ``CRIT_FREQUENCY``.
+    targets : ndarray (1 + V,)
+        Per trajectory kind (undamaged, then each variant): ``R = (r N)^2`` at the threshold, or
+        the frequency tolerance.
+    r_star : ndarray (1 + V,) or None
+        ``relative``: the order parameter of each one's stable locked state.
+    """
+
+    freqs: np.ndarray | None
+    cos_lag: float
+    sin_lag: float
+    inertia: float
+    damping: float
+    criterion: int
+    targets: np.ndarray
+    r_star: np.ndarray | None
+
+
+def model_setup(config, indptr: np.ndarray, indices: np.ndarray, weights: list, labels: list) -> ModelSetup:
+    """Resolve ``config.model`` and ``config.sync`` for a graph whose coupling ``W`` (CSR
+    ``indptr``, ``indices``) takes the CSR ``weights[0]`` undamaged and ``weights[1 + v]`` in
+    variant ``v`` (``labels[v]`` names it in messages).
+
+    Raises
+    ------
+    ConfigError
+        A frequency list or file of the wrong length, or (``relative``) a network without a
+        stable phase-locked state.
+    """
+    from antisync.kernels.core import CRIT_FREQUENCY, CRIT_ORDER
+
+    model, sync = config.model, config.sync
+    n = indptr.size - 1
+    if model.second_order:
+        _check_second_order_step(config, indptr, indices, weights[0])
+    fixed = node_frequencies(model, n)
+    freqs = None if fixed is None else fixed - fixed.mean()
+    lag = float(model.phase_lag)
+    n_kinds = len(weights)
+    r_star = None
+    if sync.criterion == "frequency":
+        criterion = CRIT_FREQUENCY
+        targets = np.full(n_kinds, float(sync.tolerance))
+    elif sync.criterion == "order-parameter":
+        criterion = CRIT_ORDER
+        targets = np.full(n_kinds, (config.dynamics.threshold * n) ** 2)
+    else:
+        from antisync.locked import locked_state
+
+        criterion = CRIT_ORDER
+        p = np.zeros(n) if freqs is None else freqs
+        rows = np.repeat(np.arange(n), np.diff(indptr))
+        r_star = np.empty(n_kinds)
+        cache: dict = {}
+        for v, w_csr in enumerate(weights):
+            key = np.asarray(w_csr).tobytes()
+            if key not in cache:
+                w = np.zeros((n, n))
+                w[rows, indices] = w_csr
+                cache[key] = locked_state(w, p, lag, model.inertia, model.damping)
+            state = cache[key]
+            if state is None or not state.stable:
+                what = "the undamaged network" if v == 0 else f"variant {labels[v - 1]}"
+                why = (
+                    "no phase-locked state connected to synchrony"
+                    if state is None
+                    else f"its locked state is unstable (largest eigenvalue real part {state.max_real:.3g})"
+                )
+                spread = float(np.max(np.abs(p))) if p.size else 0.0
+                raise ConfigError(
+                    f"sync.criterion relative: {what} has {why}; the natural frequencies "
+                    f"(max |P_i - mean| = {spread:.3g}) may be too spread for the coupling: use "
+                    "sync.criterion frequency or order-parameter, or smaller frequencies"
+                )
+            r_star[v] = state.r
+        targets = (sync.fraction * r_star * n) ** 2
+    return ModelSetup(
+        freqs=freqs,
+        cos_lag=math.cos(lag),
+        sin_lag=math.sin(lag),
+        inertia=float(model.inertia),
+        damping=float(model.damping),
+        criterion=criterion,
+        targets=targets,
+        r_star=r_star,
+    )
+
+
+def unsynced_hint(config) -> str | None:
+    """Why a generalized run may not lock, for the summary's warning when (almost) nothing
+    synchronized; ``None`` for the paper's model."""
+    if config.model.frequencies is None:
+        return None
+    if config.sync.criterion == "order-parameter":
+        return (
+            "the natural frequencies may be too spread for the coupling (no locked state, or "
+            "its r* below the threshold: try sync.criterion relative or frequency)"
+        )
+    return "the natural frequencies may be too spread for the coupling (no locked state)"
+
+
+def _check_second_order_step(config, indptr, indices, weights) -> None:
+    """Refuse a ``dt`` at which the explicit integrator is unstable near synchrony.
+
+    Linearized at the in-phase state, ``m u'' + gamma u' = -L u`` (``L`` the coupling's
+    Laplacian) has, for each eigenvalue ``xi`` of ``L``, the rates ``lambda`` with ``m lambda^2
+    + gamma lambda + xi = 0``. An explicit step multiplies such a mode by ``R(dt lambda)``
+    (Euler ``1 + z``, RK4 its 4th-order polynomial); ``|R| > 1`` makes synchrony repel (the
+    damping mode ``-gamma/m`` of a small inertia, or weakly damped oscillations under Euler).
+    The first-order model's check is :func:`antisync.jobs.check_step`.
+    """
+    m, gamma = config.model.inertia, config.model.damping
+    dyn = config.dynamics
+    n = indptr.size - 1
+    w = np.zeros((n, n))
+    w[np.repeat(np.arange(n), np.diff(indptr)), indices] = weights
+    xi = np.linalg.eigvals(np.diag(w.sum(axis=1)) - w)
+    disc = np.sqrt(gamma * gamma - 4 * m * xi.astype(complex))
+    lam = np.concatenate([(-gamma + disc) / (2 * m), (-gamma - disc) / (2 * m)])
+    z = dyn.dt * lam[np.abs(lam) > 1e-12]
+    growth = 1 + z if dyn.integrator == "euler" else 1 + z + z**2 / 2 + z**3 / 6 + z**4 / 24
+    worst = float(np.max(np.abs(growth))) if z.size else 0.0
+    if worst > 1 + 1e-12:
+        raise ConfigError(
+            f"dynamics.dt = {dyn.dt:g} is unstable for the second-order model (inertia {m:g}, damping "
+            f"{gamma:g}): an explicit {dyn.integrator} step amplifies a mode near synchrony by "
+            f"{worst:.6g} per step; lower dt"
+        )
