@@ -142,7 +142,7 @@ def lambda_values(job: Job, sim, first: int, count: int, threads: int | None = N
 
     Returns ``(values, code, flagged, base)`` with ``values``/``code``/``flagged`` of shape
     ``(count, E)`` (see :func:`antisync.estimators.lambda_block_records`) and ``base`` the
-    undamaged outcome when the pathwise or orbit pass produced it (else None).
+    undamaged outcome when the pathwise, adjoint or orbit pass produced it (else None).
     """
     spec = job.config.lambda_
     dyn = job.config.dynamics
@@ -159,31 +159,13 @@ def lambda_values(job: Job, sim, first: int, count: int, threads: int | None = N
     if spec.method == "orbit":
         return _orbit_values(job, sim, first, count, threads)
 
-    from antisync.kernels.cpu import simulate_pathwise
-
-    edge_a, edge_b, rho, mu = job.tangent
-    pw = simulate_pathwise(
-        job.config.seed,
-        first,
-        count,
-        job.csr.indptr,
-        job.csr.indices,
-        job.csr.weights,
-        edge_a,
-        edge_b,
-        rho,
-        mu,
-        dt=dyn.dt,
-        threshold=dyn.threshold,
-        max_steps=dyn.max_steps,
-        threads=threads,
-    )
+    pw = _derivative_pass(job, first, count, threads)
     tau0 = (pw.steps0 - 1 + pw.frac0) * dyn.dt
     ok0 = pw.status0 == SYNCED
     values = np.where(ok0[:, None], -pw.dtau / np.where(ok0, tau0, 1.0)[:, None], 0.0)
     code = np.repeat(pw.status0[:, None], n_edges, axis=1).astype(np.int8)
     flagged = np.zeros((count, n_edges), dtype=bool)
-    if spec.method == "hybrid":
+    if spec.method in ("hybrid", "adjoint-hybrid"):
         flagged = ok0[:, None] & (np.abs(values) > spec.hybrid_cut)
         for e in np.flatnonzero(flagged.any(axis=0)):
             rows = np.flatnonzero(flagged[:, e])
@@ -195,6 +177,45 @@ def lambda_values(job: Job, sim, first: int, count: int, threads: int | None = N
             values[rows[good], e] = (tau0[rows[good]] / tau[good] - 1.0) / job.dbeta
             code[rows[~good], e] = sec.status[~good, 0]
     return values, code, flagged, pw
+
+
+def _derivative_pass(job: Job, first: int, count: int, threads: int | None):
+    """``d tau0 / d beta_e`` of every edge along the undamaged trajectories: forward tangents
+    (``pathwise``, ``hybrid``) or one adjoint pass (``adjoint``, ``adjoint-hybrid``)."""
+    dyn = job.config.dynamics
+    kw = dict(dt=dyn.dt, threshold=dyn.threshold, max_steps=dyn.max_steps, threads=threads)
+    edge_a, edge_b, rho, mu = job.tangent
+    if job.config.lambda_.method in ("adjoint", "adjoint-hybrid"):
+        from antisync.kernels.adjoint import link_derivatives, simulate_adjoint
+
+        edges = list(zip(edge_a.tolist(), edge_b.tolist(), strict=True))
+        deriv = link_derivatives(job.omega, job.csr, edges, dyn.coupling)
+        return simulate_adjoint(
+            job.config.seed,
+            first,
+            count,
+            job.csr.indptr,
+            job.csr.indices,
+            job.csr.weights,
+            deriv,
+            integrator=dyn.integrator,
+            **kw,
+        )
+    from antisync.kernels.cpu import simulate_pathwise
+
+    return simulate_pathwise(
+        job.config.seed,
+        first,
+        count,
+        job.csr.indptr,
+        job.csr.indices,
+        job.csr.weights,
+        edge_a,
+        edge_b,
+        rho,
+        mu,
+        **kw,
+    )
 
 
 def _orbit_values(job: Job, sim, first: int, count: int, threads: int | None):
