@@ -167,16 +167,33 @@ def lambda_values(job: Job, sim, first: int, count: int, threads: int | None = N
     flagged = np.zeros((count, n_edges), dtype=bool)
     if spec.method in ("hybrid", "adjoint-hybrid"):
         flagged = ok0[:, None] & (np.abs(values) > spec.hybrid_cut)
-        for e in np.flatnonzero(flagged.any(axis=0)):
-            rows = np.flatnonzero(flagged[:, e])
-            sec = simulate_job(
-                job, 0, 0, "cpu", threads, job.secant_weights[e : e + 1], realizations=first + rows
-            )
-            tau = (sec.steps[:, 0] - 1 + sec.frac[:, 0]) * dyn.dt
-            good = sec.status[:, 0] == SYNCED
-            values[rows[good], e] = (tau0[rows[good]] / tau[good] - 1.0) / job.dbeta
-            code[rows[~good], e] = sec.status[~good, 0]
+        _secants(job, values, code, flagged, tau0, first, threads)
     return values, code, flagged, pw
+
+
+def _secants(job: Job, values, code, flagged, tau0, first: int, threads: int | None) -> None:
+    """Replace the flagged values by secants ``(tau0/tau(dbeta) - 1)/dbeta`` of interpolated
+    times, in place (``hybrid``, ``adjoint-hybrid``).
+
+    One integration call per flagged link (its flagged realizations) or per flagged realization
+    (its flagged links), whichever makes fewer calls: on a graph with hundreds of links the
+    flags spread over most links but few realizations. Each secant is the same trajectory
+    either way (the lane driver's results do not depend on what shares a call).
+    """
+    links = np.flatnonzero(flagged.any(axis=0))
+    reals = np.flatnonzero(flagged.any(axis=1))
+    if len(links) <= len(reals):
+        groups = [(np.flatnonzero(flagged[:, e]), np.array([e])) for e in links]
+    else:
+        groups = [(np.array([r]), np.flatnonzero(flagged[r])) for r in reals]
+    dt = job.config.dynamics.dt
+    for rows, edges in groups:
+        sec = simulate_job(job, 0, 0, "cpu", threads, job.secant_weights[edges], realizations=first + rows)
+        tau = (sec.steps - 1 + sec.frac) * dt  # (rows, edges): every pair is flagged
+        good = sec.status == SYNCED
+        r, e = np.broadcast_arrays(rows[:, None], edges[None, :])
+        values[r[good], e[good]] = (tau0[r[good]] / tau[good] - 1.0) / job.dbeta
+        code[r[~good], e[~good]] = sec.status[~good]
 
 
 def _derivative_pass(job: Job, first: int, count: int, threads: int | None):

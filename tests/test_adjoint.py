@@ -6,6 +6,8 @@ Hermite-interpolated crossing (RK4, where no pathwise exists), through ``antisyn
 independence of the checkpoint interval (bit for bit).
 """
 
+from dataclasses import replace
+
 import networkx as nx
 import numpy as np
 import pytest
@@ -185,3 +187,45 @@ dynamics: {integrator: rk4, dt: 0.04}
         check_backend(cfg, "cuda")
     with pytest.raises(ConfigError, match="needs dynamics.integrator euler"):
         load_config_text(text.replace("method: adjoint", "method: pathwise"))
+
+
+def test_adjoint_hybrid_secants_grouped_by_realization_are_the_single_secants():
+    """With flags spread over more links than realizations, the secants run one call per
+    realization; each must be the secant of that (realization, link) pair on its own."""
+    from antisync.compute import lambda_values
+    from antisync.jobs import make_job
+
+    job = make_job(
+        load_config_text("""
+graph: {kind: networkx, generator: gnm_random_graph, args: {n: 10, m: 22, seed: 4}}
+betas: []
+lambda: {method: adjoint-hybrid, hybrid_cut: 0.1}
+dynamics: {dt: 0.002, t_max: 100}
+realizations: 12
+seed: 2
+""")
+    )
+    values, code, flagged, base = lambda_values(job, None, 0, 12)
+    assert flagged.any(axis=0).sum() > flagged.any(axis=1).sum() >= 2  # grouped by realization
+    tau0 = (base.steps0 - 1 + base.frac0) * 0.002
+    csr = job.csr
+    for r, e in zip(*np.nonzero(flagged), strict=True):
+        one = simulate(
+            2,
+            0,
+            0,
+            csr.indptr,
+            csr.indices,
+            csr.weights,
+            job.secant_weights[e : e + 1],
+            realizations=np.array([r]),
+            dt=0.002,
+            threshold=0.99,
+            max_steps=job.config.dynamics.max_steps,
+        )
+        assert one.status[0, 0] == SYNCED and code[r, e] == SYNCED
+        tau = (one.steps[0, 0] - 1 + one.frac[0, 0]) * 0.002
+        assert values[r, e] == (tau0[r] / tau - 1.0) / 0.01
+    plain = replace(job.config, lambda_=replace(job.config.lambda_, method="adjoint"))
+    adjoint, _, _, _ = lambda_values(make_job(plain), None, 0, 12)
+    assert np.array_equal(values[~flagged], adjoint[~flagged])

@@ -498,7 +498,7 @@ def _adjoint_batch(ks, indptr, indices, w, deriv, run, n_groups, status0, steps0
         s = np.empty(n)
         acc = np.empty(n)
         ck = np.empty((16, 2, n))
-        seg = np.empty((every, 2, n))
+        seg = np.empty((min(every, max_steps), 2, n))  # a segment never outgrows the trajectory
         lam = np.empty(n)
         lam_new = np.empty(n)
         g = np.zeros(nnz)
