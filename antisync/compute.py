@@ -193,7 +193,7 @@ def lambda_values(job: Job, sim, first: int, count: int, threads: int | None = N
 
     Returns ``(values, code, flagged, base)`` with ``values``/``code``/``flagged`` of shape
     ``(count, E)`` (see :func:`antisync.estimators.lambda_block_records`) and ``base`` the
-    undamaged outcome when the pathwise or orbit pass produced it (else None).
+    undamaged outcome when the pathwise, adjoint or orbit pass produced it (else None).
     """
     spec = job.config.lambda_
     dyn = job.config.dynamics
@@ -210,10 +210,68 @@ def lambda_values(job: Job, sim, first: int, count: int, threads: int | None = N
     if spec.method == "orbit":
         return _orbit_values(job, sim, first, count, threads)
 
+    pw = _derivative_pass(job, first, count, threads)
+    tau0 = (pw.steps0 - 1 + pw.frac0) * dyn.dt
+    ok0 = pw.status0 == SYNCED
+    values = np.where(ok0[:, None], -pw.dtau / np.where(ok0, tau0, 1.0)[:, None], 0.0)
+    code = np.repeat(pw.status0[:, None], n_edges, axis=1).astype(np.int8)
+    flagged = np.zeros((count, n_edges), dtype=bool)
+    if spec.method in ("hybrid", "adjoint-hybrid"):
+        flagged = ok0[:, None] & (np.abs(values) > spec.hybrid_cut)
+        _secants(job, values, code, flagged, tau0, first, threads)
+    return values, code, flagged, pw
+
+
+def _secants(job: Job, values, code, flagged, tau0, first: int, threads: int | None) -> None:
+    """Replace the flagged values by secants ``(tau0/tau(dbeta) - 1)/dbeta`` of interpolated
+    times, in place (``hybrid``, ``adjoint-hybrid``).
+
+    One integration call per flagged link (its flagged realizations) or per flagged realization
+    (its flagged links), whichever makes fewer calls: on a graph with hundreds of links the
+    flags spread over most links but few realizations. Each secant is the same trajectory
+    either way (the lane driver's results do not depend on what shares a call).
+    """
+    links = np.flatnonzero(flagged.any(axis=0))
+    reals = np.flatnonzero(flagged.any(axis=1))
+    if len(links) <= len(reals):
+        groups = [(np.flatnonzero(flagged[:, e]), np.array([e])) for e in links]
+    else:
+        groups = [(np.array([r]), np.flatnonzero(flagged[r])) for r in reals]
+    dt = job.config.dynamics.dt
+    for rows, edges in groups:
+        sec = simulate_job(job, 0, 0, "cpu", threads, job.secant_weights[edges], realizations=first + rows)
+        tau = (sec.steps - 1 + sec.frac) * dt  # (rows, edges): every pair is flagged
+        good = sec.status == SYNCED
+        r, e = np.broadcast_arrays(rows[:, None], edges[None, :])
+        values[r[good], e[good]] = (tau0[r[good]] / tau[good] - 1.0) / job.dbeta
+        code[r[~good], e[~good]] = sec.status[~good]
+
+
+def _derivative_pass(job: Job, first: int, count: int, threads: int | None):
+    """``d tau0 / d beta_e`` of every edge along the undamaged trajectories: forward tangents
+    (``pathwise``, ``hybrid``) or one adjoint pass (``adjoint``, ``adjoint-hybrid``)."""
+    dyn = job.config.dynamics
+    kw = dict(dt=dyn.dt, threshold=dyn.threshold, max_steps=dyn.max_steps, threads=threads)
+    edge_a, edge_b, rho, mu = job.tangent
+    if job.config.lambda_.method in ("adjoint", "adjoint-hybrid"):
+        from antisync.kernels.adjoint import link_derivatives, simulate_adjoint
+
+        edges = list(zip(edge_a.tolist(), edge_b.tolist(), strict=True))
+        deriv = link_derivatives(job.omega, job.csr, edges, dyn.coupling)
+        return simulate_adjoint(
+            job.config.seed,
+            first,
+            count,
+            job.csr.indptr,
+            job.csr.indices,
+            job.csr.weights,
+            deriv,
+            integrator=dyn.integrator,
+            **kw,
+        )
     from antisync.kernels.cpu import simulate_pathwise
 
-    edge_a, edge_b, rho, mu = job.tangent
-    pw = simulate_pathwise(
+    return simulate_pathwise(
         job.config.seed,
         first,
         count,
@@ -224,28 +282,8 @@ def lambda_values(job: Job, sim, first: int, count: int, threads: int | None = N
         edge_b,
         rho,
         mu,
-        dt=dyn.dt,
-        threshold=dyn.threshold,
-        max_steps=dyn.max_steps,
-        threads=threads,
+        **kw,
     )
-    tau0 = (pw.steps0 - 1 + pw.frac0) * dyn.dt
-    ok0 = pw.status0 == SYNCED
-    values = np.where(ok0[:, None], -pw.dtau / np.where(ok0, tau0, 1.0)[:, None], 0.0)
-    code = np.repeat(pw.status0[:, None], n_edges, axis=1).astype(np.int8)
-    flagged = np.zeros((count, n_edges), dtype=bool)
-    if spec.method == "hybrid":
-        flagged = ok0[:, None] & (np.abs(values) > spec.hybrid_cut)
-        for e in np.flatnonzero(flagged.any(axis=0)):
-            rows = np.flatnonzero(flagged[:, e])
-            sec = simulate_job(
-                job, 0, 0, "cpu", threads, job.secant_weights[e : e + 1], realizations=first + rows
-            )
-            tau = (sec.steps[:, 0] - 1 + sec.frac[:, 0]) * dyn.dt
-            good = sec.status[:, 0] == SYNCED
-            values[rows[good], e] = (tau0[rows[good]] / tau[good] - 1.0) / job.dbeta
-            code[rows[~good], e] = sec.status[~good, 0]
-    return values, code, flagged, pw
 
 
 def _orbit_values(job: Job, sim, first: int, count: int, threads: int | None):

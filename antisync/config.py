@@ -153,6 +153,11 @@ class LambdaSpec:
       undamaged trajectory (interpolated crossing), every edge from one trajectory.
     - ``hybrid``: pathwise, except where ``|-tau0'/tau0| > hybrid_cut`` (trajectories near saddle
       states): there the secant ``(tau0/tau(dbeta) - 1)/dbeta`` of interpolated times.
+    - ``adjoint``: the same per-realization values as ``pathwise`` (to rounding), from one
+      reverse-mode pass of the discrete integrator per trajectory, whatever the number of edges
+      (:mod:`antisync.kernels.adjoint`); Euler or RK4 (Hermite crossing differentiated exactly).
+    - ``adjoint-hybrid``: ``hybrid`` with the adjoint's values.
+    - ``orbit``: central differences along each edge's automorphism orbit.
     """
 
     method: LambdaMethod = "finite-difference"
@@ -258,7 +263,8 @@ class Config:
         if self.lambda_.method in ("pathwise", "hybrid") and self.dynamics.integrator != "euler":
             raise ConfigError(
                 f"lambda.method {self.lambda_.method} needs dynamics.integrator euler "
-                "(the tangent is written for the Euler step); use finite-difference or orbit with rk4"
+                "(the tangent is written for the Euler step); use adjoint, finite-difference or "
+                "orbit with rk4"
             )
         if self.threads is not None:
             integer("threads", self.threads, 1, 4096, "null or 1..4096")

@@ -100,12 +100,14 @@ def _lambda(view: JobView, e: int, pooled: np.ndarray) -> dict:
             f"heavy tail: top 0.1% of samples carry {share:.0%} of the variance and too few "
             "values for the tail model: run more realizations"
         )
-    elif view.lambda_method == "pathwise":
-        # measured: bench/RESULTS.md, calibration of Lambda's error bars
+    elif view.lambda_method in ("pathwise", "adjoint"):
+        # measured: bench/RESULTS.md, calibration of Lambda's error bars (the adjoint's values
+        # are the pathwise ones to rounding)
         warning = (
-            "pathwise derivatives have an unbounded tail (values to ~1e4 at probability "
-            "~1e-5): this interval covered only 74-98% of runs on the lollipop; use "
-            "lambda.method hybrid or finite-difference for error bars to trust"
+            f"{view.lambda_method} derivatives have an unbounded tail (values to ~1e4 at "
+            "probability ~1e-5): this interval covered only 74-98% of runs on the lollipop; "
+            f"use lambda.method {'adjoint-hybrid' if view.lambda_method == 'adjoint' else 'hybrid'}"
+            " or finite-difference for error bars to trust"
         )
     return {
         "lambda_km": _num(est.mean),

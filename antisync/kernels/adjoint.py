@@ -1,0 +1,611 @@
+"""Reverse-mode (adjoint) sensitivities of tau0 to every coupling weight: ``lambda.method: adjoint``.
+
+The pathwise estimator (:func:`antisync.kernels.cpu.simulate_pathwise`) carries one forward
+tangent ``d theta / d beta_e`` per damaged link, ``O(E N)`` work per step. Here one forward pass
+integrates the undamaged trajectory and one backward pass of the *discrete* integrator's
+adjoint gives ``g_p = d tau0 / d w_p`` for every entry ``p = (i, j)`` of ``W`` at once, ``O(N +
+nnz)`` work per step whatever the number of links; ``d tau0 / d beta_e`` is then the contraction
+of ``g`` with the one nonzero row of ``dW/dbeta_e``
+(:func:`antisync.coupling.coupling_derivative_row`, see :func:`link_derivatives`). The result is
+the derivative of the same function of the weights that the pathwise tangents differentiate
+(the interpolated crossing time of the same discrete trajectory), so both give the same values
+to rounding (docs/equations.md, "The adjoint of the Euler step", Eqs. A1-A4).
+
+Memory: the backward pass needs the trajectory in reverse. The forward pass keeps every
+``checkpoint_every``-th state (``K``); the backward pass recomputes each segment of ``K`` steps
+forward from its checkpoint (with the same step function, so bit for bit the same states)
+and then walks it backwards. For a trajectory of ``k`` steps on ``N`` nodes a thread holds
+``(ceil(k / K) + K) 2 N`` doubles (``K = 256``, ``k = 20,000``, ``N = 1,000``: 5.3 MB) and
+recomputes ``k (K - 1) / K`` steps, about one extra forward pass, for any ``K``; ``K = 1``
+stores every state and recomputes nothing. ``K`` never changes the results (bit for bit).
+
+Integrators: ``euler`` (the rotation step of :mod:`antisync.kernels.core`, in the phases:
+``theta <- theta + dt f(theta)``, linear crossing in ``R = |sum_j e^{i theta_j}|^2``) and
+``rk4`` (the lane RK4 step run with one lane, in ``(c, s)`` with its per-step projection onto the
+unit circle, cubic Hermite crossing differentiated through the interpolant).
+
+Layers as in :mod:`antisync.kernels.cpu`: ``_euler_adjoint`` / ``_rk4_adjoint`` (one
+trajectory), ``_adjoint_batch`` (``prange`` over groups of realizations, one trajectory at a
+time per thread) and the public :func:`simulate_adjoint`.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+from numba import njit, prange
+
+from antisync import _numba_cache  # noqa: F401 -- before any cache=True function (see there)
+from antisync.coupling import CouplingCSR, coupling_derivative_row
+from antisync.kernels.core import RENORM_EVERY, make_kernels
+from antisync.kernels.cpu import PathwiseResult, _realization_ids, _Threads
+from antisync.phases import phase
+from antisync.status import ALREADY_SYNCED, NOT_SYNCED, SYNCED
+from antisync.types import Coupling, Integrator
+
+__all__ = ["CHECKPOINT_EVERY", "LinkDerivatives", "link_derivatives", "simulate_adjoint"]
+
+_K = make_kernels(lambda f: njit(f, inline="always", cache=True))
+_euler_step = _K.euler_step
+_renormalize = _K.renormalize
+_order2 = _K.order2
+_rk4_lanes = _K.rk4_step_lanes
+_lane_velocity = _K.lane_velocity
+_hermite = _K.hermite_crossing
+
+CHECKPOINT_EVERY = 256
+"""Default ``K``: steps between stored states of the forward pass (memory, not results)."""
+
+
+class LinkDerivatives(NamedTuple):
+    """``dW/dbeta_e`` of each damaged link ``e`` on the CSR pattern of ``W``, itself in CSR form.
+
+    Damage on ``a -> b`` changes row ``a`` of ``W`` only, so link ``e`` has the entries
+    ``value[q]`` at CSR positions ``position[q]`` for ``q`` in ``indptr[e] .. indptr[e + 1] - 1``
+    (the positions of row ``a``).
+    """
+
+    indptr: np.ndarray
+    """int64 (E + 1,)"""
+    position: np.ndarray
+    """int64 (nnz_d,): index into the CSR weights of ``W``."""
+    value: np.ndarray
+    """float64 (nnz_d,): ``d w_p / d beta_e`` at ``beta = 0``."""
+
+
+def link_derivatives(
+    omega: np.ndarray, csr: CouplingCSR, edges, coupling_kind: Coupling = "normalized"
+) -> LinkDerivatives:
+    """:class:`LinkDerivatives` of the directed links ``edges`` (0-based ``(a, b)`` pairs).
+
+    Each row is :func:`antisync.coupling.coupling_derivative_row` restricted to the pattern of
+    row ``a`` of ``csr`` (it is zero off the pattern: damage rescales existing links only).
+    """
+    indptr = np.zeros(len(edges) + 1, dtype=np.int64)
+    position = []
+    value = []
+    for e, (a, b) in enumerate(edges):
+        row = coupling_derivative_row(omega, a, b, coupling_kind)
+        lo, hi = int(csr.indptr[a]), int(csr.indptr[a + 1])
+        cols = csr.indices[lo:hi]
+        off = np.ones(row.size, dtype=bool)
+        off[cols] = False
+        if np.any(row[off] != 0.0):
+            raise ValueError(f"dW/dbeta of link {a}->{b} is nonzero outside the pattern of W")
+        position.append(np.arange(lo, hi, dtype=np.int64))
+        value.append(row[cols])
+        indptr[e + 1] = indptr[e] + (hi - lo)
+    if not edges:
+        return LinkDerivatives(indptr, np.zeros(0, dtype=np.int64), np.zeros(0))
+    return LinkDerivatives(indptr, np.concatenate(position), np.concatenate(value))
+
+
+class _Run(NamedTuple):
+    """The constants of one batch."""
+
+    seed: np.uint64
+    dt: float
+    r2_target: float
+    max_steps: int
+    every: int
+    """``K``: steps between checkpoints."""
+    rk4: bool
+
+
+# ---- one trajectory ------------------------------------------------------------------------
+
+
+@njit(cache=True)
+def _store(ck, idx, c, s):
+    """``ck[idx] = (c, s)``, doubling ``ck`` when full; returns the (possibly new) array."""
+    if idx >= ck.shape[0]:
+        bigger = np.empty((2 * ck.shape[0], 2, ck.shape[2]))
+        bigger[: ck.shape[0]] = ck
+        ck = bigger
+    for i in range(c.shape[0]):
+        ck[idx, 0, i] = c[i]
+        ck[idx, 1, i] = s[i]
+    return ck
+
+
+@njit(inline="always")
+def _euler_vjp(c, s, lam, lam_new, g, indptr, indices, w, dt):
+    """One step of the Euler adjoint at state ``(c, s)`` (Eqs. A2, A3).
+
+    ``lam = d tau / d theta_{n+1}`` in; ``lam_new = d tau / d theta_n`` (through this step) out;
+    ``g_p += dt lam_i sin(theta_j - theta_i)`` (``d tau / d w_p`` of this step).
+    """
+    n = c.shape[0]
+    for i in range(n):
+        lam_new[i] = lam[i]
+    for i in range(n):
+        li = dt * lam[i]
+        ci = c[i]
+        si = s[i]
+        diag = 0.0
+        for p in range(indptr[i], indptr[i + 1]):
+            j = indices[p]
+            g[p] += li * (s[j] * ci - c[j] * si)  # sin(theta_j - theta_i)
+            t = li * w[p] * (c[j] * ci + s[j] * si)  # cos(theta_j - theta_i)
+            lam_new[j] += t
+            diag += t
+        lam_new[i] -= diag
+
+
+@njit(inline="always")
+def _r2_gradient(c, s, coef, lam):
+    """``lam += coef dR/dtheta`` with ``R = |sum_j e^{i theta_j}|^2``:
+    ``dR/dtheta_i = 2 (S c_i - C s_i)``."""
+    tc = 0.0
+    ts = 0.0
+    for i in range(c.shape[0]):
+        tc += c[i]
+        ts += s[i]
+    for i in range(c.shape[0]):
+        lam[i] += coef * 2.0 * (ts * c[i] - tc * s[i])
+
+
+@njit(cache=True)
+def _euler_adjoint(c, s, acc, ck, seg, lam, lam_new, g, indptr, indices, w, dt, r2_target, max_steps, every):
+    """Euler trajectory from ``(c, s)``, then its adjoint: ``g_p = d tau0 / d w_p``.
+
+    Returns ``(status, steps, x, ck)`` with the interpolated ``tau0 = dt (steps - 1 + x)``
+    (``g`` is meaningful only for SYNCED).
+    """
+    n = c.shape[0]
+    for p in range(g.shape[0]):
+        g[p] = 0.0
+    r2_prev = _order2(c, s)
+    if r2_prev >= r2_target:
+        return ALREADY_SYNCED, 0, 0.0, ck
+    ck = _store(ck, 0, c, s)
+    k = 0
+    r2 = r2_prev
+    for step in range(1, max_steps + 1):
+        r2 = _euler_step(c, s, acc, indptr, indices, w, dt)
+        if r2 >= r2_target:
+            k = step
+            break
+        if step % RENORM_EVERY == 0:
+            _renormalize(c, s)
+        if step % every == 0:
+            ck = _store(ck, step // every, c, s)
+        r2_prev = r2
+    if k == 0:
+        return NOT_SYNCED, max_steps, 0.0, ck
+    # tau = dt (k - 1 + x), x = (R* - R_{k-1}) / (R_k - R_{k-1})  (Eq. A4)
+    span = r2 - r2_prev
+    x = (r2_target - r2_prev) / span
+    for i in range(n):
+        lam[i] = 0.0
+    _r2_gradient(c, s, -dt * x / span, lam)
+    for sg in range((k - 1) // every, -1, -1):
+        j0 = sg * every
+        j1 = min(j0 + every, k)
+        # states j0 .. j1 - 1 again, exactly as the forward pass made them
+        for i in range(n):
+            seg[0, 0, i] = ck[sg, 0, i]
+            seg[0, 1, i] = ck[sg, 1, i]
+        for j in range(j0 + 1, j1):
+            row = j - j0
+            for i in range(n):
+                seg[row, 0, i] = seg[row - 1, 0, i]
+                seg[row, 1, i] = seg[row - 1, 1, i]
+            _euler_step(seg[row, 0], seg[row, 1], acc, indptr, indices, w, dt)
+            if j % RENORM_EVERY == 0:
+                _renormalize(seg[row, 0], seg[row, 1])
+        for j in range(j1 - 1, j0 - 1, -1):
+            cj = seg[j - j0, 0]
+            sj = seg[j - j0, 1]
+            _euler_vjp(cj, sj, lam, lam_new, g, indptr, indices, w, dt)
+            lam, lam_new = lam_new, lam
+            if j == k - 1 and j > 0:
+                _r2_gradient(cj, sj, -dt * (1.0 - x) / span, lam)
+    return SYNCED, k, x, ck
+
+
+@njit(inline="always")
+def _velocity(c, s, om, sc, ss, fc, fs, indptr, indices, w):
+    """``(fc, fs) = (-s omega, c omega)``, ``omega_i = c_i ss_i - s_i sc_i`` with ``sc_i = sum_j
+    w_ij c_j``, ``ss_i = sum_j w_ij s_j`` (Eq. 2 in (cos, sin) form); keeps the intermediates."""
+    for i in range(c.shape[0]):
+        a = 0.0
+        b = 0.0
+        for p in range(indptr[i], indptr[i + 1]):
+            j = indices[p]
+            a += w[p] * c[j]
+            b += w[p] * s[j]
+        sc[i] = a
+        ss[i] = b
+        om[i] = c[i] * b - s[i] * a
+        fc[i] = -s[i] * om[i]
+        fs[i] = c[i] * om[i]
+
+
+@njit(inline="always")
+def _velocity_vjp(c, s, om, sc, ss, gc, gs, bc, bs, g, indptr, indices, w):
+    """``(bc, bs) += (gc, gs)^T d(fc, fs)/d(c, s)`` and ``g += (gc, gs)^T d(fc, fs)/dw`` at the
+    state whose intermediates :func:`_velocity` left in ``om, sc, ss``."""
+    for i in range(c.shape[0]):
+        ob = c[i] * gs[i] - s[i] * gc[i]  # cotangent of omega_i
+        bc[i] += om[i] * gs[i] + ob * ss[i]
+        bs[i] += -om[i] * gc[i] - ob * sc[i]
+        bss = ob * c[i]  # cotangent of ss_i
+        bsc = -ob * s[i]  # cotangent of sc_i
+        for p in range(indptr[i], indptr[i + 1]):
+            j = indices[p]
+            bs[j] += w[p] * bss
+            bc[j] += w[p] * bsc
+            g[p] += bss * s[j] + bsc * c[j]
+
+
+@njit(inline="always")
+def _stages(yc, ys, st, indptr, indices, w, dt):
+    """The four RK4 stages from ``y``: ``st[q] = (c, s, omega, sc, ss, fc, fs)`` of stage ``q``."""
+    for i in range(yc.shape[0]):
+        st[0, 0, i] = yc[i]
+        st[0, 1, i] = ys[i]
+    for q in range(4):
+        if q > 0:
+            h = 0.5 * dt if q < 3 else dt
+            for i in range(yc.shape[0]):
+                st[q, 0, i] = yc[i] + h * st[q - 1, 5, i]
+                st[q, 1, i] = ys[i] + h * st[q - 1, 6, i]
+        _velocity(st[q, 0], st[q, 1], st[q, 2], st[q, 3], st[q, 4], st[q, 5], st[q, 6], indptr, indices, w)
+
+
+@njit(inline="always")
+def _rk4_vjp(yc, ys, st, ac, as_, zc, zs, tc, ts, kc, ks, g, indptr, indices, w, dt):
+    """One step of the RK4 adjoint at ``y_n = (yc, ys)`` (Eq. A5): ``(ac, as_)`` holds
+    ``d tau / d y_{n+1}`` in and ``d tau / d y_n`` out; ``g`` gets this step's ``d tau / d w``."""
+    n = yc.shape[0]
+    h = 0.5 * dt
+    _stages(yc, ys, st, indptr, indices, w, dt)
+    # projection y_{n+1} = z / |z| per node: zbar = (ybar - y (y . ybar)) / |z|
+    for i in range(n):
+        zci = yc[i] + dt / 6.0 * (st[0, 5, i] + 2.0 * st[1, 5, i] + 2.0 * st[2, 5, i] + st[3, 5, i])
+        zsi = ys[i] + dt / 6.0 * (st[0, 6, i] + 2.0 * st[1, 6, i] + 2.0 * st[2, 6, i] + st[3, 6, i])
+        norm = np.sqrt(zci * zci + zsi * zsi)
+        uc = zci / norm
+        us = zsi / norm
+        dot = uc * ac[i] + us * as_[i]
+        zc[i] = (ac[i] - uc * dot) / norm
+        zs[i] = (as_[i] - us * dot) / norm
+        ac[i] = zc[i]
+        as_[i] = zs[i]
+    # z = y + dt/6 (k1 + 2 k2 + 2 k3 + k4); y4 = y + dt k3, y3 = y + h k2, y2 = y + h k1
+    weight = (1.0 / 6.0, 1.0 / 3.0, 1.0 / 3.0, 1.0 / 6.0)
+    for q in range(3, -1, -1):
+        for i in range(n):
+            if q == 3:
+                kc[i] = dt * weight[q] * zc[i]
+                ks[i] = dt * weight[q] * zs[i]
+            else:
+                hq = dt if q == 2 else h
+                kc[i] = dt * weight[q] * zc[i] + hq * tc[i]
+                ks[i] = dt * weight[q] * zs[i] + hq * ts[i]
+            tc[i] = 0.0
+            ts[i] = 0.0
+        if q == 0:
+            _velocity_vjp(
+                st[0, 0], st[0, 1], st[0, 2], st[0, 3], st[0, 4], kc, ks, ac, as_, g, indptr, indices, w
+            )
+        else:
+            _velocity_vjp(
+                st[q, 0], st[q, 1], st[q, 2], st[q, 3], st[q, 4], kc, ks, tc, ts, g, indptr, indices, w
+            )
+            for i in range(n):
+                ac[i] += tc[i]
+                as_[i] += ts[i]
+
+
+@njit(inline="always")
+def _crossing_seed(yc, ys, st, coef_r, coef_d, ac, as_, kc, ks, g, indptr, indices, w):
+    """``(ac, as_, g) += coef_r dR + coef_d dD`` at ``y``, with ``R = C^2 + S^2`` (``C = sum c``,
+    ``S = sum s``) and ``D = dR/dt = 2 (C sum fc + S sum fs)``, which depends on ``w`` too."""
+    n = yc.shape[0]
+    for i in range(n):
+        st[0, 0, i] = yc[i]
+        st[0, 1, i] = ys[i]
+    _velocity(st[0, 0], st[0, 1], st[0, 2], st[0, 3], st[0, 4], st[0, 5], st[0, 6], indptr, indices, w)
+    tc = 0.0
+    ts = 0.0
+    vc = 0.0
+    vs = 0.0
+    for i in range(n):
+        tc += yc[i]
+        ts += ys[i]
+        vc += st[0, 5, i]
+        vs += st[0, 6, i]
+    for i in range(n):
+        ac[i] += 2.0 * (coef_r * tc + coef_d * vc)
+        as_[i] += 2.0 * (coef_r * ts + coef_d * vs)
+        kc[i] = 2.0 * coef_d * tc
+        ks[i] = 2.0 * coef_d * ts
+    _velocity_vjp(st[0, 0], st[0, 1], st[0, 2], st[0, 3], st[0, 4], kc, ks, ac, as_, g, indptr, indices, w)
+
+
+@njit(cache=True)
+def _rk4_adjoint(c, s, ck, seg, g, indptr, indices, w, dt, r2_target, max_steps, every):
+    """RK4 trajectory from ``(c, s)`` (the lane step of :mod:`.core`, one lane), then its adjoint:
+    ``g_p = d tau0 / d w_p`` with the Hermite-interpolated ``tau0``. Returns as
+    :func:`_euler_adjoint`."""
+    n = c.shape[0]
+    nnz = w.shape[0]
+    for p in range(nnz):
+        g[p] = 0.0
+    if _order2(c, s) >= r2_target:
+        return ALREADY_SYNCED, 0, 0.0, ck
+    # one-lane scratch of the lane step
+    cl = np.empty((n, 1))
+    sl = np.empty((n, 1))
+    kv = np.zeros((8, n, 1))
+    yc = np.empty((n, 1))
+    ys = np.empty((n, 1))
+    dtot = np.zeros((4, 1))
+    om = np.empty((n, 1))
+    sum_c = np.empty((n, 1))
+    sum_s = np.empty((n, 1))
+    lw = np.empty((nnz, 1))
+    r2 = np.zeros(1)
+    dr2 = np.zeros(1)
+    for p in range(nnz):
+        lw[p, 0] = w[p]
+    for i in range(n):
+        cl[i, 0] = c[i]
+        sl[i, 0] = s[i]
+    _lane_velocity(cl, sl, kv[0], kv[1], dtot, om, sum_c, sum_s, lw, indptr, indices)
+    r2[0] = dtot[2, 0] ** 2 + dtot[3, 0] ** 2
+    dr2[0] = 2.0 * (dtot[2, 0] * dtot[0, 0] + dtot[3, 0] * dtot[1, 0])
+    ck = _store(ck, 0, c, s)
+    k = 0
+    x = 0.0
+    for step in range(1, max_steps + 1):
+        r2_prev = r2[0]
+        dr2_prev = dr2[0]
+        _rk4_lanes(cl, sl, kv, yc, ys, dtot, om, sum_c, sum_s, lw, indptr, indices, dt, r2, dr2)
+        if r2[0] >= r2_target:
+            k = step
+            x = _hermite(r2_prev, dr2_prev, r2[0], dr2[0], dt, r2_target)
+            break
+        if step % every == 0:
+            ck = _store(ck, step // every, cl[:, 0], sl[:, 0])
+    if k == 0:
+        return NOT_SYNCED, max_steps, 0.0, ck
+    # tau = dt (k - 1 + x), P(x) = target for the Hermite cubic P through (R, D) at k - 1 and k
+    x2 = x * x
+    x3 = x2 * x
+    slope = (
+        (6.0 * x2 - 6.0 * x) * r2_prev
+        + (3.0 * x2 - 4.0 * x + 1.0) * dt * dr2_prev
+        + (-6.0 * x2 + 6.0 * x) * r2[0]
+        + (3.0 * x2 - 2.0 * x) * dt * dr2[0]
+    )
+    scale = -dt / slope
+    st = np.empty((4, 7, n))
+    ac = np.zeros(n)
+    as_ = np.zeros(n)
+    zc = np.empty(n)
+    zs = np.empty(n)
+    tc = np.zeros(n)
+    ts = np.zeros(n)
+    kc = np.empty(n)
+    ks = np.empty(n)
+    yk_c = cl[:, 0].copy()
+    yk_s = sl[:, 0].copy()
+    _crossing_seed(
+        yk_c,
+        yk_s,
+        st,
+        scale * (-2.0 * x3 + 3.0 * x2),
+        scale * dt * (x3 - x2),
+        ac,
+        as_,
+        kc,
+        ks,
+        g,
+        indptr,
+        indices,
+        w,
+    )
+    for sg in range((k - 1) // every, -1, -1):
+        j0 = sg * every
+        j1 = min(j0 + every, k)
+        for i in range(n):
+            cl[i, 0] = ck[sg, 0, i]
+            sl[i, 0] = ck[sg, 1, i]
+            seg[0, 0, i] = cl[i, 0]
+            seg[0, 1, i] = sl[i, 0]
+        _lane_velocity(cl, sl, kv[0], kv[1], dtot, om, sum_c, sum_s, lw, indptr, indices)
+        for j in range(j0 + 1, j1):
+            _rk4_lanes(cl, sl, kv, yc, ys, dtot, om, sum_c, sum_s, lw, indptr, indices, dt, r2, dr2)
+            for i in range(n):
+                seg[j - j0, 0, i] = cl[i, 0]
+                seg[j - j0, 1, i] = sl[i, 0]
+        for j in range(j1 - 1, j0 - 1, -1):
+            cj = seg[j - j0, 0]
+            sj = seg[j - j0, 1]
+            _rk4_vjp(cj, sj, st, ac, as_, zc, zs, tc, ts, kc, ks, g, indptr, indices, w, dt)
+            if j == k - 1:
+                # R and D at the step before the crossing (D depends on w even at j = 0)
+                _crossing_seed(
+                    cj,
+                    sj,
+                    st,
+                    scale * (2.0 * x3 - 3.0 * x2 + 1.0),
+                    scale * dt * (x3 - 2.0 * x2 + x),
+                    ac,
+                    as_,
+                    kc,
+                    ks,
+                    g,
+                    indptr,
+                    indices,
+                    w,
+                )
+    return SYNCED, k, x, ck
+
+
+# ---- the batch driver ----------------------------------------------------------------------
+
+
+@njit(parallel=True, cache=True)
+def _adjoint_batch(ks, indptr, indices, w, deriv, run, n_groups, status0, steps0, frac0, dtau):
+    """Realizations ``ks`` split into ``n_groups`` ranges, one per parallel task; each task
+    integrates its realizations one at a time with per-task buffers."""
+    # every field as a local before the prange (see antisync.kernels.cpu._integrate_lanes)
+    d_ptr = deriv.indptr
+    d_pos = deriv.position
+    d_val = deriv.value
+    seed = run.seed
+    dt = run.dt
+    r2_target = run.r2_target
+    max_steps = run.max_steps
+    every = run.every
+    rk4 = run.rk4
+    m = ks.shape[0]
+    n = indptr.shape[0] - 1
+    nnz = w.shape[0]
+    n_edges = d_ptr.shape[0] - 1
+    per = (m + n_groups - 1) // n_groups
+    for group in prange(n_groups):
+        r_lo = group * per
+        r_hi = min(m, r_lo + per)
+        if r_lo >= r_hi:
+            continue
+        c = np.empty(n)
+        s = np.empty(n)
+        acc = np.empty(n)
+        ck = np.empty((16, 2, n))
+        seg = np.empty((min(every, max_steps), 2, n))  # a segment never outgrows the trajectory
+        lam = np.empty(n)
+        lam_new = np.empty(n)
+        g = np.zeros(nnz)
+        for r in range(r_lo, r_hi):
+            for i in range(n):
+                th = phase(seed, ks[r], i)
+                c[i] = np.cos(th)
+                s[i] = np.sin(th)
+            if rk4:
+                st, k, x, ck = _rk4_adjoint(
+                    c, s, ck, seg, g, indptr, indices, w, dt, r2_target, max_steps, every
+                )
+            else:
+                st, k, x, ck = _euler_adjoint(
+                    c, s, acc, ck, seg, lam, lam_new, g, indptr, indices, w, dt, r2_target, max_steps, every
+                )
+            status0[r] = st
+            steps0[r] = k
+            frac0[r] = x
+            for e in range(n_edges):
+                total = 0.0
+                if st == SYNCED:
+                    for q in range(d_ptr[e], d_ptr[e + 1]):
+                        total += d_val[q] * g[d_pos[q]]
+                dtau[r, e] = total
+
+
+def simulate_adjoint(
+    seed: int,
+    first: int,
+    count: int,
+    indptr: np.ndarray,
+    indices: np.ndarray,
+    base_weights: np.ndarray,
+    derivatives: LinkDerivatives,
+    *,
+    dt: float,
+    threshold: float,
+    max_steps: int,
+    threads: int | None = None,
+    realizations: np.ndarray | None = None,
+    integrator: Integrator = "euler",
+    checkpoint_every: int = CHECKPOINT_EVERY,
+) -> PathwiseResult:
+    """Undamaged trajectories and ``d tau0 / d beta_e`` for every link ``e`` of ``derivatives``.
+
+    The same numbers as :func:`antisync.kernels.cpu.simulate_pathwise` (Euler) to rounding,
+    from one forward and one backward pass per realization, whatever the number of links.
+
+    Parameters
+    ----------
+    seed, first, count, realizations
+        As in :func:`antisync.kernels.cpu.simulate`.
+    indptr, indices, base_weights : arrays
+        CSR form of the undamaged ``W(Omega)``.
+    derivatives : LinkDerivatives
+        ``dW/dbeta_e`` of each link (:func:`link_derivatives`).
+    dt, threshold, max_steps, threads
+        As in :func:`antisync.kernels.cpu.simulate`.
+    integrator : {"euler", "rk4"}
+        Euler (linear crossing in ``R``) or RK4 (cubic Hermite crossing).
+    checkpoint_every : int
+        ``K``, steps between stored states (see the module docstring); never changes results.
+
+    Returns
+    -------
+    PathwiseResult
+        ``status0``, ``steps0``, ``frac0`` of the undamaged network (interpolated ``tau0 =
+        (steps0 - 1 + frac0) dt``) and ``dtau[r, e] = d tau0 / d beta_e`` (0 unless SYNCED).
+    """
+    if integrator not in ("euler", "rk4"):
+        raise ValueError(f"integrator must be 'euler' or 'rk4', got {integrator!r}")
+    every = checkpoint_every
+    if isinstance(every, bool) or not isinstance(every, int | np.integer) or every < 1:
+        raise ValueError(f"checkpoint_every must be a positive integer, got {checkpoint_every!r}")
+    ks = _realization_ids(first, count, realizations)
+    n = indptr.size - 1
+    m = ks.size
+    deriv = LinkDerivatives(
+        np.ascontiguousarray(derivatives.indptr, dtype=np.int64),
+        np.ascontiguousarray(derivatives.position, dtype=np.int64),
+        np.ascontiguousarray(derivatives.value, dtype=np.float64),
+    )
+    status0 = np.empty(m, dtype=np.int8)
+    steps0 = np.empty(m, dtype=np.int64)
+    frac0 = np.empty(m)
+    dtau = np.empty((m, deriv.indptr.size - 1))
+    run = _Run(
+        np.uint64(seed),
+        float(dt),
+        (threshold * n) ** 2,
+        int(max_steps),
+        int(checkpoint_every),
+        integrator == "rk4",
+    )
+    with _Threads(threads) as groups:
+        _adjoint_batch(
+            ks,
+            np.ascontiguousarray(indptr, dtype=np.int64),
+            np.ascontiguousarray(indices, dtype=np.int64),
+            np.ascontiguousarray(base_weights, dtype=np.float64),
+            deriv,
+            run,
+            groups,
+            status0,
+            steps0,
+            frac0,
+            dtau,
+        )
+    return PathwiseResult(status0, steps0, frac0, dtau)
