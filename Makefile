@@ -49,6 +49,8 @@ test-cuda: $(STAMP)
 
 bench: $(STAMP)
 	$(BIN)/python bench/bench_kernels.py
+	$(BIN)/python bench/bench_sizes.py
+	$(BIN)/python bench/bench_adjoint.py
 	$(BIN)/python bench/bench_dask.py
 
 lint: $(STAMP)
