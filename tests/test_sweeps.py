@@ -664,3 +664,21 @@ def test_trend_in_n_counts_resolved_steps_and_the_gap():
     assert tr["increases"] == [] and tr["gap"] == 3  # 5 -> 7 drops only 1: gap 2 is not enough
     rows[2]["lambda_km"] = 40.0
     assert trend_in_n(rows)["increases"] == [(5, 6)]
+
+
+def test_fixed_frequencies_turn_the_orbit_reduction_off():
+    """Automorphic edges are equal only when the dynamics is: fixed per-node frequencies break
+    the symmetry (every edge integrated), drawn ones keep it (in distribution)."""
+    text = """
+sweep: {family: lollipop, path: 1, nodes: 5}
+edges: all
+betas: [0.5]
+realizations: 100
+model: MODEL
+"""
+    drawn = load_sweep_text(text.replace("MODEL", "{frequencies: {distribution: normal, sd: 0.1}}"))
+    fixed = load_sweep_text(text.replace("MODEL", "{frequencies: [0.1, -0.1, 0.0, 0.2, -0.2]}"))
+    (e_drawn,) = family_graphs(drawn)
+    (e_fixed,) = family_graphs(fixed)
+    assert len(set(e_drawn.rep.values())) < len(e_drawn.edges)
+    assert e_fixed.rep == {e: e for e in e_fixed.edges}

@@ -98,8 +98,15 @@ def family_graphs(sweep, *, symmetry: bool = True) -> list[GraphEntry]:
         A :class:`~antisync.sweeps.schema.Sweep`: its ``family``, ``edges`` and ``base``
         (the seed of random generators and the step checked on each graph) are used.
     symmetry : bool
-        Group the edges into automorphism orbits; otherwise each edge is its own orbit.
+        Group the edges into automorphism orbits; otherwise each edge is its own orbit. Off
+        whatever is asked when the model has fixed per-node frequencies (an automorphism
+        does not map them onto themselves); frequencies drawn independently per node, a
+        phase lag or inertia keep every orbit's edges equal in distribution.
     """
+    freqs = sweep.base.model.frequencies
+    if freqs is not None and not sweep.base.model.drawn:
+        # fixed per-node frequencies tell automorphic edges apart: integrate every edge
+        symmetry = False
     out = []
     for name, spec in family_specs(sweep.family):
         g = graphs_mod.build_graph(spec, seed=sweep.base.seed)
