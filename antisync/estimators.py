@@ -31,6 +31,7 @@ __all__ = [
     "TAIL_BINS",
     "TAU0_FIELDS",
     "TAIL_MODEL",
+    "Z95",
     "Estimate",
     "Interval",
     "block_records",
@@ -485,12 +486,14 @@ def lambda_interval(
     )
 
 
-_Z95 = 1.959963984540054
+#: the normal quantile of a two-sided 95% interval
+Z95 = 1.959963984540054
 #: Lambda estimators whose batch-means interval is calibrated as it is (see lambda_ci)
 BATCH_MEANS_ESTIMATORS = ("orbit",)
 
 
 def lambda_ci(
+    est: Estimate,
     rec_e: np.ndarray,
     tail_e: np.ndarray,
     pooled: np.ndarray,
@@ -498,7 +501,8 @@ def lambda_ci(
     level: float = 0.95,
     estimator: str = "finite-difference",
 ):
-    """Lambda's interval for one link from its block records and signed tail counts.
+    """Lambda's interval for one link: ``est`` is its mean (``summarize_lambda(rec_e)["lambda"]``),
+    ``rec_e`` its block records and ``tail_e`` its signed tail counts.
 
     For the ``orbit`` estimator (central differences averaged over an orbit's links, a light
     tail) the batch-means interval, which covers 96-97% there (bench/RESULTS.md; the tail
@@ -510,19 +514,17 @@ def lambda_ci(
 
     Returns
     -------
-    ``(estimate, low, high, method, interval)``: the :class:`Estimate` of the mean, the
-    interval's ends, its method (``TAIL_MODEL`` or ``"batch-means"``) and the tail model's
-    :class:`Interval` (None where it did not apply).
+    ``(low, high, method, interval)``: the interval's ends, its method (``TAIL_MODEL`` or
+    ``"batch-means"``) and the tail model's :class:`Interval` (None where it did not apply).
     """
     if level != 0.95:
         raise ValueError("only 95% intervals are calibrated")
-    est = summarize_lambda(rec_e)["lambda"]
-    bm_low, bm_high = est.mean - _Z95 * est.se, est.mean + _Z95 * est.se
+    bm_low, bm_high = est.mean - Z95 * est.se, est.mean + Z95 * est.se
     iv = None
     if est.n >= 2 and estimator not in BATCH_MEANS_ESTIMATORS:
         iv = lambda_interval(
             est.n, float(rec_e[:, 3].sum()), float(rec_e[:, 4].sum()), tail_e, pooled, dbeta, level
         )
     if iv is None:
-        return est, bm_low, bm_high, "batch-means", None
-    return est, min(iv.low, bm_low), max(iv.high, bm_high), TAIL_MODEL, iv
+        return bm_low, bm_high, "batch-means", None
+    return min(iv.low, bm_low), max(iv.high, bm_high), TAIL_MODEL, iv

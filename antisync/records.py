@@ -1,18 +1,6 @@
-"""Summary records of decoded jobs, with or without a Kuramoto run, and how to list many.
-
-:func:`antisync.summary.job_records` computes records from a job's statistics blocks. A job run
-without ``km`` (``measures: [xi2, rw]``) integrated nothing and has no blocks; its records here
-keep every key of a Kuramoto record, so tables and CSV files of mixed files share one set of
-columns, with
-
-- the Kuramoto values (``F_mean``, ``lambda_km``, its interval, ``tau0_mean``, ...) ``None``,
-  the counts ``n``, ``realizations_done`` and ``realizations`` 0;
-- the Kuramoto estimator's description (``lambda_method``, ``lambda_dbeta``,
-  ``lambda_km_ci_level``, ``lambda_km_ci_method``) and warning ``None``;
-- ``complete`` true once its measures are computed (they are written with the job).
-
-:func:`sort_records` and :func:`flag_signs` order and flag the records of a graph with
-hundreds of links (``antisync summary --sort``, the large-graph report). Pure: no file.
+"""How to list the records of a graph with hundreds of links: :func:`sort_records` and
+:func:`flag_signs` order and flag them (``antisync summary --sort``, the large-graph report).
+Pure: no file. The records themselves come from :func:`antisync.summary.job_records`.
 """
 
 from __future__ import annotations
@@ -21,20 +9,15 @@ import math
 from typing import Literal, get_args
 
 from antisync.errors import AntisyncError
-from antisync.summary import JobView, sign_resolved
-from antisync.summary import job_records as _kuramoto_records
-from antisync.summary import view_records as _kuramoto_view_records
+from antisync.summary import sign_resolved
 
 __all__ = [
     "MEASURE_KEYS",
     "SORT_KEYS",
     "SortKey",
     "flag_signs",
-    "is_kuramoto",
-    "job_records",
     "primary_measure",
     "sort_records",
-    "view_records",
 ]
 
 SortKey = Literal["lambda", "km", "xi2", "rw", "linear", "km_nnc"]
@@ -48,43 +31,6 @@ MEASURE_KEYS = {
     "linear": "lambda_linear",
     "km_nnc": "lambda_km_nnc",
 }
-# describe the Kuramoto estimator; meaningless where it did not run
-_ESTIMATOR_KEYS = (
-    "lambda_km_warning",
-    "lambda_km_ci_level",
-    "lambda_km_ci_method",
-    "lambda_method",
-    "lambda_dbeta",
-)
-
-
-def is_kuramoto(view: JobView) -> bool:
-    """Whether ``view``'s job integrated the Kuramoto model: a job without ``km`` in its
-    measures has no statistics blocks (a Kuramoto run has at least one realization)."""
-    return view.done.size > 0
-
-
-def job_records(view: JobView) -> list[dict]:
-    """:func:`antisync.summary.job_records`, also for a job run without ``km``."""
-    recs = _kuramoto_records(view)
-    return recs if is_kuramoto(view) else [_exact_only(r) for r in recs]
-
-
-def view_records(views: list[JobView]) -> list[dict]:
-    """:func:`antisync.summary.view_records` (``lambda_km_nnc`` joined from twins), also for
-    jobs run without ``km``."""
-    exact = {v.graph for v in views if not is_kuramoto(v)}
-    return [_exact_only(r) if r["graph"] in exact else r for r in _kuramoto_view_records(views)]
-
-
-def _exact_only(rec: dict) -> dict:
-    out = dict(rec)
-    for key in _ESTIMATOR_KEYS:
-        if key in out:
-            out[key] = None
-    out["realizations"] = out["realizations_done"] = 0
-    out["complete"] = True
-    return out
 
 
 def primary_measure(records: list[dict]) -> str | None:

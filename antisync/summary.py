@@ -1,7 +1,11 @@
 """Per-(edge, beta) records from stored block statistics: <F_beta>, Lambda^KM, <tau0>, counts.
 
 Records are computed from the block records of a result file (never from a live run), so a
-summary of a resumed, a Dask or a CUDA run is computed exactly like any other. This module is
+summary of a resumed, a Dask or a CUDA run is computed exactly like any other. A job run
+without ``km`` (``measures: [xi2, rw]``) integrated nothing and has no blocks; its records keep
+every key of a Kuramoto record (tables and CSV files of mixed files share one set of columns)
+with the Kuramoto values ``None``, the counts 0, the estimator's description and warning
+``None`` and ``complete`` true (its measures are written with the job). This module is
 pure: a :class:`JobView` (one decoded job) in, records out. Reading a file is the store's
 (:func:`antisync.store.read_views`, :func:`antisync.store.records`).
 """
@@ -16,7 +20,7 @@ import numpy as np
 from antisync import estimators
 from antisync.measures.pipeline import join_nnc, measure_fields
 
-__all__ = ["CI_LEVEL", "JobView", "job_records", "sign_resolved", "view_records"]
+__all__ = ["CI_LEVEL", "JobView", "is_kuramoto", "job_records", "sign_resolved", "view_records"]
 
 # error bars are flagged when the largest 0.1% of samples carry this share of the variance
 TAIL_WARN = 0.5
@@ -24,7 +28,6 @@ TAIL_WARN = 0.5
 TAIL_EVENTS = 10
 #: level of the ``lambda_km_ci_low`` / ``lambda_km_ci_high`` interval of every record
 CI_LEVEL = 0.95
-_Z = {0.95: 1.959963984540054}
 
 
 @dataclass
@@ -64,15 +67,18 @@ def _num(x: float):
     return None if x is None or (isinstance(x, float) and math.isnan(x)) else float(x)
 
 
-def _lambda(view: JobView, e: int, pooled: np.ndarray) -> dict:
-    s = estimators.summarize_lambda(view.lam_rec[view.done, e])
+def _lambda(view: JobView, e: int, pooled: np.ndarray) -> tuple[dict, dict]:
+    """Lambda's fields of edge ``e``'s records, and its :func:`estimators.summarize_lambda`."""
+    rec = view.lam_rec[view.done, e]
+    s = estimators.summarize_lambda(rec)
+    est = s["lambda"]
     share = estimators.tail_share(view.lam_tail[e])
-    est, low, high, method, iv = estimators.lambda_ci(
-        view.lam_rec[view.done, e], view.lam_tail[e], pooled, view.dbeta, estimator=view.lambda_method
+    low, high, method, iv = estimators.lambda_ci(
+        est, rec, view.lam_tail[e], pooled, view.dbeta, CI_LEVEL, estimator=view.lambda_method
     )
     # the standard error to quote: the interval's half-width over z (decisions at other levels,
     # e.g. the sweeps' 4-sigma trend, scale it)
-    se = (high - low) / (2 * _Z[CI_LEVEL]) if iv is not None else est.se
+    se = (high - low) / (2 * estimators.Z95) if iv is not None else est.se
     warning = None
     if s["n"] < 2:
         warning = (
@@ -109,7 +115,7 @@ def _lambda(view: JobView, e: int, pooled: np.ndarray) -> dict:
             f"use lambda.method {'adjoint-hybrid' if view.lambda_method == 'adjoint' else 'hybrid'}"
             " or finite-difference for error bars to trust"
         )
-    return {
+    fields = {
         "lambda_km": _num(est.mean),
         "lambda_km_se": _num(se),
         "lambda_km_se_naive": _num(est.se_naive),
@@ -126,6 +132,7 @@ def _lambda(view: JobView, e: int, pooled: np.ndarray) -> dict:
         "lambda_n": s["n"],
         "lambda_n_flagged": s["n_flagged"],
     }
+    return fields, s
 
 
 def sign_resolved(record: dict) -> int:
@@ -137,6 +144,32 @@ def sign_resolved(record: dict) -> int:
     return 1 if lo > 0 else -1 if hi < 0 else 0
 
 
+# describe the Kuramoto estimator; meaningless where it did not run
+_ESTIMATOR_KEYS = (
+    "lambda_km_warning",
+    "lambda_km_ci_level",
+    "lambda_km_ci_method",
+    "lambda_method",
+    "lambda_dbeta",
+)
+
+
+def is_kuramoto(view: JobView) -> bool:
+    """Whether ``view``'s job integrated the Kuramoto model: a job without ``km`` in its
+    measures has no statistics blocks (a Kuramoto run has at least one realization)."""
+    return view.done.size > 0
+
+
+def _exact_only(rec: dict) -> dict:
+    out = dict(rec)
+    for key in _ESTIMATOR_KEYS:
+        if key in out:
+            out[key] = None
+    out["realizations"] = out["realizations_done"] = 0
+    out["complete"] = True
+    return out
+
+
 def job_records(view: JobView) -> list[dict]:
     """One record per (edge, requested beta); with no betas, one record per edge (Lambda only)."""
     s0 = estimators.summarize_tau0(view.rec0[view.done])
@@ -145,7 +178,7 @@ def job_records(view: JobView) -> list[dict]:
     out = []
     pooled = view.lam_tail[:, :].sum(axis=0) if view.lam_tail.size else view.lam_tail
     for e, label in enumerate(view.edges):
-        lam = _lambda(view, e, pooled)
+        lam, s_lam = _lambda(view, e, pooled)
         for beta in view.betas or (None,):
             rec = {"graph": view.graph, "edge": label, "beta": beta}
             if beta is not None:
@@ -163,7 +196,7 @@ def job_records(view: JobView) -> list[dict]:
                     }
                 )
             else:
-                s = estimators.summarize_lambda(view.lam_rec[view.done, e])
+                s = s_lam
                 rec.update(
                     {
                         "F_mean": None,
@@ -190,7 +223,7 @@ def job_records(view: JobView) -> list[dict]:
             )
             rec.update(measure_fields(view.measures, e))
             out.append(rec)
-    return out
+    return out if is_kuramoto(view) else [_exact_only(r) for r in out]
 
 
 def view_records(views: list[JobView]) -> list[dict]:

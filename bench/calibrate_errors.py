@@ -38,7 +38,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 from antisync import estimators  # noqa: E402
 
-Z95 = 1.959963984540054
+Z95 = estimators.Z95
 LOLLIPOP = "{kind: lollipop, nodes: 6, path: 3}"
 
 
@@ -98,7 +98,8 @@ def intervals(run: np.ndarray, dbeta: float, estimator: str) -> dict[str, np.nda
     pooled = tail.sum(axis=0)
     out = {"batch-means": np.empty((run.shape[1], 2)), "reported": np.empty((run.shape[1], 2))}
     for e in range(run.shape[1]):
-        est, low, high, _, _ = estimators.lambda_ci(rec[:, e, :], tail[e], pooled, dbeta, estimator=estimator)
+        est = estimators.summarize_lambda(rec[:, e, :])["lambda"]
+        low, high, _, _ = estimators.lambda_ci(est, rec[:, e, :], tail[e], pooled, dbeta, estimator=estimator)
         out["batch-means"][e] = est.mean - Z95 * est.se, est.mean + Z95 * est.se
         out["reported"][e] = low, high
     return out

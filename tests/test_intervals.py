@@ -126,7 +126,8 @@ def test_coverage_on_a_known_heavy_tail(a):
     for _ in range(runs):
         x = sample(rng, 2000)
         rec, tail = _records(x)
-        est, low, high, method, iv = estimators.lambda_ci(rec[:, 0, :], tail[0], tail[0], DBETA)
+        est = estimators.summarize_lambda(rec[:, 0, :])["lambda"]
+        low, high, method, iv = estimators.lambda_ci(est, rec[:, 0, :], tail[0], tail[0], DBETA)
         assert method == estimators.TAIL_MODEL and low <= est.mean <= high
         hit += low <= mean <= high
         hit_bm += abs(est.mean - mean) <= 1.96 * est.se

@@ -20,10 +20,10 @@ from pathlib import Path
 
 import numpy as np
 
-from antisync.records import job_records, primary_measure
+from antisync.records import primary_measure
 from antisync.report.links import is_large, link_figures, top_links
 from antisync.report.measures import LABELS
-from antisync.summary import JobView
+from antisync.summary import JobView, job_records
 
 __all__ = ["write_report"]
 

@@ -16,8 +16,7 @@ from collections.abc import Iterator
 
 import numpy as np
 
-from antisync.records import view_records
-from antisync.summary import JobView
+from antisync.summary import JobView, view_records
 
 __all__ = ["PAIRS", "edge_records", "measure_figures", "plot_fig5", "plot_fig7e", "sign_agreement"]
 

@@ -53,11 +53,10 @@ from antisync.errors import StoreError
 from antisync.jobs import Job
 from antisync.measures.pipeline import COMPUTED
 from antisync.model import unsynced_hint
-from antisync.records import job_records, view_records
 from antisync.store.journal import digest_graph, graph_digest, jsonable
 from antisync.store.provenance import now
 from antisync.store.state import JobState
-from antisync.summary import JobView
+from antisync.summary import JobView, job_records, view_records
 
 __all__ = [
     "FORMAT",
@@ -509,8 +508,8 @@ def _shape_problem(view: JobView) -> str | None:
 
 
 def records(path: str | Path) -> list[dict]:
-    """Summary records of every job in a result file (see :func:`antisync.summary.job_records`
-    and, for a job run without ``km``, :func:`antisync.records.job_records`); each run's
+    """Summary records of every job in a result file (see :func:`antisync.summary.job_records`,
+    which also covers a job run without ``km``); each run's
     ``lambda_km_nnc`` comes from its raw-coupling twin."""
     return view_records(read_views(path))
 
