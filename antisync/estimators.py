@@ -31,6 +31,7 @@ __all__ = [
     "TAIL_BINS",
     "TAU0_FIELDS",
     "TAIL_MODEL",
+    "UNCALIBRATED_ESTIMATORS",
     "Z95",
     "Estimate",
     "Interval",
@@ -490,6 +491,9 @@ def lambda_interval(
 Z95 = 1.959963984540054
 #: Lambda estimators whose batch-means interval is calibrated as it is (see lambda_ci)
 BATCH_MEANS_ESTIMATORS = ("orbit",)
+#: Lambda estimators with an unbounded per-realization tail, whose interval no method makes
+#: hold (measured 74-98% coverage, bench/RESULTS.md), each with the estimator to use instead
+UNCALIBRATED_ESTIMATORS = {"pathwise": "hybrid", "adjoint": "adjoint-hybrid"}
 
 
 def lambda_ci(

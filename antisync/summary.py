@@ -106,13 +106,11 @@ def _lambda(view: JobView, e: int, pooled: np.ndarray) -> tuple[dict, dict]:
             f"heavy tail: top 0.1% of samples carry {share:.0%} of the variance and too few "
             "values for the tail model: run more realizations"
         )
-    elif view.lambda_method in ("pathwise", "adjoint"):
-        # measured: bench/RESULTS.md, calibration of Lambda's error bars (the adjoint's values
-        # are the pathwise ones to rounding)
+    elif view.lambda_method in estimators.UNCALIBRATED_ESTIMATORS:
         warning = (
             f"{view.lambda_method} derivatives have an unbounded tail (values to ~1e4 at "
             "probability ~1e-5): this interval covered only 74-98% of runs on the lollipop; "
-            f"use lambda.method {'adjoint-hybrid' if view.lambda_method == 'adjoint' else 'hybrid'}"
+            f"use lambda.method {estimators.UNCALIBRATED_ESTIMATORS[view.lambda_method]}"
             " or finite-difference for error bars to trust"
         )
     fields = {
