@@ -13,7 +13,7 @@ import numpy as np
 from antisync import estimators
 from antisync.errors import ConfigError
 from antisync.jobs import Chunk, Job
-from antisync.status import SYNCED
+from antisync.status import NOT_SYNCED, SYNCED
 
 __all__ = ["ChunkResult", "check_backend", "check_job", "compute_chunk", "lambda_values", "simulate_job"]
 
@@ -305,6 +305,16 @@ def _orbit_values(job: Job, sim, first: int, count: int, threads: int | None):
     return values, code.astype(np.int8), np.zeros_like(ok), osim
 
 
+def _sync_flips(job: Job, sim) -> np.ndarray:
+    """Per (realization, edge) of a finite difference: ``-1`` where tau0 synchronized and
+    tau(dbeta) did not, ``+1`` for the reverse, else 0 (the synchronized fraction's response)."""
+    s0 = sim.status0[:, None]
+    s = sim.status[:, _fd_variants(job)]
+    lost = (s0 == SYNCED) & (s == NOT_SYNCED)
+    gained = (s0 == NOT_SYNCED) & (s == SYNCED)
+    return (gained.astype(np.int8) - lost.astype(np.int8)).astype(np.int8)
+
+
 def _fd_variants(job: Job) -> np.ndarray:
     """The variant at ``dbeta`` of every edge: the finite difference of Lambda^KM."""
     return np.array([job.variant(e, job.dbeta) for e in range(len(job.edges))], dtype=np.int64)
@@ -380,7 +390,8 @@ def compute_chunk(job: Job, chunk: Chunk, backend: str = "cpu", threads: int | N
     interpolate = dyn.interpolate
     dt = dyn.dt
     rec, rec0, tail = estimators.block_records(sim, dt, job.block_size, interpolate)
-    lam_rec, lam_tail = estimators.lambda_block_records(values, code, flagged, job.block_size)
+    flip = _sync_flips(job, sim) if not derivative else None
+    lam_rec, lam_tail = estimators.lambda_block_records(values, code, flagged, job.block_size, flip)
     hcfg = job.config.histogram
     hist = estimators.histogram2d(sim, job.hist_variants, dt, hcfg.bins, hcfg.tau_max, interpolate)
     keep = max(0, min(job.config.keep_pairs - first, count))

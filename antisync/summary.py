@@ -130,7 +130,33 @@ def _lambda(view: JobView, e: int, pooled: np.ndarray) -> tuple[dict, dict]:
         "lambda_n": s["n"],
         "lambda_n_flagged": s["n_flagged"],
     }
+    fields.update(_sync_response(view, rec))
     return fields, s
+
+
+def _sync_response(view: JobView, rec: np.ndarray) -> dict:
+    """The synchronized fraction's response to the link's damage (finite difference only:
+    a derivative estimator integrates no damaged network that could fail to synchronize)."""
+    r = estimators.sync_response(rec, view.dbeta) if view.lambda_method == "finite-difference" else None
+    if r is None:
+        return dict.fromkeys(SYNC_RESPONSE_KEYS)
+    return {
+        "p_sync_response": r["value"],
+        "p_sync_response_ci_low": r["low"],
+        "p_sync_response_ci_high": r["high"],
+        "p_sync_lost": r["lost"],
+        "p_sync_gained": r["gained"],
+    }
+
+
+#: the fields of a record that describe the synchronized fraction's response (basin stability)
+SYNC_RESPONSE_KEYS = (
+    "p_sync_response",
+    "p_sync_response_ci_low",
+    "p_sync_response_ci_high",
+    "p_sync_lost",
+    "p_sync_gained",
+)
 
 
 def sign_resolved(record: dict) -> int:
@@ -208,12 +234,17 @@ def job_records(view: JobView) -> list[dict]:
                     }
                 )
             rec.update(lam)
+            done = int(s0["n"] + s0["n_already"] + s0["n_not_synced"])
             rec.update(
                 {
                     "tau0_mean": _num(t0.mean),
                     "tau0_se": _num(t0.se),
                     "tau0_n": s0["n"],
-                    "realizations_done": int(s0["n"] + s0["n_already"] + s0["n_not_synced"]),
+                    # what every Kuramoto number is conditioned on: the undamaged network's
+                    # synchronized fraction, and the share of realizations Lambda averages
+                    "p_sync": (s0["n"] + s0["n_already"]) / done if done else None,
+                    "lambda_km_fraction": s_lam["n"] / done if done else None,
+                    "realizations_done": done,
                     # an interrupted run's estimates are partial: say so in every record
                     "realizations": int(view.realizations),
                     "complete": complete,

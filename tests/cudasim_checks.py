@@ -105,17 +105,20 @@ def check_statuses() -> None:
     print("statuses", sorted(seen), "identical")
 
 
-def check_reductions() -> None:
+def check_reductions(flips: bool = False) -> None:
     """simulate_reduced equals the host's reductions of the CPU outcomes, exactly.
 
     Block records, tail counts, 2D histograms and the finite-difference Lambda records
     (:func:`antisync.compute.lambda_values` + ``lambda_block_records``). Blocks of 6 over
     23 realizations (a short last block) and device batches of 12 realizations, so block
-    offsets, batching and accumulation across batches are exercised.
+    offsets, batching and accumulation across batches are exercised. With ``flips``, a
+    damage of 0.5 and t_max = 2 make realizations lose (16) and gain (2) synchronization,
+    counted as n_lost and n_gained.
     """
-    from antisync.compute import _fd_variants, lambda_values
+    from antisync.compute import _fd_variants, _sync_flips, lambda_values
 
-    job = make_job(load_config_text(HOUSE_RAW, ["histogram.bins=16", "histogram.tau_max=3.0"]))
+    extra = ["lambda.dbeta=0.5", "dynamics.t_max=2.0"] if flips else []
+    job = make_job(load_config_text(HOUSE_RAW, ["histogram.bins=16", "histogram.tau_max=3.0", *extra]))
     first, count, block = 60, 23, 6
     args, kw = _args(job, first, count)
     ref = cpu.simulate(*args, **kw)
@@ -124,7 +127,9 @@ def check_reductions() -> None:
     assert hv.size == 12, hv
     hist = estimators.histogram2d(ref, hv, kw["dt"], 16, 3.0)
     values, code, flagged, _ = lambda_values(job, ref, first, count)
-    lam_rec, lam_tail = estimators.lambda_block_records(values, code, flagged, block)
+    lam_rec, lam_tail = estimators.lambda_block_records(values, code, flagged, block, _sync_flips(job, ref))
+    if flips:
+        assert lam_rec[..., 6].sum() == 16 and lam_rec[..., 7].sum() == 2, lam_rec[..., 6:].sum(axis=(0, 1))
     got = gpu.simulate_reduced(
         *args,
         **kw,
@@ -141,7 +146,8 @@ def check_reductions() -> None:
         assert x.dtype == y.dtype and x.shape == y.shape, (name, x.dtype, y.dtype, x.shape, y.shape)
         # exact: the same operations, summed in the same order
         assert np.array_equal(x, y), (name, np.argwhere(x != y)[:5].tolist())
-    assert hist.sum() > 0 and tail.sum() > 0 and lam_tail.sum() > 0 and rec0[:, 0].sum() == count
+    assert hist.sum() > 0 and tail.sum() > 0 and lam_tail.sum() > 0
+    assert rec0[:, 0].sum() == (16 if flips else count)  # t_max = 2 stops 7 of the 23
     print(
         f"reductions identical: rec {rec.shape}, lam_rec {lam_rec.shape}, tail {tail.sum()}, "
         f"hist {hist.sum()} pairs"
@@ -188,6 +194,11 @@ def check_float32() -> None:
     # a relative 1e-7 perturbation moves tau by far less than 1% here
     assert diff.max() <= 0.01 * ref.steps0.min(), diff
     print(f"float32: max |delta steps| = {diff.max()} of ~{int(ref.steps0.mean())}")
+
+
+def check_reduction_flips() -> None:
+    """check_reductions where damage moves realizations in and out of synchronization."""
+    check_reductions(flips=True)
 
 
 if __name__ == "__main__":

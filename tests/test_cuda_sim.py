@@ -53,6 +53,11 @@ def test_device_reductions_equal_host():
     assert "reductions identical" in _check("reductions")
 
 
+def test_device_counts_realizations_that_lose_or_gain_synchronization():
+    """n_lost and n_gained of the finite difference, counted on the device, equal the host's."""
+    assert "reductions identical" in _check("reduction_flips")
+
+
 def test_run_config_cuda_matches_cpu(tmp_path):
     """``backend: cuda`` through the runner (host and device reductions) gives the cpu summary."""
     assert "identical on cpu and cuda" in _check("runner", str(tmp_path))

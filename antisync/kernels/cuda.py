@@ -252,11 +252,17 @@ def _reducers():
             n_ok = 0.0
             n_already = 0.0
             n_not = 0.0
+            n_lost = 0.0
+            n_gained = 0.0
             s1 = 0.0
             s2 = 0.0
             for r in range(bl * block, min(bl * block + block, m)):
                 st0 = status0[r]
                 st = status[r, v]
+                if st0 == SYNCED and st == NOT_SYNCED:
+                    n_lost += 1
+                elif st0 == NOT_SYNCED and st == SYNCED:
+                    n_gained += 1
                 if st0 == SYNCED and st == SYNCED:
                     x = (steps0[r] / steps[r, v] - 1.0) / dbeta
                     n_ok += 1
@@ -275,6 +281,8 @@ def _reducers():
             rec[bl, e, 3] = s1
             rec[bl, e, 4] = s2
             rec[bl, e, 5] = 0.0  # n_flagged: the finite difference flags nothing
+            rec[bl, e, 6] = n_lost
+            rec[bl, e, 7] = n_gained
 
     @cuda.jit
     def hist_kernel(status0, steps0, status, steps, variants, scale, hist):

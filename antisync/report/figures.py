@@ -176,6 +176,20 @@ def plot_histogram(view: JobView, k: int, ax) -> None:
     plt.colorbar(img, ax=ax, label="probability density (log)")
 
 
+def conditioning_note(view: JobView) -> str | None:
+    """A figure's footnote when some realizations never synchronized: every Kuramoto number
+    (F, tau, Lambda^KM) averages only over those that did."""
+    n, n_already, n_not = (float(x) for x in view.rec0[view.done][:, :3].sum(axis=0))
+    if not n_not:
+        return None
+    done = n + n_already + n_not
+    return (
+        "Kuramoto values average over the realizations that synchronized by t_max: "
+        f"P_sync = {(n + n_already) / done:.3f} undamaged ({int(n_not):,} of {int(done):,} did "
+        "not); the summary's p_sync_response is each link's effect on it"
+    )
+
+
 def write_report(
     views: list[JobView], folder: str | Path, *, pdf: bool = False, hist_betas: tuple = (0.5,), top: int = 10
 ) -> list[Path]:
@@ -189,7 +203,9 @@ def write_report(
     folder.mkdir(parents=True, exist_ok=True)
     written: list[Path] = []
 
-    def save(fig, stem: str) -> None:
+    def save(fig, stem: str, note: str | None = None) -> None:
+        if note:
+            fig.text(0.5, -0.01, note, ha="center", va="top", fontsize=8, wrap=True)
         for ext in ("png", "pdf") if pdf else ("png",):
             p = folder / f"{stem}.{ext}"
             fig.savefig(p, dpi=130, bbox_inches="tight")
@@ -199,13 +215,14 @@ def write_report(
     for view in views:
         large = is_large(view)
         hist_edges = None  # every edge's histograms
+        note = conditioning_note(view)
         if large:
             first: dict[str, dict] = {}  # one record per link: Lambda does not depend on beta
             for r in job_records(view):
                 first.setdefault(r["edge"], r)
             links = list(first.values())
             for fig, stem in link_figures(view, links, k=top):
-                save(fig, stem)
+                save(fig, stem, note)
             key = primary_measure(links)
             if key is not None:
                 strong = top_links(links, key, top)
@@ -213,11 +230,11 @@ def write_report(
         else:
             fig, ax = plt.subplots(figsize=(7, 5.5))
             plot_graph(view, ax)
-            save(fig, f"{view.graph}_graph")
+            save(fig, f"{view.graph}_graph", note)
         if view.betas:
             fig, ax = plt.subplots(figsize=(7.5, 5))
             plot_f_beta(view, ax, legend=not large)
-            save(fig, f"{view.graph}_F_beta")
+            save(fig, f"{view.graph}_F_beta", note)
         chosen = [
             k
             for k, v in enumerate(view.hist_variants)
@@ -229,7 +246,7 @@ def write_report(
             fig, ax = plt.subplots(figsize=(5.5, 4.8))
             plot_histogram(view, k, ax)
             edge = view.edges[int(view.variant_edge[v])].replace("->", "to")
-            save(fig, f"{view.graph}_hist_{edge}_b{view.variant_beta[v]:g}")
+            save(fig, f"{view.graph}_hist_{edge}_b{view.variant_beta[v]:g}", note)
     # Figs. 5 and 7e when the file holds linear/xi2/RW measures or a km_nnc twin
     from antisync.report.measures import measure_figures
 

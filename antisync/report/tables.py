@@ -47,6 +47,14 @@ _MEASURE_COLUMNS = [
 ]
 
 
+# the synchronized fraction's response dP_sync/dbeta with its 95% interval
+_SYNC_COLUMNS = [
+    ("p_sync_response", "dPsync", "{:+.3f}"),
+    ("p_sync_response_ci_low", "ci_low", "{:+.3f}"),
+    ("p_sync_response_ci_high", "ci_high", "{:+.3f}"),
+]
+
+
 def format_records(records: list[dict], fmt: str = "table") -> str:
     """Render summary records; ``fmt`` is ``table``, ``json`` or ``csv``."""
     if fmt == "json":
@@ -65,6 +73,8 @@ def format_records(records: list[dict], fmt: str = "table") -> str:
         if (kuramoto or c[0] not in _KM_KEYS) and (c[0] != "sign_resolved" or _has(records, c[0]))
     ]
     columns += [c for c in _MEASURE_COLUMNS if _has(records, c[0])]
+    if any((r.get("p_sync_lost") or 0) + (r.get("p_sync_gained") or 0) for r in records):
+        columns += _SYNC_COLUMNS  # only where damage moved some realization in or out of sync
     rows = [[h for _, h, _ in columns]]
     for r in records:
         rows.append([_cell(r.get(k), f) for k, _, f in columns])
@@ -123,9 +133,18 @@ def sync_warnings(records: list[dict]) -> list[str]:
             if n_bad > done / 2
             else "they are counted (unsynced) and left out of every mean"
         )
+        p = worst.get("p_sync")
+        conditioned = (
+            f"; Lambda_KM and <F> are conditioned on synchronizing (P_sync = {p:.3f} undamaged), "
+            "and dPsync is each link's effect on that fraction"
+            if p is not None and p < 1 and any(r.get("p_sync_response") is not None for r in rs)
+            else ""
+        )
         out.append(
             f"{graph}: {n_bad:,} of {done:,} realizations did not synchronize by t_max "
-            f"({worst['edge']}" + (f", beta {worst['beta']:g}" if worst.get("beta") else "") + f"); {hint}"
+            f"({worst['edge']}"
+            + (f", beta {worst['beta']:g}" if worst.get("beta") else "")
+            + f"); {hint}{conditioned}"
         )
     return out
 

@@ -16,9 +16,11 @@ Layout (one file per run or sweep)::
                                              sum tau, sum tau^2  (d = F - 1)
         tau0_records       (n_blocks, 5)     n, n_already, n_not_synced, sum tau0, sum tau0^2
         tail_counts        (V, bins) int64   log histogram of |F - 1|
-        lambda_records     (n_blocks, E, 6)  n, n_already, n_not_synced, sum L, sum L^2, n_flagged
+        lambda_records     (n_blocks, E, 8)  n, n_already, n_not_synced, sum L, sum L^2, n_flagged
                                              of the per-realization Lambda estimates (attr
-                                             lambda_method says which estimator)
+                                             lambda_method says which estimator), n_lost,
+                                             n_gained (tau0 synchronized and tau(dbeta) not,
+                                             and the reverse; finite difference; format 3)
         lambda_tail_counts (E, 2 bins) int64 signed log histogram of Lambda per realization
         hist               (H, bins, bins) int64, [v, i_tau0, i_tau_beta] on [0, tau_max)
         kept/status0, kept/steps0, kept/status, kept/steps, kept/lambda: the first keep_pairs
@@ -81,7 +83,11 @@ __all__ = [
 FORMAT = "antisync-results"
 # format 2: lambda_tail_counts is signed, (E, 2 TAIL_BINS); format-1 files ((E, TAIL_BINS)) are
 # read, and their Lambda intervals fall back to batch means (summary.py says so in the record)
-FORMAT_VERSION = 2
+# format 3: lambda_records gain n_lost and n_gained (the synchronized fraction's response); in
+# older files they read as NaN (not counted, never 0)
+FORMAT_VERSION = 3
+# lambda_records' fields before format 3
+_LAMBDA_FIELDS_V2 = 6
 SWEEP_FORMAT = "antisync-sweep"
 SWEEP_FORMAT_VERSION = 2
 
@@ -427,7 +433,7 @@ def read_views(path: str | Path) -> list[JobView]:
                 hist_variants=r.data("hist_variants"),
                 tau_max_hist=r.attr("tau_max_hist", float),
                 omega=r.data("omega"),
-                lam_rec=r.data("lambda_records"),
+                lam_rec=_lambda_records(r.data("lambda_records")),
                 lam_tail=r.data("lambda_tail_counts"),
                 lambda_method=r.attr("lambda_method", str),
                 nodes=nodes,
@@ -469,6 +475,15 @@ class _GroupReader:
 
     def measures(self) -> dict | None:
         return read_measures(self.group)
+
+
+def _lambda_records(rec: np.ndarray) -> np.ndarray:
+    """``lambda_records`` with the fields of this format: a format 1-2 file's lack ``n_lost``
+    and ``n_gained``, which read as NaN (unknown, not zero)."""
+    if rec.ndim == 3 and rec.shape[-1] == _LAMBDA_FIELDS_V2:
+        pad = np.full(rec.shape[:2] + (len(estimators.LAMBDA_FIELDS) - _LAMBDA_FIELDS_V2,), np.nan)
+        return np.concatenate([rec, pad], axis=-1)
+    return rec
 
 
 def _json_list(raw) -> list:
