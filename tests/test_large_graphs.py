@@ -7,6 +7,7 @@ from __future__ import annotations
 import csv
 import io
 import json
+from pathlib import Path
 
 import h5py
 import numpy as np
@@ -240,6 +241,24 @@ def test_lesmis_keeps_its_co_appearance_weights():
     assert {d["weight"] for *_, d in unit.edges(data=True)} == {1.0}
     with pytest.raises(GraphError, match="graph.weighted must be true or false"):
         build_graph({"kind": "networkx", "generator": "les_miserables_graph", "weighted": "yes"})
+
+
+def test_ieee118_topology_is_the_case_files():
+    """configs/ieee118.edges: the 179 distinct lines of PYPOWER's case118 (186 branches less 7
+    parallel circuits) on buses 1..118, connected; the config damages all 358 directed links."""
+    import networkx as nx
+
+    from antisync.config import load_config
+    from antisync.jobs import make_job
+
+    configs = Path(__file__).resolve().parents[1] / "configs"
+    job = make_job(load_config(configs / "ieee118.yaml"))
+    g = build_graph({"kind": "edgelist", "path": str(configs / "ieee118.edges")})
+    assert (g.number_of_nodes(), g.number_of_edges()) == (118, 179) and nx.is_connected(g)
+    assert sorted(g.nodes) == list(range(1, 119))
+    assert len(job.edges) == 358
+    # a few lines as the case file lists them, and a parallel pair stored once
+    assert {(1, 2), (5, 8), (68, 116), (42, 49)} <= {tuple(sorted(e)) for e in g.edges}
 
 
 # ---- bad input ---------------------------------------------------------------------------------

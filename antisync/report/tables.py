@@ -73,8 +73,8 @@ def format_records(records: list[dict], fmt: str = "table") -> str:
         if (kuramoto or c[0] not in _KM_KEYS) and (c[0] != "sign_resolved" or _has(records, c[0]))
     ]
     columns += [c for c in _MEASURE_COLUMNS if _has(records, c[0])]
-    if any((r.get("p_sync_lost") or 0) + (r.get("p_sync_gained") or 0) for r in records):
-        columns += _SYNC_COLUMNS  # only where damage moved some realization in or out of sync
+    if any(r.get("p_sync_response") is not None and (r.get("p_sync") or 1) < 1 for r in records):
+        columns += _SYNC_COLUMNS  # only where some realizations never synchronized
     rows = [[h for _, h, _ in columns]]
     for r in records:
         rows.append([_cell(r.get(k), f) for k, _, f in columns])
