@@ -132,11 +132,23 @@ class Job:
         extra = 0 if self.orbit_weights is None else len(self.orbit_weights)
         return 1 + len(self.variant_edge) + extra
 
+    @property
+    def work_per_realization(self) -> float:
+        """A realization's cost in integrations of the paper's lollipop (12 directed edges):
+        the integrations, a derivative pass (pathwise: one tangent per link; adjoint: forward,
+        recomputed and backward sweeps, ~4 trajectories), scaled by the graph's directed edges.
+        Sizes chunks only (so a checkpoint comes every few seconds on any graph)."""
+        method = self.config.lambda_.method if self.kuramoto else None
+        passes = {"pathwise": 1 + len(self.edges), "hybrid": 1 + len(self.edges)}.get(method, 0)
+        passes = 4 if method in ("adjoint", "adjoint-hybrid") else passes
+        size = max(1.0, len(self.csr.indices) / 12)
+        return (self.integrations_per_realization + passes) * size
+
     def chunks(self, realizations_per_chunk: int | None = None) -> list[Chunk]:
         """Split the job into chunks of whole blocks (sizes never change the results)."""
         if realizations_per_chunk is None:
-            # aim at ~25k integrations per chunk: a few seconds on one core
-            realizations_per_chunk = max(1, 25_000 // self.integrations_per_realization)
+            # aim at ~25k lollipop integrations per chunk: a few seconds on one core
+            realizations_per_chunk = max(1, int(25_000 // self.work_per_realization))
         per = max(1, -(-realizations_per_chunk // self.block_size))
         return [Chunk(b, min(per, self.n_blocks - b)) for b in range(0, self.n_blocks, per)]
 
