@@ -25,10 +25,14 @@ trajectories (lollipop(6,3), dt = 0.001). float32 therefore renormalizes every
 from __future__ import annotations
 
 import math
+import operator
 from collections.abc import Callable
 from typing import NamedTuple
 
 import numpy as np
+from llvmlite import ir
+from numba import types
+from numba.extending import intrinsic, models, overload, register_model
 
 from antisync.status import ALREADY_SYNCED, NOT_SYNCED, SYNCED
 
@@ -38,10 +42,15 @@ __all__ = [
     "RENORM_EVERY",
     "RENORM_EVERY_FLOAT32",
     "TAYLOR_MAX_ANGLE",
+    "VEC",
+    "F64Vec",
     "Kernels",
     "ModelKernels",
     "make_kernels",
     "make_model_kernels",
+    "vload",
+    "vsplat",
+    "vstore",
 ]
 
 RENORM_EVERY = 1024
@@ -49,6 +58,125 @@ RENORM_EVERY_FLOAT32 = 64
 
 
 TAYLOR_MAX_ANGLE = 0.05
+
+
+# --- CPU lane vectors -------------------------------------------------------------------
+# The lane kernels step VEC trajectories per machine vector. Written as plain loops over the
+# lanes, LLVM cannot prove that the state, the weights and the accumulators do not overlap, so
+# it either keeps the accumulators in memory behind runtime overlap checks on every edge or
+# (with the lane loop unrolled) leaves them scalar (bench/roofline.py, bench/RESULTS.md issue
+# 17). ``F64Vec`` is an LLVM ``<VEC x double>`` value: ``vload``/``vstore`` move VEC
+# consecutive doubles of a C-contiguous array, ``+ - *`` (with vectors or scalars) are
+# lane-wise IEEE operations, so every lane performs exactly the scalar operations of the
+# one-trajectory step, in the same order (no fused multiply-add, no reassociation).
+
+VEC = 8
+"""Doubles per lane vector (one AVX-512 register, two AVX2 registers)."""
+
+_VEC_IR = ir.VectorType(ir.DoubleType(), VEC)
+
+
+class F64Vec(types.Type):
+    """Numba type of ``VEC`` float64 lanes held as one LLVM vector value."""
+
+    def __init__(self):
+        super().__init__(name=f"F64Vec{VEC}")
+
+
+f64vec = F64Vec()
+
+
+@register_model(F64Vec)
+class _F64VecModel(models.PrimitiveModel):
+    def __init__(self, dmm, fe_type):
+        super().__init__(dmm, fe_type, _VEC_IR)
+
+
+def _vec_pointer(context, builder, arrty, arr, offset):
+    data = context.make_array(arrty)(context, builder, arr).data
+    return builder.bitcast(builder.gep(data, [offset]), _VEC_IR.as_pointer())
+
+
+def _is_f64_c_array(arr):
+    return isinstance(arr, types.Array) and arr.dtype == types.float64 and arr.layout == "C"
+
+
+@intrinsic
+def vload(typingctx, arr, offset):
+    """``arr.flat[offset : offset + VEC]`` as a lane vector (no bounds check)."""
+    if not _is_f64_c_array(arr) or not isinstance(offset, types.Integer):
+        return None
+
+    def codegen(context, builder, sig, args):
+        return builder.load(_vec_pointer(context, builder, sig.args[0], args[0], args[1]), align=8)
+
+    return f64vec(arr, offset), codegen
+
+
+@intrinsic
+def vstore(typingctx, arr, offset, value):
+    """``arr.flat[offset : offset + VEC] = value`` (no bounds check)."""
+    if not _is_f64_c_array(arr) or not isinstance(offset, types.Integer) or value != f64vec:
+        return None
+
+    def codegen(context, builder, sig, args):
+        builder.store(args[2], _vec_pointer(context, builder, sig.args[0], args[0], args[1]), align=8)
+        return context.get_dummy_value()
+
+    return types.none(arr, offset, value), codegen
+
+
+@intrinsic
+def vsplat(typingctx, x):
+    """The scalar ``x`` in every lane."""
+    if not isinstance(x, (types.Float, types.Integer)):
+        return None
+
+    def codegen(context, builder, sig, args):
+        x = context.cast(builder, args[0], sig.args[0], types.float64)
+        one = builder.insert_element(ir.Constant(_VEC_IR, ir.Undefined), x, ir.Constant(ir.IntType(32), 0))
+        mask = ir.Constant(ir.VectorType(ir.IntType(32), VEC), [0] * VEC)
+        return builder.shuffle_vector(one, ir.Constant(_VEC_IR, ir.Undefined), mask)
+
+    return f64vec(x), codegen
+
+
+def _vec_binop(instruction):
+    @intrinsic
+    def binop(typingctx, a, b):
+        if a != f64vec or b != f64vec:
+            return None
+
+        def codegen(context, builder, sig, args):
+            return getattr(builder, instruction)(args[0], args[1])
+
+        return f64vec(a, b), codegen
+
+    return binop
+
+
+def _overload_vec_operator(op, binop):
+    @overload(op)
+    def _vec_operator(a, b):
+        scalar = (types.Float, types.Integer)
+        if a == f64vec and b == f64vec:
+            return lambda a, b: binop(a, b)
+        if a == f64vec and isinstance(b, scalar):
+            return lambda a, b: binop(a, vsplat(b))
+        if isinstance(a, scalar) and b == f64vec:
+            return lambda a, b: binop(vsplat(a), b)
+        return None
+
+
+for _op, _instruction in (
+    (operator.add, "fadd"),
+    (operator.sub, "fsub"),
+    (operator.mul, "fmul"),
+    (operator.iadd, "fadd"),
+    (operator.isub, "fsub"),
+    (operator.imul, "fmul"),
+):
+    _overload_vec_operator(_op, _vec_binop(_instruction))
 
 
 class Kernels(NamedTuple):
@@ -61,6 +189,7 @@ class Kernels(NamedTuple):
     rotation: Callable
     euler_step: Callable
     euler_step_lanes: Callable
+    euler_step_vec: Callable
     tangent_step_lanes: Callable
     rk4_step_lanes: Callable
     lane_velocity: Callable
@@ -100,6 +229,9 @@ def make_kernels(jit, dtype=np.float64) -> Kernels:
         lane loop innermost so the compiler vectorizes across lanes; ``taylor=True`` promises
         ``|alpha| <= 0.05`` for every node and lane (then results equal ``euler_step``'s bit
         for bit, since the same operations run in the same order);
+        ``euler_step_vec(c, s, cn, sn, lw, w, shared, indptr, indices, dt, r2)`` is that step
+        for ``taylor=True`` on machine vectors (:data:`VEC` lanes, the lane count a multiple of
+        ``2 VEC``), fused, the new state written to ``(cn, sn)``; the same bits (CPU only);
         ``tangent_step_lanes(...)`` does the same step and its forward sensitivities;
         ``renormalize(c, s)`` projects every ``(c_i, s_i)`` back to the unit circle (the lane
         drivers pass one lane's column, ``renormalize(c[:, q], s[:, q])``).
@@ -111,18 +243,19 @@ def make_kernels(jit, dtype=np.float64) -> Kernels:
     half = dtype(0.5)
     c4 = dtype(1.0 / 24.0)
     c6 = dtype(1.0 / 720.0)
-    c8 = dtype(40320.0)
+    c8 = dtype(1.0 / 40320.0)
     s3 = dtype(1.0 / 6.0)
     s5 = dtype(1.0 / 120.0)
     s7 = dtype(1.0 / 5040.0)
-    s9 = dtype(362880.0)
+    s9 = dtype(1.0 / 362880.0)
     max_angle = dtype(TAYLOR_MAX_ANGLE)
     renorm_every = RENORM_EVERY if dtype == np.float64 else RENORM_EVERY_FLOAT32
 
     def taylor_rotation(a):
         a2 = a * a
-        ca = one - a2 * (half - a2 * (c4 - a2 * (c6 - a2 / c8)))
-        sa = a * (one - a2 * (s3 - a2 * (s5 - a2 * (s7 - a2 / s9))))
+        # reciprocal factorials multiply (a division costs ~10 multiplications' throughput)
+        ca = one - a2 * (half - a2 * (c4 - a2 * (c6 - a2 * c8)))
+        sa = a * (one - a2 * (s3 - a2 * (s5 - a2 * (s7 - a2 * s9))))
         return ca, sa
 
     taylor_rotation = jit(taylor_rotation)
@@ -206,6 +339,70 @@ def make_kernels(jit, dtype=np.float64) -> Kernels:
         lane_rotate(c, s, acc, tot_c, tot_s, r2, taylor)
 
     euler_step_lanes = jit(euler_step_lanes)
+
+    def rotate_vec(c, s, cn, sn, o, sc, ss, dt):
+        """Rotate the lane vector ``(c, s)[o : o + VEC]`` by ``dt (c ss - s sc)`` into ``(cn, sn)``."""
+        ci = vload(c, o)
+        si = vload(s, o)
+        ca, sa = taylor_rotation(dt * (ci * ss - si * sc))
+        x = ci * ca - si * sa
+        y = si * ca + ci * sa
+        vstore(cn, o, x)
+        vstore(sn, o, y)
+        return x, y
+
+    rotate_vec = jit(rotate_vec)
+
+    def euler_step_vec(c, s, cn, sn, lw, w, shared, indptr, indices, dt, r2):
+        """``euler_step_lanes`` with ``taylor=True`` on machine vectors, fused.
+
+        The lane count ``c.shape[1]`` must be a multiple of ``2 VEC``: two vectors of
+        :data:`VEC` lanes are stepped together (independent work for the out-of-order core).
+        For each node their coupling sums stay in registers over the node's edges and the
+        rotated state goes to ``(cn, sn)`` (the caller swaps the buffers), so no sum, angle or
+        running total is stored. ``shared=True`` promises every lane has the weights ``w``
+        (CSR, 1-D), which are then broadcast instead of loading ``lw[p, lane]``. Per lane the
+        operations and their order are those of ``euler_step``: the same bits.
+        """
+        n, lanes = c.shape
+        for qa in range(0, lanes, 2 * VEC):
+            qb = qa + VEC
+            tca = vsplat(zero)
+            tsa = vsplat(zero)
+            tcb = vsplat(zero)
+            tsb = vsplat(zero)
+            for i in range(n):
+                sca = vsplat(zero)
+                ssa = vsplat(zero)
+                scb = vsplat(zero)
+                ssb = vsplat(zero)
+                if shared:
+                    for p in range(indptr[i], indptr[i + 1]):
+                        o = indices[p] * lanes
+                        wa = vsplat(w[p])
+                        sca = sca + wa * vload(c, o + qa)
+                        ssa = ssa + wa * vload(s, o + qa)
+                        scb = scb + wa * vload(c, o + qb)
+                        ssb = ssb + wa * vload(s, o + qb)
+                else:
+                    for p in range(indptr[i], indptr[i + 1]):
+                        o = indices[p] * lanes
+                        wa = vload(lw, p * lanes + qa)
+                        wb = vload(lw, p * lanes + qb)
+                        sca = sca + wa * vload(c, o + qa)
+                        ssa = ssa + wa * vload(s, o + qa)
+                        scb = scb + wb * vload(c, o + qb)
+                        ssb = ssb + wb * vload(s, o + qb)
+                xa, ya = rotate_vec(c, s, cn, sn, i * lanes + qa, sca, ssa, dt)
+                xb, yb = rotate_vec(c, s, cn, sn, i * lanes + qb, scb, ssb, dt)
+                tca = tca + xa
+                tsa = tsa + ya
+                tcb = tcb + xb
+                tsb = tsb + yb
+            vstore(r2, qa, tca * tca + tsa * tsa)
+            vstore(r2, qb, tcb * tcb + tsb * tsb)
+
+    euler_step_vec = jit(euler_step_vec)
 
     def tangent_step_lanes(
         c,
@@ -387,6 +584,7 @@ def make_kernels(jit, dtype=np.float64) -> Kernels:
         rotation=rotation,
         euler_step=euler_step,
         euler_step_lanes=euler_step_lanes,
+        euler_step_vec=euler_step_vec,
         tangent_step_lanes=tangent_step_lanes,
         rk4_step_lanes=rk4_step_lanes,
         lane_velocity=lane_velocity,

@@ -27,7 +27,7 @@ import numpy as np
 from numba import njit, prange
 
 from antisync import _numba_cache  # noqa: F401 -- before any cache=True function (see there)
-from antisync.kernels.core import RENORM_EVERY, TAYLOR_MAX_ANGLE, make_kernels
+from antisync.kernels.core import RENORM_EVERY, TAYLOR_MAX_ANGLE, VEC, make_kernels
 from antisync.phases import phase
 from antisync.status import ALREADY_SYNCED, NOT_SYNCED, SYNCED
 from antisync.types import Integrator
@@ -37,6 +37,7 @@ __all__ = ["LANES", "PathwiseResult", "SimResult", "simulate", "simulate_pathwis
 _K = make_kernels(lambda f: njit(f, inline="always", cache=True))
 _sync_steps = _K.sync_steps
 _step_lanes = _K.euler_step_lanes
+_step_vec = _K.euler_step_vec
 _tangent_lanes = _K.tangent_step_lanes
 _rk4_lanes = _K.rk4_step_lanes
 _lane_velocity = _K.lane_velocity
@@ -205,7 +206,8 @@ def _load_lane(
     si,
     lane_r,
     lane_v,
-    lane_k,
+    lane_t0,
+    t,
     status0,
     steps0,
     frac0,
@@ -239,7 +241,7 @@ def _load_lane(
             lw[p, q] = base_w[p] if v < 0 else var_w[v, p]
         lane_r[q] = r
         lane_v[q] = v
-        lane_k[q] = 0
+        lane_t0[q] = t
         return qr, qv, 1
     return qr, qv, 0
 
@@ -298,43 +300,55 @@ def _integrate_lanes(ks, graph, run, out, tangents, n_groups):
     n_var = var_w.shape[0]
     n_edges = edge_a.shape[0]
     tangent = n_edges > 0
+    # the Euler step with Taylor rotations runs on pairs of machine vectors of VEC lanes: the
+    # arrays are `width` lanes wide, lanes >= `lanes` stay empty (state (1, 0), weights 0)
+    vec = taylor and not rk4 and not tangent
+    width = (lanes + 2 * VEC - 1) // (2 * VEC) * (2 * VEC) if vec else lanes
+    # every lane integrates the undamaged network: its weights can be broadcast
+    shared = n_var == 0
+    # a lane's step count is `t - lane_t0`; between events (a crossing, a renormalization or
+    # the step cap of some lane) no lane needs looking at
+    renorm = RENORM_EVERY if not rk4 else max_steps + 1
     per = (m + n_groups - 1) // n_groups
     for group in prange(n_groups):
         r_lo = group * per
         r_hi = min(m, r_lo + per)
         if r_lo >= r_hi:
             continue
-        c = np.empty((n, lanes))
-        s = np.empty((n, lanes))
-        acc = np.empty((n, lanes))
-        sum_c = np.empty((n, lanes))
-        sum_s = np.empty((n, lanes))
-        lw = np.empty((nnz, lanes))
-        tot_c = np.empty(lanes)
-        tot_s = np.empty(lanes)
-        r2 = np.zeros(lanes)
-        r2_prev = np.zeros(lanes)
-        dr2 = np.zeros(lanes)
-        dr2_prev = np.zeros(lanes)
+        c = np.ones((n, width))
+        s = np.zeros((n, width))
+        cn = np.empty((n, width) if vec else (0, width))
+        sn = np.empty((n, width) if vec else (0, width))
+        acc = np.empty((n, width))
+        sum_c = np.empty((n, width))
+        sum_s = np.empty((n, width))
+        lw = np.zeros((nnz, width))
+        tot_c = np.empty(width)
+        tot_s = np.empty(width)
+        r2 = np.zeros(width)
+        r2_prev = np.zeros(width)
+        dr2 = np.zeros(width)
+        dr2_prev = np.zeros(width)
         # RK4 scratch: stage velocities kv[2 * stage + (0 for c, 1 for s)], stage state, sums
-        kv = np.zeros((8 if rk4 else 2, n, lanes))
-        yc = np.empty((n, lanes))
-        ys = np.empty((n, lanes))
-        dtot = np.zeros((4, lanes))
+        kv = np.zeros((8 if rk4 else 2, n, width))
+        yc = np.empty((n, width))
+        ys = np.empty((n, width))
+        dtot = np.zeros((4, width))
         # tangent scratch: u[e] = d theta / d beta_e, and d R / d beta_e now and one step back
-        u = np.zeros((n_edges, n, lanes))
-        du = np.empty((n, lanes))
-        cu = np.empty((n, lanes))
-        su = np.empty((n, lanes))
-        dr2t = np.zeros((n_edges, lanes))
-        dr2t_prev = np.zeros((n_edges, lanes))
-        lane_r = np.full(lanes, -1, dtype=np.int64)
-        lane_v = np.zeros(lanes, dtype=np.int64)
-        lane_k = np.zeros(lanes, dtype=np.int64)
+        u = np.zeros((n_edges, n, width))
+        du = np.empty((n, width))
+        cu = np.empty((n, width))
+        su = np.empty((n, width))
+        dr2t = np.zeros((n_edges, width))
+        dr2t_prev = np.zeros((n_edges, width))
+        lane_r = np.full(width, -1, dtype=np.int64)
+        lane_v = np.zeros(width, dtype=np.int64)
+        lane_t0 = np.zeros(width, dtype=np.int64)
         ci = np.empty(n)
         si = np.empty(n)
         qr, qv = r_lo, -1
         active = 0
+        t = 0
         for q in range(lanes):
             qr, qv, filled = _load_lane(
                 q,
@@ -354,7 +368,8 @@ def _integrate_lanes(ks, graph, run, out, tangents, n_groups):
                 si,
                 lane_r,
                 lane_v,
-                lane_k,
+                lane_t0,
+                t,
                 status0,
                 steps0,
                 frac0,
@@ -367,13 +382,18 @@ def _integrate_lanes(ks, graph, run, out, tangents, n_groups):
                 _lane_initial(
                     c, s, kv, dtot, acc, sum_c, sum_s, lw, indptr, indices, rk4, q, r2, dr2, u, dr2t
                 )
+        next_event = t + min(renorm, max_steps)
         while active > 0:
-            for q in range(lanes):
-                r2_prev[q] = r2[q]
-                dr2_prev[q] = dr2[q]
-                for e in range(n_edges):
-                    dr2t_prev[e, q] = dr2t[e, q]
-            if rk4:
+            # the step writes r2 (dr2, dr2t) afresh for every lane: swap instead of copying
+            r2, r2_prev = r2_prev, r2
+            dr2, dr2_prev = dr2_prev, dr2
+            dr2t, dr2t_prev = dr2t_prev, dr2t
+            t += 1
+            if vec:
+                _step_vec(c, s, cn, sn, lw, base_w, shared, indptr, indices, dt, r2)
+                c, cn = cn, c
+                s, sn = sn, s
+            elif rk4:
                 _rk4_lanes(c, s, kv, yc, ys, dtot, acc, sum_c, sum_s, lw, indptr, indices, dt, r2, dr2)
             elif tangent:
                 _tangent_lanes(
@@ -402,11 +422,16 @@ def _integrate_lanes(ks, graph, run, out, tangents, n_groups):
                 )
             else:
                 _step_lanes(c, s, acc, sum_c, sum_s, tot_c, tot_s, lw, indptr, indices, dt, r2, taylor)
-            for q in range(lanes):
+            crossed = False
+            for q in range(width):
+                crossed |= (r2[q] >= r2_target) & (lane_r[q] >= 0)
+            if not crossed and t < next_event:
+                continue
+            next_event = t + min(renorm, max_steps)
+            for q in range(width):
                 if lane_r[q] < 0:
                     continue
-                lane_k[q] += 1
-                k = lane_k[q]
+                k = t - lane_t0[q]
                 r = lane_r[q]
                 if r2[q] >= r2_target:
                     st = SYNCED
@@ -426,8 +451,10 @@ def _integrate_lanes(ks, graph, run, out, tangents, n_groups):
                     for e in range(n_edges):
                         dtau[r, e] = 0.0
                 else:
-                    if not rk4 and k % RENORM_EVERY == 0:
+                    if k % renorm == 0:
                         _renormalize(c[:, q], s[:, q])
+                    # this lane's next renormalization or step cap
+                    next_event = min(next_event, t + min(renorm - k % renorm, max_steps - k))
                     continue
                 v = lane_v[q]
                 if v < 0:
@@ -458,7 +485,8 @@ def _integrate_lanes(ks, graph, run, out, tangents, n_groups):
                     si,
                     lane_r,
                     lane_v,
-                    lane_k,
+                    lane_t0,
+                    t,
                     status0,
                     steps0,
                     frac0,
