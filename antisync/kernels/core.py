@@ -32,6 +32,7 @@ from typing import NamedTuple
 import numpy as np
 from llvmlite import ir
 from numba import types
+from numba.core import cgutils
 from numba.extending import intrinsic, models, overload, register_model
 
 from antisync.status import ALREADY_SYNCED, NOT_SYNCED, SYNCED
@@ -50,6 +51,7 @@ __all__ = [
     "make_model_kernels",
     "vload",
     "vsplat",
+    "vsqrt",
     "vstore",
 ]
 
@@ -172,11 +174,44 @@ for _op, _instruction in (
     (operator.add, "fadd"),
     (operator.sub, "fsub"),
     (operator.mul, "fmul"),
+    (operator.truediv, "fdiv"),
     (operator.iadd, "fadd"),
     (operator.isub, "fsub"),
     (operator.imul, "fmul"),
 ):
     _overload_vec_operator(_op, _vec_binop(_instruction))
+
+
+@intrinsic
+def _vneg(typingctx, a):
+    if a != f64vec:
+        return None
+
+    def codegen(context, builder, sig, args):
+        return builder.fneg(args[0])
+
+    return f64vec(a), codegen
+
+
+@overload(operator.neg)
+def _vec_neg(a):
+    if a == f64vec:
+        return lambda a: _vneg(a)
+    return None
+
+
+@intrinsic
+def vsqrt(typingctx, a):
+    """Lane-wise square root (correctly rounded, as ``math.sqrt``)."""
+    if a != f64vec:
+        return None
+
+    def codegen(context, builder, sig, args):
+        fnty = ir.FunctionType(_VEC_IR, [_VEC_IR])
+        sqrt = cgutils.get_or_insert_function(builder.module, fnty, f"llvm.sqrt.v{VEC}f64")
+        return builder.call(sqrt, args)
+
+    return f64vec(a), codegen
 
 
 class Kernels(NamedTuple):
@@ -192,6 +227,7 @@ class Kernels(NamedTuple):
     euler_step_vec: Callable
     tangent_step_lanes: Callable
     rk4_step_lanes: Callable
+    rk4_step_vec: Callable
     lane_velocity: Callable
     hermite_crossing: Callable
     sync_steps: Callable
@@ -353,6 +389,36 @@ def make_kernels(jit, dtype=np.float64) -> Kernels:
 
     rotate_vec = jit(rotate_vec)
 
+    def coupling_sums_vec(c, s, lw, w, shared, indptr, indices, i, qa):
+        """``sum_j w_ij c_j``, ``sum_j w_ij s_j`` of node ``i`` for the lane vectors at ``qa`` and
+        ``qa + VEC``, accumulated in registers in the order of ``i``'s CSR row."""
+        lanes = c.shape[1]
+        qb = qa + VEC
+        sca = vsplat(zero)
+        ssa = vsplat(zero)
+        scb = vsplat(zero)
+        ssb = vsplat(zero)
+        if shared:
+            for p in range(indptr[i], indptr[i + 1]):
+                o = indices[p] * lanes
+                wa = vsplat(w[p])
+                sca = sca + wa * vload(c, o + qa)
+                ssa = ssa + wa * vload(s, o + qa)
+                scb = scb + wa * vload(c, o + qb)
+                ssb = ssb + wa * vload(s, o + qb)
+        else:
+            for p in range(indptr[i], indptr[i + 1]):
+                o = indices[p] * lanes
+                wa = vload(lw, p * lanes + qa)
+                wb = vload(lw, p * lanes + qb)
+                sca = sca + wa * vload(c, o + qa)
+                ssa = ssa + wa * vload(s, o + qa)
+                scb = scb + wb * vload(c, o + qb)
+                ssb = ssb + wb * vload(s, o + qb)
+        return sca, ssa, scb, ssb
+
+    coupling_sums_vec = jit(coupling_sums_vec)
+
     def euler_step_vec(c, s, cn, sn, lw, w, shared, indptr, indices, dt, r2):
         """``euler_step_lanes`` with ``taylor=True`` on machine vectors, fused.
 
@@ -372,27 +438,7 @@ def make_kernels(jit, dtype=np.float64) -> Kernels:
             tcb = vsplat(zero)
             tsb = vsplat(zero)
             for i in range(n):
-                sca = vsplat(zero)
-                ssa = vsplat(zero)
-                scb = vsplat(zero)
-                ssb = vsplat(zero)
-                if shared:
-                    for p in range(indptr[i], indptr[i + 1]):
-                        o = indices[p] * lanes
-                        wa = vsplat(w[p])
-                        sca = sca + wa * vload(c, o + qa)
-                        ssa = ssa + wa * vload(s, o + qa)
-                        scb = scb + wa * vload(c, o + qb)
-                        ssb = ssb + wa * vload(s, o + qb)
-                else:
-                    for p in range(indptr[i], indptr[i + 1]):
-                        o = indices[p] * lanes
-                        wa = vload(lw, p * lanes + qa)
-                        wb = vload(lw, p * lanes + qb)
-                        sca = sca + wa * vload(c, o + qa)
-                        ssa = ssa + wa * vload(s, o + qa)
-                        scb = scb + wb * vload(c, o + qb)
-                        ssb = ssb + wb * vload(s, o + qb)
+                sca, ssa, scb, ssb = coupling_sums_vec(c, s, lw, w, shared, indptr, indices, i, qa)
                 xa, ya = rotate_vec(c, s, cn, sn, i * lanes + qa, sca, ssa, dt)
                 xb, yb = rotate_vec(c, s, cn, sn, i * lanes + qb, scb, ssb, dt)
                 tca = tca + xa
@@ -525,6 +571,106 @@ def make_kernels(jit, dtype=np.float64) -> Kernels:
 
     rk4_step_lanes = jit(rk4_step_lanes)
 
+    def velocity_vec(yc, ys, o, sc, ss):
+        """``(c, s, dc, ds)`` with ``(dc, ds) = (-s omega, c omega)`` for the lane vector at ``o``
+        of the state ``(yc, ys)`` with coupling sums ``sc, ss`` (as ``lane_velocity``)."""
+        c = vload(yc, o)
+        s = vload(ys, o)
+        omega = c * ss - s * sc
+        return c, s, -s * omega, c * omega
+
+    velocity_vec = jit(velocity_vec)
+
+    def rk4_stage_vec(c, s, k, kc, src_c, src_s, dst_c, dst_s, o, sc, ss, h):
+        """One lane vector of an inner RK4 stage: the velocity at ``src`` into ``k`` (flat offset
+        ``kc`` of the ``dc`` row, the ``ds`` row one state further) and ``dst = (c, s) + h k``."""
+        size = c.size
+        _, _, dc, ds = velocity_vec(src_c, src_s, o, sc, ss)
+        vstore(k, kc + o, dc)
+        vstore(k, kc + size + o, ds)
+        vstore(dst_c, o, vload(c, o) + h * dc)
+        vstore(dst_s, o, vload(s, o) + h * ds)
+
+    rk4_stage_vec = jit(rk4_stage_vec)
+
+    def rk4_final_vec(c, s, k, ya_c, ya_s, o, sc, ss, sixth):
+        """One lane vector of the last RK4 stage, the update and the projection to the circle."""
+        size = c.size
+        _, _, dc, ds = velocity_vec(ya_c, ya_s, o, sc, ss)
+        vstore(k, 6 * size + o, dc)
+        vstore(k, 7 * size + o, ds)
+        two = vsplat(2.0)
+        cn = vload(c, o) + sixth * (
+            vload(k, o) + two * vload(k, 2 * size + o) + two * vload(k, 4 * size + o) + dc
+        )
+        sn = vload(s, o) + sixth * (
+            vload(k, size + o) + two * vload(k, 3 * size + o) + two * vload(k, 5 * size + o) + ds
+        )
+        inv = 1.0 / vsqrt(cn * cn + sn * sn)
+        vstore(c, o, cn * inv)
+        vstore(s, o, sn * inv)
+
+    rk4_final_vec = jit(rk4_final_vec)
+
+    def rk4_step_vec(c, s, k, ya_c, ya_s, yb_c, yb_s, lw, w, shared, indptr, indices, dt, r2, dr2):
+        """``rk4_step_lanes`` on machine vectors (the lane count a multiple of ``2 VEC``), the same
+        bits. ``k`` as there (``k[0], k[1]`` the velocity at the state on entry and on exit);
+        ``ya``, ``yb`` hold the stage states in turn. ``w``, ``shared`` as in ``euler_step_vec``.
+
+        Every block of ``2 VEC`` lanes runs its whole step before the next block, and each
+        pass over the nodes fuses what the stage needs per node: the velocity with the next
+        stage's state, the last stage's velocity with the RK4 update and the projection to the
+        unit circle, the new velocity with ``R`` and ``dR/dt``.
+        """
+        n, lanes = c.shape
+        hh = 0.5 * dt
+        sixth = dt / 6.0
+        size = n * lanes
+        for qa in range(0, lanes, 2 * VEC):
+            qb = qa + VEC
+            for i in range(n):
+                for o in (i * lanes + qa, i * lanes + qb):
+                    vstore(ya_c, o, vload(c, o) + hh * vload(k, o))
+                    vstore(ya_s, o, vload(s, o) + hh * vload(k, size + o))
+            for i in range(n):
+                sca, ssa, scb, ssb = coupling_sums_vec(ya_c, ya_s, lw, w, shared, indptr, indices, i, qa)
+                rk4_stage_vec(c, s, k, 2 * size, ya_c, ya_s, yb_c, yb_s, i * lanes + qa, sca, ssa, hh)
+                rk4_stage_vec(c, s, k, 2 * size, ya_c, ya_s, yb_c, yb_s, i * lanes + qb, scb, ssb, hh)
+            for i in range(n):
+                sca, ssa, scb, ssb = coupling_sums_vec(yb_c, yb_s, lw, w, shared, indptr, indices, i, qa)
+                rk4_stage_vec(c, s, k, 4 * size, yb_c, yb_s, ya_c, ya_s, i * lanes + qa, sca, ssa, dt)
+                rk4_stage_vec(c, s, k, 4 * size, yb_c, yb_s, ya_c, ya_s, i * lanes + qb, scb, ssb, dt)
+            for i in range(n):
+                sca, ssa, scb, ssb = coupling_sums_vec(ya_c, ya_s, lw, w, shared, indptr, indices, i, qa)
+                rk4_final_vec(c, s, k, ya_c, ya_s, i * lanes + qa, sca, ssa, sixth)
+                rk4_final_vec(c, s, k, ya_c, ya_s, i * lanes + qb, scb, ssb, sixth)
+            # the velocity at the new state (stage 1 of the next step), R and dR/dt
+            d0a = d1a = d2a = d3a = d0b = d1b = d2b = d3b = vsplat(zero)
+            for i in range(n):
+                sca, ssa, scb, ssb = coupling_sums_vec(c, s, lw, w, shared, indptr, indices, i, qa)
+                o = i * lanes + qa
+                ci, si, dc, ds = velocity_vec(c, s, o, sca, ssa)
+                vstore(k, o, dc)
+                vstore(k, size + o, ds)
+                d0a = d0a + dc
+                d1a = d1a + ds
+                d2a = d2a + ci
+                d3a = d3a + si
+                o = i * lanes + qb
+                ci, si, dc, ds = velocity_vec(c, s, o, scb, ssb)
+                vstore(k, o, dc)
+                vstore(k, size + o, ds)
+                d0b = d0b + dc
+                d1b = d1b + ds
+                d2b = d2b + ci
+                d3b = d3b + si
+            vstore(r2, qa, d2a * d2a + d3a * d3a)
+            vstore(dr2, qa, 2.0 * (d2a * d0a + d3a * d1a))
+            vstore(r2, qb, d2b * d2b + d3b * d3b)
+            vstore(dr2, qb, 2.0 * (d2b * d0b + d3b * d1b))
+
+    rk4_step_vec = jit(rk4_step_vec)
+
     def hermite_crossing(r0, d0, r1, d1, dt, target):
         """Fraction ``x`` in (0, 1] of a step where the cubic Hermite interpolant of ``R``
         (values ``r0, r1``, time derivatives ``d0, d1``) first reaches ``target``
@@ -587,6 +733,7 @@ def make_kernels(jit, dtype=np.float64) -> Kernels:
         euler_step_vec=euler_step_vec,
         tangent_step_lanes=tangent_step_lanes,
         rk4_step_lanes=rk4_step_lanes,
+        rk4_step_vec=rk4_step_vec,
         lane_velocity=lane_velocity,
         hermite_crossing=hermite_crossing,
         sync_steps=sync_steps,

@@ -39,8 +39,7 @@ _sync_steps = _K.sync_steps
 _step_lanes = _K.euler_step_lanes
 _step_vec = _K.euler_step_vec
 _tangent_lanes = _K.tangent_step_lanes
-_rk4_lanes = _K.rk4_step_lanes
-_lane_velocity = _K.lane_velocity
+_rk4_vec = _K.rk4_step_vec
 _hermite = _K.hermite_crossing
 _renormalize = _K.renormalize
 
@@ -204,6 +203,7 @@ def _load_lane(
     lw,
     ci,
     si,
+    start,
     lane_r,
     lane_v,
     lane_t0,
@@ -224,7 +224,11 @@ def _load_lane(
     while qr < r_hi:
         r, v = qr, qv
         qr, qv = _next_item(qr, qv, r_hi, var_is_base)
-        if _start_state(seed, ks[r], ci, si, r2_target):
+        if start[0] != r:
+            # the realization's initial state, kept in (ci, si) for its variants that follow
+            start[0] = r
+            start[1] = _start_state(seed, ks[r], ci, si, r2_target)
+        if start[1]:
             if v < 0:
                 status0[r] = ALREADY_SYNCED
                 steps0[r] = 0
@@ -247,13 +251,30 @@ def _load_lane(
 
 
 @njit(inline="always")
-def _lane_initial(c, s, kv, dtot, acc, sum_c, sum_s, lw, indptr, indices, rk4, q, r2, dr2, u, dr2t):
-    """Order parameter (and, for RK4, stage-1 velocity) of a freshly loaded lane ``q``."""
+def _lane_initial(c, s, kv, lw, indptr, indices, rk4, q, r2, dr2, u, dr2t):
+    """Order parameter (and, for RK4, stage-1 velocity) of a freshly loaded lane ``q``: the
+    operations of ``lane_velocity`` for this lane only."""
     if rk4:
-        # other lanes' velocities are recomputed from their unchanged states: no change for them
-        _lane_velocity(c, s, kv[0], kv[1], dtot, acc, sum_c, sum_s, lw, indptr, indices)
-        r2[q] = dtot[2, q] ** 2 + dtot[3, q] ** 2
-        dr2[q] = 2.0 * (dtot[2, q] * dtot[0, q] + dtot[3, q] * dtot[1, q])
+        d0 = 0.0
+        d1 = 0.0
+        d2 = 0.0
+        d3 = 0.0
+        for i in range(c.shape[0]):
+            sc = 0.0
+            ss = 0.0
+            for p in range(indptr[i], indptr[i + 1]):
+                j = indices[p]
+                sc += lw[p, q] * c[j, q]
+                ss += lw[p, q] * s[j, q]
+            omega = c[i, q] * ss - s[i, q] * sc
+            kv[0, i, q] = -s[i, q] * omega
+            kv[1, i, q] = c[i, q] * omega
+            d0 += kv[0, i, q]
+            d1 += kv[1, i, q]
+            d2 += c[i, q]
+            d3 += s[i, q]
+        r2[q] = d2**2 + d3**2
+        dr2[q] = 2.0 * (d2 * d0 + d3 * d1)
     else:
         r2[q] = c[:, q].sum() ** 2 + s[:, q].sum() ** 2
     for e in range(u.shape[0]):
@@ -300,10 +321,11 @@ def _integrate_lanes(ks, graph, run, out, tangents, n_groups):
     n_var = var_w.shape[0]
     n_edges = edge_a.shape[0]
     tangent = n_edges > 0
-    # the Euler step with Taylor rotations runs on pairs of machine vectors of VEC lanes: the
-    # arrays are `width` lanes wide, lanes >= `lanes` stay empty (state (1, 0), weights 0)
+    # the Euler step with Taylor rotations and the RK4 step run on pairs of machine vectors of
+    # VEC lanes: the arrays are `width` lanes wide, lanes >= `lanes` stay empty (state (1, 0),
+    # weights 0)
     vec = taylor and not rk4 and not tangent
-    width = (lanes + 2 * VEC - 1) // (2 * VEC) * (2 * VEC) if vec else lanes
+    width = (lanes + 2 * VEC - 1) // (2 * VEC) * (2 * VEC) if vec or rk4 else lanes
     # every lane integrates the undamaged network: its weights can be broadcast
     shared = n_var == 0
     # a lane's step count is `t - lane_t0`; between events (a crossing, a renormalization or
@@ -329,11 +351,12 @@ def _integrate_lanes(ks, graph, run, out, tangents, n_groups):
         r2_prev = np.zeros(width)
         dr2 = np.zeros(width)
         dr2_prev = np.zeros(width)
-        # RK4 scratch: stage velocities kv[2 * stage + (0 for c, 1 for s)], stage state, sums
+        # RK4 scratch: stage velocities kv[2 * stage + (0 for c, 1 for s)], two stage states
         kv = np.zeros((8 if rk4 else 2, n, width))
         yc = np.empty((n, width))
         ys = np.empty((n, width))
-        dtot = np.zeros((4, width))
+        ybc = np.empty((n, width) if rk4 else (0, width))
+        ybs = np.empty((n, width) if rk4 else (0, width))
         # tangent scratch: u[e] = d theta / d beta_e, and d R / d beta_e now and one step back
         u = np.zeros((n_edges, n, width))
         du = np.empty((n, width))
@@ -346,6 +369,7 @@ def _integrate_lanes(ks, graph, run, out, tangents, n_groups):
         lane_t0 = np.zeros(width, dtype=np.int64)
         ci = np.empty(n)
         si = np.empty(n)
+        start = np.full(2, -1, dtype=np.int64)  # realization in (ci, si), synchronized at t = 0
         qr, qv = r_lo, -1
         active = 0
         t = 0
@@ -366,6 +390,7 @@ def _integrate_lanes(ks, graph, run, out, tangents, n_groups):
                 lw,
                 ci,
                 si,
+                start,
                 lane_r,
                 lane_v,
                 lane_t0,
@@ -379,9 +404,7 @@ def _integrate_lanes(ks, graph, run, out, tangents, n_groups):
             )
             active += filled
             if filled:
-                _lane_initial(
-                    c, s, kv, dtot, acc, sum_c, sum_s, lw, indptr, indices, rk4, q, r2, dr2, u, dr2t
-                )
+                _lane_initial(c, s, kv, lw, indptr, indices, rk4, q, r2, dr2, u, dr2t)
         next_event = t + min(renorm, max_steps)
         while active > 0:
             # the step writes r2 (dr2, dr2t) afresh for every lane: swap instead of copying
@@ -394,7 +417,7 @@ def _integrate_lanes(ks, graph, run, out, tangents, n_groups):
                 c, cn = cn, c
                 s, sn = sn, s
             elif rk4:
-                _rk4_lanes(c, s, kv, yc, ys, dtot, acc, sum_c, sum_s, lw, indptr, indices, dt, r2, dr2)
+                _rk4_vec(c, s, kv, yc, ys, ybc, ybs, lw, base_w, shared, indptr, indices, dt, r2, dr2)
             elif tangent:
                 _tangent_lanes(
                     c,
@@ -483,6 +506,7 @@ def _integrate_lanes(ks, graph, run, out, tangents, n_groups):
                     lw,
                     ci,
                     si,
+                    start,
                     lane_r,
                     lane_v,
                     lane_t0,
@@ -496,9 +520,7 @@ def _integrate_lanes(ks, graph, run, out, tangents, n_groups):
                 )
                 active += filled
                 if filled:
-                    _lane_initial(
-                        c, s, kv, dtot, acc, sum_c, sum_s, lw, indptr, indices, rk4, q, r2, dr2, u, dr2t
-                    )
+                    _lane_initial(c, s, kv, lw, indptr, indices, rk4, q, r2, dr2, u, dr2t)
         for r in range(r_lo, r_hi):
             # variants that leave W unchanged share the undamaged result
             for v in range(n_var):
