@@ -16,7 +16,8 @@ trajectory-step (one Euler step of one trajectory = one lane):
   (32 lanes), which decides the cache level those bytes come from;
 - time per trajectory-step of the fused kernel and of the previous lane kernel
   (``euler_step_lanes``: lane loops over runtime-width arrays), both measured here, one thread,
-  the kernel alone in a loop (no lane refill);
+  the kernel alone in a loop (no lane refill); and of the RK4 lane kernel ``rk4_step_vec``, in
+  ns and in fused Euler steps;
 - the limits: an FMA loop that reaches the core's peak (12 independent 8-wide accumulators,
   ``llvm.fma``; the assembly is checked for ``vfmadd...pd``), and the same loop with separate
   multiplications or additions (the throughput the kernel's mix can use); the kernel's bound is
@@ -59,6 +60,7 @@ DT = 0.01
 
 _step_vec = _K.euler_step_vec
 _step_lanes = _K.euler_step_lanes
+_step_rk4 = _K.rk4_step_vec
 
 
 @intrinsic
@@ -160,6 +162,12 @@ def _run_vec(c, s, cn, sn, lw, w, shared, indptr, indices, dt, r2, nsteps):
 
 
 @njit
+def _run_rk4(c, s, k, ya_c, ya_s, yb_c, yb_s, lw, w, shared, indptr, indices, dt, r2, dr2, nsteps):
+    for _ in range(nsteps):
+        _step_rk4(c, s, k, ya_c, ya_s, yb_c, yb_s, lw, w, shared, indptr, indices, dt, r2, dr2)
+
+
+@njit
 def _run_lanes(c, s, acc, sum_c, sum_s, tot_c, tot_s, lw, indptr, indices, dt, r2, nsteps):
     for _ in range(nsteps):
         _step_lanes(c, s, acc, sum_c, sum_s, tot_c, tot_s, lw, indptr, indices, dt, r2, True)
@@ -228,15 +236,17 @@ def state(indptr, indices, weights, rng):
     return n, nnz, np.cos(theta), np.sin(theta), lw
 
 
-def time_kernels(indptr, indices, weights, seconds: float) -> tuple[float, float, float]:
-    """ns per trajectory-step of the fused kernel (per-lane weights, shared weights) and of
-    the previous lane kernel, one thread, best of three."""
+def time_kernels(indptr, indices, weights, seconds: float) -> list[float]:
+    """ns per trajectory-step of the fused kernel (per-lane weights, shared weights), of the
+    previous lane kernel and of the RK4 lane kernel (per-lane weights), one thread, best of
+    three."""
     rng = np.random.default_rng(0)
     n, nnz, c0, s0, lw = state(indptr, indices, weights, rng)
     indptr = indptr.astype(np.int64)
     indices = indices.astype(np.int64)
     r2 = np.empty(LANES)
-    best = [np.inf, np.inf, np.inf]
+    best = [np.inf] * 4
+    k_rk4 = np.zeros((8, n, LANES))
 
     def run(k, nsteps):
         c, s = c0.copy(), s0.copy()
@@ -244,22 +254,26 @@ def time_kernels(indptr, indices, weights, seconds: float) -> tuple[float, float
         if k < 2:
             cn, sn = np.empty_like(c), np.empty_like(s)
             _run_vec(c, s, cn, sn, lw, weights, k == 1, indptr, indices, DT, r2, nsteps)
-        else:
+        elif k == 2:
             e = np.empty_like(c)
             _run_lanes(c, s, e, e.copy(), e.copy(), r2.copy(), r2.copy(), lw, indptr, indices, DT, r2, nsteps)
+        else:
+            e = np.empty_like(c)
+            y = (e, e.copy(), e.copy(), e.copy())
+            _run_rk4(c, s, k_rk4, *y, lw, weights, False, indptr, indices, DT, r2, r2.copy(), nsteps)
         return time.perf_counter() - t
 
-    for k in range(3):
+    for k in range(4):
         run(k, 2)
     nsteps = max(10, int(2e6 / (nnz + 3 * n)))
     for _ in range(3):
-        for k in range(3):
+        for k in range(4):
             sec = run(k, nsteps)
             while sec < seconds / 3:
                 nsteps *= 2
                 sec = run(k, nsteps)
             best[k] = min(best[k], sec / nsteps / LANES * 1e9)
-    return best[0], best[1], best[2]
+    return best
 
 
 def main() -> None:
@@ -283,9 +297,9 @@ def main() -> None:
     print(
         "| graph | N | nnz | flops (mul + add) | B from L1 (per-lane w / shared w) | working set, 32 lanes | "
         "bound ns | fused ns (shared w) | fraction of bound | fused GFLOP/s (of FMA peak) | previous ns | "
-        "speed-up |"
+        "speed-up | RK4 ns (Euler steps) |"
     )
-    print("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
+    print("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
     for label, g in graphs_to_bench(args.seed):
         indptr, indices, weights = csr(g)
         n, nnz = indptr.size - 1, indices.size
@@ -297,12 +311,13 @@ def main() -> None:
         b_shared = 16 * nnz + 32 * n + idx + 8 * nnz / 16
         ws = (4 * n * LANES + nnz * LANES) * 8 + 8 * (nnz + n)
         bound = max(muls / lim["mul"], adds / lim["add"]) * 1e9
-        t_vec, t_shared, t_old = time_kernels(indptr, indices, weights, args.seconds)
+        t_vec, t_shared, t_old, t_rk4 = time_kernels(indptr, indices, weights, args.seconds)
         gf = flops / t_vec
         print(
             f"| {label} | {n} | {nnz} | {flops} ({muls} + {adds}) | {b_lane:.0f} / {b_shared:.0f} | "
             f"{ws / 1024:.0f} KiB | {bound:.2f} | {t_vec:.2f} ({t_shared:.2f}) | {bound / t_vec:.0%} | "
-            f"{gf:.1f} ({gf / (lim['fma'] / 1e9):.0%}) | {t_old:.2f} | {t_old / t_vec:.2f}x |",
+            f"{gf:.1f} ({gf / (lim['fma'] / 1e9):.0%}) | {t_old:.2f} | {t_old / t_vec:.2f}x | "
+            f"{t_rk4:.1f} ({t_rk4 / t_vec:.1f}) |",
             flush=True,
         )
 
