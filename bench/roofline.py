@@ -15,7 +15,8 @@ trajectory-step (one Euler step of one trajectory = one lane):
   read and written (32 B), indices amortized over 16 lanes; and the working set of one thread
   (32 lanes), which decides the cache level those bytes come from;
 - time per trajectory-step of the fused kernel and of the previous lane kernel
-  (``euler_step_lanes``: lane loops over runtime-width arrays), both measured here, one thread,
+  (``euler_step_lanes``: lane loops over runtime-width arrays; it now shares the fused
+  kernel's division-free Taylor polynomial), both measured here, one thread,
   the kernel alone in a loop (no lane refill); and of the RK4 lane kernel ``rk4_step_vec``, in
   ns and in fused Euler steps;
 - the limits: an FMA loop that reaches the core's peak (12 independent 8-wide accumulators,
