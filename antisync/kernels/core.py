@@ -389,35 +389,25 @@ def make_kernels(jit, dtype=np.float64) -> Kernels:
 
     rotate_vec = jit(rotate_vec)
 
-    def coupling_sums_vec(c, s, lw, w, shared, indptr, indices, i, qa):
-        """``sum_j w_ij c_j``, ``sum_j w_ij s_j`` of node ``i`` for the lane vectors at ``qa`` and
-        ``qa + VEC``, accumulated in registers in the order of ``i``'s CSR row."""
+    def edge_vec(c, s, lw, w, shared, indices, p, qa, sca, ssa, scb, ssb):
+        """Add CSR entry ``p``'s ``w c_j``, ``w s_j`` to the coupling sums of the lane vectors at
+        ``qa`` and ``qa + VEC``. (Loop-free: an inlined helper with a loop over array
+        arguments leaves numba's reference counting calls in the loop around it.)"""
         lanes = c.shape[1]
-        qb = qa + VEC
-        sca = vsplat(zero)
-        ssa = vsplat(zero)
-        scb = vsplat(zero)
-        ssb = vsplat(zero)
+        o = indices[p] * lanes
         if shared:
-            for p in range(indptr[i], indptr[i + 1]):
-                o = indices[p] * lanes
-                wa = vsplat(w[p])
-                sca = sca + wa * vload(c, o + qa)
-                ssa = ssa + wa * vload(s, o + qa)
-                scb = scb + wa * vload(c, o + qb)
-                ssb = ssb + wa * vload(s, o + qb)
+            wa = vsplat(w[p])
+            wb = wa
         else:
-            for p in range(indptr[i], indptr[i + 1]):
-                o = indices[p] * lanes
-                wa = vload(lw, p * lanes + qa)
-                wb = vload(lw, p * lanes + qb)
-                sca = sca + wa * vload(c, o + qa)
-                ssa = ssa + wa * vload(s, o + qa)
-                scb = scb + wb * vload(c, o + qb)
-                ssb = ssb + wb * vload(s, o + qb)
+            wa = vload(lw, p * lanes + qa)
+            wb = vload(lw, p * lanes + qa + VEC)
+        sca = sca + wa * vload(c, o + qa)
+        ssa = ssa + wa * vload(s, o + qa)
+        scb = scb + wb * vload(c, o + qa + VEC)
+        ssb = ssb + wb * vload(s, o + qa + VEC)
         return sca, ssa, scb, ssb
 
-    coupling_sums_vec = jit(coupling_sums_vec)
+    edge_vec = jit(edge_vec)
 
     def euler_step_vec(c, s, cn, sn, lw, w, shared, indptr, indices, dt, r2):
         """``euler_step_lanes`` with ``taylor=True`` on machine vectors, fused.
@@ -438,7 +428,9 @@ def make_kernels(jit, dtype=np.float64) -> Kernels:
             tcb = vsplat(zero)
             tsb = vsplat(zero)
             for i in range(n):
-                sca, ssa, scb, ssb = coupling_sums_vec(c, s, lw, w, shared, indptr, indices, i, qa)
+                sca, ssa, scb, ssb = vsplat(zero), vsplat(zero), vsplat(zero), vsplat(zero)
+                for p in range(indptr[i], indptr[i + 1]):
+                    sca, ssa, scb, ssb = edge_vec(c, s, lw, w, shared, indices, p, qa, sca, ssa, scb, ssb)
                 xa, ya = rotate_vec(c, s, cn, sn, i * lanes + qa, sca, ssa, dt)
                 xb, yb = rotate_vec(c, s, cn, sn, i * lanes + qb, scb, ssb, dt)
                 tca = tca + xa
@@ -629,25 +621,47 @@ def make_kernels(jit, dtype=np.float64) -> Kernels:
         for qa in range(0, lanes, 2 * VEC):
             qb = qa + VEC
             for i in range(n):
-                for o in (i * lanes + qa, i * lanes + qb):
+                for v in range(2):
+                    o = i * lanes + qa + v * VEC
                     vstore(ya_c, o, vload(c, o) + hh * vload(k, o))
                     vstore(ya_s, o, vload(s, o) + hh * vload(k, size + o))
             for i in range(n):
-                sca, ssa, scb, ssb = coupling_sums_vec(ya_c, ya_s, lw, w, shared, indptr, indices, i, qa)
+                sca, ssa, scb, ssb = vsplat(zero), vsplat(zero), vsplat(zero), vsplat(zero)
+                for p in range(indptr[i], indptr[i + 1]):
+                    sca, ssa, scb, ssb = edge_vec(
+                        ya_c, ya_s, lw, w, shared, indices, p, qa, sca, ssa, scb, ssb
+                    )
                 rk4_stage_vec(c, s, k, 2 * size, ya_c, ya_s, yb_c, yb_s, i * lanes + qa, sca, ssa, hh)
                 rk4_stage_vec(c, s, k, 2 * size, ya_c, ya_s, yb_c, yb_s, i * lanes + qb, scb, ssb, hh)
             for i in range(n):
-                sca, ssa, scb, ssb = coupling_sums_vec(yb_c, yb_s, lw, w, shared, indptr, indices, i, qa)
+                sca, ssa, scb, ssb = vsplat(zero), vsplat(zero), vsplat(zero), vsplat(zero)
+                for p in range(indptr[i], indptr[i + 1]):
+                    sca, ssa, scb, ssb = edge_vec(
+                        yb_c, yb_s, lw, w, shared, indices, p, qa, sca, ssa, scb, ssb
+                    )
                 rk4_stage_vec(c, s, k, 4 * size, yb_c, yb_s, ya_c, ya_s, i * lanes + qa, sca, ssa, dt)
                 rk4_stage_vec(c, s, k, 4 * size, yb_c, yb_s, ya_c, ya_s, i * lanes + qb, scb, ssb, dt)
             for i in range(n):
-                sca, ssa, scb, ssb = coupling_sums_vec(ya_c, ya_s, lw, w, shared, indptr, indices, i, qa)
+                sca, ssa, scb, ssb = vsplat(zero), vsplat(zero), vsplat(zero), vsplat(zero)
+                for p in range(indptr[i], indptr[i + 1]):
+                    sca, ssa, scb, ssb = edge_vec(
+                        ya_c, ya_s, lw, w, shared, indices, p, qa, sca, ssa, scb, ssb
+                    )
                 rk4_final_vec(c, s, k, ya_c, ya_s, i * lanes + qa, sca, ssa, sixth)
                 rk4_final_vec(c, s, k, ya_c, ya_s, i * lanes + qb, scb, ssb, sixth)
             # the velocity at the new state (stage 1 of the next step), R and dR/dt
-            d0a = d1a = d2a = d3a = d0b = d1b = d2b = d3b = vsplat(zero)
+            d0a = vsplat(zero)
+            d1a = vsplat(zero)
+            d2a = vsplat(zero)
+            d3a = vsplat(zero)
+            d0b = vsplat(zero)
+            d1b = vsplat(zero)
+            d2b = vsplat(zero)
+            d3b = vsplat(zero)
             for i in range(n):
-                sca, ssa, scb, ssb = coupling_sums_vec(c, s, lw, w, shared, indptr, indices, i, qa)
+                sca, ssa, scb, ssb = vsplat(zero), vsplat(zero), vsplat(zero), vsplat(zero)
+                for p in range(indptr[i], indptr[i + 1]):
+                    sca, ssa, scb, ssb = edge_vec(c, s, lw, w, shared, indices, p, qa, sca, ssa, scb, ssb)
                 o = i * lanes + qa
                 ci, si, dc, ds = velocity_vec(c, s, o, sca, ssa)
                 vstore(k, o, dc)
