@@ -9,8 +9,12 @@ Two drivers give identical results, bit for bit:
 - ``_integrate_batch``: one trajectory at a time per thread (the plain reference path,
   the same loop structure as the CUDA kernel);
 - ``_integrate_lanes`` (default): each thread steps ``LANES`` trajectories together in a
-  ``[node, lane]`` layout so the compiler vectorizes across lanes; a finished lane is refilled
-  with the next (realization, variant) item of the thread's queue.
+  ``[node, lane]`` layout; a finished lane is refilled with the next (realization, variant)
+  item of the thread's queue. The Euler step with Taylor rotations and the RK4 step run on
+  explicit machine vectors (``euler_step_vec``, ``rk4_step_vec`` of :mod:`.core`, the lane
+  count rounded up to a multiple of ``2 VEC``); the others on the lane loops of :mod:`.core`.
+  The driver keeps one step clock and looks at the lanes only when one crosses the
+  threshold, must be renormalized or reaches the step cap.
 
 With tangents switched on, the lane driver integrates the undamaged network with forward
 sensitivities for every damaged edge at once (the tangent of the Euler step, exact for the
