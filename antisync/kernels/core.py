@@ -25,10 +25,15 @@ trajectories (lollipop(6,3), dt = 0.001). float32 therefore renormalizes every
 from __future__ import annotations
 
 import math
+import operator
 from collections.abc import Callable
 from typing import NamedTuple
 
 import numpy as np
+from llvmlite import ir
+from numba import types
+from numba.core import cgutils
+from numba.extending import intrinsic, models, overload, register_model
 
 from antisync.status import ALREADY_SYNCED, NOT_SYNCED, SYNCED
 
@@ -38,10 +43,16 @@ __all__ = [
     "RENORM_EVERY",
     "RENORM_EVERY_FLOAT32",
     "TAYLOR_MAX_ANGLE",
+    "VEC",
+    "F64Vec",
     "Kernels",
     "ModelKernels",
     "make_kernels",
     "make_model_kernels",
+    "vload",
+    "vsplat",
+    "vsqrt",
+    "vstore",
 ]
 
 RENORM_EVERY = 1024
@@ -49,6 +60,158 @@ RENORM_EVERY_FLOAT32 = 64
 
 
 TAYLOR_MAX_ANGLE = 0.05
+
+
+# --- CPU lane vectors -------------------------------------------------------------------
+# The lane kernels step VEC trajectories per machine vector. Written as plain loops over the
+# lanes, LLVM cannot prove that the state, the weights and the accumulators do not overlap, so
+# it either keeps the accumulators in memory behind runtime overlap checks on every edge or
+# (with the lane loop unrolled) leaves them scalar (bench/roofline.py, bench/RESULTS.md issue
+# 17). ``F64Vec`` is an LLVM ``<VEC x double>`` value: ``vload``/``vstore`` move VEC
+# consecutive doubles of a C-contiguous array, ``+ - *`` (with vectors or scalars) are
+# lane-wise IEEE operations, so every lane performs exactly the scalar operations of the
+# one-trajectory step, in the same order (no fused multiply-add, no reassociation).
+
+VEC = 8
+"""Doubles per lane vector (one AVX-512 register, two AVX2 registers)."""
+
+_VEC_IR = ir.VectorType(ir.DoubleType(), VEC)
+
+
+class F64Vec(types.Type):
+    """Numba type of ``VEC`` float64 lanes held as one LLVM vector value."""
+
+    def __init__(self):
+        super().__init__(name=f"F64Vec{VEC}")
+
+
+f64vec = F64Vec()
+
+
+@register_model(F64Vec)
+class _F64VecModel(models.PrimitiveModel):
+    def __init__(self, dmm, fe_type):
+        super().__init__(dmm, fe_type, _VEC_IR)
+
+
+def _vec_pointer(context, builder, arrty, arr, offset):
+    data = context.make_array(arrty)(context, builder, arr).data
+    return builder.bitcast(builder.gep(data, [offset]), _VEC_IR.as_pointer())
+
+
+def _is_f64_c_array(arr):
+    return isinstance(arr, types.Array) and arr.dtype == types.float64 and arr.layout == "C"
+
+
+@intrinsic
+def vload(typingctx, arr, offset):
+    """``arr.flat[offset : offset + VEC]`` as a lane vector (no bounds check)."""
+    if not _is_f64_c_array(arr) or not isinstance(offset, types.Integer):
+        return None
+
+    def codegen(context, builder, sig, args):
+        return builder.load(_vec_pointer(context, builder, sig.args[0], args[0], args[1]), align=8)
+
+    return f64vec(arr, offset), codegen
+
+
+@intrinsic
+def vstore(typingctx, arr, offset, value):
+    """``arr.flat[offset : offset + VEC] = value`` (no bounds check)."""
+    if not _is_f64_c_array(arr) or not isinstance(offset, types.Integer) or value != f64vec:
+        return None
+
+    def codegen(context, builder, sig, args):
+        builder.store(args[2], _vec_pointer(context, builder, sig.args[0], args[0], args[1]), align=8)
+        return context.get_dummy_value()
+
+    return types.none(arr, offset, value), codegen
+
+
+@intrinsic
+def vsplat(typingctx, x):
+    """The scalar ``x`` in every lane."""
+    if not isinstance(x, (types.Float, types.Integer)):
+        return None
+
+    def codegen(context, builder, sig, args):
+        x = context.cast(builder, args[0], sig.args[0], types.float64)
+        one = builder.insert_element(ir.Constant(_VEC_IR, ir.Undefined), x, ir.Constant(ir.IntType(32), 0))
+        mask = ir.Constant(ir.VectorType(ir.IntType(32), VEC), [0] * VEC)
+        return builder.shuffle_vector(one, ir.Constant(_VEC_IR, ir.Undefined), mask)
+
+    return f64vec(x), codegen
+
+
+def _vec_binop(instruction):
+    @intrinsic
+    def binop(typingctx, a, b):
+        if a != f64vec or b != f64vec:
+            return None
+
+        def codegen(context, builder, sig, args):
+            return getattr(builder, instruction)(args[0], args[1])
+
+        return f64vec(a, b), codegen
+
+    return binop
+
+
+def _overload_vec_operator(op, binop):
+    @overload(op)
+    def _vec_operator(a, b):
+        scalar = (types.Float, types.Integer)
+        if a == f64vec and b == f64vec:
+            return lambda a, b: binop(a, b)
+        if a == f64vec and isinstance(b, scalar):
+            return lambda a, b: binop(a, vsplat(b))
+        if isinstance(a, scalar) and b == f64vec:
+            return lambda a, b: binop(vsplat(a), b)
+        return None
+
+
+for _op, _instruction in (
+    (operator.add, "fadd"),
+    (operator.sub, "fsub"),
+    (operator.mul, "fmul"),
+    (operator.truediv, "fdiv"),
+    (operator.iadd, "fadd"),
+    (operator.isub, "fsub"),
+    (operator.imul, "fmul"),
+):
+    _overload_vec_operator(_op, _vec_binop(_instruction))
+
+
+@intrinsic
+def _vneg(typingctx, a):
+    if a != f64vec:
+        return None
+
+    def codegen(context, builder, sig, args):
+        return builder.fneg(args[0])
+
+    return f64vec(a), codegen
+
+
+@overload(operator.neg)
+def _vec_neg(a):
+    if a == f64vec:
+        return lambda a: _vneg(a)
+    return None
+
+
+@intrinsic
+def vsqrt(typingctx, a):
+    """Lane-wise square root (correctly rounded, as ``math.sqrt``)."""
+    if a != f64vec:
+        return None
+
+    def codegen(context, builder, sig, args):
+        fnty = ir.FunctionType(_VEC_IR, [_VEC_IR])
+        sqrt = cgutils.get_or_insert_function(builder.module, fnty, f"llvm.sqrt.v{VEC}f64")
+        return builder.call(sqrt, args)
+
+    return f64vec(a), codegen
 
 
 class Kernels(NamedTuple):
@@ -61,8 +224,10 @@ class Kernels(NamedTuple):
     rotation: Callable
     euler_step: Callable
     euler_step_lanes: Callable
+    euler_step_vec: Callable
     tangent_step_lanes: Callable
     rk4_step_lanes: Callable
+    rk4_step_vec: Callable
     lane_velocity: Callable
     hermite_crossing: Callable
     sync_steps: Callable
@@ -100,6 +265,9 @@ def make_kernels(jit, dtype=np.float64) -> Kernels:
         lane loop innermost so the compiler vectorizes across lanes; ``taylor=True`` promises
         ``|alpha| <= 0.05`` for every node and lane (then results equal ``euler_step``'s bit
         for bit, since the same operations run in the same order);
+        ``euler_step_vec(c, s, cn, sn, lw, w, shared, indptr, indices, dt, r2)`` is that step
+        for ``taylor=True`` on machine vectors (:data:`VEC` lanes, the lane count a multiple of
+        ``2 VEC``), fused, the new state written to ``(cn, sn)``; the same bits (CPU only);
         ``tangent_step_lanes(...)`` does the same step and its forward sensitivities;
         ``renormalize(c, s)`` projects every ``(c_i, s_i)`` back to the unit circle (the lane
         drivers pass one lane's column, ``renormalize(c[:, q], s[:, q])``).
@@ -111,18 +279,19 @@ def make_kernels(jit, dtype=np.float64) -> Kernels:
     half = dtype(0.5)
     c4 = dtype(1.0 / 24.0)
     c6 = dtype(1.0 / 720.0)
-    c8 = dtype(40320.0)
+    c8 = dtype(1.0 / 40320.0)
     s3 = dtype(1.0 / 6.0)
     s5 = dtype(1.0 / 120.0)
     s7 = dtype(1.0 / 5040.0)
-    s9 = dtype(362880.0)
+    s9 = dtype(1.0 / 362880.0)
     max_angle = dtype(TAYLOR_MAX_ANGLE)
     renorm_every = RENORM_EVERY if dtype == np.float64 else RENORM_EVERY_FLOAT32
 
     def taylor_rotation(a):
         a2 = a * a
-        ca = one - a2 * (half - a2 * (c4 - a2 * (c6 - a2 / c8)))
-        sa = a * (one - a2 * (s3 - a2 * (s5 - a2 * (s7 - a2 / s9))))
+        # reciprocal factorials multiply (a division costs ~10 multiplications' throughput)
+        ca = one - a2 * (half - a2 * (c4 - a2 * (c6 - a2 * c8)))
+        sa = a * (one - a2 * (s3 - a2 * (s5 - a2 * (s7 - a2 * s9))))
         return ca, sa
 
     taylor_rotation = jit(taylor_rotation)
@@ -206,6 +375,72 @@ def make_kernels(jit, dtype=np.float64) -> Kernels:
         lane_rotate(c, s, acc, tot_c, tot_s, r2, taylor)
 
     euler_step_lanes = jit(euler_step_lanes)
+
+    def rotate_vec(c, s, cn, sn, o, sc, ss, dt):
+        """Rotate the lane vector ``(c, s)[o : o + VEC]`` by ``dt (c ss - s sc)`` into ``(cn, sn)``."""
+        ci = vload(c, o)
+        si = vload(s, o)
+        ca, sa = taylor_rotation(dt * (ci * ss - si * sc))
+        x = ci * ca - si * sa
+        y = si * ca + ci * sa
+        vstore(cn, o, x)
+        vstore(sn, o, y)
+        return x, y
+
+    rotate_vec = jit(rotate_vec)
+
+    def edge_vec(c, s, lw, w, shared, indices, p, qa, sca, ssa, scb, ssb):
+        """Add CSR entry ``p``'s ``w c_j``, ``w s_j`` to the coupling sums of the lane vectors at
+        ``qa`` and ``qa + VEC``. (Loop-free: an inlined helper with a loop over array
+        arguments leaves numba's reference counting calls in the loop around it.)"""
+        lanes = c.shape[1]
+        o = indices[p] * lanes
+        if shared:
+            wa = vsplat(w[p])
+            wb = wa
+        else:
+            wa = vload(lw, p * lanes + qa)
+            wb = vload(lw, p * lanes + qa + VEC)
+        sca = sca + wa * vload(c, o + qa)
+        ssa = ssa + wa * vload(s, o + qa)
+        scb = scb + wb * vload(c, o + qa + VEC)
+        ssb = ssb + wb * vload(s, o + qa + VEC)
+        return sca, ssa, scb, ssb
+
+    edge_vec = jit(edge_vec)
+
+    def euler_step_vec(c, s, cn, sn, lw, w, shared, indptr, indices, dt, r2):
+        """``euler_step_lanes`` with ``taylor=True`` on machine vectors, fused.
+
+        The lane count ``c.shape[1]`` must be a multiple of ``2 VEC``: two vectors of
+        :data:`VEC` lanes are stepped together (independent work for the out-of-order core).
+        For each node their coupling sums stay in registers over the node's edges and the
+        rotated state goes to ``(cn, sn)`` (the caller swaps the buffers), so no sum, angle or
+        running total is stored. ``shared=True`` promises every lane has the weights ``w``
+        (CSR, 1-D), which are then broadcast instead of loading ``lw[p, lane]``. Per lane the
+        operations and their order are those of ``euler_step``: the same bits.
+        """
+        n, lanes = c.shape
+        for qa in range(0, lanes, 2 * VEC):
+            qb = qa + VEC
+            tca = vsplat(zero)
+            tsa = vsplat(zero)
+            tcb = vsplat(zero)
+            tsb = vsplat(zero)
+            for i in range(n):
+                sca, ssa, scb, ssb = vsplat(zero), vsplat(zero), vsplat(zero), vsplat(zero)
+                for p in range(indptr[i], indptr[i + 1]):
+                    sca, ssa, scb, ssb = edge_vec(c, s, lw, w, shared, indices, p, qa, sca, ssa, scb, ssb)
+                xa, ya = rotate_vec(c, s, cn, sn, i * lanes + qa, sca, ssa, dt)
+                xb, yb = rotate_vec(c, s, cn, sn, i * lanes + qb, scb, ssb, dt)
+                tca = tca + xa
+                tsa = tsa + ya
+                tcb = tcb + xb
+                tsb = tsb + yb
+            vstore(r2, qa, tca * tca + tsa * tsa)
+            vstore(r2, qb, tcb * tcb + tsb * tsb)
+
+    euler_step_vec = jit(euler_step_vec)
 
     def tangent_step_lanes(
         c,
@@ -328,6 +563,128 @@ def make_kernels(jit, dtype=np.float64) -> Kernels:
 
     rk4_step_lanes = jit(rk4_step_lanes)
 
+    def velocity_vec(yc, ys, o, sc, ss):
+        """``(c, s, dc, ds)`` with ``(dc, ds) = (-s omega, c omega)`` for the lane vector at ``o``
+        of the state ``(yc, ys)`` with coupling sums ``sc, ss`` (as ``lane_velocity``)."""
+        c = vload(yc, o)
+        s = vload(ys, o)
+        omega = c * ss - s * sc
+        return c, s, -s * omega, c * omega
+
+    velocity_vec = jit(velocity_vec)
+
+    def rk4_stage_vec(c, s, k, kc, src_c, src_s, dst_c, dst_s, o, sc, ss, h):
+        """One lane vector of an inner RK4 stage: the velocity at ``src`` into ``k`` (flat offset
+        ``kc`` of the ``dc`` row, the ``ds`` row one state further) and ``dst = (c, s) + h k``."""
+        size = c.size
+        _, _, dc, ds = velocity_vec(src_c, src_s, o, sc, ss)
+        vstore(k, kc + o, dc)
+        vstore(k, kc + size + o, ds)
+        vstore(dst_c, o, vload(c, o) + h * dc)
+        vstore(dst_s, o, vload(s, o) + h * ds)
+
+    rk4_stage_vec = jit(rk4_stage_vec)
+
+    def rk4_final_vec(c, s, k, ya_c, ya_s, o, sc, ss, sixth):
+        """One lane vector of the last RK4 stage, the update and the projection to the circle."""
+        size = c.size
+        _, _, dc, ds = velocity_vec(ya_c, ya_s, o, sc, ss)
+        vstore(k, 6 * size + o, dc)
+        vstore(k, 7 * size + o, ds)
+        two = vsplat(2.0)
+        cn = vload(c, o) + sixth * (
+            vload(k, o) + two * vload(k, 2 * size + o) + two * vload(k, 4 * size + o) + dc
+        )
+        sn = vload(s, o) + sixth * (
+            vload(k, size + o) + two * vload(k, 3 * size + o) + two * vload(k, 5 * size + o) + ds
+        )
+        inv = 1.0 / vsqrt(cn * cn + sn * sn)
+        vstore(c, o, cn * inv)
+        vstore(s, o, sn * inv)
+
+    rk4_final_vec = jit(rk4_final_vec)
+
+    def rk4_step_vec(c, s, k, ya_c, ya_s, yb_c, yb_s, lw, w, shared, indptr, indices, dt, r2, dr2):
+        """``rk4_step_lanes`` on machine vectors (the lane count a multiple of ``2 VEC``), the same
+        bits. ``k`` as there (``k[0], k[1]`` the velocity at the state on entry and on exit);
+        ``ya``, ``yb`` hold the stage states in turn. ``w``, ``shared`` as in ``euler_step_vec``.
+
+        Every block of ``2 VEC`` lanes runs its whole step before the next block, and each
+        pass over the nodes fuses what the stage needs per node: the velocity with the next
+        stage's state, the last stage's velocity with the RK4 update and the projection to the
+        unit circle, the new velocity with ``R`` and ``dR/dt``.
+        """
+        n, lanes = c.shape
+        hh = 0.5 * dt
+        sixth = dt / 6.0
+        size = n * lanes
+        for qa in range(0, lanes, 2 * VEC):
+            qb = qa + VEC
+            for i in range(n):
+                for v in range(2):
+                    o = i * lanes + qa + v * VEC
+                    vstore(ya_c, o, vload(c, o) + hh * vload(k, o))
+                    vstore(ya_s, o, vload(s, o) + hh * vload(k, size + o))
+            for i in range(n):
+                sca, ssa, scb, ssb = vsplat(zero), vsplat(zero), vsplat(zero), vsplat(zero)
+                for p in range(indptr[i], indptr[i + 1]):
+                    sca, ssa, scb, ssb = edge_vec(
+                        ya_c, ya_s, lw, w, shared, indices, p, qa, sca, ssa, scb, ssb
+                    )
+                rk4_stage_vec(c, s, k, 2 * size, ya_c, ya_s, yb_c, yb_s, i * lanes + qa, sca, ssa, hh)
+                rk4_stage_vec(c, s, k, 2 * size, ya_c, ya_s, yb_c, yb_s, i * lanes + qb, scb, ssb, hh)
+            for i in range(n):
+                sca, ssa, scb, ssb = vsplat(zero), vsplat(zero), vsplat(zero), vsplat(zero)
+                for p in range(indptr[i], indptr[i + 1]):
+                    sca, ssa, scb, ssb = edge_vec(
+                        yb_c, yb_s, lw, w, shared, indices, p, qa, sca, ssa, scb, ssb
+                    )
+                rk4_stage_vec(c, s, k, 4 * size, yb_c, yb_s, ya_c, ya_s, i * lanes + qa, sca, ssa, dt)
+                rk4_stage_vec(c, s, k, 4 * size, yb_c, yb_s, ya_c, ya_s, i * lanes + qb, scb, ssb, dt)
+            for i in range(n):
+                sca, ssa, scb, ssb = vsplat(zero), vsplat(zero), vsplat(zero), vsplat(zero)
+                for p in range(indptr[i], indptr[i + 1]):
+                    sca, ssa, scb, ssb = edge_vec(
+                        ya_c, ya_s, lw, w, shared, indices, p, qa, sca, ssa, scb, ssb
+                    )
+                rk4_final_vec(c, s, k, ya_c, ya_s, i * lanes + qa, sca, ssa, sixth)
+                rk4_final_vec(c, s, k, ya_c, ya_s, i * lanes + qb, scb, ssb, sixth)
+            # the velocity at the new state (stage 1 of the next step), R and dR/dt
+            d0a = vsplat(zero)
+            d1a = vsplat(zero)
+            d2a = vsplat(zero)
+            d3a = vsplat(zero)
+            d0b = vsplat(zero)
+            d1b = vsplat(zero)
+            d2b = vsplat(zero)
+            d3b = vsplat(zero)
+            for i in range(n):
+                sca, ssa, scb, ssb = vsplat(zero), vsplat(zero), vsplat(zero), vsplat(zero)
+                for p in range(indptr[i], indptr[i + 1]):
+                    sca, ssa, scb, ssb = edge_vec(c, s, lw, w, shared, indices, p, qa, sca, ssa, scb, ssb)
+                o = i * lanes + qa
+                ci, si, dc, ds = velocity_vec(c, s, o, sca, ssa)
+                vstore(k, o, dc)
+                vstore(k, size + o, ds)
+                d0a = d0a + dc
+                d1a = d1a + ds
+                d2a = d2a + ci
+                d3a = d3a + si
+                o = i * lanes + qb
+                ci, si, dc, ds = velocity_vec(c, s, o, scb, ssb)
+                vstore(k, o, dc)
+                vstore(k, size + o, ds)
+                d0b = d0b + dc
+                d1b = d1b + ds
+                d2b = d2b + ci
+                d3b = d3b + si
+            vstore(r2, qa, d2a * d2a + d3a * d3a)
+            vstore(dr2, qa, 2.0 * (d2a * d0a + d3a * d1a))
+            vstore(r2, qb, d2b * d2b + d3b * d3b)
+            vstore(dr2, qb, 2.0 * (d2b * d0b + d3b * d1b))
+
+    rk4_step_vec = jit(rk4_step_vec)
+
     def hermite_crossing(r0, d0, r1, d1, dt, target):
         """Fraction ``x`` in (0, 1] of a step where the cubic Hermite interpolant of ``R``
         (values ``r0, r1``, time derivatives ``d0, d1``) first reaches ``target``
@@ -387,8 +744,10 @@ def make_kernels(jit, dtype=np.float64) -> Kernels:
         rotation=rotation,
         euler_step=euler_step,
         euler_step_lanes=euler_step_lanes,
+        euler_step_vec=euler_step_vec,
         tangent_step_lanes=tangent_step_lanes,
         rk4_step_lanes=rk4_step_lanes,
+        rk4_step_vec=rk4_step_vec,
         lane_velocity=lane_velocity,
         hermite_crossing=hermite_crossing,
         sync_steps=sync_steps,

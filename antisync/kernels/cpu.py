@@ -9,8 +9,12 @@ Two drivers give identical results, bit for bit:
 - ``_integrate_batch``: one trajectory at a time per thread (the plain reference path,
   the same loop structure as the CUDA kernel);
 - ``_integrate_lanes`` (default): each thread steps ``LANES`` trajectories together in a
-  ``[node, lane]`` layout so the compiler vectorizes across lanes; a finished lane is refilled
-  with the next (realization, variant) item of the thread's queue.
+  ``[node, lane]`` layout; a finished lane is refilled with the next (realization, variant)
+  item of the thread's queue. The Euler step with Taylor rotations and the RK4 step run on
+  explicit machine vectors (``euler_step_vec``, ``rk4_step_vec`` of :mod:`.core`, the lane
+  count rounded up to a multiple of ``2 VEC``); the others on the lane loops of :mod:`.core`.
+  The driver keeps one step clock and looks at the lanes only when one crosses the
+  threshold, must be renormalized or reaches the step cap.
 
 With tangents switched on, the lane driver integrates the undamaged network with forward
 sensitivities for every damaged edge at once (the tangent of the Euler step, exact for the
@@ -27,7 +31,7 @@ import numpy as np
 from numba import njit, prange
 
 from antisync import _numba_cache  # noqa: F401 -- before any cache=True function (see there)
-from antisync.kernels.core import RENORM_EVERY, TAYLOR_MAX_ANGLE, make_kernels
+from antisync.kernels.core import RENORM_EVERY, TAYLOR_MAX_ANGLE, VEC, make_kernels
 from antisync.phases import phase
 from antisync.status import ALREADY_SYNCED, NOT_SYNCED, SYNCED
 from antisync.types import Integrator
@@ -37,9 +41,9 @@ __all__ = ["LANES", "PathwiseResult", "SimResult", "simulate", "simulate_pathwis
 _K = make_kernels(lambda f: njit(f, inline="always", cache=True))
 _sync_steps = _K.sync_steps
 _step_lanes = _K.euler_step_lanes
+_step_vec = _K.euler_step_vec
 _tangent_lanes = _K.tangent_step_lanes
-_rk4_lanes = _K.rk4_step_lanes
-_lane_velocity = _K.lane_velocity
+_rk4_vec = _K.rk4_step_vec
 _hermite = _K.hermite_crossing
 _renormalize = _K.renormalize
 
@@ -203,9 +207,11 @@ def _load_lane(
     lw,
     ci,
     si,
+    start,
     lane_r,
     lane_v,
-    lane_k,
+    lane_t0,
+    t,
     status0,
     steps0,
     frac0,
@@ -222,7 +228,11 @@ def _load_lane(
     while qr < r_hi:
         r, v = qr, qv
         qr, qv = _next_item(qr, qv, r_hi, var_is_base)
-        if _start_state(seed, ks[r], ci, si, r2_target):
+        if start[0] != r:
+            # the realization's initial state, kept in (ci, si) for its variants that follow
+            start[0] = r
+            start[1] = _start_state(seed, ks[r], ci, si, r2_target)
+        if start[1]:
             if v < 0:
                 status0[r] = ALREADY_SYNCED
                 steps0[r] = 0
@@ -239,19 +249,36 @@ def _load_lane(
             lw[p, q] = base_w[p] if v < 0 else var_w[v, p]
         lane_r[q] = r
         lane_v[q] = v
-        lane_k[q] = 0
+        lane_t0[q] = t
         return qr, qv, 1
     return qr, qv, 0
 
 
 @njit(inline="always")
-def _lane_initial(c, s, kv, dtot, acc, sum_c, sum_s, lw, indptr, indices, rk4, q, r2, dr2, u, dr2t):
-    """Order parameter (and, for RK4, stage-1 velocity) of a freshly loaded lane ``q``."""
+def _lane_initial(c, s, kv, lw, indptr, indices, rk4, q, r2, dr2, u, dr2t):
+    """Order parameter (and, for RK4, stage-1 velocity) of a freshly loaded lane ``q``: the
+    operations of ``lane_velocity`` for this lane only."""
     if rk4:
-        # other lanes' velocities are recomputed from their unchanged states: no change for them
-        _lane_velocity(c, s, kv[0], kv[1], dtot, acc, sum_c, sum_s, lw, indptr, indices)
-        r2[q] = dtot[2, q] ** 2 + dtot[3, q] ** 2
-        dr2[q] = 2.0 * (dtot[2, q] * dtot[0, q] + dtot[3, q] * dtot[1, q])
+        d0 = 0.0
+        d1 = 0.0
+        d2 = 0.0
+        d3 = 0.0
+        for i in range(c.shape[0]):
+            sc = 0.0
+            ss = 0.0
+            for p in range(indptr[i], indptr[i + 1]):
+                j = indices[p]
+                sc += lw[p, q] * c[j, q]
+                ss += lw[p, q] * s[j, q]
+            omega = c[i, q] * ss - s[i, q] * sc
+            kv[0, i, q] = -s[i, q] * omega
+            kv[1, i, q] = c[i, q] * omega
+            d0 += kv[0, i, q]
+            d1 += kv[1, i, q]
+            d2 += c[i, q]
+            d3 += s[i, q]
+        r2[q] = d2**2 + d3**2
+        dr2[q] = 2.0 * (d2 * d0 + d3 * d1)
     else:
         r2[q] = c[:, q].sum() ** 2 + s[:, q].sum() ** 2
     for e in range(u.shape[0]):
@@ -298,43 +325,58 @@ def _integrate_lanes(ks, graph, run, out, tangents, n_groups):
     n_var = var_w.shape[0]
     n_edges = edge_a.shape[0]
     tangent = n_edges > 0
+    # the Euler step with Taylor rotations and the RK4 step run on pairs of machine vectors of
+    # VEC lanes: the arrays are `width` lanes wide, lanes >= `lanes` stay empty (state (1, 0),
+    # weights 0)
+    vec = taylor and not rk4 and not tangent
+    width = (lanes + 2 * VEC - 1) // (2 * VEC) * (2 * VEC) if vec or rk4 else lanes
+    # every lane integrates the undamaged network: its weights can be broadcast
+    shared = n_var == 0
+    # a lane's step count is `t - lane_t0`; between events (a crossing, a renormalization or
+    # the step cap of some lane) no lane needs looking at
+    renorm = RENORM_EVERY if not rk4 else max_steps + 1
     per = (m + n_groups - 1) // n_groups
     for group in prange(n_groups):
         r_lo = group * per
         r_hi = min(m, r_lo + per)
         if r_lo >= r_hi:
             continue
-        c = np.empty((n, lanes))
-        s = np.empty((n, lanes))
-        acc = np.empty((n, lanes))
-        sum_c = np.empty((n, lanes))
-        sum_s = np.empty((n, lanes))
-        lw = np.empty((nnz, lanes))
-        tot_c = np.empty(lanes)
-        tot_s = np.empty(lanes)
-        r2 = np.zeros(lanes)
-        r2_prev = np.zeros(lanes)
-        dr2 = np.zeros(lanes)
-        dr2_prev = np.zeros(lanes)
-        # RK4 scratch: stage velocities kv[2 * stage + (0 for c, 1 for s)], stage state, sums
-        kv = np.zeros((8 if rk4 else 2, n, lanes))
-        yc = np.empty((n, lanes))
-        ys = np.empty((n, lanes))
-        dtot = np.zeros((4, lanes))
+        c = np.ones((n, width))
+        s = np.zeros((n, width))
+        cn = np.empty((n, width) if vec else (0, width))
+        sn = np.empty((n, width) if vec else (0, width))
+        acc = np.empty((n, width))
+        sum_c = np.empty((n, width))
+        sum_s = np.empty((n, width))
+        lw = np.zeros((nnz, width))
+        tot_c = np.empty(width)
+        tot_s = np.empty(width)
+        r2 = np.zeros(width)
+        r2_prev = np.zeros(width)
+        dr2 = np.zeros(width)
+        dr2_prev = np.zeros(width)
+        # RK4 scratch: stage velocities kv[2 * stage + (0 for c, 1 for s)], two stage states
+        kv = np.zeros((8 if rk4 else 2, n, width))
+        yc = np.empty((n, width))
+        ys = np.empty((n, width))
+        ybc = np.empty((n, width) if rk4 else (0, width))
+        ybs = np.empty((n, width) if rk4 else (0, width))
         # tangent scratch: u[e] = d theta / d beta_e, and d R / d beta_e now and one step back
-        u = np.zeros((n_edges, n, lanes))
-        du = np.empty((n, lanes))
-        cu = np.empty((n, lanes))
-        su = np.empty((n, lanes))
-        dr2t = np.zeros((n_edges, lanes))
-        dr2t_prev = np.zeros((n_edges, lanes))
-        lane_r = np.full(lanes, -1, dtype=np.int64)
-        lane_v = np.zeros(lanes, dtype=np.int64)
-        lane_k = np.zeros(lanes, dtype=np.int64)
+        u = np.zeros((n_edges, n, width))
+        du = np.empty((n, width))
+        cu = np.empty((n, width))
+        su = np.empty((n, width))
+        dr2t = np.zeros((n_edges, width))
+        dr2t_prev = np.zeros((n_edges, width))
+        lane_r = np.full(width, -1, dtype=np.int64)
+        lane_v = np.zeros(width, dtype=np.int64)
+        lane_t0 = np.zeros(width, dtype=np.int64)
         ci = np.empty(n)
         si = np.empty(n)
+        start = np.full(2, -1, dtype=np.int64)  # realization in (ci, si), synchronized at t = 0
         qr, qv = r_lo, -1
         active = 0
+        t = 0
         for q in range(lanes):
             qr, qv, filled = _load_lane(
                 q,
@@ -352,9 +394,11 @@ def _integrate_lanes(ks, graph, run, out, tangents, n_groups):
                 lw,
                 ci,
                 si,
+                start,
                 lane_r,
                 lane_v,
-                lane_k,
+                lane_t0,
+                t,
                 status0,
                 steps0,
                 frac0,
@@ -364,17 +408,20 @@ def _integrate_lanes(ks, graph, run, out, tangents, n_groups):
             )
             active += filled
             if filled:
-                _lane_initial(
-                    c, s, kv, dtot, acc, sum_c, sum_s, lw, indptr, indices, rk4, q, r2, dr2, u, dr2t
-                )
+                _lane_initial(c, s, kv, lw, indptr, indices, rk4, q, r2, dr2, u, dr2t)
+        next_event = t + min(renorm, max_steps)
         while active > 0:
-            for q in range(lanes):
-                r2_prev[q] = r2[q]
-                dr2_prev[q] = dr2[q]
-                for e in range(n_edges):
-                    dr2t_prev[e, q] = dr2t[e, q]
-            if rk4:
-                _rk4_lanes(c, s, kv, yc, ys, dtot, acc, sum_c, sum_s, lw, indptr, indices, dt, r2, dr2)
+            # the step writes r2 (dr2, dr2t) afresh for every lane: swap instead of copying
+            r2, r2_prev = r2_prev, r2
+            dr2, dr2_prev = dr2_prev, dr2
+            dr2t, dr2t_prev = dr2t_prev, dr2t
+            t += 1
+            if vec:
+                _step_vec(c, s, cn, sn, lw, base_w, shared, indptr, indices, dt, r2)
+                c, cn = cn, c
+                s, sn = sn, s
+            elif rk4:
+                _rk4_vec(c, s, kv, yc, ys, ybc, ybs, lw, base_w, shared, indptr, indices, dt, r2, dr2)
             elif tangent:
                 _tangent_lanes(
                     c,
@@ -402,11 +449,16 @@ def _integrate_lanes(ks, graph, run, out, tangents, n_groups):
                 )
             else:
                 _step_lanes(c, s, acc, sum_c, sum_s, tot_c, tot_s, lw, indptr, indices, dt, r2, taylor)
-            for q in range(lanes):
+            crossed = False
+            for q in range(width):
+                crossed |= (r2[q] >= r2_target) & (lane_r[q] >= 0)
+            if not crossed and t < next_event:
+                continue
+            next_event = t + min(renorm, max_steps)
+            for q in range(width):
                 if lane_r[q] < 0:
                     continue
-                lane_k[q] += 1
-                k = lane_k[q]
+                k = t - lane_t0[q]
                 r = lane_r[q]
                 if r2[q] >= r2_target:
                     st = SYNCED
@@ -426,8 +478,10 @@ def _integrate_lanes(ks, graph, run, out, tangents, n_groups):
                     for e in range(n_edges):
                         dtau[r, e] = 0.0
                 else:
-                    if not rk4 and k % RENORM_EVERY == 0:
+                    if k % renorm == 0:
                         _renormalize(c[:, q], s[:, q])
+                    # this lane's next renormalization or step cap
+                    next_event = min(next_event, t + min(renorm - k % renorm, max_steps - k))
                     continue
                 v = lane_v[q]
                 if v < 0:
@@ -456,9 +510,11 @@ def _integrate_lanes(ks, graph, run, out, tangents, n_groups):
                     lw,
                     ci,
                     si,
+                    start,
                     lane_r,
                     lane_v,
-                    lane_k,
+                    lane_t0,
+                    t,
                     status0,
                     steps0,
                     frac0,
@@ -468,9 +524,7 @@ def _integrate_lanes(ks, graph, run, out, tangents, n_groups):
                 )
                 active += filled
                 if filled:
-                    _lane_initial(
-                        c, s, kv, dtot, acc, sum_c, sum_s, lw, indptr, indices, rk4, q, r2, dr2, u, dr2t
-                    )
+                    _lane_initial(c, s, kv, lw, indptr, indices, rk4, q, r2, dr2, u, dr2t)
         for r in range(r_lo, r_hi):
             # variants that leave W unchanged share the undamaged result
             for v in range(n_var):
