@@ -18,6 +18,7 @@ from scipy.stats import chi2
 
 import antisync
 from antisync import estimators
+from antisync.errors import StoreError
 from antisync.report.figures import conditioning_note
 from antisync.status import NOT_SYNCED, SYNCED
 from antisync.store import read_views
@@ -139,3 +140,8 @@ def test_a_format2_file_reads_with_unknown_counts(tmp_path, ring):
     got = antisync.load(old).records
     assert [r["lambda_km"] for r in got] == [r["lambda_km"] for r in records]
     assert all(r["p_sync_response"] is None and r["p_sync"] == records[0]["p_sync"] for r in got)
+    # resuming it is refused with one line naming why, and leaves it untouched
+    before = old.read_bytes()
+    with pytest.raises(StoreError, match="older antisync \\(format 2"):
+        antisync.run({**RING, "keep_pairs": 400}, realizations=400, output=old, resume=True)
+    assert old.read_bytes() == before

@@ -290,6 +290,12 @@ def _read_state(path: Path, g, st: JobState) -> None:
     arrays.update({f"kept/{k}": v for k, v in st.kept.items()})
     for name, target in arrays.items():
         data = _read(path, f"{g.name}/{name}", lambda name=name: g[name][...])
+        if name == "lambda_records" and data.shape == target.shape[:-1] + (_LAMBDA_FIELDS_V2,):
+            raise StoreError(
+                f"{path} was written by an older antisync (format 2, without the counts of "
+                "realizations that lose or gain synchronization): summary and report read it, "
+                "but it cannot be resumed; use --out for a new file"
+            )
         if data.shape != target.shape:
             raise StoreError(
                 f"{path}: {g.name}/{name} has shape {data.shape} but the config needs "
