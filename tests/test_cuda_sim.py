@@ -22,12 +22,13 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from helpers import HANG_GUARD_S
 
 ROOT = Path(__file__).resolve().parents[1]
 CHECKS = ROOT / "tests" / "cudasim_checks.py"
 
 
-def _simulated(*argv: str, timeout: float = 240) -> subprocess.CompletedProcess:
+def _simulated(*argv: str, timeout: float = HANG_GUARD_S) -> subprocess.CompletedProcess:
     env = {k: v for k, v in os.environ.items() if not k.startswith("NUMBA_")}
     env["NUMBA_ENABLE_CUDASIM"] = "1"
     env["PYTHONPATH"] = os.pathsep.join([str(ROOT), env.get("PYTHONPATH", "")]).rstrip(os.pathsep)
@@ -188,7 +189,7 @@ def test_kernels_compile_for_a_real_gpu():
         cwd=ROOT,
         capture_output=True,
         text=True,
-        timeout=300,
+        timeout=HANG_GUARD_S,
     )
     if proc.returncode == 3:
         pytest.skip(proc.stdout.strip() or "no CUDA toolkit")

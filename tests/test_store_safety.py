@@ -19,7 +19,7 @@ import h5py
 import networkx as nx
 import numpy as np
 import pytest
-from helpers import comparable
+from helpers import HANG_GUARD_S, comparable
 from typer.testing import CliRunner
 
 from antisync import graphs
@@ -52,7 +52,7 @@ def invoke(*args):
     return CliRunner().invoke(app, [str(a) for a in args])
 
 
-def cli(*args, timeout: float = 120) -> subprocess.CompletedProcess:
+def cli(*args, timeout: float = HANG_GUARD_S) -> subprocess.CompletedProcess:
     """``python -m antisync ARGS`` in a process of its own."""
     return subprocess.run(
         [sys.executable, "-m", "antisync", *map(str, args)],
@@ -72,7 +72,7 @@ def start(*args) -> subprocess.Popen:
     )
 
 
-def wait_for_chunks(journal: Path, n: int, proc: subprocess.Popen, timeout: float = 600) -> None:
+def wait_for_chunks(journal: Path, n: int, proc: subprocess.Popen, timeout: float = HANG_GUARD_S) -> None:
     # generous: a fresh process may first compile every kernel (numba cache keyed by source)
     deadline = time.monotonic() + timeout
     while len(list(journal.glob("*.npz"))) < n:
@@ -496,7 +496,7 @@ def test_cuda_node_limit_is_checked_before_any_file(tmp_path, command):
         cwd=REPO,
         capture_output=True,
         text=True,
-        timeout=120,
+        timeout=HANG_GUARD_S,
         env=env,
     )
     line = one_line_error(res)
