@@ -65,6 +65,12 @@ MAX_NODES = 64
 """Largest graph the kernels accept: the per-thread state lives in local arrays of this size."""
 
 THREADS_PER_BLOCK = 128
+SIMULATOR_THREADS_PER_BLOCK = 8
+"""Threads per block under ``NUMBA_ENABLE_CUDASIM``: the simulator runs a block's threads as
+Python threads that take a per-module lock on every device-function call, and with 128 of them
+it can fall into a lock convoy (a 10 s check once ran for over 15 minutes). Every kernel here
+is a grid-stride loop without shared memory or barriers, so the block size never changes a
+result."""
 BATCH_PAIRS = 1 << 24
 """Trajectories per device batch in :func:`simulate_reduced` (~150 MB of per-pair results)."""
 
@@ -302,8 +308,14 @@ def _reducers():
     return block_kernel, lambda_kernel, hist_kernel
 
 
+def threads_per_block() -> int:
+    """Threads per block of every launch: :data:`THREADS_PER_BLOCK` on a GPU,
+    :data:`SIMULATOR_THREADS_PER_BLOCK` under the simulator."""
+    return SIMULATOR_THREADS_PER_BLOCK if _simulated() else THREADS_PER_BLOCK
+
+
 def _grid(total: int) -> int:
-    return max(1, min(-(-total // THREADS_PER_BLOCK), _MAX_GRID))
+    return max(1, min(-(-total // threads_per_block()), _MAX_GRID))
 
 
 def _prepare(
@@ -382,7 +394,7 @@ def _integrate(a, first, count, precision):
         status = cuda.device_array((count, n_var), dtype=np.int8)
         steps = cuda.device_array((count, n_var), dtype=np.int64)
     with _quiet_simulator():
-        tau0_kernel[_grid(count), THREADS_PER_BLOCK](
+        tau0_kernel[_grid(count), threads_per_block()](
             a["seed"],
             np.int64(first),
             np.int64(count),
@@ -396,7 +408,7 @@ def _integrate(a, first, count, precision):
             steps0,
         )
         if n_var:
-            variant_kernel[_grid(count * n_var), THREADS_PER_BLOCK](
+            variant_kernel[_grid(count * n_var), threads_per_block()](
                 a["seed"],
                 np.int64(first),
                 np.int64(count),
@@ -606,7 +618,7 @@ def simulate_reduced(
         b0 = lo // block
         rec_d = cuda.device_array((nb, n_var, len(BLOCK_FIELDS)))
         rec0_d = cuda.device_array((nb, len(TAU0_FIELDS)))
-        block_kernel[_grid(nb * (n_var + 1)), THREADS_PER_BLOCK](
+        block_kernel[_grid(nb * (n_var + 1)), threads_per_block()](
             status0,
             steps0,
             status,
@@ -622,7 +634,7 @@ def simulate_reduced(
         out.rec0[b0 : b0 + nb] = rec0_d.copy_to_host()
         if lam_v.size:
             lam_d = cuda.device_array((nb, lam_v.size, len(LAMBDA_FIELDS)))
-            lambda_kernel[_grid(nb * lam_v.size), THREADS_PER_BLOCK](
+            lambda_kernel[_grid(nb * lam_v.size), threads_per_block()](
                 status0,
                 steps0,
                 status,
@@ -636,7 +648,7 @@ def simulate_reduced(
             )
             out.lam_rec[b0 : b0 + nb] = lam_d.copy_to_host()
         if variants.size:
-            hist_kernel[_grid(m * variants.size), THREADS_PER_BLOCK](
+            hist_kernel[_grid(m * variants.size), threads_per_block()](
                 status0,
                 steps0,
                 status,

@@ -18,7 +18,7 @@ import numpy as np
 from antisync.errors import AntisyncError
 from antisync.kernels.core import make_kernels, make_model_kernels
 from antisync.kernels.cpu import SimResult, _realization_ids
-from antisync.kernels.cuda import _MAX_GRID, MAX_NODES, THREADS_PER_BLOCK, _quiet_simulator, _require_cuda
+from antisync.kernels.cuda import _MAX_GRID, MAX_NODES, _quiet_simulator, _require_cuda, threads_per_block
 from antisync.phases import make_phase
 
 try:  # numba-cuda is an optional dependency
@@ -175,9 +175,10 @@ def simulate_model(
     if m:
         dev = {k: cuda.to_device(v) for k, v in out.items()}
         items = m * (n_var + 1)
-        blocks = min(_MAX_GRID, -(-items // THREADS_PER_BLOCK))
+        threads = threads_per_block()
+        blocks = min(_MAX_GRID, -(-items // threads))
         with _quiet_simulator():
-            _kernel()[blocks, THREADS_PER_BLOCK](
+            _kernel()[blocks, threads](
                 np.uint64(seed),
                 cuda.to_device(ks),
                 cuda.to_device(np.ascontiguousarray(indptr, dtype=np.int64)),
