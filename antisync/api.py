@@ -54,6 +54,9 @@ class Result:
     sweep : dict or None
         For a sweep: ``excluded`` graphs, ``top`` stage records, ``screen``, ``symmetry``,
         ``thresholds`` and ``ranking_threshold`` (see :func:`antisync.sweeps.sweep_summary`).
+    stop : dict or None
+        For a run with a stopping rule (docs/stopping.md): its looks, ``budget``,
+        ``stopped_at``, ``stopped_early`` and the last look's counts and open links.
     """
 
     path: Path
@@ -62,6 +65,7 @@ class Result:
     complete: bool
     config_yaml: str = ""
     sweep: dict | None = field(default=None, repr=False)
+    stop: dict | None = field(default=None, repr=False)
 
     def to_pandas(self):
         """The records as a :class:`pandas.DataFrame` (needs pandas: ``pip install pandas``)."""
@@ -95,7 +99,7 @@ def load(path: str | Path) -> Result:
     """
     s = summarize(path)
     sweep = s if s["kind"] == "sweep" else None
-    return Result(Path(path), s["kind"], s["records"], s["complete"], s["config_yaml"], sweep)
+    return Result(Path(path), s["kind"], s["records"], s["complete"], s["config_yaml"], sweep, s["stop"])
 
 
 def summarize(path: str | Path) -> dict:
@@ -104,11 +108,12 @@ def summarize(path: str | Path) -> dict:
     One schema for both: ``kind`` ("run" or "sweep"), ``file``, ``complete``, ``records``,
     ``config_yaml``, and the sweep's ``sweep`` (name), ``family``, ``thresholds``,
     ``ranking_threshold``, ``excluded``, ``top``, ``screen``, ``symmetry`` (for a run file:
-    ``null`` or empty lists, and ``thresholds`` the run's one threshold). The CLI adds to each
-    record its ``sign_resolved`` (:func:`antisync.records.flag_signs`) and orders them with
+    ``null`` or empty lists, and ``thresholds`` the run's one threshold), and ``stop``, what
+    a run's stopping rule did (:func:`antisync.store.stop_record`; ``null`` without one). The
+    CLI adds to each record its ``sign_resolved`` (:func:`antisync.records.flag_signs`) and orders them with
     ``--sort`` (:func:`antisync.records.sort_records`).
     """
-    from antisync.store import is_sweep_file, records, root_attrs
+    from antisync.store import is_sweep_file, records, root_attrs, stop_record
     from antisync.sweeps import sweep_summary
 
     path = Path(path)
@@ -121,6 +126,7 @@ def summarize(path: str | Path) -> dict:
             "complete": bool(s["complete"]),
             "records": s["records"],
             "config_yaml": root["config_yaml"],
+            "stop": None,
             **{k: s[k] for k in _SWEEP_KEYS},
         }
     recs = records(path)
@@ -135,6 +141,7 @@ def summarize(path: str | Path) -> dict:
         "complete": root["complete"],
         "records": recs,
         "config_yaml": root["config_yaml"],
+        "stop": stop_record(path),
         "sweep": None,
         "family": None,
         "thresholds": thresholds,

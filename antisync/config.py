@@ -37,6 +37,7 @@ from antisync.types import (
     LINEAR_METHODS,
     MEASURES,
     PRECISIONS,
+    STOP_RULES,
     Backend,
     Coupling,
     Crossing,
@@ -46,6 +47,7 @@ from antisync.types import (
     LinearMethod,
     Measure,
     Precision,
+    StopRule,
 )
 from antisync.validation import (
     beta,
@@ -71,6 +73,7 @@ __all__ = [
     "Histogram",
     "LambdaSpec",
     "LinearSpec",
+    "Stop",
     "apply_values",
     "check_graph",
     "config_from_mapping",
@@ -171,6 +174,39 @@ class LambdaSpec:
 
 
 @dataclass(frozen=True)
+class Stop:
+    """An optional stopping rule: ``realizations`` becomes a budget (docs/stopping.md).
+
+    With ``when: signs-resolved`` the run looks at its Lambda^KM intervals after
+    ``first_look`` realizations, then at twice, four times ... as many, up to ``realizations``,
+    and ends at the first look where every link's sign is resolved (or, with ``tolerance``,
+    its interval lies inside ``[-tolerance, tolerance]``: the link does not matter). Each look
+    uses the interval at level ``1 - 0.05 / looks`` (Bonferroni over the looks), so looking
+    often does not make false signs more likely. A run that stops at ``n`` holds exactly the
+    numbers of a plain run with ``realizations: n`` and the same ``block_size``.
+    """
+
+    when: StopRule = "never"
+    first_look: int | Literal["auto"] = "auto"
+    """Realizations at the first look; ``auto``: 32 blocks, at least 2,000."""
+    tolerance: float = 0.0
+
+    def __post_init__(self):
+        choice("stop.when", self.when, STOP_RULES)
+        if self.first_look != "auto":
+            object.__setattr__(self, "first_look", whole("stop.first_look", self.first_look))
+            integer("stop.first_look", self.first_look, 1, MAX_REALIZATIONS, "'auto' or 1..10**15")
+        if isinstance(self.tolerance, bool) or not isinstance(self.tolerance, int | float):
+            raise ConfigError(f"stop.tolerance must be a number >= 0, got {self.tolerance!r}")
+        if not (math.isfinite(self.tolerance) and self.tolerance >= 0):
+            raise ConfigError(f"stop.tolerance must be a number >= 0, got {self.tolerance!r}")
+
+    @property
+    def active(self) -> bool:
+        return self.when != "never"
+
+
+@dataclass(frozen=True)
 class LinearSpec:
     """Lambda^(linear) (Eq. 14) when ``linear`` is in ``measures``.
 
@@ -231,6 +267,8 @@ class Config:
     """Natural frequencies, phase lag, inertia (docs/models.md); default: Eq. 2."""
     sync: Sync = field(default_factory=Sync)
     """When a trajectory counts as synchronized (docs/models.md); default: r >= threshold."""
+    stop: Stop = field(default_factory=Stop)
+    """An optional stopping rule (docs/stopping.md); default: run every realization."""
     backend: Backend = "cpu"
     executor: Executor = "local"
     threads: int | None = None
@@ -270,6 +308,7 @@ class Config:
             integer("threads", self.threads, 1, 4096, "null or 1..4096")
         check_graph(self.graph)
         self._check_model()
+        self._check_stop()
 
     @property
     def generalized(self) -> bool:
@@ -292,6 +331,37 @@ class Config:
                 "frequencies drawn per realization every realization has its own locked state; "
                 "use criterion frequency or order-parameter"
             )
+
+    def _check_stop(self) -> None:
+        if not self.stop.active:
+            return
+        if "km" not in self.measures:
+            raise ConfigError(
+                f"stop.when {self.stop.when} watches Lambda^KM: measures must include km, "
+                f"got {list(self.measures)}; remove the stop section"
+            )
+        if self.stop.first_look != "auto" and self.stop.first_look > self.realizations:
+            raise ConfigError(
+                f"stop.first_look ({self.stop.first_look:,}) is more than realizations "
+                f"({self.realizations:,}), the run's budget: give 1..{self.realizations} or 'auto'"
+            )
+
+    @property
+    def stop_looks(self) -> list[int]:
+        """Realizations at each look of the stopping rule: ``first_look`` rounded up to whole
+        blocks, doubling, the last one ``realizations`` (``[realizations]`` without a rule)."""
+        if not self.stop.active:
+            return [self.realizations]
+        block = self.resolved_block_size
+        first = self.stop.first_look
+        if first == "auto":
+            first = max(2000, 32 * block)
+        n = min(self.realizations, -(-first // block) * block)
+        looks = []
+        while n < self.realizations:
+            looks.append(n)
+            n *= 2
+        return [*looks, self.realizations]
 
     @property
     def resolved_block_size(self) -> int:
@@ -316,6 +386,8 @@ class Config:
         # paper's model read (and --resume) exactly as before these sections existed
         if self.model.is_default and self.model.damping == 1.0:
             d.pop("model")
+        if not self.stop.active:
+            d.pop("stop")
         elif isinstance(self.model.frequencies, tuple):
             d["model"]["frequencies"] = list(self.model.frequencies)
         if self.sync == Sync():
@@ -354,6 +426,7 @@ _TOP_KEYS = {
     "histogram",
     "model",
     "sync",
+    "stop",
     "backend",
     "executor",
     "threads",
@@ -366,6 +439,7 @@ _SECTIONS = {
     "linear": LinearSpec,
     "model": Model,
     "sync": Sync,
+    "stop": Stop,
 }
 
 

@@ -11,12 +11,13 @@ import time
 from collections.abc import Callable
 from pathlib import Path
 
+from antisync import stopping
 from antisync.backends import resolve_backend
 from antisync.compute import check_job
 from antisync.config import Config
 from antisync.errors import StoreError
 from antisync.executors import Executor
-from antisync.jobs import Job, make_job
+from antisync.jobs import Chunk, Job, make_job
 from antisync.measures.pipeline import COMPUTED, compute_measures, wants_measures, with_nnc
 from antisync.store import JobState, ResultStore, chunk_tag, command_line, git_revision
 
@@ -94,6 +95,16 @@ def run_jobs(
     key = config.simulation_key() if key is None else key
     with store.lock(read_only_ok=resume) as writable:
         store.prepare(resume=resume, overwrite=overwrite)
+        stopped = store.stopped_early(key) if resume else None
+        if stopped is not None:
+            # the stopping rule ended this run: its groups hold fewer realizations than the budget
+            if writable:
+                store.drop_journal()
+            say(
+                f"{store.path} is already complete: the stopping rule ended it at "
+                f"{stopped['stopped_at']:,} of {stopped['budget']:,} realizations; nothing to do"
+            )
+            return store.path
         states = store.load_states(jobs, key) if resume else {job.name: JobState(job) for job in jobs}
         if resume and store.file_complete() and all(st.complete for st in states.values()):
             # nothing to compute: the file stays exactly as it is (inode, mtime, mode)
@@ -171,11 +182,7 @@ def _execute(
         store.checkpoint(states, provenance, extra=extra)  # so --resume never computes them again
     if chunk_realizations is None and config.chunk_size != "auto":
         chunk_realizations = int(config.chunk_size)
-    work = [
-        (job, c)
-        for job in jobs
-        for c in states[job.name].pending(job.chunks(_chunk_size(job, backend, chunk_realizations)))
-    ]
+    chunks = {job.name: job.chunks(_chunk_size(job, backend, chunk_realizations)) for job in jobs}
     # every journal chunk carries its run's tag: --resume never merges another run's chunks
     tags = {job.name: chunk_tag(job, key) for job in jobs}
     done_already = sum(st.realizations_done for st in states.values())
@@ -183,9 +190,17 @@ def _execute(
     # the bar counts integrations (tau0 plus one per damage variant, orbit differences
     # included): with many jobs of different sizes (a sweep) its rate and ETA stay meaningful
     cost = {job.name: job.integrations_per_realization for job in jobs}
+    looks = config.stop_looks  # [realizations] without a stopping rule
+    level = stopping.look_level(len(looks))
     say(
         f"{note}; {executor.describe()}; {len(jobs)} job(s), "
-        f"{sum(cost.values()) - len(jobs)} damaged variant(s), {total:,} realizations in all"
+        f"{sum(cost.values()) - len(jobs)} damaged variant(s), "
+        + (
+            f"up to {total:,} realizations (stop: {config.stop.when}, looks at "
+            f"{', '.join(f'{n:,}' for n in looks)}; intervals at {level:.2%})"
+            if config.stop.active
+            else f"{total:,} realizations in all"
+        )
         + (f" ({done_already:,} already done)" if done_already else "")
     )
     from tqdm import tqdm
@@ -203,16 +218,25 @@ def _execute(
     )
     last = time.monotonic()
     try:
-        for job, res in executor.run(work):
-            store.save_chunk(job.name, res, tags[job.name])
-            states[job.name].add(res)
-            bar.update(res.count * cost[job.name])
-            if len(jobs) > 1:
-                done_jobs = sum(st.complete for st in states.values())
-                bar.set_description(f"{job.name} ({done_jobs}/{len(jobs)} jobs)", refresh=False)
-            if time.monotonic() - last > checkpoint_seconds:
-                store.checkpoint(states, provenance, extra=extra)
-                last = time.monotonic()
+        for n in looks:
+            # the realizations up to this look, in chunks that end at it
+            work = [
+                (job, c)
+                for job in jobs
+                for c in states[job.name].pending(_clip(chunks[job.name], -(-n // job.block_size)))
+            ]
+            for job, res in executor.run(work):
+                store.save_chunk(job.name, res, tags[job.name])
+                states[job.name].add(res)
+                bar.update(res.count * cost[job.name])
+                if len(jobs) > 1:
+                    done_jobs = sum(st.complete for st in states.values())
+                    bar.set_description(f"{job.name} ({done_jobs}/{len(jobs)} jobs)", refresh=False)
+                if time.monotonic() - last > checkpoint_seconds:
+                    store.checkpoint(states, provenance, extra=extra)
+                    last = time.monotonic()
+            if config.stop.active and _stop_here(states, n, looks, level, config, provenance, say):
+                break
     except KeyboardInterrupt:
         bar.close()
         store.checkpoint(states, provenance, extra=extra)
@@ -223,6 +247,43 @@ def _execute(
     finally:
         bar.close()
     store.checkpoint(states, provenance, final=True, extra=extra)
+
+
+def _clip(chunks: list[Chunk], blocks: int) -> list[Chunk]:
+    """``chunks`` cut to the first ``blocks`` blocks (chunk boundaries never change results)."""
+    out = []
+    for c in chunks:
+        end = min(c.first_block + c.n_blocks, blocks)
+        if end > c.first_block:
+            out.append(Chunk(c.first_block, end - c.first_block))
+    return out
+
+
+def _stop_here(states: dict, n: int, looks: list[int], level: float, config: Config, provenance, say) -> bool:
+    """The stopping rule's look after ``n`` realizations; when it stops (or the budget is
+    spent), ``states`` are cut to ``n`` and ``provenance["stop_json"]`` says what happened."""
+    if n < looks[-1] and any(st.done[-(-n // st.job.block_size) :].any() for st in states.values()):
+        return False  # a resumed run already went past this look: it said go on then
+    look = stopping.take_look(states, n, level, config.stop.tolerance)
+    say(look.describe(looks[-1]))
+    if not look.all_known and n < looks[-1]:
+        return False
+    if n < looks[-1]:
+        for name, st in states.items():
+            states[name] = st.truncated(n)
+    provenance["stop_json"] = _json(
+        {
+            "when": config.stop.when,
+            "tolerance": config.stop.tolerance,
+            "looks": looks,
+            "level": level,
+            "budget": looks[-1],
+            "stopped_at": n,
+            "stopped_early": n < looks[-1],
+            "last_look": look.to_dict(),
+        }
+    )
+    return True
 
 
 def _compute_measures(jobs: list[Job], states: dict, say) -> bool:

@@ -20,7 +20,15 @@ import numpy as np
 from antisync import estimators
 from antisync.measures.pipeline import join_nnc, measure_fields
 
-__all__ = ["CI_LEVEL", "JobView", "is_kuramoto", "job_records", "sign_resolved", "view_records"]
+__all__ = [
+    "CI_LEVEL",
+    "JobView",
+    "is_kuramoto",
+    "job_records",
+    "lambda_intervals",
+    "sign_resolved",
+    "view_records",
+]
 
 # error bars are flagged when the largest 0.1% of samples carry this share of the variance
 TAIL_WARN = 0.5
@@ -67,15 +75,39 @@ def _num(x: float):
     return None if x is None or (isinstance(x, float) and math.isnan(x)) else float(x)
 
 
+def _pooled_tail(view: JobView) -> np.ndarray:
+    """The signed tail counts of every link of the job together (the tail model's prior)."""
+    return view.lam_tail.sum(axis=0) if view.lam_tail.size else view.lam_tail
+
+
+def _interval(view: JobView, e: int, pooled: np.ndarray, level: float):
+    """Edge ``e``'s :func:`estimators.summarize_lambda` and :func:`estimators.lambda_ci`."""
+    rec = view.lam_rec[view.done, e]
+    s = estimators.summarize_lambda(rec)
+    ci = estimators.lambda_ci(
+        s["lambda"], rec, view.lam_tail[e], pooled, view.dbeta, level, estimator=view.lambda_method
+    )
+    return s, ci
+
+
+def lambda_intervals(view: JobView, level: float = CI_LEVEL) -> np.ndarray:
+    """``(E, 2)``: every link's Lambda^KM interval at ``level`` (NaN where no synchronized
+    realization gives a value), as the records' ``lambda_km_ci_low`` / ``_high`` at 95%."""
+    pooled = _pooled_tail(view)
+    out = np.full((len(view.edges), 2), np.nan)
+    for e in range(len(view.edges)):
+        s, (low, high, _, _) = _interval(view, e, pooled, level)
+        if s["n"] >= 2:
+            out[e] = low, high
+    return out
+
+
 def _lambda(view: JobView, e: int, pooled: np.ndarray) -> tuple[dict, dict]:
     """Lambda's fields of edge ``e``'s records, and its :func:`estimators.summarize_lambda`."""
     rec = view.lam_rec[view.done, e]
-    s = estimators.summarize_lambda(rec)
+    s, (low, high, method, iv) = _interval(view, e, pooled, CI_LEVEL)
     est = s["lambda"]
     share = estimators.tail_share(view.lam_tail[e])
-    low, high, method, iv = estimators.lambda_ci(
-        est, rec, view.lam_tail[e], pooled, view.dbeta, CI_LEVEL, estimator=view.lambda_method
-    )
     # the standard error to quote: the interval's half-width over z (decisions at other levels,
     # e.g. the sweeps' 4-sigma trend, scale it)
     se = (high - low) / (2 * estimators.Z95) if iv is not None else est.se
@@ -200,7 +232,7 @@ def job_records(view: JobView) -> list[dict]:
     t0 = s0["tau0"]
     complete = bool(view.done.size and view.done.all())
     out = []
-    pooled = view.lam_tail[:, :].sum(axis=0) if view.lam_tail.size else view.lam_tail
+    pooled = _pooled_tail(view)
     for e, label in enumerate(view.edges):
         lam, s_lam = _lambda(view, e, pooled)
         for beta in view.betas or (None,):

@@ -24,6 +24,7 @@ __all__ = [
     "LINEAR_METHODS",
     "MEASURES",
     "PRECISIONS",
+    "STOP_RULES",
     "Backend",
     "Coupling",
     "Crossing",
@@ -33,6 +34,7 @@ __all__ = [
     "LinearMethod",
     "Measure",
     "Precision",
+    "StopRule",
 ]
 
 Backend = Literal["cpu", "cuda", "auto"]
@@ -51,6 +53,8 @@ LinearMethod = Literal["exact", "euler", "derivative"]
 """How Lambda^(linear) is computed (see :class:`antisync.config.LinearSpec`)."""
 Precision = Literal["float64", "float32"]
 """Arithmetic of the integrated state (float32 on backend cuda only)."""
+StopRule = Literal["never", "signs-resolved"]
+"""When a run may end before its ``realizations`` (see :class:`antisync.config.Stop`)."""
 Coupling = Literal["normalized", "raw"]
 """``W = S^-1 Omega`` (Eq. 1) or ``W = Omega`` (Eq. 20), see :mod:`antisync.coupling`."""
 
@@ -58,6 +62,7 @@ BACKENDS: tuple[Backend, ...] = get_args(Backend)
 EXECUTORS: tuple[Executor, ...] = get_args(Executor)
 INTEGRATORS: tuple[Integrator, ...] = get_args(Integrator)
 CROSSINGS: tuple[Crossing, ...] = get_args(Crossing)
+STOP_RULES: tuple[StopRule, ...] = get_args(StopRule)
 LAMBDA_METHODS: tuple[LambdaMethod, ...] = get_args(LambdaMethod)
 MEASURES: tuple[Measure, ...] = get_args(Measure)
 LINEAR_METHODS: tuple[LinearMethod, ...] = get_args(LinearMethod)

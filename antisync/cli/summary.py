@@ -43,7 +43,8 @@ def summary(
     from antisync.api import summarize
     from antisync.records import flag_signs, sort_records
     from antisync.report.tables import format_records, format_sweep
-    from antisync.store import is_sweep_file, records
+    from antisync.stopping import stop_note
+    from antisync.store import is_sweep_file, records, stop_record
     from antisync.sweeps import sweep_summary
 
     def listed(recs: list[dict]) -> list[dict]:
@@ -57,3 +58,6 @@ def summary(
         typer.echo(format_sweep({**s, "records": listed(s["records"])}, format))
     else:
         typer.echo(format_records(listed(records(results)), format))
+        note = stop_note(stop_record(results)) if format == "table" else None
+        if note:
+            typer.echo(note)

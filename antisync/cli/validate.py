@@ -30,8 +30,14 @@ def validate(config: ConfigArg, set_: SetOpt = None, debug: DebugOpt = False) ->
     job = make_job(cfg)
     preflight(cfg, [job])
     typer.echo(cfg.resolved().to_yaml().rstrip())
+    budget = (
+        f"up to {cfg.realizations:,} realizations (stop {cfg.stop.when}: looks at "
+        f"{', '.join(f'{n:,}' for n in cfg.stop_looks)})"
+        if cfg.stop.active
+        else f"{cfg.realizations:,} realizations"
+    )
     run = (
-        f"{job.integrations_per_realization - 1} damaged variant(s), {cfg.realizations:,} realizations"
+        f"{job.integrations_per_realization - 1} damaged variant(s), {budget}"
         if job.kuramoto
         else f"no Kuramoto integration (measures: {', '.join(cfg.measures)})"
     )

@@ -36,6 +36,8 @@ from antisync.store.layout import (
     read_views,
     records,
     root_attrs,
+    state_view,
+    stop_record,
     write_sweep_meta,
 )
 from antisync.store.provenance import command_line, git_revision
@@ -61,5 +63,7 @@ __all__ = [
     "read_views",
     "records",
     "root_attrs",
+    "state_view",
+    "stop_record",
     "write_sweep_meta",
 ]

@@ -160,6 +160,39 @@ def root_attrs(path: Path) -> dict:
     return out
 
 
+def stop_record(path: Path) -> dict | None:
+    """The stopping rule's record of a run that had one (root attribute ``stop_json``: rule,
+    looks, budget, ``stopped_at``, the last look's counts), else None."""
+    with open_results(path) as f:
+        raw = f.attrs.get("stop_json")
+        if raw is None:
+            return None
+        record = _read(path, "root attribute stop_json", lambda: json.loads(str(raw)))
+    look = record.get("last_look") if isinstance(record, dict) else None
+    if not isinstance(look, dict) or not _STOP_KEYS <= set(record) or not _LOOK_KEYS <= set(look):
+        raise StoreError(f"{path} is damaged: root attribute stop_json lacks the stopping rule's fields")
+    return record
+
+
+_STOP_KEYS = {"when", "tolerance", "looks", "level", "budget", "stopped_at", "stopped_early", "last_look"}
+_LOOK_KEYS = {"realizations", "level", "links", "resolved", "settled", "unresolved"}
+
+
+def stopped_early(path: Path, config_key: dict) -> dict | None:
+    """:func:`stop_record` of ``path`` when it is complete, was made with ``config_key`` and
+    its stopping rule ended it before the budget (its groups then hold fewer realizations than
+    the config asks for: nothing is left to resume)."""
+    if not is_complete(path):
+        return None
+    record = stop_record(path)
+    if record is None or not record.get("stopped_early"):
+        return None
+    with open_results(path) as f:
+        raw = f.attrs.get("simulation_key", "{}")
+        stored = _read(path, "root attribute simulation_key", lambda: json.loads(str(raw)))
+    return record if stored == config_key else None
+
+
 def is_complete(path: Path) -> bool:
     """Whether the file ``path`` exists and says every job (every stage of a sweep) finished."""
     if not path.is_file():
@@ -273,7 +306,7 @@ def _write_state(g, st: JobState) -> None:
         g.attrs["unsynced_hint"] = hint
     if st.measures is not None:
         write_measures(g, st.measures, cfg, st.measures_seconds)
-    g.attrs["summary_json"] = json.dumps(job_records(_view_from_state(st)))
+    g.attrs["summary_json"] = json.dumps(job_records(state_view(st)))
 
 
 def _read_state(path: Path, g, st: JobState) -> None:
@@ -315,7 +348,9 @@ def _read_state(path: Path, g, st: JobState) -> None:
         )
 
 
-def _view_from_state(st: JobState) -> JobView:
+def state_view(st: JobState) -> JobView:
+    """A run's job in memory as a :class:`~antisync.summary.JobView` (what a checkpoint's
+    summary and the stopping rule read)."""
     job = st.job
     return JobView(
         graph=job.name,

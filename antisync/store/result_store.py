@@ -19,7 +19,7 @@ from antisync.compute import ChunkResult
 from antisync.errors import StoreError
 from antisync.jobs import Job
 from antisync.store import journal as _journal
-from antisync.store.layout import is_complete, read_states, result_file_problem, write_results
+from antisync.store.layout import is_complete, read_states, result_file_problem, stopped_early, write_results
 from antisync.store.lock import OutputLock
 from antisync.store.state import JobState
 
@@ -114,6 +114,11 @@ class ResultStore:
     def file_complete(self) -> bool:
         """Whether the output file exists and says every job (every stage of a sweep) finished."""
         return is_complete(self.path)
+
+    def stopped_early(self, config_key: dict) -> dict | None:
+        """The stopping rule's record when the output is a complete run of ``config_key`` that
+        its rule ended before the budget (see :func:`~antisync.store.layout.stopped_early`)."""
+        return stopped_early(self.path, json.loads(json.dumps(config_key)))
 
     def load_states(self, jobs: list[Job], config_key: dict) -> dict[str, JobState]:
         """States for ``jobs``: from the HDF5 file when present, plus journal chunks.

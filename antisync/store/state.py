@@ -7,6 +7,8 @@ it, never twice.
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
 from antisync import estimators
@@ -78,6 +80,37 @@ class JobState:
                 )
             else:
                 out.append(c)
+        return out
+
+    def truncated(self, realizations: int) -> JobState:
+        """This state as a run of the first ``realizations`` would hold it (the stopping rule).
+
+        Only whole, done blocks are kept, and nothing beyond them may have been merged: tail
+        counts and histograms are sums over every merged chunk.
+        """
+        job = self.job
+        nb = -(-realizations // job.block_size)
+        if realizations % job.block_size and realizations != job.realizations:
+            raise ValueError(f"{realizations} realizations is not a whole number of blocks")
+        if not self.done[:nb].all() or self.done[nb:].any():
+            raise StoreError(
+                f"{job.name}: cannot cut at {realizations:,} realizations: a block before it "
+                "is missing or one after it was merged"
+            )
+        out = JobState(replace(job, config=replace(job.config, realizations=realizations)))
+        out.rec[...] = self.rec[:nb]
+        out.rec0[...] = self.rec0[:nb]
+        out.lam_rec[...] = self.lam_rec[:nb]
+        out.done[...] = True
+        out.tail[...] = self.tail
+        out.lam_tail[...] = self.lam_tail
+        out.hist[...] = self.hist
+        for key, arr in out.kept.items():
+            arr[...] = self.kept[key][: arr.shape[0]]
+        out.seconds = self.seconds
+        out.backends = set(self.backends)
+        out.measures = self.measures
+        out.measures_seconds = self.measures_seconds
         return out
 
     @property

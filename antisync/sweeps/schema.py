@@ -206,6 +206,11 @@ def load_sweep_text(
         if "unknown key" in str(exc):
             raise ConfigError(f"{exc}; sweep keys: {', '.join(sorted(_SWEEP_KEYS))}") from None
         raise
+    if base.stop.active:
+        raise ConfigError(
+            "stop: is for `antisync run`; a sweep spends its realizations by its own stages "
+            "(screen, then refine): remove the stop section"
+        )
     if "km" not in base.measures:  # a run may omit km (exact measures only); a sweep may not
         raise ConfigError(
             f"a sweep screens and ranks its graphs by Lambda^KM: measures must include km, got "
