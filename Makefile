@@ -6,7 +6,7 @@ STAMP  := $(VENV)/.installed-stamp
 CONFIG ?= configs/lollipop6.yaml
 RESULT ?= results/lollipop6.h5
 
-.PHONY: help install run test test-slow test-cuda bench lint format clean paper
+.PHONY: help install run test test-slow test-cuda bench lint format clean paper fig1-paper-precision
 
 help:
 	@echo "make run        set up .venv, run $(CONFIG), write $(RESULT) and figures"
@@ -15,6 +15,9 @@ help:
 	@echo "make bench      speed benchmarks (results go to bench/RESULTS.md by hand)"
 	@echo "make paper      every figure and table of the paper at reduced realizations into"
 	@echo "                results/paper/ (35 min on 2 cores; resumes when rerun)"
+	@echo "make fig1-paper-precision"
+	@echo "                Fig. 1's 12 links at the paper's 1e7 realizations (RK4; ~8 min on"
+	@echo "                2 cores) into results/fig1_paper_precision.h5"
 	@echo "make lint       ruff check and ruff format --check (part of make test)"
 	@echo "make format     ruff format (rewrites files)"
 
@@ -66,3 +69,7 @@ clean:
 
 paper: $(STAMP)
 	$(BIN)/antisync paper --out results/paper
+
+fig1-paper-precision: $(STAMP)
+	$(BIN)/antisync run configs/fig1_paper_precision.yaml --resume
+	$(BIN)/antisync summary results/fig1_paper_precision.h5 --sort km

@@ -6,7 +6,9 @@ integrates the realizations up to each of :attr:`~antisync.config.Config.stop_lo
 :func:`take_look`: every link's Lambda^KM interval from the realizations so far, at the level
 :func:`look_level`. The run ends at the first look where each link is
 
-- *resolved*: its interval excludes 0 (antifragile or fragile), or
+- *resolved*: its interval excludes 0 (antifragile or fragile) and does not rest on fewer
+  than ten values of the tail (the summary's heavy-tail warning: there the interval's
+  coverage is the least sure, so the rule waits for more), or
 - *settled*: its interval lies inside ``[-tolerance, tolerance]`` (with tolerance 0: a link
   whose damage changes nothing, every value exactly 0).
 
@@ -98,9 +100,10 @@ def take_look(states: Mapping[str, JobState], realizations: int, level: float, t
     kuramoto = [st for st in states.values() if st.job.kuramoto]
     for st in kuramoto:
         view = state_view(st.truncated(realizations))
-        for label, (low, high) in zip(view.edges, lambda_intervals(view, level), strict=True):
+        ci, thin = lambda_intervals(view, level)
+        for label, (low, high), few in zip(view.edges, ci, thin, strict=True):
             links += 1
-            if low > 0 or high < 0:
+            if (low > 0 or high < 0) and not few:
                 resolved += 1
             elif -tolerance <= low and high <= tolerance:
                 settled += 1

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from statistics import NormalDist
 
 import numpy as np
 
@@ -90,16 +91,28 @@ def _interval(view: JobView, e: int, pooled: np.ndarray, level: float):
     return s, ci
 
 
-def lambda_intervals(view: JobView, level: float = CI_LEVEL) -> np.ndarray:
-    """``(E, 2)``: every link's Lambda^KM interval at ``level`` (NaN where no synchronized
-    realization gives a value), as the records' ``lambda_km_ci_low`` / ``_high`` at 95%."""
+def _few_tail_values(iv, se: float, se_batch: float) -> bool:
+    """The interval rests on fewer than :data:`TAIL_EVENTS` values of the tail and is wider
+    than 1.5x the batch-means one: the summary warns, and its coverage is the least sure
+    (the runs of 2,000 in bench/RESULTS.md, "Calibration of Lambda's error bars")."""
+    return iv is not None and iv.tail_events < TAIL_EVENTS and se > 1.5 * se_batch
+
+
+def lambda_intervals(view: JobView, level: float = CI_LEVEL) -> tuple[np.ndarray, np.ndarray]:
+    """``(ci, thin)``: ``ci`` (E, 2) every link's Lambda^KM interval at ``level`` (NaN where no
+    synchronized realization gives a value), as the records' ``lambda_km_ci_low`` / ``_high``
+    at 95%; ``thin`` (E,) bool, where that interval rests on few tail values (the summary's
+    heavy-tail warning)."""
     pooled = _pooled_tail(view)
-    out = np.full((len(view.edges), 2), np.nan)
+    ci = np.full((len(view.edges), 2), np.nan)
+    thin = np.zeros(len(view.edges), dtype=bool)
+    z = NormalDist().inv_cdf((1 + level) / 2)
     for e in range(len(view.edges)):
-        s, (low, high, _, _) = _interval(view, e, pooled, level)
+        s, (low, high, _, iv) = _interval(view, e, pooled, level)
         if s["n"] >= 2:
-            out[e] = low, high
-    return out
+            ci[e] = low, high
+            thin[e] = _few_tail_values(iv, (high - low) / (2 * z), s["lambda"].se)
+    return ci, thin
 
 
 def _lambda(view: JobView, e: int, pooled: np.ndarray) -> tuple[dict, dict]:
@@ -121,7 +134,7 @@ def _lambda(view: JobView, e: int, pooled: np.ndarray) -> tuple[dict, dict]:
             warning += f"; {view.unsynced_hint}"
     elif est.n_batches < 10:
         warning = f"only {est.n_batches} batches: standard error is rough"
-    elif iv is not None and iv.tail_events < TAIL_EVENTS and se > 1.5 * est.se:
+    elif _few_tail_values(iv, se, est.se):
         need = int(math.ceil(est.n * TAIL_EVENTS / max(iv.tail_events, 1) / 1000.0)) * 1000
         warning = (
             f"heavy tail: the interval rests on {iv.tail_events} values beyond |Lambda| = "

@@ -11,7 +11,8 @@ the *false signs*: a resolved sign opposite to the pool mean's
 (per link, and runs with any). The rules compared:
 
 - ``bonferroni``: antisync's, each look at ``1 - 0.05 / looks``;
-- ``naive``: every look at 95% (what a user who reruns until it looks resolved does);
+- ``naive``: every look at 95%, every interval counted (what a user who reruns until it
+  looks resolved does);
 - ``fixed``: no looks, the whole budget at 95% (the plain run).
 
 Usage::
@@ -37,6 +38,7 @@ from calibrate_errors import LOLLIPOP, pool  # noqa: E402
 
 from antisync import estimators  # noqa: E402
 from antisync.stopping import look_level  # noqa: E402
+from antisync.summary import JobView, lambda_intervals  # noqa: E402
 
 
 def looks(first: int, budget: int, block: int) -> list[int]:
@@ -49,18 +51,32 @@ def looks(first: int, budget: int, block: int) -> list[int]:
     return [*out, budget]
 
 
-def signs(run: np.ndarray, block: int, dbeta: float, level: float) -> np.ndarray:
-    """+1 / -1 / 0 per link: the sign its interval at ``level`` resolves (as the summary)."""
+def signs(run: np.ndarray, block: int, dbeta: float, level: float, look: bool = False) -> np.ndarray:
+    """+1 / -1 / 0 per link: the sign its interval at ``level`` resolves, as the records say
+    (``look=False``) or as a look of the rule counts it (``look=True``: an interval resting on
+    few tail values does not count), both from :func:`antisync.summary.lambda_intervals`."""
     rec, tail = estimators.lambda_block_records(
         run, np.zeros(run.shape, np.int8), np.zeros(run.shape, bool), block
     )
-    pooled = tail.sum(axis=0)
-    out = np.zeros(run.shape[1], dtype=int)
-    for e in range(run.shape[1]):
-        est = estimators.summarize_lambda(rec[:, e, :])["lambda"]
-        low, high, _, _ = estimators.lambda_ci(est, rec[:, e, :], tail[e], pooled, dbeta, level)
-        out[e] = 1 if low > 0 else -1 if high < 0 else 0
-    return out
+    nb, n_links = rec.shape[0], run.shape[1]
+    view = JobView(
+        graph="pool",
+        edges=[str(e) for e in range(n_links)],
+        betas=(),
+        dbeta=dbeta,
+        variant_edge=np.zeros(0, dtype=np.int64),
+        variant_beta=np.zeros(0),
+        rec=np.zeros((nb, 0, len(estimators.BLOCK_FIELDS))),
+        rec0=np.zeros((nb, len(estimators.TAU0_FIELDS))),
+        done=np.ones(nb, dtype=bool),
+        tail=np.zeros((0, estimators.TAIL_BINS), dtype=np.int64),
+        realizations=run.shape[0],
+        lam_rec=rec,
+        lam_tail=tail,
+    )
+    ci, thin = lambda_intervals(view, level)
+    out = np.where(ci[:, 0] > 0, 1, np.where(ci[:, 1] < 0, -1, 0))
+    return np.where(thin, 0, out) if look else out
 
 
 def simulate(values, dbeta, budget, first, runs, seed) -> dict[str, dict]:
@@ -76,12 +92,12 @@ def simulate(values, dbeta, budget, first, runs, seed) -> dict[str, dict]:
         run = values[rng.integers(0, values.shape[0], budget)]
         for name, level in rules.items():
             for n in plan:
-                s = signs(run[:n], block, dbeta, level)
+                s = signs(run[:n], block, dbeta, level, look=name == "bonferroni")
                 if (s != 0).all() or n == budget:
                     break
             out[name]["spent"].append(n)
             # what the file reports: the records of a plain run of n (95% intervals)
-            out[name]["signs"].append(s if level == 0.95 else signs(run[:n], block, dbeta, 0.95))
+            out[name]["signs"].append(signs(run[:n], block, dbeta, 0.95))
         out["fixed"]["spent"].append(budget)
         out["fixed"]["signs"].append(signs(run, block, dbeta, 0.95))
     for d in out.values():

@@ -256,3 +256,24 @@ def test_a_damaged_stop_record_is_one_line(tmp_path, stopped):
         stop_record(bad)
     res = _cli("summary", bad)
     assert res.returncode == 2 and "Traceback" not in res.stderr and "stop_json" in res.stderr
+
+
+def test_a_look_counts_no_sign_that_rests_on_a_few_tail_values(tmp_path):
+    """``lambda_intervals``' thin flag is exactly the summary's heavy-tail warning, and a look
+    leaves those links open: the lollipop's heavy-tailed links at 2,000 RK4 realizations."""
+    from antisync.store import read_views
+    from antisync.summary import lambda_intervals
+
+    text = BASE.replace('edges: ["2->1", "5->6", "1->2"]', "edges: all")
+    cfg = _config(text, "realizations=2000", "dynamics.integrator=rk4", "dynamics.dt=0.04", "seed=1")
+    path = run_config(cfg, output=tmp_path / "h.h5")
+    (view,) = read_views(path)
+    ci, thin = lambda_intervals(view)
+    warned = [
+        bool((r["lambda_km_warning"] or "").startswith("heavy tail: the interval rests on"))
+        for r in records(path)
+    ]
+    assert thin.tolist() == warned and any(warned)
+    low, high = ci.T
+    assert np.array_equal(low, [r["lambda_km_ci_low"] for r in records(path)])
+    assert np.array_equal(high, [r["lambda_km_ci_high"] for r in records(path)])
