@@ -213,3 +213,21 @@ def test_both_executors_satisfy_the_executor_protocol():
     for name in ("run", "describe", "close"):
         assert callable(getattr(DaskExecutor, name))
     assert issubclass(DaskExecutor, Executor)
+
+
+@pytest.mark.parametrize(("edges", "stopped_at"), [('["2->1", "2->3"]', 200), ('["2->1", "3->4"]', 3200)])
+def test_stopping_rule_on_the_cluster_stops_where_the_local_run_does(client, tmp_path, edges, stopped_at):
+    """``stop: signs-resolved`` through the Dask executor (chunks finish out of order; each
+    look waits for its prefix): the same looks and the same file as the local executor's, for
+    a run that stops at its first look and one that spends its budget (3->4 stays open)."""
+    from antisync.config import load_config_text
+    from antisync.store import records, stop_record
+
+    text = TINY.replace("realizations: 400", "realizations: 3200").replace("betas: [0.5]", "betas: []")
+    text = text.replace('["2->1", "3->4"]', edges) + "stop: {when: signs-resolved, first_look: 200}\n"
+    cfg = load_config_text(text)
+    local = run_config(cfg, output=tmp_path / "local.h5", executor=LocalExecutor("cpu", None))
+    with DaskExecutor(client) as ex:
+        remote = run_config(cfg, output=tmp_path / "dask.h5", executor=ex, chunk_realizations=50)
+    assert stop_record(remote) == stop_record(local) and stop_record(local)["stopped_at"] == stopped_at
+    assert records(remote) == records(local)
