@@ -85,6 +85,11 @@ def run_jobs(
     the same key leaves it untouched (also when it or its folder is read-only). A failure
     before any chunk finished removes what this call created (a journal with nothing in it,
     temporary files), so the same command can simply be run again.
+
+    With a stopping rule (``config.stop``, docs/stopping.md) the realizations are integrated
+    look by look (:attr:`~antisync.config.Config.stop_looks`); the run ends at the first look
+    where :func:`antisync.stopping.take_look` finds every sign known, and the file then holds
+    exactly a plain run of that many realizations.
     """
     say = log or (lambda msg: None)
     jobs = with_nnc(jobs)  # measures: km_nnc adds each job's raw-coupling twin
