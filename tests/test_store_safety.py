@@ -81,6 +81,22 @@ def wait_for_chunks(journal: Path, n: int, proc: subprocess.Popen, timeout: floa
         time.sleep(0.05)
 
 
+def wait_for_holder(lock: Path, proc: subprocess.Popen, timeout: float = HANG_GUARD_S) -> None:
+    """Wait until ``proc`` holds the output lock (its pid in ``<out>.lock``). Counting journal
+    chunks is not enough after a kill -9: the killed writer may have left as many chunks as the
+    test waits for before the next process has even started."""
+    deadline = time.monotonic() + timeout
+    while True:
+        try:
+            if json.loads(lock.read_text()).get("pid") == proc.pid:
+                return
+        except (OSError, ValueError):
+            pass  # not there yet, or caught between the holder's truncate and write
+        assert proc.poll() is None, "the run ended before it took the lock"
+        assert time.monotonic() < deadline, "the lock was not taken in time"
+        time.sleep(0.05)
+
+
 def kill(proc: subprocess.Popen) -> None:
     os.kill(proc.pid, signal.SIGKILL)
     proc.wait()
@@ -176,7 +192,8 @@ def test_two_resumes_never_run_at_once(tmp_path):
     kill(a)
     b = start("run", big, "--out", out, "--resume", "--quiet")
     try:
-        wait_for_chunks(journal, 4, b)
+        wait_for_holder(tmp_path / "r.h5.lock", b)
+        wait_for_chunks(journal, len(list(journal.glob("*.npz"))) + 1, b)
         line = one_line_error(cli("run", big, "--out", out, "--resume", "--quiet"))
         assert f"pid {b.pid}" in line and "--resume" in line
         assert b.poll() is None
