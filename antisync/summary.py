@@ -76,17 +76,26 @@ def _num(x: float):
     return None if x is None or (isinstance(x, float) and math.isnan(x)) else float(x)
 
 
-def _pooled_tail(view: JobView) -> np.ndarray:
-    """The signed tail counts of every link of the job together (the tail model's prior)."""
-    return view.lam_tail.sum(axis=0) if view.lam_tail.size else view.lam_tail
+def _pooled_tail(view: JobView) -> tuple[np.ndarray, int]:
+    """The signed tail counts of every link of the job together (the tail model's prior) and
+    the number of links with a value (:func:`estimators.pooled_tail`)."""
+    return estimators.pooled_tail(view.lam_tail)
 
 
-def _interval(view: JobView, e: int, pooled: np.ndarray, level: float):
+def _interval(view: JobView, e: int, pooled: tuple[np.ndarray, int], level: float):
     """Edge ``e``'s :func:`estimators.summarize_lambda` and :func:`estimators.lambda_ci`."""
     rec = view.lam_rec[view.done, e]
     s = estimators.summarize_lambda(rec)
+    counts, links = pooled
     ci = estimators.lambda_ci(
-        s["lambda"], rec, view.lam_tail[e], pooled, view.dbeta, level, estimator=view.lambda_method
+        s["lambda"],
+        rec,
+        view.lam_tail[e],
+        counts,
+        view.dbeta,
+        level,
+        estimator=view.lambda_method,
+        links=links,
     )
     return s, ci
 
@@ -115,7 +124,7 @@ def lambda_intervals(view: JobView, level: float = CI_LEVEL) -> tuple[np.ndarray
     return ci, thin
 
 
-def _lambda(view: JobView, e: int, pooled: np.ndarray) -> tuple[dict, dict]:
+def _lambda(view: JobView, e: int, pooled: tuple[np.ndarray, int]) -> tuple[dict, dict]:
     """Lambda's fields of edge ``e``'s records, and its :func:`estimators.summarize_lambda`."""
     rec = view.lam_rec[view.done, e]
     s, (low, high, method, iv) = _interval(view, e, pooled, CI_LEVEL)

@@ -95,11 +95,13 @@ def intervals(run: np.ndarray, dbeta: float, estimator: str) -> dict[str, np.nda
     rec, tail = estimators.lambda_block_records(
         run, np.zeros(run.shape, np.int8), np.zeros(run.shape, bool), block
     )
-    pooled = tail.sum(axis=0)
+    pooled, links = estimators.pooled_tail(tail)
     out = {"batch-means": np.empty((run.shape[1], 2)), "reported": np.empty((run.shape[1], 2))}
     for e in range(run.shape[1]):
         est = estimators.summarize_lambda(rec[:, e, :])["lambda"]
-        low, high, _, _ = estimators.lambda_ci(est, rec[:, e, :], tail[e], pooled, dbeta, estimator=estimator)
+        low, high, _, _ = estimators.lambda_ci(
+            est, rec[:, e, :], tail[e], pooled, dbeta, estimator=estimator, links=links
+        )
         out["batch-means"][e] = est.mean - Z95 * est.se, est.mean + Z95 * est.se
         out["reported"][e] = low, high
     return out

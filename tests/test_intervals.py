@@ -174,3 +174,41 @@ def test_a_format1_file_is_read_with_batch_means_and_says_so(tmp_path):
             a["lambda_km_ci_low"] <= b["lambda_km_ci_low"]
             and b["lambda_km_ci_high"] <= a["lambda_km_ci_high"]
         )
+
+
+def test_pooled_tail_counts_the_links_with_a_value():
+    rng = np.random.default_rng(5)
+    x = np.column_stack([rng.normal(size=500), np.zeros(500), rng.standard_cauchy(500)])
+    n = x.shape[0]
+    _, tail = estimators.lambda_block_records(x, np.zeros(x.shape, np.int8), np.zeros(x.shape, bool), 100)
+    pooled, links = estimators.pooled_tail(tail)
+    assert links == 2  # the all-zero (neutral) link is in no tail
+    assert np.array_equal(pooled, tail.sum(axis=0)) and pooled.sum() == 3 * n
+    assert estimators.pooled_tail(np.zeros((0, estimators.LAMBDA_TAIL_BINS)))[1] == 0
+
+
+def test_batch_means_joins_only_a_link_with_ten_tail_values():
+    """With fewer than ten values beyond the tail threshold the interval is the tail model's
+    alone (a sample variance of a handful of rare values is noise); with ten or more it is
+    united with the batch-means interval (bench/RESULTS.md, "Calibration of Lambda's error
+    bars")."""
+    rng = np.random.default_rng(11)
+    sample, _ = _model(1.5)
+    for n, few in ((4000, False), (2000, True)):
+        x = sample(rng, n)
+        if few:  # keep the body, but only three values beyond u = 1 on this link
+            big = np.flatnonzero(np.abs(x) > 1.0)
+            x[big[3:]] = rng.normal(0.1, 0.1, big.size - 3)
+        rec, tail = _records(x)
+        # alone, the link sets the threshold (40 values beyond it); with three, a job whose
+        # other links fill the pooled tail
+        pooled = tail[0] * 50 if few else tail[0]
+        est = estimators.summarize_lambda(rec[:, 0, :])["lambda"]
+        low, high, method, iv = estimators.lambda_ci(est, rec[:, 0, :], tail[0], pooled, DBETA)
+        assert method == estimators.TAIL_MODEL
+        assert (iv.tail_events < 10) == few
+        if few:
+            assert (low, high) == (iv.low, iv.high)
+        else:
+            assert low == min(iv.low, est.mean - estimators.Z95 * est.se)
+            assert high == max(iv.high, est.mean + estimators.Z95 * est.se)
