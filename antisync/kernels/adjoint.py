@@ -30,8 +30,8 @@ Layers as in :mod:`antisync.kernels.cpu`: ``_euler_adjoint`` / ``_rk4_adjoint`` 
 trajectory), ``_adjoint_batch`` (``prange`` over groups of realizations, one trajectory at a
 time per thread: the reference), the Euler lane path (``_euler_forward_lanes``,
 ``_euler_backward_lanes``, ``_adjoint_lanes_batch``: :data:`LANES` realizations per group on
-machine vectors, the same bits; see "lanes of trajectories" below) and the public
-:func:`simulate_adjoint`. RK4 runs one trajectory at a time.
+machine vectors, the same bits; see "lanes of trajectories" below), the RK4 lane path
+(``_rk4_forward_lanes``, ``_rk4_backward_lanes``) and the public :func:`simulate_adjoint`.
 """
 
 from __future__ import annotations
@@ -484,7 +484,7 @@ def _rk4_adjoint(c, s, ck, seg, g, indptr, indices, w, dt, r2_target, max_steps,
     return SYNCED, k, x, ck
 
 
-# ---- lanes of trajectories (Euler with Taylor rotations) ------------------------------------
+# ---- lanes of trajectories (Euler with Taylor rotations; RK4 below) -------------------------
 #
 # ``LANES`` realizations side by side in ``[node, lane]`` arrays, as the forward lane driver of
 # :mod:`.cpu` holds them: the forward pass and the segment recompute are ``euler_step_vec``
@@ -1159,9 +1159,9 @@ def simulate_adjoint(
     checkpoint_every : int
         ``K``, steps between stored states (see the module docstring); never changes results.
     lanes : bool
-        Run Euler trajectories :data:`LANES` at a time on machine vectors (when every rotation
-        angle is within the Taylor range, ``dt sum_j |w_ij| <= 0.05``); ``False`` (and RK4) runs
-        one trajectory at a time (the reference). The results are the same bits either way.
+        Run :data:`LANES` trajectories at a time on machine vectors (RK4 always; Euler when
+        every rotation angle is within the Taylor range, ``dt sum_j |w_ij| <= 0.05``); ``False``
+        runs one trajectory at a time (the reference). The results are the same bits either way.
 
     Returns
     -------
