@@ -14,7 +14,8 @@ links of
 All three estimators run the paper's Euler step (dt = 0.001, threshold 0.99, normalized
 coupling) from the same initial phases. Pathwise steps 32 trajectories together (its lane
 driver), so it is timed on a multiple of 32 realizations; the finite difference also uses
-the lane driver; adjoint integrates one trajectory at a time. The adjoint's per-realization
+the lane driver; the adjoint runs 16 realizations side by side (its lane path, ordered by
+crossing step; ``kernels.adjoint.LANES``). The adjoint's per-realization
 values are checked against pathwise on the links both computed (the largest relative
 difference is printed). ``--hybrid`` instead prints the flagged fraction of ``adjoint-hybrid``
 (``hybrid_cut`` 2, the default) on both graphs and the paper's lollipop.

@@ -15,9 +15,11 @@ Memory: the backward pass needs the trajectory in reverse. The forward pass keep
 ``checkpoint_every``-th state (``K``); the backward pass recomputes each segment of ``K`` steps
 forward from its checkpoint (with the same step function, so bit for bit the same states)
 and then walks it backwards. For a trajectory of ``k`` steps on ``N`` nodes a thread holds
-``(ceil(k / K) + K) 2 N`` doubles (``K = 256``, ``k = 20,000``, ``N = 1,000``: 5.3 MB) and
-recomputes ``k (K - 1) / K`` steps, about one extra forward pass, for any ``K``; ``K = 1``
-stores every state and recomputes nothing. ``K`` never changes the results (bit for bit).
+``(ceil(k / K) + K) 2 N`` doubles (``K = 64``, ``k = 20,000``, ``N = 1,000``: 6.0 MB; the lane
+path ``LANES = 16`` times that) and recomputes ``k (K - 1) / K`` steps, about one extra forward
+pass, for any ``K``; ``K = 1`` stores every state and recomputes nothing. ``K`` never changes
+the results (bit for bit). The default 64 keeps a lane group's segment (``16 K 2 N`` doubles,
+557 KB on the karate club) in a core's L2 cache, where 256 did not (karate: 1.5x slower).
 
 Integrators: ``euler`` (the rotation step of :mod:`antisync.kernels.core`, in the phases:
 ``theta <- theta + dt f(theta)``, linear crossing in ``R = |sum_j e^{i theta_j}|^2``) and
@@ -26,35 +28,50 @@ unit circle, cubic Hermite crossing differentiated through the interpolant).
 
 Layers as in :mod:`antisync.kernels.cpu`: ``_euler_adjoint`` / ``_rk4_adjoint`` (one
 trajectory), ``_adjoint_batch`` (``prange`` over groups of realizations, one trajectory at a
-time per thread) and the public :func:`simulate_adjoint`.
+time per thread: the reference), the Euler lane path (``_euler_forward_lanes``,
+``_euler_backward_lanes``, ``_adjoint_lanes_batch``: :data:`LANES` realizations per group on
+machine vectors, the same bits; see "lanes of trajectories" below), the RK4 lane path
+(``_rk4_forward_lanes``, ``_rk4_backward_lanes``) and the public :func:`simulate_adjoint`.
 """
 
 from __future__ import annotations
 
 from typing import NamedTuple
 
+import numba
 import numpy as np
 from numba import njit, prange
 
 from antisync import _numba_cache  # noqa: F401 -- before any cache=True function (see there)
 from antisync.coupling import CouplingCSR, coupling_derivative_row
-from antisync.kernels.core import RENORM_EVERY, make_kernels
-from antisync.kernels.cpu import PathwiseResult, _realization_ids, _Threads
+from antisync.kernels.core import (
+    RENORM_EVERY,
+    TAYLOR_MAX_ANGLE,
+    VEC,
+    make_kernels,
+    vload,
+    vsplat,
+    vsqrt,
+    vstore,
+)
+from antisync.kernels.cpu import PathwiseResult, _realization_ids, _row_sum_bound, _Threads
 from antisync.phases import phase
 from antisync.status import ALREADY_SYNCED, NOT_SYNCED, SYNCED
 from antisync.types import Coupling, Integrator
 
-__all__ = ["CHECKPOINT_EVERY", "LinkDerivatives", "link_derivatives", "simulate_adjoint"]
+__all__ = ["CHECKPOINT_EVERY", "LANES", "LinkDerivatives", "link_derivatives", "simulate_adjoint"]
 
 _K = make_kernels(lambda f: njit(f, inline="always", cache=True))
 _euler_step = _K.euler_step
+_euler_vec = _K.euler_step_vec
+_rk4_vec = _K.rk4_step_vec
 _renormalize = _K.renormalize
 _order2 = _K.order2
 _rk4_lanes = _K.rk4_step_lanes
 _lane_velocity = _K.lane_velocity
 _hermite = _K.hermite_crossing
 
-CHECKPOINT_EVERY = 256
+CHECKPOINT_EVERY = 64
 """Default ``K``: steps between stored states of the forward pass (memory, not results)."""
 
 
@@ -467,6 +484,545 @@ def _rk4_adjoint(c, s, ck, seg, g, indptr, indices, w, dt, r2_target, max_steps,
     return SYNCED, k, x, ck
 
 
+# ---- lanes of trajectories (Euler with Taylor rotations; RK4 below) -------------------------
+#
+# ``LANES`` realizations side by side in ``[node, lane]`` arrays, as the forward lane driver of
+# :mod:`.cpu` holds them: the forward pass and the segment recompute are ``euler_step_vec``
+# (bit for bit ``euler_step`` per lane when every rotation angle is within the Taylor range), and
+# the backward pass is :func:`_euler_vjp` on machine vectors (:func:`_euler_vjp_vec`, the same
+# operations in the same order per lane). The lanes of a group start together and end at their
+# own crossing steps ``k_q``; the group's clock runs forward until every lane has crossed (or
+# hit the step cap) and backward from the largest ``k_q`` to 0. A lane's adjoint state is
+# exactly zero for ``j >= k_q`` until its seed at ``j = k_q``, so the steps past its crossing
+# add exact zeros to its ``lam`` and ``g`` (``+0.0``: the same bits as not adding). A lane is
+# renormalized at step ``j`` when ``j % RENORM_EVERY == 0`` and ``j < k_q``, as the
+# one-trajectory pass renormalizes (never at or after its crossing).
+
+LANES = 16
+"""Realizations per lane group of the vector adjoint (a multiple of ``2 VEC``)."""
+
+
+@njit(inline="always")
+def _vjp_edges(c, s, lam_new, g, w, indices, p, lanes, qa, cia, sia, lia, da, cib, sib, lib, db):
+    """CSR entry ``p`` of :func:`_euler_vjp` for the lane vectors at ``qa`` and ``qa + VEC``
+    (loop-free, as ``edge_vec``)."""
+    oa = indices[p] * lanes + qa
+    ob = oa + VEC
+    ga = p * lanes + qa
+    gb = ga + VEC
+    cja = vload(c, oa)
+    sja = vload(s, oa)
+    cjb = vload(c, ob)
+    sjb = vload(s, ob)
+    vstore(g, ga, vload(g, ga) + lia * (sja * cia - cja * sia))
+    vstore(g, gb, vload(g, gb) + lib * (sjb * cib - cjb * sib))
+    ta = lia * w[p] * (cja * cia + sja * sia)
+    tb = lib * w[p] * (cjb * cib + sjb * sib)
+    vstore(lam_new, oa, vload(lam_new, oa) + ta)
+    vstore(lam_new, ob, vload(lam_new, ob) + tb)
+    return da + ta, db + tb
+
+
+@njit(cache=True)
+def _euler_vjp_vec(c, s, lam, lam_new, g, indptr, indices, w, dt):
+    """:func:`_euler_vjp` for every lane of ``[node, lane]`` arrays (``g`` is ``[nnz, lane]``),
+    on machine vectors; per lane the same operations in the same order."""
+    n, lanes = c.shape
+    for o in range(0, n * lanes, VEC):
+        vstore(lam_new, o, vload(lam, o))
+    for qa in range(0, lanes, 2 * VEC):
+        for i in range(n):
+            oa = i * lanes + qa
+            ob = oa + VEC
+            lia = dt * vload(lam, oa)
+            lib = dt * vload(lam, ob)
+            cia = vload(c, oa)
+            sia = vload(s, oa)
+            cib = vload(c, ob)
+            sib = vload(s, ob)
+            da = vsplat(0.0)
+            db = vsplat(0.0)
+            for p in range(indptr[i], indptr[i + 1]):
+                da, db = _vjp_edges(
+                    c, s, lam_new, g, w, indices, p, lanes, qa, cia, sia, lia, da, cib, sib, lib, db
+                )
+            vstore(lam_new, oa, vload(lam_new, oa) - da)
+            vstore(lam_new, ob, vload(lam_new, ob) - db)
+
+
+@njit(cache=True)
+def _store_lanes(ck, idx, c, s):
+    """``ck[idx] = (c, s)`` for ``[node, lane]`` states, doubling ``ck`` when full."""
+    if idx >= ck.shape[0]:
+        bigger = np.empty((2 * ck.shape[0], 2, ck.shape[2], ck.shape[3]))
+        bigger[: ck.shape[0]] = ck
+        ck = bigger
+    ck[idx, 0] = c
+    ck[idx, 1] = s
+    return ck
+
+
+@njit(cache=True)
+def _euler_forward_lanes(c, s, cn, sn, lw, ck, k_lane, x_lane, span_lane, code, indptr, indices, w, run):
+    """The group's forward pass from the states in ``(c, s)``: per lane its status ``code``,
+    crossing step ``k_lane`` (``max_steps + 1`` if none: renormalized to the end) and
+    crossing ``x_lane``, ``span_lane = R_k - R_{k-1}``; checkpoints into ``ck`` (returned)."""
+    n, lanes = c.shape
+    dt = run.dt
+    r2_target = run.r2_target
+    max_steps = run.max_steps
+    every = run.every
+    r2 = np.empty(lanes)
+    r2_prev = np.empty(lanes)
+    live = 0
+    for q in range(lanes):
+        r2[q] = _order2(c[:, q], s[:, q])
+        x_lane[q] = 0.0
+        span_lane[q] = 1.0
+        if r2[q] >= r2_target:
+            code[q] = ALREADY_SYNCED
+            k_lane[q] = 0
+        else:
+            code[q] = NOT_SYNCED
+            k_lane[q] = max_steps + 1
+            live += 1
+    ck = _store_lanes(ck, 0, c, s)
+    t = 0
+    while live > 0 and t < max_steps:
+        r2, r2_prev = r2_prev, r2
+        t += 1
+        _euler_vec(c, s, cn, sn, lw, w, True, indptr, indices, dt, r2)
+        c, cn = cn, c
+        s, sn = sn, s
+        for q in range(lanes):
+            if k_lane[q] > t and r2[q] >= r2_target:
+                code[q] = SYNCED
+                k_lane[q] = t
+                span_lane[q] = r2[q] - r2_prev[q]
+                x_lane[q] = (r2_target - r2_prev[q]) / span_lane[q]
+                live -= 1
+        if t % RENORM_EVERY == 0:
+            for q in range(lanes):
+                if t < k_lane[q]:
+                    _renormalize(c[:, q], s[:, q])
+        if t % every == 0:
+            ck = _store_lanes(ck, t // every, c, s)
+    return ck
+
+
+@njit(cache=True)
+def _euler_backward_lanes(
+    ck, seg_c, seg_s, lw, lam, lam_new, g, k_lane, x_lane, span_lane, code, indptr, indices, w, run
+):
+    """The group's backward pass: ``g[p, q] = d tau0 / d w_p`` of every SYNCED lane ``q``."""
+    n, lanes = lam.shape
+    dt = run.dt
+    every = run.every
+    g[:] = 0.0
+    lam[:] = 0.0
+    r2 = np.empty(lanes)  # the recompute's R, not needed
+    top = -1
+    for q in range(lanes):
+        if code[q] == SYNCED:
+            top = max(top, k_lane[q])
+    if top < 0:
+        return
+    for sg in range(top // every, -1, -1):
+        j0 = sg * every
+        j1 = min(j0 + every, top + 1)
+        # states j0 .. j1 - 1 again, exactly as the forward pass made them
+        seg_c[0] = ck[sg, 0]
+        seg_s[0] = ck[sg, 1]
+        for j in range(j0 + 1, j1):
+            row = j - j0
+            _euler_vec(
+                seg_c[row - 1], seg_s[row - 1], seg_c[row], seg_s[row], lw, w, True, indptr, indices, dt, r2
+            )
+            if j % RENORM_EVERY == 0:
+                for q in range(lanes):
+                    if j < k_lane[q]:
+                        _renormalize(seg_c[row][:, q], seg_s[row][:, q])
+        for j in range(j1 - 1, j0 - 1, -1):
+            cj = seg_c[j - j0]
+            sj = seg_s[j - j0]
+            _euler_vjp_vec(cj, sj, lam, lam_new, g, indptr, indices, w, dt)
+            lam, lam_new = lam_new, lam
+            for q in range(lanes):
+                if code[q] != SYNCED:
+                    continue
+                if j == k_lane[q]:
+                    # tau = dt (k - 1 + x), x = (R* - R_{k-1}) / (R_k - R_{k-1})  (Eq. A4)
+                    _r2_gradient(cj[:, q], sj[:, q], -dt * x_lane[q] / span_lane[q], lam[:, q])
+                elif j == k_lane[q] - 1 and j > 0:
+                    _r2_gradient(cj[:, q], sj[:, q], -dt * (1.0 - x_lane[q]) / span_lane[q], lam[:, q])
+
+
+# ---- lanes of RK4 trajectories --------------------------------------------------------------
+#
+# The forward pass and the recompute are ``rk4_step_vec`` (bit for bit the one-lane
+# ``rk4_step_lanes`` the reference runs); the backward pass is :func:`_rk4_vjp` with every
+# operation repeated over the ``LANES`` lanes in an innermost loop of constant length (the same
+# operations in the same order per lane). An RK4 adjoint state of zero stays exactly ``+0.0``
+# through :func:`_rk4_vjp` (every product with it is a signed zero, every sum starts at
+# ``+0.0``), so the steps past a lane's crossing leave its adjoint and ``g`` as they were.
+
+
+@njit(cache=True)
+def _rk4_vjp_vec(yc, ys, st, ac, as_, zc, zs, tc, ts, kc, ks, g, indptr, indices, w, dt):
+    """:func:`_rk4_vjp` (with :func:`_stages`, :func:`_velocity`, :func:`_velocity_vjp`) for
+    every lane of ``[node, lane]`` arrays on machine vectors, one vector of :data:`VEC` lanes
+    after the other: ``st`` is ``[stage, quantity, node, lane]``, ``g`` ``[nnz, lane]``. Per
+    lane the same operations in the same order."""
+    n, lanes = yc.shape
+    size = n * lanes
+    h = 0.5 * dt
+    sixth = dt / 6.0
+    weight = (1.0 / 6.0, 1.0 / 3.0, 1.0 / 3.0, 1.0 / 6.0)
+    for qa in range(0, lanes, VEC):
+        # the four stages: state, omega, coupling sums and velocity (_stages)
+        for sq in range(4):
+            base = sq * 7 * size
+            if sq == 0:
+                for i in range(n):
+                    o = i * lanes + qa
+                    vstore(st, base + o, vload(yc, o))
+                    vstore(st, base + size + o, vload(ys, o))
+            else:
+                hq = 0.5 * dt if sq < 3 else dt
+                prev = (sq - 1) * 7 * size
+                for i in range(n):
+                    o = i * lanes + qa
+                    vstore(st, base + o, vload(yc, o) + hq * vload(st, prev + 5 * size + o))
+                    vstore(st, base + size + o, vload(ys, o) + hq * vload(st, prev + 6 * size + o))
+            for i in range(n):
+                o = i * lanes + qa
+                a = vsplat(0.0)
+                b = vsplat(0.0)
+                for p in range(indptr[i], indptr[i + 1]):
+                    oj = indices[p] * lanes + qa
+                    a = a + w[p] * vload(st, base + oj)
+                    b = b + w[p] * vload(st, base + size + oj)
+                ci = vload(st, base + o)
+                si = vload(st, base + size + o)
+                om = ci * b - si * a
+                vstore(st, base + 2 * size + o, om)
+                vstore(st, base + 3 * size + o, a)
+                vstore(st, base + 4 * size + o, b)
+                vstore(st, base + 5 * size + o, -si * om)
+                vstore(st, base + 6 * size + o, ci * om)
+        # projection y_{n+1} = z / |z| per node: zbar = (ybar - y (y . ybar)) / |z|
+        for i in range(n):
+            o = i * lanes + qa
+            two = vsplat(2.0)
+            zci = vload(yc, o) + sixth * (
+                vload(st, 5 * size + o)
+                + two * vload(st, 7 * size + 5 * size + o)
+                + two * vload(st, 14 * size + 5 * size + o)
+                + vload(st, 21 * size + 5 * size + o)
+            )
+            zsi = vload(ys, o) + sixth * (
+                vload(st, 6 * size + o)
+                + two * vload(st, 7 * size + 6 * size + o)
+                + two * vload(st, 14 * size + 6 * size + o)
+                + vload(st, 21 * size + 6 * size + o)
+            )
+            norm = vsqrt(zci * zci + zsi * zsi)
+            uc = zci / norm
+            us = zsi / norm
+            aci = vload(ac, o)
+            asi = vload(as_, o)
+            dot = uc * aci + us * asi
+            zcv = (aci - uc * dot) / norm
+            zsv = (asi - us * dot) / norm
+            vstore(zc, o, zcv)
+            vstore(zs, o, zsv)
+            vstore(ac, o, zcv)
+            vstore(as_, o, zsv)
+        # z = y + dt/6 (k1 + 2 k2 + 2 k3 + k4); y4 = y + dt k3, y3 = y + h k2, y2 = y + h k1
+        for sq in range(3, -1, -1):
+            base = sq * 7 * size
+            for i in range(n):
+                o = i * lanes + qa
+                if sq == 3:
+                    vstore(kc, o, dt * weight[sq] * vload(zc, o))
+                    vstore(ks, o, dt * weight[sq] * vload(zs, o))
+                else:
+                    hq = dt if sq == 2 else h
+                    vstore(kc, o, dt * weight[sq] * vload(zc, o) + hq * vload(tc, o))
+                    vstore(ks, o, dt * weight[sq] * vload(zs, o) + hq * vload(ts, o))
+                vstore(tc, o, vsplat(0.0))
+                vstore(ts, o, vsplat(0.0))
+            # _velocity_vjp at stage sq: (bc, bs) = (ac, as_) for the first stage, else (tc, ts)
+            for i in range(n):
+                o = i * lanes + qa
+                ci = vload(st, base + o)
+                si = vload(st, base + size + o)
+                om = vload(st, base + 2 * size + o)
+                gc = vload(kc, o)
+                gs = vload(ks, o)
+                ob = ci * gs - si * gc
+                if sq == 0:
+                    vstore(ac, o, vload(ac, o) + (om * gs + ob * vload(st, base + 4 * size + o)))
+                    vstore(as_, o, vload(as_, o) + (-om * gc - ob * vload(st, base + 3 * size + o)))
+                else:
+                    vstore(tc, o, vload(tc, o) + (om * gs + ob * vload(st, base + 4 * size + o)))
+                    vstore(ts, o, vload(ts, o) + (-om * gc - ob * vload(st, base + 3 * size + o)))
+                bss = ob * ci
+                bsc = -ob * si
+                for p in range(indptr[i], indptr[i + 1]):
+                    oj = indices[p] * lanes + qa
+                    og = p * lanes + qa
+                    wp = w[p]
+                    if sq == 0:
+                        vstore(as_, oj, vload(as_, oj) + wp * bss)
+                        vstore(ac, oj, vload(ac, oj) + wp * bsc)
+                    else:
+                        vstore(ts, oj, vload(ts, oj) + wp * bss)
+                        vstore(tc, oj, vload(tc, oj) + wp * bsc)
+                    sj = vload(st, base + size + oj)
+                    cj = vload(st, base + oj)
+                    vstore(g, og, vload(g, og) + (bss * sj + bsc * cj))
+            if sq > 0:
+                for i in range(n):
+                    o = i * lanes + qa
+                    vstore(ac, o, vload(ac, o) + vload(tc, o))
+                    vstore(as_, o, vload(as_, o) + vload(ts, o))
+
+
+@njit(cache=True)
+def _rk4_forward_lanes(
+    c, s, kv, yc, ys, ybc, ybs, lw, ck, k_lane, x_lane, coef, code, indptr, indices, w, run
+):
+    """The group's RK4 forward pass; per lane ``code``, ``k_lane``, ``x_lane`` and the Hermite
+    seed coefficients ``coef[:, q] = (R_k, D_k, R_{k-1}, D_{k-1})`` weights (as
+    :func:`_rk4_adjoint` forms them)."""
+    n, lanes = c.shape
+    dt = run.dt
+    r2_target = run.r2_target
+    max_steps = run.max_steps
+    every = run.every
+    r2 = np.empty(lanes)
+    dr2 = np.empty(lanes)
+    r2_prev = np.empty(lanes)
+    dr2_prev = np.empty(lanes)
+    live = 0
+    dtot = np.empty((4, lanes))
+    om = np.empty((n, lanes))
+    sum_c = np.empty((n, lanes))
+    sum_s = np.empty((n, lanes))
+    _lane_velocity(c, s, kv[0], kv[1], dtot, om, sum_c, sum_s, lw, indptr, indices)
+    for q in range(lanes):
+        r2[q] = dtot[2, q] ** 2 + dtot[3, q] ** 2
+        dr2[q] = 2.0 * (dtot[2, q] * dtot[0, q] + dtot[3, q] * dtot[1, q])
+        x_lane[q] = 0.0
+        # the reference asks _order2 (sums in the same order as d2, d3 here)
+        if _order2(c[:, q], s[:, q]) >= r2_target:
+            code[q] = ALREADY_SYNCED
+            k_lane[q] = 0
+        else:
+            code[q] = NOT_SYNCED
+            k_lane[q] = max_steps + 1
+            live += 1
+    ck = _store_lanes(ck, 0, c, s)
+    t = 0
+    while live > 0 and t < max_steps:
+        r2, r2_prev = r2_prev, r2
+        dr2, dr2_prev = dr2_prev, dr2
+        t += 1
+        _rk4_vec(c, s, kv, yc, ys, ybc, ybs, lw, w, True, indptr, indices, dt, r2, dr2)
+        for q in range(lanes):
+            if k_lane[q] > t and r2[q] >= r2_target:
+                code[q] = SYNCED
+                k_lane[q] = t
+                x = _hermite(r2_prev[q], dr2_prev[q], r2[q], dr2[q], dt, r2_target)
+                x_lane[q] = x
+                x2 = x * x
+                x3 = x2 * x
+                slope = (
+                    (6.0 * x2 - 6.0 * x) * r2_prev[q]
+                    + (3.0 * x2 - 4.0 * x + 1.0) * dt * dr2_prev[q]
+                    + (-6.0 * x2 + 6.0 * x) * r2[q]
+                    + (3.0 * x2 - 2.0 * x) * dt * dr2[q]
+                )
+                scale = -dt / slope
+                coef[0, q] = scale * (-2.0 * x3 + 3.0 * x2)
+                coef[1, q] = scale * dt * (x3 - x2)
+                coef[2, q] = scale * (2.0 * x3 - 3.0 * x2 + 1.0)
+                coef[3, q] = scale * dt * (x3 - 2.0 * x2 + x)
+                live -= 1
+        if t % every == 0:
+            ck = _store_lanes(ck, t // every, c, s)
+    return ck
+
+
+@njit(cache=True)
+def _rk4_backward_lanes(
+    ck, seg_c, seg_s, c, s, kv, yc, ys, ybc, ybs, lw, g, k_lane, coef, code, indptr, indices, w, run
+):
+    """The group's RK4 backward pass: ``g[p, q] = d tau0 / d w_p`` of every SYNCED lane."""
+    n, lanes = ck.shape[2], ck.shape[3]
+    dt = run.dt
+    every = run.every
+    g[:] = 0.0
+    top = -1
+    for q in range(lanes):
+        if code[q] == SYNCED:
+            top = max(top, k_lane[q])
+    if top < 0:
+        return
+    st = np.empty((4, 7, n, lanes))
+    ac = np.zeros((n, lanes))
+    as_ = np.zeros((n, lanes))
+    zc = np.empty((n, lanes))
+    zs = np.empty((n, lanes))
+    tc = np.zeros((n, lanes))
+    ts = np.zeros((n, lanes))
+    kc = np.empty((n, lanes))
+    ks = np.empty((n, lanes))
+    r2 = np.empty(lanes)
+    dr2 = np.empty(lanes)
+    # one-lane scratch of the seeds (the reference's own buffers)
+    st1 = np.empty((4, 7, n))
+    kc1 = np.empty(n)
+    ks1 = np.empty(n)
+    dtot = np.empty((4, lanes))
+    om = np.empty((n, lanes))
+    sum_c = np.empty((n, lanes))
+    sum_s = np.empty((n, lanes))
+    for sg in range(top // every, -1, -1):
+        j0 = sg * every
+        j1 = min(j0 + every, top + 1)
+        # states j0 .. j1 - 1 again, exactly as the forward pass made them
+        c[:] = ck[sg, 0]
+        s[:] = ck[sg, 1]
+        seg_c[0] = c
+        seg_s[0] = s
+        _lane_velocity(c, s, kv[0], kv[1], dtot, om, sum_c, sum_s, lw, indptr, indices)
+        for j in range(j0 + 1, j1):
+            _rk4_vec(c, s, kv, yc, ys, ybc, ybs, lw, w, True, indptr, indices, dt, r2, dr2)
+            seg_c[j - j0] = c
+            seg_s[j - j0] = s
+        for j in range(j1 - 1, j0 - 1, -1):
+            cj = seg_c[j - j0]
+            sj = seg_s[j - j0]
+            _rk4_vjp_vec(cj, sj, st, ac, as_, zc, zs, tc, ts, kc, ks, g, indptr, indices, w, dt)
+            for q in range(lanes):
+                if code[q] != SYNCED:
+                    continue
+                if j == k_lane[q]:
+                    cr, cd = coef[0, q], coef[1, q]
+                elif j == k_lane[q] - 1:
+                    # R and D at the step before the crossing (D depends on w even at j = 0)
+                    cr, cd = coef[2, q], coef[3, q]
+                else:
+                    continue
+                _crossing_seed(
+                    cj[:, q],
+                    sj[:, q],
+                    st1,
+                    cr,
+                    cd,
+                    ac[:, q],
+                    as_[:, q],
+                    kc1,
+                    ks1,
+                    g[:, q],
+                    indptr,
+                    indices,
+                    w,
+                )
+
+
+@njit(parallel=True, cache=True)
+def _adjoint_lanes_batch(ks, indptr, indices, w, deriv, run, status0, steps0, frac0, dtau):
+    """Realizations ``ks`` in groups of ``LANES``, one group per parallel task."""
+    d_ptr = deriv.indptr
+    d_pos = deriv.position
+    d_val = deriv.value
+    seed = run.seed
+    every = run.every
+    max_steps = run.max_steps
+    rk4 = run.rk4
+    m = ks.shape[0]
+    n = indptr.shape[0] - 1
+    nnz = w.shape[0]
+    n_edges = d_ptr.shape[0] - 1
+    lanes = LANES
+    n_groups = (m + lanes - 1) // lanes
+    for group in prange(n_groups):
+        r_lo = group * lanes
+        r_hi = min(m, r_lo + lanes)
+        # empty lanes hold the synchronized state (1, 0): ALREADY_SYNCED, never looked at
+        c = np.ones((n, lanes))
+        s = np.zeros((n, lanes))
+        for r in range(r_lo, r_hi):
+            for i in range(n):
+                th = phase(seed, ks[r], i)
+                c[i, r - r_lo] = np.cos(th)
+                s[i, r - r_lo] = np.sin(th)
+        cn = np.empty((n, lanes))
+        sn = np.empty((n, lanes))
+        ck = np.empty((16, 2, n, lanes))
+        k_lane = np.empty(lanes, dtype=np.int64)
+        x_lane = np.empty(lanes)
+        span_lane = np.empty(lanes)
+        coef = np.empty((4, lanes))
+        code = np.empty(lanes, dtype=np.int8)
+        seg_len = min(every, max_steps + 1)
+        seg_c = np.empty((seg_len, n, lanes))
+        seg_s = np.empty((seg_len, n, lanes))
+        g = np.empty((nnz, lanes))
+        if rk4:
+            lw = np.empty((nnz, lanes))  # per-lane weights of lane_velocity
+            for p in range(nnz):
+                lw[p] = w[p]
+            kv = np.zeros((8, n, lanes))
+            yc = np.empty((n, lanes))
+            ys = np.empty((n, lanes))
+            ck = _rk4_forward_lanes(
+                c, s, kv, yc, ys, cn, sn, lw, ck, k_lane, x_lane, coef, code, indptr, indices, w, run
+            )
+            _rk4_backward_lanes(
+                ck, seg_c, seg_s, c, s, kv, yc, ys, cn, sn, lw, g, k_lane, coef, code, indptr, indices, w, run
+            )
+        else:
+            lw = np.empty((1, lanes))  # unused: every lane has the weights w
+            ck = _euler_forward_lanes(
+                c, s, cn, sn, lw, ck, k_lane, x_lane, span_lane, code, indptr, indices, w, run
+            )
+            lam = np.empty((n, lanes))
+            lam_new = np.empty((n, lanes))
+            _euler_backward_lanes(
+                ck,
+                seg_c,
+                seg_s,
+                lw,
+                lam,
+                lam_new,
+                g,
+                k_lane,
+                x_lane,
+                span_lane,
+                code,
+                indptr,
+                indices,
+                w,
+                run,
+            )
+        for r in range(r_lo, r_hi):
+            q = r - r_lo
+            st = code[q]
+            status0[r] = st
+            steps0[r] = k_lane[q] if st == SYNCED else (0 if st == ALREADY_SYNCED else max_steps)
+            frac0[r] = x_lane[q]
+            for e in range(n_edges):
+                total = 0.0
+                if st == SYNCED:
+                    for p in range(d_ptr[e], d_ptr[e + 1]):
+                        total += d_val[p] * g[d_pos[p], q]
+                dtau[r, e] = total
+
+
 # ---- the batch driver ----------------------------------------------------------------------
 
 
@@ -526,6 +1082,45 @@ def _adjoint_batch(ks, indptr, indices, w, deriv, run, n_groups, status0, steps0
                 dtau[r, e] = total
 
 
+def _lane_order(ks, indptr, indices, w, run: _Run) -> np.ndarray:
+    """The order in which :func:`_adjoint_lanes_batch` takes the realizations ``ks``.
+
+    A lane group's clock runs until its slowest lane has crossed, so realizations are grouped
+    by their crossing step, found by the forward lane driver (:mod:`.cpu`, with refill: about
+    a fifth of the adjoint's own cost); the groups are then dealt round-robin to the threads'
+    contiguous shares of the parallel loop, so that each thread gets short and long ones.
+    Only the speed depends on the order, never a result.
+    """
+    m = ks.size
+    if m <= LANES:
+        return np.arange(m)
+    from antisync.kernels.cpu import _NO_TANGENTS, _Graph, _integrate_lanes, _Outputs
+    from antisync.kernels.cpu import _Run as _LaneRun
+
+    graph = _Graph(indptr, indices, w, np.empty((0, w.size)), np.zeros(0, dtype=np.bool_))
+    lane_run = _LaneRun(run.seed, run.dt, run.r2_target, run.max_steps, not run.rk4, run.rk4, LANES)
+    out = _Outputs(
+        np.empty(m, dtype=np.int8),
+        np.empty(m, dtype=np.int64),
+        np.empty(m),
+        np.empty((m, 0), dtype=np.int8),
+        np.empty((m, 0), dtype=np.int64),
+        np.empty((m, 0)),
+        np.empty((m, 0)),
+    )
+    threads = numba.get_num_threads()
+    _integrate_lanes(ks, graph, lane_run, out, _NO_TANGENTS, threads)
+    by_steps = np.argsort(out.steps0, kind="stable")
+    n_groups = (m + LANES - 1) // LANES
+    groups = [by_steps[g * LANES : (g + 1) * LANES] for g in range(n_groups)]
+    dealt = [g for t in range(threads) for g in range(t, n_groups, threads)]
+    # the last group may be short: keep it last, so every other group is full
+    if n_groups - 1 in dealt:
+        dealt.remove(n_groups - 1)
+        dealt.append(n_groups - 1)
+    return np.concatenate([groups[g] for g in dealt])
+
+
 def simulate_adjoint(
     seed: int,
     first: int,
@@ -542,6 +1137,7 @@ def simulate_adjoint(
     realizations: np.ndarray | None = None,
     integrator: Integrator = "euler",
     checkpoint_every: int = CHECKPOINT_EVERY,
+    lanes: bool = True,
 ) -> PathwiseResult:
     """Undamaged trajectories and ``d tau0 / d beta_e`` for every link ``e`` of ``derivatives``.
 
@@ -562,6 +1158,10 @@ def simulate_adjoint(
         Euler (linear crossing in ``R``) or RK4 (cubic Hermite crossing).
     checkpoint_every : int
         ``K``, steps between stored states (see the module docstring); never changes results.
+    lanes : bool
+        Run :data:`LANES` trajectories at a time on machine vectors (RK4 always; Euler when
+        every rotation angle is within the Taylor range, ``dt sum_j |w_ij| <= 0.05``); ``False``
+        runs one trajectory at a time (the reference). The results are the same bits either way.
 
     Returns
     -------
@@ -594,6 +1194,18 @@ def simulate_adjoint(
         int(checkpoint_every),
         integrator == "rk4",
     )
+    indptr = np.ascontiguousarray(indptr, dtype=np.int64)
+    indices = np.ascontiguousarray(indices, dtype=np.int64)
+    base_weights = np.ascontiguousarray(base_weights, dtype=np.float64)
+    taylor = float(dt) * _row_sum_bound(indptr, base_weights, []) <= TAYLOR_MAX_ANGLE
+    if lanes and (taylor or integrator == "rk4"):
+        with _Threads(threads):
+            order = _lane_order(ks, indptr, indices, base_weights, run)
+            out = (np.empty_like(status0), np.empty_like(steps0), np.empty_like(frac0), np.empty_like(dtau))
+            _adjoint_lanes_batch(ks[order], indptr, indices, base_weights, deriv, run, *out)
+        for target, got in zip((status0, steps0, frac0, dtau), out, strict=True):
+            target[order] = got
+        return PathwiseResult(status0, steps0, frac0, dtau)
     with _Threads(threads) as groups:
         _adjoint_batch(
             ks,
