@@ -363,6 +363,49 @@ def _crossing_seed(yc, ys, st, coef_r, coef_d, ac, as_, kc, ks, g, indptr, indic
     _velocity_vjp(st[0, 0], st[0, 1], st[0, 2], st[0, 3], st[0, 4], kc, ks, ac, as_, g, indptr, indices, w)
 
 
+@njit(inline="always")
+def _hermite_seed_weights(r2_prev, dr2_prev, r2, dr2, dt, x):
+    """``d tau / d (R_k, D_k, R_{k-1}, D_{k-1})`` for ``tau = dt (k - 1 + x)``, where the
+    Hermite cubic through ``(R, D)`` at steps ``k - 1`` and ``k`` meets the target at ``x``."""
+    x2 = x * x
+    x3 = x2 * x
+    slope = (
+        (6.0 * x2 - 6.0 * x) * r2_prev
+        + (3.0 * x2 - 4.0 * x + 1.0) * dt * dr2_prev
+        + (-6.0 * x2 + 6.0 * x) * r2
+        + (3.0 * x2 - 2.0 * x) * dt * dr2
+    )
+    scale = -dt / slope
+    return (
+        scale * (-2.0 * x3 + 3.0 * x2),
+        scale * dt * (x3 - x2),
+        scale * (2.0 * x3 - 3.0 * x2 + 1.0),
+        scale * dt * (x3 - 2.0 * x2 + x),
+    )
+
+
+@njit(inline="always")
+def _start_lane(q, r2_0, r2_target, max_steps, code, k_lane):
+    """Lane ``q``'s status before its first step (``r2_0``: its R at t = 0); 1 if it is live."""
+    if r2_0 >= r2_target:
+        code[q] = ALREADY_SYNCED
+        k_lane[q] = 0
+        return 0
+    code[q] = NOT_SYNCED
+    k_lane[q] = max_steps + 1
+    return 1
+
+
+@njit(inline="always")
+def _last_crossing(code, k_lane):
+    """The largest crossing step of the group's SYNCED lanes (-1 if none)."""
+    top = -1
+    for q in range(code.shape[0]):
+        if code[q] == SYNCED:
+            top = max(top, k_lane[q])
+    return top
+
+
 @njit(cache=True)
 def _rk4_adjoint(c, s, ck, seg, g, indptr, indices, w, dt, r2_target, max_steps, every):
     """RK4 trajectory from ``(c, s)`` (the lane step of :mod:`.core`, one lane), then its adjoint:
@@ -411,15 +454,7 @@ def _rk4_adjoint(c, s, ck, seg, g, indptr, indices, w, dt, r2_target, max_steps,
     if k == 0:
         return NOT_SYNCED, max_steps, 0.0, ck
     # tau = dt (k - 1 + x), P(x) = target for the Hermite cubic P through (R, D) at k - 1 and k
-    x2 = x * x
-    x3 = x2 * x
-    slope = (
-        (6.0 * x2 - 6.0 * x) * r2_prev
-        + (3.0 * x2 - 4.0 * x + 1.0) * dt * dr2_prev
-        + (-6.0 * x2 + 6.0 * x) * r2[0]
-        + (3.0 * x2 - 2.0 * x) * dt * dr2[0]
-    )
-    scale = -dt / slope
+    w_r, w_d, w_r_prev, w_d_prev = _hermite_seed_weights(r2_prev, dr2_prev, r2[0], dr2[0], dt, x)
     st = np.empty((4, 7, n))
     ac = np.zeros(n)
     as_ = np.zeros(n)
@@ -435,8 +470,8 @@ def _rk4_adjoint(c, s, ck, seg, g, indptr, indices, w, dt, r2_target, max_steps,
         yk_c,
         yk_s,
         st,
-        scale * (-2.0 * x3 + 3.0 * x2),
-        scale * dt * (x3 - x2),
+        w_r,
+        w_d,
         ac,
         as_,
         kc,
@@ -470,8 +505,8 @@ def _rk4_adjoint(c, s, ck, seg, g, indptr, indices, w, dt, r2_target, max_steps,
                     cj,
                     sj,
                     st,
-                    scale * (2.0 * x3 - 3.0 * x2 + 1.0),
-                    scale * dt * (x3 - 2.0 * x2 + x),
+                    w_r_prev,
+                    w_d_prev,
                     ac,
                     as_,
                     kc,
@@ -579,13 +614,7 @@ def _euler_forward_lanes(c, s, cn, sn, lw, ck, k_lane, x_lane, span_lane, code, 
         r2[q] = _order2(c[:, q], s[:, q])
         x_lane[q] = 0.0
         span_lane[q] = 1.0
-        if r2[q] >= r2_target:
-            code[q] = ALREADY_SYNCED
-            k_lane[q] = 0
-        else:
-            code[q] = NOT_SYNCED
-            k_lane[q] = max_steps + 1
-            live += 1
+        live += _start_lane(q, r2[q], r2_target, max_steps, code, k_lane)
     ck = _store_lanes(ck, 0, c, s)
     t = 0
     while live > 0 and t < max_steps:
@@ -621,10 +650,7 @@ def _euler_backward_lanes(
     g[:] = 0.0
     lam[:] = 0.0
     r2 = np.empty(lanes)  # the recompute's R, not needed
-    top = -1
-    for q in range(lanes):
-        if code[q] == SYNCED:
-            top = max(top, k_lane[q])
+    top = _last_crossing(code, k_lane)
     if top < 0:
         return
     for sg in range(top // every, -1, -1):
@@ -816,13 +842,7 @@ def _rk4_forward_lanes(
         dr2[q] = 2.0 * (dtot[2, q] * dtot[0, q] + dtot[3, q] * dtot[1, q])
         x_lane[q] = 0.0
         # the reference asks _order2 (sums in the same order as d2, d3 here)
-        if _order2(c[:, q], s[:, q]) >= r2_target:
-            code[q] = ALREADY_SYNCED
-            k_lane[q] = 0
-        else:
-            code[q] = NOT_SYNCED
-            k_lane[q] = max_steps + 1
-            live += 1
+        live += _start_lane(q, _order2(c[:, q], s[:, q]), r2_target, max_steps, code, k_lane)
     ck = _store_lanes(ck, 0, c, s)
     t = 0
     while live > 0 and t < max_steps:
@@ -836,19 +856,9 @@ def _rk4_forward_lanes(
                 k_lane[q] = t
                 x = _hermite(r2_prev[q], dr2_prev[q], r2[q], dr2[q], dt, r2_target)
                 x_lane[q] = x
-                x2 = x * x
-                x3 = x2 * x
-                slope = (
-                    (6.0 * x2 - 6.0 * x) * r2_prev[q]
-                    + (3.0 * x2 - 4.0 * x + 1.0) * dt * dr2_prev[q]
-                    + (-6.0 * x2 + 6.0 * x) * r2[q]
-                    + (3.0 * x2 - 2.0 * x) * dt * dr2[q]
+                coef[0, q], coef[1, q], coef[2, q], coef[3, q] = _hermite_seed_weights(
+                    r2_prev[q], dr2_prev[q], r2[q], dr2[q], dt, x
                 )
-                scale = -dt / slope
-                coef[0, q] = scale * (-2.0 * x3 + 3.0 * x2)
-                coef[1, q] = scale * dt * (x3 - x2)
-                coef[2, q] = scale * (2.0 * x3 - 3.0 * x2 + 1.0)
-                coef[3, q] = scale * dt * (x3 - 2.0 * x2 + x)
                 live -= 1
         if t % every == 0:
             ck = _store_lanes(ck, t // every, c, s)
@@ -864,10 +874,7 @@ def _rk4_backward_lanes(
     dt = run.dt
     every = run.every
     g[:] = 0.0
-    top = -1
-    for q in range(lanes):
-        if code[q] == SYNCED:
-            top = max(top, k_lane[q])
+    top = _last_crossing(code, k_lane)
     if top < 0:
         return
     st = np.empty((4, 7, n, lanes))
