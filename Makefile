@@ -54,6 +54,7 @@ bench: $(STAMP)
 	$(BIN)/python bench/bench_kernels.py
 	$(BIN)/python bench/bench_sizes.py
 	$(BIN)/python bench/bench_adjoint.py
+	$(BIN)/python bench/bench_passes.py
 	$(BIN)/python bench/bench_adaptive.py --realizations 5000
 	$(BIN)/python bench/bench_dask.py
 

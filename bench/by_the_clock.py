@@ -117,8 +117,11 @@ def main() -> None:
     try:
         for mark in sorted(args.minutes):
             time.sleep(max(0.0, start + 60 * mark - time.monotonic()))
-            if proc.poll() is not None:
-                sys.exit(f"the run ended early (exit {proc.returncode})")
+            if proc.poll() is not None:  # finished its realizations before this mark
+                print(f"# the run ended before {mark:g} min (exit {proc.returncode})", flush=True)
+                if out.exists():
+                    copies.append((mark, out))
+                break
             while not out.exists() and proc.poll() is None:  # the first checkpoint is late
                 time.sleep(1)
             copy = folder / f"{name}_{mark:g}min.h5"

@@ -74,6 +74,10 @@ _hermite = _K.hermite_crossing
 CHECKPOINT_EVERY = 64
 """Default ``K``: steps between stored states of the forward pass (memory, not results)."""
 
+PREDICT_DT = 0.2
+"""RK4 step (times the largest row sum of ``|w|``) of the pass that predicts each realization's
+crossing time to group the lanes (:func:`_lane_order`; speed only, never a result)."""
+
 
 class LinkDerivatives(NamedTuple):
     """``dW/dbeta_e`` of each damaged link ``e`` on the CSR pattern of ``W``, itself in CSR form.
@@ -693,126 +697,229 @@ def _euler_backward_lanes(
 # ``+0.0``), so the steps past a lane's crossing leave its adjoint and ``g`` as they were.
 
 
+class _Transpose(NamedTuple):
+    """The CSR pattern of ``W`` by columns: for column ``j``, ``row[t]`` and ``position[t]`` (the
+    CSR index ``p`` of ``(i, j)``) for ``t`` in ``indptr[j] .. indptr[j + 1] - 1``, rows
+    ascending; ``split[j]`` is the first ``t`` of the column with ``row[t] >= j``."""
+
+    indptr: np.ndarray
+    row: np.ndarray
+    position: np.ndarray
+    split: np.ndarray
+
+
+def _transpose(indptr: np.ndarray, indices: np.ndarray) -> _Transpose:
+    """:class:`_Transpose` of the CSR pattern ``indptr, indices``."""
+    n = indptr.size - 1
+    row = np.repeat(np.arange(n, dtype=np.int64), np.diff(indptr))
+    position = np.lexsort((row, indices)).astype(np.int64)  # by column, then row
+    col = indices[position]
+    tptr = np.zeros(n + 1, dtype=np.int64)
+    np.cumsum(np.bincount(col, minlength=n), out=tptr[1:])
+    split = np.searchsorted(col * n + row[position], np.arange(n, dtype=np.int64) * (n + 1))
+    return _Transpose(tptr, row[position], position, split.astype(np.int64))
+
+
+@njit(inline="always")
+def _column_link(trow, tpos, w, g, bss, bsc, t, cja, sja, cjb, sjb, lanes, qa, aca, asa, acb, asb):
+    """Entry ``t`` of column ``j`` of the transposed pattern in :func:`_rk4_vjp_vec`, for the
+    lane vectors at ``qa`` and ``qa + VEC``: row ``i``'s ``w_ij (bsc_i, bss_i)`` into the
+    column's sums and ``g[p] += bss_i s_j + bsc_i c_j`` (loop-free, as ``edge_vec``)."""
+    oa = trow[t] * lanes + qa
+    ob = oa + VEC
+    p = tpos[t]
+    ga = p * lanes + qa
+    gb = ga + VEC
+    wp = w[p]
+    bsa = vload(bss, oa)
+    bca = vload(bsc, oa)
+    bsb = vload(bss, ob)
+    bcb = vload(bsc, ob)
+    vstore(g, ga, vload(g, ga) + (bsa * sja + bca * cja))
+    vstore(g, gb, vload(g, gb) + (bsb * sjb + bcb * cjb))
+    return aca + wp * bca, asa + wp * bsa, acb + wp * bcb, asb + wp * bsb
+
+
+@njit(inline="always")
+def _stage_link(st, base, size, w, indices, p, lanes, qa, aa, ba, ab, bb):
+    """CSR entry ``p``'s ``w c_j``, ``w s_j`` of the stage state ``st[base ...]`` into the
+    coupling sums of the lane vectors at ``qa`` and ``qa + VEC`` (the order of :func:`_velocity`)."""
+    oja = indices[p] * lanes + qa
+    ojb = oja + VEC
+    return (
+        aa + w[p] * vload(st, base + oja),
+        ba + w[p] * vload(st, base + size + oja),
+        ab + w[p] * vload(st, base + ojb),
+        bb + w[p] * vload(st, base + size + ojb),
+    )
+
+
+@njit(inline="always")
+def _stage_velocity(st, base, size, o, a, b):
+    """Stage quantities ``(omega, sc, ss, fc, fs)`` of the lane vector at ``o`` (:func:`_velocity`)."""
+    ci = vload(st, base + o)
+    si = vload(st, base + size + o)
+    om = ci * b - si * a
+    vstore(st, base + 2 * size + o, om)
+    vstore(st, base + 3 * size + o, a)
+    vstore(st, base + 4 * size + o, b)
+    vstore(st, base + 5 * size + o, -si * om)
+    vstore(st, base + 6 * size + o, ci * om)
+
+
+@njit(inline="always")
+def _project_vjp(yc, ys, st, ac, as_, zc, zs, size, sixth, o):
+    """The projection's adjoint for the lane vector at ``o``: ``zbar = (ybar - u (u . ybar)) / |z|``."""
+    two = vsplat(2.0)
+    zci = vload(yc, o) + sixth * (
+        vload(st, 5 * size + o)
+        + two * vload(st, 7 * size + 5 * size + o)
+        + two * vload(st, 14 * size + 5 * size + o)
+        + vload(st, 21 * size + 5 * size + o)
+    )
+    zsi = vload(ys, o) + sixth * (
+        vload(st, 6 * size + o)
+        + two * vload(st, 7 * size + 6 * size + o)
+        + two * vload(st, 14 * size + 6 * size + o)
+        + vload(st, 21 * size + 6 * size + o)
+    )
+    norm = vsqrt(zci * zci + zsi * zsi)
+    uc = zci / norm
+    us = zsi / norm
+    aci = vload(ac, o)
+    asi = vload(as_, o)
+    dot = uc * aci + us * asi
+    zcv = (aci - uc * dot) / norm
+    zsv = (asi - us * dot) / norm
+    vstore(zc, o, zcv)
+    vstore(zs, o, zsv)
+    vstore(ac, o, zcv)
+    vstore(as_, o, zsv)
+
+
+@njit(inline="always")
+def _node_cotangents(st, base, size, kc, ks, bss, bsc, own_c, own_s, o):
+    """Per node of :func:`_velocity_vjp` at a stage: ``omega``'s cotangent ``ob`` gives the
+    node's own term ``(om gs + ob ss, -om gc - ob sc)`` and ``(bss, bsc) = (ob c, -ob s)``."""
+    ci = vload(st, base + o)
+    si = vload(st, base + size + o)
+    om = vload(st, base + 2 * size + o)
+    gc = vload(kc, o)
+    gs = vload(ks, o)
+    ob = ci * gs - si * gc
+    vstore(own_c, o, om * gs + ob * vload(st, base + 4 * size + o))
+    vstore(own_s, o, -om * gc - ob * vload(st, base + 3 * size + o))
+    vstore(bss, o, ob * ci)
+    vstore(bsc, o, -ob * si)
+
+
 @njit(cache=True)
-def _rk4_vjp_vec(yc, ys, st, ac, as_, zc, zs, tc, ts, kc, ks, g, indptr, indices, w, dt):
+def _rk4_vjp_vec(
+    yc, ys, st, ac, as_, zc, zs, tc, ts, kc, ks, g, indptr, indices, w, dt, tptr, trow, tpos, tsplit, scratch
+):
     """:func:`_rk4_vjp` (with :func:`_stages`, :func:`_velocity`, :func:`_velocity_vjp`) for
-    every lane of ``[node, lane]`` arrays on machine vectors, one vector of :data:`VEC` lanes
-    after the other: ``st`` is ``[stage, quantity, node, lane]``, ``g`` ``[nnz, lane]``. Per
-    lane the same operations in the same order."""
+    every lane of ``[node, lane]`` arrays on machine vectors, two vectors of :data:`VEC` lanes at
+    a time (whole cache lines of the 16 lanes, and independent chains for the out-of-order
+    core): ``st`` is ``[stage, quantity, node, lane]``, ``g`` ``[nnz, lane]``. Per lane the same
+    operations in the same order as the reference, so the same bits.
+
+    The scatter of :func:`_velocity_vjp` (``bs_j += w_ij bss_i`` along row ``i``) runs as a
+    gather down column ``j`` of the transposed pattern (``tptr, trow, tpos, tsplit``, see
+    :class:`_Transpose`): the per-node cotangents first, into ``scratch`` (``[4, node *
+    lane]``), then for each ``j`` a register sum of what the scatter adds into ``(bc_j, bs_j)``
+    in its order (the rows ``i < j`` ascending, ``j``'s own term, the rows ``i >= j``)."""
     n, lanes = yc.shape
     size = n * lanes
     h = 0.5 * dt
     sixth = dt / 6.0
-    weight = (1.0 / 6.0, 1.0 / 3.0, 1.0 / 3.0, 1.0 / 6.0)
-    for qa in range(0, lanes, VEC):
+    bss = scratch[0]
+    bsc = scratch[1]
+    own_c = scratch[2]
+    own_s = scratch[3]
+    for qa in range(0, lanes, 2 * VEC):
         # the four stages: state, omega, coupling sums and velocity (_stages)
         for sq in range(4):
             base = sq * 7 * size
             if sq == 0:
-                for i in range(n):
-                    o = i * lanes + qa
-                    vstore(st, base + o, vload(yc, o))
-                    vstore(st, base + size + o, vload(ys, o))
+                for o in range(qa, size, lanes):
+                    for v in range(2):
+                        vstore(st, base + o + v * VEC, vload(yc, o + v * VEC))
+                        vstore(st, base + size + o + v * VEC, vload(ys, o + v * VEC))
             else:
                 hq = 0.5 * dt if sq < 3 else dt
                 prev = (sq - 1) * 7 * size
-                for i in range(n):
-                    o = i * lanes + qa
-                    vstore(st, base + o, vload(yc, o) + hq * vload(st, prev + 5 * size + o))
-                    vstore(st, base + size + o, vload(ys, o) + hq * vload(st, prev + 6 * size + o))
+                for o in range(qa, size, lanes):
+                    for v in range(2):
+                        ov = o + v * VEC
+                        vstore(st, base + ov, vload(yc, ov) + hq * vload(st, prev + 5 * size + ov))
+                        vstore(st, base + size + ov, vload(ys, ov) + hq * vload(st, prev + 6 * size + ov))
             for i in range(n):
-                o = i * lanes + qa
-                a = vsplat(0.0)
-                b = vsplat(0.0)
+                aa, ba, ab, bb = vsplat(0.0), vsplat(0.0), vsplat(0.0), vsplat(0.0)
                 for p in range(indptr[i], indptr[i + 1]):
-                    oj = indices[p] * lanes + qa
-                    a = a + w[p] * vload(st, base + oj)
-                    b = b + w[p] * vload(st, base + size + oj)
-                ci = vload(st, base + o)
-                si = vload(st, base + size + o)
-                om = ci * b - si * a
-                vstore(st, base + 2 * size + o, om)
-                vstore(st, base + 3 * size + o, a)
-                vstore(st, base + 4 * size + o, b)
-                vstore(st, base + 5 * size + o, -si * om)
-                vstore(st, base + 6 * size + o, ci * om)
-        # projection y_{n+1} = z / |z| per node: zbar = (ybar - y (y . ybar)) / |z|
-        for i in range(n):
-            o = i * lanes + qa
-            two = vsplat(2.0)
-            zci = vload(yc, o) + sixth * (
-                vload(st, 5 * size + o)
-                + two * vload(st, 7 * size + 5 * size + o)
-                + two * vload(st, 14 * size + 5 * size + o)
-                + vload(st, 21 * size + 5 * size + o)
-            )
-            zsi = vload(ys, o) + sixth * (
-                vload(st, 6 * size + o)
-                + two * vload(st, 7 * size + 6 * size + o)
-                + two * vload(st, 14 * size + 6 * size + o)
-                + vload(st, 21 * size + 6 * size + o)
-            )
-            norm = vsqrt(zci * zci + zsi * zsi)
-            uc = zci / norm
-            us = zsi / norm
-            aci = vload(ac, o)
-            asi = vload(as_, o)
-            dot = uc * aci + us * asi
-            zcv = (aci - uc * dot) / norm
-            zsv = (asi - us * dot) / norm
-            vstore(zc, o, zcv)
-            vstore(zs, o, zsv)
-            vstore(ac, o, zcv)
-            vstore(as_, o, zsv)
+                    aa, ba, ab, bb = _stage_link(st, base, size, w, indices, p, lanes, qa, aa, ba, ab, bb)
+                _stage_velocity(st, base, size, i * lanes + qa, aa, ba)
+                _stage_velocity(st, base, size, i * lanes + qa + VEC, ab, bb)
+        # projection y_{n+1} = z / |z| per node
+        for o in range(qa, size, lanes):
+            _project_vjp(yc, ys, st, ac, as_, zc, zs, size, sixth, o)
+            _project_vjp(yc, ys, st, ac, as_, zc, zs, size, sixth, o + VEC)
         # z = y + dt/6 (k1 + 2 k2 + 2 k3 + k4); y4 = y + dt k3, y3 = y + h k2, y2 = y + h k1
         for sq in range(3, -1, -1):
             base = sq * 7 * size
-            for i in range(n):
-                o = i * lanes + qa
-                if sq == 3:
-                    vstore(kc, o, dt * weight[sq] * vload(zc, o))
-                    vstore(ks, o, dt * weight[sq] * vload(zs, o))
-                else:
-                    hq = dt if sq == 2 else h
-                    vstore(kc, o, dt * weight[sq] * vload(zc, o) + hq * vload(tc, o))
-                    vstore(ks, o, dt * weight[sq] * vload(zs, o) + hq * vload(ts, o))
-                vstore(tc, o, vsplat(0.0))
-                vstore(ts, o, vsplat(0.0))
-            # _velocity_vjp at stage sq: (bc, bs) = (ac, as_) for the first stage, else (tc, ts)
-            for i in range(n):
-                o = i * lanes + qa
-                ci = vload(st, base + o)
-                si = vload(st, base + size + o)
-                om = vload(st, base + 2 * size + o)
-                gc = vload(kc, o)
-                gs = vload(ks, o)
-                ob = ci * gs - si * gc
-                if sq == 0:
-                    vstore(ac, o, vload(ac, o) + (om * gs + ob * vload(st, base + 4 * size + o)))
-                    vstore(as_, o, vload(as_, o) + (-om * gc - ob * vload(st, base + 3 * size + o)))
-                else:
-                    vstore(tc, o, vload(tc, o) + (om * gs + ob * vload(st, base + 4 * size + o)))
-                    vstore(ts, o, vload(ts, o) + (-om * gc - ob * vload(st, base + 3 * size + o)))
-                bss = ob * ci
-                bsc = -ob * si
-                for p in range(indptr[i], indptr[i + 1]):
-                    oj = indices[p] * lanes + qa
-                    og = p * lanes + qa
-                    wp = w[p]
-                    if sq == 0:
-                        vstore(as_, oj, vload(as_, oj) + wp * bss)
-                        vstore(ac, oj, vload(ac, oj) + wp * bsc)
+            wq = 1.0 / 6.0 if (sq == 0 or sq == 3) else 1.0 / 3.0
+            for o in range(qa, size, lanes):
+                for v in range(2):
+                    ov = o + v * VEC
+                    if sq == 3:
+                        vstore(kc, ov, dt * wq * vload(zc, ov))
+                        vstore(ks, ov, dt * wq * vload(zs, ov))
                     else:
-                        vstore(ts, oj, vload(ts, oj) + wp * bss)
-                        vstore(tc, oj, vload(tc, oj) + wp * bsc)
-                    sj = vload(st, base + size + oj)
-                    cj = vload(st, base + oj)
-                    vstore(g, og, vload(g, og) + (bss * sj + bsc * cj))
-            if sq > 0:
-                for i in range(n):
-                    o = i * lanes + qa
-                    vstore(ac, o, vload(ac, o) + vload(tc, o))
-                    vstore(as_, o, vload(as_, o) + vload(ts, o))
+                        hq = dt if sq == 2 else h
+                        vstore(kc, ov, dt * wq * vload(zc, ov) + hq * vload(tc, ov))
+                        vstore(ks, ov, dt * wq * vload(zs, ov) + hq * vload(ts, ov))
+                    vstore(tc, ov, vsplat(0.0))
+                    vstore(ts, ov, vsplat(0.0))
+            # _velocity_vjp at stage sq into (bc, bs) = (ac, as_) for the first stage, else into
+            # (tc, ts) and then added to (ac, as_)
+            for o in range(qa, size, lanes):
+                _node_cotangents(st, base, size, kc, ks, bss, bsc, own_c, own_s, o)
+                _node_cotangents(st, base, size, kc, ks, bss, bsc, own_c, own_s, o + VEC)
+            for j in range(n):
+                oa = j * lanes + qa
+                ob = oa + VEC
+                cja = vload(st, base + oa)
+                sja = vload(st, base + size + oa)
+                cjb = vload(st, base + ob)
+                sjb = vload(st, base + size + ob)
+                if sq == 0:
+                    aca, asa, acb, asb = vload(ac, oa), vload(as_, oa), vload(ac, ob), vload(as_, ob)
+                else:
+                    aca, asa, acb, asb = vload(tc, oa), vload(ts, oa), vload(tc, ob), vload(ts, ob)
+                for t in range(tptr[j], tsplit[j]):
+                    aca, asa, acb, asb = _column_link(
+                        trow, tpos, w, g, bss, bsc, t, cja, sja, cjb, sjb, lanes, qa, aca, asa, acb, asb
+                    )
+                aca = aca + vload(own_c, oa)
+                asa = asa + vload(own_s, oa)
+                acb = acb + vload(own_c, ob)
+                asb = asb + vload(own_s, ob)
+                for t in range(tsplit[j], tptr[j + 1]):
+                    aca, asa, acb, asb = _column_link(
+                        trow, tpos, w, g, bss, bsc, t, cja, sja, cjb, sjb, lanes, qa, aca, asa, acb, asb
+                    )
+                if sq > 0:
+                    vstore(tc, oa, aca)  # the next stage's kc, ks read them
+                    vstore(ts, oa, asa)
+                    vstore(tc, ob, acb)
+                    vstore(ts, ob, asb)
+                    aca = vload(ac, oa) + aca
+                    asa = vload(as_, oa) + asa
+                    acb = vload(ac, ob) + acb
+                    asb = vload(as_, ob) + asb
+                vstore(ac, oa, aca)
+                vstore(as_, oa, asa)
+                vstore(ac, ob, acb)
+                vstore(as_, ob, asb)
 
 
 @njit(cache=True)
@@ -867,7 +974,7 @@ def _rk4_forward_lanes(
 
 @njit(cache=True)
 def _rk4_backward_lanes(
-    ck, seg_c, seg_s, c, s, kv, yc, ys, ybc, ybs, lw, g, k_lane, coef, code, indptr, indices, w, run
+    ck, seg_c, seg_s, c, s, kv, yc, ys, ybc, ybs, lw, g, k_lane, coef, code, indptr, indices, w, tr, run
 ):
     """The group's RK4 backward pass: ``g[p, q] = d tau0 / d w_p`` of every SYNCED lane."""
     n, lanes = ck.shape[2], ck.shape[3]
@@ -878,6 +985,7 @@ def _rk4_backward_lanes(
     if top < 0:
         return
     st = np.empty((4, 7, n, lanes))
+    scratch = np.empty((4, n * lanes))  # _rk4_vjp_vec's per-node cotangents
     ac = np.zeros((n, lanes))
     as_ = np.zeros((n, lanes))
     zc = np.empty((n, lanes))
@@ -912,7 +1020,29 @@ def _rk4_backward_lanes(
         for j in range(j1 - 1, j0 - 1, -1):
             cj = seg_c[j - j0]
             sj = seg_s[j - j0]
-            _rk4_vjp_vec(cj, sj, st, ac, as_, zc, zs, tc, ts, kc, ks, g, indptr, indices, w, dt)
+            _rk4_vjp_vec(
+                cj,
+                sj,
+                st,
+                ac,
+                as_,
+                zc,
+                zs,
+                tc,
+                ts,
+                kc,
+                ks,
+                g,
+                indptr,
+                indices,
+                w,
+                dt,
+                tr.indptr,
+                tr.row,
+                tr.position,
+                tr.split,
+                scratch,
+            )
             for q in range(lanes):
                 if code[q] != SYNCED:
                     continue
@@ -941,7 +1071,7 @@ def _rk4_backward_lanes(
 
 
 @njit(parallel=True, cache=True)
-def _adjoint_lanes_batch(ks, indptr, indices, w, deriv, run, status0, steps0, frac0, dtau):
+def _adjoint_lanes_batch(ks, indptr, indices, w, tr, deriv, run, status0, steps0, frac0, dtau):
     """Realizations ``ks`` in groups of ``LANES``, one group per parallel task."""
     d_ptr = deriv.indptr
     d_pos = deriv.position
@@ -990,7 +1120,26 @@ def _adjoint_lanes_batch(ks, indptr, indices, w, deriv, run, status0, steps0, fr
                 c, s, kv, yc, ys, cn, sn, lw, ck, k_lane, x_lane, coef, code, indptr, indices, w, run
             )
             _rk4_backward_lanes(
-                ck, seg_c, seg_s, c, s, kv, yc, ys, cn, sn, lw, g, k_lane, coef, code, indptr, indices, w, run
+                ck,
+                seg_c,
+                seg_s,
+                c,
+                s,
+                kv,
+                yc,
+                ys,
+                cn,
+                sn,
+                lw,
+                g,
+                k_lane,
+                coef,
+                code,
+                indptr,
+                indices,
+                w,
+                tr,
+                run,
             )
         else:
             lw = np.empty((1, lanes))  # unused: every lane has the weights w
@@ -1093,10 +1242,13 @@ def _lane_order(ks, indptr, indices, w, run: _Run) -> np.ndarray:
     """The order in which :func:`_adjoint_lanes_batch` takes the realizations ``ks``.
 
     A lane group's clock runs until its slowest lane has crossed, so realizations are grouped
-    by their crossing step, found by the forward lane driver (:mod:`.cpu`, with refill: about
-    a fifth of the adjoint's own cost); the groups are then dealt round-robin to the threads'
-    contiguous shares of the parallel loop, so that each thread gets short and long ones.
-    Only the speed depends on the order, never a result.
+    by their crossing time, predicted by the forward lane driver (:mod:`.cpu`, with refill)
+    with RK4 at a step of :data:`PREDICT_DT` (over the largest row sum of ``|w|``) when that is
+    coarser than ``run.dt``: the order needs times close to the run's, not its bits, and the
+    coarse pass costs a small part of a forward pass (at ``run.dt`` it cost 10-25% of the
+    whole adjoint). The groups are then dealt round-robin to the threads' contiguous shares of
+    the parallel loop, so that each thread gets short and long ones. Only the speed depends on
+    the order, never a result.
     """
     m = ks.size
     if m <= LANES:
@@ -1105,7 +1257,12 @@ def _lane_order(ks, indptr, indices, w, run: _Run) -> np.ndarray:
     from antisync.kernels.cpu import _Run as _LaneRun
 
     graph = _Graph(indptr, indices, w, np.empty((0, w.size)), np.zeros(0, dtype=np.bool_))
-    lane_run = _LaneRun(run.seed, run.dt, run.r2_target, run.max_steps, not run.rk4, run.rk4, LANES)
+    dt = PREDICT_DT / max(_row_sum_bound(indptr, w, []), 1e-300)
+    if dt > run.dt:
+        steps = int(np.ceil(run.max_steps * run.dt / dt))
+        lane_run = _LaneRun(run.seed, dt, run.r2_target, steps, False, True, LANES)
+    else:
+        lane_run = _LaneRun(run.seed, run.dt, run.r2_target, run.max_steps, not run.rk4, run.rk4, LANES)
     out = _Outputs(
         np.empty(m, dtype=np.int8),
         np.empty(m, dtype=np.int64),
@@ -1209,7 +1366,8 @@ def simulate_adjoint(
         with _Threads(threads):
             order = _lane_order(ks, indptr, indices, base_weights, run)
             out = (np.empty_like(status0), np.empty_like(steps0), np.empty_like(frac0), np.empty_like(dtau))
-            _adjoint_lanes_batch(ks[order], indptr, indices, base_weights, deriv, run, *out)
+            tr = _transpose(indptr, indices)
+            _adjoint_lanes_batch(ks[order], indptr, indices, base_weights, tr, deriv, run, *out)
         for target, got in zip((status0, steps0, frac0, dtau), out, strict=True):
             target[order] = got
         return PathwiseResult(status0, steps0, frac0, dtau)
