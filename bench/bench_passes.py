@@ -38,7 +38,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from bench_sizes import csr, graphs_to_bench  # noqa: E402
 
-from antisync.kernels.adjoint import _euler_vjp_vec, _rk4_vjp_vec  # noqa: E402
+from antisync.kernels.adjoint import _euler_vjp_vec, _rk4_vjp_vec, _transpose  # noqa: E402
 from antisync.kernels.cpu import _K  # noqa: E402
 
 LANES = 16
@@ -75,66 +75,22 @@ def _run_rk4(c, s, k, ya_c, ya_s, yb_c, yb_s, lw, w, indptr, indices, dt, r2, dr
 
 
 @njit
-def _run_rk4_vjp(c, s, st, ac, as_, zc, zs, tc, ts, kc, ks, g, indptr, indices, w, dt, nsteps):
+def _run_rk4_vjp(args, ac, as_, nsteps):
+    """``nsteps`` of ``_rk4_vjp_vec(*args)``, whose adjoint state ``(ac, as_)`` is in ``args``."""
     for k in range(nsteps):
         if k % RESET == 0:
             ac[:] = 1.0
             as_[:] = 1.0
-        _rk4_vjp_vec(c, s, st, ac, as_, zc, zs, tc, ts, kc, ks, g, indptr, indices, w, dt)
+        _rk4_vjp_vec(*args)
 
 
 @njit
-def _run_tangent(
-    c,
-    s,
-    acc,
-    sum_c,
-    sum_s,
-    tot_c,
-    tot_s,
-    lw,
-    indptr,
-    indices,
-    dt,
-    r2,
-    u,
-    du,
-    cu,
-    su,
-    a,
-    b,
-    rho,
-    mu,
-    dr2,
-    nsteps,
-):
+def _run_tangent(head, tail, nsteps):
+    """``nsteps`` of ``tangent_step_lanes(*head, True, *tail)`` (``tail[0]`` the tangents)."""
     for k in range(nsteps):
         if k % RESET == 0:
-            u[:] = 0.0
-        _step_tangent(
-            c,
-            s,
-            acc,
-            sum_c,
-            sum_s,
-            tot_c,
-            tot_s,
-            lw,
-            indptr,
-            indices,
-            dt,
-            r2,
-            True,
-            u,
-            du,
-            cu,
-            su,
-            a,
-            b,
-            rho,
-            mu,
-            dr2,
-        )
+            tail[0][:] = 0.0
+        _step_tangent(*head, True, *tail)
 
 
 def _best(run, seconds: float, nsteps: int) -> float:
@@ -207,10 +163,11 @@ def time_passes(indptr, indices, weights, seconds: float, tangents: int) -> dict
         base // 4,
     )
     st = np.empty((4, 7, n, LANES))
-    bufs = [np.zeros((n, LANES)) for _ in range(8)]
-    out["rk4_vjp"] = _best(
-        timed(_run_rk4_vjp, c0, s0, st, *bufs, g, indptr, indices, weights, DT_RK4), seconds, base // 8
-    )
+    ac, as_, *bufs = [np.zeros((n, LANES)) for _ in range(8)]
+    tr = _transpose(indptr, indices)
+    scratch = np.empty((4, n * LANES))
+    args = (c0, s0, st, ac, as_, *bufs, g, indptr, indices, weights, DT_RK4, *tr, scratch)
+    out["rk4_vjp"] = _best(timed(_run_rk4_vjp, args, ac, as_), seconds, base // 8)
     # tangents: every directed link up to ``tangents`` of them (a -> b = CSR entry p)
     rows = np.repeat(np.arange(n), np.diff(indptr))
     m = min(tangents, nnz)
@@ -223,34 +180,9 @@ def time_passes(indptr, indices, weights, seconds: float, tangents: int) -> dict
     sums = [np.empty((n, LANES)) for _ in range(5)]
     tot = [np.empty(LANES) for _ in range(2)]
     c, s = c0.copy(), s0.copy()
-    t_tan = _best(
-        timed(
-            _run_tangent,
-            c,
-            s,
-            sums[0],
-            sums[1],
-            sums[2],
-            tot[0],
-            tot[1],
-            lw,
-            indptr,
-            indices,
-            DT_EULER,
-            r2,
-            u,
-            sums[3],
-            sums[4],
-            e.copy(),
-            a,
-            b,
-            rho,
-            mu,
-            np.empty((m, LANES)),
-        ),
-        seconds,
-        max(2, base // (4 * m)),
-    )
+    head = (c, s, *sums[:3], *tot, lw, indptr, indices, DT_EULER, r2)
+    tail = (u, sums[3], sums[4], e.copy(), a, b, rho, mu, np.empty((m, LANES)))
+    t_tan = _best(timed(_run_tangent, head, tail), seconds, max(2, base // (4 * m)))
     out["tangent_step"] = t_tan
     out["tangents"] = m
     return {key: (v / LANES if key != "tangents" else v) for key, v in out.items()}
