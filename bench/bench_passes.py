@@ -90,7 +90,9 @@ def _run_tangent(head, tail, nsteps):
     for k in range(nsteps):
         if k % RESET == 0:
             tail[0][:] = 0.0
-        _step_tangent(*head, True, *tail)
+        c, s, ac, sc, ss, tc, ts, lw, ip, ix, dt, r2 = head
+        u, du, cu, su, a, b, rho, mu, dr2 = tail
+        _step_tangent(c, s, ac, sc, ss, tc, ts, lw, ip, ix, dt, r2, True, u, du, cu, su, a, b, rho, mu, dr2)
 
 
 def _best(run, seconds: float, nsteps: int) -> float:
