@@ -168,7 +168,7 @@ def time_passes(indptr, indices, weights, seconds: float, tangents: int) -> dict
     ac, as_, *bufs = [np.zeros((n, LANES)) for _ in range(8)]
     tr = _transpose(indptr, indices)
     scratch = np.empty((4, n * LANES))
-    args = (c0, s0, st, ac, as_, *bufs, g, indptr, indices, weights, DT_RK4, *tr, scratch)
+    args = (c0, s0, st, ac, as_, *bufs, g, indptr, indices, weights, DT_RK4, tr, scratch)
     out["rk4_vjp"] = _best(timed(_run_rk4_vjp, args, ac, as_), seconds, base // 8)
     # tangents: every directed link up to ``tangents`` of them (a -> b = CSR entry p)
     rows = np.repeat(np.arange(n), np.diff(indptr))

@@ -88,8 +88,8 @@ def main() -> None:
     ap.add_argument(
         "--realizations",
         type=int,
-        default=2_000_000,
-        help="more than the run can finish (the plan of a run grows with it)",
+        default=5_000_000,
+        help="more than the run should finish by the last mark (the run's plan grows with it)",
     )
     ap.add_argument("--threads", type=int, default=os.cpu_count())
     ap.add_argument("--dir", default="/tmp/by_the_clock", help="where the copies go")
@@ -120,13 +120,13 @@ def main() -> None:
             if proc.poll() is not None:  # finished its realizations before this mark
                 print(f"# the run ended before {mark:g} min (exit {proc.returncode})", flush=True)
                 if out.exists():
-                    copies.append((mark, out))
+                    copies.append((f"<= {mark:g} min (run complete)", out))
                 break
             while not out.exists() and proc.poll() is None:  # the first checkpoint is late
                 time.sleep(1)
             copy = folder / f"{name}_{mark:g}min.h5"
             shutil.copyfile(out, copy)
-            copies.append((mark, copy))
+            copies.append((f"{mark:g} min", copy))
             print(f"# copied {copy} at {(time.monotonic() - start) / 60:.1f} min", flush=True)
     finally:
         proc.send_signal(signal.SIGINT)
@@ -135,6 +135,8 @@ def main() -> None:
         except subprocess.TimeoutExpired:
             proc.kill()
 
+    if not copies:
+        sys.exit("the run wrote no result file")
     if args.exact_measures:
         add_exact_measures(copies[-1][1], args.config, args.sets)
     print(
@@ -146,7 +148,7 @@ def main() -> None:
         s = summarize(copy)
         links = s["links"] - s["exact_zero"]
         print(
-            f"| {mark:g} min | {s['realizations']:,} | {s['resolved']} of {links} "
+            f"| {mark} | {s['realizations']:,} | {s['resolved']} of {links} "
             f"({s['resolved'] / links:.0%}) | {s['antifragile']} / {s['fragile']} "
             f"| {s['resolved_3se']} ({s['resolved_3se'] / links:.0%}) "
             f"| {s['se_median']:.2g} / {s['se_worst']:.2g} | {s['flagged']:.2%} "

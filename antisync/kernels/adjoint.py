@@ -814,9 +814,7 @@ def _node_cotangents(st, base, size, kc, ks, bss, bsc, own_c, own_s, o):
 
 
 @njit(cache=True)
-def _rk4_vjp_vec(
-    yc, ys, st, ac, as_, zc, zs, tc, ts, kc, ks, g, indptr, indices, w, dt, tptr, trow, tpos, tsplit, scratch
-):
+def _rk4_vjp_vec(yc, ys, st, ac, as_, zc, zs, tc, ts, kc, ks, g, indptr, indices, w, dt, tr, scratch):
     """:func:`_rk4_vjp` (with :func:`_stages`, :func:`_velocity`, :func:`_velocity_vjp`) for
     every lane of ``[node, lane]`` arrays on machine vectors, two vectors of :data:`VEC` lanes at
     a time (whole cache lines of the 16 lanes, and independent chains for the out-of-order
@@ -824,14 +822,15 @@ def _rk4_vjp_vec(
     operations in the same order as the reference, so the same bits.
 
     The scatter of :func:`_velocity_vjp` (``bs_j += w_ij bss_i`` along row ``i``) runs as a
-    gather down column ``j`` of the transposed pattern (``tptr, trow, tpos, tsplit``, see
-    :class:`_Transpose`): the per-node cotangents first, into ``scratch`` (``[4, node *
-    lane]``), then for each ``j`` a register sum of what the scatter adds into ``(bc_j, bs_j)``
-    in its order (the rows ``i < j`` ascending, ``j``'s own term, the rows ``i >= j``)."""
+    gather down column ``j`` of the transposed pattern ``tr`` (:class:`_Transpose`): the
+    per-node cotangents first, into ``scratch`` (``[4, node * lane]``), then for each ``j`` a
+    register sum of what the scatter adds into ``(bc_j, bs_j)`` in its order (the rows
+    ``i < j`` ascending, ``j``'s own term, the rows ``i >= j``)."""
     n, lanes = yc.shape
     size = n * lanes
     h = 0.5 * dt
     sixth = dt / 6.0
+    tptr, trow, tpos, tsplit = tr.indptr, tr.row, tr.position, tr.split
     bss = scratch[0]
     bsc = scratch[1]
     own_c = scratch[2]
@@ -1020,29 +1019,7 @@ def _rk4_backward_lanes(
         for j in range(j1 - 1, j0 - 1, -1):
             cj = seg_c[j - j0]
             sj = seg_s[j - j0]
-            _rk4_vjp_vec(
-                cj,
-                sj,
-                st,
-                ac,
-                as_,
-                zc,
-                zs,
-                tc,
-                ts,
-                kc,
-                ks,
-                g,
-                indptr,
-                indices,
-                w,
-                dt,
-                tr.indptr,
-                tr.row,
-                tr.position,
-                tr.split,
-                scratch,
-            )
+            _rk4_vjp_vec(cj, sj, st, ac, as_, zc, zs, tc, ts, kc, ks, g, indptr, indices, w, dt, tr, scratch)
             for q in range(lanes):
                 if code[q] != SYNCED:
                     continue
