@@ -120,15 +120,21 @@ def simulate_job(
     threads: int | None = None,
     variant_weights: np.ndarray | None = None,
     realizations: np.ndarray | None = None,
+    todo: np.ndarray | None = None,
 ):
-    """Integrate realizations ``first .. first+count-1`` (or ``realizations``) of ``job``."""
+    """Integrate realizations ``first .. first+count-1`` (or ``realizations``) of ``job``
+    (only the items marked by ``todo``, see :func:`antisync.kernels.cpu.simulate`)."""
     dyn = job.config.dynamics
     check_backend(job.config, backend)
     if job.model is not None:
+        if todo is not None:
+            raise ValueError("the model kernels integrate every item (no todo)")
         return _simulate_model(job, first, count, backend, threads, variant_weights, realizations)
     kwargs = {"threads": threads} if backend != "cuda" else {"precision": dyn.precision}
     if realizations is not None:
         kwargs["realizations"] = realizations
+    if todo is not None:
+        kwargs["todo"] = todo
     weights = job.variant_weights if variant_weights is None else variant_weights
     if dyn.integrator != "euler":
         kwargs["integrator"] = dyn.integrator
@@ -226,25 +232,26 @@ def _secants(job: Job, values, code, flagged, tau0, first: int, threads: int | N
     """Replace the flagged values by secants ``(tau0/tau(dbeta) - 1)/dbeta`` of interpolated
     times, in place (``hybrid``, ``adjoint-hybrid``).
 
-    One integration call per flagged link (its flagged realizations) or per flagged realization
-    (its flagged links), whichever makes fewer calls: on a graph with hundreds of links the
-    flags spread over most links but few realizations. Each secant is the same trajectory
-    either way (the lane driver's results do not depend on what shares a call).
+    One integration call for every flagged (realization, link) pair and nothing else (the
+    lane driver's ``todo``): its lanes are refilled from the flagged pairs only, so the extra
+    cost is the flagged pairs' trajectories, however they scatter over realizations and links.
+    Each secant is the same trajectory whatever shares the call.
     """
+    rows = np.flatnonzero(flagged.any(axis=1))
+    if rows.size == 0:
+        return
     links = np.flatnonzero(flagged.any(axis=0))
-    reals = np.flatnonzero(flagged.any(axis=1))
-    if len(links) <= len(reals):
-        groups = [(np.flatnonzero(flagged[:, e]), np.array([e])) for e in links]
-    else:
-        groups = [(np.array([r]), np.flatnonzero(flagged[r])) for r in reals]
-    dt = job.config.dynamics.dt
-    for rows, edges in groups:
-        sec = simulate_job(job, 0, 0, "cpu", threads, job.secant_weights[edges], realizations=first + rows)
-        tau = (sec.steps - 1 + sec.frac) * dt  # (rows, edges): every pair is flagged
-        good = sec.status == SYNCED
-        r, e = np.broadcast_arrays(rows[:, None], edges[None, :])
-        values[r[good], e[good]] = (tau0[r[good]] / tau[good] - 1.0) / job.dbeta
-        code[r[~good], e[~good]] = sec.status[~good]
+    pairs = flagged[np.ix_(rows, links)]
+    todo = np.concatenate([np.zeros((rows.size, 1), dtype=bool), pairs], axis=1)
+    sec = simulate_job(
+        job, 0, 0, "cpu", threads, job.secant_weights[links], realizations=first + rows, todo=todo
+    )
+    tau = (sec.steps - 1 + sec.frac) * job.config.dynamics.dt
+    good = pairs & (sec.status == SYNCED)
+    bad = pairs & ~good
+    r, e = np.broadcast_arrays(rows[:, None], links[None, :])
+    values[r[good], e[good]] = (tau0[r[good]] / tau[good] - 1.0) / job.dbeta
+    code[r[bad], e[bad]] = sec.status[bad]
 
 
 def _derivative_pass(job: Job, first: int, count: int, threads: int | None):

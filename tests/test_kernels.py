@@ -91,6 +91,33 @@ def test_results_do_not_depend_on_threads_or_batching():
         assert np.array_equal(getattr(one, name)[40:], getattr(part, name))
 
 
+@pytest.mark.parametrize("integrator", ["euler", "rk4"])
+def test_todo_integrates_only_the_marked_items_with_the_same_bits(integrator):
+    """``todo`` refills the lanes from the marked (realization, network) items alone: each is
+    the trajectory of the full call, the rest are marked -1, and a variant equal to the base is
+    integrated rather than copied from a base that did not run."""
+    g = graphs.lollipop(6, 3)
+    # 0 -> 1 leaves a degree-1 node: its normalized W equals the base
+    omega, csr, vw = _arrays(g, [(1, 0, 0.5), (0, 1, 0.5), (4, 5, 0.01)])
+    args = (csr.indptr, csr.indices, csr.weights, vw)
+    kw = dict(dt=0.002 if integrator == "euler" else 0.04, threshold=0.99, max_steps=30_000, integrator=integrator)
+    full = simulate(5, 0, 40, *args, **kw)
+    todo = np.random.default_rng(1).random((40, 4)) < 0.15
+    todo[3, 2] = True  # the base-equal variant, with the base itself not asked for
+    todo[3, 0] = False
+    part = simulate(5, 0, 40, *args, todo=todo, threads=2, lanes=8, **kw)
+    for name, col in (("status0", 0), ("steps0", 0), ("frac0", 0), ("status", 1), ("steps", 1), ("frac", 1)):
+        got, want = getattr(part, name), getattr(full, name)
+        mask = todo[:, 0] if col == 0 else todo[:, 1:]
+        assert np.array_equal(got[mask], want[mask]), name
+        skipped = got[~mask]
+        assert (np.isnan(skipped) if name.startswith("frac") else skipped == -1).all(), name
+    with pytest.raises(ValueError, match=r"todo must have shape \(40, 4\)"):
+        simulate(5, 0, 40, *args, todo=todo[:, :3], **kw)
+    with pytest.raises(ValueError, match="todo runs in the lane driver"):
+        simulate(5, 0, 40, *args, todo=todo, lanes=0, dt=0.002, threshold=0.99, max_steps=100)
+
+
 @pytest.mark.parametrize("kind", ["normalized", "raw"])
 def test_lane_driver_is_bit_identical_to_scalar_driver(kind):
     """Lanes step many trajectories together; each must see exactly the scalar arithmetic."""

@@ -64,6 +64,9 @@ class _Graph(NamedTuple):
     """float64 (V, nnz): each damaged ``W(Omega*)``."""
     var_is_base: np.ndarray
     """bool (V,): variant ``v`` leaves ``W`` unchanged (its result is copied from tau0)."""
+    todo: np.ndarray = np.ones((0, 0), dtype=np.bool_)
+    """bool (m, V + 1): the lane driver integrates only the marked (realization, network)
+    items, column 0 the undamaged network; shape (0, 0): every item."""
 
 
 class _Run(NamedTuple):
@@ -201,6 +204,7 @@ def _load_lane(
     base_w,
     var_w,
     var_is_base,
+    todo,
     r2_target,
     c,
     s,
@@ -228,6 +232,8 @@ def _load_lane(
     while qr < r_hi:
         r, v = qr, qv
         qr, qv = _next_item(qr, qv, r_hi, var_is_base)
+        if todo.shape[0] > 0 and not todo[r, v + 1]:
+            continue
         if start[0] != r:
             # the realization's initial state, kept in (ci, si) for its variants that follow
             start[0] = r
@@ -301,6 +307,7 @@ def _integrate_lanes(ks, graph, run, out, tangents, n_groups):
     base_w = graph.base_w
     var_w = graph.var_w
     var_is_base = graph.var_is_base
+    todo = graph.todo
     seed = run.seed
     dt = run.dt
     r2_target = run.r2_target
@@ -388,6 +395,7 @@ def _integrate_lanes(ks, graph, run, out, tangents, n_groups):
                 base_w,
                 var_w,
                 var_is_base,
+                todo,
                 r2_target,
                 c,
                 s,
@@ -504,6 +512,7 @@ def _integrate_lanes(ks, graph, run, out, tangents, n_groups):
                     base_w,
                     var_w,
                     var_is_base,
+                    todo,
                     r2_target,
                     c,
                     s,
@@ -631,6 +640,7 @@ def simulate(
     lanes: int = LANES,
     realizations: np.ndarray | None = None,
     integrator: Integrator = "euler",
+    todo: np.ndarray | None = None,
 ) -> SimResult:
     """Integrate realizations ``first .. first+count-1`` for the base network and every variant.
 
@@ -654,11 +664,18 @@ def simulate(
     integrator : {"euler", "rk4"}
         Explicit Euler (the paper's) or classical RK4 (lane driver only; crossing times by
         cubic Hermite interpolation, see ``frac``).
+    todo : bool array, shape (m, V + 1), optional
+        Integrate only the marked items: ``todo[r, 0]`` the undamaged network of realization
+        ``r``, ``todo[r, 1 + v]`` its variant ``v`` (lane driver only). The lanes are refilled
+        from the marked items alone, so a few scattered items cost what they integrate. Items
+        left out get status and steps ``-1`` and ``frac`` NaN.
     """
     if integrator not in ("euler", "rk4"):
         raise ValueError(f"integrator must be 'euler' or 'rk4', got {integrator!r}")
     if integrator == "rk4" and not lanes:
         raise ValueError("the rk4 integrator runs in the lane driver (lanes >= 1)")
+    if todo is not None and not lanes:
+        raise ValueError("todo runs in the lane driver (lanes >= 1)")
     ks = _realization_ids(first, count, realizations)
     n = indptr.size - 1
     m = ks.size
@@ -670,6 +687,14 @@ def simulate(
     status = np.empty((m, var_w.shape[0]), dtype=np.int8)
     steps = np.empty((m, var_w.shape[0]), dtype=np.int64)
     graph = _Graph(indptr.astype(np.int64), indices.astype(np.int64), base_weights, var_w, var_is_base)
+    if todo is not None:
+        todo = np.ascontiguousarray(todo, dtype=np.bool_)
+        if todo.shape != (m, var_w.shape[0] + 1):
+            raise ValueError(f"todo must have shape {(m, var_w.shape[0] + 1)}, got {todo.shape}")
+        for a in (status0, steps0, status, steps):
+            a.fill(-1)
+        # a variant equal to the base is integrated, not copied from a base that may not run
+        graph = graph._replace(var_is_base=np.zeros_like(var_is_base), todo=todo)
     # |alpha_i| = dt |omega_i| <= dt sum_j |w_ij|: then the Taylor rotation is always valid
     taylor = float(dt) * _row_sum_bound(indptr, base_weights, var_w) <= TAYLOR_MAX_ANGLE
     run = _Run(
@@ -685,9 +710,12 @@ def simulate(
         if not lanes:
             _integrate_batch(ks, graph, run, status0, steps0, status, steps)
             return SimResult(status0, steps0, status, steps)
-        frac0 = np.empty(m)
-        frac = np.empty((m, var_w.shape[0]))
+        frac0 = np.empty(m) if todo is None else np.full(m, np.nan)
+        frac = np.empty((m, var_w.shape[0])) if todo is None else np.full((m, var_w.shape[0]), np.nan)
         out = _Outputs(status0, steps0, frac0, status, steps, frac, np.empty((m, 0)))
+        if todo is not None:
+            # few scattered items: no more groups (row ranges) than it takes to fill the lanes
+            groups = min(groups, max(1, -(-int(todo.sum()) // max(1, int(lanes)))))
         _integrate_lanes(ks, graph, run, out, _NO_TANGENTS, groups)
     return SimResult(status0, steps0, status, steps, frac0, frac)
 
