@@ -10,6 +10,14 @@ seconds per realization), so the ratio of the two estimators' times is
 printed beside it. Graphs: ``karate`` (156 links) and ``lesmis`` (Les Miserables, weighted,
 508 links, as configs/lesmis.yaml); integrators: ``euler`` (dt 0.001) or ``rk4`` (dt 0.04,
 the configs' choice).
+
+The two are timed interleaved, so that a change in the machine's load falls on both: the finite
+difference runs in pieces of ``--piece`` realizations, and after each piece the adjoint-hybrid
+runs on all M realizations (the same numbers every time); its seconds per realization are the
+mean over those repeats. (Timed one after the other, the ratio moved by 20% between two runs on
+a shared machine.) The adjoint-hybrid always runs all M at once: its 16-lane groups, sorted by
+predicted crossing, need many realizations to leave few lanes idle, as in a run's chunks of at
+least ``ADJOINT_MIN_CHUNK``.
 """
 
 from __future__ import annotations
@@ -51,13 +59,29 @@ seed: 3
     )
 
 
-def timed(job, m: int):
-    fd = job.config.lambda_.method == "finite-difference"
-    lambda_values(job, simulate_job(job, 0, 1, threads=1) if fd else None, 0, 1, threads=1)  # compile
-    start = time.perf_counter()
-    sim = simulate_job(job, 0, m, threads=1) if fd else None
-    values, code, flagged, _ = lambda_values(job, sim, 0, m, threads=1)
-    return (time.perf_counter() - start) / m, values, code, flagged
+def fd_piece(job, first: int, count: int):
+    sim = simulate_job(job, first, count, threads=1)
+    return lambda_values(job, sim, first, count, threads=1)[:3]
+
+
+def interleaved(fd_job, ah_job, m: int, piece: int):
+    """Finite difference in pieces, the adjoint-hybrid on all ``m`` after each piece: seconds per
+    realization of each (the adjoint-hybrid's the mean of its repeats) and both outcomes."""
+    fd_piece(fd_job, 0, 1)  # compile
+    lambda_values(ah_job, None, 0, 1, threads=1)
+    fd_seconds, ah_seconds, parts = 0.0, [], []
+    for first in range(0, m, piece):
+        start = time.perf_counter()
+        parts.append(fd_piece(fd_job, first, min(piece, m - first)))
+        fd_seconds += time.perf_counter() - start
+        start = time.perf_counter()
+        ah = lambda_values(ah_job, None, 0, m, threads=1)[:3]
+        ah_seconds.append(time.perf_counter() - start)
+    fd = tuple(np.concatenate(x) for x in zip(*parts, strict=True))
+    return {
+        "finite-difference": (fd_seconds / m, *fd),
+        "adjoint-hybrid": (np.mean(ah_seconds) / m, *ah),
+    }, ah_seconds
 
 
 def main() -> None:
@@ -65,12 +89,21 @@ def main() -> None:
     ap.add_argument("--graph", choices=sorted(GRAPHS), default="lesmis")
     ap.add_argument("--integrator", choices=sorted(STEPS), default="euler")
     ap.add_argument("--realizations", type=int, default=32)
+    ap.add_argument(
+        "--piece", type=int, default=32, help="finite-difference realizations between adjoint repeats"
+    )
     args = ap.parse_args()
     m = args.realizations
+    methods = ("finite-difference", "adjoint-hybrid")
+    fd_job, ah_job = (job_for(args.graph, method, args.integrator, m) for method in methods)
+    out, ah_seconds = interleaved(fd_job, ah_job, m, args.piece)
+    spread = np.array(ah_seconds) / m
+    print(
+        f"adjoint-hybrid repeats: {len(spread)}, seconds per realization min {spread.min():.4f}, "
+        f"mean {spread.mean():.4f}, max {spread.max():.4f}"
+    )
     res = {}
-    for method in ("finite-difference", "adjoint-hybrid"):
-        job = job_for(args.graph, method, args.integrator, m)
-        t, values, code, flagged = timed(job, m)
+    for method, (t, values, code, flagged) in out.items():
         ok = code == SYNCED
         var = np.array([values[ok[:, e], e].var(ddof=1) for e in range(values.shape[1])])
         res[method] = (t, var)
