@@ -1,0 +1,110 @@
+"""The Fig. 3 ranking with its uncertainty: is Table 1's top seven in the paper's order?
+
+``python bench/fig3_ranking.py results/fig3_two_hours.h5`` reads a finished atlas sweep
+(``make fig3-two-hours``) and prints, as markdown:
+
+- the first ``--top`` graphs by score, the sum of their positive Lambda^KM over all directed
+  links (every orbit member counted), with a standard error by batch means: each block of the
+  job (``block_size`` realizations) gives a score from its own per-link means (the positive
+  set fixed by the whole run), and the se is the blocks' sd over sqrt(blocks);
+- for consecutive ranks, the score difference and its se from the paired blocks (every graph
+  of a sweep draws the same initial phases per realization, so the difference is more precise
+  than the two se together), and whether the order is resolved at ``--z``;
+- where each of the paper's Table 1 graphs (atlas indices as in ``antisync.paper.TABLE1_ATLAS``)
+  lands, and whether the paper's order 1..7 holds pair by pair.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
+
+import h5py  # noqa: E402
+import numpy as np  # noqa: E402
+
+from antisync.paper import TABLE1_ATLAS  # noqa: E402
+
+
+def block_scores(f: h5py.File, job: str, orbits: dict[str, str]) -> tuple[float, np.ndarray]:
+    """The job's score and its per-block scores (the positive set from the whole run)."""
+    g = f["jobs"][job]
+    edges = json.loads(g.attrs["edges"])
+    fields = json.loads(g.attrs["lambda_fields"])
+    rec = g["lambda_records"][()]  # (blocks, variants, fields)
+    done = g["blocks_done"][()]
+    rec = rec[done]
+    n, s = rec[:, :, fields.index("n")], rec[:, :, fields.index("sum")]
+    size = np.array([sum(1 for rep in orbits.values() if rep == e) for e in edges], dtype=float)
+    mean = s.sum(axis=0) / n.sum(axis=0)
+    positive = mean > 0
+    score = float((size * mean)[positive].sum())
+    with np.errstate(invalid="ignore", divide="ignore"):
+        per_block = np.where(n > 0, s / n, 0.0)
+    return score, (per_block[:, positive] * size[positive]).sum(axis=1)
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("sweep", type=Path)
+    ap.add_argument("--top", type=int, default=12, help="ranks to print")
+    ap.add_argument("--z", type=float, default=3.0, help="standard errors for a resolved order")
+    args = ap.parse_args()
+    with h5py.File(args.sweep, "r") as f:
+        meta = json.loads(f["sweep"]["meta_json"][()])
+        graphs = {g["graph"]: g for g in meta["graphs"] if not g["excluded"]}
+        main_jobs = [j for j in meta["jobs"] if j["stage"] == "main" and j["repeat"] == 0]
+        rows = []
+        for j in main_jobs:
+            score, blocks = block_scores(f, j["job"], graphs[j["graph"]]["orbits"])
+            realizations = int(f["jobs"][j["job"]].attrs["realizations_done"])
+            rows.append({"graph": j["graph"], "score": score, "blocks": blocks, "n": realizations})
+    rows.sort(key=lambda r: -r["score"])
+    paper_rank = {f"G{atlas}": k for k, (atlas, _) in TABLE1_ATLAS.items()}
+    print(f"{args.sweep}: {len(rows)} graphs, {rows[0]['n']:,} realizations each\n")
+    print(
+        "| rank | graph | paper's Table 1 | score (sum of positive Lambda^KM) | se "
+        "| to the next rank | se (paired) | resolved |"
+    )
+    print("|---:|---|---:|---:|---:|---:|---:|---|")
+    for k, r in enumerate(rows[: args.top]):
+        se = r["blocks"].std(ddof=1) / np.sqrt(len(r["blocks"]))
+        gap = gap_se = None
+        if k + 1 < len(rows):
+            nxt = rows[k + 1]
+            d = r["blocks"] - nxt["blocks"]
+            gap, gap_se = r["score"] - nxt["score"], d.std(ddof=1) / np.sqrt(len(d))
+        resolved = "" if gap is None else ("yes" if gap > args.z * gap_se else "no")
+        gap_text = "| |" if gap is None else f"| {gap:.4f} | {gap_se:.4f} |"
+        print(
+            f"| {k + 1} | {r['graph']} | {paper_rank.get(r['graph'], '')} | {r['score']:.4f} | {se:.4f} "
+            f"{gap_text} {resolved} |"
+        )
+    where = {r["graph"]: k + 1 for k, r in enumerate(rows)}
+    by_graph = {r["graph"]: r for r in rows}
+    print("\nThe paper's order, pair by pair (paper rank k above k + 1):\n")
+    print("| paper | graph | here | score | paper k+1 | score difference | se (paired) | here |")
+    print("|---:|---|---:|---:|---|---:|---:|---|")
+    for k in range(1, len(TABLE1_ATLAS) + 1):
+        g = f"G{TABLE1_ATLAS[k][0]}"
+        line = f"| {k} | {g} | {where.get(g, '-')} | {by_graph[g]['score']:.4f} |"
+        if k + 1 in TABLE1_ATLAS:
+            h = f"G{TABLE1_ATLAS[k + 1][0]}"
+            d = by_graph[g]["blocks"] - by_graph[h]["blocks"]
+            diff, se = by_graph[g]["score"] - by_graph[h]["score"], d.std(ddof=1) / np.sqrt(len(d))
+            verdict = (
+                "above, resolved"
+                if diff > args.z * se
+                else ("below, resolved" if diff < -args.z * se else "unresolved")
+            )
+            line += f" {h} | {diff:+.4f} | {se:.4f} | {verdict} |"
+        else:
+            line += " | | | |"
+        print(line)
+
+
+if __name__ == "__main__":
+    main()
