@@ -100,7 +100,8 @@ def test_todo_integrates_only_the_marked_items_with_the_same_bits(integrator):
     # 0 -> 1 leaves a degree-1 node: its normalized W equals the base
     omega, csr, vw = _arrays(g, [(1, 0, 0.5), (0, 1, 0.5), (4, 5, 0.01)])
     args = (csr.indptr, csr.indices, csr.weights, vw)
-    kw = dict(dt=0.002 if integrator == "euler" else 0.04, threshold=0.99, max_steps=30_000, integrator=integrator)
+    dt = 0.002 if integrator == "euler" else 0.04
+    kw = dict(dt=dt, threshold=0.99, max_steps=30_000, integrator=integrator)
     full = simulate(5, 0, 40, *args, **kw)
     todo = np.random.default_rng(1).random((40, 4)) < 0.15
     todo[3, 2] = True  # the base-equal variant, with the base itself not asked for
