@@ -196,6 +196,9 @@ def _execute(
     # included): with many jobs of different sizes (a sweep) its rate and ETA stay meaningful
     cost = {job.name: job.integrations_per_realization for job in jobs}
     looks = config.stop_looks  # [realizations] without a stopping rule
+    if not config.stop.active:
+        # every job to its own count: a sweep's top stage may ask for more than `config`'s
+        looks = [max([config.realizations, *(job.realizations for job in jobs)])]
     level = stopping.look_level(len(looks))
     say(
         f"{note}; {executor.describe()}; {len(jobs)} job(s), "

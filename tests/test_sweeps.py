@@ -350,6 +350,19 @@ def test_tiny_sweep_contents(tiny_reference):
     assert [r["rank"] for r in ref["top"]] == [1, 2]
 
 
+def test_top_stage_runs_its_own_realizations_when_more_than_the_main_stage(tmp_path):
+    """top.realizations above the main stage's: every top job runs all of them (they were cut
+    to the main stage's count, and the file left incomplete, with nothing said)."""
+    text = TINY.replace("top: {graphs: 2, realizations: 80}", "top: {graphs: 1, realizations: 200}")
+    sw = load_sweep_text(text.replace("measures: [km, xi2]", "measures: [km]"))
+    path = run_sweep(sw, output=tmp_path / "t.h5", progress=False, chunk_realizations=40)
+    summary = sweep_summary(path)
+    assert summary["complete"]
+    (top,) = summary["top"]
+    assert top["n"] + top["n_excluded"] == 200
+    assert {r["n"] + r["n_excluded"] for r in summary["records"]} == {120}
+
+
 def test_fanned_out_records_match_direct_xi2(tiny_reference):
     """Lambda^(xi2), computed for representatives only and fanned out, equals a direct
     computation on every orbit member: an independent check of the orbits."""
