@@ -17,34 +17,32 @@
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-import h5py  # noqa: E402
 import numpy as np  # noqa: E402
 
+from antisync.estimators import LAMBDA_FIELDS  # noqa: E402
 from antisync.paper import TABLE1_ATLAS  # noqa: E402
+from antisync.store import read_meta, read_views  # noqa: E402
+from antisync.sweeps.analysis import ranking, summarize  # noqa: E402
 
 
-def block_scores(f: h5py.File, job: str, orbits: dict[str, str]) -> tuple[float, np.ndarray]:
-    """The job's score and its per-block scores (the positive set from the whole run)."""
-    g = f["jobs"][job]
-    edges = json.loads(g.attrs["edges"])
-    fields = json.loads(g.attrs["lambda_fields"])
-    rec = g["lambda_records"][()]  # (blocks, variants, fields)
-    done = g["blocks_done"][()]
-    rec = rec[done]
-    n, s = rec[:, :, fields.index("n")], rec[:, :, fields.index("sum")]
-    size = np.array([sum(1 for rep in orbits.values() if rep == e) for e in edges], dtype=float)
-    mean = s.sum(axis=0) / n.sum(axis=0)
-    positive = mean > 0
-    score = float((size * mean)[positive].sum())
+def block_scores(view, records: list[dict]) -> np.ndarray:
+    """Per block of ``view`` (a main-stage job), the score from that block's own per-link means:
+    every representative link whose whole-run Lambda^KM is positive, times its orbit size."""
+    weight = {}
+    for r in records:  # fanned out: one per directed link, each naming its representative
+        if r["job"] == view.graph and r["beta"] is None and r["lambda_km"] > 0:
+            weight[r["representative"]] = r["orbit_size"]
+    rec = view.lam_rec[view.done]  # (blocks, links, fields)
+    n, s = rec[:, :, LAMBDA_FIELDS.index("n")], rec[:, :, LAMBDA_FIELDS.index("sum")]
     with np.errstate(invalid="ignore", divide="ignore"):
         per_block = np.where(n > 0, s / n, 0.0)
-    return score, (per_block[:, positive] * size[positive]).sum(axis=1)
+    size = np.array([weight.get(e, 0) for e in view.edges], dtype=float)
+    return per_block @ size
 
 
 def main() -> None:
@@ -53,16 +51,19 @@ def main() -> None:
     ap.add_argument("--top", type=int, default=12, help="ranks to print")
     ap.add_argument("--z", type=float, default=3.0, help="standard errors for a resolved order")
     args = ap.parse_args()
-    with h5py.File(args.sweep, "r") as f:
-        meta = json.loads(f["sweep"]["meta_json"][()])
-        graphs = {g["graph"]: g for g in meta["graphs"] if not g["excluded"]}
-        main_jobs = [j for j in meta["jobs"] if j["stage"] == "main" and j["repeat"] == 0]
-        rows = []
-        for j in main_jobs:
-            score, blocks = block_scores(f, j["job"], graphs[j["graph"]]["orbits"])
-            realizations = int(f["jobs"][j["job"]].attrs["realizations_done"])
-            rows.append({"graph": j["graph"], "score": score, "blocks": blocks, "n": realizations})
-    rows.sort(key=lambda r: -r["score"])
+    meta, views = read_meta(args.sweep), read_views(args.sweep)
+    summary = summarize(meta, views)
+    by_job = {v.graph: v for v in views}
+    main_jobs = {j["graph"]: j["job"] for j in meta["jobs"] if j["stage"] == "main" and j["repeat"] == 0}
+    rows = [
+        {
+            "graph": row["graph"],
+            "score": row["score"],
+            "blocks": block_scores(by_job[main_jobs[row["graph"]]], summary["records"]),
+            "n": by_job[main_jobs[row["graph"]]].realizations,
+        }
+        for row in ranking(summary["records"], summary["ranking_threshold"])
+    ]
     paper_rank = {f"G{atlas}": k for k, (atlas, _) in TABLE1_ATLAS.items()}
     print(f"{args.sweep}: {len(rows)} graphs, {rows[0]['n']:,} realizations each\n")
     print(

@@ -110,8 +110,8 @@ def main() -> None:
         print(
             f"{args.graph} {args.integrator} {method}: {t:.4f} s per realization, {values.shape[1]} links, "
             f"{ok.all(axis=1).sum()} of {m} realizations synchronized on every link; "
-            f"per-link variance max {var.max():.4g}, median {np.median(var):.4g}"
-            + (f"; flagged {flagged.sum()} values" if flagged is not None else ""),
+            f"per-link variance max {var.max():.4g}, median {np.median(var):.4g}; "
+            f"flagged {flagged.sum()} values",
             flush=True,
         )
     (t_fd, v_fd), (t_ah, v_ah) = res["finite-difference"], res["adjoint-hybrid"]
