@@ -58,8 +58,8 @@ def check_backend(config, backend: str) -> None:
     """Refuse options the resolved ``backend`` does not implement (before any file is written).
 
     The CUDA backend runs the paper's procedure: Euler steps, grid crossing times,
-    finite-difference Lambda, in float64 or float32. The CPU backend runs everything but
-    float32.
+    finite-difference Lambda, in float64 or float32. The CPU backend runs everything in
+    float64, and the Euler finite difference in float32 as well.
 
     Raises
     ------
@@ -75,10 +75,17 @@ def check_backend(config, backend: str) -> None:
             )
         return
     if dyn.precision != "float64" and backend != "cuda":
-        raise ConfigError(
-            f"dynamics.precision {dyn.precision} is implemented only on backend cuda "
-            f"(this run uses backend {backend}); use precision float64 or backend cuda"
-        )
+        # the CPU lanes run float32 for the Euler step with Taylor rotations only
+        if dyn.integrator != "euler":
+            raise ConfigError(
+                f"dynamics.precision {dyn.precision} runs dynamics.integrator euler only "
+                f"(got {dyn.integrator}); use precision float64 or integrator euler"
+            )
+        if config.lambda_.method != "finite-difference":
+            raise ConfigError(
+                f"dynamics.precision {dyn.precision} runs lambda.method finite-difference only "
+                f"(got {config.lambda_.method}); use precision float64 or method finite-difference"
+            )
     if backend != "cuda":
         return
     if config.lambda_.method != "finite-difference":
@@ -102,6 +109,18 @@ def check_job(job: Job, backend: str) -> None:
     """:func:`check_backend` for ``job``'s config, plus what depends on its graph (the CUDA
     kernels keep a trajectory's state in fixed-size per-thread arrays of ``MAX_NODES``)."""
     check_backend(job.config, backend)
+    dyn = job.config.dynamics
+    if backend != "cuda" and dyn.precision == "float32" and job.model is None:
+        from antisync.kernels.core import TAYLOR_MAX_ANGLE
+        from antisync.kernels.cpu import rotation_angle_bound
+
+        bound = rotation_angle_bound(dyn.dt, job.csr.indptr, job.csr.weights, job.variant_weights)
+        if bound > TAYLOR_MAX_ANGLE:
+            raise ConfigError(
+                f"dynamics.precision float32 on the cpu backend needs every rotation angle "
+                f"dt * sum_j |w_ij| <= {TAYLOR_MAX_ANGLE}; graph {job.name} at dt {dyn.dt} reaches "
+                f"{bound:.4g}: use a smaller dynamics.dt or precision float64"
+            )
     if backend == "cuda":
         from antisync.kernels.cuda import MAX_NODES
 
@@ -130,7 +149,9 @@ def simulate_job(
         if todo is not None:
             raise ValueError("the model kernels integrate every item (no todo)")
         return _simulate_model(job, first, count, backend, threads, variant_weights, realizations)
-    kwargs = {"threads": threads} if backend != "cuda" else {"precision": dyn.precision}
+    kwargs = {"precision": dyn.precision}
+    if backend != "cuda":
+        kwargs["threads"] = threads
     if realizations is not None:
         kwargs["realizations"] = realizations
     if todo is not None:

@@ -116,7 +116,8 @@ class Dynamics:
     ``auto``: grid for Euler, interpolated for RK4."""
     precision: Precision = "float64"
     """Arithmetic of the integrated state: ``float64`` (every backend) or ``float32`` (backend
-    cuda only; docs/cuda.md says how much it moves tau)."""
+    cuda; on the cpu backend the Euler finite difference with every rotation angle within the
+    Taylor range; docs/cuda.md says how much it moves tau and Lambda)."""
 
     def __post_init__(self):
         choice("dynamics.coupling", self.coupling, COUPLINGS)

@@ -127,20 +127,20 @@ def undirected(rows, cols, weights):
     return a, b, w[..., ab].copy(), w[..., ba].copy()
 
 
-def _config(method: str, integrator: str = "euler", dt: float = 0.001, m: int = 1000):
+def _config(method: str, integrator: str = "euler", dt: float = 0.001, m: int = 1000, precision="float64"):
     return load_config_text(f"""
 graph: {{kind: lollipop, nodes: 6, path: 3}}
 edges: all
 betas: []
 lambda: {{method: {method}, dbeta: 0.01}}
-dynamics: {{integrator: {integrator}, dt: {dt}}}
+dynamics: {{integrator: {integrator}, dt: {dt}, precision: {precision}}}
 realizations: {m}
 block_size: {max(1, m // 100)}
 """)
 
 
-def run_antisync(method, integrator, dt, m):
-    job = make_job(_config(method, integrator, dt, m))
+def run_antisync(method, integrator, dt, m, precision="float64"):
+    job = make_job(_config(method, integrator, dt, m, precision))
     compute_chunk(job, Chunk(0, 1))  # compile
     t = time.perf_counter()
     res = compute_chunk(job, Chunk(0, job.n_blocks))
@@ -210,13 +210,14 @@ def main() -> None:
 
     results = {}
     cases = (
-        ("(b) finite difference, Euler", "finite-difference", "euler", 0.001),
-        ("(c) pathwise, Euler", "pathwise", "euler", 0.001),
-        ("(d) hybrid, Euler", "hybrid", "euler", 0.001),
-        ("(e) finite difference, RK4 dt=0.04", "finite-difference", "rk4", 0.04),
+        ("(b) finite difference, Euler", "finite-difference", "euler", 0.001, "float64"),
+        ("(b32) finite difference, Euler, float32 lanes", "finite-difference", "euler", 0.001, "float32"),
+        ("(c) pathwise, Euler", "pathwise", "euler", 0.001, "float64"),
+        ("(d) hybrid, Euler", "hybrid", "euler", 0.001, "float64"),
+        ("(e) finite difference, RK4 dt=0.04", "finite-difference", "rk4", 0.04, "float64"),
     )
-    for label, method, integrator, dt in cases:
-        results[label] = run_antisync(method, integrator, dt, m)
+    for label, method, integrator, dt, precision in cases:
+        results[label] = run_antisync(method, integrator, dt, m, precision)
     fd_s, fd_steps, fd_se, _, fd_lam = results["(b) finite difference, Euler"]
     # the baseline integrates tau0 once per edge: 24 trajectories per realization vs 13 in (b)
     base_steps = fd_steps / m * mb * 24 / 13
@@ -229,24 +230,28 @@ def main() -> None:
     )
     print()
     print(
-        "| estimator | realizations/s | traj-steps/s | worst se (M) | tail share | time to se 0.005 | "
-        "vs (a): real/s | steps/s | time to precision |"
+        "| estimator | realizations/s | traj-steps/s | ns/step/thread | worst se (M) | tail share | "
+        "time to se 0.005 | vs (a): real/s | steps/s | time to precision |"
     )
-    print("|---|---|---|---|---|---|---|---|---|")
+    print("|---|---|---|---|---|---|---|---|---|---|")
+    threads = numba.get_num_threads()
     print(
         f"| (a) competent baseline (paper's procedure) | {base_rate:,.0f} | {base_steps / base_s:.3g} | "
-        f"{fd_se:.4f} (as b) | - | {base_time:,.0f} s | 1 | 1 | 1 |"
+        f"{threads * base_s / base_steps * 1e9:.1f} | {fd_se:.4f} (as b) | - | {base_time:,.0f} s | "
+        "1 | 1 | 1 |"
     )
     print(
         f"| (a') plain baseline (before issue 17) | {mb / plain_s:,.0f} | {base_steps / plain_s:.3g} | "
-        f"{fd_se:.4f} (as b) | - | {base_time * plain_s / base_s:,.0f} s | {base_s / plain_s:.2f}x | "
+        f"{threads * plain_s / base_steps * 1e9:.1f} | {fd_se:.4f} (as b) | - | "
+        f"{base_time * plain_s / base_s:,.0f} s | {base_s / plain_s:.2f}x | "
         f"{base_s / plain_s:.2f}x | {base_s / plain_s:.2f}x |"
     )
     for label, (sec, steps, se, tail, _) in results.items():
         rate = m / sec
         ttp = m * (se / TARGET_SE) ** 2 / rate
         print(
-            f"| {label} | {rate:,.0f} | {steps / sec:.3g} | {se:.4f} | {tail:.2f} | {ttp:,.0f} s | "
+            f"| {label} | {rate:,.0f} | {steps / sec:.3g} | {threads * sec / steps * 1e9:.1f} | {se:.4f} | "
+            f"{tail:.2f} | {ttp:,.0f} s | "
             f"{rate / base_rate:.1f}x | {(steps / sec) / (base_steps / base_s):.1f}x | "
             f"{base_time / ttp:.0f}x |"
         )

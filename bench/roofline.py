@@ -17,9 +17,10 @@ trajectory-step (one Euler step of one trajectory = one lane):
 - time per trajectory-step of the fused kernel and of the previous lane kernel
   (``euler_step_lanes``: lane loops over runtime-width arrays; it now shares the fused
   kernel's division-free Taylor polynomial), both measured here, one thread,
-  the kernel alone in a loop (no lane refill); and of the RK4 lane kernel ``rk4_step_vec``, in
-  ns and in fused Euler steps;
-- the limits: an FMA loop that reaches the core's peak (12 independent 8-wide accumulators,
+  the kernel alone in a loop (no lane refill, compiled as the driver is: see the loops below);
+  of the RK4 lane kernel ``rk4_step_vec``, in ns and in fused Euler steps; and of the fused
+  kernel on float32 lanes (``precision: float32``, twice the lanes per machine vector);
+- the limits: an FMA loop that reaches the core's peak (6 independent 8-wide accumulators,
   ``llvm.fma``; the assembly is checked for ``vfmadd...pd``), and the same loop with separate
   multiplications or additions (the throughput the kernel's mix can use); the kernel's bound is
   ``max(muls / mul rate, adds / add rate)``.
@@ -44,7 +45,7 @@ from pathlib import Path
 import numba
 import numpy as np
 from llvmlite import ir
-from numba import njit
+from numba import njit, prange
 from numba.core import cgutils
 from numba.extending import intrinsic
 
@@ -54,12 +55,14 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from bench_sizes import csr, graphs_to_bench  # noqa: E402
 
 from antisync.kernels.core import VEC, f64vec, vsplat, vstore  # noqa: E402
-from antisync.kernels.cpu import _K  # noqa: E402
+from antisync.kernels.cpu import _K, _K32  # noqa: E402
 
 LANES = 32
 DT = 0.01
+CHAINS = 6  # independent accumulators of the peak loops
 
 _step_vec = _K.euler_step_vec
+_step_vec32 = _K32.euler_step_vec
 _step_lanes = _K.euler_step_lanes
 _step_rk4 = _K.rk4_step_vec
 
@@ -78,12 +81,17 @@ def _vfma(typingctx, a, b, c):
     return f64vec(a, b, c), codegen
 
 
+# Six independent chains of VEC doubles: enough to cover the FMA latency (4 cycles) on two
+# pipes, and few enough to stay in registers where a VEC-double vector takes two of the 16 AVX2
+# registers (12 chains spilled there and measured a third of the multiplier's rate).
+
+
 @njit
 def _fma_loop(reps, b, c):
-    """12 independent chains x = x * b + c of 8 doubles: 2 * 8 * 12 flops per iteration."""
+    """6 independent chains x = x * b + c: 2 * VEC * 6 flops per iteration."""
     vb = vsplat(b)
     vc = vsplat(c)
-    x0 = x1 = x2 = x3 = x4 = x5 = x6 = x7 = x8 = x9 = x10 = x11 = vsplat(0.5)
+    x0 = x1 = x2 = x3 = x4 = x5 = vsplat(0.5)
     for _ in range(reps):
         x0 = _vfma(x0, vb, vc)
         x1 = _vfma(x1, vb, vc)
@@ -91,22 +99,14 @@ def _fma_loop(reps, b, c):
         x3 = _vfma(x3, vb, vc)
         x4 = _vfma(x4, vb, vc)
         x5 = _vfma(x5, vb, vc)
-        x6 = _vfma(x6, vb, vc)
-        x7 = _vfma(x7, vb, vc)
-        x8 = _vfma(x8, vb, vc)
-        x9 = _vfma(x9, vb, vc)
-        x10 = _vfma(x10, vb, vc)
-        x11 = _vfma(x11, vb, vc)
-    out = np.empty(12 * VEC)
-    _store_all(out, x0, x1, x2, x3, x4, x5, x6, x7, x8, x9, x10, x11)
-    return out
+    return _store_all(x0, x1, x2, x3, x4, x5)
 
 
 @njit
 def _mul_loop(reps, b):
-    """12 independent chains x = x * b: 8 * 12 multiplications per iteration."""
+    """6 independent chains x = x * b: VEC * 6 multiplications per iteration."""
     vb = vsplat(b)
-    x0 = x1 = x2 = x3 = x4 = x5 = x6 = x7 = x8 = x9 = x10 = x11 = vsplat(0.5)
+    x0 = x1 = x2 = x3 = x4 = x5 = vsplat(0.5)
     for _ in range(reps):
         x0 = x0 * vb
         x1 = x1 * vb
@@ -114,22 +114,14 @@ def _mul_loop(reps, b):
         x3 = x3 * vb
         x4 = x4 * vb
         x5 = x5 * vb
-        x6 = x6 * vb
-        x7 = x7 * vb
-        x8 = x8 * vb
-        x9 = x9 * vb
-        x10 = x10 * vb
-        x11 = x11 * vb
-    out = np.empty(12 * VEC)
-    _store_all(out, x0, x1, x2, x3, x4, x5, x6, x7, x8, x9, x10, x11)
-    return out
+    return _store_all(x0, x1, x2, x3, x4, x5)
 
 
 @njit
 def _add_loop(reps, b):
-    """12 independent chains x = x + b: 8 * 12 additions per iteration."""
+    """6 independent chains x = x + b: VEC * 6 additions per iteration."""
     vb = vsplat(b)
-    x0 = x1 = x2 = x3 = x4 = x5 = x6 = x7 = x8 = x9 = x10 = x11 = vsplat(0.5)
+    x0 = x1 = x2 = x3 = x4 = x5 = vsplat(0.5)
     for _ in range(reps):
         x0 = x0 + vb
         x1 = x1 + vb
@@ -137,41 +129,55 @@ def _add_loop(reps, b):
         x3 = x3 + vb
         x4 = x4 + vb
         x5 = x5 + vb
-        x6 = x6 + vb
-        x7 = x7 + vb
-        x8 = x8 + vb
-        x9 = x9 + vb
-        x10 = x10 + vb
-        x11 = x11 + vb
-    out = np.empty(12 * VEC)
-    _store_all(out, x0, x1, x2, x3, x4, x5, x6, x7, x8, x9, x10, x11)
-    return out
+    return _store_all(x0, x1, x2, x3, x4, x5)
 
 
 @njit(inline="always")
-def _store_all(out, x0, x1, x2, x3, x4, x5, x6, x7, x8, x9, x10, x11):
-    for k, x in enumerate((x0, x1, x2, x3, x4, x5, x6, x7, x8, x9, x10, x11)):
+def _store_all(x0, x1, x2, x3, x4, x5):
+    out = np.empty(CHAINS * VEC)
+    for k, x in enumerate((x0, x1, x2, x3, x4, x5)):
         vstore(out, k * VEC, x)
+    return out
 
 
-@njit
+# The timing loops are compiled as the lane driver is, with ``parallel=True`` (the loop in a
+# ``prange`` of one task): on an AVX2 core (Zen 3) the same Euler loop compiled as a plain njit
+# function ran 24.6 ns per trajectory-step against 13.9 ns in a parallel body (different code:
+# 84 against 124 ``vmulpd`` in the function), and only the latter matches the driver.
+
+
+@njit(parallel=True)
 def _run_vec(c, s, cn, sn, lw, w, shared, indptr, indices, dt, r2, nsteps):
-    for _ in range(nsteps):
-        _step_vec(c, s, cn, sn, lw, w, shared, indptr, indices, dt, r2)
-        c, cn = cn, c
-        s, sn = sn, s
+    for _ in prange(1):
+        x, y, xn, yn = c, s, cn, sn
+        for _ in range(nsteps):
+            _step_vec(x, y, xn, yn, lw, w, shared, indptr, indices, dt, r2)
+            x, xn = xn, x
+            y, yn = yn, y
 
 
-@njit
+@njit(parallel=True)
+def _run_vec32(c, s, cn, sn, lw, w, shared, indptr, indices, dt, r2, nsteps):
+    for _ in prange(1):
+        x, y, xn, yn = c, s, cn, sn
+        for _ in range(nsteps):
+            _step_vec32(x, y, xn, yn, lw, w, shared, indptr, indices, dt, r2)
+            x, xn = xn, x
+            y, yn = yn, y
+
+
+@njit(parallel=True)
 def _run_rk4(c, s, k, ya_c, ya_s, yb_c, yb_s, lw, w, shared, indptr, indices, dt, r2, dr2, nsteps):
-    for _ in range(nsteps):
-        _step_rk4(c, s, k, ya_c, ya_s, yb_c, yb_s, lw, w, shared, indptr, indices, dt, r2, dr2)
+    for _ in prange(1):
+        for _ in range(nsteps):
+            _step_rk4(c, s, k, ya_c, ya_s, yb_c, yb_s, lw, w, shared, indptr, indices, dt, r2, dr2)
 
 
-@njit
+@njit(parallel=True)
 def _run_lanes(c, s, acc, sum_c, sum_s, tot_c, tot_s, lw, indptr, indices, dt, r2, nsteps):
-    for _ in range(nsteps):
-        _step_lanes(c, s, acc, sum_c, sum_s, tot_c, tot_s, lw, indptr, indices, dt, r2, True)
+    for _ in prange(1):
+        for _ in range(nsteps):
+            _step_lanes(c, s, acc, sum_c, sum_s, tot_c, tot_s, lw, indptr, indices, dt, r2, True)
 
 
 def _rate(fn, args, per_rep: float, seconds: float) -> float:
@@ -191,9 +197,9 @@ def limits(seconds: float) -> dict[str, float]:
     """Per-thread peak rates (best of three): FMA flops/s, multiplications/s, additions/s."""
     out = {"fma": 0.0, "mul": 0.0, "add": 0.0}
     for _ in range(3):
-        out["fma"] = max(out["fma"], _rate(_fma_loop, (0.999999, 1e-7), 2 * 12 * VEC, seconds))
-        out["mul"] = max(out["mul"], _rate(_mul_loop, (0.9999999,), 12 * VEC, seconds))
-        out["add"] = max(out["add"], _rate(_add_loop, (1e-9,), 12 * VEC, seconds))
+        out["fma"] = max(out["fma"], _rate(_fma_loop, (0.999999, 1e-7), 2 * CHAINS * VEC, seconds))
+        out["mul"] = max(out["mul"], _rate(_mul_loop, (0.9999999,), CHAINS * VEC, seconds))
+        out["add"] = max(out["add"], _rate(_add_loop, (1e-9,), CHAINS * VEC, seconds))
     return out
 
 
@@ -239,15 +245,16 @@ def state(indptr, indices, weights, rng):
 
 def time_kernels(indptr, indices, weights, seconds: float) -> list[float]:
     """ns per trajectory-step of the fused kernel (per-lane weights, shared weights), of the
-    previous lane kernel and of the RK4 lane kernel (per-lane weights), one thread, best of
-    three."""
+    previous lane kernel, of the RK4 lane kernel (per-lane weights) and of the fused kernel on
+    float32 lanes (per-lane weights), one thread, best of three."""
     rng = np.random.default_rng(0)
     n, nnz, c0, s0, lw = state(indptr, indices, weights, rng)
     indptr = indptr.astype(np.int64)
     indices = indices.astype(np.int64)
     r2 = np.empty(LANES)
-    best = [np.inf] * 4
+    best = [np.inf] * 5
     k_rk4 = np.zeros((8, n, LANES))
+    lw32, w32 = lw.astype(np.float32), weights.astype(np.float32)
 
     def run(k, nsteps):
         c, s = c0.copy(), s0.copy()
@@ -255,6 +262,10 @@ def time_kernels(indptr, indices, weights, seconds: float) -> list[float]:
         if k < 2:
             cn, sn = np.empty_like(c), np.empty_like(s)
             _run_vec(c, s, cn, sn, lw, weights, k == 1, indptr, indices, DT, r2, nsteps)
+        elif k == 4:
+            c, s = c.astype(np.float32), s.astype(np.float32)
+            cn, sn, r32 = np.empty_like(c), np.empty_like(s), np.empty(LANES, np.float32)
+            _run_vec32(c, s, cn, sn, lw32, w32, False, indptr, indices, np.float32(DT), r32, nsteps)
         elif k == 2:
             e = np.empty_like(c)
             _run_lanes(c, s, e, e.copy(), e.copy(), r2.copy(), r2.copy(), lw, indptr, indices, DT, r2, nsteps)
@@ -264,11 +275,11 @@ def time_kernels(indptr, indices, weights, seconds: float) -> list[float]:
             _run_rk4(c, s, k_rk4, *y, lw, weights, False, indptr, indices, DT, r2, r2.copy(), nsteps)
         return time.perf_counter() - t
 
-    for k in range(4):
+    for k in range(5):
         run(k, 2)
     nsteps = max(10, int(2e6 / (nnz + 3 * n)))
     for _ in range(3):
-        for k in range(4):
+        for k in range(5):
             sec = run(k, nsteps)
             while sec < seconds / 3:
                 nsteps *= 2
@@ -298,9 +309,9 @@ def main() -> None:
     print(
         "| graph | N | nnz | flops (mul + add) | B from L1 (per-lane w / shared w) | working set, 32 lanes | "
         "bound ns | fused ns (shared w) | fraction of bound | fused GFLOP/s (of FMA peak) | previous ns | "
-        "speed-up | RK4 ns (Euler steps) |"
+        "speed-up | RK4 ns (Euler steps) | float32 lanes ns (x float64) |"
     )
-    print("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
+    print("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
     for label, g in graphs_to_bench(args.seed):
         indptr, indices, weights = csr(g)
         n, nnz = indptr.size - 1, indices.size
@@ -312,13 +323,13 @@ def main() -> None:
         b_shared = 16 * nnz + 32 * n + idx + 8 * nnz / 16
         ws = (4 * n * LANES + nnz * LANES) * 8 + 8 * (nnz + n)
         bound = max(muls / lim["mul"], adds / lim["add"]) * 1e9
-        t_vec, t_shared, t_old, t_rk4 = time_kernels(indptr, indices, weights, args.seconds)
+        t_vec, t_shared, t_old, t_rk4, t_32 = time_kernels(indptr, indices, weights, args.seconds)
         gf = flops / t_vec
         print(
             f"| {label} | {n} | {nnz} | {flops} ({muls} + {adds}) | {b_lane:.0f} / {b_shared:.0f} | "
             f"{ws / 1024:.0f} KiB | {bound:.2f} | {t_vec:.2f} ({t_shared:.2f}) | {bound / t_vec:.0%} | "
             f"{gf:.1f} ({gf / (lim['fma'] / 1e9):.0%}) | {t_old:.2f} | {t_old / t_vec:.2f}x | "
-            f"{t_rk4:.1f} ({t_rk4 / t_vec:.1f}) |",
+            f"{t_rk4:.1f} ({t_rk4 / t_vec:.1f}) | {t_32:.2f} ({t_vec / t_32:.2f}x) |",
             flush=True,
         )
 

@@ -131,18 +131,39 @@ def test_too_many_nodes_is_a_clear_error():
         gpu.simulate(1, 0, 1, indptr, indices, w, w[None], dt=0.01, threshold=0.99, max_steps=10)
 
 
-def test_float32_is_rejected_on_cpu(tmp_path):
+FLOAT32 = (
+    "graph: {kind: lollipop, nodes: 6, path: 3}\nedges: ['3->4']\nbetas: [0.5]\n"
+    "dynamics: {dt: 0.01, t_max: 1, precision: float32}\nrealizations: 10\nbackend: cpu\n"
+)
+
+
+def test_float32_runs_on_the_cpu_lanes(tmp_path):
+    from antisync import store
+    from antisync.config import load_config_text
+    from antisync.runner import run_config
+
+    out = tmp_path / "r.h5"
+    run_config(load_config_text(FLOAT32), output=out, progress=False)
+    attrs = store.root_attrs(out)
+    assert attrs["complete"] and "precision: float32" in attrs["config_yaml"]
+
+
+@pytest.mark.parametrize(
+    "override, message",
+    [
+        ("dynamics.integrator=rk4", "precision float32 runs dynamics.integrator euler only"),
+        ("lambda.method=adjoint", "precision float32 runs lambda.method finite-difference only"),
+        ("dynamics.dt=0.1", r"graph lollipop_6_3 at dt 0.1 reaches 0.1: use a smaller dynamics.dt"),
+    ],
+)
+def test_float32_on_cpu_refuses_what_its_lanes_do_not_run(tmp_path, override, message):
     from antisync.config import load_config_text
     from antisync.errors import ConfigError
     from antisync.runner import run_config
 
-    cfg = load_config_text(
-        "graph: {kind: lollipop, nodes: 6, path: 3}\nedges: ['3->4']\nbetas: [0.5]\n"
-        "dynamics: {dt: 0.01, t_max: 1, precision: float32}\nrealizations: 10\nbackend: cpu\n"
-    )
     out = tmp_path / "r.h5"
-    with pytest.raises(ConfigError, match="precision float32 is implemented only on backend cuda"):
-        run_config(cfg, output=out, progress=False)
+    with pytest.raises(ConfigError, match=message):
+        run_config(load_config_text(FLOAT32, [override]), output=out, progress=False)
     assert not out.exists()
 
 

@@ -91,7 +91,7 @@ BAD_OVERRIDES = [
     ("graph={kind: networkx, generator: 7}", "graph.generator must be a networkx function name"),
     ("dynamics.coupling=raw", ""),  # with the weights below: raw coupling at 1e99 is too stiff
     # `validate` used to say ok to these, which `run` then refused
-    ("dynamics.precision=float32", "implemented only on backend cuda"),
+    ("dynamics={precision: float32, integrator: rk4, dt: 0.04}", "runs dynamics.integrator euler only"),
     ("measures=[km, km_nnc, km_nnc]", "measures lists km_nnc twice"),
 ]
 

@@ -133,6 +133,44 @@ def test_lane_driver_is_bit_identical_to_scalar_driver(kind):
             assert np.array_equal(getattr(scalar, name), getattr(lane, name)), (lanes, name)
 
 
+@pytest.mark.parametrize("kind", ["normalized", "raw"])
+def test_float32_lanes_are_bit_identical_to_the_float32_scalar_driver(kind):
+    """float32 lanes (twice the lanes per machine vector, renormalized every 64 steps) against
+    the one-trajectory float32 driver, lane counts that do and do not fill a vector block; and
+    close to, not equal to, float64."""
+    g = graphs.lollipop(7, 2)
+    omega, csr, vw = _arrays(g, [(1, 0, 0.5), (0, 1, 0.5), (4, 5, 0.01), (2, 3, 0.9)], kind)
+    args = (csr.indptr, csr.indices, csr.weights, vw)
+    kw = dict(dt=0.002, threshold=0.99, max_steps=30_000, precision="float32")
+    scalar = simulate(6, 0, 90, *args, lanes=0, **kw)
+    for lanes in (1, 16, 32, 40):
+        lane = simulate(6, 0, 90, *args, lanes=lanes, **kw)
+        for name in ("status0", "steps0", "status", "steps"):
+            assert np.array_equal(getattr(scalar, name), getattr(lane, name)), (lanes, name)
+        assert ((lane.frac > 0) & (lane.frac <= 1)).all()
+    double = simulate(6, 0, 90, *args, **{**kw, "precision": "float64"})
+    assert np.array_equal(double.status, scalar.status)
+    steps = np.concatenate([scalar.steps0[:, None], scalar.steps], axis=1)
+    ref = np.concatenate([double.steps0[:, None], double.steps], axis=1)
+    assert 0 < (steps != ref).mean() < 0.05  # a few one-step changes
+    assert np.abs(steps - ref).max() <= 0.01 * ref.max()
+
+
+def test_float32_runs_the_euler_step_with_taylor_rotations_only():
+    g = graphs.lollipop(6, 3)
+    omega, csr, vw = _arrays(g, [(1, 0, 0.5)])
+    args = (4, 0, 8, csr.indptr, csr.indices, csr.weights, vw)
+    kw = dict(threshold=0.99, max_steps=100, precision="float32")
+    with pytest.raises(ValueError, match="float32 runs the euler integrator only"):
+        simulate(*args, dt=0.04, integrator="rk4", **kw)
+    with pytest.raises(ValueError, match=r"needs dt \* max_i sum_j \|w_ij\| <= 0.05 \(got 0.1\)"):
+        simulate(*args, dt=0.1, **kw)
+    with pytest.raises(ValueError, match="precision must be one of float64, float32, got 'float16'"):
+        simulate(*args, dt=0.01, **{**kw, "precision": "float16"})
+    # the one-trajectory driver rotates by cos/sin beyond the Taylor range
+    assert simulate(*args, dt=0.1, lanes=0, **kw).status0.shape == (8,)
+
+
 def test_rk4_converges_with_fourth_order_and_euler_interpolated_with_first():
     """Crossing times located inside the step (linear for Euler, cubic Hermite for RK4) against
     the exact two-oscillator tau: the fitted orders must be 1 and 4."""

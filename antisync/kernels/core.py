@@ -73,86 +73,130 @@ TAYLOR_MAX_ANGLE = 0.05
 # one-trajectory step, in the same order (no fused multiply-add, no reassociation).
 
 VEC = 8
-"""Doubles per lane vector (one AVX-512 register, two AVX2 registers)."""
+"""Doubles per lane vector (one AVX-512 register, two AVX2 registers); a float32 lane vector
+holds the same bytes, ``2 VEC`` floats."""
 
-_VEC_IR = ir.VectorType(ir.DoubleType(), VEC)
+
+class _LaneVec(types.Type):
+    """Numba type of one machine vector of lanes (an LLVM ``<lanes x element>`` value)."""
+
+    def __init__(self, dtype, lanes, ir_type):
+        self.dtype = dtype
+        self.lanes = lanes
+        self.ir_type = ir_type
+        super().__init__(name=f"LaneVec({dtype}, {lanes})")
 
 
-class F64Vec(types.Type):
-    """Numba type of ``VEC`` float64 lanes held as one LLVM vector value."""
+class F64Vec(_LaneVec):
+    """``VEC`` float64 lanes."""
 
     def __init__(self):
-        super().__init__(name=f"F64Vec{VEC}")
+        super().__init__(types.float64, VEC, ir.VectorType(ir.DoubleType(), VEC))
+
+
+class F32Vec(_LaneVec):
+    """``2 VEC`` float32 lanes (the bytes of one :class:`F64Vec`)."""
+
+    def __init__(self):
+        super().__init__(types.float32, 2 * VEC, ir.VectorType(ir.FloatType(), 2 * VEC))
 
 
 f64vec = F64Vec()
+f32vec = F32Vec()
+_VEC_OF = {types.float64: f64vec, types.float32: f32vec}
 
 
 @register_model(F64Vec)
-class _F64VecModel(models.PrimitiveModel):
+@register_model(F32Vec)
+class _LaneVecModel(models.PrimitiveModel):
     def __init__(self, dmm, fe_type):
-        super().__init__(dmm, fe_type, _VEC_IR)
+        super().__init__(dmm, fe_type, fe_type.ir_type)
 
 
-def _vec_pointer(context, builder, arrty, arr, offset):
+def _vec_of_array(arr):
+    """The lane vector type of a C-contiguous float64/float32 array, else None."""
+    if isinstance(arr, types.Array) and arr.layout == "C":
+        return _VEC_OF.get(arr.dtype)
+    return None
+
+
+def _vec_pointer(context, builder, arrty, arr, offset, vt):
     data = context.make_array(arrty)(context, builder, arr).data
-    return builder.bitcast(builder.gep(data, [offset]), _VEC_IR.as_pointer())
-
-
-def _is_f64_c_array(arr):
-    return isinstance(arr, types.Array) and arr.dtype == types.float64 and arr.layout == "C"
+    return builder.bitcast(builder.gep(data, [offset]), vt.ir_type.as_pointer())
 
 
 @intrinsic
 def vload(typingctx, arr, offset):
-    """``arr.flat[offset : offset + VEC]`` as a lane vector (no bounds check)."""
-    if not _is_f64_c_array(arr) or not isinstance(offset, types.Integer):
+    """``arr.flat[offset : offset + lanes]`` as a lane vector (no bounds check)."""
+    vt = _vec_of_array(arr)
+    if vt is None or not isinstance(offset, types.Integer):
         return None
 
     def codegen(context, builder, sig, args):
-        return builder.load(_vec_pointer(context, builder, sig.args[0], args[0], args[1]), align=8)
+        return builder.load(
+            _vec_pointer(context, builder, sig.args[0], args[0], args[1], vt), align=vt.dtype.bitwidth // 8
+        )
 
-    return f64vec(arr, offset), codegen
+    return vt(arr, offset), codegen
 
 
 @intrinsic
 def vstore(typingctx, arr, offset, value):
-    """``arr.flat[offset : offset + VEC] = value`` (no bounds check)."""
-    if not _is_f64_c_array(arr) or not isinstance(offset, types.Integer) or value != f64vec:
+    """``arr.flat[offset : offset + lanes] = value`` (no bounds check)."""
+    vt = _vec_of_array(arr)
+    if vt is None or not isinstance(offset, types.Integer) or value != vt:
         return None
 
     def codegen(context, builder, sig, args):
-        builder.store(args[2], _vec_pointer(context, builder, sig.args[0], args[0], args[1]), align=8)
+        builder.store(
+            args[2],
+            _vec_pointer(context, builder, sig.args[0], args[0], args[1], vt),
+            align=vt.dtype.bitwidth // 8,
+        )
         return context.get_dummy_value()
 
     return types.none(arr, offset, value), codegen
 
 
+def _splat(context, builder, x, fromty, vt):
+    x = context.cast(builder, x, fromty, vt.dtype)
+    one = builder.insert_element(ir.Constant(vt.ir_type, ir.Undefined), x, ir.Constant(ir.IntType(32), 0))
+    mask = ir.Constant(ir.VectorType(ir.IntType(32), vt.lanes), [0] * vt.lanes)
+    return builder.shuffle_vector(one, ir.Constant(vt.ir_type, ir.Undefined), mask)
+
+
 @intrinsic
 def vsplat(typingctx, x):
-    """The scalar ``x`` in every lane."""
+    """The scalar ``x`` in every lane: a float32 vector for a float32 ``x``, else float64."""
     if not isinstance(x, (types.Float, types.Integer)):
         return None
+    vt = f32vec if x == types.float32 else f64vec
 
     def codegen(context, builder, sig, args):
-        x = context.cast(builder, args[0], sig.args[0], types.float64)
-        one = builder.insert_element(ir.Constant(_VEC_IR, ir.Undefined), x, ir.Constant(ir.IntType(32), 0))
-        mask = ir.Constant(ir.VectorType(ir.IntType(32), VEC), [0] * VEC)
-        return builder.shuffle_vector(one, ir.Constant(_VEC_IR, ir.Undefined), mask)
+        return _splat(context, builder, args[0], sig.args[0], vt)
 
-    return f64vec(x), codegen
+    return vt(x), codegen
 
 
 def _vec_binop(instruction):
     @intrinsic
     def binop(typingctx, a, b):
-        if a != f64vec or b != f64vec:
+        # a vector and a vector, or a vector and a scalar (converted to the vector's type)
+        vt = a if isinstance(a, _LaneVec) else b
+        if not isinstance(vt, _LaneVec):
             return None
+        for x in (a, b):
+            if x != vt and not isinstance(x, (types.Float, types.Integer)):
+                return None
 
         def codegen(context, builder, sig, args):
-            return getattr(builder, instruction)(args[0], args[1])
+            x, y = (
+                arg if ty == vt else _splat(context, builder, arg, ty, vt)
+                for arg, ty in zip(args, sig.args, strict=True)
+            )
+            return getattr(builder, instruction)(x, y)
 
-        return f64vec(a, b), codegen
+        return vt(a, b), codegen
 
     return binop
 
@@ -160,13 +204,8 @@ def _vec_binop(instruction):
 def _overload_vec_operator(op, binop):
     @overload(op)
     def _vec_operator(a, b):
-        scalar = (types.Float, types.Integer)
-        if a == f64vec and b == f64vec:
+        if isinstance(a, _LaneVec) or isinstance(b, _LaneVec):
             return lambda a, b: binop(a, b)
-        if a == f64vec and isinstance(b, scalar):
-            return lambda a, b: binop(a, vsplat(b))
-        if isinstance(a, scalar) and b == f64vec:
-            return lambda a, b: binop(vsplat(a), b)
         return None
 
 
@@ -184,18 +223,18 @@ for _op, _instruction in (
 
 @intrinsic
 def _vneg(typingctx, a):
-    if a != f64vec:
+    if not isinstance(a, _LaneVec):
         return None
 
     def codegen(context, builder, sig, args):
         return builder.fneg(args[0])
 
-    return f64vec(a), codegen
+    return a(a), codegen
 
 
 @overload(operator.neg)
 def _vec_neg(a):
-    if a == f64vec:
+    if isinstance(a, _LaneVec):
         return lambda a: _vneg(a)
     return None
 
@@ -203,15 +242,17 @@ def _vec_neg(a):
 @intrinsic
 def vsqrt(typingctx, a):
     """Lane-wise square root (correctly rounded, as ``math.sqrt``)."""
-    if a != f64vec:
+    if not isinstance(a, _LaneVec):
         return None
 
     def codegen(context, builder, sig, args):
-        fnty = ir.FunctionType(_VEC_IR, [_VEC_IR])
-        sqrt = cgutils.get_or_insert_function(builder.module, fnty, f"llvm.sqrt.v{VEC}f64")
+        vt = sig.args[0]
+        fnty = ir.FunctionType(vt.ir_type, [vt.ir_type])
+        suffix = "f64" if vt.dtype == types.float64 else "f32"
+        sqrt = cgutils.get_or_insert_function(builder.module, fnty, f"llvm.sqrt.v{vt.lanes}{suffix}")
         return builder.call(sqrt, args)
 
-    return f64vec(a), codegen
+    return a(a), codegen
 
 
 class Kernels(NamedTuple):
@@ -285,6 +326,7 @@ def make_kernels(jit, dtype=np.float64) -> Kernels:
     s7 = dtype(1.0 / 5040.0)
     s9 = dtype(1.0 / 362880.0)
     max_angle = dtype(TAYLOR_MAX_ANGLE)
+    vw = VEC if dtype == np.float64 else 2 * VEC  # lanes per machine vector
     renorm_every = RENORM_EVERY if dtype == np.float64 else RENORM_EVERY_FLOAT32
 
     def taylor_rotation(a):
@@ -400,11 +442,11 @@ def make_kernels(jit, dtype=np.float64) -> Kernels:
             wb = wa
         else:
             wa = vload(lw, p * lanes + qa)
-            wb = vload(lw, p * lanes + qa + VEC)
+            wb = vload(lw, p * lanes + qa + vw)
         sca = sca + wa * vload(c, o + qa)
         ssa = ssa + wa * vload(s, o + qa)
-        scb = scb + wb * vload(c, o + qa + VEC)
-        ssb = ssb + wb * vload(s, o + qa + VEC)
+        scb = scb + wb * vload(c, o + qa + vw)
+        ssb = ssb + wb * vload(s, o + qa + vw)
         return sca, ssa, scb, ssb
 
     edge_vec = jit(edge_vec)
@@ -421,8 +463,8 @@ def make_kernels(jit, dtype=np.float64) -> Kernels:
         operations and their order are those of ``euler_step``: the same bits.
         """
         n, lanes = c.shape
-        for qa in range(0, lanes, 2 * VEC):
-            qb = qa + VEC
+        for qa in range(0, lanes, 2 * vw):
+            qb = qa + vw
             tca = vsplat(zero)
             tsa = vsplat(zero)
             tcb = vsplat(zero)

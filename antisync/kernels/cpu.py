@@ -28,24 +28,136 @@ from typing import NamedTuple
 
 import numba
 import numpy as np
-from numba import njit, prange
+from numba import njit, prange, types
+from numba.extending import overload
 
 from antisync import _numba_cache  # noqa: F401 -- before any cache=True function (see there)
-from antisync.kernels.core import RENORM_EVERY, TAYLOR_MAX_ANGLE, VEC, make_kernels
+from antisync.kernels.core import RENORM_EVERY, RENORM_EVERY_FLOAT32, TAYLOR_MAX_ANGLE, VEC, make_kernels
 from antisync.phases import phase
 from antisync.status import ALREADY_SYNCED, NOT_SYNCED, SYNCED
 from antisync.types import Integrator
 
-__all__ = ["LANES", "PathwiseResult", "SimResult", "simulate", "simulate_pathwise"]
+__all__ = [
+    "LANES",
+    "PRECISIONS",
+    "PathwiseResult",
+    "SimResult",
+    "rotation_angle_bound",
+    "simulate",
+    "simulate_pathwise",
+]
 
-_K = make_kernels(lambda f: njit(f, inline="always", cache=True))
-_sync_steps = _K.sync_steps
-_step_lanes = _K.euler_step_lanes
-_step_vec = _K.euler_step_vec
+_jit = lambda f: njit(f, inline="always", cache=True)  # noqa: E731
+_K = make_kernels(_jit)
+_K32 = make_kernels(_jit, np.float32)
 _tangent_lanes = _K.tangent_step_lanes
-_rk4_vec = _K.rk4_step_vec
 _hermite = _K.hermite_crossing
-_renormalize = _K.renormalize
+_sync64, _sync32 = _K.sync_steps, _K32.sync_steps
+_step_vec64, _step_vec32 = _K.euler_step_vec, _K32.euler_step_vec
+_renorm64, _renorm32 = _K.renormalize, _K32.renormalize
+_order2_64, _order2_32 = _K.order2, _K32.order2
+_step_lanes64 = _K.euler_step_lanes
+_rk4_vec64 = _K.rk4_step_vec
+
+PRECISIONS = ("float64", "float32")
+"""Arithmetic of the lane state. float32 runs the Euler step with Taylor rotations only
+(twice the lanes per machine vector); everything else is float64."""
+
+
+# --- the step functions of the state's precision ---------------------------------------------
+# The drivers below are compiled once per argument types: a float32 state (c, s and the
+# weights) picks the float32 step functions here, a float64 state the float64 ones. The float32
+# drivers run the Euler step with Taylor rotations only, but numba types every branch: the
+# float64-only steps get an empty float32 body. It is never reached, because simulate()
+# refuses float32 with RK4 or without Taylor rotations; it cannot raise instead, since a raise
+# inside the driver's prange body would make numba run the loop serially.
+
+
+def _sync_steps(c, s, acc, indptr, indices, weights, dt, r2_target, max_steps):
+    """The one-trajectory Euler integration of ``c``'s precision (``Kernels.sync_steps``)."""
+
+
+@overload(_sync_steps)
+def _sync_steps_impl(c, s, acc, indptr, indices, weights, dt, r2_target, max_steps):
+    if c.dtype == types.float32:
+        return lambda c, s, acc, indptr, indices, weights, dt, r2_target, max_steps: _sync32(
+            c, s, acc, indptr, indices, weights, dt, r2_target, max_steps
+        )
+    return lambda c, s, acc, indptr, indices, weights, dt, r2_target, max_steps: _sync64(
+        c, s, acc, indptr, indices, weights, dt, r2_target, max_steps
+    )
+
+
+def _step_vec(c, s, cn, sn, lw, w, shared, indptr, indices, dt, r2):
+    """``Kernels.euler_step_vec`` of ``c``'s precision."""
+
+
+@overload(_step_vec, inline="always")
+def _step_vec_impl(c, s, cn, sn, lw, w, shared, indptr, indices, dt, r2):
+    if c.dtype == types.float32:
+        return lambda c, s, cn, sn, lw, w, shared, indptr, indices, dt, r2: _step_vec32(
+            c, s, cn, sn, lw, w, shared, indptr, indices, dt, r2
+        )
+    return lambda c, s, cn, sn, lw, w, shared, indptr, indices, dt, r2: _step_vec64(
+        c, s, cn, sn, lw, w, shared, indptr, indices, dt, r2
+    )
+
+
+def _renormalize(c, s):
+    """``Kernels.renormalize`` of ``c``'s precision."""
+
+
+@overload(_renormalize, inline="always")
+def _renormalize_impl(c, s):
+    if c.dtype == types.float32:
+        return lambda c, s: _renorm32(c, s)
+    return lambda c, s: _renorm64(c, s)
+
+
+def _order2(c, s):
+    """``Kernels.order2`` of ``c``'s precision."""
+
+
+@overload(_order2)
+def _order2_impl(c, s):
+    if c.dtype == types.float32:
+        return lambda c, s: _order2_32(c, s)
+    return lambda c, s: _order2_64(c, s)
+
+
+def _step_lanes(c, s, acc, sum_c, sum_s, tot_c, tot_s, lw, indptr, indices, dt, r2, taylor):
+    """``Kernels.euler_step_lanes`` (float64 only)."""
+
+
+@overload(_step_lanes, inline="always")
+def _step_lanes_impl(c, s, acc, sum_c, sum_s, tot_c, tot_s, lw, indptr, indices, dt, r2, taylor):
+    if c.dtype == types.float32:
+
+        def unavailable(c, s, acc, sum_c, sum_s, tot_c, tot_s, lw, indptr, indices, dt, r2, taylor):
+            pass  # never called (see above)
+
+        return unavailable
+    return lambda c, s, acc, sum_c, sum_s, tot_c, tot_s, lw, indptr, indices, dt, r2, taylor: _step_lanes64(
+        c, s, acc, sum_c, sum_s, tot_c, tot_s, lw, indptr, indices, dt, r2, taylor
+    )
+
+
+def _rk4_vec(c, s, k, ya_c, ya_s, yb_c, yb_s, lw, w, shared, indptr, indices, dt, r2, dr2):
+    """``Kernels.rk4_step_vec`` (float64 only)."""
+
+
+@overload(_rk4_vec, inline="always")
+def _rk4_vec_impl(c, s, k, ya_c, ya_s, yb_c, yb_s, lw, w, shared, indptr, indices, dt, r2, dr2):
+    if c.dtype == types.float32:
+
+        def unavailable(c, s, k, ya_c, ya_s, yb_c, yb_s, lw, w, shared, indptr, indices, dt, r2, dr2):
+            pass  # never called (see above)
+
+        return unavailable
+    return lambda c, s, k, ya_c, ya_s, yb_c, yb_s, lw, w, shared, indptr, indices, dt, r2, dr2: _rk4_vec64(
+        c, s, k, ya_c, ya_s, yb_c, yb_s, lw, w, shared, indptr, indices, dt, r2, dr2
+    )
+
 
 LANES = 32
 """Trajectories stepped together per thread (the inner width of the ``[node, lane]`` layout)."""
@@ -83,6 +195,11 @@ class _Run(NamedTuple):
     """RK4 with Hermite crossing instead of Euler (lane driver)."""
     lanes: int
     """Trajectories stepped together per thread (lane driver)."""
+    renorm: int = RENORM_EVERY
+    """Euler steps between projections of the state back to the unit circle."""
+    block: int = 2 * VEC
+    """Lanes the vector kernels step together (two machine vectors of the state's precision):
+    the lane arrays are a multiple of it wide."""
 
 
 class _Outputs(NamedTuple):
@@ -141,9 +258,9 @@ def _integrate_batch(ks, graph, run, status0, steps0, status, steps):
     n_var = var_w.shape[0]
     for r in prange(m):
         theta = np.empty(n)
-        c = np.empty(n)
-        s = np.empty(n)
-        acc = np.empty(n)
+        c = np.empty(n, base_w.dtype)
+        s = np.empty(n, base_w.dtype)
+        acc = np.empty(n, base_w.dtype)
         for i in range(n):
             theta[i] = phase(seed, ks[r], i)
             c[i] = np.cos(theta[i])
@@ -181,16 +298,13 @@ def _next_item(r, v, r_hi, var_is_base):
 
 @njit(inline="always")
 def _start_state(seed, k, ci, si, r2_target):
-    """Initial (cos, sin) of realization k; returns True when r(0) already reaches the threshold."""
-    tot_c = 0.0
-    tot_s = 0.0
+    """Initial (cos, sin) of realization k (computed in double, stored in the state's precision);
+    returns True when r(0) already reaches the threshold."""
     for i in range(ci.shape[0]):
         th = phase(seed, k, i)
         ci[i] = np.cos(th)
         si[i] = np.sin(th)
-        tot_c += ci[i]
-        tot_s += si[i]
-    return tot_c * tot_c + tot_s * tot_s >= r2_target
+    return _order2(ci, si) >= r2_target
 
 
 @njit(inline="always")
@@ -336,30 +450,35 @@ def _integrate_lanes(ks, graph, run, out, tangents, n_groups):
     # VEC lanes: the arrays are `width` lanes wide, lanes >= `lanes` stay empty (state (1, 0),
     # weights 0)
     vec = taylor and not rk4 and not tangent
-    width = (lanes + 2 * VEC - 1) // (2 * VEC) * (2 * VEC) if vec or rk4 else lanes
+    block = run.block
+    width = (lanes + block - 1) // block * block if vec or rk4 else lanes
     # every lane integrates the undamaged network: its weights can be broadcast
     shared = n_var == 0
     # a lane's step count is `t - lane_t0`; between events (a crossing, a renormalization or
     # the step cap of some lane) no lane needs looking at
-    renorm = RENORM_EVERY if not rk4 else max_steps + 1
+    # (a power of two: `k & (renorm - 1)` is `k % renorm` without an integer division per lane;
+    # RK4 projects every step itself and never reaches 2^62 steps)
+    renorm = run.renorm if not rk4 else 1 << 62
+    phase_mask = renorm - 1
     per = (m + n_groups - 1) // n_groups
     for group in prange(n_groups):
         r_lo = group * per
         r_hi = min(m, r_lo + per)
         if r_lo >= r_hi:
             continue
-        c = np.ones((n, width))
-        s = np.zeros((n, width))
-        cn = np.empty((n, width) if vec else (0, width))
-        sn = np.empty((n, width) if vec else (0, width))
+        # the state and weights in the run's precision (float32 or float64)
+        c = np.ones((n, width), base_w.dtype)
+        s = np.zeros((n, width), base_w.dtype)
+        cn = np.empty((n, width) if vec else (0, width), base_w.dtype)
+        sn = np.empty((n, width) if vec else (0, width), base_w.dtype)
         acc = np.empty((n, width))
         sum_c = np.empty((n, width))
         sum_s = np.empty((n, width))
-        lw = np.zeros((nnz, width))
+        lw = np.zeros((nnz, width), base_w.dtype)
         tot_c = np.empty(width)
         tot_s = np.empty(width)
-        r2 = np.zeros(width)
-        r2_prev = np.zeros(width)
+        r2 = np.zeros(width, base_w.dtype)
+        r2_prev = np.zeros(width, base_w.dtype)
         dr2 = np.zeros(width)
         dr2_prev = np.zeros(width)
         # RK4 scratch: stage velocities kv[2 * stage + (0 for c, 1 for s)], two stage states
@@ -378,8 +497,8 @@ def _integrate_lanes(ks, graph, run, out, tangents, n_groups):
         lane_r = np.full(width, -1, dtype=np.int64)
         lane_v = np.zeros(width, dtype=np.int64)
         lane_t0 = np.zeros(width, dtype=np.int64)
-        ci = np.empty(n)
-        si = np.empty(n)
+        ci = np.empty(n, base_w.dtype)
+        si = np.empty(n, base_w.dtype)
         start = np.full(2, -1, dtype=np.int64)  # realization in (ci, si), synchronized at t = 0
         qr, qv = r_lo, -1
         active = 0
@@ -486,10 +605,10 @@ def _integrate_lanes(ks, graph, run, out, tangents, n_groups):
                     for e in range(n_edges):
                         dtau[r, e] = 0.0
                 else:
-                    if k % renorm == 0:
+                    if k & phase_mask == 0:
                         _renormalize(c[:, q], s[:, q])
                     # this lane's next renormalization or step cap
-                    next_event = min(next_event, t + min(renorm - k % renorm, max_steps - k))
+                    next_event = min(next_event, t + min(renorm - (k & phase_mask), max_steps - k))
                     continue
                 v = lane_v[q]
                 if v < 0:
@@ -588,6 +707,13 @@ class PathwiseResult:
     dtau: np.ndarray
 
 
+def rotation_angle_bound(dt: float, indptr, base_w, var_w) -> float:
+    """The largest rotation angle an Euler step can take, ``dt max_i sum_j |w_ij|`` over the base
+    weights and every variant's (the lane kernels need it within
+    :data:`~antisync.kernels.core.TAYLOR_MAX_ANGLE`)."""
+    return float(dt) * _row_sum_bound(indptr, base_w, var_w)
+
+
 def _row_sum_bound(indptr, base_w, var_w) -> float:
     """Largest sum_j |w_ij| over rows of the base and every variant (bounds |omega_i|)."""
     rows = np.repeat(np.arange(indptr.size - 1), np.diff(indptr))
@@ -641,6 +767,7 @@ def simulate(
     realizations: np.ndarray | None = None,
     integrator: Integrator = "euler",
     todo: np.ndarray | None = None,
+    precision: str = "float64",
 ) -> SimResult:
     """Integrate realizations ``first .. first+count-1`` for the base network and every variant.
 
@@ -669,9 +796,21 @@ def simulate(
         ``r``, ``todo[r, 1 + v]`` its variant ``v`` (lane driver only). The lanes are refilled
         from the marked items alone, so a few scattered items cost what they integrate. Items
         left out get status and steps ``-1`` and ``frac`` NaN.
+    precision : {"float64", "float32"}
+        Arithmetic of the state and the weights. float32 (Euler only; the lane driver also
+        needs every rotation angle within the Taylor range, ``dt max_i sum_j |w_ij| <=``
+        :data:`~antisync.kernels.core.TAYLOR_MAX_ANGLE`) steps twice as many lanes per machine
+        vector and renormalizes every ``RENORM_EVERY_FLOAT32`` steps; the initial phases are
+        computed in double and rounded once. Both drivers give the same bits in either
+        precision.
     """
     if integrator not in ("euler", "rk4"):
         raise ValueError(f"integrator must be 'euler' or 'rk4', got {integrator!r}")
+    if precision not in PRECISIONS:
+        raise ValueError(f"precision must be one of {', '.join(PRECISIONS)}, got {precision!r}")
+    f32 = precision == "float32"
+    if f32 and integrator != "euler":
+        raise ValueError("precision float32 runs the euler integrator only")
     if integrator == "rk4" and not lanes:
         raise ValueError("the rk4 integrator runs in the lane driver (lanes >= 1)")
     if todo is not None and not lanes:
@@ -679,8 +818,19 @@ def simulate(
     ks = _realization_ids(first, count, realizations)
     n = indptr.size - 1
     m = ks.size
+    ftype = np.float32 if f32 else np.float64
     base_weights = np.ascontiguousarray(base_weights, dtype=np.float64)
     var_w = np.ascontiguousarray(variant_weights, dtype=np.float64).reshape(-1, base_weights.size)
+    # |alpha_i| = dt |omega_i| <= dt sum_j |w_ij|: then the Taylor rotation is always valid
+    angle = rotation_angle_bound(dt, indptr, base_weights, var_w)
+    taylor = angle <= TAYLOR_MAX_ANGLE
+    if f32 and lanes and not taylor:
+        raise ValueError(
+            f"precision float32 in the lane driver needs dt * max_i sum_j |w_ij| <= {TAYLOR_MAX_ANGLE} "
+            f"(got {angle:.4g}): use a smaller dt, precision float64 or lanes=0"
+        )
+    base_weights = base_weights.astype(ftype)
+    var_w = var_w.astype(ftype)
     var_is_base = np.array([np.array_equal(w, base_weights) for w in var_w], dtype=np.bool_)
     status0 = np.empty(m, dtype=np.int8)
     steps0 = np.empty(m, dtype=np.int64)
@@ -695,16 +845,16 @@ def simulate(
             a.fill(-1)
         # a variant equal to the base is integrated, not copied from a base that may not run
         graph = graph._replace(var_is_base=np.zeros_like(var_is_base), todo=todo)
-    # |alpha_i| = dt |omega_i| <= dt sum_j |w_ij|: then the Taylor rotation is always valid
-    taylor = float(dt) * _row_sum_bound(indptr, base_weights, var_w) <= TAYLOR_MAX_ANGLE
     run = _Run(
         np.uint64(seed),
-        float(dt),
-        (threshold * n) ** 2,
+        ftype(dt),
+        ftype((threshold * n) ** 2),
         int(max_steps),
         taylor,
         integrator == "rk4",
         int(lanes),
+        RENORM_EVERY_FLOAT32 if f32 else RENORM_EVERY,
+        4 * VEC if f32 else 2 * VEC,
     )
     with _Threads(threads) as groups:
         if not lanes:
