@@ -148,7 +148,7 @@ def _store_all(x0, x1, x2, x3, x4, x5):
 
 @njit(parallel=True)
 def _run_vec(c, s, cn, sn, lw, w, shared, indptr, indices, dt, r2, nsteps):
-    for _ in prange(1):
+    for _task in prange(1):
         x, y, xn, yn = c, s, cn, sn
         for _ in range(nsteps):
             _step_vec(x, y, xn, yn, lw, w, shared, indptr, indices, dt, r2)
@@ -158,7 +158,7 @@ def _run_vec(c, s, cn, sn, lw, w, shared, indptr, indices, dt, r2, nsteps):
 
 @njit(parallel=True)
 def _run_vec32(c, s, cn, sn, lw, w, shared, indptr, indices, dt, r2, nsteps):
-    for _ in prange(1):
+    for _task in prange(1):
         x, y, xn, yn = c, s, cn, sn
         for _ in range(nsteps):
             _step_vec32(x, y, xn, yn, lw, w, shared, indptr, indices, dt, r2)
@@ -168,14 +168,14 @@ def _run_vec32(c, s, cn, sn, lw, w, shared, indptr, indices, dt, r2, nsteps):
 
 @njit(parallel=True)
 def _run_rk4(c, s, k, ya_c, ya_s, yb_c, yb_s, lw, w, shared, indptr, indices, dt, r2, dr2, nsteps):
-    for _ in prange(1):
+    for _task in prange(1):
         for _ in range(nsteps):
             _step_rk4(c, s, k, ya_c, ya_s, yb_c, yb_s, lw, w, shared, indptr, indices, dt, r2, dr2)
 
 
 @njit(parallel=True)
 def _run_lanes(c, s, acc, sum_c, sum_s, tot_c, tot_s, lw, indptr, indices, dt, r2, nsteps):
-    for _ in prange(1):
+    for _task in prange(1):
         for _ in range(nsteps):
             _step_lanes(c, s, acc, sum_c, sum_s, tot_c, tot_s, lw, indptr, indices, dt, r2, True)
 
@@ -333,11 +333,16 @@ def main() -> None:
             flush=True,
         )
 
-    print("\n## assembly of the step loops (whole step function, lollipop N = 6 types)\n")
+    print("\n## assembly of the step loops (the parallel body around the step, lollipop N = 6 types)\n")
     rows = {}
-    for name, fn in (("fused euler_step_vec", _run_vec), ("previous euler_step_lanes", _run_lanes)):
+    kernels = (
+        ("fused euler_step_vec", _run_vec),
+        ("the same, float32 lanes", _run_vec32),
+        ("previous euler_step_lanes", _run_lanes),
+    )
+    for name, fn in kernels:
         sig = fn.signatures[0]
-        asm = _function(fn.inspect_asm(sig), fn.__name__)
+        asm = _function(fn.inspect_asm(sig), "numba_parfor_gufunc")  # the loop's body
         rows[name] = _asm_summary(asm)
         rows[name]["overlap checks (vector.memcheck)"] = _overlap_checks(fn.inspect_llvm(sig))
     names = list(rows)
