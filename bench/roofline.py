@@ -55,14 +55,12 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from bench_sizes import csr, graphs_to_bench  # noqa: E402
 
 from antisync.kernels.core import VEC, f64vec, vsplat, vstore  # noqa: E402
-from antisync.kernels.cpu import _K, _K32  # noqa: E402
+from antisync.kernels.cpu import _K, _step_vec  # noqa: E402 (the fused step of c's precision)
 
 LANES = 32
 DT = 0.01
 CHAINS = 6  # independent accumulators of the peak loops
 
-_step_vec = _K.euler_step_vec
-_step_vec32 = _K32.euler_step_vec
 _step_lanes = _K.euler_step_lanes
 _step_rk4 = _K.rk4_step_vec
 
@@ -152,16 +150,6 @@ def _run_vec(c, s, cn, sn, lw, w, shared, indptr, indices, dt, r2, nsteps):
         x, y, xn, yn = c, s, cn, sn
         for _ in range(nsteps):
             _step_vec(x, y, xn, yn, lw, w, shared, indptr, indices, dt, r2)
-            x, xn = xn, x
-            y, yn = yn, y
-
-
-@njit(parallel=True)
-def _run_vec32(c, s, cn, sn, lw, w, shared, indptr, indices, dt, r2, nsteps):
-    for _task in prange(1):
-        x, y, xn, yn = c, s, cn, sn
-        for _ in range(nsteps):
-            _step_vec32(x, y, xn, yn, lw, w, shared, indptr, indices, dt, r2)
             x, xn = xn, x
             y, yn = yn, y
 
@@ -265,7 +253,7 @@ def time_kernels(indptr, indices, weights, seconds: float) -> list[float]:
         elif k == 4:
             c, s = c.astype(np.float32), s.astype(np.float32)
             cn, sn, r32 = np.empty_like(c), np.empty_like(s), np.empty(LANES, np.float32)
-            _run_vec32(c, s, cn, sn, lw32, w32, False, indptr, indices, np.float32(DT), r32, nsteps)
+            _run_vec(c, s, cn, sn, lw32, w32, False, indptr, indices, np.float32(DT), r32, nsteps)
         elif k == 2:
             e = np.empty_like(c)
             _run_lanes(c, s, e, e.copy(), e.copy(), r2.copy(), r2.copy(), lw, indptr, indices, DT, r2, nsteps)
@@ -335,13 +323,13 @@ def main() -> None:
 
     print("\n## assembly of the step loops (the parallel body around the step, lollipop N = 6 types)\n")
     rows = {}
-    kernels = (
-        ("fused euler_step_vec", _run_vec),
-        ("the same, float32 lanes", _run_vec32),
-        ("previous euler_step_lanes", _run_lanes),
+    kernels = (  # _run_vec was compiled for float64 lanes first, then for float32
+        ("fused euler_step_vec", _run_vec, 0),
+        ("the same, float32 lanes", _run_vec, 1),
+        ("previous euler_step_lanes", _run_lanes, 0),
     )
-    for name, fn in kernels:
-        sig = fn.signatures[0]
+    for name, fn, version in kernels:
+        sig = fn.signatures[version]
         asm = _function(fn.inspect_asm(sig), "numba_parfor_gufunc")  # the loop's body
         rows[name] = _asm_summary(asm)
         rows[name]["overlap checks (vector.memcheck)"] = _overlap_checks(fn.inspect_llvm(sig))
