@@ -289,7 +289,9 @@ def make_kernels(jit, dtype=np.float64) -> Kernels:
         constants of this type, so with ``np.float32`` (and float32 arrays, ``dt`` and
         ``r2_target``) numba types the step in single precision instead of promoting it to
         double. With ``np.float64`` the constants are the same doubles the literals were, so
-        results do not change. The lane, tangent and RK4 functions are for float64 only.
+        results do not change. ``euler_step_vec`` takes either precision (with float32,
+        ``2 VEC`` lanes per machine vector); the other lane, tangent and RK4 functions are for
+        float64 only.
 
     Returns
     -------
@@ -307,8 +309,9 @@ def make_kernels(jit, dtype=np.float64) -> Kernels:
         ``|alpha| <= 0.05`` for every node and lane (then results equal ``euler_step``'s bit
         for bit, since the same operations run in the same order);
         ``euler_step_vec(c, s, cn, sn, lw, w, shared, indptr, indices, dt, r2)`` is that step
-        for ``taylor=True`` on machine vectors (:data:`VEC` lanes, the lane count a multiple of
-        ``2 VEC``), fused, the new state written to ``(cn, sn)``; the same bits (CPU only);
+        for ``taylor=True`` on machine vectors (:data:`VEC` float64 or ``2 VEC`` float32 lanes,
+        the lane count a multiple of two vectors), fused, the new state written to
+        ``(cn, sn)``; the same bits (CPU only);
         ``tangent_step_lanes(...)`` does the same step and its forward sensitivities;
         ``renormalize(c, s)`` projects every ``(c_i, s_i)`` back to the unit circle (the lane
         drivers pass one lane's column, ``renormalize(c[:, q], s[:, q])``).
@@ -454,8 +457,9 @@ def make_kernels(jit, dtype=np.float64) -> Kernels:
     def euler_step_vec(c, s, cn, sn, lw, w, shared, indptr, indices, dt, r2):
         """``euler_step_lanes`` with ``taylor=True`` on machine vectors, fused.
 
-        The lane count ``c.shape[1]`` must be a multiple of ``2 VEC``: two vectors of
-        :data:`VEC` lanes are stepped together (independent work for the out-of-order core).
+        The lane count ``c.shape[1]`` must be a multiple of two machine vectors (``2 VEC``
+        float64 or ``4 VEC`` float32 lanes): two vectors are stepped together (independent
+        work for the out-of-order core).
         For each node their coupling sums stay in registers over the node's edges and the
         rotated state goes to ``(cn, sn)`` (the caller swaps the buffers), so no sum, angle or
         running total is stored. ``shared=True`` promises every lane has the weights ``w``

@@ -16,6 +16,10 @@ Two drivers give identical results, bit for bit:
   The driver keeps one step clock and looks at the lanes only when one crosses the
   threshold, must be renormalized or reaches the step cap.
 
+Both drivers are compiled per state precision: ``precision="float32"`` runs the Euler step
+with Taylor rotations on float32 lanes (twice as many per machine vector), bit for bit the
+one-trajectory float32 driver.
+
 With tangents switched on, the lane driver integrates the undamaged network with forward
 sensitivities for every damaged edge at once (the tangent of the Euler step, exact for the
 discretized dynamics): the pathwise estimator.
@@ -456,10 +460,7 @@ def _integrate_lanes(ks, graph, run, out, tangents, n_groups):
     shared = n_var == 0
     # a lane's step count is `t - lane_t0`; between events (a crossing, a renormalization or
     # the step cap of some lane) no lane needs looking at
-    # (a power of two: `k & (renorm - 1)` is `k % renorm` without an integer division per lane;
-    # RK4 projects every step itself and never reaches 2^62 steps)
-    renorm = run.renorm if not rk4 else 1 << 62
-    phase_mask = renorm - 1
+    renorm = run.renorm if not rk4 else max_steps + 1
     per = (m + n_groups - 1) // n_groups
     for group in prange(n_groups):
         r_lo = group * per
@@ -605,10 +606,10 @@ def _integrate_lanes(ks, graph, run, out, tangents, n_groups):
                     for e in range(n_edges):
                         dtau[r, e] = 0.0
                 else:
-                    if k & phase_mask == 0:
+                    if k % renorm == 0:
                         _renormalize(c[:, q], s[:, q])
                     # this lane's next renormalization or step cap
-                    next_event = min(next_event, t + min(renorm - (k & phase_mask), max_steps - k))
+                    next_event = min(next_event, t + min(renorm - k % renorm, max_steps - k))
                     continue
                 v = lane_v[q]
                 if v < 0:
