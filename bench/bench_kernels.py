@@ -145,8 +145,6 @@ def run_antisync(method, integrator, dt, m, precision="float64"):
     t = time.perf_counter()
     res = compute_chunk(job, Chunk(0, job.n_blocks))
     seconds = time.perf_counter() - t
-    from antisync.kernels.cpu import simulate, simulate_pathwise  # noqa: F401
-
     steps = _trajectory_steps(job, m, method, integrator, dt)
     worst = 0.0
     tails = []

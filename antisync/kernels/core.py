@@ -47,8 +47,10 @@ __all__ = [
     "F64Vec",
     "Kernels",
     "ModelKernels",
+    "lanes_per_vector",
     "make_kernels",
     "make_model_kernels",
+    "renorm_interval",
     "vload",
     "vsplat",
     "vsqrt",
@@ -57,6 +59,11 @@ __all__ = [
 
 RENORM_EVERY = 1024
 RENORM_EVERY_FLOAT32 = 64
+
+
+def renorm_interval(dtype) -> int:
+    """Steps between projections of the state back to the unit circle, for ``dtype``."""
+    return RENORM_EVERY if dtype == np.float64 else RENORM_EVERY_FLOAT32
 
 
 TAYLOR_MAX_ANGLE = 0.05
@@ -104,6 +111,11 @@ class F32Vec(_LaneVec):
 f64vec = F64Vec()
 f32vec = F32Vec()
 _VEC_OF = {types.float64: f64vec, types.float32: f32vec}
+
+
+def lanes_per_vector(dtype) -> int:
+    """Lanes of ``dtype`` (float64 or float32) in one lane vector."""
+    return VEC if dtype == np.float64 else 2 * VEC
 
 
 @register_model(F64Vec)
@@ -329,8 +341,8 @@ def make_kernels(jit, dtype=np.float64) -> Kernels:
     s7 = dtype(1.0 / 5040.0)
     s9 = dtype(1.0 / 362880.0)
     max_angle = dtype(TAYLOR_MAX_ANGLE)
-    vw = VEC if dtype == np.float64 else 2 * VEC  # lanes per machine vector
-    renorm_every = RENORM_EVERY if dtype == np.float64 else RENORM_EVERY_FLOAT32
+    vw = lanes_per_vector(dtype)
+    renorm_every = renorm_interval(dtype)
 
     def taylor_rotation(a):
         a2 = a * a

@@ -36,7 +36,14 @@ from numba import njit, prange, types
 from numba.extending import overload
 
 from antisync import _numba_cache  # noqa: F401 -- before any cache=True function (see there)
-from antisync.kernels.core import RENORM_EVERY, RENORM_EVERY_FLOAT32, TAYLOR_MAX_ANGLE, VEC, make_kernels
+from antisync.kernels.core import (
+    RENORM_EVERY,
+    TAYLOR_MAX_ANGLE,
+    VEC,
+    lanes_per_vector,
+    make_kernels,
+    renorm_interval,
+)
 from antisync.phases import phase
 from antisync.status import ALREADY_SYNCED, NOT_SYNCED, SYNCED
 from antisync.types import Integrator
@@ -854,8 +861,8 @@ def simulate(
         taylor,
         integrator == "rk4",
         int(lanes),
-        RENORM_EVERY_FLOAT32 if f32 else RENORM_EVERY,
-        4 * VEC if f32 else 2 * VEC,
+        renorm_interval(ftype),
+        2 * lanes_per_vector(ftype),
     )
     with _Threads(threads) as groups:
         if not lanes:
@@ -916,7 +923,7 @@ def simulate_pathwise(
         np.empty((0, base_weights.size)),
         np.zeros(0, dtype=np.bool_),
     )
-    taylor = float(dt) * _row_sum_bound(indptr, base_weights, []) <= TAYLOR_MAX_ANGLE
+    taylor = rotation_angle_bound(dt, indptr, base_weights, []) <= TAYLOR_MAX_ANGLE
     run = _Run(np.uint64(seed), float(dt), (threshold * n) ** 2, int(max_steps), taylor, False, int(lanes))
     tangents = _Tangents(
         np.asarray(edge_a, dtype=np.int64),
