@@ -695,3 +695,32 @@ model: MODEL
     (e_fixed,) = family_graphs(fixed)
     assert len(set(e_drawn.rep.values())) < len(e_drawn.edges)
     assert e_fixed.rep == {e: e for e in e_fixed.edges}
+
+
+# ---- issue 26: the sweep honours sync.threshold, and says what its screening cannot see ----
+def test_sync_threshold_is_the_swept_threshold():
+    """``sync.threshold`` is another spelling of ``dynamics.threshold``: a sweep that gives it
+    sweeps it (it used to store [0.99] when 0.9 was asked)."""
+    sw = load_sweep_text("sweep: {family: atlas, nodes: 4}\nsync: {threshold: 0.9}")
+    assert sw.thresholds == (0.9,) and sw.base.dynamics.threshold == 0.9
+    assert load_sweep_text("sweep: {family: atlas, nodes: 4}\ndynamics: {threshold: 0.9}").thresholds == (
+        0.9,
+    )
+    with pytest.raises(ConfigError, match=r"either thresholds: \[...\] or sync.threshold"):
+        load_sweep_text("sweep: {family: atlas, nodes: 4}\nthresholds: [0.9]\nsync: {threshold: 0.9}")
+    with pytest.raises(ConfigError, match="disagree"):
+        load_sweep_text(
+            "sweep: {family: atlas, nodes: 4}\nsync: {threshold: 0.9}\ndynamics: {threshold: 0.99}"
+        )
+
+
+def test_a_sweep_with_a_model_says_its_screening_ignores_the_model(tmp_path):
+    text = TINY + "model: {phase_lag: 0.1}\n"
+    said = []
+    run_sweep(
+        load_sweep_text(text, ["realizations=20", "screen.realizations=5", "top.graphs=0"]),
+        output=tmp_path / "m.h5",
+        progress=False,
+        log=said.append,
+    )
+    assert any("screening integrates the paper's identical" in m for m in said), said

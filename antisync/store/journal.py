@@ -11,7 +11,10 @@ Each chunk file carries a tag, a digest of the run's key, its job's name and the
 built (:func:`chunk_tag`): a chunk left by another run (another seed, or a graph generator that
 built another graph) is never merged. The folder also holds ``simulation_key.json`` (the run's
 key) and, for a sweep, ``screen/<graph>.json`` (each graph's screening, see
-:func:`save_screen`); anything else in it means it is not antisync's.
+:func:`save_screen`). A run started with ``--overwrite`` over an existing result file leaves that
+file in place until its successor is complete: the folder then also holds ``replaces`` (the
+marker) and ``replacement.h5`` (the successor's latest checkpoint), see
+:class:`antisync.store.ResultStore`. Anything else in it means it is not antisync's.
 """
 
 from __future__ import annotations
@@ -31,6 +34,8 @@ from antisync.jobs import Chunk, Job
 from antisync.store.state import JobState
 
 __all__ = [
+    "REPLACEMENT_FILE",
+    "REPLACES_FILE",
     "chunk_tag",
     "chunks",
     "digest_graph",
@@ -48,6 +53,10 @@ __all__ = [
 
 KEY_FILE = "simulation_key.json"
 SCREEN_FOLDER = "screen"
+#: marker of a run that replaces an existing result file (``--overwrite``): the old file stays
+#: in place and the run's checkpoints go to REPLACEMENT_FILE until the run is complete
+REPLACES_FILE = "replaces"
+REPLACEMENT_FILE = "replacement.h5"
 
 
 # ---- tags ------------------------------------------------------------------------------------
@@ -257,16 +266,17 @@ def foreign_entry(folder: Path) -> str | None:
             for q in p.iterdir():
                 if q.is_symlink() or not q.is_file() or q.suffix not in (".json", ".tmp"):
                     return f"{SCREEN_FOLDER}/{q.name}"
-        elif p.name != KEY_FILE and p.suffix not in (".npz", ".tmp"):
+        elif p.name not in (KEY_FILE, REPLACES_FILE, REPLACEMENT_FILE) and p.suffix not in (".npz", ".tmp"):
             return p.name
     return None
 
 
 def is_empty(folder: Path) -> bool:
-    """Whether ``folder`` holds no finished work: no chunk and no screening result."""
+    """Whether ``folder`` holds no finished work: no chunk, no screening result and no
+    checkpoint of a replacement."""
     if foreign_entry(folder) is not None:
         return False
-    if any(folder.glob("*.npz")):
+    if any(folder.glob("*.npz")) or (folder / REPLACEMENT_FILE).exists():
         return False
     return not any((folder / SCREEN_FOLDER).glob("*.json"))
 

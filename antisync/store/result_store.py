@@ -5,6 +5,13 @@ of finished chunks (:mod:`antisync.store.journal`) and the HDF5 file
 (:mod:`antisync.store.layout`). Every ``checkpoint_seconds`` and at the end, the whole HDF5
 file is rewritten from memory into a temporary file and atomically renamed over the old one;
 then the journal's chunk files it now contains are deleted.
+
+``--overwrite`` never deletes the file it replaces: the old file stays where it is, readable and
+whole, until its successor is complete. Until then the successor's checkpoints go to
+``<output>.partial/replacement.h5`` (next to the marker ``replaces``), and the completing
+checkpoint renames it over the old file in one atomic step. A refused, failed or interrupted
+``--overwrite`` therefore leaves the old file byte for byte; ``--resume`` finishes an
+interrupted replacement, and another ``--overwrite`` starts it again.
 """
 
 from __future__ import annotations
@@ -19,6 +26,7 @@ from antisync.compute import ChunkResult
 from antisync.errors import StoreError
 from antisync.jobs import Job
 from antisync.store import journal as _journal
+from antisync.store.journal import REPLACEMENT_FILE, REPLACES_FILE
 from antisync.store.layout import is_complete, read_states, result_file_problem, stopped_early, write_results
 from antisync.store.lock import OutputLock
 from antisync.store.state import JobState
@@ -41,6 +49,20 @@ class ResultStore:
         self.lock_path = self.path.with_name(self.path.name + ".lock")
         self.tmp_path = self.path.with_name(self.path.name + ".tmp")
         self._lock = OutputLock(self.path, self.journal, self.lock_path)
+        # set by prepare(overwrite=True): start_journal then clears what the old run left
+        self._fresh = False
+
+    @property
+    def replacing(self) -> bool:
+        """Whether this output's run replaces an existing file that stays until it is complete
+        (``--overwrite``; the journal holds the marker, so every store of the path agrees)."""
+        return (self.journal / REPLACES_FILE).is_file()
+
+    @property
+    def current(self) -> Path:
+        """The file that holds this run's latest checkpoint: :attr:`path`, or while replacing
+        an existing file, the journal's ``replacement.h5``."""
+        return self.journal / REPLACEMENT_FILE if self.replacing else self.path
 
     # ---- checks and the lock ---------------------------------------------------------------
     def check_target(self) -> None:
@@ -79,10 +101,12 @@ class ResultStore:
 
     # ---- opening -------------------------------------------------------------------------
     def prepare(self, *, resume: bool, overwrite: bool) -> None:
-        """Check the output can be written as asked; nothing is modified unless ``overwrite``.
+        """Check the output can be written as asked; nothing existing is modified here.
 
-        Call it under :meth:`lock`. ``overwrite`` deletes only an antisync result file (a run's
-        or a sweep's) and its journal; anything else is refused, untouched.
+        Call it under :meth:`lock`. ``overwrite`` replaces only an antisync result file (a run's
+        or a sweep's); anything else is refused, untouched. The file it replaces stays in place
+        until the new run is complete, and the old run's journal is cleared only when the new
+        run starts its own (:meth:`start_journal`), after every refusal.
         """
         exists = self.path.exists() or self.journal.exists()
         if exists and not (resume or overwrite):
@@ -93,11 +117,7 @@ class ResultStore:
         if overwrite and not resume:
             if self.path.exists():
                 self._check_replaceable()
-            # every check passed: only now is anything deleted
-            if self.path.exists():
-                self.path.unlink()
-            if self.journal.exists():
-                shutil.rmtree(self.journal)
+            self._fresh = True
         if self.tmp_path.is_file() and not self.tmp_path.is_symlink():
             # a checkpoint cut off by a kill; under the lock it is nobody's work in progress
             with contextlib.suppress(OSError):
@@ -112,13 +132,14 @@ class ResultStore:
             )
 
     def file_complete(self) -> bool:
-        """Whether the output file exists and says every job (every stage of a sweep) finished."""
-        return is_complete(self.path)
+        """Whether the output file exists and says every job (every stage of a sweep) finished
+        (while replacing: whether the replacement does)."""
+        return is_complete(self.current)
 
     def stopped_early(self, config_key: dict) -> dict | None:
         """The stopping rule's record when the output is a complete run of ``config_key`` that
         its rule ended before the budget (see :func:`~antisync.store.layout.stopped_early`)."""
-        return stopped_early(self.path, json.loads(json.dumps(config_key)))
+        return stopped_early(self.current, json.loads(json.dumps(config_key)))
 
     def load_states(self, jobs: list[Job], config_key: dict) -> dict[str, JobState]:
         """States for ``jobs``: from the HDF5 file when present, plus journal chunks.
@@ -129,8 +150,8 @@ class ResultStore:
         """
         states = {job.name: JobState(job) for job in jobs}
         wanted = json.loads(json.dumps(config_key))
-        if self.path.exists():
-            read_states(self.path, states, wanted)
+        if self.current.exists():
+            read_states(self.current, states, wanted)
         else:
             stored = _journal.stored_key(self.journal)
             if stored is not None and stored != wanted:
@@ -144,7 +165,20 @@ class ResultStore:
 
     # ---- writing -------------------------------------------------------------------------
     def start_journal(self, config_key: dict) -> None:
-        """Create the journal folder and record ``config_key`` in it."""
+        """Create the journal folder and record ``config_key`` in it.
+
+        After ``prepare(overwrite=True)`` this is where the old run's journal goes (every
+        refusal has happened by now) and, when a result file exists, the marker that sends
+        the checkpoints to the replacement until it is complete.
+        """
+        if self._fresh:
+            if self.journal.is_dir() and not self.journal.is_symlink():
+                shutil.rmtree(self.journal)
+            _journal.start(self.journal, config_key)
+            if self.path.exists():
+                (self.journal / REPLACES_FILE).write_text(f"{self.path.name}\n")
+            self._fresh = False
+            return
         _journal.start(self.journal, config_key)
 
     def save_chunk(self, name: str, res: ChunkResult, tag: str = "") -> None:
@@ -175,31 +209,51 @@ class ResultStore:
         """
         self.path.parent.mkdir(parents=True, exist_ok=True)
         tmp = self.tmp_path
+        replacing = self.replacing
         try:
             write_results(tmp, states, provenance, extra)
-            os.replace(tmp, self.path)
+            # a replacement takes the old file's place only once it is complete
+            promote = not replacing or is_complete(tmp)
+            os.replace(tmp, self.path if promote else self.journal / REPLACEMENT_FILE)
         except BaseException:
             # the old file (if any) is intact; a half-written temporary file is of no use
             with contextlib.suppress(OSError):
                 tmp.unlink()
             raise
+        if replacing and promote:
+            for name in (REPLACEMENT_FILE, REPLACES_FILE):
+                with contextlib.suppress(OSError):
+                    (self.journal / name).unlink()
         if self.journal.exists():
             _journal.drop_chunks(self.journal)
-            if final:
+            if final and not self.replacing:
+                # a sweep stage's final checkpoint may precede its top stage: an unfinished
+                # replacement keeps its journal (marker and checkpoint) until it is complete
                 shutil.rmtree(self.journal, ignore_errors=True)
 
-    def discard_unfinished(self) -> None:
+    def discard_unfinished(self, *, refused: bool = False) -> None:
         """After a failure: remove what holds no finished work, so that the same command can be
         run again as it was (no ``--resume`` needed for a run that saved nothing).
 
         Removed: the temporary HDF5 file and a journal holding no chunk and no screening
         result (only its ``simulation_key.json``). Call it under :meth:`lock`, which removes
         the lock file and the folders it made for an output that was never written.
+
+        Parameters
+        ----------
+        refused : bool
+            The failure was a refusal of the command as given (a sweep whose screening excluded
+            every graph): its screening results serve no corrected command (another config is
+            another key), so a journal holding nothing else goes too.
         """
         with contextlib.suppress(OSError):
             if self.tmp_path.is_file() and not self.tmp_path.is_symlink():
                 self.tmp_path.unlink()
-        if self.journal.is_dir() and not self.journal.is_symlink() and _journal.is_empty(self.journal):
+        if not self.journal.is_dir() or self.journal.is_symlink():
+            return
+        if refused and _journal.foreign_entry(self.journal) is None:
+            shutil.rmtree(self.journal / _journal.SCREEN_FOLDER, ignore_errors=True)
+        if _journal.is_empty(self.journal):
             shutil.rmtree(self.journal, ignore_errors=True)
 
     def drop_journal(self) -> None:

@@ -250,13 +250,31 @@ def _section(raw: dict, key: str, cls):
 
 
 def _thresholds(raw: dict) -> tuple:
+    """The swept thresholds: ``thresholds: [...]``, or the one of ``dynamics.threshold`` or of
+    its other spelling ``sync.threshold`` (the config's checks then see it where it was given),
+    else the paper's 0.99."""
     dyn = raw.get("dynamics") or {}
+    sync = raw.get("sync") or {}
+    given = [
+        f"{section}.threshold"
+        for section, value in (("dynamics", dyn), ("sync", sync))
+        if isinstance(value, dict) and value.get("threshold") is not None
+    ]
+    if len(given) == 2 and dyn["threshold"] != sync["threshold"]:
+        raise ConfigError(
+            f"sync.threshold ({sync['threshold']}) and dynamics.threshold ({dyn['threshold']}) "
+            "disagree; give one of them"
+        )
     if "thresholds" not in raw:
-        t = dyn.get("threshold", 0.99) if isinstance(dyn, dict) else 0.99
+        t = PAPER_THRESHOLD
+        if isinstance(dyn, dict) and dyn.get("threshold") is not None:
+            t = dyn["threshold"]
+        elif isinstance(sync, dict) and sync.get("threshold") is not None:
+            t = sync["threshold"]
         values = [t]
     else:
-        if isinstance(dyn, dict) and "threshold" in dyn:
-            raise ConfigError("give either thresholds: [...] or dynamics.threshold, not both")
+        if given:
+            raise ConfigError(f"give either thresholds: [...] or {given[0]}, not both")
         values = raw["thresholds"]
         if not isinstance(values, list) or not values:
             raise ConfigError(f"thresholds must be a non-empty list such as [0.9, 0.99], got {values!r}")

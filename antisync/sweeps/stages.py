@@ -21,7 +21,7 @@ from antisync.sweeps.analysis import ranking
 from antisync.sweeps.families import GraphEntry, family_graphs
 from antisync.sweeps.schema import Sweep
 
-__all__ = ["main_jobs", "run_sweep", "top_jobs"]
+__all__ = ["check_sweep", "main_jobs", "run_sweep", "top_jobs"]
 
 
 def _job_name(graph: str, threshold: float, repeat: int, sweep: Sweep) -> str:
@@ -89,22 +89,10 @@ def top_jobs(sweep: Sweep, entries: list[GraphEntry], records: list[dict]) -> tu
     for row in ranking(records, t)[: sweep.top.graphs]:
         entry = by_name[row["graph"]]
         edge = graphs_mod.parse_edge(row["max_representative"], entry.graph)
-        name = f"{entry.name}_top"
-        cfg = _job_config(
-            sweep,
-            entry,
-            [edge],
-            threshold=t,
-            seed=sweep.base.seed,
-            betas=sweep.top.betas,
-            realizations=sweep.top.realizations,
-            name=name,
-        )
-        cfg = replace(cfg, keep_pairs=0)
-        jobs.append(make_job(cfg, graph=entry.graph, name=name))
+        jobs.append(_top_job(sweep, entry, edge))
         meta.append(
             {
-                "job": name,
+                "job": jobs[-1].name,
                 "graph": entry.name,
                 "threshold": t,
                 "repeat": 0,
@@ -140,11 +128,14 @@ def run_sweep(
     from antisync.store import ResultStore
 
     store = ResultStore(output or sweep.output)
+    entries = family_graphs(sweep)
+    check_sweep(sweep, entries)  # every refusal before the output or its journal is touched
     with store.lock(read_only_ok=resume) as writable:
         store.prepare(resume=resume, overwrite=overwrite)
         try:
             return _run_sweep_locked(
                 sweep,
+                entries,
                 store,
                 writable,
                 resume=resume,
@@ -154,14 +145,15 @@ def run_sweep(
                 chunk_realizations=chunk_realizations,
                 checkpoint_seconds=checkpoint_seconds,
             )
-        except BaseException:
+        except BaseException as exc:
             if writable:
-                store.discard_unfinished()
+                store.discard_unfinished(refused=isinstance(exc, ConfigError))
             raise
 
 
 def _run_sweep_locked(
     sweep: Sweep,
+    entries: list[GraphEntry],
     store,
     writable: bool,
     *,
@@ -187,7 +179,8 @@ def _run_sweep_locked(
     key = sweep.key()
     if resume:
         store.load_states([], key)  # a file or journal of another sweep is an error, now
-    stored = read_sweep_meta(path) if path.exists() else None
+    # while an --overwrite replaces the file, the sweep's own checkpoints are in store.current
+    stored = read_sweep_meta(store.current) if resume and store.current.exists() else None
     if resume and stored is not None and stored.get("complete") and store.file_complete():
         # every stage finished with this key: the file stays exactly as it is
         if writable:
@@ -199,13 +192,20 @@ def _run_sweep_locked(
             f"cannot write to folder {path.parent} to finish {path}; "
             "make it writable or use --out for a new file"
         )
-    entries = family_graphs(sweep)
-    _check_backend(sweep, entries)  # before the journal: nothing is screened in vain
     store.start_journal(key)
     say(
         f"sweep {sweep.name}: {len(entries)} graph(s) of family {sweep.family['family']}, "
         f"{len(sweep.thresholds)} threshold(s), {sweep.repeats} repeat(s)"
     )
+    if sweep.screen.enabled and sweep.base.generalized:
+        # the screening's classifier rests on the gradient flow of identical first-order
+        # oscillators (docs/sweeps.md); it has no verdict on another model or criterion
+        say(
+            "warning: the screening integrates the paper's identical first-order oscillators with "
+            "the order-parameter criterion, not this sweep's model:/sync: (no graph is excluded "
+            "for how the model behaves); read each record's n_not_synced, or set "
+            "screen.enabled: false"
+        )
 
     # -- 1. screening, cached per graph in the journal and in the file ------------------------
     screens: dict[str, ScreenResult] = {}
@@ -291,7 +291,7 @@ def _run_sweep_locked(
         return path
 
     # -- 3. top stage ----------------------------------------------------------------------
-    records = sweep_summary(path)["records"]
+    records = sweep_summary(store.current)["records"]
     tjobs, tmeta = top_jobs(sweep, kept, records)
     state["jobs_meta"] = jobs_meta + tmeta
     state["final"] = True
@@ -302,6 +302,46 @@ def _run_sweep_locked(
         )
     run_jobs(jobs + tjobs, sweep.base, output=path, resume=True, **common)
     return path
+
+
+def _top_job(sweep: Sweep, entry: GraphEntry, edge):
+    """The top stage's job of ``entry`` on ``edge``: the top stage's betas and realizations at
+    the ranking threshold, no per-realization pairs."""
+    name = f"{entry.name}_top"
+    cfg = _job_config(
+        sweep,
+        entry,
+        [edge],
+        threshold=sweep.ranking_threshold(),
+        seed=sweep.base.seed,
+        betas=sweep.top.betas,
+        realizations=sweep.top.realizations,
+        name=name,
+    )
+    return make_job(replace(cfg, keep_pairs=0), graph=entry.graph, name=name)
+
+
+def check_sweep(sweep: Sweep, entries: list[GraphEntry]) -> None:
+    """Refuse, before anything is written, every job the sweep could run.
+
+    The main stage's jobs of every graph (screening may exclude some, never add one) and, for
+    the top stage, each graph's job on its first representative edge with the top stage's
+    betas and realizations (the stage's options; its edge is chosen by the ranking later) go
+    through the same checks :func:`antisync.runner.run_jobs` makes
+    (:func:`~antisync.compute.check_job`), so a bad option, edge, frequency list or step
+    fails the command before the output or its journal exists, not after the screening.
+    """
+    from antisync.backends import resolve_backend
+    from antisync.compute import check_job
+    from antisync.measures.pipeline import with_nnc
+
+    _check_backend(sweep, entries)
+    backend, _ = resolve_backend(sweep.base.backend)
+    jobs, _ = main_jobs(sweep, entries)
+    if sweep.top.graphs > 0:
+        jobs += [_top_job(sweep, entry, entry.representatives[0]) for entry in entries]
+    for job in with_nnc(jobs):
+        check_job(job, backend)
 
 
 def _check_backend(sweep: Sweep, entries: list[GraphEntry]) -> None:
