@@ -234,7 +234,7 @@ def lambda_values(job: Job, sim, first: int, count: int, threads: int | None = N
         values = np.where(ok, (t0[:, None] / np.where(ok, t, 1.0) - 1.0) / job.dbeta, 0.0)
         return values, code, np.zeros_like(ok), None
 
-    if spec.method == "orbit":
+    if spec.method in ("orbit", "central-difference"):
         return _orbit_values(job, sim, first, count, threads)
 
     pw = _derivative_pass(job, first, count, threads)
@@ -250,29 +250,36 @@ def lambda_values(job: Job, sim, first: int, count: int, threads: int | None = N
 
 
 def _secants(job: Job, values, code, flagged, tau0, first: int, threads: int | None) -> None:
-    """Replace the flagged values by secants ``(tau0/tau(dbeta) - 1)/dbeta`` of interpolated
-    times, in place (``hybrid``, ``adjoint-hybrid``).
+    """Replace the flagged values by central secants ``tau0 (1/tau(+dbeta) - 1/tau(-dbeta)) /
+    (2 dbeta)`` of interpolated times, in place (``hybrid``, ``adjoint-hybrid``).
+
+    Central, not forward: a flagged realization passes near a saddle, where tau(beta) has a
+    logarithmic singularity close to beta = 0, and a one-sided secant there carries a bias of
+    its side that no usable dbeta removes (docs/equations.md, "Lambda near saddle passages");
+    the central one estimates the same derivative d<F>/dbeta as the pathwise bulk.
 
     One integration call for every flagged (realization, link) pair and nothing else (the
     lane driver's ``todo``): its lanes are refilled from the flagged pairs only, so the extra
-    cost is the flagged pairs' trajectories, however they scatter over realizations and links.
-    Each secant is the same trajectory whatever shares the call.
+    cost is the flagged pairs' two trajectories, however they scatter over realizations and
+    links. Each secant is the same trajectory whatever shares the call.
     """
     rows = np.flatnonzero(flagged.any(axis=1))
     if rows.size == 0:
         return
     links = np.flatnonzero(flagged.any(axis=0))
     pairs = flagged[np.ix_(rows, links)]
-    todo = np.concatenate([np.zeros((rows.size, 1), dtype=bool), pairs], axis=1)
-    sec = simulate_job(
-        job, 0, 0, "cpu", threads, job.secant_weights[links], realizations=first + rows, todo=todo
-    )
+    todo = np.concatenate([np.zeros((rows.size, 1), dtype=bool), pairs, pairs], axis=1)
+    weights = job.secant_weights[np.concatenate([links, links + len(job.edges)])]
+    sec = simulate_job(job, 0, 0, "cpu", threads, weights, realizations=first + rows, todo=todo)
     tau = (sec.steps - 1 + sec.frac) * job.config.dynamics.dt
-    good = pairs & (sec.status == SYNCED)
+    plus, minus = tau[:, : links.size], tau[:, links.size :]
+    s_plus, s_minus = sec.status[:, : links.size], sec.status[:, links.size :]
+    good = pairs & (s_plus == SYNCED) & (s_minus == SYNCED)
     bad = pairs & ~good
     r, e = np.broadcast_arrays(rows[:, None], links[None, :])
-    values[r[good], e[good]] = (tau0[r[good]] / tau[good] - 1.0) / job.dbeta
-    code[r[bad], e[bad]] = sec.status[bad]
+    t0 = tau0[r[good]]
+    values[r[good], e[good]] = t0 * (1.0 / plus[good] - 1.0 / minus[good]) / (2.0 * job.dbeta)
+    code[r[bad], e[bad]] = np.where(s_plus[bad] != SYNCED, s_plus[bad], s_minus[bad])
 
 
 def _derivative_pass(job: Job, first: int, count: int, threads: int | None):
@@ -315,7 +322,8 @@ def _derivative_pass(job: Job, first: int, count: int, threads: int | None):
 
 
 def _orbit_values(job: Job, sim, first: int, count: int, threads: int | None):
-    """Central differences along each edge's orbit (``lambda.method: orbit``).
+    """Central differences along each edge's orbit (``lambda.method: orbit``; a link alone
+    for ``central-difference``).
 
     One pass integrates tau0 and the ``+dbeta``/``-dbeta`` variants of every orbit; its
     undamaged outcome is returned as ``base`` (equal to ``sim``'s when both exist).

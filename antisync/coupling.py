@@ -54,10 +54,11 @@ def damaged_omega(omega: np.ndarray, a: int, b: int, beta: float) -> np.ndarray:
     a, b : int
         0-based indices of the directed link ``a -> b``; ``omega[a, b]`` must be positive.
     beta : float
-        Damage, ``0 <= beta < 1``.
+        Damage, ``-1 < beta < 1``: a negative beta reinforces the link (the ``-dbeta`` side of
+        a central difference).
     """
-    if not 0.0 <= beta < 1.0:
-        raise ValueError(f"beta must satisfy 0 <= beta < 1, got {beta}")
+    if not -1.0 < beta < 1.0:
+        raise ValueError(f"beta must satisfy -1 < beta < 1, got {beta}")
     if omega[a, b] <= 0:
         raise ValueError(f"there is no link {a}->{b} to damage (Omega[{a}, {b}] = 0)")
     out = np.array(omega, dtype=np.float64, copy=True)

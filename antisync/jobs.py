@@ -61,11 +61,13 @@ class Job:
         ``W(Omega)``; ``variant_weights[v]`` is ``W(Omega*)`` of variant ``v`` on its pattern.
     tangent : tuple of arrays
         ``(edge_a, edge_b, rho, mu)`` per edge for the pathwise kernel.
-    secant_weights : ndarray (E, nnz)
-        ``W(Omega*)`` at ``dbeta`` for each edge (hybrid secants).
+    secant_weights : ndarray (2 E, nnz)
+        ``W(Omega*)`` of each edge at ``beta = +dbeta`` (row ``e``) and ``-dbeta`` (row
+        ``E + e``): the hybrids' central secants.
     orbit_weights : ndarray (2 E, nnz) or None
         ``lambda.method: orbit``: each edge's automorphism orbit damaged by ``+dbeta`` (row
-        ``2 e``) and ``-dbeta`` (row ``2 e + 1``), see :func:`~antisync.coupling.orbit_variant_weights`.
+        ``2 e``) and ``-dbeta`` (row ``2 e + 1``), see :func:`~antisync.coupling.orbit_variant_weights`;
+        ``central-difference``: the same with every edge its own orbit.
     orbit_sizes : ndarray (E,) or None
         Number of directed links in each edge's orbit.
     model : ModelSetup or None
@@ -199,8 +201,12 @@ def make_job(config: Config, graph: nx.Graph | None = None, name: str | None = N
     ]
     vw = coupling.variant_weights(omega, csr, damages, config.dynamics.coupling)
     edge_idx = [(index[a], index[b]) for a, b in edges]
+    # the hybrids' central secants: every edge at +dbeta (rows 0..E-1), then at -dbeta
     secant = coupling.variant_weights(
-        omega, csr, [(a, b, float(dbeta)) for a, b in edge_idx] if kuramoto else [], config.dynamics.coupling
+        omega,
+        csr,
+        [(a, b, float(h)) for h in (dbeta, -dbeta) for a, b in edge_idx] if kuramoto else [],
+        config.dynamics.coupling,
     )
     model = None
     if config.generalized:
@@ -271,12 +277,17 @@ def _all_orbits(nodes: tuple, omega_rows: tuple) -> dict:
 def _orbit_fields(
     graph: nx.Graph, nodes: list, omega: np.ndarray, csr: coupling.CouplingCSR, edges: list, config: Config
 ) -> dict:
-    """``orbit_weights`` and ``orbit_sizes`` for ``lambda.method: orbit`` (else empty)."""
-    if config.lambda_.method != "orbit" or "km" not in config.measures:
+    """``orbit_weights`` and ``orbit_sizes`` for ``lambda.method: orbit`` and, with every link
+    its own orbit, ``central-difference`` (else empty)."""
+    method = config.lambda_.method
+    if method not in ("orbit", "central-difference") or "km" not in config.measures:
         return {}
     index = {v: i for i, v in enumerate(nodes)}
-    rep = _all_orbits(tuple(nodes), tuple(map(tuple, omega)))
-    orbits = [[(index[a], index[b]) for a, b in rep if rep[a, b] == rep[e]] for e in edges]
+    if method == "central-difference":
+        orbits = [[(index[a], index[b])] for a, b in edges]
+    else:
+        rep = _all_orbits(tuple(nodes), tuple(map(tuple, omega)))
+        orbits = [[(index[a], index[b]) for a, b in rep if rep[a, b] == rep[e]] for e in edges]
     weights = coupling.orbit_variant_weights(
         omega, csr, orbits, config.lambda_.dbeta, config.dynamics.coupling
     )

@@ -44,7 +44,9 @@ Executor = Literal["local", "dask"]
 Integrator = Literal["euler", "rk4"]
 Crossing = Literal["auto", "grid", "interpolated"]
 """How tau is read off the step grid (see :class:`antisync.config.Dynamics`)."""
-LambdaMethod = Literal["finite-difference", "pathwise", "hybrid", "adjoint", "adjoint-hybrid", "orbit"]
+LambdaMethod = Literal[
+    "finite-difference", "central-difference", "pathwise", "hybrid", "adjoint", "adjoint-hybrid", "orbit"
+]
 """Estimator of Lambda^KM (see :class:`antisync.config.LambdaSpec`)."""
 Measure = Literal["km", "linear", "xi2", "rw", "km_nnc"]
 """km: Lambda^KM from the run (Eq. 6); linear, xi2, rw: the measures of Secs. 2.3 and 3.3

@@ -211,6 +211,7 @@ seed: 2
     assert flagged.sum() < flagged.any(axis=0).sum() * flagged.any(axis=1).sum() / 2
     tau0 = (base.steps0 - 1 + base.frac0) * 0.002
     csr = job.csr
+    n_edges = len(job.edges)
     for r, e in zip(*np.nonzero(flagged), strict=True):
         one = simulate(
             2,
@@ -219,15 +220,15 @@ seed: 2
             csr.indptr,
             csr.indices,
             csr.weights,
-            job.secant_weights[e : e + 1],
+            job.secant_weights[[e, n_edges + e]],  # the link at +dbeta and at -dbeta
             realizations=np.array([r]),
             dt=0.002,
             threshold=0.99,
             max_steps=job.config.dynamics.max_steps,
         )
-        assert one.status[0, 0] == SYNCED and code[r, e] == SYNCED
-        tau = (one.steps[0, 0] - 1 + one.frac[0, 0]) * 0.002
-        assert values[r, e] == (tau0[r] / tau - 1.0) / 0.01
+        assert (one.status[0] == SYNCED).all() and code[r, e] == SYNCED
+        plus, minus = (one.steps[0] - 1 + one.frac[0]) * 0.002
+        assert values[r, e] == tau0[r] * (1.0 / plus - 1.0 / minus) / (2 * 0.01)
     plain = replace(job.config, lambda_=replace(job.config.lambda_, method="adjoint"))
     adjoint, _, _, _ = lambda_values(make_job(plain), None, 0, 12)
     assert np.array_equal(values[~flagged], adjoint[~flagged])

@@ -75,7 +75,9 @@ seed: 5
     )
 
 
-def test_hybrid_uses_secants_of_interpolated_times_where_flagged():
+def test_hybrid_uses_central_secants_of_interpolated_times_where_flagged():
+    """Flagged values (near a saddle passage) are central secants: a forward one would carry
+    the one-sided bias that makes the sum rule fail (issue 28)."""
     from antisync.compute import lambda_values
 
     hybrid = _job("hybrid")
@@ -92,12 +94,12 @@ def test_hybrid_uses_secants_of_interpolated_times_where_flagged():
             hybrid.csr.indptr,
             hybrid.csr.indices,
             hybrid.csr.weights,
-            hybrid.secant_weights[e : e + 1],
+            hybrid.secant_weights[[e, len(hybrid.edges) + e]],
             realizations=np.array([r]),
             **KW,
         )
-        tau = (sec.steps[0, 0] - 1 + sec.frac[0, 0]) * DT
-        assert values[r, e] == pytest.approx((tau0[r] / tau - 1) / 0.01, rel=1e-12)
+        plus, minus = (sec.steps[0] - 1 + sec.frac[0]) * DT
+        assert values[r, e] == pytest.approx(tau0[r] * (1 / plus - 1 / minus) / (2 * 0.01), rel=1e-12)
 
 
 def test_methods_agree_on_the_lollipop(tmp_path):
