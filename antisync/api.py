@@ -12,15 +12,26 @@ shell and no file parsing::
     antisync.load("lollipop.h5").records      # the same records, from the file
     antisync.measures.for_graph(nx.karate_club_graph())  # exact Lambda^xi2, Lambda^RW
 
-Overrides are keyword arguments named like the config's keys; a section takes a mapping that
-is merged into it (``dynamics={"dt": 0.0005}``; ``lambda_`` stands for ``lambda``). Values are
-set as they are, never parsed as YAML, and validated exactly as a config file is.
+Overrides are keyword arguments named like the config's keys; a section (a key whose value is
+a mapping of its own options: ``dynamics``, ``lambda``, ``histogram``, ``linear``, ``model``,
+``sync``, ``stop``, and a sweep's ``screen`` and ``top``) takes a mapping that is merged into it
+key by key (``model={"damping": 2}`` keeps the config's frequencies and inertia; ``lambda_``
+stands for ``lambda``). Values are set
+as they are, never parsed as YAML, and validated exactly as a config file is; numpy scalars and
+arrays count as the Python numbers and lists they hold.
+
+Every argument is checked before any file or folder is made: a bad one raises a
+:class:`~antisync.errors.ConfigError` (or, for a result file to read, a
+:class:`~antisync.errors.StoreError`) whose one-line message names the argument, what it got and
+what is valid.
 """
 
 from __future__ import annotations
 
+import os
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
+from functools import cache
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -30,7 +41,6 @@ if TYPE_CHECKING:
 __all__ = ["Result", "load", "run", "summarize", "sweep"]
 
 _SWEEP_KEYS = ("sweep", "family", "thresholds", "ranking_threshold", "excluded", "top", "screen", "symmetry")
-_SECTIONS = ("dynamics", "lambda", "histogram", "linear", "screen", "top")
 
 
 @dataclass(frozen=True)
@@ -95,11 +105,13 @@ def load(path: str | Path) -> Result:
     Raises
     ------
     antisync.errors.StoreError
-        Missing, foreign, damaged or newer-format files, with a one-line message.
+        Missing, foreign, damaged or newer-format files, and a ``path`` that is no file path,
+        with a one-line message.
     """
+    path = _result_path(path)
     s = summarize(path)
     sweep = s if s["kind"] == "sweep" else None
-    return Result(Path(path), s["kind"], s["records"], s["complete"], s["config_yaml"], sweep, s["stop"])
+    return Result(path, s["kind"], s["records"], s["complete"], s["config_yaml"], sweep, s["stop"])
 
 
 def summarize(path: str | Path) -> dict:
@@ -112,11 +124,26 @@ def summarize(path: str | Path) -> dict:
     a run's stopping rule did (:func:`antisync.store.stop_record`; ``null`` without one). The
     CLI adds to each record its ``sign_resolved`` (:func:`antisync.records.flag_signs`) and orders them with
     ``--sort`` (:func:`antisync.records.sort_records`).
+
+    Raises
+    ------
+    antisync.errors.StoreError
+        As :func:`load`.
     """
+    from antisync.errors import StoreError
+
+    path = _result_path(path)
+    try:
+        return _summarize(path)
+    except OSError as exc:  # the machine refused: permission denied, an unreadable disk
+        raise StoreError(f"cannot read result file {path}: {exc.strerror or exc}") from None
+
+
+def _summarize(path: Path) -> dict:
+    from antisync.errors import StoreError
     from antisync.store import is_sweep_file, records, root_attrs, stop_record
     from antisync.sweeps import sweep_summary
 
-    path = Path(path)
     root = root_attrs(path)
     if is_sweep_file(path):
         s = sweep_summary(path)
@@ -132,8 +159,12 @@ def summarize(path: str | Path) -> dict:
     recs = records(path)
     import yaml
 
-    cfg = yaml.safe_load(root["config_yaml"] or "{}") or {}
-    threshold = (cfg.get("dynamics") or {}).get("threshold")
+    try:
+        cfg = yaml.safe_load(root["config_yaml"] or "{}") or {}
+    except yaml.YAMLError:
+        raise StoreError(f"{path} is damaged: its root attribute config_yaml is not YAML") from None
+    dynamics = cfg.get("dynamics") if isinstance(cfg, dict) else None
+    threshold = dynamics.get("threshold") if isinstance(dynamics, dict) else None
     thresholds = [threshold] if threshold is not None else []
     return {
         "kind": "run",
@@ -177,17 +208,30 @@ def run(
         The HDF5 file (default: the config's ``output``, ``results/<name>.h5``).
     resume, overwrite : bool
         As the CLI's ``--resume`` (finish an interrupted file; a complete one is returned as
-        it is) and ``--overwrite`` (replace an antisync result file). Without either an
-        existing file is an error.
+        it is) and ``--overwrite`` (replace an antisync result file); they exclude each other.
+        Without either an existing file is an error.
     progress : bool
         Show a progress bar on stderr.
     executor : optional
-        A :class:`antisync.executors.dask.DaskExecutor` (or any executor); it stays open.
+        A :class:`antisync.executors.dask.DaskExecutor` (or any object with ``run``,
+        ``describe`` and ``close``); it stays open. Default: a local executor.
     log : callable, optional
-        Receives one-line progress messages.
+        Receives one-line progress messages (``log=print`` prints what the CLI prints).
     **overrides
         Config keys (``realizations=5000``, ``seed=3``, ``betas=[0.5]``,
-        ``dynamics={"dt": 0.0005}``, ``lambda_={"method": "orbit"}``).
+        ``dynamics={"dt": 0.0005}``, ``lambda_={"method": "orbit"}``). A mapping given to a
+        section is merged into the config's section key by key (``model={"damping": 2}`` keeps
+        the config's frequencies); ``None`` puts a section back to its defaults; any other key
+        (``graph`` included) is replaced whole. numpy scalars and arrays are taken as the
+        Python numbers and lists they hold.
+
+    Raises
+    ------
+    antisync.errors.ConfigError
+        A bad argument or config value, with a one-line message naming it; raised before any
+        file or folder is made.
+    antisync.errors.StoreError
+        An existing output without ``resume`` or ``overwrite``, or one that cannot be used.
 
     Examples
     --------
@@ -198,10 +242,18 @@ def run(
     >>> res.records[0]["F_mean"] > 1                                 # doctest: +SKIP
     True
     """
+    from antisync.config import Config
+    from antisync.errors import ConfigError
     from antisync.runner import run_config
 
+    if not isinstance(config, str | os.PathLike | Mapping | Config):
+        raise ConfigError(
+            f"antisync.run: config must be a YAML file path, a mapping of config keys or an "
+            f"antisync.config.Config, got {_shown(config)}"
+        )
+    opts = _options("antisync.run", resume, overwrite, progress, executor, log)
     cfg = _config(config, overrides, output)
-    path = run_config(cfg, resume=resume, overwrite=overwrite, progress=progress, executor=executor, log=log)
+    path = run_config(cfg, **opts)
     return load(path)
 
 
@@ -220,47 +272,233 @@ def sweep(
     """Run a sweep (a config with a ``sweep:`` section, see ``configs/atlas6.yaml``): screen
     the family's graphs, integrate one edge per automorphism orbit, run the top stage.
 
-    Parameters are those of :func:`run`; ``config`` is a YAML file or a mapping.
+    Parameters are those of :func:`run`; ``config`` is a YAML file or a mapping. Besides the
+    sections of a run, ``screen`` and ``top`` are sections too (merged); ``sweep`` (the
+    family) is replaced whole, as its keys depend on its ``family``.
     """
-    from antisync.sweeps import load_sweep, load_sweep_text, run_sweep
+    from antisync.errors import ConfigError
+    from antisync.sweeps import Sweep, load_sweep, load_sweep_text, run_sweep
 
-    values = _values(overrides, output)
+    if not isinstance(config, str | os.PathLike | Mapping):
+        raise ConfigError(
+            f"antisync.sweep: config must be a YAML file path or a mapping with a sweep: section "
+            f"(see configs/atlas6.yaml), got {_shown(config)}"
+        )
+    opts = _options("antisync.sweep", resume, overwrite, progress, executor, log)
+    values = _values(overrides, output, _sections(Sweep))
     if isinstance(config, Mapping):
         import yaml
 
-        sw = load_sweep_text(yaml.safe_dump(dict(config)), values=values)
+        raw = _plain(config, "config")
+        sw = load_sweep_text(yaml.safe_dump(raw), values=values)
     else:
-        sw = load_sweep(config, values=values)
-    path = run_sweep(sw, resume=resume, overwrite=overwrite, progress=progress, executor=executor, log=log)
+        sw = load_sweep(_file_path("config", config, ConfigError), values=values)
+    path = run_sweep(sw, **opts)
     return load(path)
 
 
-def _values(overrides: Mapping, output) -> dict:
-    """Keyword overrides -> dotted config keys (sections merged key by key)."""
+@cache
+def _sections(*extra: type) -> frozenset[str]:
+    """The config keys that are sections: a mapping of their own options, merged key by key.
+
+    Read from the schema itself, so that a new section cannot be forgotten here: every field
+    of :class:`~antisync.config.Config` (and of ``extra``, e.g. the sweep's
+    :class:`~antisync.sweeps.Sweep`) whose type is a dataclass, written as in a config file
+    (``lambda_`` is ``lambda``). A field holding a whole config (a sweep's ``base``) is not a
+    section. ``graph`` (a plain dict) is not a section: its ``kind`` decides its keys, so it is
+    replaced whole.
+    """
+    from dataclasses import fields, is_dataclass
+    from typing import get_type_hints
+
+    from antisync.config import Config
+
+    classes = (Config, *extra)
+    names = set()
+    for cls in classes:
+        hints = get_type_hints(cls)
+        for f in fields(cls):
+            kind = hints[f.name]
+            if isinstance(kind, type) and is_dataclass(kind) and kind not in classes:
+                names.add("lambda" if f.name == "lambda_" else f.name)
+    return frozenset(names)
+
+
+def _options(where: str, resume, overwrite, progress, executor, log) -> dict:
+    """The keyword arguments of :func:`run` and :func:`sweep` that are not config keys, checked."""
+    from antisync.errors import ConfigError
+
+    opts = {
+        name: _flag(f"{where}: {name}", value)
+        for name, value in (("resume", resume), ("overwrite", overwrite), ("progress", progress))
+    }
+    if opts["resume"] and opts["overwrite"]:
+        # as the CLI's --resume --overwrite: finishing a file and replacing it are two wishes
+        raise ConfigError(f"{where}: resume and overwrite exclude each other: choose one")
+    if executor is not None:
+        # a class has run/describe/close too, as unbound functions that would fail mid-run
+        usable = not isinstance(executor, type) and all(
+            callable(getattr(executor, m, None)) for m in ("run", "describe", "close")
+        )
+        if not usable:
+            raise ConfigError(
+                f"{where}: executor must be None (a local executor) or an executor object such as "
+                f"antisync.executors.dask.DaskExecutor (with run, describe and close), got "
+                f"{_shown(executor)}"
+            )
+    if log is not None and not callable(log):
+        raise ConfigError(
+            f"{where}: log must be None or a callable taking one string (e.g. print), got {_shown(log)}"
+        )
+    return {**opts, "executor": executor, "log": log}
+
+
+def _flag(name: str, value) -> bool:
+    """``value`` as a bool: True, False or a numpy bool; anything else is a :class:`ConfigError`."""
+    import numpy as np
+
+    from antisync.errors import ConfigError
+
+    if isinstance(value, bool | np.bool_):
+        return bool(value)
+    raise ConfigError(f"{name} must be True or False, got {_shown(value)}")
+
+
+def _file_path(name: str, value, error: type[Exception]) -> Path:
+    """``value`` (a str or an ``os.PathLike``) as a :class:`Path`, or ``error`` naming ``name``."""
+    try:
+        text = os.fspath(value) if isinstance(value, os.PathLike) else value
+    except Exception:  # noqa: BLE001 -- a PathLike whose __fspath__ fails is no path
+        text = None
+    if not isinstance(text, str) or not text:
+        raise error(f"{name} must be a file path (a non-empty str or pathlib.Path), got {_shown(value)}")
+    if "\0" in text:  # the operating system cannot name such a file: pathlib would raise ValueError
+        raise error(f"{name} must be a file path, got {_shown(text)}, which holds a NUL character")
+    if any(ord(c) < 32 or ord(c) == 127 for c in text):
+        # a line break or tab in a name is nearly always a line read without .strip(), and no
+        # one-line message could show the name
+        raise error(f"{name} {_shown(text)} holds a control character (a line break, a tab); strip it")
+    try:
+        encoded = os.fsencode(text)
+    except UnicodeEncodeError:  # a lone surrogate such as "\ud800": no file system can store it
+        raise error(f"{name} {_shown(text)} is not a file name this system can store") from None
+    # checked here, before a folder on the way is made: the OS would refuse the name later
+    longest = max((len(os.fsencode(part)) for part in Path(text).parts), default=0)
+    if len(encoded) > _PATH_MAX or longest > _NAME_MAX:
+        raise error(
+            f"{name} {_shown(text, 40)} is too long for a file path ({len(encoded)} bytes, a "
+            f"name of {longest}; at most {_PATH_MAX} and {_NAME_MAX})"
+        )
+    return Path(text)
+
+
+#: the longest file name and path (bytes) nearly every file system takes (Linux ext4, macOS APFS)
+_NAME_MAX = 255
+_PATH_MAX = 4095
+
+
+def _result_path(path) -> Path:
+    from antisync.errors import StoreError
+
+    return _file_path("path", path, StoreError)
+
+
+def _shown(value, limit: int = 80) -> str:
+    """``value`` for a one-line message: its repr on one line, shortened, followed by its type
+    unless it is None, a bool, an int, a float or a str (``array([1, 2]) (ndarray)``)."""
+    try:
+        text = repr(value)
+    except Exception:  # noqa: BLE001 -- a huge int (Python refuses > 4300 digits) or a broken __repr__
+        text = f"a {type(value).__name__} that cannot be printed"
+        if isinstance(value, int):
+            text = f"an integer of {value.bit_length()} bits"
+        return text
+    text = " ".join(text.split())
+    if len(text) > limit:
+        text = text[: limit - 3] + "..."
+    if value is None or type(value) in (bool, int, float, str):
+        return text
+    return f"{text} ({type(value).__name__})"
+
+
+def _plain(value, key: str, _depth: int = 0):
+    """``value`` as plain YAML data (None, bool, int, float, str, list, dict with str keys).
+
+    numpy scalars become the Python numbers they hold (``np.int64(100)`` is ``100``), numpy
+    arrays and tuples lists, paths (``os.PathLike``) strings. Anything else (bytes, sets,
+    objects, cycles) is a :class:`ConfigError` naming ``key``: it could not be stored in the
+    result file's YAML (yaml would raise a RepresenterError after the run had begun).
+    """
+    import numpy as np
+
+    from antisync.errors import ConfigError
+
+    if _depth > 64:  # also ends a list that holds itself
+        raise ConfigError(f"{key} is nested more than 64 levels deep (or holds itself); give plain YAML data")
+    if value is None or type(value) in (bool, int, float):
+        return value
+    if isinstance(value, np.ndarray):
+        value = value.tolist()
+    elif isinstance(value, np.generic):
+        value = value.item()
+    if isinstance(value, str):
+        try:
+            value.encode("utf-8")
+        except UnicodeEncodeError:  # a lone surrogate: no YAML file or HDF5 attribute can hold it
+            raise ConfigError(f"{key} must be text that UTF-8 can encode, got {_shown(value)}") from None
+    # subclasses (np.float64, an IntEnum, np.str_) as the plain type yaml.safe_dump knows
+    for plain in (bool, int, float, str):
+        if isinstance(value, plain):
+            return plain(value)
+    if isinstance(value, os.PathLike):
+        return _plain(os.fspath(value), key, _depth + 1)
+    if isinstance(value, list | tuple):
+        return [_plain(v, f"{key}[{i}]", _depth + 1) for i, v in enumerate(value)]
+    if isinstance(value, Mapping):
+        out = {}
+        for k, v in value.items():
+            k = _plain(k, key, _depth + 1) if isinstance(k, np.str_) else k
+            if not isinstance(k, str):
+                raise ConfigError(f"{key} must have string keys (names of config keys), got key {_shown(k)}")
+            out[k] = _plain(v, f"{key}.{k}", _depth + 1)
+        return out
+    raise ConfigError(
+        f"{key} must be plain YAML data (a number, string, true/false, None, list or mapping), "
+        f"got {_shown(value)}"
+    )
+
+
+def _values(overrides: Mapping, output, sections: frozenset[str]) -> dict:
+    """Keyword overrides -> dotted config keys: a mapping given to a section is merged into it
+    key by key; any other value (``None`` too) replaces the key's value."""
+    from antisync.errors import ConfigError
+
     values: dict[str, Any] = {}
     for key, value in overrides.items():
         key = "lambda" if key == "lambda_" else key
-        if key in _SECTIONS and isinstance(value, Mapping):
+        value = _plain(value, key)
+        if key in sections and isinstance(value, dict):
             for sub, v in value.items():
                 values[f"{key}.{sub}"] = v
         else:
             values[key] = value
     if output is not None:
-        values["output"] = str(output)
+        values["output"] = str(_file_path("output", output, ConfigError))
     return values
 
 
 def _config(config, overrides: Mapping, output) -> Config:
-    import copy
-
+    """The validated :class:`Config` of :func:`run`'s ``config`` with ``overrides`` and
+    ``output`` applied."""
     from antisync.config import Config, apply_values, config_from_mapping, load_config
+    from antisync.errors import ConfigError
 
-    values = _values(overrides, output)
+    values = _values(overrides, output, _sections())
     if isinstance(config, Config):
-        raw = config.to_dict()
+        raw = _plain(config.to_dict(), "config")
     elif isinstance(config, Mapping):
-        raw = copy.deepcopy(dict(config))
+        raw = _plain(config, "config")  # a copy: the caller's mapping is left as it is
     else:
-        return load_config(config, values=values)
+        return load_config(_file_path("config", config, ConfigError), values=values)
     apply_values(raw, values)  # as load_config applies them to a file's mapping
     return config_from_mapping(raw)

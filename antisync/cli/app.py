@@ -2,8 +2,13 @@
 
 from __future__ import annotations
 
-import typer
+import contextlib
+from collections.abc import Callable
 
+import typer
+from typer.core import TyperGroup
+
+from antisync.cli.common import fail
 from antisync.cli.paper import paper
 from antisync.cli.report import report
 from antisync.cli.run import run
@@ -11,9 +16,64 @@ from antisync.cli.summary import summary
 from antisync.cli.sweep import sweep
 from antisync.cli.validate import validate
 
+#: click's UsageError (BadParameter, NoSuchOption, MissingParameter, "No such command" ...),
+#: found from typer's public BadParameter: recent typer carries its own copy of click, older
+#: typer uses click itself, and either way BadParameter is a UsageError
+UsageError = next(c for c in typer.BadParameter.__mro__ if c.__name__ == "UsageError")
+
+
+class OneLineUsageGroup(TyperGroup):
+    """The app's command group: a bad option value, an unknown option or command, a missing
+    argument is the CLI's one line (``antisync: error: run: invalid value for
+    '--realizations': ... (see antisync run --help)``, exit 2) like every other error of the
+    CLI, instead of click's multi-line usage box.
+
+    Click raises a ``UsageError`` while it parses the command line: the group's own options
+    in :meth:`make_context`, the command's name and options in :meth:`invoke`.
+    """
+
+    def make_context(self, info_name, args, parent=None, **extra):
+        with usage_errors_as_one_line():
+            return super().make_context(info_name, args, parent=parent, **extra)
+
+    def invoke(self, ctx):
+        # click names the subcommand once it is resolved; some errors of its options (a
+        # missing value: "Option '--threads' requires an argument") carry no context of their own
+        with usage_errors_as_one_line(lambda: ctx.invoked_subcommand):
+            return super().invoke(ctx)
+
+
+@contextlib.contextmanager
+def usage_errors_as_one_line(subcommand: Callable[[], str | None] = lambda: None):
+    """Turn a click ``UsageError`` raised inside into the CLI's one line, exit 2."""
+    try:
+        yield
+    except UsageError as exc:
+        if type(exc).__name__ == "NoArgsIsHelpError":  # bare `antisync`: the help is the answer
+            raise
+        fail(usage_message(exc, subcommand()))
+
+
+def usage_message(exc: Exception, subcommand: str | None = None) -> str:
+    """``run: invalid value for '--threads': ... (see antisync run --help)``: the subcommand,
+    click's message with a lower-case start, and the help that lists what is valid."""
+    names = []
+    ctx = getattr(exc, "ctx", None)
+    while ctx is not None and ctx.parent is not None:  # the root's name is the program's name
+        names.append(ctx.info_name)
+        ctx = ctx.parent
+    command = " ".join(reversed(names)) or subcommand or ""
+    message = " ".join(exc.format_message().splitlines()).strip().rstrip(".")
+    message = message[:1].lower() + message[1:]
+    if not command:
+        return f"{message} (see antisync --help)"
+    return f"{command}: {message} (see antisync {command} --help)"
+
+
 app = typer.Typer(
     name="antisync",
     help="Antifragility of Kuramoto synchronization to link damage (tau0, F_beta, Lambda).",
+    cls=OneLineUsageGroup,
     no_args_is_help=True,
     add_completion=False,
     pretty_exceptions_enable=False,
