@@ -615,3 +615,23 @@ def test_help_is_still_help():
     assert runner.invoke(app, ["run", "--help"]).exit_code == 0
     res = runner.invoke(app, [])
     assert "Usage" in res.output and "run" in res.output
+
+
+@pytest.mark.parametrize(
+    "call",
+    [
+        lambda m: m.lambda_xi2(np.ones((1, 1)), 0, 0),
+        lambda m: m.lambda_xi2(np.array([[0.0, 1.0], [1.0, 0.0]]), 0, 0),
+        lambda m: m.lambda_xi2(np.array([[0.0, 1.0], [1.0, 0.0]]), 0, 1, coupling="weird"),
+        lambda m: m.lambda_rw(np.array([[0.0, 1.0], [1.0, 0.0]]), 0, 0),
+        lambda m: m.f_xi2(np.array([[0.0, -1.0], [-1.0, 0.0]]), 0, 1, 0.1),
+    ],
+)
+def test_the_exported_measures_raise_antisync_errors(call):
+    """antisync.measures' functions on bad weights or links raise MeasureError (an
+    AntisyncError and a ValueError), never a bare ValueError."""
+    import antisync.measures as m
+    from antisync.errors import AntisyncError
+
+    with pytest.raises(AntisyncError):
+        call(m)

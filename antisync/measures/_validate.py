@@ -1,16 +1,21 @@
-"""Input checks shared by the measures: one-line errors a user can act on."""
+"""Input checks shared by the measures: one-line errors a user can act on.
+
+Each raises :class:`~antisync.errors.MeasureError`, an :class:`~antisync.errors.AntisyncError`
+that is also a ``ValueError`` (callers that caught ValueError still do).
+"""
 
 from __future__ import annotations
 
 import numpy as np
 
 from antisync.coupling import COUPLINGS
+from antisync.errors import MeasureError
 
 
 def check_coupling(coupling: str) -> None:
-    """Raise ``ValueError`` unless ``coupling`` is in :data:`antisync.coupling.COUPLINGS`."""
+    """Raise :class:`MeasureError` unless ``coupling`` is in :data:`antisync.coupling.COUPLINGS`."""
     if coupling not in COUPLINGS:
-        raise ValueError(f"coupling must be one of {COUPLINGS}, got {coupling!r}")
+        raise MeasureError(f"coupling must be one of {COUPLINGS}, got {coupling!r}")
 
 
 def as_omega(omega, *, symmetric: bool = False, name: str = "omega") -> np.ndarray:
@@ -21,18 +26,18 @@ def as_omega(omega, *, symmetric: bool = False, name: str = "omega") -> np.ndarr
     """
     omega = np.asarray(omega, dtype=np.float64)
     if omega.ndim != 2 or omega.shape[0] != omega.shape[1] or omega.shape[0] < 2:
-        raise ValueError(f"{name} must be a square (N, N) matrix with N >= 2, got shape {omega.shape}")
+        raise MeasureError(f"{name} must be a square (N, N) matrix with N >= 2, got shape {omega.shape}")
     if not np.all(np.isfinite(omega)) or np.any(omega < 0):
-        raise ValueError(f"{name} must have finite, non-negative weights")
+        raise MeasureError(f"{name} must have finite, non-negative weights")
     if np.any(np.diag(omega) != 0):
-        raise ValueError(f"{name} must have a zero diagonal (no self-loops)")
+        raise MeasureError(f"{name} must have a zero diagonal (no self-loops)")
     if symmetric and np.any(np.abs(omega - omega.T) > 1e-12 * np.abs(omega).max()):
-        raise ValueError(
+        raise MeasureError(
             f"{name} must be symmetric (an undamaged, undirected network); "
             "derivatives at beta=0 are taken around an undirected Omega"
         )
     if not _strongly_connected(omega > 0):
-        raise ValueError(
+        raise MeasureError(
             f"{name} describes a disconnected graph (not every node reaches every other); "
             "the measures need a connected network"
         )
@@ -44,9 +49,9 @@ def check_edge(omega: np.ndarray, a: int, b: int) -> tuple[int, int]:
     n = omega.shape[0]
     a, b = int(a), int(b)
     if not (0 <= a < n and 0 <= b < n):
-        raise ValueError(f"edge ({a}, {b}) is out of range for {n} nodes (indices are 0-based)")
+        raise MeasureError(f"edge ({a}, {b}) is out of range for {n} nodes (indices are 0-based)")
     if omega[a, b] <= 0:
-        raise ValueError(f"there is no link {a}->{b} to damage (Omega[{a}, {b}] = 0)")
+        raise MeasureError(f"there is no link {a}->{b} to damage (Omega[{a}, {b}] = 0)")
     return a, b
 
 
