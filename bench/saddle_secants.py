@@ -62,6 +62,19 @@ def per_realization(job, first: int, count: int):
     return fwd, bwd, 0.5 * (fwd + bwd)
 
 
+def scan(job, realization: int, edge: int, betas: np.ndarray) -> np.ndarray:
+    """tau(beta) of one realization with one link damaged by each of ``betas`` (RK4, Hermite
+    crossing): the shape of tau near a singular damage beta_s."""
+    from antisync import coupling
+
+    a, b = (job.nodes.index(v) for v in job.edges[edge])
+    weights = coupling.variant_weights(job.omega, job.csr, [(a, b, float(x)) for x in betas])
+    sim = simulate_job(job, realization, 1, "cpu", None, weights)
+    return np.where(
+        sim.status[0] == SYNCED, (sim.steps[0] - 1 + sim.frac[0]) * job.config.dynamics.dt, np.nan
+    )
+
+
 def batch_mean(x: np.ndarray, block: int = 1000):
     """Mean over realizations (NaN rows dropped per column) and its batch-means standard error."""
     x = x[~np.isnan(x).any(axis=1)]
@@ -80,6 +93,12 @@ def main() -> None:
     ap.add_argument("--dt", type=float, default=0.04)
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--chunk", type=int, default=100_000)
+    ap.add_argument(
+        "--scan",
+        type=int,
+        default=0,
+        help="print tau(beta) of the K realizations whose one-sided secants differ most",
+    )
     args = ap.parse_args()
     for h in args.dbeta:
         job = job_for(args.graph, args.node, h, args.integrator, args.dt, args.seed)
@@ -103,6 +122,16 @@ def main() -> None:
         sums = {k: batch_mean(v.sum(axis=1, keepdims=True)) for k, v in rows.items()}
         cells = " ".join(f"{sums[k][0][0]:+.5f} +- {sums[k][1][0]:.5f}" for k in rows)
         print(f"{'sum':>8} {cells}")
+        if args.scan:
+            # the realizations whose forward and backward secants of the first link differ most
+            gap = np.nan_to_num(np.abs(fwd[:, 0] - bwd[:, 0]))
+            grid = np.concatenate([-np.geomspace(h, 1e-6, 6), [0.0], np.geomspace(1e-6, h, 6)])
+            for r in np.argsort(gap)[::-1][: args.scan]:
+                taus = scan(job, int(r), 0, grid)
+                label = job.edge_labels[0]
+                print(f"realization {r}, link {label}: forward {fwd[r, 0]:+.2f}, backward {bwd[r, 0]:+.2f}")
+                print("  beta " + " ".join(f"{x:+.0e}" for x in grid))
+                print("  tau  " + " ".join(f"{t:6.3f}" for t in taus))
 
 
 if __name__ == "__main__":
