@@ -13,11 +13,14 @@ from antisync.summary import sign_resolved
 
 __all__ = [
     "MEASURE_KEYS",
+    "absence_reason",
     "SORT_KEYS",
     "SortKey",
     "flag_signs",
     "primary_measure",
     "sort_records",
+    "sortable",
+    "why_absent",
 ]
 
 SortKey = Literal["lambda", "km", "xi2", "rw", "linear", "km_nnc"]
@@ -59,20 +62,82 @@ def sort_records(records: list[dict], by: str) -> list[dict]:
     Raises
     ------
     AntisyncError
-        ``by`` is not a measure, or no record has it (one line naming what the records have).
+        ``by`` is not a measure, or no record has it (one line saying why, see
+        :func:`why_absent`, and which ``--sort`` values the records support).
     """
     if by not in SORT_KEYS:
         raise AntisyncError(f"cannot sort by {by!r}: give one of {', '.join(SORT_KEYS)}")
     key = primary_measure(records) if by == "lambda" else MEASURE_KEYS[by]
     if key is None or not any(_value(r, key) is not None for r in records):
-        have = [m for m, k in MEASURE_KEYS.items() if any(_value(r, k) is not None for r in records)]
-        raise AntisyncError(
-            f"cannot sort by {by}: no record has {key or 'a measure'}; "
-            + (f"these records have {', '.join(have)}" if have else "the file holds no records")
-        )
+        raise AntisyncError(f"cannot sort by {by}: {why_absent(records, key)}")
     with_value = [r for r in records if _value(r, key) is not None]
     without = [r for r in records if _value(r, key) is None]
     return sorted(with_value, key=lambda r: -_value(r, key)) + without
+
+
+def sortable(records: list[dict]) -> list[str]:
+    """The ``--sort`` values that order ``records``: each measure some record has, and
+    ``lambda`` when there is one."""
+    have = [m for m, k in MEASURE_KEYS.items() if any(_value(r, k) is not None for r in records)]
+    return (["lambda"] if have else []) + have
+
+
+def why_absent(records: list[dict], key: str | None) -> str:
+    """One line: no record of ``records`` has ``key`` (a :data:`MEASURE_KEYS` value; ``None``:
+    no measure at all), which measures and ``--sort`` values they have instead, and why
+    (:func:`absence_reason`)."""
+    if not records:
+        return "the file holds no records"
+    why = absence_reason(records, key)
+    if key is None:
+        return f"no record has a measure, so no --sort applies; {why}"
+    ok = sortable(records)
+    have = (
+        f"; these records have {', '.join(ok[1:])} (--sort {', '.join(ok)})"
+        if ok
+        else " nor any other measure, so no --sort applies"
+    )
+    return f"no record has {key}{have}; {why}"
+
+
+def absence_reason(records: list[dict], key: str | None) -> str:
+    """Why no record of ``records`` has ``key`` (``None``: any measure): Lambda^KM undefined
+    (nothing synchronized, nothing done) or not computed, a measure not asked for."""
+    if not records:
+        return "the file holds no records"
+    if key is None or key == "lambda_km":
+        return "; ".join(dict.fromkeys(_why_no_km(r) for r in records))
+    if key == "lambda_km_nnc":
+        if any(_value(r, "lambda_km") is not None for r in records):
+            return "the run has no raw-coupling twin: add km_nnc to measures"
+        return "; ".join(dict.fromkeys(_why_no_km(r) for r in records))
+    name = next(m for m, k in MEASURE_KEYS.items() if k == key)
+    return f"{name} is not among the run's measures, or is not finite on this graph"
+
+
+def _why_no_km(rec: dict) -> str:
+    """Why ``rec`` has no Lambda^KM: no Kuramoto run, nothing done, or nothing synchronized."""
+    graph = rec.get("graph", "the graph")
+    if not rec.get("realizations"):
+        return f"{graph} was run without km: it holds exact measures only"
+    done, p_sync, synced = rec.get("realizations_done") or 0, rec.get("p_sync"), rec.get("tau0_n") or 0
+    if not done:
+        return f"{graph} has no realization done yet: rerun the same command with --resume"
+    # Lambda^KM averages d tau / d beta over the realizations that synchronize undamaged and damaged
+    if p_sync == 0:
+        return (
+            f"Lambda^KM is undefined: none of the {done:,} realizations of {graph} synchronized by "
+            "t_max (raise dynamics.t_max, or check that the graph synchronizes)"
+        )
+    if not synced:
+        return (
+            f"Lambda^KM is undefined: every one of the {done:,} realizations of {graph} started "
+            "synchronized (r(0) >= r), so none has a synchronization time"
+        )
+    return (
+        f"Lambda^KM is undefined: no realization of {graph} synchronized both with and without "
+        f"the damage ({synced:,} of {done:,} did without it)"
+    )
 
 
 def flag_signs(records: list[dict]) -> list[dict]:

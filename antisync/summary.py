@@ -13,6 +13,7 @@ pure: a :class:`JobView` (one decoded job) in, records out. Reading a file is th
 from __future__ import annotations
 
 import math
+import re
 from dataclasses import dataclass
 from statistics import NormalDist
 
@@ -23,12 +24,14 @@ from antisync.measures.pipeline import join_nnc, measure_fields
 
 __all__ = [
     "CI_LEVEL",
+    "WARNING_KINDS",
     "JobView",
     "is_kuramoto",
     "job_records",
     "lambda_intervals",
     "sign_resolved",
     "view_records",
+    "warning_kind",
 ]
 
 # error bars are flagged when the largest 0.1% of samples carry this share of the variance
@@ -124,6 +127,26 @@ def lambda_intervals(view: JobView, level: float = CI_LEVEL) -> tuple[np.ndarray
     return ci, thin
 
 
+#: the kinds of ``lambda_km_warning`` that :func:`_lambda` writes, each by the words its text
+#: begins with (numbers vary per link); the summary table prints one line per kind
+WARNING_KINDS = {
+    "too few synchronized realizations": re.compile(
+        r"\d+ synchronized realizations?: no (estimate|standard)"
+    ),
+    "too few batches": re.compile(r"only \d+ batches"),
+    "heavy tail, few tail values": re.compile(r"heavy tail: the interval rests on"),
+    "heavy tail, no tail model": re.compile(r"heavy tail: top 0\.1% of samples"),
+    "format-1 interval": re.compile(r"interval from batch means \(a format-1 file"),
+    "uncalibrated estimator": re.compile(r"\S+ derivatives have an unbounded tail"),
+}
+
+
+def warning_kind(warning: str) -> str:
+    """The :data:`WARNING_KINDS` name of a ``lambda_km_warning``; a text of no known kind is
+    its own kind."""
+    return next((kind for kind, pattern in WARNING_KINDS.items() if pattern.match(warning)), warning)
+
+
 def _lambda(view: JobView, e: int, pooled: tuple[np.ndarray, int]) -> tuple[dict, dict]:
     """Lambda's fields of edge ``e``'s records, and its :func:`estimators.summarize_lambda`."""
     rec = view.lam_rec[view.done, e]
@@ -135,9 +158,11 @@ def _lambda(view: JobView, e: int, pooled: tuple[np.ndarray, int]) -> tuple[dict
     se = (high - low) / (2 * estimators.Z95) if iv is not None else est.se
     warning = None
     if s["n"] < 2:
+        # with none there is no estimate at all, with one no spread
         warning = (
             f"{s['n']} synchronized realization{'s' if s['n'] != 1 else ''}: no "
-            "standard error (see the unsynced count)"
+            + ("estimate and no interval" if s["n"] == 0 else "standard error")
+            + " (see the unsynced count)"
         )
         if view.unsynced_hint and s["n_not_synced"]:
             warning += f"; {view.unsynced_hint}"

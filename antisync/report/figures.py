@@ -16,6 +16,7 @@
 
 from __future__ import annotations
 
+import textwrap
 from pathlib import Path
 
 import numpy as np
@@ -128,6 +129,23 @@ def plot_f_beta(view: JobView, ax, *, legend: bool = True) -> None:
             capsize=2,
             label=f"{edge} ({value})",
         )
+    if not any(r["F_mean"] is not None for r in recs):
+        # only the anchor F_0 = 1 would show: say why there is no curve
+        ax.text(
+            0.5,
+            0.7,
+            textwrap.fill(
+                "no <F_beta>: no damaged realization synchronized by t_max (see the summary's "
+                "unsynced counts)",
+                60,
+            ),
+            ha="center",
+            va="center",
+            transform=ax.transAxes,
+            fontsize=9,
+            bbox={"facecolor": "white", "alpha": 0.8, "lw": 0},
+        )
+        ax.set_xlim(0, max(view.betas) * 1.05)
     ax.axhline(1.0, color="k", ls="--", lw=0.8)
     ax.set_xlabel(r"damage $\beta$")
     ax.set_ylabel(r"$\langle \mathcal{F}_\beta \rangle = \langle \tau_0/\tau(\beta) \rangle$")

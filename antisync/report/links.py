@@ -23,8 +23,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from antisync.records import primary_measure
-from antisync.report.measures import LABELS, SIGN_ATOL, sign_agreement
+from antisync.records import absence_reason, primary_measure
+from antisync.report.intervals import draw_intervals, record_intervals
+from antisync.report.measures import LABELS, SIGN_ATOL, missing_note, sign_agreement
 from antisync.summary import JobView, sign_resolved
 
 __all__ = [
@@ -133,11 +134,10 @@ def plot_sorted(recs: list[dict], key: str, ax, *, graph: str = "") -> None:
     signs = link_signs(ranked, key)
     rank = np.arange(1, len(ranked) + 1)
     if key == "lambda_km":
-        lo = _values(ranked, "lambda_km_ci_low")
-        hi = _values(ranked, "lambda_km_ci_high")
+        lo, hi = record_intervals(ranked, key)
         for s in (0, -1, 1):
-            m = (signs == s) & np.isfinite(lo) & np.isfinite(hi)
-            ax.vlines(rank[m], lo[m], hi[m], color=COLORS[s], alpha=0.35, lw=1.0)
+            m = signs == s
+            draw_intervals(ax, rank[m], lo[m], hi[m], color=COLORS[s], alpha=0.35, lw=1.0)
     small = len(ranked) <= 300
     for s in (1, -1, 0):
         m = signs == s
@@ -231,23 +231,22 @@ def plot_top_links(view: JobView, recs: list[dict], key: str, ax, *, k: int = 10
 
 def plot_vs(recs: list[dict], kx: str, ky: str, ax) -> None:
     """One panel of (c): ``ky`` (an exact measure) against ``kx``, Spearman's rho and the sign
-    agreement in the title; with ``kx`` Lambda^KM, points coloured by their resolved sign,
-    95% intervals as error bars, and only resolved links counted for the sign agreement."""
+    agreement in the title; with ``kx`` Lambda^KM, points coloured by their resolved sign, each
+    with its 95% interval drawn from ``lambda_km_ci_low`` to ``lambda_km_ci_high`` (which need
+    not contain the estimate), and only resolved links counted for the sign agreement."""
     x, y = _values(recs, kx), _values(recs, ky)
     ok = np.isfinite(x) & np.isfinite(y)
     ax.set_xlabel(LABELS[kx])
     ax.set_ylabel(LABELS[ky])
     if not ok.any():
-        what = ", ".join(
-            k.removeprefix("lambda_") for k in (kx, ky) if not np.isfinite(_values(recs, k)).any()
-        )
         ax.text(
             0.5,
             0.5,
-            f"not computed: add {what} to measures",
+            missing_note(recs, (kx, ky)),
             ha="center",
             va="center",
             transform=ax.transAxes,
+            fontsize=8,
         )
         ax.set_title(f"{LABELS[ky]} vs {LABELS[kx]}", fontsize=10)
         return
@@ -258,21 +257,14 @@ def plot_vs(recs: list[dict], kx: str, ky: str, ax) -> None:
     c = compare(recs, kx, ky)
     if kx == "lambda_km":
         signs = link_signs(used, kx)
-        lo, hi = _values(used, "lambda_km_ci_low"), _values(used, "lambda_km_ci_high")
+        # the interval as stored: the tail model's may not contain the estimate
+        lo, hi = record_intervals(used, kx)
         for s in (0, -1, 1):
             m = signs == s
             if m.any():
-                ax.errorbar(
-                    x[m],
-                    y[m],
-                    xerr=[np.nan_to_num(x[m] - lo[m]), np.nan_to_num(hi[m] - x[m])],
-                    fmt="o",
-                    ms=3,
-                    color=COLORS[s],
-                    ecolor=COLORS[s],
-                    alpha=0.8,
-                    elinewidth=0.6,
-                    label=f"KM {NAMES[s]}: {int(m.sum())}",
+                draw_intervals(ax, y[m], lo[m], hi[m], horizontal=True, color=COLORS[s], alpha=0.5, lw=0.6)
+                ax.plot(
+                    x[m], y[m], "o", ms=3, color=COLORS[s], alpha=0.8, label=f"KM {NAMES[s]}: {int(m.sum())}"
                 )
         counted = "links with resolved KM sign"
     else:
@@ -300,10 +292,19 @@ def plot_measure_pairs(recs: list[dict], axes) -> None:
 
 def link_figures(view: JobView, recs: list[dict], *, k: int = 10):
     """Yield ``(figure, file stem)`` for (a), (b) and (c) of ``view`` (its records ``recs``,
-    one per directed link). Nothing when no record has a measure."""
+    one per directed link). When no record has a measure (nothing synchronized, say), only
+    (a), saying why (:func:`antisync.records.absence_reason`)."""
     plt = _plt()
     key = primary_measure(recs)
     if key is None:
+        import textwrap
+
+        fig, ax = plt.subplots(figsize=(9, 5))
+        why = textwrap.fill(absence_reason(recs, None), 90)
+        ax.text(0.5, 0.5, why, ha="center", va="center", fontsize=9, transform=ax.transAxes)
+        ax.set_title(f"{view.graph}: no link has a value of any measure", fontsize=10)
+        ax.set_axis_off()
+        yield fig, f"{view.graph}_lambda_sorted"
         return
     fig, ax = plt.subplots(figsize=(9, 5))
     plot_sorted(recs, key, ax, graph=view.graph)

@@ -3,22 +3,35 @@
 - ``fig5_measures``: the paper's Fig. 5, scatter plots of ``(Lambda_x, Lambda_y)`` over every
   damaged edge of every (normalized) job in the file: (a) KM vs linear, (b) KM vs xi2,
   (c) RW vs KM, (d) xi2 vs RW. Each panel has the line ``y = x``, the quadrants where the two
-  signs agree shaded, standard errors as error bars where the measure is statistical (KM,
-  linear), and the fraction of edges whose sign classification (antifragile > 0, neutral = 0,
-  fragile < 0) agrees. Written when any of linear, xi2, rw was computed.
+  signs agree shaded, 95% intervals where the measure is statistical, drawn from their ends
+  (KM: the record's ``lambda_km_ci_low`` .. ``_high``, which need not contain the estimate;
+  linear, KM-NNC: the estimate -/+ 1.96 standard errors), and the fraction of edges whose
+  sign classification (antifragile > 0, neutral = 0, fragile < 0) agrees. Written when any
+  of linear, xi2, rw was computed.
 - ``<job>_fig7e_km_nnc``: the paper's Fig. 7e, ``Lambda^(KM)`` against ``Lambda^(KM-NNC)`` for
   every edge of a job run with ``km_nnc``, the diagonal, points labelled by edge.
 """
 
 from __future__ import annotations
 
+import textwrap
 from collections.abc import Iterator
 
 import numpy as np
 
+from antisync.records import absence_reason
+from antisync.report.intervals import draw_intervals, record_intervals
 from antisync.summary import JobView, view_records
 
-__all__ = ["PAIRS", "edge_records", "measure_figures", "plot_fig5", "plot_fig7e", "sign_agreement"]
+__all__ = [
+    "PAIRS",
+    "edge_records",
+    "measure_figures",
+    "missing_note",
+    "plot_fig5",
+    "plot_fig7e",
+    "sign_agreement",
+]
 
 #: Fig. 5 panels (a)-(d): (x, y) record keys.
 PAIRS = (
@@ -34,7 +47,6 @@ LABELS = {
     "lambda_rw": r"$\Lambda^{(\mathrm{RW})}$",
     "lambda_km_nnc": r"$\Lambda^{(\mathrm{KM-NNC})}$",
 }
-_SE = {"lambda_km": "lambda_km_se", "lambda_linear": "lambda_linear_se", "lambda_km_nnc": "lambda_km_nnc_se"}
 _MEASURE = {"lambda_linear": "linear", "lambda_xi2": "xi2", "lambda_rw": "rw"}
 #: |Lambda| at or below this counts as neutral (0) when classifying signs: exact zeros such
 #: as 1->2 on the lollipop come out as 0 or 1e-17, never as a small statistical value.
@@ -76,11 +88,29 @@ def _column(recs: list[dict], key: str) -> np.ndarray:
     return np.array([np.nan if r.get(key) is None else r[key] for r in recs], dtype=float)
 
 
-def _symmetric_limits(values: np.ndarray, errors: np.ndarray) -> tuple[float, float]:
-    reach = np.abs(values) + np.nan_to_num(errors)
+def _symmetric_limits(values: np.ndarray, low: np.ndarray, high: np.ndarray) -> tuple[float, float]:
+    """``(-top, top)`` around every value and every finite interval end."""
+    reach = np.concatenate([np.abs(values), np.abs(low), np.abs(high)])
     top = float(np.nanmax(reach)) if np.isfinite(reach).any() else 1.0
     top = 1.1 * top if top > 0 else 1.0
     return -top, top
+
+
+def missing_note(recs: list[dict], keys) -> str:
+    """What a panel of ``keys`` shows when no record has them all: for each key no record
+    has, why (not asked for, or Lambda^KM undefined because nothing synchronized, see
+    :func:`antisync.records.absence_reason`), wrapped to fit a panel."""
+    notes = []
+    for key in keys:
+        if np.isfinite(_column(recs, key)).any():
+            continue
+        if key in _MEASURE:
+            notes.append(f"{_MEASURE[key]} not computed: add {_MEASURE[key]} to measures")
+        else:
+            notes.append(absence_reason(recs, key))
+    if not notes:
+        notes.append("no link has both values")
+    return "\n".join(textwrap.fill(n, 55) for n in dict.fromkeys(notes))
 
 
 def plot_pair(recs: list[dict], kx: str, ky: str, ax, *, label_points: bool = False) -> None:
@@ -90,21 +120,22 @@ def plot_pair(recs: list[dict], kx: str, ky: str, ax, *, label_points: bool = Fa
     ax.set_xlabel(LABELS[kx])
     ax.set_ylabel(LABELS[ky])
     if not ok.any():
-        missing = [_MEASURE[k] for k in (kx, ky) if k in _MEASURE and not np.isfinite(_column(recs, k)).any()]
         ax.text(
             0.5,
             0.5,
-            "not computed" + (f": add {', '.join(missing)} to measures" if missing else ""),
+            missing_note(recs, (kx, ky)),
             ha="center",
             va="center",
             transform=ax.transAxes,
-            fontsize=9,
+            fontsize=8,
         )
         return
+    used = [r for r, good in zip(recs, ok, strict=True) if good]
     x, y = x[ok], y[ok]
-    sx = _column(recs, _SE[kx])[ok] if kx in _SE else np.zeros_like(x)
-    sy = _column(recs, _SE[ky])[ok] if ky in _SE else np.zeros_like(y)
-    xlim, ylim = _symmetric_limits(x, sx), _symmetric_limits(y, sy)
+    # 95% intervals as stored (NaN for an exact measure): Lambda^KM's need not contain the estimate
+    xlo, xhi = record_intervals(used, kx)
+    ylo, yhi = record_intervals(used, ky)
+    xlim, ylim = _symmetric_limits(x, xlo, xhi), _symmetric_limits(y, ylo, yhi)
     # the quadrants where both measures give the same sign: both antifragile, both fragile
     ax.fill_between([0, xlim[1]], 0, ylim[1], color="#2ca02c", alpha=0.07, lw=0)
     ax.fill_between([xlim[0], 0], ylim[0], 0, color="#2ca02c", alpha=0.07, lw=0)
@@ -112,20 +143,14 @@ def plot_pair(recs: list[dict], kx: str, ky: str, ax, *, label_points: bool = Fa
     ax.axvline(0, color="k", lw=0.6)
     lo, hi = max(xlim[0], ylim[0]), min(xlim[1], ylim[1])
     ax.plot([lo, hi], [lo, hi], "k--", lw=0.8, label="$y = x$")
-    ax.errorbar(
-        x,
-        y,
-        xerr=np.nan_to_num(sx),
-        yerr=np.nan_to_num(sy),
-        fmt="o",
-        ms=3.5,
-        color="#1f77b4",
-        ecolor="#9ecae1",
-        elinewidth=0.8,
-        capsize=0,
-    )
+    style = {"color": "#9ecae1", "lw": 0.8}
+    drawn = draw_intervals(ax, y, xlo, xhi, horizontal=True, **style)
+    drawn = draw_intervals(ax, x, ylo, yhi, **style) or drawn
+    if drawn is not None:
+        drawn.set_label("95% interval")
+    ax.plot(x, y, "o", ms=3.5, color="#1f77b4")
     if label_points:
-        for r, xi, yi in zip([r for r, k in zip(recs, ok, strict=True) if k], x, y, strict=True):
+        for r, xi, yi in zip(used, x, y, strict=True):
             ax.annotate(r["edge"], (xi, yi), fontsize=7, xytext=(3, 3), textcoords="offset points")
     agree, total = sign_agreement(x, y)
     ax.text(

@@ -6,6 +6,8 @@ import csv
 import io
 import json
 
+from antisync.summary import warning_kind
+
 __all__ = ["fmt_pm", "format_records", "format_sweep", "format_table1"]
 
 _TABLE_COLUMNS = [
@@ -92,17 +94,27 @@ def format_records(records: list[dict], fmt: str = "table") -> str:
 
 
 def lambda_warnings(records: list[dict], most: int = 5) -> list[str]:
-    """``warning: Lambda_KM of <edge>: <why>`` lines; a reason shared by more than ``most``
-    links is one line that counts them and names the first ``most`` (a graph of 500 links)."""
-    edges: dict[str, list[str]] = {}
-    for e, w in sorted({(r["edge"], r["lambda_km_warning"]) for r in records if r.get("lambda_km_warning")}):
-        edges.setdefault(w, []).append(e)
+    """``warning: Lambda_KM of <edge>: <why>`` lines, one per kind of warning
+    (:func:`antisync.summary.warning_kind`): a kind that several links share is one line that
+    counts them, names the first ``most`` and, where their texts differ (the numbers of each
+    link), quotes the first as an example."""
+    kinds: dict[str, dict[tuple, str]] = {}
+    for r in records:
+        w = r.get("lambda_km_warning")
+        if w:
+            # one entry per link: the records of its betas repeat the same warning
+            kinds.setdefault(warning_kind(w), {}).setdefault((r.get("graph"), r["edge"]), w)
     lines = []
-    for w, es in sorted(edges.items(), key=lambda item: item[1][0]):
-        if len(es) <= most:
-            lines += [f"warning: Lambda_KM of {e}: {w}" for e in es]
-        else:
-            lines.append(f"warning: Lambda_KM of {len(es)} links ({', '.join(es[:most])}, ...): {w}")
+    for kind, links in sorted(kinds.items(), key=lambda item: min(e for _, e in item[1])):
+        order = sorted(links, key=lambda link: link[1])
+        (first, *_), texts = order, set(links.values())
+        if len(order) == 1:
+            lines.append(f"warning: Lambda_KM of {first[1]}: {links[first]}")
+            continue
+        names = list(dict.fromkeys(e for _, e in order))
+        shown = ", ".join(names[:most]) + (", ..." if len(names) > most else "")
+        why = links[first] if len(texts) == 1 else f"{kind}, e.g. {first[1]}: {links[first]}"
+        lines.append(f"warning: Lambda_KM of {len(order)} links ({shown}): {why}")
     return lines
 
 

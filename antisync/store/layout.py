@@ -63,6 +63,7 @@ from antisync.summary import JobView, job_records, view_records
 __all__ = [
     "FORMAT",
     "FORMAT_VERSION",
+    "config_changes",
     "SWEEP_FORMAT",
     "SWEEP_FORMAT_VERSION",
     "is_complete",
@@ -250,14 +251,45 @@ def read_states(path: Path, states: dict[str, JobState], config_key: dict) -> No
         )
         if stored != config_key:
             raise StoreError(
-                f"{path} was made with a different config (graph, edges, betas, "
-                "dynamics, realizations, seed or histogram differ); use --out for a new file"
+                f"{path} was made with a different config ({config_changes(stored, config_key)}); "
+                "use --out for a new file, or resume with the stored values"
             )
         for name, st in states.items():
             if f"jobs/{name}" in f:
                 g = f[f"jobs/{name}"]
                 _check_graph(path, g, st.job)
                 _read_state(path, g, st)
+
+
+def config_changes(stored: dict, wanted: dict, most: int = 6) -> str:
+    """The keys whose values differ between two simulation keys, as ``key: stored -> new``
+    (dotted paths into nested sections, e.g. ``dynamics.t_max: 60 -> 80``; ``(absent)`` for a
+    key one side lacks), the first ``most`` of them and a count of the rest: what a refused
+    ``--resume`` names, so that the user sees what changed rather than every key."""
+    changes = [f"{key}: {_shown(old)} -> {_shown(new)}" for key, old, new in _differences(stored, wanted, "")]
+    if not changes:
+        return "no key differs"
+    more = f"; and {len(changes) - most} more" if len(changes) > most else ""
+    return "; ".join(changes[:most]) + more
+
+
+_ABSENT = object()
+
+
+def _differences(old, new, prefix: str):
+    """``(dotted key, old value, new value)`` of every leaf that differs, depth first."""
+    if isinstance(old, dict) and isinstance(new, dict):
+        for key in list(old) + [k for k in new if k not in old]:
+            yield from _differences(old.get(key, _ABSENT), new.get(key, _ABSENT), f"{prefix}{key}.")
+    elif old != new:
+        yield prefix.rstrip("."), old, new
+
+
+def _shown(value, width: int = 60) -> str:
+    if value is _ABSENT:
+        return "(absent)"
+    text = json.dumps(value, default=str)
+    return text if len(text) <= width else text[: width - 3] + "..."
 
 
 def _write_state(g, st: JobState) -> None:
@@ -388,10 +420,35 @@ def _check_graph(path: Path, g, job: Job) -> None:
         )
     if str(stored) != graph_digest(job):
         raise StoreError(
-            f"{path} was made with a different graph for {job.name} (nodes, weights or damaged "
-            "edges differ from the graph built now: a random generator without a seed?); "
+            f"{path} was made with a different graph for {job.name} ({_graph_changes(path, g, job)} "
+            "differ from the graph built now: a random generator without a seed?); "
             "use --out for a new file"
         )
+
+
+def _graph_changes(path: Path, g, job: Job) -> str:
+    """Which parts of the graph of group ``g`` differ from ``job``'s: nodes, damaged edges,
+    weights (omega), the damage variants."""
+    parts = {
+        "nodes": (lambda: json.loads(g.attrs["nodes"]), [jsonable(v) for v in job.nodes]),
+        "damaged edges": (lambda: json.loads(g.attrs["edges"]), list(job.edge_labels)),
+        "weights": (lambda: g["omega"][...], job.omega),
+        "damage variants": (
+            lambda: np.concatenate([g["variant_edge"][...], g["variant_beta"][...]]),
+            np.concatenate([job.variant_edge, job.variant_beta]),
+        ),
+    }
+    changed = []
+    for name, (read, now_value) in parts.items():
+        stored = _read(path, f"{g.name} {name}", read)
+        same = (
+            np.shape(stored) == np.shape(now_value) and np.array_equal(stored, now_value)
+            if isinstance(stored, np.ndarray)
+            else stored == now_value
+        )
+        if not same:
+            changed.append(name)
+    return " and ".join(changed) if changed else "the node order or weights"
 
 
 def _read(path: Path, what: str, read):
