@@ -121,8 +121,11 @@ def summarize(path: str | Path) -> dict:
     ``config_yaml``, and the sweep's ``sweep`` (name), ``family``, ``thresholds``,
     ``ranking_threshold``, ``excluded``, ``top``, ``screen``, ``symmetry`` (for a run file:
     ``null`` or empty lists, and ``thresholds`` the run's one threshold), and ``stop``, what
-    a run's stopping rule did (:func:`antisync.store.stop_record`; ``null`` without one). The
-    CLI adds to each record its ``sign_resolved`` (:func:`antisync.records.flag_signs`) and orders them with
+    a run's stopping rule did (:func:`antisync.store.stop_record`; ``null`` without one), and
+    ``sum_rule``, per node whose out-links were all measured with normalized coupling, the sum
+    of their Lambda with its interval (:func:`antisync.sum_rule.node_sums`). The
+    records carry ``sign_resolved`` (at false discovery rate 0.05 over the file's links) and
+    ``sign_per_link`` (:func:`antisync.records.flag_signs`); the CLI orders them with
     ``--sort`` (:func:`antisync.records.sort_records`).
 
     Raises
@@ -141,7 +144,9 @@ def summarize(path: str | Path) -> dict:
 
 def _summarize(path: Path) -> dict:
     from antisync.errors import StoreError
+    from antisync.records import flag_signs
     from antisync.store import is_sweep_file, records, root_attrs, stop_record
+    from antisync.sum_rule import file_sums
     from antisync.sweeps import sweep_summary
 
     root = root_attrs(path)
@@ -151,7 +156,8 @@ def _summarize(path: Path) -> dict:
             "kind": "sweep",
             "file": str(path),
             "complete": bool(s["complete"]),
-            "records": s["records"],
+            "records": flag_signs(s["records"]),
+            "sum_rule": file_sums(path),
             "config_yaml": root["config_yaml"],
             "stop": None,
             **{k: s[k] for k in _SWEEP_KEYS},
@@ -170,7 +176,8 @@ def _summarize(path: Path) -> dict:
         "kind": "run",
         "file": str(path),
         "complete": root["complete"],
-        "records": recs,
+        "records": flag_signs(recs),
+        "sum_rule": file_sums(path),
         "config_yaml": root["config_yaml"],
         "stop": stop_record(path),
         "sweep": None,

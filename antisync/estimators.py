@@ -28,6 +28,8 @@ __all__ = [
     "BATCH_MEANS_ESTIMATORS",
     "BLOCK_FIELDS",
     "LAMBDA_FIELDS",
+    "LAMBDA_QUANTITY",
+    "MIXED_QUANTITY",
     "LAMBDA_TAIL_BINS",
     "TAIL_BINS",
     "TAU0_FIELDS",
@@ -41,6 +43,7 @@ __all__ = [
     "estimate_mean",
     "histogram2d",
     "lambda_interval",
+    "lambda_quantity",
     "lambda_block_records",
     "lambda_ci",
     "summarize_variant",
@@ -568,6 +571,34 @@ def lambda_interval(
     return Interval(
         float(lo - math.sqrt(widen_lo) / n), float(hi + math.sqrt(widen_hi) / n), level, float(u), events
     )
+
+
+#: what each ``lambda.method`` estimates, as every record names it (``lambda_quantity``; issue 28,
+#: docs/equations.md "Lambda near saddle passages"): the paper's forward secant
+#: ``(<F_dbeta> - 1)/dbeta`` of Eq. 17 at the record's ``lambda_dbeta``, or the derivative
+#: ``d<F>/dbeta`` at 0 of Eq. 6. Near saddle passages the two differ at every usable dbeta.
+LAMBDA_QUANTITY = {
+    "finite-difference": "forward-secant",
+    "central-difference": "derivative",
+    "orbit": "derivative",
+    "hybrid": "derivative",
+    "adjoint-hybrid": "derivative",
+    "pathwise": "derivative",
+    "adjoint": "derivative",
+}
+#: the hybrids of files written before their flagged values became central secants: a
+#: derivative bulk with the forward secant's tail (neither quantity; rerun to get the derivative)
+MIXED_QUANTITY = "derivative with forward-secant tail (a file from before central secants)"
+
+
+def lambda_quantity(method: str, recorded: str | None = None) -> str:
+    """The quantity a job's Lambda values estimate: ``recorded`` (the job's ``lambda_quantity``
+    attribute) when the file has it, else what ``method`` estimated when the file was written."""
+    if recorded:
+        return recorded
+    if method in ("hybrid", "adjoint-hybrid"):
+        return MIXED_QUANTITY
+    return LAMBDA_QUANTITY.get(method, "unknown")
 
 
 #: the normal quantile of a two-sided 95% interval

@@ -17,6 +17,7 @@ __all__ = [
     "SORT_KEYS",
     "SortKey",
     "flag_signs",
+    "sign_rule_note",
     "primary_measure",
     "sort_records",
     "sortable",
@@ -142,12 +143,34 @@ def _why_no_km(rec: dict) -> str:
 
 def flag_signs(records: list[dict]) -> list[dict]:
     """Copies of ``records``, each with ``sign_resolved``: ``+1`` (antifragile), ``-1``
-    (fragile) or ``0`` (unresolved) from :func:`antisync.summary.sign_resolved` (the record's
-    ``lambda_km_ci_low`` .. ``lambda_km_ci_high`` interval); ``None`` where no Lambda^KM was
-    estimated (a file run without ``km``)."""
-    return [
-        {**r, "sign_resolved": sign_resolved(r) if r.get("lambda_km") is not None else None} for r in records
-    ]
+    (fragile) or ``0`` (unresolved) by the Benjamini-Hochberg procedure at false discovery rate
+    0.05 over the records' distinct links (:func:`antisync.multiplicity.fdr_signs`: a run over
+    many links calls few null links by chance), and ``sign_per_link``, the call of the record's
+    own 95% interval alone (:func:`antisync.summary.sign_resolved`); both ``None`` where no
+    Lambda^KM was estimated (a file run without ``km``)."""
+    from antisync.multiplicity import fdr_signs
+
+    out = []
+    for r, sign in zip(records, fdr_signs(records), strict=True):
+        own = sign_resolved(r) if r.get("lambda_km") is not None else None
+        out.append({**r, "sign_resolved": sign, "sign_per_link": own})
+    return out
+
+
+def sign_rule_note(records: list[dict]) -> str | None:
+    """One line saying how ``sign_resolved`` was decided and how many links each rule calls
+    (None without Lambda^KM)."""
+    from antisync.multiplicity import FDR_LEVEL, link_key
+
+    links = {link_key(r): r for r in records if r.get("sign_resolved") is not None}
+    if not links:
+        return None
+    fdr = sum(1 for r in links.values() if r["sign_resolved"])
+    own = sum(1 for r in links.values() if r.get("sign_per_link"))
+    return (
+        f"signs: {fdr} of {len(links)} links called at false discovery rate {FDR_LEVEL:g} over the "
+        f"file's links (Benjamini-Hochberg; sign_per_link, each 95% interval alone, calls {own})"
+    )
 
 
 def _value(rec: dict, key: str) -> float | None:

@@ -190,7 +190,7 @@ def _lambda(view: JobView, e: int, pooled: tuple[np.ndarray, int]) -> tuple[dict
             f"{view.lambda_method} derivatives have an unbounded tail (values to ~1e4 at "
             "probability ~1e-5): this interval covered only 74-98% of runs on the lollipop; "
             f"use lambda.method {estimators.UNCALIBRATED_ESTIMATORS[view.lambda_method]}"
-            " or finite-difference for error bars to trust"
+            " (the same derivative, with error bars to trust)"
         )
     fields = {
         "lambda_km": _num(est.mean),
@@ -205,6 +205,9 @@ def _lambda(view: JobView, e: int, pooled: tuple[np.ndarray, int]) -> tuple[dict
         "lambda_km_tail_share": _num(share),
         "lambda_km_warning": warning,
         "lambda_method": view.lambda_method,
+        "lambda_quantity": estimators.lambda_quantity(
+            view.lambda_method, str((view.attrs or {}).get("lambda_quantity", "")) or None
+        ),
         "lambda_dbeta": view.dbeta,
         "lambda_n": s["n"],
         "lambda_n_flagged": s["n_flagged"],
@@ -253,6 +256,7 @@ _ESTIMATOR_KEYS = (
     "lambda_km_ci_level",
     "lambda_km_ci_method",
     "lambda_method",
+    "lambda_quantity",
     "lambda_dbeta",
 )
 

@@ -123,3 +123,78 @@ def test_the_complete_graph_derivative_is_zero():
     cen, ok = _values(_job(K5, ["0->1"], "central-difference"), 100_000)
     value, se = _mean_se(cen[ok[:, 0], 0])
     assert abs(value) < 4 * se, (value, se)
+
+
+# ---- what the summary says ---------------------------------------------------------------
+def _run(tmp_path, method: str, extra: str = ""):
+    from antisync.runner import run_config
+
+    cfg = load_config_text(f"""
+graph: {LOLLIPOP}
+edges: all
+betas: []
+realizations: 2000
+seed: 3
+lambda: {{method: {method}}}
+dynamics: {{integrator: rk4, dt: 0.04, crossing: interpolated}}
+{extra}""")
+    return run_config(cfg, output=tmp_path / f"{method}.h5")
+
+
+@pytest.mark.parametrize(
+    ("method", "quantity"), [("finite-difference", "forward-secant"), ("central-difference", "derivative")]
+)
+def test_every_record_names_its_quantity_and_the_summary_checks_the_sum_rule(tmp_path, method, quantity):
+    from antisync.api import summarize
+
+    s = summarize(_run(tmp_path, method))
+    assert {r["lambda_quantity"] for r in s["records"]} == {quantity}
+    rows = {r["node"]: r for r in s["sum_rule"]}
+    assert set(rows) == {"2", "3", "4", "5", "6"}  # node 1 has a single out-link
+    for node, row in rows.items():
+        links = [r for r in s["records"] if r["edge"].split("->")[0] == node]
+        assert row["links"] == [r["edge"] for r in links]
+        assert row["sum"] == pytest.approx(sum(r["lambda_km"] for r in links), abs=1e-12)
+        assert row["low"] < row["sum"] < row["high"]
+
+
+def test_the_summary_table_says_how_signs_were_called_and_the_sum_rule(tmp_path):
+    from typer.testing import CliRunner
+
+    from antisync.cli.app import app
+
+    out = _run(tmp_path, "finite-difference")
+    res = CliRunner().invoke(app, ["summary", str(out)])
+    assert res.exit_code == 0, res.output
+    assert "false discovery rate 0.05" in res.output
+    assert "sum rule (normalized coupling" in res.output and "5 node(s) checked" in res.output
+
+
+def test_raw_coupling_has_no_sum_rule(tmp_path):
+    """Without the normalization a node's out-links do not compensate each other: no rule."""
+    from antisync.api import summarize
+    from antisync.runner import run_config
+
+    raw = load_config_text(f"graph: {LOLLIPOP}\nbetas: []\nrealizations: 200\ndynamics: {{coupling: raw}}\n")
+    assert summarize(run_config(raw, output=tmp_path / "raw.h5"))["sum_rule"] == []
+
+
+def test_a_hybrid_file_from_before_central_secants_says_so(tmp_path):
+    """Files whose job group has no lambda_quantity were written before the hybrids' flagged
+    values became central secants: their hybrid records are labelled as the mixture they are."""
+    import h5py
+
+    from antisync.api import summarize
+    from antisync.estimators import MIXED_QUANTITY
+    from antisync.runner import run_config
+
+    cfg = load_config_text(
+        f"graph: {LOLLIPOP}\nedges: ['2->1']\nbetas: []\nrealizations: 200\n"
+        "lambda: {method: hybrid}\ndynamics: {dt: 0.01}\n"
+    )
+    out = run_config(cfg, output=tmp_path / "h.h5")
+    assert summarize(out)["records"][0]["lambda_quantity"] == "derivative"
+    with h5py.File(out, "r+") as f:
+        for g in f["jobs"].values():
+            del g.attrs["lambda_quantity"]
+    assert summarize(out)["records"][0]["lambda_quantity"] == MIXED_QUANTITY

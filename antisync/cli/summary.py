@@ -34,17 +34,19 @@ def summary(
     JSON is one object for run and sweep files alike: {"kind": "run" | "sweep", "file",
     "complete", "records": [...], "config_yaml", and for sweeps "excluded", "top", "screen",
     "symmetry", "thresholds", ...} (see antisync.api.summarize). Every record printed here also
-    carries sign_resolved: +1 antifragile, -1 fragile, 0 unresolved (from its 95% interval
-    lambda_km_ci_low..lambda_km_ci_high), null without Lambda^KM. CSV holds the records only;
+    carries sign_resolved: +1 antifragile, -1 fragile, 0 unresolved (Benjamini-Hochberg at
+    false discovery rate 0.05 over the file's links), and sign_per_link (its own 95% interval
+    lambda_km_ci_low..lambda_km_ci_high alone), null without Lambda^KM. CSV holds the records only;
     the table ends with warnings and, for a sweep, the excluded graphs.
     """
     import json
 
     from antisync.api import summarize
-    from antisync.records import flag_signs, sort_records
+    from antisync.records import flag_signs, sign_rule_note, sort_records
     from antisync.report.tables import format_records, format_sweep
     from antisync.stopping import stop_note
     from antisync.store import is_sweep_file, records, stop_record
+    from antisync.sum_rule import file_sums, sum_rule_note
     from antisync.sweeps import sweep_summary
 
     def listed(recs: list[dict]) -> list[dict]:
@@ -57,7 +59,12 @@ def summary(
         s = sweep_summary(results)
         typer.echo(format_sweep({**s, "records": listed(s["records"])}, format))
     else:
-        typer.echo(format_records(listed(records(results)), format))
-        note = stop_note(stop_record(results)) if format == "table" else None
-        if note:
-            typer.echo(note)
+        recs = listed(records(results))
+        typer.echo(format_records(recs, format))
+        if format == "table":
+            quantities = {r.get("lambda_quantity") for r in recs} - {None}
+            quantity = quantities.pop() if len(quantities) == 1 else None
+            rule = sum_rule_note(file_sums(results), quantity)
+            for note in (sign_rule_note(recs), rule, stop_note(stop_record(results))):
+                if note:
+                    typer.echo(note)

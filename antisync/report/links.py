@@ -26,7 +26,7 @@ import numpy as np
 from antisync.records import absence_reason, primary_measure
 from antisync.report.intervals import draw_intervals, record_intervals
 from antisync.report.measures import LABELS, SIGN_ATOL, missing_note, sign_agreement
-from antisync.summary import JobView, sign_resolved
+from antisync.summary import JobView
 
 __all__ = [
     "LARGE_LINKS",
@@ -68,10 +68,13 @@ def is_large(view: JobView) -> bool:
 
 
 def link_signs(recs: list[dict], key: str) -> np.ndarray:
-    """Sign of each record's ``key``: :func:`~antisync.summary.sign_resolved` for Lambda^KM (its
-    interval), the exact sign for an exact measure (0 within ``SIGN_ATOL``, or missing)."""
+    """Sign of each record's ``key``: for Lambda^KM the call at false discovery rate 0.05 over
+    ``recs``' links (:func:`antisync.multiplicity.fdr_signs`, as ``antisync summary``'s
+    ``sign_resolved``), the exact sign for an exact measure (0 within ``SIGN_ATOL``, or missing)."""
     if key == "lambda_km":
-        return np.array([sign_resolved(r) if r.get(key) is not None else 0 for r in recs], dtype=int)
+        from antisync.multiplicity import fdr_signs
+
+        return np.array([s or 0 for s in fdr_signs(recs)], dtype=int)
     x = np.array([np.nan if r.get(key) is None else r[key] for r in recs], dtype=float)
     return np.where(np.isfinite(x) & (np.abs(x) > SIGN_ATOL), np.sign(np.nan_to_num(x)), 0).astype(int)
 

@@ -302,6 +302,7 @@ def _write_state(g, st: JobState) -> None:
     g.attrs["betas"] = np.array(job.betas, dtype=np.float64)
     g.attrs["dbeta"] = job.dbeta
     g.attrs["lambda_method"] = cfg.lambda_.method
+    g.attrs["lambda_quantity"] = estimators.LAMBDA_QUANTITY[cfg.lambda_.method]
     g.attrs["seed"] = cfg.seed
     g.attrs["dt"] = cfg.dynamics.dt
     g.attrs["threshold"] = cfg.dynamics.threshold
@@ -399,6 +400,7 @@ def state_view(st: JobState) -> JobView:
         lam_rec=st.lam_rec,
         lam_tail=st.lam_tail,
         lambda_method=job.config.lambda_.method,
+        attrs={"lambda_quantity": estimators.LAMBDA_QUANTITY[job.config.lambda_.method]},
         measures=st.measures,
         unsynced_hint=unsynced_hint(job.config),
     )

@@ -27,7 +27,14 @@ from antisync.errors import StoreError
 from antisync.jobs import Job
 from antisync.store import journal as _journal
 from antisync.store.journal import REPLACEMENT_FILE, REPLACES_FILE
-from antisync.store.layout import is_complete, read_states, result_file_problem, stopped_early, write_results
+from antisync.store.layout import (
+    config_changes,
+    is_complete,
+    read_states,
+    result_file_problem,
+    stopped_early,
+    write_results,
+)
 from antisync.store.lock import OutputLock
 from antisync.store.state import JobState
 
@@ -155,7 +162,10 @@ class ResultStore:
         else:
             stored = _journal.stored_key(self.journal)
             if stored is not None and stored != wanted:
-                raise StoreError(f"{self.journal} holds chunks of a different config; remove it or use --out")
+                raise StoreError(
+                    f"{self.journal} holds chunks of a different config ({config_changes(stored, wanted)}); "
+                    "remove it or use --out"
+                )
         for st in states.values():
             for res in _journal.chunks(self.journal, st, _journal.chunk_tag(st.job, config_key)):
                 sl = slice(res.chunk.first_block, res.chunk.first_block + res.chunk.n_blocks)

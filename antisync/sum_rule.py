@@ -1,0 +1,133 @@
+"""The sum rule of a node's out-links: a diagnostic of what a Lambda^KM estimate measures.
+
+With normalized coupling (Eq. 1) damaging every out-link ``a -> b`` of a node ``a`` by the same
+``beta`` leaves ``W`` unchanged (each row of ``W`` is normalized), so the directional
+derivative of ``<F_beta>`` along that direction is 0 and, the derivative being linear in the
+damage direction,
+
+    sum_b  d<F>/dbeta(a -> b)  =  0        for every node a.
+
+An estimator of the derivative (central differences, ``orbit``, the adjoint) obeys it within
+its error (the adjoint per realization, to rounding); the paper's forward secant
+``(<F(dbeta)> - 1)/dbeta`` does not: near saddle passages tau(beta) has logarithmic
+singularities close to beta = 0, and a one-sided secant keeps a bias of its side at any usable
+dbeta (docs/equations.md, "Lambda near saddle passages"). A sum resolved away from 0 therefore
+says that the links' values are not derivatives, whatever their intervals say.
+
+The interval is the batch-means one of the per-block sum of the links' block means (blocks hold
+the same realizations for every link of a job, so the links' correlation is kept), at the
+records' level. Pure: a :class:`antisync.summary.JobView` in, rows out.
+"""
+
+from __future__ import annotations
+
+import math
+from statistics import NormalDist
+
+import numpy as np
+
+__all__ = ["SUM_RULE_LEVEL", "file_sums", "node_sums", "sum_rule_note"]
+
+#: level of the sum rule's interval (the records' level)
+SUM_RULE_LEVEL = 0.95
+
+
+def node_sums(view, coupling: str = "normalized", level: float = SUM_RULE_LEVEL) -> list[dict]:
+    """``sum_b Lambda(a -> b)`` for every node ``a`` whose out-links are all in ``view``.
+
+    Parameters
+    ----------
+    view : antisync.summary.JobView
+        One decoded job with Lambda block records (``lam_rec``).
+    coupling : {"normalized", "raw"}
+        The job's coupling: the rule holds for normalized coupling only, so ``raw`` gives [].
+    level : float
+        Level of each sum's interval.
+
+    Returns
+    -------
+    list of dict
+        ``{"graph", "node", "links", "sum", "low", "high", "resolved"}`` per node with at least
+        two out-links (a node with one has ``W`` fixed by normalization: its link's Lambda is 0
+        by construction), in node order; ``resolved`` is True when the interval excludes 0.
+    """
+    if coupling != "normalized" or view.lam_rec is None or not len(view.edges):
+        return []
+    done = np.asarray(view.done, dtype=bool)
+    rec = np.asarray(view.lam_rec)[done]  # (blocks, E, fields): n, ..., sum, sum2
+    if rec.shape[0] < 2:
+        return []
+    n, total = rec[:, :, 0], rec[:, :, 3]
+    by_node: dict = {}
+    for e, label in enumerate(view.edges):
+        a, _ = str(label).split("->", 1)
+        by_node.setdefault(a, []).append(e)
+    degree = _out_degrees(view)
+    z = NormalDist().inv_cdf((1 + level) / 2)
+    rows = []
+    for a, links in by_node.items():  # a: the node's label, as in the edge labels
+        if len(links) < 2 or (degree is not None and degree.get(a) != len(links)):
+            continue  # not every out-link of the node was measured: the rule says nothing
+        if (n[:, links] == 0).any():
+            continue
+        means = (total[:, links] / n[:, links]).sum(axis=1)  # per block: the sum of link means
+        weights = n[:, links].min(axis=1)
+        value = float(np.average(means, weights=weights))
+        se = float(np.sqrt(np.average((means - value) ** 2, weights=weights) / (len(means) - 1)))
+        low, high = value - z * se, value + z * se
+        rows.append(
+            {
+                "graph": view.graph,
+                "node": a,
+                "links": [str(view.edges[e]) for e in links],
+                "sum": value,
+                "low": low,
+                "high": high,
+                "resolved": bool(low > 0 or high < 0) and math.isfinite(se),
+            }
+        )
+    return rows
+
+
+def file_sums(path) -> list[dict]:
+    """:func:`node_sums` of every job of a result file, with its own coupling."""
+    from antisync.store import read_views
+
+    rows = []
+    for view in read_views(path):
+        coupling = str((view.attrs or {}).get("coupling", "normalized"))
+        rows += node_sums(view, coupling)
+    return rows
+
+
+def _out_degrees(view) -> dict | None:
+    """Out-degree of every node from the job's weights (None when the view has none)."""
+    if view.omega is None or view.nodes is None:
+        return None
+    omega = np.asarray(view.omega)
+    return {str(v): int((omega[i] > 0).sum()) for i, v in enumerate(view.nodes)}
+
+
+def sum_rule_note(rows: list[dict], quantity: str | None = None) -> str | None:
+    """One line for a summary: how many nodes were checked, and the nodes whose sum is resolved
+    away from 0 with what that means (None when no node could be checked)."""
+    if not rows:
+        return None
+    bad = [r for r in rows if r["resolved"]]
+    head = (
+        "sum rule (normalized coupling: a node's out-links sum to 0 for the derivative): "
+        f"{len(rows)} node(s) checked"
+    )
+    if not bad:
+        return head + ", every sum within its 95% interval of 0"
+    shown = "; ".join(
+        f"{r['graph']} node {r['node']}: {r['sum']:+.4g} [{r['low']:+.3g}, {r['high']:+.3g}]" for r in bad[:5]
+    )
+    more = f" and {len(bad) - 5} more" if len(bad) > 5 else ""
+    what = (
+        "expected of the paper's forward secant, which is not the derivative near saddle passages "
+        "(use lambda.method central-difference or adjoint-hybrid for the derivative)"
+        if quantity == "forward-secant"
+        else "these values are not derivatives within their errors: check the estimator and dbeta"
+    )
+    return f"{head}; resolved away from 0 at {shown}{more}: {what}"
