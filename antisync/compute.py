@@ -15,7 +15,15 @@ from antisync.errors import ConfigError
 from antisync.jobs import Chunk, Job
 from antisync.status import NOT_SYNCED, SYNCED
 
-__all__ = ["ChunkResult", "check_backend", "check_job", "compute_chunk", "lambda_values", "simulate_job"]
+__all__ = [
+    "ChunkResult",
+    "check_backend",
+    "check_float32_threshold",
+    "check_job",
+    "compute_chunk",
+    "lambda_values",
+    "simulate_job",
+]
 
 
 @dataclass
@@ -107,9 +115,12 @@ def check_backend(config, backend: str) -> None:
 
 def check_job(job: Job, backend: str) -> None:
     """:func:`check_backend` for ``job``'s config, plus what depends on its graph (the CUDA
-    kernels keep a trajectory's state in fixed-size per-thread arrays of ``MAX_NODES``)."""
+    kernels keep a trajectory's state in fixed-size per-thread arrays of ``MAX_NODES``; a
+    float32 state resolves ``r`` to about ``N`` float32 roundings, :func:`check_float32_threshold`)."""
     check_backend(job.config, backend)
     dyn = job.config.dynamics
+    if dyn.precision == "float32":
+        check_float32_threshold(dyn.threshold, len(job.nodes))
     if backend != "cuda" and dyn.precision == "float32" and job.model is None:
         from antisync.kernels.core import TAYLOR_MAX_ANGLE
         from antisync.kernels.cpu import rotation_angle_bound
@@ -129,6 +140,65 @@ def check_job(job: Job, backend: str) -> None:
                 f"graph {job.name} has {len(job.nodes)} nodes; the cuda backend runs at most "
                 f"{MAX_NODES}: use --backend cpu"
             )
+
+
+#: ``1 - threshold >= FLOAT32_MARGIN * N * eps32`` for a float32 state (:func:`check_float32_threshold`).
+FLOAT32_MARGIN = 100
+
+
+def check_float32_threshold(threshold: float, n_nodes: int) -> None:
+    """Refuse a ``dynamics.threshold`` too close to 1 for a float32 state of ``n_nodes`` nodes.
+
+    A float32 state is ``N`` unit vectors ``(c_j, s_j)`` in float32, renormalized every few
+    dozen steps, and ``R = |sum_j (c_j, s_j)|^2`` is summed in float32 (on the CUDA backend too,
+    whose target ``(threshold N)^2`` is itself a float32), so ``r`` carries an error of about
+    ``N eps32`` (``eps32 = 2**-23``) and ``1 - r`` below that is noise. The bound is
+    ``1 - threshold >= FLOAT32_MARGIN N eps32``: threshold 0.99993 for N = 6, 0.99964 for
+    N = 30, 0.9988 for N = 100, and the paper's 0.99 up to N = 838.
+
+    Measured against float64 (CPU backend, Euler finite-difference lanes, seed 1; lollipop
+    graphs with a path of 3 and a clique of N - 3; ``ratio = (1 - threshold) / (N eps32)``;
+    ``mean``: ``|<tau0_32> / <tau0_64> - 1|``, ``max``: the largest per-realization
+    ``|tau0_32 / tau0_64 - 1|``)::
+
+        N    dt     real.  1-threshold  ratio    mean     max
+        6    0.001  200    1e-2         14000    4.8e-6   4.9e-4
+        6    0.001  200    1e-4         140      2.5e-5   1.5e-3
+        6    0.001  200    1e-5         14       2.3e-3   1.8e-2
+        6    0.001  200    1e-6         1.4      2.7e-2   1.1e-1
+        6    0.001  200    1e-7         0.14     1.2e-1   3.6e-1
+        6    0.01   200    1e-4         140      6.1e-5   1.6e-3
+        6    0.01   200    1e-5         14       7.7e-4   4.7e-3
+        6    0.01   200    1e-6         1.4      1.1e-2   4.5e-2   (the issue's 1%)
+        6    0.01   200    1e-7         0.14     7.8e-2   1.8e-1   (the issue's 7.6%)
+        30   0.01   100    1e-2         2800     7.6e-6   8.8e-4
+        30   0.01   100    1e-3         280      4.8e-6   6.3e-4
+        30   0.01   100    1e-4         28       1.5e-4   2.1e-3
+        30   0.01   100    1e-5         2.8      2.7e-3   2.0e-2
+        30   0.01   100    1e-6         0.28     3.0e-2   1.0e-1
+        100  0.01   50     1e-3         84       4.2e-5   6.0e-4
+        100  0.01   50     1e-4         8.4      2.5e-4   3.8e-3
+        100  0.01   50     1e-5         0.84     2.2e-4   1.3e-2
+        100  0.01   50     1e-6         0.084    2.2e-2   7.6e-1   (2% never synchronized)
+
+    At a fixed ``1 - threshold`` the error grows with N (3x from N = 6 to 30), and at a fixed
+    ratio it is about the same for every N: the ratio is the variable. Above ratio ~100 tau0
+    moves as little as at the paper's 0.99 (per-realization max ~1e-3); below it the error
+    grows about tenfold per decade. ``FLOAT32_MARGIN = 100`` is that edge.
+
+    Raises
+    ------
+    ConfigError
+        Naming the threshold, N and the largest threshold float32 resolves.
+    """
+    eps32 = float(np.finfo(np.float32).eps)
+    floor = FLOAT32_MARGIN * n_nodes * eps32
+    if not 1.0 - threshold >= floor:  # NaN-safe
+        raise ConfigError(
+            f"dynamics.threshold {threshold:.12g} is too close to 1 for dynamics.precision float32 "
+            f"with {n_nodes} nodes: float32 resolves r to ~N x 1.2e-7, so the largest threshold is "
+            f"{1.0 - floor:.8g} (1 - {FLOAT32_MARGIN} N eps32); use precision float64 or a lower threshold"
+        )
 
 
 def simulate_job(
@@ -177,6 +247,7 @@ def simulate_job(
 def _simulate_model(job, first, count, backend, threads, variant_weights, realizations):
     """:func:`simulate_job` for a generalized model (docs/models.md)."""
     from antisync.kernels import model_cpu
+    from antisync.model import drawn_frequencies
 
     if backend == "cuda":
         from antisync.kernels.model_cuda import simulate_model
@@ -189,8 +260,8 @@ def _simulate_model(job, first, count, backend, threads, variant_weights, realiz
     n = len(job.nodes)
     ks = model_cpu._realization_ids(first, count, realizations)
     if job.config.model.drawn:
-        freqs = model_cpu.draw_frequencies(job.config.model.frequencies, job.config.seed, ks, n)
-        freqs -= freqs.mean(axis=1, keepdims=True)  # the rotating frame of docs/models.md
+        # the rotating frame of docs/models.md, the distribution's mean never added
+        freqs = drawn_frequencies(job.config.model, job.config.seed, ks, n)
     elif setup.freqs is not None:
         freqs = setup.freqs[None, :]
     else:

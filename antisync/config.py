@@ -19,6 +19,7 @@ Example
 from __future__ import annotations
 
 import math
+import re
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Any, Literal
@@ -55,7 +56,11 @@ from antisync.validation import (
     fraction,
     integer,
     number,
+    parse_number,
     positive,
+    read_input_bytes,
+    read_input_text,
+    show,
     suggest,
     unknown_keys,
     whole,
@@ -126,9 +131,9 @@ class Dynamics:
         choice("dynamics.precision", self.precision, PRECISIONS)
         if self.integrator == "rk4" and self.crossing == "grid":
             raise ConfigError("dynamics.crossing grid is too coarse for rk4 steps; use interpolated")
-        positive("dynamics.dt", self.dt)
-        positive("dynamics.t_max", self.t_max)
-        fraction("dynamics.threshold", self.threshold)
+        object.__setattr__(self, "dt", positive("dynamics.dt", self.dt))
+        object.__setattr__(self, "t_max", positive("dynamics.t_max", self.t_max))
+        object.__setattr__(self, "threshold", fraction("dynamics.threshold", self.threshold))
         if self.dt > self.t_max:
             raise ConfigError(f"dynamics.dt ({self.dt}) must be smaller than t_max ({self.t_max})")
         steps = self.t_max / self.dt
@@ -170,8 +175,8 @@ class LambdaSpec:
 
     def __post_init__(self):
         choice("lambda.method", self.method, LAMBDA_METHODS)
-        fraction("lambda.dbeta", self.dbeta)
-        positive("lambda.hybrid_cut", self.hybrid_cut)
+        object.__setattr__(self, "dbeta", fraction("lambda.dbeta", self.dbeta))
+        object.__setattr__(self, "hybrid_cut", positive("lambda.hybrid_cut", self.hybrid_cut))
 
 
 @dataclass(frozen=True)
@@ -195,12 +200,18 @@ class Stop:
     def __post_init__(self):
         choice("stop.when", self.when, STOP_RULES)
         if self.first_look != "auto":
-            object.__setattr__(self, "first_look", whole("stop.first_look", self.first_look))
-            integer("stop.first_look", self.first_look, 1, MAX_REALIZATIONS, "'auto' or 1..10**15")
-        if isinstance(self.tolerance, bool) or not isinstance(self.tolerance, int | float):
-            raise ConfigError(f"stop.tolerance must be a number >= 0, got {self.tolerance!r}")
-        if not (math.isfinite(self.tolerance) and self.tolerance >= 0):
-            raise ConfigError(f"stop.tolerance must be a number >= 0, got {self.tolerance!r}")
+            first = integer("stop.first_look", self.first_look, 1, MAX_REALIZATIONS, "'auto' or 1..10**15")
+            object.__setattr__(self, "first_look", first)
+        tolerance = parse_number("stop.tolerance", self.tolerance, "a number >= 0")
+        if not tolerance >= 0:
+            raise ConfigError(f"stop.tolerance must be a number >= 0, got {show(self.tolerance)}")
+        object.__setattr__(self, "tolerance", tolerance)
+        if self.when == "never" and (self.first_look != "auto" or self.tolerance != 0):
+            key = "first_look" if self.first_look != "auto" else "tolerance"
+            raise ConfigError(
+                f"stop.{key} needs stop.when: signs-resolved (without a stopping rule it would be "
+                f"ignored); add stop.when or remove stop.{key}"
+            )
 
     @property
     def active(self) -> bool:
@@ -221,7 +232,8 @@ class LinearSpec:
     method: LinearMethod = "exact"
 
     def __post_init__(self):
-        integer("linear.realizations", self.realizations, 2, MAX_REALIZATIONS, "2..10**15")
+        n = integer("linear.realizations", self.realizations, 2, MAX_REALIZATIONS, "2..10**15")
+        object.__setattr__(self, "realizations", n)
         choice("linear.method", self.method, LINEAR_METHODS)
 
 
@@ -237,11 +249,10 @@ class Histogram:
     def __post_init__(self):
         betas = self.betas if self.betas is not None else ()
         if not isinstance(betas, list | tuple):
-            raise ConfigError(f"histogram.betas must be a list such as [0.5], got {betas!r}")
+            raise ConfigError(f"histogram.betas must be a list such as [0.5], got {show(betas)}")
         object.__setattr__(self, "betas", tuple(beta("histogram.betas", b) for b in betas))
-        if isinstance(self.bins, bool) or not isinstance(self.bins, int) or not 2 <= self.bins <= 4096:
-            raise ConfigError(f"histogram.bins must be an integer in 2..4096, got {self.bins!r}")
-        positive("histogram.tau_max", self.tau_max)
+        object.__setattr__(self, "bins", integer("histogram.bins", self.bins, 2, 4096, "2..4096"))
+        object.__setattr__(self, "tau_max", positive("histogram.tau_max", self.tau_max))
 
 
 @dataclass(frozen=True)
@@ -276,14 +287,17 @@ class Config:
     output: str = ""
 
     def __post_init__(self):
-        integer("realizations", self.realizations, 1, MAX_REALIZATIONS, "1..10**15")
-        integer("seed", self.seed, 0, 2**63 - 1, "0..2**63-1")
+        object.__setattr__(
+            self, "realizations", integer("realizations", self.realizations, 1, MAX_REALIZATIONS, "1..10**15")
+        )
+        object.__setattr__(self, "seed", integer("seed", self.seed, 0, 2**63 - 1, "0..2**63-1"))
         if not isinstance(self.name, str) or not self.name:
             raise ConfigError(f"name must be a non-empty string, got {self.name!r}")
         if not isinstance(self.output, str) or not self.output:
             raise ConfigError(f"output must be a file path such as results/run.h5, got {self.output!r}")
-        for b in self.betas:
-            beta("betas", b)
+        if not isinstance(self.betas, list | tuple):
+            raise ConfigError(f"betas must be a list such as [0.1, 0.5], got {show(self.betas)}")
+        object.__setattr__(self, "betas", tuple(beta("betas", b) for b in self.betas))
         if self.edges != "all":
             if not isinstance(self.edges, list | tuple) or not self.edges:
                 raise ConfigError(
@@ -293,12 +307,12 @@ class Config:
         _check_measures(self.measures, self.dynamics.coupling)
         choice("backend", self.backend, BACKENDS)
         choice("executor", self.executor, EXECUTORS)
-        if self.block_size != "auto":
-            integer("block_size", self.block_size, 1, MAX_REALIZATIONS, "'auto' or 1..10**15")
-        if self.chunk_size != "auto":
-            integer("chunk_size", self.chunk_size, 1, MAX_REALIZATIONS, "'auto' or 1..10**15")
+        for key in ("block_size", "chunk_size"):
+            if getattr(self, key) != "auto":
+                n = integer(key, getattr(self, key), 1, MAX_REALIZATIONS, "'auto' or 1..10**15")
+                object.__setattr__(self, key, n)
         # kept pairs are held in memory: (keep_pairs x variants) int64 arrays
-        integer("keep_pairs", self.keep_pairs, 0, 10**7, "0..10**7")
+        object.__setattr__(self, "keep_pairs", integer("keep_pairs", self.keep_pairs, 0, 10**7, "0..10**7"))
         if self.lambda_.method in ("pathwise", "hybrid") and self.dynamics.integrator != "euler":
             raise ConfigError(
                 f"lambda.method {self.lambda_.method} needs dynamics.integrator euler "
@@ -306,7 +320,7 @@ class Config:
                 "orbit with rk4"
             )
         if self.threads is not None:
-            integer("threads", self.threads, 1, 4096, "null or 1..4096")
+            object.__setattr__(self, "threads", integer("threads", self.threads, 1, 4096, "null or 1..4096"))
         check_graph(self.graph)
         self._check_model()
         self._check_stop()
@@ -472,22 +486,9 @@ def load_config(path: str | Path, overrides: list[str] | None = None, values: di
 
 
 def read_config_text(path: Path) -> str:
-    """The text of a config file, or a one-line :class:`ConfigError` (missing, unreadable,
-    a folder, not UTF-8)."""
-    try:
-        return path.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise ConfigError(f"config file {path} does not exist") from None
-    except IsADirectoryError:
-        raise ConfigError(
-            f"config {path} is a folder; give a YAML file such as configs/lollipop6.yaml"
-        ) from None
-    except UnicodeDecodeError as exc:
-        raise ConfigError(
-            f"config file {path} is not UTF-8 text (byte {exc.start}); save it as UTF-8 YAML"
-        ) from None
-    except OSError as exc:
-        raise ConfigError(f"cannot read config file {path}: {exc.strerror}") from None
+    """The text of a config file, or a one-line :class:`ConfigError` (missing, unreadable, a
+    folder, a FIFO or device, too large, not UTF-8): :func:`antisync.validation.read_input_text`."""
+    return read_input_text(path, "config file")
 
 
 def load_config_text(
@@ -497,11 +498,40 @@ def load_config_text(
     return _from_mapping(parse_mapping(text, overrides, values), source)
 
 
+class _Loader(yaml.SafeLoader):
+    """YAML's safe loader with numbers in the one grammar of
+    :data:`antisync.validation.DECIMAL`: decimal integers and floats, ``1e-3`` included (YAML
+    1.1 reads it as a string), ``.inf``/``.nan``. YAML 1.1's other number forms are strings
+    here, which the number parser refuses with one line instead of reading another value:
+    ``010`` (octal 8 in YAML 1.1), ``0x10``, ``1_000``, ``1:30`` (base 60, i.e. 90)."""
+
+
+_INT_TAG, _FLOAT_TAG = "tag:yaml.org,2002:int", "tag:yaml.org,2002:float"
+_Loader.yaml_implicit_resolvers = {
+    first: [(tag, rx) for tag, rx in resolvers if tag not in (_INT_TAG, _FLOAT_TAG)]
+    for first, resolvers in yaml.SafeLoader.yaml_implicit_resolvers.items()
+}
+_Loader.add_implicit_resolver(_INT_TAG, re.compile(r"^[-+]?(?:0|[1-9][0-9]*)$"), list("-+0123456789"))
+_Loader.add_implicit_resolver(
+    _FLOAT_TAG,
+    re.compile(
+        r"^(?:[-+]?(?:(?:0|[1-9][0-9]*)(?:\.[0-9]*)?|\.[0-9]+)(?:[eE][-+]?[0-9]+)?"
+        r"|[-+]?\.(?:inf|Inf|INF)|\.(?:nan|NaN|NAN))$"
+    ),
+    list("-+0123456789."),
+)
+
+
+def yaml_load(text: str):
+    """``yaml.safe_load`` with :class:`_Loader`'s number forms (every config and ``--set``)."""
+    return yaml.load(text, Loader=_Loader)  # noqa: S506 -- a SafeLoader subclass
+
+
 def parse_mapping(text: str, overrides: list[str] | None = None, values: dict | None = None) -> dict:
     """YAML text -> mapping with ``key=value`` overrides, then ``values``, applied (not yet
     validated)."""
     try:
-        raw = yaml.safe_load(text)
+        raw = yaml_load(text)
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
         where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark else ""
@@ -523,7 +553,7 @@ def _apply_override(raw: dict, item: str) -> None:
     if not sep or not key or any(not p for p in key.split(".")):
         raise ConfigError(f"--set expects key=value (e.g. realizations=50000), got {item!r}")
     try:
-        parsed = yaml.safe_load(value) if value.strip() else None
+        parsed = yaml_load(value) if value.strip() else None
     except yaml.YAMLError:
         raise ConfigError(f"--set {key}: value {value!r} is not valid YAML") from None
     _set_dotted(raw, key, parsed)
@@ -571,6 +601,8 @@ def _from_mapping(raw: dict, source: Path | None) -> Config:
             cls = _SECTIONS[key]
             valid = {f for f in cls.__dataclass_fields__}
             unknown_keys(value, valid, f"{key}.")
+            if key == "stop":
+                _check_stop_keys(value)
             value = {
                 k: number(f"{key}.{k}", v, cls.__dataclass_fields__[k].default) for k, v in value.items()
             }
@@ -611,13 +643,26 @@ def _from_mapping(raw: dict, source: Path | None) -> Config:
 _INTEGER_KEYS = {"realizations", "seed", "keep_pairs"}
 
 
+def _check_stop_keys(stop: dict) -> None:
+    """Refuse ``stop.first_look`` or ``stop.tolerance`` without ``stop.when``: without a rule
+    (``when: never``, the default) they would be silently ignored."""
+    given = sorted(k for k in stop if k != "when")
+    if given and stop.get("when", "never") == "never":
+        raise ConfigError(
+            f"stop.{given[0]} needs stop.when: signs-resolved (without a stopping rule it would be "
+            f"ignored); add stop.when or remove stop.{given[0]}"
+        )
+
+
 def _file_digest(path: str) -> str:
-    """SHA-256 of a file's bytes (``""`` when it cannot be read: reading it later says why)."""
+    """SHA-256 of a file's bytes (``""`` when it cannot be read: reading it later says why;
+    a FIFO or ``/dev/zero`` is refused by :func:`antisync.validation.read_input_bytes`, not
+    waited on or hashed forever)."""
     import hashlib
 
     try:
-        return hashlib.sha256(Path(path).read_bytes()).hexdigest()
-    except OSError:
+        return hashlib.sha256(read_input_bytes(path, "file")).hexdigest()
+    except ConfigError:
         return ""
 
 

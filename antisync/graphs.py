@@ -8,12 +8,14 @@ weight matrix ``Omega`` in the fixed node order of :func:`node_order`.
 from __future__ import annotations
 
 import math
+import re
 from pathlib import Path
 
 import networkx as nx
 import numpy as np
 
-from antisync.errors import AntisyncError
+from antisync.errors import AntisyncError, ConfigError
+from antisync.validation import DECIMAL, number_text, parse_integer, read_input_text, show
 
 __all__ = [
     "GraphError",
@@ -146,27 +148,40 @@ def from_networkx(
 
 
 def from_edgelist(path: str | Path) -> nx.Graph:
-    """Read ``u v [weight]`` lines (``#`` starts a comment). Integer labels stay integers."""
+    """Read ``u v [weight]`` lines (``#`` starts a comment). Integer labels stay integers.
+
+    Columns are separated by spaces or tabs. The file is read by
+    :func:`antisync.validation.read_input_text` (a regular file, UTF-8; a byte-order mark is
+    dropped, UTF-16 with one decoded; NUL or control characters refused). Nothing is read as
+    something other than it says; each of these is refused with one line naming the line:
+
+    - a weight not in the number grammar :data:`antisync.validation.DECIMAL` (``1,5``,
+      ``0x10``, ``1_000``, a unicode minus: Python's ``float`` would read ``1_000``);
+    - a label that is an integer written another way (``01``, ``+1``, ``1_0``, non-ASCII
+      digits: ``int()`` would merge ``01`` with ``1`` into one node) or a non-integer number
+      (``1.0`` would be a node apart from ``1``);
+    - a label holding ``,`` or ``;`` (another file format's separator: ``1, 2`` would be the
+      nodes ``1,`` and ``2``) or ``->`` (edge labels could not name it).
+    """
     path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except UnicodeDecodeError as exc:
-        raise GraphError(f"edge list {path} is not UTF-8 text (byte {exc.start})") from None
-    except OSError as exc:
-        raise GraphError(f"cannot read edge list {path}: {exc.strerror}") from None
+    text = read_input_text(path, "edge list", GraphError)
     rows = []
     for lineno, line in enumerate(text.splitlines(), 1):
         tokens = line.split("#", 1)[0].split()
         if not tokens:
             continue
         if len(tokens) not in (2, 3):
-            raise GraphError(f"{path}:{lineno}: expected 'u v' or 'u v weight', got {line!r}")
+            raise GraphError(f"{path}:{lineno}: expected 'u v' or 'u v weight', got {show(line)}")
+        for label in tokens[:2]:
+            _check_label(label, path, lineno)
         weight = 1.0
         if len(tokens) == 3:
-            try:
-                weight = float(tokens[2])
-            except ValueError:
-                raise GraphError(f"{path}:{lineno}: weight {tokens[2]!r} is not a number") from None
+            weight = number_text(tokens[2])
+            if weight is None:
+                raise GraphError(
+                    f"{path}:{lineno}: weight {show(tokens[2])} is not a number (write decimal "
+                    "digits such as 2, 0.5 or 1e3)"
+                )
             if not (weight > 0 and math.isfinite(weight)):
                 raise GraphError(f"{path}:{lineno}: weight must be positive and finite")
         rows.append((tokens[0], tokens[1], weight, lineno))
@@ -276,16 +291,19 @@ def parse_edge(text: str, g: nx.Graph) -> tuple:
 
 
 def _int_arg(spec: dict, key: str, default: int | None = None, hi: int | None = None) -> int:
-    """An integer graph parameter; 6.9 or true are refused rather than truncated."""
+    """An integer graph parameter (:func:`antisync.validation.parse_integer`: ``6``, ``6.0``,
+    a numpy integer); 6.9 or true are refused rather than truncated."""
     value = spec.get(key, default)
-    if isinstance(value, bool) or not isinstance(value, int):
-        raise GraphError(f"graph.{key} must be an integer, got {value!r}")
-    if hi is not None and value > hi:
+    try:
+        n = parse_integer(f"graph.{key}", value, -(2**63), 2**63 - 1, "-2**63..2**63-1")
+    except ConfigError:
+        raise GraphError(f"graph.{key} must be an integer, got {show(value)}") from None
+    if hi is not None and n > hi:
         raise GraphError(
             f"graph.{key} must be at most {hi:,} (a clique of that size is "
-            f"{hi * (hi - 1) // 2:,} links), got {value:,}"
+            f"{hi * (hi - 1) // 2:,} links), got {n:,}"
         )
-    return value
+    return n
 
 
 def _unit_weights(g: nx.Graph) -> nx.Graph:
@@ -293,12 +311,30 @@ def _unit_weights(g: nx.Graph) -> nx.Graph:
     return g
 
 
+# "-0" is not plain: int() would merge it with "0"
+_PLAIN_INT = re.compile(r"(?:0|-?[1-9][0-9]*)\Z")
+
+
 def _is_int(token: str) -> bool:
+    return bool(_PLAIN_INT.match(token))
+
+
+def _check_label(label: str, path: Path, lineno: int) -> None:
+    """Refuse a node label that would silently name another node (see :func:`from_edgelist`)."""
+    where = f"{path}:{lineno}: node label {show(label)}"
+    if _is_int(label):
+        return
     try:
-        int(token)
+        value = int(label)
     except ValueError:
-        return False
-    return True
+        value = None
+    if value is not None:
+        raise GraphError(f"{where} is the integer {value} written another way; write it as {value}")
+    if DECIMAL.match(label):
+        raise GraphError(f"{where} is a number but not an integer; node labels are integers or names")
+    for sep in (",", ";", "->"):
+        if sep in label:
+            raise GraphError(f"{where} contains {sep!r}; separate columns with spaces or tabs ('u v weight')")
 
 
 def _edge_invariant(g: nx.Graph, e: tuple) -> tuple:

@@ -33,7 +33,7 @@ from typing import Literal, get_args
 import numpy as np
 
 from antisync.errors import ConfigError
-from antisync.validation import choice, fraction, positive
+from antisync.validation import choice, fraction, number_text, parse_number, positive, read_input_text, show
 
 __all__ = [
     "CRITERIA",
@@ -41,6 +41,7 @@ __all__ = [
     "Model",
     "ModelSetup",
     "Sync",
+    "drawn_frequencies",
     "model_setup",
     "node_frequencies",
     "unsynced_hint",
@@ -54,29 +55,44 @@ DISTRIBUTIONS: tuple[Distribution, ...] = get_args(Distribution)
 _FREQ_KEYS = {"normal": {"distribution", "sd", "mean"}, "uniform": {"distribution", "width", "mean"}}
 
 
+#: Largest ``|value|`` of a natural frequency, and of a distribution's ``mean``, ``sd`` or
+#: ``width``: far beyond any frequency a step resolves (``dt |P_i|`` is the rotation per step),
+#: and small enough that every draw (at most ~8.6 sd from the mean), sum and mean of the
+#: frequencies of a graph stays finite in float64 (``sd: 1e308`` overflowed to inf and NaN).
+MAX_FREQUENCY = 1e100
+#: ``antisync.config.MAX_STEPS`` (not imported: config imports this module).
+MAX_STEPS_HINT = 2**40
+
+
+def _frequency(key: str, value, lo: float = -MAX_FREQUENCY) -> float:
+    """One natural frequency (or ``mean``, or with ``lo = 0`` a ``sd``/``width``): a finite
+    number in ``[lo, MAX_FREQUENCY]``."""
+    valid = f"a number in [{lo:g}, {MAX_FREQUENCY:g}]"
+    x = parse_number(key, value, valid)
+    if not lo <= x <= MAX_FREQUENCY:
+        raise ConfigError(f"{key} must be {valid}, got {show(value)}")
+    return x
+
+
 def _check_frequencies(value):
     """``None``, a tuple of floats, ``{"file": path}`` or ``{"distribution": ..., ...}``."""
     if value is None:
         return None
     if isinstance(value, list | tuple):
-        out = []
-        for x in value:
-            if isinstance(x, bool) or not isinstance(x, int | float) or not math.isfinite(x):
-                raise ConfigError(f"model.frequencies must be finite numbers, got {x!r}")
-            out.append(float(x))
+        out = tuple(_frequency("model.frequencies", x) for x in value)
         if not out:
             raise ConfigError("model.frequencies is an empty list; give one value per node or null")
-        return tuple(out)
+        return out
     if isinstance(value, dict):
         if set(value) == {"file"}:
             if not isinstance(value["file"], str) or not value["file"]:
-                raise ConfigError(f"model.frequencies.file must be a path, got {value['file']!r}")
+                raise ConfigError(f"model.frequencies.file must be a path, got {show(value['file'])}")
             return {"file": value["file"]}
         dist = value.get("distribution")
         if "file" in value or dist is None:
             raise ConfigError(
                 "model.frequencies must be a list, {file: PATH} or {distribution: normal, sd: S} "
-                f"/ {{distribution: uniform, width: W}}, got {value!r}"
+                f"/ {{distribution: uniform, width: W}}, got {show(value)}"
             )
         choice("model.frequencies.distribution", dist, DISTRIBUTIONS)
         extra = sorted(set(value) - _FREQ_KEYS[dist])
@@ -88,23 +104,12 @@ def _check_frequencies(value):
         scale_key = "sd" if dist == "normal" else "width"
         if scale_key not in value:
             raise ConfigError(f"model.frequencies with distribution {dist} needs {scale_key}")
-        out = {"distribution": dist}
-        for k in ("mean", scale_key):
-            x = value.get(k, 0.0)
-            if isinstance(x, str):
-                try:
-                    x = float(x)
-                except ValueError:
-                    raise ConfigError(f"model.frequencies.{k} must be a number, got {x!r}") from None
-            if isinstance(x, bool) or not isinstance(x, int | float) or not math.isfinite(x):
-                raise ConfigError(f"model.frequencies.{k} must be a number, got {x!r}")
-            out[k] = float(x)
-        if out[scale_key] < 0:
-            raise ConfigError(f"model.frequencies.{scale_key} must be >= 0, got {out[scale_key]}")
+        out = {"distribution": dist, "mean": _frequency("model.frequencies.mean", value.get("mean", 0.0))}
+        out[scale_key] = _frequency(f"model.frequencies.{scale_key}", value[scale_key], lo=0.0)
         return out
     raise ConfigError(
         "model.frequencies must be null, a list of numbers, {file: PATH} or "
-        f"{{distribution: normal, sd: S}}, got {value!r}"
+        f"{{distribution: normal, sd: S}}, got {show(value)}"
     )
 
 
@@ -135,15 +140,18 @@ class Model:
 
     def __post_init__(self):
         object.__setattr__(self, "frequencies", _check_frequencies(self.frequencies))
-        lag = self.phase_lag
-        if isinstance(lag, bool) or not isinstance(lag, int | float) or not -math.pi / 2 < lag < math.pi / 2:
+        lag_range = "a number in (-pi/2, pi/2) = (-1.5708, 1.5708)"
+        lag = parse_number("model.phase_lag", self.phase_lag, lag_range)
+        if not -math.pi / 2 < lag < math.pi / 2:
+            raise ConfigError(f"model.phase_lag must be {lag_range}, got {show(self.phase_lag)}")
+        m = parse_number("model.inertia", self.inertia, "a number >= 0 (0: first order)")
+        if not m >= 0:
             raise ConfigError(
-                f"model.phase_lag must be a number in (-pi/2, pi/2) = (-1.5708, 1.5708), got {lag!r}"
+                f"model.inertia must be a number >= 0 (0: first order), got {show(self.inertia)}"
             )
-        m = self.inertia
-        if isinstance(m, bool) or not isinstance(m, int | float) or not (m >= 0 and math.isfinite(m)):
-            raise ConfigError(f"model.inertia must be a number >= 0 (0: first order), got {m!r}")
-        positive("model.damping", self.damping)
+        object.__setattr__(self, "phase_lag", lag)
+        object.__setattr__(self, "inertia", m)
+        object.__setattr__(self, "damping", positive("model.damping", self.damping))
 
     @property
     def is_default(self) -> bool:
@@ -184,9 +192,9 @@ class Sync:
     def __post_init__(self):
         choice("sync.criterion", self.criterion, CRITERIA)
         if self.threshold is not None:
-            fraction("sync.threshold", self.threshold)
-        fraction("sync.fraction", self.fraction)
-        positive("sync.tolerance", self.tolerance)
+            object.__setattr__(self, "threshold", fraction("sync.threshold", self.threshold))
+        object.__setattr__(self, "fraction", fraction("sync.fraction", self.fraction))
+        object.__setattr__(self, "tolerance", positive("sync.tolerance", self.tolerance))
 
     @property
     def is_default(self) -> bool:
@@ -195,7 +203,8 @@ class Sync:
 
 def node_frequencies(model: Model, n: int) -> np.ndarray | None:
     """Fixed natural frequencies in node order (``None`` when drawn or absent); the file of
-    ``{"file": path}`` has one number per line (``#`` comments allowed).
+    ``{"file": path}`` has one number per line (``#`` comments allowed), read by
+    :func:`read_frequency_file`.
 
     Raises
     ------
@@ -207,23 +216,79 @@ def node_frequencies(model: Model, n: int) -> np.ndarray | None:
         return None
     if isinstance(spec, dict):
         path = Path(spec["file"])
-        try:
-            values = np.loadtxt(path, comments="#", ndmin=1, dtype=np.float64)
-        except OSError as exc:
-            raise ConfigError(f"model.frequencies.file {path}: {exc.strerror or exc}") from None
-        except ValueError:
-            raise ConfigError(
-                f"model.frequencies.file {path}: not a column of numbers (one value per node)"
-            ) from None
+        values = read_frequency_file(path)
         source = f"model.frequencies.file {path}"
+        if values.size != n:
+            raise ConfigError(
+                f"{source} has {values.size} values; the graph has {n} nodes: give one number per "
+                "line, one line per node in node order"
+            )
     else:
         values = np.array(spec, dtype=np.float64)
-        source = "model.frequencies"
-    if values.ndim != 1 or values.size != n:
-        raise ConfigError(f"{source} has {values.size} values; the graph has {n} nodes (one value per node)")
-    if not np.isfinite(values).all() or not np.isfinite(values.sum()):
-        raise ConfigError(f"{source} contains a value that is not finite (or too large to sum)")
+        if values.size != n:
+            raise ConfigError(
+                f"model.frequencies has {values.size} values; the graph has {n} nodes (one value per node)"
+            )
     return values
+
+
+def read_frequency_file(path: str | Path) -> np.ndarray:
+    """The numbers of a per-node file: one number per line (a single column), ``#`` starts a
+    comment, blank lines are skipped. Read by :func:`antisync.validation.read_input_text`
+    (regular files only, UTF-8). Every number is written in the grammar of
+    :data:`antisync.validation.DECIMAL`: ``1,5``, ``0x10``, ``1_000`` or a unicode minus are
+    refused, never read as another value, and so is a line with two numbers (a second column
+    would otherwise change which value belongs to which node).
+
+    Raises
+    ------
+    ConfigError
+        Naming the file, the line and what was expected there.
+    """
+    path = Path(path)
+    what = "model.frequencies.file"
+    text = read_input_text(path, what)
+    values = []
+    for lineno, line in enumerate(text.splitlines(), 1):
+        tokens = line.split("#", 1)[0].split()
+        if not tokens:
+            continue
+        if len(tokens) != 1:
+            raise ConfigError(
+                f"{what} {path}:{lineno}: expected one number per line (one line per node), got "
+                f"{len(tokens)} values: {show(line.strip())}"
+            )
+        x = number_text(tokens[0])
+        if x is None:
+            raise ConfigError(
+                f"{what} {path}:{lineno}: {show(tokens[0])} is not a number; give one number per line "
+                "(such as -0.25 or 1.5e-3)"
+            )
+        if not abs(x) <= MAX_FREQUENCY:
+            raise ConfigError(
+                f"{what} {path}:{lineno}: {show(tokens[0])} is not a finite number in "
+                f"[-{MAX_FREQUENCY:g}, {MAX_FREQUENCY:g}]"
+            )
+        values.append(x)
+    return np.array(values, dtype=np.float64)
+
+
+def drawn_frequencies(model: Model, seed: int, ks: np.ndarray, n: int) -> np.ndarray:
+    """Natural frequencies of realizations ``ks`` drawn by ``model.frequencies`` (shape
+    ``(len(ks), n)``), in the rotating frame: each realization's mean removed.
+
+    The distribution's ``mean`` is never added: it would be removed again, and adding it first
+    rounds the spread away (``1e6 + 0.1 z`` keeps ~10 of z's 16 digits; ``1e17 + z`` none). A
+    common frequency changes neither ``r(t)`` nor the frequency criterion, which measures
+    deviations from the mean frequency, nor the second-order model, which starts with
+    ``theta_i' = 0`` in the rotating frame (module docstring). So the numbers are those of
+    ``mean: 0`` bit for bit, whatever the mean.
+    """
+    from antisync.kernels.model_cpu import draw_frequencies
+
+    freqs = draw_frequencies({**model.frequencies, "mean": 0.0}, seed, ks, n)
+    freqs -= freqs.mean(axis=1, keepdims=True)
+    return freqs
 
 
 @dataclass(frozen=True)
@@ -346,21 +411,69 @@ def _check_second_order_step(config, indptr, indices, weights) -> None:
     (Euler ``1 + z``, RK4 its 4th-order polynomial); ``|R| > 1`` makes synchrony repel (the
     damping mode ``-gamma/m`` of a small inertia, or weakly damped oscillations under Euler).
     The first-order model's check is :func:`antisync.jobs.check_step`.
+
+    The comparison is NaN-safe: a growth that overflows (``inertia: 1e-110`` puts ``dt
+    lambda`` near 1e107, whose 4th power is inf and the polynomial NaN) is refused, not passed.
+    Eigenvalues of ``L`` within rounding of 0 are 0: the rotation's ``xi = 0`` computed as
+    ``-1e-16`` gave a rate ``+1e-16 / gamma`` and a false "amplifies a mode by 1 per step".
+    The message gives the largest stable ``dt`` (found by bisection on the same test).
     """
     m, gamma = config.model.inertia, config.model.damping
     dyn = config.dynamics
     n = indptr.size - 1
     w = np.zeros((n, n))
     w[np.repeat(np.arange(n), np.diff(indptr)), indices] = weights
-    xi = np.linalg.eigvals(np.diag(w.sum(axis=1)) - w)
-    disc = np.sqrt(gamma * gamma - 4 * m * xi.astype(complex))
-    lam = np.concatenate([(-gamma + disc) / (2 * m), (-gamma - disc) / (2 * m)])
-    z = dyn.dt * lam[np.abs(lam) > 1e-12]
-    growth = 1 + z if dyn.integrator == "euler" else 1 + z + z**2 / 2 + z**3 / 6 + z**4 / 24
-    worst = float(np.max(np.abs(growth))) if z.size else 0.0
-    if worst > 1 + 1e-12:
-        raise ConfigError(
-            f"dynamics.dt = {dyn.dt:g} is unstable for the second-order model (inertia {m:g}, damping "
-            f"{gamma:g}): an explicit {dyn.integrator} step amplifies a mode near synchrony by "
-            f"{worst:.6g} per step; lower dt"
-        )
+    lap = np.diag(w.sum(axis=1)) - w
+    xi = np.linalg.eigvals(lap)
+    # rounding of an eigenvalue solver is ~ n eps ||L||: anything that close to 0 is the zero
+    # of the global rotation (or another exact zero), and its sign means nothing
+    scale = float(np.max(np.abs(lap.diagonal()))) if n else 0.0
+    xi = np.where(np.abs(xi) <= 64 * n * np.finfo(float).eps * scale, 0.0, xi)
+    with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+        disc = np.sqrt(gamma * gamma - 4 * m * xi.astype(complex))
+        lam = np.concatenate([(-gamma + disc) / (2 * m), (-gamma - disc) / (2 * m)])
+    lam = lam[lam != 0]  # the rotation's own mode: neither grows nor decays
+
+    def worst_growth(dt: float) -> float:
+        with np.errstate(over="ignore", invalid="ignore"):
+            z = dt * lam
+            growth = 1 + z if dyn.integrator == "euler" else 1 + z + z**2 / 2 + z**3 / 6 + z**4 / 24
+            g = np.abs(growth)
+        if not lam.size:
+            return 0.0
+        return math.inf if not np.isfinite(g).all() else float(np.max(g))
+
+    def stable(dt: float) -> bool:
+        return worst_growth(dt) <= 1 + 1e-12  # NaN and inf fail
+
+    worst = worst_growth(dyn.dt)
+    if stable(dyn.dt):
+        return
+    lo, hi = 0.0, dyn.dt
+    while lo == 0.0 and hi > 1e-300:  # the largest stable dt: bracket it geometrically ...
+        if stable(hi / 256):
+            lo = hi / 256
+        else:
+            hi /= 256
+    for _ in range(60):  # ... then bisect to 0.1%
+        if lo == 0.0 or hi - lo <= 1e-3 * lo:
+            break
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if stable(mid) else (lo, mid)
+    # the damping mode -gamma/m alone needs dt gamma / m below the step's real stability limit
+    m_min = dyn.dt * gamma / (2.0 if dyn.integrator == "euler" else 2.785)
+    usable = lo > 0.0 and dyn.t_max / lo <= MAX_STEPS_HINT
+    if m < m_min:
+        fix = f"model.inertia must be at least ~{m_min:.3g} at this dt (or 0: the first-order model)"
+        if usable:
+            fix += f", or dynamics.dt below ~{lo:.3g}"
+    elif usable:
+        fix = f"dynamics.dt must be below ~{lo:.3g} with this model.inertia and model.damping"
+    else:
+        fix = "no dynamics.dt of at most 2**40 steps to t_max is stable: change model.inertia/damping"
+    shown = f"{worst:.6g}" if math.isfinite(worst) else "an overflowing factor (inf)"
+    raise ConfigError(
+        f"dynamics.dt = {dyn.dt:g} is unstable for the second-order model (model.inertia {m:g}, "
+        f"model.damping {gamma:g}): an explicit {dyn.integrator} step amplifies a mode near synchrony "
+        f"by {shown} per step; {fix}"
+    )

@@ -15,10 +15,12 @@ def validate(config: ConfigArg, set_: SetOpt = None, debug: DebugOpt = False) ->
 
     if _is_sweep(config):
         from antisync.sweeps import family_graphs, load_sweep
+        from antisync.sweeps.stages import check_sweep
 
         sw = load_sweep(config, list(set_ or []))
         entries = family_graphs(sw)  # builds every graph, selects edges, finds orbits
         preflight(sw.base, [])
+        check_sweep(sw, entries)  # every job's checks, as `antisync sweep` makes them first
         typer.echo(sw.to_yaml().rstrip())
         typer.echo(
             f"# ok: sweep of {len(entries)} graph(s), {sum(len(e.edges) for e in entries)} directed "
@@ -70,8 +72,12 @@ def _is_sweep(path) -> bool:
     """Whether the YAML file has a top-level ``sweep:`` key (errors are left to the loaders)."""
     import yaml
 
+    from antisync.config import read_config_text
+    from antisync.errors import AntisyncError
+
     try:
-        raw = yaml.safe_load(path.read_text())
-    except (OSError, yaml.YAMLError):
+        # the config reader: a FIFO, a device or a huge file is refused, never read
+        raw = yaml.safe_load(read_config_text(path))
+    except (AntisyncError, OSError, yaml.YAMLError):
         return False
     return isinstance(raw, dict) and "sweep" in raw
