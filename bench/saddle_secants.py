@@ -59,7 +59,10 @@ def per_realization(job, first: int, count: int):
     h = job.dbeta
     fwd = np.where(ok, (t0[:, None] / plus - 1.0) / h, np.nan)
     bwd = np.where(ok, (1.0 - t0[:, None] / minus) / h, np.nan)
-    return fwd, bwd, 0.5 * (fwd + bwd)
+    taus = np.stack(
+        [np.where(ok, t0[:, None], np.nan), np.where(ok, plus, np.nan), np.where(ok, minus, np.nan)]
+    )
+    return fwd, bwd, 0.5 * (fwd + bwd), taus
 
 
 def scan(job, realization: int, edge: int, betas: np.ndarray) -> np.ndarray:
@@ -81,6 +84,34 @@ def batch_mean(x: np.ndarray, block: int = 1000):
     nb = x.shape[0] // block
     means = x[: nb * block].reshape(nb, block, -1).mean(axis=1)
     return x.mean(axis=0), means.std(axis=0, ddof=1) / np.sqrt(nb)
+
+
+def lambda_tau(taus: np.ndarray, h: float, labels, block: int = 1000) -> None:
+    """Lambda^tau = -d ln<tau(beta)>/dbeta at 0, a ratio of means on the same starts: forward
+    -(<tau(h)>/<tau0> - 1)/h, backward -(1 - <tau(-h)>/<tau0>)/h and central, per link and
+    summed over the node's links, with batch-means errors of the per-block ratios."""
+    t0, plus, minus = taus  # (M, E) each, NaN where a trajectory did not synchronize
+    keep = ~np.isnan(t0).any(axis=1)
+    t0, plus, minus = t0[keep], plus[keep], minus[keep]
+    nb = t0.shape[0] // block
+
+    def blocks(x):
+        return x[: nb * block].reshape(nb, block, -1).mean(axis=1)
+
+    b0, bp, bm = blocks(t0), blocks(plus), blocks(minus)
+    ests = {
+        "forward": (-(bp / b0 - 1.0) / h, -(plus.mean(0) / t0.mean(0) - 1.0) / h),
+        "backward": (-(1.0 - bm / b0) / h, -(1.0 - minus.mean(0) / t0.mean(0)) / h),
+        "central": (-(bp - bm) / (2 * h * b0), -(plus.mean(0) - minus.mean(0)) / (2 * h * t0.mean(0))),
+    }
+    print(f"{'Lambda^tau':>10} " + " ".join(f"{k:>18}" for k in ests) + f" {'fwd - bwd':>18}")
+    for e, label in enumerate(list(labels) + ["sum"]):
+        cells = []
+        for per_block, total in [*ests.values(), (ests["forward"][0] - ests["backward"][0], None)]:
+            col = per_block.sum(axis=1) if label == "sum" else per_block[:, e]
+            value = col.mean() if total is None else (total.sum() if label == "sum" else total[e])
+            cells.append(f"{value:+.5f} +- {col.std(ddof=1) / np.sqrt(nb):.5f}")
+        print(f"{label:>10} " + " ".join(cells))
 
 
 def main() -> None:
@@ -108,6 +139,7 @@ def main() -> None:
             for f in range(0, args.realizations, args.chunk)
         ]
         fwd, bwd, cen = (np.concatenate([p[i] for p in parts]) for i in range(3))
+        taus = np.concatenate([p[3] for p in parts], axis=1)
         seconds = time.perf_counter() - start
         print(
             f"\n{args.graph}, node {args.node}, dbeta {h}, {args.integrator} dt {args.dt} interpolated, "
@@ -122,6 +154,7 @@ def main() -> None:
         sums = {k: batch_mean(v.sum(axis=1, keepdims=True)) for k, v in rows.items()}
         cells = " ".join(f"{sums[k][0][0]:+.5f} +- {sums[k][1][0]:.5f}" for k in rows)
         print(f"{'sum':>8} {cells}")
+        lambda_tau(taus, h, job.edge_labels)
         if args.scan:
             # the realizations whose forward and backward secants of the first link differ most
             gap = np.nan_to_num(np.abs(fwd[:, 0] - bwd[:, 0]))
