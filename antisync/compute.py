@@ -286,12 +286,17 @@ def _simulate_model(job, first, count, backend, threads, variant_weights, realiz
     )
 
 
-def lambda_values(job: Job, sim, first: int, count: int, threads: int | None = None):
+def lambda_values(
+    job: Job, sim, first: int, count: int, threads: int | None = None, *, with_tau: bool = False
+):
     """Per-realization Lambda^KM estimates for every edge of ``job`` by ``lambda.method``.
 
     Returns ``(values, code, flagged, base)`` with ``values``/``code``/``flagged`` of shape
     ``(count, E)`` (see :func:`antisync.estimators.lambda_block_records`) and ``base`` the
-    undamaged outcome when the pathwise, adjoint or orbit pass produced it (else None).
+    undamaged outcome when the pathwise, adjoint or orbit pass produced it (else None). With
+    ``with_tau``, also ``slope`` and ``tau0`` ``(count, E)``: the same estimator's slope of
+    ``tau(beta)`` at 0 (time per unit beta: the forward secant ``(tau(dbeta) - tau0)/dbeta``,
+    the central one, or the derivative ``d tau0/d beta``) and ``tau0``, for Lambda^tau.
     """
     spec = job.config.lambda_
     dyn = job.config.dynamics
@@ -303,24 +308,32 @@ def lambda_values(job: Job, sim, first: int, count: int, threads: int | None = N
         ok = (sim.status0[:, None] == SYNCED) & (sim.status[:, v] == SYNCED)
         code = np.where(ok, SYNCED, np.maximum(sim.status0[:, None], sim.status[:, v])).astype(np.int8)
         values = np.where(ok, (t0[:, None] / np.where(ok, t, 1.0) - 1.0) / job.dbeta, 0.0)
-        return values, code, np.zeros_like(ok), None
+        out = (values, code, np.zeros_like(ok), None)
+        if with_tau:
+            # the order of the CUDA reducer's operations, so the two give the same bits
+            slope = np.where(ok, (t - t0[:, None]) * dyn.dt / job.dbeta, 0.0)
+            out += (slope, np.broadcast_to((t0 * dyn.dt)[:, None], ok.shape))
+        return out
 
     if spec.method in ("orbit", "central-difference"):
-        return _orbit_values(job, sim, first, count, threads)
+        out = _orbit_values(job, sim, first, count, threads)
+        return out if with_tau else out[:4]
 
     pw = _derivative_pass(job, first, count, threads)
     tau0 = (pw.steps0 - 1 + pw.frac0) * dyn.dt
     ok0 = pw.status0 == SYNCED
     values = np.where(ok0[:, None], -pw.dtau / np.where(ok0, tau0, 1.0)[:, None], 0.0)
+    slope = np.where(ok0[:, None], pw.dtau, 0.0)
     code = np.repeat(pw.status0[:, None], n_edges, axis=1).astype(np.int8)
     flagged = np.zeros((count, n_edges), dtype=bool)
     if spec.method in ("hybrid", "adjoint-hybrid"):
         flagged = ok0[:, None] & (np.abs(values) > spec.hybrid_cut)
-        _secants(job, values, code, flagged, tau0, first, threads)
-    return values, code, flagged, pw
+        _secants(job, values, code, flagged, tau0, first, threads, slope)
+    out = (values, code, flagged, pw)
+    return out + (slope, np.broadcast_to(tau0[:, None], values.shape)) if with_tau else out
 
 
-def _secants(job: Job, values, code, flagged, tau0, first: int, threads: int | None) -> None:
+def _secants(job: Job, values, code, flagged, tau0, first: int, threads: int | None, slope=None) -> None:
     """Replace the flagged values by central secants ``tau0 (1/tau(+dbeta) - 1/tau(-dbeta)) /
     (2 dbeta)`` of interpolated times, in place (``hybrid``, ``adjoint-hybrid``).
 
@@ -350,6 +363,8 @@ def _secants(job: Job, values, code, flagged, tau0, first: int, threads: int | N
     r, e = np.broadcast_arrays(rows[:, None], links[None, :])
     t0 = tau0[r[good]]
     values[r[good], e[good]] = t0 * (1.0 / plus[good] - 1.0 / minus[good]) / (2.0 * job.dbeta)
+    if slope is not None:  # Lambda^tau's slope of tau, by the same central secant
+        slope[r[good], e[good]] = (plus[good] - minus[good]) / (2.0 * job.dbeta)
     code[r[bad], e[bad]] = np.where(s_plus[bad] != SYNCED, s_plus[bad], s_minus[bad])
 
 
@@ -409,7 +424,9 @@ def _orbit_values(job: Job, sim, first: int, count: int, threads: int | None):
     inv = np.where(ok, 1.0 / np.where(ok, plus, 1.0) - 1.0 / np.where(ok, minus, 1.0), 0.0)
     values = t0[:, None] * inv / (2.0 * job.dbeta * job.orbit_sizes[None, :])
     values = np.where(ok, values, 0.0)
-    return values, code.astype(np.int8), np.zeros_like(ok), osim
+    slope = np.where(ok, (plus - minus) * dyn.dt / (2.0 * job.dbeta * job.orbit_sizes[None, :]), 0.0)
+    tau0 = np.broadcast_to((t0 * dyn.dt)[:, None], ok.shape)
+    return values, code.astype(np.int8), np.zeros_like(ok), osim, slope, tau0
 
 
 def _sync_flips(job: Job, sim) -> np.ndarray:
@@ -485,7 +502,7 @@ def compute_chunk(job: Job, chunk: Chunk, backend: str = "cpu", threads: int | N
         sim = None  # Lambda only: the Lambda pass integrates the undamaged network itself
     else:
         sim = simulate_job(job, first, count, backend, threads)
-    values, code, flagged, base = lambda_values(job, sim, first, count, threads)
+    values, code, flagged, base, slope, tau0 = lambda_values(job, sim, first, count, threads, with_tau=True)
     if sim is None:
         from antisync.kernels.cpu import SimResult
 
@@ -498,7 +515,9 @@ def compute_chunk(job: Job, chunk: Chunk, backend: str = "cpu", threads: int | N
     dt = dyn.dt
     rec, rec0, tail = estimators.block_records(sim, dt, job.block_size, interpolate)
     flip = _sync_flips(job, sim) if not derivative else None
-    lam_rec, lam_tail = estimators.lambda_block_records(values, code, flagged, job.block_size, flip)
+    lam_rec, lam_tail = estimators.lambda_block_records(
+        values, code, flagged, job.block_size, flip, slope, tau0
+    )
     hcfg = job.config.histogram
     hist = estimators.histogram2d(sim, job.hist_variants, dt, hcfg.bins, hcfg.tau_max, interpolate)
     keep = max(0, min(job.config.keep_pairs - first, count))

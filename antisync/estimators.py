@@ -48,6 +48,7 @@ __all__ = [
     "lambda_ci",
     "summarize_variant",
     "summarize_lambda",
+    "summarize_lambda_tau",
     "summarize_tau0",
     "sync_response",
     "tail_share",
@@ -60,7 +61,21 @@ TAU0_FIELDS = ("n", "n_already", "n_not_synced", "sum_tau", "sum_tau2")
 # per (block, edge) record of the per-realization Lambda values of any estimator; n_lost and
 # n_gained count (finite difference only) the realizations whose undamaged network synchronized
 # and damaged one did not, and the reverse: the synchronized fraction's response (format 3)
-LAMBDA_FIELDS = ("n", "n_already", "n_not_synced", "sum", "sum2", "n_flagged", "n_lost", "n_gained")
+# sum_slope_tau and sum_tau0 (format 4) sum, over the same realizations as ``sum``, the
+# estimator's slope of tau(beta) at 0 and tau0: the additive response Lambda^tau
+# = -sum_slope_tau / sum_tau0 (:func:`summarize_lambda_tau`)
+LAMBDA_FIELDS = (
+    "n",
+    "n_already",
+    "n_not_synced",
+    "sum",
+    "sum2",
+    "n_flagged",
+    "n_lost",
+    "n_gained",
+    "sum_slope_tau",
+    "sum_tau0",
+)
 # log-spaced bins of |F - 1| for the tail diagnostic: 8 per decade from 1e-9 to 1e3
 TAIL_EDGES = np.logspace(-9, 3, 97)
 TAIL_BINS = TAIL_EDGES.size + 1  # plus underflow (|d| < 1e-9, including 0) and overflow
@@ -144,7 +159,7 @@ def block_records(sim, dt: float, block: int, interpolate: bool = False):
 
 
 @njit(cache=True)
-def _reduce_lambda(values, code, flagged, flip, block, edges, rec, tail):
+def _reduce_lambda(values, code, flagged, flip, slope, tau0, block, edges, rec, tail):
     m, n_edges = values.shape
     for bl in range(rec.shape[0]):
         for r in range(bl * block, min(bl * block + block, m)):
@@ -159,6 +174,8 @@ def _reduce_lambda(values, code, flagged, flip, block, edges, rec, tail):
                     rec[bl, e, 3] += x
                     rec[bl, e, 4] += x * x
                     rec[bl, e, 5] += flagged[r, e]
+                    rec[bl, e, 8] += slope[r, e]
+                    rec[bl, e, 9] += tau0[r, e]
                     b = np.searchsorted(edges, abs(x), side="right")
                     tail[e, b + (edges.size + 1 if x < 0 else 0)] += 1
                 elif code[r, e] == ALREADY_SYNCED:
@@ -168,7 +185,13 @@ def _reduce_lambda(values, code, flagged, flip, block, edges, rec, tail):
 
 
 def lambda_block_records(
-    values: np.ndarray, code: np.ndarray, flagged: np.ndarray, block: int, flip: np.ndarray | None = None
+    values: np.ndarray,
+    code: np.ndarray,
+    flagged: np.ndarray,
+    block: int,
+    flip: np.ndarray | None = None,
+    slope: np.ndarray | None = None,
+    tau0: np.ndarray | None = None,
 ):
     """Block records of per-realization Lambda values (any estimator).
 
@@ -184,6 +207,10 @@ def lambda_block_records(
     flip : int8 array (m, E), optional
         ``-1`` where the undamaged network synchronized and the damaged one did not, ``+1``
         for the reverse, else 0 (counted as ``n_lost`` and ``n_gained``; finite difference).
+    slope, tau0 : float arrays (m, E), optional
+        The estimator's per-realization slope of ``tau(beta)`` at 0 (in time units per unit
+        beta) and ``tau0``, summed where ``code`` is SYNCED (``sum_slope_tau``, ``sum_tau0``:
+        Lambda^tau); without them those fields are NaN.
 
     Returns
     -------
@@ -196,7 +223,12 @@ def lambda_block_records(
     rec = np.zeros((-(-m // block), n_edges, len(LAMBDA_FIELDS)))
     tail = np.zeros((n_edges, LAMBDA_TAIL_BINS), dtype=np.int64)
     flip = np.zeros(values.shape, np.int8) if flip is None else flip
-    _reduce_lambda(values, code, flagged.astype(np.int64), flip, block, TAIL_EDGES, rec, tail)
+    missing = slope is None or tau0 is None
+    zeros = np.zeros(values.shape)
+    slope, tau0 = (zeros, zeros) if missing else (slope, tau0)
+    _reduce_lambda(values, code, flagged.astype(np.int64), flip, slope, tau0, block, TAIL_EDGES, rec, tail)
+    if missing:
+        rec[:, :, 8:10] = np.nan
     return rec, tail
 
 
@@ -210,6 +242,32 @@ def summarize_lambda(rec_e: np.ndarray) -> dict:
         "n_not_synced": int(rec_e[:, 2].sum()),
         "n_flagged": int(rec_e[:, 5].sum()),
     }
+
+
+def summarize_lambda_tau(rec_e: np.ndarray) -> Estimate | None:
+    """The additive response ``Lambda^tau = -d ln<tau(beta)>/dbeta`` at 0 of one edge, from its
+    Lambda block records: the ratio of means ``-sum_slope_tau / sum_tau0`` over the realizations
+    that give a Lambda value, with a batch-means standard error (the ratio linearized over
+    batches: ``u_b = -(slope_b + R tau0_b)``, ``var R = sum u_b^2 / (sum tau0)^2 * k / (k - 1)``).
+
+    None where the records predate the fields (format 1-3 files and blocks, NaN) or hold no
+    value.
+    """
+    if rec_e.shape[-1] <= 9:
+        return None
+    b = _coarsen(rec_e)
+    n, s, t = b[:, 0], b[:, 8], b[:, 9]
+    total_t = float(np.sum(t))
+    if not (np.isfinite(s).all() and np.isfinite(t).all()) or total_t <= 0:
+        return None
+    ratio = -float(np.sum(s)) / total_t
+    used = n > 0
+    k = int(used.sum())
+    if k < 2:
+        return Estimate(ratio, math.nan, math.nan, math.nan, int(n.sum()), k)
+    u = -(s[used] + ratio * t[used])
+    se = math.sqrt(float(np.sum(u * u)) * k / (k - 1)) / total_t
+    return Estimate(ratio, se, math.nan, se, int(n.sum()), k)
 
 
 def sync_response(rec_e: np.ndarray, dbeta: float, level: float = 0.95) -> dict | None:

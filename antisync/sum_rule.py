@@ -47,7 +47,8 @@ def node_sums(view, coupling: str = "normalized", level: float = SUM_RULE_LEVEL)
     Returns
     -------
     list of dict
-        ``{"graph", "node", "links", "sum", "low", "high", "resolved"}`` per node with at least
+        ``{"graph", "node", "links", "sum", "low", "high", "resolved"}`` and the same for
+        Lambda^tau (``tau_sum``, ``tau_low``, ``tau_high``, ``tau_resolved``) per node with at least
         two out-links (a node with one has ``W`` fixed by normalization: its link's Lambda is 0
         by construction), in node order; ``resolved`` is True when the interval excludes 0.
     """
@@ -75,18 +76,35 @@ def node_sums(view, coupling: str = "normalized", level: float = SUM_RULE_LEVEL)
         value = float(np.average(means, weights=weights))
         se = float(np.sqrt(np.average((means - value) ** 2, weights=weights) / (len(means) - 1)))
         low, high = value - z * se, value + z * se
-        rows.append(
-            {
-                "graph": view.graph,
-                "node": a,
-                "links": [str(view.edges[e]) for e in links],
-                "sum": value,
-                "low": low,
-                "high": high,
-                "resolved": bool(low > 0 or high < 0) and math.isfinite(se),
-            }
-        )
+        row = {
+            "graph": view.graph,
+            "node": a,
+            "links": [str(view.edges[e]) for e in links],
+            "sum": value,
+            "low": low,
+            "high": high,
+            "resolved": bool(low > 0 or high < 0) and math.isfinite(se),
+        }
+        row.update(_tau_sum(rec[:, links], z))
+        rows.append(row)
     return rows
+
+
+def _tau_sum(rec: np.ndarray, z: float) -> dict:
+    """The same rule for Lambda^tau (``tau_sum``, ``tau_low``, ``tau_high``, ``tau_resolved``):
+    per block the sum of the links' ratios ``-sum_slope_tau / sum_tau0``, with batch means;
+    None where the records predate its fields."""
+    none = {"tau_sum": None, "tau_low": None, "tau_high": None, "tau_resolved": None}
+    if rec.shape[-1] <= 9:
+        return none
+    slope, tau0 = rec[:, :, 8], rec[:, :, 9]
+    if not (np.isfinite(slope).all() and np.isfinite(tau0).all()) or (tau0 <= 0).any():
+        return none
+    value = float((-slope.sum(axis=0) / tau0.sum(axis=0)).sum())
+    per_block = (-slope / tau0).sum(axis=1)
+    se = float(per_block.std(ddof=1) / math.sqrt(len(per_block)))
+    low, high = value - z * se, value + z * se
+    return {"tau_sum": value, "tau_low": low, "tau_high": high, "tau_resolved": bool(low > 0 or high < 0)}
 
 
 def file_sums(path) -> list[dict]:
@@ -118,8 +136,13 @@ def sum_rule_note(rows: list[dict], quantity: str | None = None) -> str | None:
         "sum rule (normalized coupling: a node's out-links sum to 0 for the derivative): "
         f"{len(rows)} node(s) checked"
     )
+    taus = [r for r in rows if r.get("tau_sum") is not None]
+    tau_part = ""
+    if taus:
+        off = sum(1 for r in taus if r["tau_resolved"])
+        tau_part = f"; Lambda^tau: {len(taus) - off} of {len(taus)} sums within their interval of 0"
     if not bad:
-        return head + ", every sum within its 95% interval of 0"
+        return head + ", every sum within its 95% interval of 0" + tau_part
     shown = "; ".join(
         f"{r['graph']} node {r['node']}: {r['sum']:+.4g} [{r['low']:+.3g}, {r['high']:+.3g}]" for r in bad[:5]
     )
@@ -130,4 +153,4 @@ def sum_rule_note(rows: list[dict], quantity: str | None = None) -> str | None:
         if quantity == "forward-secant"
         else "these values are not derivatives within their errors: check the estimator and dbeta"
     )
-    return f"{head}; resolved away from 0 at {shown}{more}: {what}"
+    return f"{head}; resolved away from 0 at {shown}{more}: {what}{tau_part}"

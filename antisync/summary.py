@@ -212,8 +212,30 @@ def _lambda(view: JobView, e: int, pooled: tuple[np.ndarray, int]) -> tuple[dict
         "lambda_n": s["n"],
         "lambda_n_flagged": s["n_flagged"],
     }
+    fields.update(_lambda_tau(rec))
     fields.update(_sync_response(view, rec))
     return fields, s
+
+
+def _lambda_tau(rec: np.ndarray) -> dict:
+    """The additive response ``Lambda^tau = -d ln<tau(beta)>/dbeta`` at 0 of one edge
+    (:func:`estimators.summarize_lambda_tau`), with a normal interval from its batch-means
+    error at the records' level; None where the file predates it (format 1-3)."""
+    est = estimators.summarize_lambda_tau(rec)
+    if est is None or math.isnan(est.mean):
+        return {
+            "lambda_tau": None,
+            "lambda_tau_se": None,
+            "lambda_tau_ci_low": None,
+            "lambda_tau_ci_high": None,
+        }
+    z = NormalDist().inv_cdf((1 + CI_LEVEL) / 2)
+    return {
+        "lambda_tau": float(est.mean),
+        "lambda_tau_se": _num(est.se),
+        "lambda_tau_ci_low": _num(est.mean - z * est.se),
+        "lambda_tau_ci_high": _num(est.mean + z * est.se),
+    }
 
 
 def _sync_response(view: JobView, rec: np.ndarray) -> dict:

@@ -126,8 +126,10 @@ def check_reductions(flips: bool = False) -> None:
     hv = job.hist_variants
     assert hv.size == 12, hv
     hist = estimators.histogram2d(ref, hv, kw["dt"], 16, 3.0)
-    values, code, flagged, _ = lambda_values(job, ref, first, count)
-    lam_rec, lam_tail = estimators.lambda_block_records(values, code, flagged, block, _sync_flips(job, ref))
+    values, code, flagged, _, slope, tau0 = lambda_values(job, ref, first, count, with_tau=True)
+    lam_rec, lam_tail = estimators.lambda_block_records(
+        values, code, flagged, block, _sync_flips(job, ref), slope, tau0
+    )
     if flips:
         assert lam_rec[..., 6].sum() == 16 and lam_rec[..., 7].sum() == 2, lam_rec[..., 6:].sum(axis=(0, 1))
     got = gpu.simulate_reduced(

@@ -16,3 +16,13 @@ def comparable(summary: dict) -> dict:
     out["screen"] = [{k: v for k, v in s.items() if k != "seconds"} for s in summary["screen"]]
     out["jobs"] = summary["meta"]["jobs"]
     return json.loads(json.dumps(out))
+
+
+def assert_one_line(res, message: str = "") -> None:
+    """A failed CLI command (typer's CliRunner result) printed one ``antisync: error:`` line
+    containing ``message``, exit 2, no traceback."""
+    assert res.exit_code == 2, (res.exit_code, res.output)
+    assert "Traceback" not in res.output, res.output
+    lines = res.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("antisync: error: "), res.stderr
+    assert message in lines[0], (message, lines[0])

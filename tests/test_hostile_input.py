@@ -15,6 +15,7 @@ import h5py
 import numpy as np
 import pytest
 import yaml
+from helpers import assert_one_line
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from typer.testing import CliRunner
@@ -41,14 +42,6 @@ def snapshot(folder: Path) -> dict:
         str(p.relative_to(folder)): (p.stat().st_size, p.stat().st_mtime_ns) if p.is_file() else None
         for p in sorted(folder.rglob("*"))
     }
-
-
-def assert_one_line(res, message: str = "") -> None:
-    assert res.exit_code == 2, (res.exit_code, res.output)
-    assert "Traceback" not in res.output, res.output
-    lines = res.stderr.strip().splitlines()
-    assert len(lines) == 1 and lines[0].startswith("antisync: error: "), res.stderr
-    assert message in lines[0], (message, lines[0])
 
 
 # ---- configs ----------------------------------------------------------------------------

@@ -16,6 +16,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from helpers import assert_one_line
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from typer.testing import CliRunner
@@ -43,14 +44,6 @@ def snapshot(folder: Path) -> dict:
         for p in sorted(folder.rglob("*"))
         if not p.is_fifo()
     }
-
-
-def assert_one_line(res, message: str = "") -> None:
-    assert res.exit_code == 2, (res.exit_code, res.output)
-    assert "Traceback" not in res.output, res.output
-    lines = res.stderr.strip().splitlines()
-    assert len(lines) == 1 and lines[0].startswith("antisync: error: "), res.stderr
-    assert message in lines[0], (message, lines[0])
 
 
 def refused_everywhere(folder: Path, cfg: Path, overrides=(), message: str = "") -> None:

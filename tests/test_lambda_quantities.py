@@ -126,7 +126,12 @@ def test_the_complete_graph_derivative_is_zero():
 
 
 # ---- what the summary says ---------------------------------------------------------------
-def _run(tmp_path, method: str, extra: str = ""):
+def _run(
+    tmp_path,
+    method: str,
+    extra: str = "",
+    dynamics: str = "{integrator: rk4, dt: 0.04, crossing: interpolated}",
+):
     from antisync.runner import run_config
 
     cfg = load_config_text(f"""
@@ -136,7 +141,7 @@ betas: []
 realizations: 2000
 seed: 3
 lambda: {{method: {method}}}
-dynamics: {{integrator: rk4, dt: 0.04, crossing: interpolated}}
+dynamics: {dynamics}
 {extra}""")
     return run_config(cfg, output=tmp_path / f"{method}.h5")
 
@@ -198,3 +203,75 @@ def test_a_hybrid_file_from_before_central_secants_says_so(tmp_path):
         for g in f["jobs"].values():
             del g.attrs["lambda_quantity"]
     assert summarize(out)["records"][0]["lambda_quantity"] == MIXED_QUANTITY
+
+
+# ---- the additive response Lambda^tau = -d ln<tau(beta)>/dbeta ----------------------------
+def test_lambda_tau_is_the_ratio_of_the_paired_means(tmp_path):
+    """The record's Lambda^tau is -(<tau(dbeta)> - <tau0>)/(dbeta <tau0>) over the realizations
+    that give a Lambda value, computed from the kept per-realization times."""
+    import h5py
+
+    from antisync.api import summarize
+
+    # grid crossings: the kept pairs hold the steps (an interpolated run's fractions are not kept)
+    out = _run(
+        tmp_path, "finite-difference", "keep_pairs: 2000", "{integrator: euler, dt: 0.01, crossing: grid}"
+    )
+    recs = {r["edge"]: r for r in summarize(out)["records"]}
+    with h5py.File(out, "r") as f:
+        (g,) = f["jobs"].values()
+        edges = __import__("json").loads(g.attrs["edges"])
+        steps0, steps = g["kept/steps0"][...], g["kept/steps"][...]
+        status0, status = g["kept/status0"][...], g["kept/status"][...]
+        variant_edge, variant_beta = g["variant_edge"][...], g["variant_beta"][...]
+    dt = 0.01
+    t0 = steps0 * dt
+    for e, label in enumerate(edges):
+        v = int(np.flatnonzero((variant_edge == e) & np.isclose(variant_beta, 0.01))[0])
+        t = steps[:, v] * dt
+        ok = (status0 == SYNCED) & (status[:, v] == SYNCED)
+        direct = -np.sum((t[ok] - t0[ok]) / 0.01) / np.sum(t0[ok])
+        assert recs[label]["lambda_tau"] == pytest.approx(direct, rel=1e-9, abs=1e-12), label
+
+
+def test_lambda_tau_obeys_the_sum_rule_with_forward_secants(tmp_path):
+    """Unlike <F>'s forward secant, Lambda^tau's forward secant keeps node 2's sum within its
+    interval (measured +0.0023 +- 0.0031 at 400,000 realizations, bench/RESULTS.md)."""
+    from antisync.api import summarize
+    from antisync.runner import run_config
+
+    cfg = load_config_text(f"""
+graph: {LOLLIPOP}
+edges: ["2->1", "2->3"]
+betas: []
+realizations: 100000
+seed: 11
+dynamics: {{integrator: rk4, dt: 0.04, crossing: interpolated}}
+""")
+    s = summarize(run_config(cfg, output=tmp_path / "t.h5"))
+    (row,) = [r for r in s["sum_rule"] if r["node"] == "2"]
+    assert row["tau_low"] < 0 < row["tau_high"], row
+    assert row["tau_high"] - row["tau_low"] < 0.05
+
+
+def test_a_format_3_file_reads_and_resumes_without_lambda_tau(tmp_path):
+    """A file from before Lambda^tau (8 Lambda fields) is summarized with lambda_tau None and
+    resumed: the new blocks cannot make up for the old ones, so it stays None."""
+    import h5py
+
+    from antisync.api import summarize
+    from antisync.runner import run_config
+
+    text = f"graph: {LOLLIPOP}\nedges: ['2->1']\nbetas: []\nrealizations: 400\nblock_size: 100\n"
+    text += "dynamics: {integrator: rk4, dt: 0.04}\n"
+    out = run_config(load_config_text(text, ["realizations=200"]), output=tmp_path / "old.h5")
+    with h5py.File(out, "r+") as f:
+        f.attrs["format_version"] = 3
+        (g,) = f["jobs"].values()
+        old = g["lambda_records"][...][..., :8]
+        del g["lambda_records"]
+        g["lambda_records"] = old
+    assert summarize(out)["records"][0]["lambda_tau"] is None
+    # the same config with more realizations is another run; the same one resumes
+    res = run_config(load_config_text(text, ["realizations=200"]), output=out, resume=True)
+    assert summarize(res)["records"][0]["lambda_km"] is not None

@@ -245,7 +245,7 @@ def _reducers():
                 rec[bl, v, 6] = s4
 
     @cuda.jit
-    def lambda_kernel(status0, steps0, status, steps, lam_v, dbeta, block, edges, rec, tail):
+    def lambda_kernel(status0, steps0, status, steps, lam_v, dbeta, dt, block, edges, rec, tail):
         # one thread per (block, edge): the finite difference (tau0/tau(dbeta) - 1)/dbeta of
         # variant lam_v[e], summed in realization order as estimators._reduce_lambda does
         m = status0.shape[0]
@@ -262,6 +262,8 @@ def _reducers():
             n_gained = 0.0
             s1 = 0.0
             s2 = 0.0
+            s_slope = 0.0
+            s_tau0 = 0.0
             for r in range(bl * block, min(bl * block + block, m)):
                 st0 = status0[r]
                 st = status[r, v]
@@ -274,6 +276,9 @@ def _reducers():
                     n_ok += 1
                     s1 += x
                     s2 += mul(x, x)
+                    # Lambda^tau's sums: the forward secant of tau and tau0, as compute does
+                    s_slope += mul(steps[r, v] - steps0[r], dt) / dbeta
+                    s_tau0 += mul(steps0[r], dt)
                     # the signed histogram of estimators._reduce_lambda
                     b = tail_bin(edges, abs(x)) + (edges.shape[0] + 1 if x < 0 else 0)
                     cuda.atomic.add(tail, (e, b), 1)
@@ -289,6 +294,8 @@ def _reducers():
             rec[bl, e, 5] = 0.0  # n_flagged: the finite difference flags nothing
             rec[bl, e, 6] = n_lost
             rec[bl, e, 7] = n_gained
+            rec[bl, e, 8] = s_slope
+            rec[bl, e, 9] = s_tau0
 
     @cuda.jit
     def hist_kernel(status0, steps0, status, steps, variants, scale, hist):
@@ -641,6 +648,7 @@ def simulate_reduced(
                 steps,
                 lam_v_d,
                 float(dbeta),
+                float(dt),
                 np.int64(block),
                 edges,
                 lam_d,

@@ -38,7 +38,7 @@ _KM_KEYS = {
     "n_excluded",
     "n_not_synced",
 }
-# shown only when some record has them (measures: linear, xi2, rw, km_nnc)
+# shown only when some record has them (measures: linear, xi2, rw, km_nnc; Lambda^tau, format 4)
 _MEASURE_COLUMNS = [
     ("lambda_linear", "Lambda_lin", "{:+.4f}"),
     ("lambda_linear_se", "se", "{:.4f}"),
@@ -46,6 +46,8 @@ _MEASURE_COLUMNS = [
     ("lambda_rw", "Lambda_RW", "{:+.4f}"),
     ("lambda_km_nnc", "Lambda_NNC", "{:+.4f}"),
     ("lambda_km_nnc_se", "se", "{:.4f}"),
+    ("lambda_tau", "Lambda_tau", "{:+.4f}"),
+    ("lambda_tau_se", "se", "{:.4f}"),
 ]
 
 

@@ -16,11 +16,13 @@ Layout (one file per run or sweep)::
                                              sum tau, sum tau^2  (d = F - 1)
         tau0_records       (n_blocks, 5)     n, n_already, n_not_synced, sum tau0, sum tau0^2
         tail_counts        (V, bins) int64   log histogram of |F - 1|
-        lambda_records     (n_blocks, E, 8)  n, n_already, n_not_synced, sum L, sum L^2, n_flagged
-                                             of the per-realization Lambda estimates (attr
-                                             lambda_method says which estimator), n_lost,
-                                             n_gained (tau0 synchronized and tau(dbeta) not,
-                                             and the reverse; finite difference; format 3)
+        lambda_records     (n_blocks, E, 10) n, n_already, n_not_synced, sum L, sum L^2, n_flagged
+                                             of the per-realization Lambda estimates (attrs
+                                             lambda_method and lambda_quantity say which
+                                             estimator and quantity), n_lost, n_gained (tau0
+                                             synchronized and tau(dbeta) not, and the reverse;
+                                             finite difference; format 3), sum_slope_tau,
+                                             sum_tau0 (Lambda^tau; format 4)
         lambda_tail_counts (E, 2 bins) int64 signed log histogram of Lambda per realization
         hist               (H, bins, bins) int64, [v, i_tau0, i_tau_beta] on [0, tau_max)
         kept/status0, kept/steps0, kept/status, kept/steps, kept/lambda: the first keep_pairs
@@ -86,9 +88,13 @@ FORMAT = "antisync-results"
 # read, and their Lambda intervals fall back to batch means (summary.py says so in the record)
 # format 3: lambda_records gain n_lost and n_gained (the synchronized fraction's response); in
 # older files they read as NaN (not counted, never 0)
-FORMAT_VERSION = 3
-# lambda_records' fields before format 3
+# format 4: lambda_records gain sum_slope_tau and sum_tau0 (the additive response Lambda^tau)
+# and job groups the attribute lambda_quantity; in older files they read as NaN (a format-3
+# file is resumed with NaN there: its Lambda^tau stays undefined)
+FORMAT_VERSION = 4
+# lambda_records' fields before format 3 and before format 4
 _LAMBDA_FIELDS_V2 = 6
+_LAMBDA_FIELDS_V3 = 8
 SWEEP_FORMAT = "antisync-sweep"
 SWEEP_FORMAT_VERSION = 2
 
@@ -362,6 +368,8 @@ def _read_state(path: Path, g, st: JobState) -> None:
                 "realizations that lose or gain synchronization): summary and report read it, "
                 "but it cannot be resumed; use --out for a new file"
             )
+        if name == "lambda_records" and data.shape == target.shape[:-1] + (_LAMBDA_FIELDS_V3,):
+            data = _lambda_records(data)  # format 3: Lambda^tau's sums unknown (NaN)
         if data.shape != target.shape:
             raise StoreError(
                 f"{path}: {g.name}/{name} has shape {data.shape} but the config needs "
@@ -579,9 +587,10 @@ class _GroupReader:
 
 def _lambda_records(rec: np.ndarray) -> np.ndarray:
     """``lambda_records`` with the fields of this format: a format 1-2 file's lack ``n_lost``
-    and ``n_gained``, which read as NaN (unknown, not zero)."""
-    if rec.ndim == 3 and rec.shape[-1] == _LAMBDA_FIELDS_V2:
-        pad = np.full(rec.shape[:2] + (len(estimators.LAMBDA_FIELDS) - _LAMBDA_FIELDS_V2,), np.nan)
+    and ``n_gained``, a format 3 file's ``sum_slope_tau`` and ``sum_tau0``; they read as NaN
+    (unknown, not zero)."""
+    if rec.ndim == 3 and rec.shape[-1] in (_LAMBDA_FIELDS_V2, _LAMBDA_FIELDS_V3):
+        pad = np.full(rec.shape[:2] + (len(estimators.LAMBDA_FIELDS) - rec.shape[-1],), np.nan)
         return np.concatenate([rec, pad], axis=-1)
     return rec
 
