@@ -1,5 +1,10 @@
 """Time to a given worst-link standard error, every link: adjoint-hybrid against finite difference.
 
+``--baseline central-difference`` times it against the finite difference of the same quantity,
+the derivative (central differences on the same starts); the default, the paper's forward
+secant, is another quantity near saddle passages (docs/equations.md), kept for the earlier
+figures of bench/RESULTS.md.
+
 ``python bench/ttp_adjoint.py --graph lesmis --integrator euler --realizations 32`` runs, on one
 thread (``NUMBA_NUM_THREADS=1``), ``lambda_values`` of both estimators on the same realizations
 (same seed: the same initial phases) for every directed link, and prints each one's seconds per
@@ -60,7 +65,10 @@ seed: 3
 
 
 def fd_piece(job, first: int, count: int):
-    sim = simulate_job(job, first, count, threads=1)
+    # the forward difference reads the run's own integration; central differences integrate
+    # their +-dbeta pairs themselves
+    forward = job.config.lambda_.method == "finite-difference"
+    sim = simulate_job(job, first, count, threads=1) if forward else None
     return lambda_values(job, sim, first, count, threads=1)[:3]
 
 
@@ -79,7 +87,7 @@ def interleaved(fd_job, ah_job, m: int, piece: int):
         ah_seconds.append(time.perf_counter() - start)
     fd = tuple(np.concatenate(x) for x in zip(*parts, strict=True))
     return {
-        "finite-difference": (fd_seconds / m, *fd),
+        fd_job.config.lambda_.method: (fd_seconds / m, *fd),
         "adjoint-hybrid": (np.mean(ah_seconds) / m, *ah),
     }, ah_seconds
 
@@ -92,9 +100,16 @@ def main() -> None:
     ap.add_argument(
         "--piece", type=int, default=32, help="finite-difference realizations between adjoint repeats"
     )
+    ap.add_argument(
+        "--baseline",
+        choices=("finite-difference", "central-difference"),
+        default="finite-difference",
+        help="the finite difference to time against: the paper's forward secant (another quantity) "
+        "or central differences (the derivative adjoint-hybrid estimates; issue 28)",
+    )
     args = ap.parse_args()
     m = args.realizations
-    methods = ("finite-difference", "adjoint-hybrid")
+    methods = (args.baseline, "adjoint-hybrid")
     fd_job, ah_job = (job_for(args.graph, method, args.integrator, m) for method in methods)
     out, ah_seconds = interleaved(fd_job, ah_job, m, args.piece)
     spread = np.array(ah_seconds) / m
@@ -114,10 +129,10 @@ def main() -> None:
             f"flagged {flagged.sum()} values",
             flush=True,
         )
-    (t_fd, v_fd), (t_ah, v_ah) = res["finite-difference"], res["adjoint-hybrid"]
+    (t_fd, v_fd), (t_ah, v_ah) = res[args.baseline], res["adjoint-hybrid"]
     live = (v_fd > 0) & (v_ah > 0)  # a link whose damage leaves W unchanged has Lambda = 0 exactly
     print(
-        f"{args.graph} {args.integrator}: seconds FD / AH = {t_fd / t_ah:.1f}x; "
+        f"{args.graph} {args.integrator} against {args.baseline}: seconds FD / AH = {t_fd / t_ah:.1f}x; "
         f"worst-link time to precision FD / AH = {t_fd * v_fd.max() / (t_ah * v_ah.max()):.1f}x "
         f"(variance ratio of the worst links {v_fd.max() / v_ah.max():.2f}); "
         f"median link: {np.median(t_fd * v_fd[live] / (t_ah * v_ah[live])):.1f}x "

@@ -19,8 +19,8 @@ def validate(config: ConfigArg, set_: SetOpt = None, debug: DebugOpt = False) ->
 
         sw = load_sweep(config, list(set_ or []))
         entries = family_graphs(sw)  # builds every graph, selects edges, finds orbits
-        preflight(sw.base, [])
-        check_sweep(sw, entries)  # every job's checks, as `antisync sweep` makes them first
+        backend = preflight(sw.base, [])
+        check_sweep(sw, entries, backend)  # every job's checks, as `antisync sweep` makes them first
         typer.echo(sw.to_yaml().rstrip())
         typer.echo(
             f"# ok: sweep of {len(entries)} graph(s), {sum(len(e.edges) for e in entries)} directed "
@@ -48,11 +48,11 @@ def validate(config: ConfigArg, set_: SetOpt = None, debug: DebugOpt = False) ->
     )
 
 
-def preflight(cfg, jobs) -> None:
+def preflight(cfg, jobs) -> str:
     """The checks ``antisync run`` makes before it writes anything: the km_nnc twins and what
     the backend implements (cuda: options and node counts), for the backend the config asks
     for. Whether this machine has a GPU is a note, not an error: a config for the cluster is
-    valid on a laptop."""
+    valid on a laptop. Returns the backend checked."""
     from antisync.backends import resolve_backend
     from antisync.compute import check_backend, check_job
     from antisync.errors import AntisyncError
@@ -66,6 +66,7 @@ def preflight(cfg, jobs) -> None:
     check_backend(cfg, backend)
     for job in with_nnc(jobs):
         check_job(job, backend)
+    return backend
 
 
 def _is_sweep(path) -> bool:

@@ -321,7 +321,7 @@ def _top_job(sweep: Sweep, entry: GraphEntry, edge):
     return make_job(replace(cfg, keep_pairs=0), graph=entry.graph, name=name)
 
 
-def check_sweep(sweep: Sweep, entries: list[GraphEntry]) -> None:
+def check_sweep(sweep: Sweep, entries: list[GraphEntry], backend: str | None = None) -> None:
     """Refuse, before anything is written, every job the sweep could run.
 
     The main stage's jobs of every graph (screening may exclude some, never add one) and, for
@@ -330,13 +330,16 @@ def check_sweep(sweep: Sweep, entries: list[GraphEntry]) -> None:
     through the same checks :func:`antisync.runner.run_jobs` makes
     (:func:`~antisync.compute.check_job`), so a bad option, edge, frequency list or step
     fails the command before the output or its journal exists, not after the screening.
+    ``backend``: the one to check for (default: the config's, resolved on this machine;
+    ``antisync validate`` passes the configured one, so a cuda sweep validates on a laptop).
     """
     from antisync.backends import resolve_backend
     from antisync.compute import check_job
     from antisync.measures.pipeline import with_nnc
 
-    _check_backend(sweep, entries)
-    backend, _ = resolve_backend(sweep.base.backend)
+    if backend is None:
+        backend, _ = resolve_backend(sweep.base.backend)
+    _check_backend(sweep, entries, backend)
     jobs, _ = main_jobs(sweep, entries)
     if sweep.top.graphs > 0:
         jobs += [_top_job(sweep, entry, entry.representatives[0]) for entry in entries]
@@ -344,14 +347,12 @@ def check_sweep(sweep: Sweep, entries: list[GraphEntry]) -> None:
         check_job(job, backend)
 
 
-def _check_backend(sweep: Sweep, entries: list[GraphEntry]) -> None:
+def _check_backend(sweep: Sweep, entries: list[GraphEntry], backend: str) -> None:
     """Refuse, before anything is written, what the sweep's backend cannot run: its options
     (:func:`~antisync.compute.check_backend`) and, on cuda, a graph with more nodes than
     the kernels hold (the stages' ``run_jobs`` would refuse it only after the screening)."""
-    from antisync.backends import resolve_backend
     from antisync.compute import check_backend
 
-    backend, _ = resolve_backend(sweep.base.backend)
     check_backend(sweep.base, backend)
     if backend == "cuda":
         from antisync.kernels.cuda import MAX_NODES
