@@ -275,3 +275,38 @@ def test_a_format_3_file_reads_and_resumes_without_lambda_tau(tmp_path):
     # the same config with more realizations is another run; the same one resumes
     res = run_config(load_config_text(text, ["realizations=200"]), output=out, resume=True)
     assert summarize(res)["records"][0]["lambda_km"] is not None
+
+
+def _sum_rule_view(nodes: int, offset_in_se: float):
+    """A job whose every node has two out-links; node 1's sum sits ``offset_in_se`` standard
+    errors from 0, the others' at 0 (per-block sums alternate around their mean)."""
+    from antisync.summary import JobView
+
+    nb, delta = 50, 0.1
+    se = delta * np.sqrt(nb / (nb - 1)) / np.sqrt(nb)
+    edges = [f"{a}->{b}" for a in range(1, nodes + 1) for b in ("x", "y")]
+    lam = np.zeros((nb, len(edges), 10))
+    lam[:, :, 0] = 100
+    swing = delta * (-1.0) ** np.arange(nb)
+    for k in range(nodes):
+        mean = offset_in_se * se if k == 0 else 0.0
+        lam[:, 2 * k, 3] = 100 * (mean + swing)  # the node's sum per block is the first link's
+    lam[:, :, 8], lam[:, :, 9] = 0.0, 100.0
+    empty = np.zeros((nb, 0, 7))
+    return JobView(
+        graph="g", edges=edges, betas=(), dbeta=0.01, variant_edge=np.zeros(0), variant_beta=np.zeros(0),
+        rec=empty, rec0=np.zeros((nb, 5)), done=np.ones(nb, bool), tail=np.zeros((0, 1)),
+        realizations=nb * 100, lam_rec=lam,
+    )  # fmt: skip
+
+
+def test_the_sum_rule_decides_over_all_the_nodes_it_checks():
+    """A sum 2.3 standard errors from 0 is resolved when it is the only node checked (95%) but
+    not among five (Bonferroni, 99%): checking many nodes finds no broken rule by chance."""
+    from antisync.sum_rule import node_sums
+
+    (alone,) = node_sums(_sum_rule_view(1, 2.3))
+    assert alone["resolved"] and alone["low"] > 0
+    among = node_sums(_sum_rule_view(5, 2.3))
+    assert len(among) == 5 and among[0]["low"] > 0 and not any(r["resolved"] for r in among)
+    assert node_sums(_sum_rule_view(5, 3.0))[0]["resolved"]
