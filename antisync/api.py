@@ -145,8 +145,9 @@ def summarize(path: str | Path) -> dict:
 def _summarize(path: Path) -> dict:
     from antisync.errors import StoreError
     from antisync.records import flag_signs
-    from antisync.store import is_sweep_file, records, root_attrs, stop_record
-    from antisync.sum_rule import file_sums
+    from antisync.store import is_sweep_file, read_views, root_attrs, stop_record
+    from antisync.sum_rule import views_sums
+    from antisync.summary import view_records
     from antisync.sweeps import sweep_summary
 
     root = root_attrs(path)
@@ -157,12 +158,13 @@ def _summarize(path: Path) -> dict:
             "file": str(path),
             "complete": bool(s["complete"]),
             "records": flag_signs(s["records"]),
-            "sum_rule": file_sums(path),
+            "sum_rule": views_sums(read_views(path)),
             "config_yaml": root["config_yaml"],
             "stop": None,
             **{k: s[k] for k in _SWEEP_KEYS},
         }
-    recs = records(path)
+    views = read_views(path)  # decoded once: the records and the sum rule read the same jobs
+    recs = view_records(views)
     import yaml
 
     try:
@@ -177,7 +179,7 @@ def _summarize(path: Path) -> dict:
         "file": str(path),
         "complete": root["complete"],
         "records": flag_signs(recs),
-        "sum_rule": file_sums(path),
+        "sum_rule": views_sums(views),
         "config_yaml": root["config_yaml"],
         "stop": stop_record(path),
         "sweep": None,

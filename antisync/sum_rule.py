@@ -26,7 +26,7 @@ from statistics import NormalDist
 
 import numpy as np
 
-__all__ = ["SUM_RULE_LEVEL", "file_sums", "node_sums", "sum_rule_note"]
+__all__ = ["SUM_RULE_LEVEL", "node_sums", "sum_rule_note", "views_sums"]
 
 #: level of the sum rule's interval (the records' level)
 SUM_RULE_LEVEL = 0.95
@@ -123,14 +123,11 @@ def _tau_sum(rec: np.ndarray, z: float) -> dict:
     return {"tau_sum": value, "tau_low": low, "tau_high": high, "tau_resolved": False}
 
 
-def file_sums(path) -> list[dict]:
-    """:func:`node_sums` of every job of a result file, with its own coupling."""
-    from antisync.store import read_views
-
+def views_sums(views) -> list[dict]:
+    """:func:`node_sums` of every job of a decoded result file, each with its own coupling."""
     rows = []
-    for view in read_views(path):
-        coupling = str((view.attrs or {}).get("coupling", "normalized"))
-        rows += node_sums(view, coupling)
+    for view in views:
+        rows += node_sums(view, str((view.attrs or {}).get("coupling", "normalized")))
     return rows
 
 

@@ -303,20 +303,8 @@ def beta(key: str, value) -> float:
     return x
 
 
-def integer(key: str, value, lo: int, hi: int, valid: str) -> int:
-    """``value`` as an int in ``lo..hi`` (:func:`parse_integer`: not a bool, not a float such
-    as 3.7 or 1e23).
-
-    Parameters
-    ----------
-    valid : str
-        The range as the message writes it (``"1..10**15"``).
-
-    Raises
-    ------
-    ConfigError
-    """
-    return parse_integer(key, value, lo, hi, valid)
+#: the schemas' name for :func:`parse_integer` (not a bool, not a float such as 3.7 or 1e23)
+integer = parse_integer
 
 
 def number(key: str, value, default):

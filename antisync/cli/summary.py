@@ -45,8 +45,9 @@ def summary(
     from antisync.records import flag_signs, sign_rule_note, sort_records
     from antisync.report.tables import format_records, format_sweep
     from antisync.stopping import stop_note
-    from antisync.store import is_sweep_file, records, stop_record
-    from antisync.sum_rule import file_sums, sum_rule_note
+    from antisync.store import is_sweep_file, read_views, stop_record
+    from antisync.sum_rule import sum_rule_note, views_sums
+    from antisync.summary import view_records
     from antisync.sweeps import sweep_summary
 
     def listed(recs: list[dict]) -> list[dict]:
@@ -59,12 +60,13 @@ def summary(
         s = sweep_summary(results)
         typer.echo(format_sweep({**s, "records": listed(s["records"])}, format))
     else:
-        recs = listed(records(results))
+        views = read_views(results)  # decoded once for the records and the sum rule
+        recs = listed(view_records(views))
         typer.echo(format_records(recs, format))
         if format == "table":
             quantities = {r.get("lambda_quantity") for r in recs} - {None}
             quantity = quantities.pop() if len(quantities) == 1 else None
-            rule = sum_rule_note(file_sums(results), quantity)
+            rule = sum_rule_note(views_sums(views), quantity)
             for note in (sign_rule_note(recs), rule, stop_note(stop_record(results))):
                 if note:
                     typer.echo(note)
