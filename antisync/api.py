@@ -11,6 +11,7 @@ shell and no file parsing::
     df = res.to_pandas()                      # pandas is optional
     antisync.load("lollipop.h5").records      # the same records, from the file
     antisync.measures.for_graph(nx.karate_club_graph())  # exact Lambda^xi2, Lambda^RW
+    antisync.run({"graph": nx.karate_club_graph(), "name": "karate"}, output="karate.h5")
 
 Overrides are keyword arguments named like the config's keys; a section (a key whose value is
 a mapping of its own options: ``dynamics``, ``lambda``, ``histogram``, ``linear``, ``model``,
@@ -19,6 +20,12 @@ key by key (``model={"damping": 2}`` keeps the config's frequencies and inertia;
 stands for ``lambda``). Values are set
 as they are, never parsed as YAML, and validated exactly as a config file is; numpy scalars and
 arrays count as the Python numbers and lists they hold.
+
+A networkx graph object is a graph spec too (``{"graph": G}``, ``graph=G``, an item of a
+sweep's ``sweep.graphs``): it is read as :func:`antisync.measures.for_graph` reads it and
+written into the config as ``{kind: inline, links: [...]}`` (:func:`antisync.graphs.graph_spec`),
+so the result file holds the graph and ``resume``, ``antisync summary`` and ``antisync report``
+need no object.
 
 Every argument is checked before any file or folder is made: a bad one raises a
 :class:`~antisync.errors.ConfigError` (or, for a result file to read, a
@@ -211,7 +218,9 @@ def run(
     ----------
     config : path, mapping or Config
         A YAML file (``"configs/lollipop6.yaml"``), the same keys as a mapping
-        (``{"graph": {"kind": "lollipop", "nodes": 6, "path": 3}}``) or a
+        (``{"graph": {"kind": "lollipop", "nodes": 6, "path": 3}}``, or ``{"graph": G}`` with
+        a networkx graph ``G``: its ``weight`` attributes, default 1; records and figures are
+        named by the config's ``name``, default ``graph``) or a
         :class:`antisync.config.Config`.
     output : path, optional
         The HDF5 file (default: the config's ``output``, ``results/<name>.h5``).
@@ -231,8 +240,8 @@ def run(
         ``dynamics={"dt": 0.0005}``, ``lambda_={"method": "orbit"}``). A mapping given to a
         section is merged into the config's section key by key (``model={"damping": 2}`` keeps
         the config's frequencies); ``None`` puts a section back to its defaults; any other key
-        (``graph`` included) is replaced whole. numpy scalars and arrays are taken as the
-        Python numbers and lists they hold.
+        (``graph`` included, which may be a networkx graph) is replaced whole. numpy scalars
+        and arrays are taken as the Python numbers and lists they hold.
 
     Raises
     ------
@@ -283,7 +292,10 @@ def sweep(
 
     Parameters are those of :func:`run`; ``config`` is a YAML file or a mapping. Besides the
     sections of a run, ``screen`` and ``top`` are sections too (merged); ``sweep`` (the
-    family) is replaced whole, as its keys depend on its ``family``.
+    family) is replaced whole, as its keys depend on its ``family``. The graph specs of
+    ``sweep: {family: graphs, graphs: [...]}`` may be networkx graph objects, named
+    ``graph1``, ``graph2``, ... by their place in the list (a spec of
+    :func:`antisync.graphs.graph_spec` with a ``name`` key names one).
     """
     from antisync.errors import ConfigError
     from antisync.sweeps import Sweep, load_sweep, load_sweep_text, run_sweep
@@ -294,11 +306,12 @@ def sweep(
             f"(see configs/atlas6.yaml), got {_shown(config)}"
         )
     opts = _options("antisync.sweep", resume, overwrite, progress, executor, log)
+    overrides = {k: _sweep_graphs(v) if k == "sweep" else v for k, v in overrides.items()}
     values = _values(overrides, output, _sections(Sweep))
     if isinstance(config, Mapping):
         import yaml
 
-        raw = _plain(config, "config")
+        raw = _plain({k: _sweep_graphs(v) if k == "sweep" else v for k, v in config.items()}, "config")
         sw = load_sweep_text(yaml.safe_dump(raw), values=values)
     else:
         sw = load_sweep(_file_path("config", config, ConfigError), values=values)
@@ -502,12 +515,41 @@ def _config(config, overrides: Mapping, output) -> Config:
     from antisync.config import Config, apply_values, config_from_mapping, load_config
     from antisync.errors import ConfigError
 
+    overrides = {k: _graph_object(v) if k == "graph" else v for k, v in overrides.items()}
     values = _values(overrides, output, _sections())
     if isinstance(config, Config):
         raw = _plain(config.to_dict(), "config")
     elif isinstance(config, Mapping):
-        raw = _plain(config, "config")  # a copy: the caller's mapping is left as it is
+        # a copy: the caller's mapping is left as it is
+        raw = _plain({k: _graph_object(v) if k == "graph" else v for k, v in config.items()}, "config")
     else:
         return load_config(_file_path("config", config, ConfigError), values=values)
     apply_values(raw, values)  # as load_config applies them to a file's mapping
     return config_from_mapping(raw)
+
+
+def _graph_object(value, where: str = "graph"):
+    """A networkx graph object as its config graph spec (:func:`antisync.graphs.graph_spec`,
+    a one-line :class:`~antisync.graphs.GraphError` naming ``where`` if it cannot be one);
+    anything else as it is."""
+    import sys
+
+    nx = sys.modules.get("networkx")  # a graph object exists only once networkx is imported
+    if nx is None or not isinstance(value, nx.Graph):
+        return value
+    from antisync.graphs import graph_spec
+
+    return graph_spec(value, where)
+
+
+def _sweep_graphs(section):
+    """A sweep's ``sweep:`` section with the networkx graph objects of its ``graphs`` list as
+    graph specs, named ``graph1``, ``graph2``, ... by their place in the list."""
+    graphs = section.get("graphs") if isinstance(section, Mapping) else None
+    if not isinstance(graphs, list | tuple):
+        return section
+    items = []
+    for k, item in enumerate(graphs):
+        spec = _graph_object(item, f"sweep.graphs[{k}]")
+        items.append({"name": f"graph{k + 1}", **spec} if spec is not item else item)
+    return {**section, "graphs": items}

@@ -85,6 +85,7 @@ __all__ = [
     "load_config",
     "load_config_text",
     "parse_mapping",
+    "resolve_graph_path",
 ]
 
 # BACKENDS, EXECUTORS, INTEGRATORS, CROSSINGS, LAMBDA_METHODS, MEASURES, LINEAR_METHODS and
@@ -102,8 +103,13 @@ _GRAPH_KEYS = {
     "barbell": ({"m1"}, {"m2"}),
     "atlas": ({"index"}, set()),
     "networkx": ({"generator"}, {"args", "weighted"}),
-    "edgelist": ({"path"}, set()),
+    "edgelist": ({"path"}, {"delimiter", "header"}),
+    "graphml": ({"path"}, {"weight"}),
+    "gml": ({"path"}, {"weight"}),
+    "inline": ({"links"}, {"nodes"}),
 }
+#: Graph kinds read from a file: ``graph.path`` is relative to the config file's folder.
+_GRAPH_FILE_KINDS = ("edgelist", "graphml", "gml")
 
 
 @dataclass(frozen=True)
@@ -725,8 +731,15 @@ def _resolve_graph(value, source: Path | None) -> dict:
         raise ConfigError(
             f"graph must be a mapping such as {{kind: lollipop, nodes: 6, path: 3}}, got {value!r}"
         )
-    g = dict(value)
-    if g.get("kind") == "edgelist" and "path" in g and source is not None:
+    return resolve_graph_path(value, source)
+
+
+def resolve_graph_path(spec: dict, source: Path | None) -> dict:
+    """A copy of the graph spec ``spec`` whose file (``graph.path`` of an edge list, GraphML
+    or GML file) is an absolute path: a relative one is relative to the folder of the config
+    file ``source`` (the current folder when there is none: a mapping given to the API)."""
+    g = dict(spec)
+    if g.get("kind") in _GRAPH_FILE_KINDS and "path" in g and source is not None:
         p = Path(str(g["path"]))
         if not p.is_absolute():
             g["path"] = str((source.parent / p).resolve())
@@ -734,6 +747,10 @@ def _resolve_graph(value, source: Path | None) -> dict:
 
 
 def check_graph(g: dict) -> None:
+    if not isinstance(g, dict):
+        raise ConfigError(
+            f"graph must be a mapping such as {{kind: lollipop, nodes: 6, path: 3}}, got {show(g)}"
+        )
     kind = g.get("kind")
     if not isinstance(kind, str) or kind not in _GRAPH_KEYS:
         raise ConfigError(
@@ -755,8 +772,10 @@ def _graph_name(g: dict) -> str:
         return f"G{g.get('index')}"
     if kind == "networkx":
         return str(g.get("generator"))
-    if kind == "edgelist":
+    if kind in _GRAPH_FILE_KINDS:
         return Path(str(g.get("path"))).stem
+    if kind == "inline":
+        return "graph"
     return str(kind)
 
 

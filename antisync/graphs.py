@@ -1,13 +1,20 @@
-"""Graph builders with the paper's node labels, and directed-edge parsing.
+"""Graph builders with the paper's node labels, graph files, and directed-edge parsing.
 
 Every builder returns an undirected :class:`networkx.Graph` whose edges carry a ``weight``
 (1.0 unless an edge list says otherwise). :func:`omega_matrix` turns it into the dense
 weight matrix ``Omega`` in the fixed node order of :func:`node_order`.
+
+Graph files (docs/graphs.md): edge lists (:func:`from_edgelist`: whitespace, CSV, tabs, quoted
+names, an optional header line), GraphML (:func:`from_graphml`) and GML (:func:`from_gml`).
+A networkx graph object becomes a config graph spec with :func:`graph_spec` (``kind: inline``,
+its links written out), so that a result file holds the graph itself.
 """
 
 from __future__ import annotations
 
+import csv
 import math
+import numbers
 import re
 from pathlib import Path
 
@@ -15,25 +22,53 @@ import networkx as nx
 import numpy as np
 
 from antisync.errors import AntisyncError, ConfigError
-from antisync.validation import DECIMAL, number_text, parse_integer, read_input_text, show
+from antisync.validation import (
+    DECIMAL,
+    number_text,
+    parse_integer,
+    read_input_bytes,
+    read_input_text,
+    show,
+)
 
 __all__ = [
     "GraphError",
     "all_directed_edges",
     "barbell",
     "build_graph",
+    "edge_delimiter",
     "edge_label",
     "edge_orbits",
     "from_edgelist",
+    "from_gml",
+    "from_graphml",
+    "from_inline",
+    "graph_spec",
     "lollipop",
     "node_order",
     "omega_matrix",
     "parse_edge",
+    "simple_graph",
 ]
 
-GRAPH_KINDS = ("lollipop", "barbell", "atlas", "networkx", "edgelist")
+GRAPH_KINDS = ("lollipop", "barbell", "atlas", "networkx", "edgelist", "graphml", "gml", "inline")
 #: Largest lollipop or barbell antisync builds: their cliques grow as N^2 links.
 MAX_BUILT_NODES = 2000
+#: The most total weight a graph may carry: the raw Laplacian's spectrum overflows long before
+#: float64's 1.8e308 (edge lists, graph files and graph objects alike).
+MAX_TOTAL_WEIGHT = 1e100
+#: ``graph.delimiter`` by name; ``None`` splits at runs of whitespace (the default).
+DELIMITER_NAMES = {"whitespace": None, " ": None, "tab": "\t", "\\t": "\t"}
+#: The delimiter of an edge list without ``graph.delimiter``, by the file's suffix.
+SUFFIX_DELIMITERS = {".csv": ",", ".tsv": "\t"}
+#: A first line naming its columns like this (case ignored) is a header (``graph.header: auto``).
+HEADER_PAIRS = frozenset(
+    {("source", "target"), ("from", "to"), ("u", "v"), ("node1", "node2"), ("src", "dst")}
+)
+#: Characters that cannot separate columns: quotes and comments, and parts of numbers.
+_NOT_DELIMITERS = set('"#.+-_')
+#: Graph files that are not edge lists, by suffix: the kind that reads them.
+_OTHER_FORMATS = {".graphml": "graphml", ".gml": "gml"}
 
 
 class GraphError(AntisyncError, ValueError):
@@ -147,49 +182,92 @@ def from_networkx(
     return out
 
 
-def from_edgelist(path: str | Path) -> nx.Graph:
-    """Read ``u v [weight]`` lines (``#`` starts a comment). Integer labels stay integers.
+def from_edgelist(
+    path: str | Path, delimiter: str | None = None, header: bool | str | None = None
+) -> nx.Graph:
+    """Read ``u v [weight]`` lines: one link per line. Integer labels stay integers.
 
-    Columns are separated by spaces or tabs. The file is read by
-    :func:`antisync.validation.read_input_text` (a regular file, UTF-8; a byte-order mark is
-    dropped, UTF-16 with one decoded; NUL or control characters refused). Nothing is read as
-    something other than it says; each of these is refused with one line naming the line:
+    Parameters
+    ----------
+    path : str or Path
+        The file, read by :func:`antisync.validation.read_input_text` (a regular file, UTF-8;
+        a byte-order mark is dropped, UTF-16 with one decoded; NUL or control characters
+        refused).
+    delimiter : str, optional
+        What separates the columns (:func:`edge_delimiter`): ``None`` (the default) means
+        ``,`` for a ``.csv`` file, a tab for a ``.tsv`` file and runs of whitespace (spaces or
+        tabs) for any other; ``"whitespace"``, ``"tab"`` or one character such as ``","``
+        ``";"`` ``"|"`` choose.
+    header : bool or "auto", optional
+        ``True``: the first line (after comments) names the columns and is skipped; ``False``:
+        every line is a link; ``None`` or ``"auto"`` (the default): the first line is skipped
+        when its first two columns are a pair of :data:`HEADER_PAIRS` (``source,target``,
+        ``from to``, ``u v``, ... any case), its third column (if any) is not a number, and
+        neither word is a node of another line.
+
+    Notes
+    -----
+    With whitespace columns, a name holding spaces is written in double quotes
+    (``"Evelyn Jefferson" "Brenda Rogers" 6``; ``""`` inside quotes is one ``"``) and ``#``
+    outside quotes starts a comment. With a delimiter the lines are read by :mod:`csv`
+    (quotes as in spreadsheets, spaces around a column ignored) and ``#`` starts a comment at
+    the start of a line only, so a name may hold ``#``.
+
+    Nothing is read as something other than it says; each of these is refused with one line
+    naming the line:
 
     - a weight not in the number grammar :data:`antisync.validation.DECIMAL` (``1,5``,
       ``0x10``, ``1_000``, a unicode minus: Python's ``float`` would read ``1_000``);
     - a label that is an integer written another way (``01``, ``+1``, ``1_0``, non-ASCII
       digits: ``int()`` would merge ``01`` with ``1`` into one node) or a non-integer number
       (``1.0`` would be a node apart from ``1``);
-    - a label holding ``,`` or ``;`` (another file format's separator: ``1, 2`` would be the
-      nodes ``1,`` and ``2``) or ``->`` (edge labels could not name it).
+    - with whitespace columns, an unquoted label holding ``,`` or ``;`` (another file
+      format's separator: ``1, 2`` would be the nodes ``1,`` and ``2``); any label holding
+      ``->`` (edge labels could not name it);
+    - a link listed twice (in either direction), a self-loop, an empty label.
     """
     path = Path(path)
+    if path.suffix.lower() in _OTHER_FORMATS:
+        kind = _OTHER_FORMATS[path.suffix.lower()]
+        raise GraphError(
+            f"{path} is a {kind.upper().replace('GRAPHML', 'GraphML')} file, not an edge list: "
+            f"give graph: {{kind: {kind}, path: {path.name}}}"
+        )
+    sep = edge_delimiter(delimiter, path)
+    header = _header_option(header)
     text = read_input_text(path, "edge list", GraphError)
-    rows = []
-    for lineno, line in enumerate(text.splitlines(), 1):
-        tokens = line.split("#", 1)[0].split()
-        if not tokens:
-            continue
-        if len(tokens) not in (2, 3):
-            raise GraphError(f"{path}:{lineno}: expected 'u v' or 'u v weight', got {show(line)}")
-        for label in tokens[:2]:
-            _check_label(label, path, lineno)
+    rows = _split_rows(text, path, sep)
+    # without graph.header, a bad weight on the first line may be a header's word
+    first = rows[0][0] if rows and header is None else None
+    if rows and (header is True or (header is None and _is_header(rows))):
+        rows, first = rows[1:], None
+    parsed = []
+    for lineno, line, fields in rows:
+        if len(fields) not in (2, 3):
+            raise GraphError(
+                f"{path}:{lineno}: expected 'u v' or 'u v weight', got {show(line)}"
+                + _columns_hint(line, sep, len(fields))
+            )
+        for label, plain in fields[:2]:
+            _check_label(label, path, lineno, plain)
         weight = 1.0
-        if len(tokens) == 3:
-            weight = number_text(tokens[2])
+        if len(fields) == 3:
+            token = fields[2][0]
+            weight = number_text(token)
             if weight is None:
+                hint = "; a header line? give graph.header: true" if lineno == first else ""
                 raise GraphError(
-                    f"{path}:{lineno}: weight {show(tokens[2])} is not a number (write decimal "
-                    "digits such as 2, 0.5 or 1e3)"
+                    f"{path}:{lineno}: weight {show(token)} is not a number (write decimal "
+                    f"digits such as 2, 0.5 or 1e3){hint}"
                 )
             if not (weight > 0 and math.isfinite(weight)):
                 raise GraphError(f"{path}:{lineno}: weight must be positive and finite")
-        rows.append((tokens[0], tokens[1], weight, lineno))
-    if not rows:
+        parsed.append((fields[0][0], fields[1][0], weight, lineno))
+    if not parsed:
         raise GraphError(f"{path}: no edges found")
-    as_int = all(_is_int(u) and _is_int(v) for u, v, _, _ in rows)
+    as_int = all(_is_int(u) and _is_int(v) for u, v, _, _ in parsed)
     g = nx.Graph()
-    for u, v, w, lineno in rows:
+    for u, v, w, lineno in parsed:
         if u == v:
             raise GraphError(f"{path}:{lineno}: self-loop {u}-{v} is not allowed")
         a, b = (int(u), int(v)) if as_int else (u, v)
@@ -199,8 +277,8 @@ def from_edgelist(path: str | Path) -> nx.Graph:
                 f"{g.edges[a, b]['line']}); give each undirected edge once"
             )
         g.add_edge(a, b, weight=w, line=lineno)
-    total = sum(w for _, _, w, _ in rows)
-    if not math.isfinite(total) or total > 1e100:
+    total = sum(w for _, _, w, _ in parsed)
+    if not math.isfinite(total) or total > MAX_TOTAL_WEIGHT:
         raise GraphError(
             f"{path}: weights sum to {total:.3g}; keep them below 1e100 "
             "(rescale them: normalized coupling only sees their ratios)"
@@ -208,6 +286,365 @@ def from_edgelist(path: str | Path) -> nx.Graph:
     for _, _, d in g.edges(data=True):
         del d["line"]
     return g
+
+
+def edge_delimiter(value, path: str | Path = "") -> str | None:
+    """``graph.delimiter`` as the character between an edge list's columns; ``None`` for runs
+    of whitespace.
+
+    ``None`` (not given) is ``,`` for a ``.csv`` file, a tab for ``.tsv``, whitespace for any
+    other (:data:`SUFFIX_DELIMITERS`); ``"whitespace"`` (or ``" "``) and ``"tab"`` (or
+    ``"\\t"`` as two characters) by name; else one character that is not a letter, a digit,
+    a quote, ``#`` or part of a number.
+    """
+    if value is None:
+        return SUFFIX_DELIMITERS.get(Path(path).suffix.lower())
+    if isinstance(value, str) and value.lower() in DELIMITER_NAMES:
+        return DELIMITER_NAMES[value.lower()]
+    if isinstance(value, str) and len(value) == 1 and value not in _NOT_DELIMITERS:
+        if value == "\t" or (value.isprintable() and not value.isalnum() and not value.isspace()):
+            return value
+    raise GraphError(
+        "graph.delimiter must be whitespace (the default; ',' for a .csv file, tab for .tsv), "
+        f"tab or one character such as ',' ';' '|', got {show(value)}"
+    )
+
+
+def _header_option(value) -> bool | None:
+    """``graph.header``: True, False, or None for auto (``"auto"`` or not given)."""
+    if value is None or value == "auto":
+        return None
+    if isinstance(value, bool):
+        return value
+    raise GraphError(
+        "graph.header must be true (the first line names the columns), false (every line is a "
+        f"link) or auto (the default: a first line such as 'source,target,weight'), got {show(value)}"
+    )
+
+
+def _split_rows(text: str, path: Path, sep: str | None) -> list[tuple]:
+    """``(lineno, line, [(column, plain), ...])`` of every line that is not blank or a
+    comment; ``plain``: an unquoted column of a whitespace file (checked for ``,`` and ``;``)."""
+    rows = []
+    for lineno, line in enumerate(text.splitlines(), 1):
+        where = f"{path}:{lineno}"
+        if sep is None:
+            fields = _split_whitespace(line, where)
+        elif line.strip() and not line.lstrip().startswith("#"):
+            fields = [(c.strip(), False) for c in _split_delimited(line, sep, where)]
+        else:
+            fields = []
+        if fields:
+            rows.append((lineno, line, fields))
+    return rows
+
+
+def _split_whitespace(line: str, where: str) -> list[tuple[str, bool]]:
+    """The columns of ``line`` between runs of whitespace, as ``(text, plain)``. A column
+    that starts with ``"`` runs to its closing quote (``""`` inside is one ``"``); ``#``
+    outside quotes starts a comment."""
+    out = []
+    i, n = 0, len(line)
+    while i < n:
+        if line[i].isspace():
+            i += 1
+        elif line[i] == "#":
+            break
+        elif line[i] == '"':
+            parts, j = [], i + 1
+            while True:
+                k = line.find('"', j)
+                if k < 0:
+                    raise GraphError(
+                        f'{where}: a quote " is not closed in {show(line)}; write a name with '
+                        'spaces in double quotes, e.g. "Evelyn Jefferson"'
+                    )
+                parts.append(line[j:k])
+                if line[k + 1 : k + 2] != '"':
+                    j = k + 1
+                    break
+                parts.append('"')
+                j = k + 2
+            if j < n and not line[j].isspace() and line[j] != "#":
+                raise GraphError(
+                    f"{where}: text right after a closing quote in {show(line)}; separate the "
+                    "columns with spaces"
+                )
+            out.append(("".join(parts), False))
+            i = j
+        else:
+            j = i
+            while j < n and not line[j].isspace() and line[j] != "#":
+                j += 1
+            out.append((line[i:j], True))
+            i = j
+    return out
+
+
+def _split_delimited(line: str, sep: str, where: str) -> list[str]:
+    """The columns of one line of a delimited file, read by :mod:`csv` (spreadsheet quotes)."""
+    try:
+        return next(csv.reader([line], delimiter=sep, strict=True, skipinitialspace=True))
+    except csv.Error as exc:
+        raise GraphError(
+            f"{where}: {exc} in {show(line)}; quote a whole name that holds {_delimiter_name(sep)} "
+            'or a quote, e.g. "Smith, John"'
+        ) from None
+
+
+def _is_header(rows: list[tuple]) -> bool:
+    """Is the first row a header (``graph.header: auto``, see :func:`from_edgelist`)?"""
+    fields = [text for text, _ in rows[0][2]]
+    if len(fields) not in (2, 3) or (fields[0].lower(), fields[1].lower()) not in HEADER_PAIRS:
+        return False
+    if len(fields) == 3 and number_text(fields[2]) is not None:
+        return False
+    nodes = {text for row in rows[1:] for text, _ in row[2][:2]}
+    return fields[0] not in nodes and fields[1] not in nodes
+
+
+def _delimiter_name(sep: str | None) -> str:
+    return {None: "whitespace", "\t": "a tab"}.get(sep, repr(sep))
+
+
+def _columns_hint(line: str, sep: str | None, count: int) -> str:
+    """Why a line may not have 2 or 3 columns, and the option that reads it."""
+    if sep is None:
+        if "\t" in line.strip() and count > 3:
+            return "; its columns look tab-separated: give graph.delimiter: tab"
+        others = [c for c in (",", ";", "|") if c in line]
+        if count < 2 and others:
+            return f"; its columns look separated by {others[0]!r}: give graph.delimiter: {others[0]!r}"
+        if count > 3:
+            return (
+                '; a node name with spaces needs double quotes ("Evelyn Jefferson") or a '
+                "graph.delimiter such as tab or ','"
+            )
+        return ""
+    others = [c for c in (",", ";", "\t", "|") if c != sep and c in line]
+    if count == 1 and others:
+        yaml = "tab" if others[0] == "\t" else repr(others[0])
+        return (
+            f"; it holds no {_delimiter_name(sep)} (graph.delimiter) but {_delimiter_name(others[0])}: "
+            f"give graph.delimiter: {yaml}"
+        )
+    return f" (columns separated by {_delimiter_name(sep)}, graph.delimiter)"
+
+
+def from_graphml(path: str | Path, weight: str = "weight") -> nx.Graph:
+    """Read a GraphML file (:func:`networkx.parse_graphml`; what Gephi and networkx write).
+
+    Node ids are the labels (integers when every id is one, as in edge lists); the edge
+    attribute ``weight`` gives the weights (1 where an edge has none); parallel edges add up.
+    A directed graph, XML that is not well formed or not GraphML is refused with one line.
+    """
+    import xml.etree.ElementTree as ET
+
+    path = Path(path)
+    data = read_input_bytes(path, "GraphML file", GraphError)
+    try:
+        g = nx.parse_graphml(data)
+    except ET.ParseError as exc:
+        raise GraphError(
+            f"{path} is not well-formed XML ({exc}); give a GraphML file (networkx.write_graphml "
+            "or Gephi's GraphML export writes one)"
+        ) from None
+    except Exception as exc:  # noqa: BLE001 -- networkx's message names what it could not read
+        raise GraphError(f"{path}: networkx cannot read it as GraphML: {_reason(exc)}") from None
+    return _file_graph(g, path, "GraphML", 'edgedefault="undirected"', weight)
+
+
+def from_gml(path: str | Path, weight: str = "weight") -> nx.Graph:
+    """Read a GML file (:func:`networkx.parse_gml`).
+
+    Nodes are named by their ``label`` (by their ``id`` when some node has no label); the
+    edge attribute ``weight`` gives the weights (1 where an edge has none); the parallel edges
+    of a ``multigraph 1`` file add up. A directed graph or a file that is not GML is refused
+    with one line.
+    """
+    path = Path(path)
+    text = read_input_text(path, "GML file", GraphError)
+    try:
+        g = nx.parse_gml(text, label=None)
+    except Exception as exc:  # noqa: BLE001 -- networkx's message names what it could not read
+        raise GraphError(f"{path}: networkx cannot read it as GML: {_reason(exc)}") from None
+    labels = dict(g.nodes(data="label"))
+    if labels and all(label is not None for label in labels.values()):
+        seen: dict = {}
+        for v, label in labels.items():
+            if label in seen:
+                raise GraphError(
+                    f"{path}: nodes {seen[label]} and {v} have the same label {show(label)}; "
+                    "give every node its own label"
+                )
+            seen[label] = v
+        g = nx.relabel_nodes(g, labels)
+    return _file_graph(g, path, "GML", "directed 0", weight)
+
+
+def _reason(exc: Exception) -> str:
+    """networkx's message on one line (a GraphML file without a graph raises a TypeError)."""
+    if isinstance(exc, TypeError):
+        return 'no <graph> element in the GraphML namespace (xmlns="http://graphml.graphdrawing.org/xmlns")'
+    text = " ".join(str(exc).split()) or type(exc).__name__
+    return text if len(text) <= 160 else text[:157] + "..."
+
+
+def _file_graph(g: nx.Graph, path: Path, fmt: str, undirected: str, weight: str) -> nx.Graph:
+    """A graph read from a file as :func:`simple_graph` makes it, its labels checked."""
+    if g.is_directed():
+        raise GraphError(
+            f"{path}: the {fmt} graph is directed; antisync needs an undirected graph (Omega is "
+            f"symmetric; damage on a->b and b->a are the two directions of one link): save it "
+            f"with {undirected}, or pass networkx's G.to_undirected() to antisync.run"
+        )
+    if g.number_of_nodes() and all(isinstance(v, str) and _is_int(v) for v in g.nodes):
+        g = nx.relabel_nodes(g, int)  # ids "1", "2": the nodes 1, 2, as in an edge list
+    for v in g.nodes:
+        if "->" in str(v):
+            raise GraphError(f"{path}: node {show(v)} contains '->'; edge labels 'a->b' could not name it")
+    return simple_graph(g, str(path), weight)
+
+
+def simple_graph(graph: nx.Graph, where: str, weight: str = "weight") -> nx.Graph:
+    """``graph`` as a simple undirected :class:`networkx.Graph` whose every edge has a
+    positive finite float ``weight`` (the attribute ``weight``, default 1).
+
+    The parallel edges of a multigraph add up: ``Omega_ij`` is the total weight between ``i``
+    and ``j``. Nodes keep their insertion order (the node order of unsortable labels). Refused
+    with one line starting with ``where``: a directed graph, a self-loop, a weight that is no
+    positive finite number, weights summing above :data:`MAX_TOTAL_WEIGHT`, two nodes that
+    print alike (records name links ``"a->b"`` by the labels' text). Connectivity is the
+    caller's check (:func:`build_graph`).
+    """
+    if graph.is_directed():
+        raise GraphError(
+            f"{where}: antisync needs an undirected graph (Omega is symmetric), got a "
+            f"{type(graph).__name__}; give graph.to_undirected() if each link counts in both directions"
+        )
+    g = nx.Graph()
+    g.add_nodes_from(graph.nodes)
+    for u, v, w in graph.edges(data=weight, default=1.0):
+        if u == v:
+            raise GraphError(f"{where}: self-loop {u}-{v} is not allowed; remove it")
+        if isinstance(w, bool) or not isinstance(w, numbers.Real) or not (w > 0 and math.isfinite(w)):
+            raise GraphError(
+                f"{where}: edge {u}-{v} has {weight} {show(w)}; weights must be positive finite numbers"
+            )
+        # parallel links of a multigraph add up: Omega_ij is the total weight between i and j
+        total = float(w) + (g.edges[u, v]["weight"] if g.has_edge(u, v) else 0.0)
+        g.add_edge(u, v, weight=total)
+    total = sum(w for *_, w in g.edges(data="weight"))
+    if not total <= MAX_TOTAL_WEIGHT:
+        raise GraphError(
+            f"{where}: the weights sum to {total:.3g}; keep them below {MAX_TOTAL_WEIGHT:.0e} "
+            "(rescale them: normalized coupling only sees their ratios)"
+        )
+    labels: dict[str, object] = {}
+    for v in g.nodes:  # records name links "a->b" by the labels' text: two alike would be one
+        other = labels.setdefault(str(v), v)
+        if other is not v:
+            raise GraphError(
+                f"{where}: nodes {other!r} and {v!r} print alike ({str(v)!r}), so their links "
+                "could not be told apart; relabel them (networkx.convert_node_labels_to_integers)"
+            )
+    return g
+
+
+def graph_spec(graph: nx.Graph, where: str = "graph") -> dict:
+    """The config graph spec of a networkx graph object: ``{kind: inline, links: [...]}``.
+
+    What :func:`antisync.run` stores for ``{"graph": G}``: every link ``[u, v]`` or
+    ``[u, v, weight]`` (weights other than 1), and ``nodes`` when their order or a node
+    without links is not told by the links. The graph is read as
+    :func:`antisync.measures.for_graph` reads it (:func:`simple_graph`: the ``weight``
+    attribute, default 1; parallel edges add up; directed graphs refused). Node labels must be
+    integers or strings (numpy integers count), so that the result file's YAML holds them.
+    ``where`` starts every error message (``graph``, ``sweep.graphs[2]``).
+    """
+    if not isinstance(graph, nx.Graph):
+        raise GraphError(f"{where} must be a networkx graph, got {show(graph)}")
+    g = simple_graph(graph, where)
+    label = {v: _plain_label(v, where) for v in g.nodes}
+    nodes = [label[v] for v in g.nodes]
+    links = [[label[u], label[v]] + ([w] if w != 1.0 else []) for u, v, w in g.edges(data="weight")]
+    spec: dict = {"kind": "inline", "links": links}
+    try:
+        sorted(nodes)
+        ordered = True
+    except TypeError:  # integers and names together: node_order keeps the insertion order
+        ordered = False
+    if not ordered or any(d == 0 for _, d in g.degree):
+        spec["nodes"] = nodes
+    return spec
+
+
+def _plain_label(v, where: str) -> int | str:
+    """A graph object's node label as YAML stores it: a Python int or str."""
+    if isinstance(v, numbers.Integral) and not isinstance(v, bool):
+        out: int | str = int(v)
+    elif isinstance(v, str):
+        out = str(v)
+    else:
+        raise GraphError(
+            f"{where}: node {show(v)} is a {type(v).__name__}; a graph object is stored in the result "
+            "file with integer or string node labels: relabel it, e.g. "
+            "networkx.convert_node_labels_to_integers(G, label_attribute='name')"
+        )
+    if "->" in str(out):
+        raise GraphError(f"{where}: node {show(v)} contains '->'; edge labels 'a->b' could not name it")
+    return out
+
+
+def from_inline(links, nodes=None) -> nx.Graph:
+    """The graph of a ``kind: inline`` spec: ``links`` is a list of ``[u, v]`` or
+    ``[u, v, weight]`` (labels integers or strings, weights positive numbers, each undirected
+    link once), ``nodes`` optionally every node in the order to keep."""
+    if not isinstance(links, list | tuple) or not links:
+        raise GraphError(
+            "graph.links must be a non-empty list of links [u, v] or [u, v, weight], e.g. "
+            f"[[1, 2], [2, 3, 0.5]], got {show(links)}"
+        )
+    g = nx.Graph()
+    if nodes is not None:
+        if not isinstance(nodes, list | tuple):
+            raise GraphError(f"graph.nodes must be a list of node labels, got {show(nodes)}")
+        for k, v in enumerate(nodes):
+            v = _inline_label(v, f"graph.nodes[{k}]")
+            if v in g:
+                raise GraphError(f"graph.nodes[{k}]: node {show(v)} is listed twice")
+            g.add_node(v)
+    first: dict = {}
+    for k, link in enumerate(links):
+        at = f"graph.links[{k}]"
+        if not isinstance(link, list | tuple) or len(link) not in (2, 3):
+            raise GraphError(f"{at} must be [u, v] or [u, v, weight], got {show(link)}")
+        u, v = (_inline_label(x, at) for x in link[:2])
+        w = 1.0 if len(link) == 2 else link[2]
+        if isinstance(w, bool) or not isinstance(w, numbers.Real) or not (w > 0 and math.isfinite(w)):
+            raise GraphError(f"{at}: weight must be a positive finite number, got {show(w)}")
+        if u == v:
+            raise GraphError(f"{at}: self-loop {u}-{v} is not allowed")
+        for x in (u, v):
+            if nodes is not None and x not in g:
+                raise GraphError(f"{at}: node {show(x)} is not in graph.nodes")
+        key = frozenset((u, v))
+        if key in first:
+            raise GraphError(
+                f"{at}: link {u}-{v} is listed twice (first at graph.links[{first[key]}]); give "
+                "each undirected link once"
+            )
+        first[key] = k
+        g.add_edge(u, v, weight=float(w))
+    return simple_graph(g, "graph.links")
+
+
+def _inline_label(v, at: str) -> int | str:
+    if isinstance(v, bool) or not isinstance(v, int | str) or v == "":
+        raise GraphError(f"{at}: node label {show(v)} must be an integer or a non-empty name")
+    if "->" in str(v):
+        raise GraphError(f"{at}: node label {show(v)} contains '->'; edge labels 'a->b' could not name it")
+    return v
 
 
 def build_graph(spec: dict, seed: int | None = None) -> nx.Graph:
@@ -235,10 +672,21 @@ def build_graph(spec: dict, seed: int | None = None) -> nx.Graph:
         if not isinstance(weighted, bool):
             raise GraphError(f"graph.weighted must be true or false, got {weighted!r}")
         g = from_networkx(spec["generator"], args, seed=seed, weighted=weighted)
-    elif kind == "edgelist":
-        if not isinstance(spec.get("path"), str):
+    elif kind in ("edgelist", "graphml", "gml"):
+        if not isinstance(spec.get("path"), str) or not spec["path"]:
             raise GraphError(f"graph.path must be a file path, got {spec.get('path')!r}")
-        g = from_edgelist(spec["path"])
+        if kind == "edgelist":
+            g = from_edgelist(spec["path"], spec.get("delimiter"), spec.get("header"))
+        else:
+            attr = spec.get("weight", "weight")
+            if not isinstance(attr, str) or not attr:
+                raise GraphError(
+                    f"graph.weight must name the edge attribute that holds the weights (default "
+                    f"weight), got {show(attr)}"
+                )
+            g = (from_graphml if kind == "graphml" else from_gml)(spec["path"], attr)
+    elif kind == "inline":
+        g = from_inline(spec.get("links"), spec.get("nodes"))
     else:
         raise GraphError(f"graph.kind must be one of {', '.join(GRAPH_KINDS)}; got {kind!r}")
     if g.number_of_nodes() < 2:
@@ -319,9 +767,13 @@ def _is_int(token: str) -> bool:
     return bool(_PLAIN_INT.match(token))
 
 
-def _check_label(label: str, path: Path, lineno: int) -> None:
-    """Refuse a node label that would silently name another node (see :func:`from_edgelist`)."""
+def _check_label(label: str, path: Path, lineno: int, plain: bool = True) -> None:
+    """Refuse a node label that would silently name another node (see :func:`from_edgelist`);
+    ``plain``: an unquoted column of a whitespace file, where ``,`` or ``;`` means another
+    file format."""
     where = f"{path}:{lineno}: node label {show(label)}"
+    if not label:
+        raise GraphError(f"{path}:{lineno}: a node label is empty; every link names two nodes")
     if _is_int(label):
         return
     try:
@@ -332,9 +784,14 @@ def _check_label(label: str, path: Path, lineno: int) -> None:
         raise GraphError(f"{where} is the integer {value} written another way; write it as {value}")
     if DECIMAL.match(label):
         raise GraphError(f"{where} is a number but not an integer; node labels are integers or names")
-    for sep in (",", ";", "->"):
+    for sep in (",", ";") if plain else ():
         if sep in label:
-            raise GraphError(f"{where} contains {sep!r}; separate columns with spaces or tabs ('u v weight')")
+            raise GraphError(
+                f"{where} contains {sep!r}; for columns separated by {sep!r} give graph.delimiter: "
+                f"{sep!r} (a .csv file has ','), for a name holding it write the name in double quotes"
+            )
+    if "->" in label:
+        raise GraphError(f"{where} contains '->'; edge labels 'a->b' could not name it")
 
 
 def _edge_invariant(g: nx.Graph, e: tuple) -> tuple:

@@ -215,7 +215,7 @@ def make_job(config: Config, graph: nx.Graph | None = None, name: str | None = N
         model = model_setup(config, csr.indptr, csr.indices, [csr.weights, *vw], labels)
     return Job(
         config=config.resolved(),
-        name=name or graph.graph.get("name") or graph_name(config.graph),
+        name=name or graph.graph.get("name") or _job_name(config),
         graph=graph,
         nodes=nodes,
         omega=omega,
@@ -232,6 +232,15 @@ def make_job(config: Config, graph: nx.Graph | None = None, name: str | None = N
         model=model,
         **_orbit_fields(graph, nodes, omega, csr, edges, config),
     )
+
+
+def _job_name(config: Config) -> str:
+    """A run's job name: its graph's (``lollipop_6_3``, ``G105``, an edge list's file name);
+    for a graph given inline (a graph object passed to :func:`antisync.run`), the config's
+    ``name``."""
+    if config.graph.get("kind") == "inline":
+        return config.name
+    return graph_name(config.graph)
 
 
 #: The real stability interval of each integrator's step for y' = -xi y: Euler is stable for

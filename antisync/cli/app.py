@@ -4,10 +4,12 @@ from __future__ import annotations
 
 import contextlib
 from collections.abc import Callable
+from typing import Annotated
 
 import typer
 from typer.core import TyperGroup
 
+from antisync._version import __version__
 from antisync.cli.common import fail
 from antisync.cli.paper import paper
 from antisync.cli.report import report
@@ -78,6 +80,25 @@ app = typer.Typer(
     add_completion=False,
     pretty_exceptions_enable=False,
 )
+
+
+def _print_version(value: bool) -> None:
+    """``--version``: print ``antisync <version>`` and exit 0, before any command runs."""
+    if value:
+        typer.echo(f"antisync {__version__}")
+        raise typer.Exit()
+
+
+@app.callback()
+def _options(
+    version: Annotated[
+        bool,
+        typer.Option("--version", callback=_print_version, is_eager=True, help="Print the version and exit."),
+    ] = False,
+) -> None:
+    """The options of ``antisync`` itself (before a command)."""
+
+
 app.command()(run)
 app.command()(sweep)
 app.command()(summary)

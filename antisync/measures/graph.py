@@ -7,7 +7,6 @@ directed link (or a chosen few) of a networkx graph or a config graph spec.
 from __future__ import annotations
 
 import math
-import numbers
 import os
 from collections.abc import Mapping
 from typing import TYPE_CHECKING
@@ -19,9 +18,6 @@ __all__ = ["for_graph"]
 
 _WHICH = ("xi2", "rw")
 _COUPLINGS = ("normalized", "raw")
-#: the most total weight a graph may carry, as for edge-list files (graphs.from_edgelist):
-#: the raw Laplacian's spectrum overflows long before float64's 1.8e308
-_MAX_TOTAL_WEIGHT = 1e100
 
 
 def for_graph(
@@ -151,37 +147,8 @@ def _graph(graph) -> nx.Graph:
             "measures: graph must be a networkx graph or a config graph spec such as "
             f"{{'kind': 'lollipop', 'nodes': 6, 'path': 3}}, got {_shown(graph)}"
         )
-    if graph.is_directed():
-        raise graphs.GraphError(
-            f"measures need an undirected graph (Omega is symmetric), got a {type(graph).__name__}; "
-            "give graph.to_undirected() if each link counts in both directions"
-        )
-    g = nx.Graph()
-    g.add_nodes_from(graph.nodes)  # insertion order: the node order of unsortable labels
-    for u, v, w in graph.edges(data="weight", default=1.0):
-        if u == v:
-            raise graphs.GraphError(f"measures: self-loop {u}-{v} is not allowed; remove it")
-        if isinstance(w, bool) or not isinstance(w, numbers.Real) or not (w > 0 and math.isfinite(w)):
-            raise graphs.GraphError(
-                f"measures: edge {u}-{v} has weight {_shown(w)}; weights must be positive finite numbers"
-            )
-        # parallel links of a multigraph add up: Omega_ij is the total weight between i and j
-        total = float(w) + (g.edges[u, v]["weight"] if g.has_edge(u, v) else 0.0)
-        g.add_edge(u, v, weight=total)
-    total = sum(w for *_, w in g.edges(data="weight"))
-    if not total <= _MAX_TOTAL_WEIGHT:
-        raise graphs.GraphError(
-            f"measures: the weights sum to {total:.3g}; keep them below {_MAX_TOTAL_WEIGHT:.0e} "
-            "(rescale them: normalized coupling only sees their ratios)"
-        )
-    labels: dict[str, object] = {}
-    for v in g.nodes:  # records name links "a->b" by the labels' text: two alike would be one
-        other = labels.setdefault(str(v), v)
-        if other is not v:
-            raise graphs.GraphError(
-                f"measures: nodes {other!r} and {v!r} print alike ({str(v)!r}), so their links "
-                "could not be told apart; relabel them (networkx.convert_node_labels_to_integers)"
-            )
+    # the conversion antisync.run uses for a graph object too (graphs.graph_spec)
+    g = graphs.simple_graph(graph, "measures")
     if g.number_of_nodes() < 2 or not nx.is_connected(g):
         raise graphs.GraphError("measures need a connected graph with at least 2 nodes")
     return g

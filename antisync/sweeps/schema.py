@@ -14,7 +14,13 @@ from typing import Literal
 
 import yaml
 
-from antisync.config import Config, config_from_mapping, parse_mapping, read_config_text
+from antisync.config import (
+    Config,
+    config_from_mapping,
+    parse_mapping,
+    read_config_text,
+    resolve_graph_path,
+)
 from antisync.errors import ConfigError
 from antisync.sweeps.families import FAMILIES, family_specs
 from antisync.validation import choice, number, positive, unknown_keys
@@ -173,6 +179,8 @@ def load_sweep_text(
     if "graph" in raw:
         raise ConfigError("a sweep config has no 'graph' key: its graphs come from 'sweep:'")
     family = _family(raw["sweep"])
+    if family["family"] == "graphs":  # graph files are relative to the sweep file, as in a run
+        family["graphs"] = [resolve_graph_path(spec, source) for spec in family["graphs"]]
     specs = family_specs(family)
     thresholds = _thresholds(raw)
     repeats = raw.get("repeats", 1)
