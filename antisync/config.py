@@ -423,10 +423,11 @@ class Config:
         d = self.resolved().to_dict()
         for k in ("name", "backend", "executor", "threads", "output", "chunk_size"):
             d.pop(k)
-        freq = self.model.frequencies
-        if isinstance(freq, dict) and "file" in freq:
-            # the file's content decides the numbers, not its name: an edited file is another run
-            d["model"]["frequencies"] = {**freq, "sha256": _file_digest(freq["file"])}
+        for key in _MODEL_FILE_KEYS:
+            spec = getattr(self.model, key)
+            if isinstance(spec, dict) and "file" in spec:
+                # the file's content decides the numbers, not its name: an edited file is another run
+                d["model"][key] = {**spec, "sha256": _file_digest(spec["file"])}
         return d
 
 
@@ -672,13 +673,19 @@ def _file_digest(path: str) -> str:
         return ""
 
 
+#: ``model:`` keys that may name a per-node file, ``{file: PATH}``.
+_MODEL_FILE_KEYS = ("frequencies", "inertia", "damping")
+
+
 def _resolve_frequency_file(value: dict, source: Path | None) -> dict:
-    """``model.frequencies: {file: PATH}`` relative to the config's folder (like edge lists)."""
-    freq = value.get("frequencies")
-    if isinstance(freq, dict) and set(freq) == {"file"} and isinstance(freq["file"], str) and source:
-        p = Path(freq["file"])
-        if not p.is_absolute():
-            value = {**value, "frequencies": {"file": str((source.parent / p).resolve())}}
+    """``model.frequencies`` / ``inertia`` / ``damping: {file: PATH}`` relative to the config's
+    folder (like edge lists)."""
+    for key in _MODEL_FILE_KEYS:
+        spec = value.get(key)
+        if isinstance(spec, dict) and set(spec) == {"file"} and isinstance(spec["file"], str) and source:
+            p = Path(spec["file"])
+            if not p.is_absolute():
+                value = {**value, key: {"file": str((source.parent / p).resolve())}}
     return value
 
 

@@ -44,6 +44,7 @@ __all__ = [
     "drawn_frequencies",
     "model_setup",
     "node_frequencies",
+    "node_parameters",
     "unsynced_hint",
 ]
 
@@ -113,6 +114,35 @@ def _check_frequencies(value):
     )
 
 
+#: Largest per-node inertia or damping: ``m / gamma`` and ``gamma / m`` stay finite, and a
+#: stability check on ``dt gamma / m`` cannot overflow to a pass.
+MAX_NODE_PARAMETER = 1e100
+
+
+def _node_parameter(key: str, value, positive_only: bool):
+    """``model.inertia`` / ``model.damping``: a number, one number per node (a list), or
+    ``{file: PATH}`` (one number per line, read when the graph is known)."""
+    top = f"at most {MAX_NODE_PARAMETER:g}"
+    valid = f"a positive number {top}" if positive_only else f"a number >= 0 (0: first order) {top}"
+    hint = f"{valid}, one such number per node (a list) or {{file: PATH}}"
+
+    def one(where, x):
+        v = parse_number(where, x, valid)
+        if not (0 < v if positive_only else 0 <= v) or not v <= MAX_NODE_PARAMETER:
+            raise ConfigError(f"{where} must be {valid}, got {show(x)}")
+        return v
+
+    if isinstance(value, list | tuple):
+        if not value:
+            raise ConfigError(f"{key} is an empty list; give {hint}")
+        return tuple(one(f"{key}[{i}]", x) for i, x in enumerate(value))
+    if isinstance(value, dict):
+        if set(value) != {"file"} or not isinstance(value["file"], str) or not value["file"]:
+            raise ConfigError(f"{key} must be {hint}, got {show(value)}")
+        return {"file": value["file"]}
+    return one(key, value)
+
+
 @dataclass(frozen=True)
 class Model:
     """The oscillators' dynamics (docs/models.md); the defaults are the paper's Eq. 2.
@@ -127,16 +157,18 @@ class Model:
         drawn per realization. The mean over nodes is removed (module docstring).
     phase_lag : float
         ``alpha`` in ``(-pi/2, pi/2)``: coupling ``sin(theta_j - theta_i - alpha)``.
-    inertia : float
-        ``m >= 0``; ``0`` is the first-order model.
-    damping : float
-        ``gamma > 0`` of the second-order model (unused when ``inertia`` is 0).
+    inertia : float, tuple of float, dict
+        ``m >= 0``, one value for every node or per node (a list in node order, or ``{"file":
+        path}``); ``0`` everywhere is the first-order model. Per node, ``m_i = 0`` makes node
+        ``i`` first order, ``gamma_i theta_i' = P_i + ...`` (load buses beside generators).
+    damping : float, tuple of float, dict
+        ``gamma > 0``, one value or per node like ``inertia`` (unused when every ``m_i`` is 0).
     """
 
     frequencies: None | tuple | dict = None
     phase_lag: float = 0.0
-    inertia: float = 0.0
-    damping: float = 1.0
+    inertia: float | tuple | dict = 0.0
+    damping: float | tuple | dict = 1.0
 
     def __post_init__(self):
         object.__setattr__(self, "frequencies", _check_frequencies(self.frequencies))
@@ -144,14 +176,21 @@ class Model:
         lag = parse_number("model.phase_lag", self.phase_lag, lag_range)
         if not -math.pi / 2 < lag < math.pi / 2:
             raise ConfigError(f"model.phase_lag must be {lag_range}, got {show(self.phase_lag)}")
-        m = parse_number("model.inertia", self.inertia, "a number >= 0 (0: first order)")
-        if not m >= 0:
-            raise ConfigError(
-                f"model.inertia must be a number >= 0 (0: first order), got {show(self.inertia)}"
-            )
         object.__setattr__(self, "phase_lag", lag)
-        object.__setattr__(self, "inertia", m)
-        object.__setattr__(self, "damping", positive("model.damping", self.damping))
+        inertia = _node_parameter("model.inertia", self.inertia, positive_only=False)
+        damping = _node_parameter("model.damping", self.damping, positive_only=True)
+        if isinstance(inertia, tuple) and not any(inertia):
+            raise ConfigError(
+                "model.inertia lists 0 for every node: that is the first-order model, whose damping "
+                "is unused; write model.inertia: 0, or give some node a positive inertia"
+            )
+        if inertia == 0 and not isinstance(damping, float):
+            raise ConfigError(
+                "model.damping per node needs model.inertia > 0 on some node (with inertia 0 "
+                "everywhere the first-order model has no damping)"
+            )
+        object.__setattr__(self, "inertia", inertia)
+        object.__setattr__(self, "damping", damping)
 
     @property
     def is_default(self) -> bool:
@@ -165,7 +204,14 @@ class Model:
 
     @property
     def second_order(self) -> bool:
-        return self.inertia > 0
+        """Some node has inertia (a file of inertias counts: it is checked when read)."""
+        m = self.inertia
+        return isinstance(m, dict) or (any(m) if isinstance(m, tuple) else m > 0)
+
+    @property
+    def per_node(self) -> bool:
+        """Inertia or damping given per node."""
+        return not (isinstance(self.inertia, float) and isinstance(self.damping, float))
 
 
 @dataclass(frozen=True)
@@ -232,7 +278,7 @@ def node_frequencies(model: Model, n: int) -> np.ndarray | None:
     return values
 
 
-def read_frequency_file(path: str | Path) -> np.ndarray:
+def read_frequency_file(path: str | Path, what: str = "model.frequencies.file") -> np.ndarray:
     """The numbers of a per-node file: one number per line (a single column), ``#`` starts a
     comment, blank lines are skipped. Read by :func:`antisync.validation.read_input_text`
     (regular files only, UTF-8). Every number is written in the grammar of
@@ -246,7 +292,6 @@ def read_frequency_file(path: str | Path) -> np.ndarray:
         Naming the file, the line and what was expected there.
     """
     path = Path(path)
-    what = "model.frequencies.file"
     text = read_input_text(path, what)
     values = []
     for lineno, line in enumerate(text.splitlines(), 1):
@@ -271,6 +316,55 @@ def read_frequency_file(path: str | Path) -> np.ndarray:
             )
         values.append(x)
     return np.array(values, dtype=np.float64)
+
+
+def node_parameters(model: Model, n: int) -> tuple[np.ndarray, np.ndarray]:
+    """Per-node inertia ``m_i`` and damping ``gamma_i`` in node order (shape ``(n,)`` each).
+
+    A model without inertia anywhere gets ``gamma = 1`` (its damping is unused: ``theta_i' =
+    P_i + ...``). Files (``{"file": path}``) are read like a frequency file.
+
+    Raises
+    ------
+    ConfigError
+        A list or file of the wrong length, a value out of range, or every inertia 0.
+    """
+    out = []
+    for key, value, positive_only in (
+        ("model.inertia", model.inertia, False),
+        ("model.damping", model.damping, True),
+    ):
+        if isinstance(value, float):
+            out.append(np.full(n, value))
+            continue
+        if isinstance(value, dict):
+            path = Path(value["file"])
+            source = f"{key}.file {path}"
+            values = read_frequency_file(path, f"{key}.file")
+            for i, x in enumerate(values):
+                if not (0 < x if positive_only else 0 <= x) or not x <= MAX_NODE_PARAMETER:
+                    what = "a positive number" if positive_only else "a number >= 0"
+                    raise ConfigError(
+                        f"{source}: value {i + 1} ({x:g}) must be {what} at most {MAX_NODE_PARAMETER:g}"
+                    )
+        else:
+            source = key
+            values = np.array(value, dtype=np.float64)
+        if values.size != n:
+            raise ConfigError(
+                f"{source} has {values.size} values; the graph has {n} nodes: give one value per node, "
+                "in node order"
+            )
+        out.append(values)
+    mass, gamma = out
+    if not (mass > 0).any():
+        if not isinstance(model.inertia, float):
+            raise ConfigError(
+                f"model.inertia.file {model.inertia['file']} has 0 for every node: that is the first-order "
+                "model, whose damping is unused; write model.inertia: 0, or give some node a positive inertia"
+            )
+        gamma = np.ones(n)
+    return mass, gamma
 
 
 def drawn_frequencies(model: Model, seed: int, ks: np.ndarray, n: int) -> np.ndarray:
@@ -299,7 +393,9 @@ class ModelSetup:
     ----------
     freqs : ndarray (N,) or None
         Fixed natural frequencies, mean removed (``None``: drawn per realization, or none).
-    cos_lag, sin_lag, inertia, damping : float
+    cos_lag, sin_lag : float
+    inertia, damping : ndarray (N,)
+        Per-node ``m_i`` and ``gamma_i`` (:func:`node_parameters`; ``gamma = 1`` without inertia).
     criterion : int
         :data:`antisync.kernels.core.CRIT_ORDER` or ``CRIT_FREQUENCY``.
     targets : ndarray (1 + V,)
@@ -312,8 +408,8 @@ class ModelSetup:
     freqs: np.ndarray | None
     cos_lag: float
     sin_lag: float
-    inertia: float
-    damping: float
+    inertia: np.ndarray
+    damping: np.ndarray
     criterion: int
     targets: np.ndarray
     r_star: np.ndarray | None
@@ -334,8 +430,9 @@ def model_setup(config, indptr: np.ndarray, indices: np.ndarray, weights: list, 
 
     model, sync = config.model, config.sync
     n = indptr.size - 1
-    if model.second_order:
-        _check_second_order_step(config, indptr, indices, weights[0])
+    mass, gamma = node_parameters(model, n)
+    if (mass > 0).any():
+        _check_second_order_step(config, indptr, indices, weights[0], mass, gamma)
     fixed = node_frequencies(model, n)
     freqs = None if fixed is None else fixed - fixed.mean()
     lag = float(model.phase_lag)
@@ -360,7 +457,7 @@ def model_setup(config, indptr: np.ndarray, indices: np.ndarray, weights: list, 
             if key not in cache:
                 w = np.zeros((n, n))
                 w[rows, indices] = w_csr
-                cache[key] = locked_state(w, p, lag, model.inertia, model.damping)
+                cache[key] = locked_state(w, p, lag, mass, gamma)
             state = cache[key]
             if state is None or not state.stable:
                 what = "the undamaged network" if v == 0 else f"variant {labels[v - 1]}"
@@ -381,8 +478,8 @@ def model_setup(config, indptr: np.ndarray, indices: np.ndarray, weights: list, 
         freqs=freqs,
         cos_lag=math.cos(lag),
         sin_lag=math.sin(lag),
-        inertia=float(model.inertia),
-        damping=float(model.damping),
+        inertia=mass,
+        damping=gamma,
         criterion=criterion,
         targets=targets,
         r_star=r_star,
@@ -402,15 +499,16 @@ def unsynced_hint(config) -> str | None:
     return "the natural frequencies may be too spread for the coupling (no locked state)"
 
 
-def _check_second_order_step(config, indptr, indices, weights) -> None:
+def _check_second_order_step(config, indptr, indices, weights, mass, gamma) -> None:
     """Refuse a ``dt`` at which the explicit integrator is unstable near synchrony.
 
     Linearized at the in-phase state, ``m u'' + gamma u' = -L u`` (``L`` the coupling's
     Laplacian) has, for each eigenvalue ``xi`` of ``L``, the rates ``lambda`` with ``m lambda^2
-    + gamma lambda + xi = 0``. An explicit step multiplies such a mode by ``R(dt lambda)``
-    (Euler ``1 + z``, RK4 its 4th-order polynomial); ``|R| > 1`` makes synchrony repel (the
-    damping mode ``-gamma/m`` of a small inertia, or weakly damped oscillations under Euler).
-    The first-order model's check is :func:`antisync.jobs.check_step`.
+    + gamma lambda + xi = 0`` (per-node ``m_i``, ``gamma_i``: the eigenvalues of
+    :func:`antisync.locked.linearization`'s matrix). An explicit step multiplies such a mode by
+    ``R(dt lambda)`` (Euler ``1 + z``, RK4 its 4th-order polynomial); ``|R| > 1`` makes synchrony
+    repel (the damping mode ``-gamma/m`` of a small inertia, or weakly damped oscillations under
+    Euler). The first-order model's check is :func:`antisync.jobs.check_step`.
 
     The comparison is NaN-safe: a growth that overflows (``inertia: 1e-110`` puts ``dt
     lambda`` near 1e107, whose 4th power is inf and the polynomial NaN) is refused, not passed.
@@ -418,20 +516,32 @@ def _check_second_order_step(config, indptr, indices, weights) -> None:
     ``-1e-16`` gave a rate ``+1e-16 / gamma`` and a false "amplifies a mode by 1 per step".
     The message gives the largest stable ``dt`` (found by bisection on the same test).
     """
-    m, gamma = config.model.inertia, config.model.damping
+    from antisync.locked import linearization
+
     dyn = config.dynamics
     n = indptr.size - 1
     w = np.zeros((n, n))
     w[np.repeat(np.arange(n), np.diff(indptr)), indices] = weights
     lap = np.diag(w.sum(axis=1)) - w
-    xi = np.linalg.eigvals(lap)
     # rounding of an eigenvalue solver is ~ n eps ||L||: anything that close to 0 is the zero
     # of the global rotation (or another exact zero), and its sign means nothing
     scale = float(np.max(np.abs(lap.diagonal()))) if n else 0.0
-    xi = np.where(np.abs(xi) <= 64 * n * np.finfo(float).eps * scale, 0.0, xi)
+    zero = 64 * n * np.finfo(float).eps * scale
+    gen = mass > 0
+    # the damping mode -gamma_i/m_i of the node where it is fastest (inf for a tiny m_i)
+    with np.errstate(over="ignore"):
+        worst_node = int(np.argmax(np.where(gen, gamma / np.where(gen, mass, 1.0), -np.inf)))
+    m, g = float(mass[worst_node]), float(gamma[worst_node])
+    uniform = gen.all() and np.all(mass == mass[0]) and np.all(gamma == gamma[0])
     with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
-        disc = np.sqrt(gamma * gamma - 4 * m * xi.astype(complex))
-        lam = np.concatenate([(-gamma + disc) / (2 * m), (-gamma - disc) / (2 * m)])
+        if uniform:
+            xi = np.linalg.eigvals(lap)
+            xi = np.where(np.abs(xi) <= zero, 0.0, xi)
+            disc = np.sqrt(g * g - 4 * m * xi.astype(complex))
+            lam = np.concatenate([(-g + disc) / (2 * m), (-g - disc) / (2 * m)])
+        else:
+            lam = np.linalg.eigvals(linearization(-lap, mass, gamma))
+            lam = np.where(np.abs(lam) <= zero * float(np.max(1.0 / np.where(gen, mass, gamma))), 0.0, lam)
     lam = lam[lam != 0]  # the rotation's own mode: neither grows nor decays
 
     def worst_growth(dt: float) -> float:
@@ -461,10 +571,11 @@ def _check_second_order_step(config, indptr, indices, weights) -> None:
         mid = 0.5 * (lo + hi)
         lo, hi = (mid, hi) if stable(mid) else (lo, mid)
     # the damping mode -gamma/m alone needs dt gamma / m below the step's real stability limit
-    m_min = dyn.dt * gamma / (2.0 if dyn.integrator == "euler" else 2.785)
+    m_min = dyn.dt * g / (2.0 if dyn.integrator == "euler" else 2.785)
     usable = lo > 0.0 and dyn.t_max / lo <= MAX_STEPS_HINT
+    node = f" at node {worst_node}" if config.model.per_node else ""
     if m < m_min:
-        fix = f"model.inertia must be at least ~{m_min:.3g} at this dt (or 0: the first-order model)"
+        fix = f"model.inertia{node} must be at least ~{m_min:.3g} at this dt (or 0: the first-order model)"
         if usable:
             fix += f", or dynamics.dt below ~{lo:.3g}"
     elif usable:
@@ -474,6 +585,6 @@ def _check_second_order_step(config, indptr, indices, weights) -> None:
     shown = f"{worst:.6g}" if math.isfinite(worst) else "an overflowing factor (inf)"
     raise ConfigError(
         f"dynamics.dt = {dyn.dt:g} is unstable for the second-order model (model.inertia {m:g}, "
-        f"model.damping {gamma:g}): an explicit {dyn.integrator} step amplifies a mode near synchrony "
+        f"model.damping {g:g}{node}): an explicit {dyn.integrator} step amplifies a mode near synchrony "
         f"by {shown} per step; {fix}"
     )

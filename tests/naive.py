@@ -48,11 +48,18 @@ def two_oscillator_tau(phi0: float, threshold: float, coupling: float = 1.0) -> 
 
 def model_rates(theta, nu, w, p, lag, inertia, damping):
     """``(theta', nu')`` of ``m theta'' + gamma theta' = P + sum_j w_ij sin(theta_j - theta_i -
-    lag)``; first order (``inertia == 0``): ``theta' = P + coupling``, ``nu' = 0``."""
+    lag)``; first order (``inertia == 0``): ``theta' = P + coupling``, ``nu' = 0``. Per-node
+    ``inertia``/``damping`` arrays: a node with ``m_i = 0`` has ``gamma_i theta_i' = P_i +
+    coupling_i`` (when some other node has inertia)."""
     k = (w * np.sin(theta[None, :] - theta[:, None] - lag)).sum(axis=1)
-    if inertia > 0:
-        return nu, (p + k - damping * nu) / inertia
-    return p + k, np.zeros_like(theta)
+    m = np.broadcast_to(np.asarray(inertia, dtype=float), theta.shape)
+    g = np.broadcast_to(np.asarray(damping, dtype=float), theta.shape)
+    if not (m > 0).any():
+        return p + k, np.zeros_like(theta)
+    gen = m > 0
+    th = np.where(gen, nu, (p + k) / g)
+    dnu = np.where(gen, (p + k - g * nu) / np.where(gen, m, 1.0), 0.0)
+    return th, dnu
 
 
 def frequency_deviation(theta, nu, w, p, lag, inertia, damping):
@@ -60,13 +67,15 @@ def frequency_deviation(theta, nu, w, p, lag, inertia, damping):
     gamma``, the frequency each node relaxes to (docs/models.md)."""
     th, dnu = model_rates(theta, nu, w, p, lag, inertia, damping)
     dev = np.max(np.abs(th - th.mean()))
-    if inertia > 0:
-        relax = th + inertia / damping * dnu
+    if np.any(np.asarray(inertia) > 0):
+        relax = th + np.asarray(inertia) / np.asarray(damping) * dnu
         dev = max(dev, np.max(np.abs(relax - relax.mean())))
     return float(dev)
 
 
-def model_tau(theta0, w, p, lag, inertia, damping, criterion, target, t_max, rtol=1e-11, atol=1e-12):
+def model_tau(
+    theta0, w, p, lag, inertia, damping, criterion, target, t_max, rtol=1e-11, atol=1e-12, max_step=0.01
+):
     """tau of a generalized model by ``scipy.integrate.solve_ivp`` (DOP853) with an event.
 
     ``criterion`` ``"r"``: first time ``r(t) >= target``; ``"frequency"``: first time the
@@ -76,7 +85,7 @@ def model_tau(theta0, w, p, lag, inertia, damping, criterion, target, t_max, rto
     from scipy.integrate import solve_ivp
 
     n = theta0.size
-    second = inertia > 0
+    second = bool(np.any(np.asarray(inertia) > 0))
 
     def split(y):
         return y[:n], (y[n:] if second else np.zeros(n))
@@ -96,7 +105,10 @@ def model_tau(theta0, w, p, lag, inertia, damping, criterion, target, t_max, rto
     y0 = np.concatenate([theta0, np.zeros(n)]) if second else np.array(theta0, dtype=float)
     if gap(0.0, y0) >= 0 if criterion == "r" else gap(0.0, y0) > 0:
         return Status.ALREADY_SYNCED, 0.0
-    sol = solve_ivp(rhs, (0.0, t_max), y0, method="DOP853", rtol=rtol, atol=atol, events=gap)
+    # events are searched between the solver's steps: short ones keep it from stepping over a dip
+    sol = solve_ivp(
+        rhs, (0.0, t_max), y0, method="DOP853", rtol=rtol, atol=atol, events=gap, max_step=max_step
+    )
     if sol.t_events[0].size:
         return Status.SYNCED, float(sol.t_events[0][0])
     return Status.NOT_SYNCED, t_max

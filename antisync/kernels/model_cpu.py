@@ -15,7 +15,7 @@ import numpy as np
 from numba import njit, prange
 
 from antisync import _numba_cache  # noqa: F401 -- before any cache=True function (see there)
-from antisync.kernels.core import CRIT_FREQUENCY, CRIT_ORDER, make_kernels, make_model_kernels
+from antisync.kernels.core import CRIT_FREQUENCY, CRIT_ORDER, WORK_ROWS, make_kernels, make_model_kernels
 from antisync.kernels.cpu import SimResult, _realization_ids, _Threads
 from antisync.phases import make_uniform, phase
 
@@ -35,7 +35,8 @@ class ModelParams(NamedTuple):
     """The model's constants for a kernel (see :class:`antisync.model.Model`).
 
     ``freqs`` has one row (the same frequencies for every realization) or one row per
-    realization of the batch, mean already removed; ``targets[0]`` is the undamaged network's
+    realization of the batch, mean already removed; ``inertia`` and ``damping`` one number or
+    one per node (``damping`` must be 1 where no node has inertia); ``targets[0]`` is the undamaged network's
     and ``targets[1 + v]`` variant ``v``'s: ``R = (r N)^2`` at the order-parameter or relative
     threshold, or the frequency tolerance.
     """
@@ -43,8 +44,8 @@ class ModelParams(NamedTuple):
     freqs: np.ndarray
     cos_lag: float
     sin_lag: float
-    inertia: float
-    damping: float
+    inertia: float | np.ndarray
+    damping: float | np.ndarray
     criterion: int
     targets: np.ndarray
 
@@ -89,7 +90,7 @@ def _integrate_items(
         nu = np.zeros(n)
         th = np.empty(n)
         dnu = np.zeros(n)
-        work = np.empty((15, n))
+        work = np.empty((WORK_ROWS, n))
         for i in range(n):
             theta = phase(seed, ks[r], i)
             c[i] = np.cos(theta)
@@ -131,6 +132,11 @@ def _integrate_items(
                 status[r, v] = status0[r]
                 steps[r, v] = steps0[r]
                 frac[r, v] = frac0[r]
+
+
+def _per_node(value, n: int) -> np.ndarray:
+    """Inertia or damping as the kernels' per-node array (a number is every node's)."""
+    return np.ascontiguousarray(np.broadcast_to(np.asarray(value, dtype=np.float64), (n,)))
 
 
 def simulate_model(
@@ -191,8 +197,8 @@ def simulate_model(
             freqs,
             float(params.cos_lag),
             float(params.sin_lag),
-            float(params.inertia),
-            float(params.damping),
+            _per_node(params.inertia, n),
+            _per_node(params.damping, n),
             float(dt),
             integrator == "rk4",
             int(params.criterion),

@@ -16,9 +16,10 @@ import math
 import numpy as np
 
 from antisync.errors import AntisyncError
-from antisync.kernels.core import make_kernels, make_model_kernels
+from antisync.kernels.core import WORK_ROWS, make_kernels, make_model_kernels
 from antisync.kernels.cpu import SimResult, _realization_ids
 from antisync.kernels.cuda import _MAX_GRID, MAX_NODES, _quiet_simulator, _require_cuda, threads_per_block
+from antisync.kernels.model_cpu import _per_node
 from antisync.phases import make_phase
 
 try:  # numba-cuda is an optional dependency
@@ -72,7 +73,7 @@ def _kernel():
         nu = cuda.local.array(MAX_NODES, f64)[:n]
         th = cuda.local.array(MAX_NODES, f64)[:n]
         dnu = cuda.local.array(MAX_NODES, f64)[:n]
-        work = cuda.local.array((15, MAX_NODES), f64)
+        work = cuda.local.array((WORK_ROWS, MAX_NODES), f64)
         for item in range(cuda.grid(1), m * per, cuda.gridsize(1)):
             r = item // per
             v = item - r * per - 1
@@ -189,8 +190,8 @@ def simulate_model(
                 cuda.to_device(freqs),
                 float(params.cos_lag),
                 float(params.sin_lag),
-                float(params.inertia),
-                float(params.damping),
+                cuda.to_device(_per_node(params.inertia, n)),
+                cuda.to_device(_per_node(params.damping, n)),
                 float(dt),
                 integrator == "rk4",
                 int(params.criterion),
