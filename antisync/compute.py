@@ -255,8 +255,14 @@ def _simulate_model(job, first, count, backend, threads, variant_weights, realiz
         simulate_model = functools.partial(model_cpu.simulate_model, threads=threads)
 
     setup = job.model
-    if variant_weights is not None:
-        raise ValueError("the model kernels integrate the job's own variants only")
+    targets = setup.targets
+    if variant_weights is job.orbit_weights and variant_weights is not None:
+        # the +-dbeta rows of central-difference / orbit, each with its own target (relative)
+        targets = np.concatenate([setup.targets[:1], setup.orbit_targets])
+    elif variant_weights is not None:
+        raise ValueError("the model kernels integrate the job's own variants or its +-dbeta rows only")
+    else:
+        variant_weights = job.variant_weights
     n = len(job.nodes)
     ks = model_cpu._realization_ids(first, count, realizations)
     if job.config.model.drawn:
@@ -267,7 +273,7 @@ def _simulate_model(job, first, count, backend, threads, variant_weights, realiz
     else:
         freqs = np.zeros((1, n))
     params = model_cpu.ModelParams(
-        freqs, setup.cos_lag, setup.sin_lag, setup.inertia, setup.damping, setup.criterion, setup.targets
+        freqs, setup.cos_lag, setup.sin_lag, setup.inertia, setup.damping, setup.criterion, targets
     )
     dyn = job.config.dynamics
     return simulate_model(
@@ -277,7 +283,7 @@ def _simulate_model(job, first, count, backend, threads, variant_weights, realiz
         job.csr.indptr,
         job.csr.indices,
         job.csr.weights,
-        job.variant_weights,
+        variant_weights,
         params,
         dt=dyn.dt,
         max_steps=dyn.max_steps,

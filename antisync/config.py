@@ -340,11 +340,19 @@ class Config:
     def _check_model(self) -> None:
         if not self.generalized:
             return
-        if self.lambda_.method != "finite-difference":
+        method = self.lambda_.method
+        if method not in ("finite-difference", "central-difference", "orbit"):
             raise ConfigError(
-                f"lambda.method {self.lambda_.method} is written for identical first-order "
-                "oscillators with sync.criterion order-parameter; use lambda.method "
-                "finite-difference with this model/sync section"
+                f"lambda.method {method}: its tangents and adjoint are written for identical "
+                "first-order oscillators with sync.criterion order-parameter; with this model/sync "
+                "section use central-difference (the derivative d<F>/dbeta) or finite-difference "
+                "(the paper's forward secant)"
+            )
+        if method == "orbit" and not self.model.symmetric:
+            raise ConfigError(
+                "lambda.method orbit averages over the graph's automorphisms, which fixed natural "
+                "frequencies or per-node inertia/damping do not respect (a link and its image see "
+                "different nodes); use central-difference (every link on its own)"
             )
         if self.sync.criterion == "relative" and self.model.drawn:
             raise ConfigError(

@@ -208,11 +208,14 @@ def make_job(config: Config, graph: nx.Graph | None = None, name: str | None = N
         [(a, b, float(h)) for h in (dbeta, -dbeta) for a, b in edge_idx] if kuramoto else [],
         config.dynamics.coupling,
     )
+    orbit = _orbit_fields(graph, nodes, omega, csr, edges, config)
     model = None
     if config.generalized:
         pairs = zip(variant_edge, variant_beta, strict=True)
         labels = [f"{graphs.edge_label(*edges[e])} beta {b:g}" for e, b in pairs]
-        model = model_setup(config, csr.indptr, csr.indices, [csr.weights, *vw], labels)
+        ow = list(orbit.get("orbit_weights", []))
+        labels += [f"{graphs.edge_label(*edges[k // 2])} beta {(-1) ** k * dbeta:g}" for k in range(len(ow))]
+        model = model_setup(config, csr.indptr, csr.indices, [csr.weights, *vw, *ow], labels, len(ow))
     return Job(
         config=config.resolved(),
         name=name or graph.graph.get("name") or _job_name(config),
@@ -230,7 +233,7 @@ def make_job(config: Config, graph: nx.Graph | None = None, name: str | None = N
         tangent=coupling.tangent_coefficients(omega, edge_idx, config.dynamics.coupling),
         secant_weights=secant,
         model=model,
-        **_orbit_fields(graph, nodes, omega, csr, edges, config),
+        **orbit,
     )
 
 

@@ -209,6 +209,14 @@ class Model:
         return isinstance(m, dict) or (any(m) if isinstance(m, tuple) else m > 0)
 
     @property
+    def symmetric(self) -> bool:
+        """Every automorphism of the graph is one of the model: no fixed per-node values
+        (frequencies drawn i.i.d. per realization are exchangeable, so averages keep the
+        symmetry)."""
+        fixed = self.frequencies is not None and not self.drawn
+        return not fixed and not self.per_node
+
+    @property
     def per_node(self) -> bool:
         """Inertia or damping given per node."""
         return not (isinstance(self.inertia, float) and isinstance(self.damping, float))
@@ -403,6 +411,9 @@ class ModelSetup:
         the frequency tolerance.
     r_star : ndarray (1 + V,) or None
         ``relative``: the order parameter of each one's stable locked state.
+    orbit_targets, orbit_r_star : ndarray (2 E,) or None
+        The same for the ``+dbeta``/``-dbeta`` rows of ``central-difference`` and ``orbit``
+        (:attr:`antisync.jobs.Job.orbit_weights`), when the method has them.
     """
 
     freqs: np.ndarray | None
@@ -413,12 +424,17 @@ class ModelSetup:
     criterion: int
     targets: np.ndarray
     r_star: np.ndarray | None
+    orbit_targets: np.ndarray | None = None
+    orbit_r_star: np.ndarray | None = None
 
 
-def model_setup(config, indptr: np.ndarray, indices: np.ndarray, weights: list, labels: list) -> ModelSetup:
+def model_setup(
+    config, indptr: np.ndarray, indices: np.ndarray, weights: list, labels: list, orbit_rows: int = 0
+) -> ModelSetup:
     """Resolve ``config.model`` and ``config.sync`` for a graph whose coupling ``W`` (CSR
     ``indptr``, ``indices``) takes the CSR ``weights[0]`` undamaged and ``weights[1 + v]`` in
-    variant ``v`` (``labels[v]`` names it in messages).
+    variant ``v`` (``labels[v]`` names it in messages); the last ``orbit_rows`` of them are the
+    central differences' ``+-dbeta`` rows (their targets go to ``orbit_targets``).
 
     Raises
     ------
@@ -474,6 +490,7 @@ def model_setup(config, indptr: np.ndarray, indices: np.ndarray, weights: list, 
                 )
             r_star[v] = state.r
         targets = (sync.fraction * r_star * n) ** 2
+    cut = n_kinds - orbit_rows
     return ModelSetup(
         freqs=freqs,
         cos_lag=math.cos(lag),
@@ -481,8 +498,10 @@ def model_setup(config, indptr: np.ndarray, indices: np.ndarray, weights: list, 
         inertia=mass,
         damping=gamma,
         criterion=criterion,
-        targets=targets,
-        r_star=r_star,
+        targets=targets[:cut],
+        r_star=None if r_star is None else r_star[:cut],
+        orbit_targets=targets[cut:] if orbit_rows else None,
+        orbit_r_star=None if r_star is None or not orbit_rows else r_star[cut:],
     )
 
 

@@ -208,3 +208,84 @@ SMALL = LOLLIPOP + "edges: ['2->1']\nbetas: [0.5]\nrealizations: 10\ndynamics: {
 )
 def test_bad_per_node_parameters_are_one_line(tmp_path, extra, message, files):
     _one_line(tmp_path, SMALL + extra, message, files)
+
+
+# ---- the derivative d<F>/dbeta for every model: central differences ------------------------
+
+
+def test_central_difference_runs_every_model_with_each_variants_own_target():
+    """``lambda.method: central-difference`` on a model: each +-dbeta row carries its own
+    relative target (r* of its weights), and the per-realization values are the central secant
+    ``tau0 (1/tau(+h) - 1/tau(-h)) / (2 h)`` of trajectories integrated one by one."""
+    from antisync import coupling as cp
+    from antisync.compute import lambda_values
+    from antisync.kernels import model_cpu
+
+    job = job_of(
+        LOLLIPOP + "edges: ['2->1', '4->3']\nbetas: []\nlambda: {method: central-difference, dbeta: 0.02}\n"
+        "model: {frequencies: [0.15, -0.1, 0.05, 0.12, -0.2, -0.02], phase_lag: 0.3,\n"
+        "        inertia: [0.5, 0, 0, 1, 0, 0]}\n"
+        "sync: {criterion: relative, fraction: 0.98}\ndynamics: {integrator: rk4, dt: 0.02, t_max: 80}\n"
+    )
+    setup = job.model
+    assert setup.orbit_targets.shape == (4,) and len(set(np.round(setup.orbit_r_star, 12))) == 4
+    count = 30
+    values, code, _, _ = lambda_values(job, None, 0, count)
+    index = {v: i for i, v in enumerate(job.nodes)}
+    dt = 0.02
+    for e, (a, b) in enumerate(job.edges):
+        taus = []
+        for h in (0.02, -0.02):
+            w = cp.variant_weights(job.omega, job.csr, [(index[a], index[b], h)], "normalized")[0]
+            state = locked_state(dense_w(job, w), setup.freqs, 0.3, setup.inertia, setup.damping)
+            target = (0.98 * state.r * 6) ** 2
+            params = model_cpu.ModelParams(
+                setup.freqs[None, :],
+                setup.cos_lag,
+                setup.sin_lag,
+                setup.inertia,
+                setup.damping,
+                setup.criterion,
+                np.array([setup.targets[0], target]),
+            )
+            sim = model_cpu.simulate_model(
+                job.config.seed,
+                0,
+                count,
+                job.csr.indptr,
+                job.csr.indices,
+                job.csr.weights,
+                w[None, :],
+                params,
+                dt=dt,
+                max_steps=4000,
+                integrator="rk4",
+            )
+            taus.append((sim.steps[:, 0] - 1 + sim.frac[:, 0]) * dt)
+        tau0 = (sim.steps0 - 1 + sim.frac0) * dt
+        want = tau0 * (1 / taus[0] - 1 / taus[1]) / 0.04
+        ok = code[:, e] == Status.SYNCED
+        assert ok.mean() > 0.9
+        np.testing.assert_allclose(values[ok, e], want[ok], rtol=1e-12, atol=1e-12)
+
+
+def test_orbit_runs_a_model_that_keeps_the_symmetry_and_refuses_one_that_breaks_it(tmp_path):
+    job = job_of(
+        "graph: {kind: networkx, generator: complete_graph, args: {n: 5}}\nedges: ['0->1']\nbetas: []\n"
+        "lambda: {method: orbit}\nmodel: {frequencies: {distribution: normal, sd: 0.1}, phase_lag: 0.2}\n"
+    )
+    from antisync.compute import lambda_values
+
+    values, code, _, _ = lambda_values(job, None, 0, 20)
+    # K5's one orbit is every link: damaging all by beta leaves the normalized W unchanged
+    np.testing.assert_array_equal(values[code == Status.SYNCED], 0.0)
+    _one_line(
+        tmp_path,
+        SMALL + "model: {frequencies: [0.1, 0, 0, 0, 0, -0.1]}\nlambda: {method: orbit}\n",
+        "lambda.method orbit averages over the graph's automorphisms",
+    )
+    _one_line(
+        tmp_path,
+        SMALL + "model: {phase_lag: 0.1}\nlambda: {method: adjoint}\n",
+        "use central-difference (the derivative d<F>/dbeta) or finite-difference",
+    )
