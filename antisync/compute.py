@@ -210,15 +210,22 @@ def simulate_job(
     variant_weights: np.ndarray | None = None,
     realizations: np.ndarray | None = None,
     todo: np.ndarray | None = None,
+    variant_targets: np.ndarray | None = None,
 ):
     """Integrate realizations ``first .. first+count-1`` (or ``realizations``) of ``job``
-    (only the items marked by ``todo``, see :func:`antisync.kernels.cpu.simulate`)."""
+    (only the items marked by ``todo``, see :func:`antisync.kernels.cpu.simulate`).
+
+    A generalized model's ``variant_weights`` other than the job's own variants or
+    :attr:`~antisync.jobs.Job.orbit_weights` need their ``variant_targets`` (the criterion's
+    target of each row: the relative criterion's moves with the weights)."""
     dyn = job.config.dynamics
     check_backend(job.config, backend)
     if job.model is not None:
-        if todo is not None:
-            raise ValueError("the model kernels integrate every item (no todo)")
-        return _simulate_model(job, first, count, backend, threads, variant_weights, realizations)
+        if todo is not None and backend == "cuda":
+            raise ValueError("the CUDA model kernel integrates every item (no todo)")
+        return _simulate_model(
+            job, first, count, backend, threads, variant_weights, realizations, todo, variant_targets
+        )
     kwargs = {"precision": dyn.precision}
     if backend != "cuda":
         kwargs["threads"] = threads
@@ -244,7 +251,9 @@ def simulate_job(
     )
 
 
-def _simulate_model(job, first, count, backend, threads, variant_weights, realizations):
+def _simulate_model(
+    job, first, count, backend, threads, variant_weights, realizations, todo=None, variant_targets=None
+):
     """:func:`simulate_job` for a generalized model (docs/models.md)."""
     from antisync.kernels import model_cpu
     from antisync.model import drawn_frequencies
@@ -256,13 +265,15 @@ def _simulate_model(job, first, count, backend, threads, variant_weights, realiz
 
     setup = job.model
     targets = setup.targets
-    if variant_weights is job.orbit_weights and variant_weights is not None:
+    if variant_weights is None:
+        variant_weights = job.variant_weights
+    elif variant_weights is job.orbit_weights:
         # the +-dbeta rows of central-difference / orbit, each with its own target (relative)
         targets = np.concatenate([setup.targets[:1], setup.orbit_targets])
-    elif variant_weights is not None:
-        raise ValueError("the model kernels integrate the job's own variants or its +-dbeta rows only")
+    elif variant_targets is not None and len(variant_targets) == len(variant_weights):
+        targets = np.concatenate([setup.targets[:1], variant_targets])
     else:
-        variant_weights = job.variant_weights
+        raise ValueError("other weights for a generalized model need their variant_targets")
     n = len(job.nodes)
     ks = model_cpu._realization_ids(first, count, realizations)
     if job.config.model.drawn:
@@ -289,6 +300,7 @@ def _simulate_model(job, first, count, backend, threads, variant_weights, realiz
         max_steps=dyn.max_steps,
         integrator=dyn.integrator,
         realizations=ks,
+        **({} if todo is None else {"todo": todo}),
     )
 
 
@@ -359,8 +371,11 @@ def _secants(job: Job, values, code, flagged, tau0, first: int, threads: int | N
     links = np.flatnonzero(flagged.any(axis=0))
     pairs = flagged[np.ix_(rows, links)]
     todo = np.concatenate([np.zeros((rows.size, 1), dtype=bool), pairs, pairs], axis=1)
-    weights = job.secant_weights[np.concatenate([links, links + len(job.edges)])]
-    sec = simulate_job(job, 0, 0, "cpu", threads, weights, realizations=first + rows, todo=todo)
+    index = np.concatenate([links, links + len(job.edges)])
+    targets = None if job.model is None else job.model.secant_targets[index]
+    sec = simulate_job(
+        job, 0, 0, "cpu", threads, job.secant_weights[index], first + rows, todo, variant_targets=targets
+    )
     tau = (sec.steps - 1 + sec.frac) * job.config.dynamics.dt
     plus, minus = tau[:, : links.size], tau[:, links.size :]
     s_plus, s_minus = sec.status[:, : links.size], sec.status[:, links.size :]
@@ -380,6 +395,8 @@ def _derivative_pass(job: Job, first: int, count: int, threads: int | None):
     dyn = job.config.dynamics
     kw = dict(dt=dyn.dt, threshold=dyn.threshold, max_steps=dyn.max_steps, threads=threads)
     edge_a, edge_b, rho, mu = job.tangent
+    if job.model is not None:
+        return _model_adjoint_pass(job, first, count, threads)
     if job.config.lambda_.method in ("adjoint", "adjoint-hybrid"):
         from antisync.kernels.adjoint import link_derivatives, simulate_adjoint
 
@@ -410,6 +427,44 @@ def _derivative_pass(job: Job, first: int, count: int, threads: int | None):
         rho,
         mu,
         **kw,
+    )
+
+
+def _model_adjoint_pass(job: Job, first: int, count: int, threads: int | None):
+    """``d tau0 / d beta_e`` of a generalized model by the adjoint of its step and of its
+    dense-output crossing (:mod:`antisync.kernels.model_adjoint`)."""
+    from antisync.kernels import model_cpu
+    from antisync.kernels.adjoint import link_derivatives
+    from antisync.kernels.model_adjoint import simulate_model_adjoint
+    from antisync.model import drawn_frequencies
+
+    dyn = job.config.dynamics
+    setup = job.model
+    n = len(job.nodes)
+    ks = model_cpu._realization_ids(first, count, None)
+    if job.config.model.drawn:
+        freqs = drawn_frequencies(job.config.model, job.config.seed, ks, n)
+    else:
+        freqs = (np.zeros(n) if setup.freqs is None else setup.freqs)[None, :]
+    params = model_cpu.ModelParams(
+        freqs, setup.cos_lag, setup.sin_lag, setup.inertia, setup.damping, setup.criterion, setup.targets[:1]
+    )
+    edge_a, edge_b, _, _ = job.tangent
+    edges = list(zip(edge_a.tolist(), edge_b.tolist(), strict=True))
+    return simulate_model_adjoint(
+        job.config.seed,
+        first,
+        count,
+        job.csr.indptr,
+        job.csr.indices,
+        job.csr.weights,
+        link_derivatives(job.omega, job.csr, edges, dyn.coupling),
+        params,
+        dt=dyn.dt,
+        max_steps=dyn.max_steps,
+        integrator=dyn.integrator,
+        dtarget=setup.dtarget,
+        threads=threads,
     )
 
 

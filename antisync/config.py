@@ -341,12 +341,13 @@ class Config:
         if not self.generalized:
             return
         method = self.lambda_.method
-        if method not in ("finite-difference", "central-difference", "orbit"):
+        if method in ("pathwise", "hybrid"):
             raise ConfigError(
-                f"lambda.method {method}: its tangents and adjoint are written for identical "
-                "first-order oscillators with sync.criterion order-parameter; with this model/sync "
-                "section use central-difference (the derivative d<F>/dbeta) or finite-difference "
-                "(the paper's forward secant)"
+                f"lambda.method {method}: its forward tangents are written for the Euler step of "
+                "identical first-order oscillators; with this model/sync section use adjoint or "
+                "adjoint-hybrid (the same derivative, every link in one backward pass), "
+                "central-difference (the derivative d<F>/dbeta) or finite-difference (the paper's "
+                "forward secant)"
             )
         if method == "orbit" and not self.model.symmetric:
             raise ConfigError(

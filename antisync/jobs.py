@@ -9,7 +9,7 @@ A :class:`Chunk` is a contiguous range of statistics blocks, the unit of work of
 from __future__ import annotations
 
 import functools
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import networkx as nx
 import numpy as np
@@ -17,7 +17,7 @@ import numpy as np
 from antisync import coupling, graphs
 from antisync.config import Config, graph_name
 from antisync.errors import ConfigError
-from antisync.model import ModelSetup, model_setup
+from antisync.model import DTARGET_STEP, ModelSetup, model_setup
 
 __all__ = ["Chunk", "Job", "make_job"]
 
@@ -211,11 +211,9 @@ def make_job(config: Config, graph: nx.Graph | None = None, name: str | None = N
     orbit = _orbit_fields(graph, nodes, omega, csr, edges, config)
     model = None
     if config.generalized:
-        pairs = zip(variant_edge, variant_beta, strict=True)
-        labels = [f"{graphs.edge_label(*edges[e])} beta {b:g}" for e, b in pairs]
-        ow = list(orbit.get("orbit_weights", []))
-        labels += [f"{graphs.edge_label(*edges[k // 2])} beta {(-1) ** k * dbeta:g}" for k in range(len(ow))]
-        model = model_setup(config, csr.indptr, csr.indices, [csr.weights, *vw, *ow], labels, len(ow))
+        model = _model_fields(
+            config, edges, edge_idx, variant_edge, variant_beta, omega, csr, vw, secant, orbit
+        )
     return Job(
         config=config.resolved(),
         name=name or graph.graph.get("name") or _job_name(config),
@@ -235,6 +233,56 @@ def make_job(config: Config, graph: nx.Graph | None = None, name: str | None = N
         model=model,
         **orbit,
     )
+
+
+def _model_fields(
+    config, edges, edge_idx, variant_edge, variant_beta, omega, csr, vw, secant, orbit
+) -> ModelSetup:
+    """The job's :class:`~antisync.model.ModelSetup`, with the targets of the damaged networks
+    its estimator integrates besides the variants: central differences' rows (``orbit``,
+    ``central-difference``), the hybrids' secants, and for the adjoint with the relative
+    criterion ``d target / d beta_e`` (a central difference of the target at ``+-DTARGET_STEP``)."""
+    method = config.lambda_.method
+    labels = [
+        f"{graphs.edge_label(*edges[e])} beta {b:g}" for e, b in zip(variant_edge, variant_beta, strict=True)
+    ]
+    blocks = {}
+    ow = orbit.get("orbit_weights")
+    if ow is not None:
+        blocks["orbit"] = (list(ow), [(e // 2, (-1) ** e * config.lambda_.dbeta) for e in range(len(ow))])
+    if method in ("hybrid", "adjoint-hybrid"):
+        blocks["secant"] = (
+            list(secant),
+            [
+                (e % len(edges), (1 - 2 * (e // len(edges))) * config.lambda_.dbeta)
+                for e in range(len(secant))
+            ],
+        )
+    if method in ("adjoint", "adjoint-hybrid") and config.sync.criterion == "relative":
+        h = DTARGET_STEP
+        damages = [(a, b, x) for a, b in edge_idx for x in (h, -h)]
+        rows = coupling.variant_weights(omega, csr, damages, config.dynamics.coupling)
+        blocks["dtarget"] = (list(rows), [(e // 2, (-1) ** e * h) for e in range(len(rows))])
+    extra = []
+    for rows, names in blocks.values():
+        extra += rows
+        labels += [f"{graphs.edge_label(*edges[e])} beta {b:g}" for e, b in names]
+    setup, targets, r_star = model_setup(
+        config, csr.indptr, csr.indices, [csr.weights, *vw, *extra], labels, len(extra)
+    )
+    fields = {}
+    at = 0
+    for name, (rows, _) in blocks.items():
+        part = slice(at, at + len(rows))
+        at += len(rows)
+        if name == "orbit":
+            fields["orbit_targets"] = targets[part]
+            fields["orbit_r_star"] = None if r_star is None else r_star[part]
+        elif name == "secant":
+            fields["secant_targets"] = targets[part]
+        else:
+            fields["dtarget"] = (targets[part][0::2] - targets[part][1::2]) / (2 * DTARGET_STEP)
+    return replace(setup, **fields)
 
 
 def _job_name(config: Config) -> str:

@@ -38,6 +38,7 @@ from antisync.validation import choice, fraction, number_text, parse_number, pos
 __all__ = [
     "CRITERIA",
     "DISTRIBUTIONS",
+    "DTARGET_STEP",
     "Model",
     "ModelSetup",
     "Sync",
@@ -414,6 +415,11 @@ class ModelSetup:
     orbit_targets, orbit_r_star : ndarray (2 E,) or None
         The same for the ``+dbeta``/``-dbeta`` rows of ``central-difference`` and ``orbit``
         (:attr:`antisync.jobs.Job.orbit_weights`), when the method has them.
+    secant_targets : ndarray (2 E,) or None
+        The hybrids' central secants' rows (:attr:`antisync.jobs.Job.secant_weights`).
+    dtarget : ndarray (E,) or None
+        ``d target / d beta_e`` at 0 for the adjoint with the relative criterion (``r*`` moves
+        with the damage), by a central difference of ``r*`` at ``+-DTARGET_STEP``.
     """
 
     freqs: np.ndarray | None
@@ -426,15 +432,23 @@ class ModelSetup:
     r_star: np.ndarray | None
     orbit_targets: np.ndarray | None = None
     orbit_r_star: np.ndarray | None = None
+    secant_targets: np.ndarray | None = None
+    dtarget: np.ndarray | None = None
+
+
+#: The damage step of :attr:`ModelSetup.dtarget`'s central difference: the relative target
+#: ``(fraction r* N)^2`` is smooth in beta, so its error is ~1e-10 relative (rounding ~1e-11).
+DTARGET_STEP = 1e-5
 
 
 def model_setup(
-    config, indptr: np.ndarray, indices: np.ndarray, weights: list, labels: list, orbit_rows: int = 0
-) -> ModelSetup:
+    config, indptr: np.ndarray, indices: np.ndarray, weights: list, labels: list, extra_rows: int = 0
+) -> tuple[ModelSetup, np.ndarray, np.ndarray | None]:
     """Resolve ``config.model`` and ``config.sync`` for a graph whose coupling ``W`` (CSR
     ``indptr``, ``indices``) takes the CSR ``weights[0]`` undamaged and ``weights[1 + v]`` in
-    variant ``v`` (``labels[v]`` names it in messages); the last ``orbit_rows`` of them are the
-    central differences' ``+-dbeta`` rows (their targets go to ``orbit_targets``).
+    variant ``v`` (``labels[v]`` names it in messages). The last ``extra_rows`` of them are
+    other damaged networks (central differences' rows): their targets and ``r*`` are returned
+    beside the setup, ``(setup, extra_targets, extra_r_star)``.
 
     Raises
     ------
@@ -490,8 +504,8 @@ def model_setup(
                 )
             r_star[v] = state.r
         targets = (sync.fraction * r_star * n) ** 2
-    cut = n_kinds - orbit_rows
-    return ModelSetup(
+    cut = n_kinds - extra_rows
+    setup = ModelSetup(
         freqs=freqs,
         cos_lag=math.cos(lag),
         sin_lag=math.sin(lag),
@@ -500,9 +514,8 @@ def model_setup(
         criterion=criterion,
         targets=targets[:cut],
         r_star=None if r_star is None else r_star[:cut],
-        orbit_targets=targets[cut:] if orbit_rows else None,
-        orbit_r_star=None if r_star is None or not orbit_rows else r_star[cut:],
     )
+    return setup, targets[cut:], None if r_star is None else r_star[cut:]
 
 
 def unsynced_hint(config) -> str | None:

@@ -286,6 +286,6 @@ def test_orbit_runs_a_model_that_keeps_the_symmetry_and_refuses_one_that_breaks_
     )
     _one_line(
         tmp_path,
-        SMALL + "model: {phase_lag: 0.1}\nlambda: {method: adjoint}\n",
-        "use central-difference (the derivative d<F>/dbeta) or finite-difference",
+        SMALL + "model: {phase_lag: 0.1}\nlambda: {method: pathwise}\n",
+        "use adjoint or adjoint-hybrid (the same derivative",
     )

@@ -371,7 +371,7 @@ TWO = "graph: {kind: networkx, generator: path_graph, args: {n: 2}}\nbetas: []\n
         ("model: {inertia: 0.01}\ndynamics: {dt: 0.05}\n", "is unstable for the second-order model", None),
         ("model: {inertia: 1, damping: 0.01}\ndynamics: {dt: 0.01}\n", "unstable for the second-order", None),
         ("sync: {criterion: psychic}\n", "sync.criterion must be one of", None),
-        ("model: {phase_lag: 0.1}\nlambda: {method: pathwise}\n", "use central-difference (the derivative", None),
+        ("model: {phase_lag: 0.1}\nlambda: {method: pathwise}\n", "use adjoint or adjoint-hybrid", None),
         (
             "model: {frequencies: {distribution: normal, sd: 0.1}}\nsync: {criterion: relative}\n",
             "sync.criterion relative needs fixed model.frequencies",

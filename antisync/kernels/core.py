@@ -825,8 +825,10 @@ CRIT_FREQUENCY = 1
 #: Rows of the model kernels' scratch array ``work`` (shape ``(WORK_ROWS, N)``): 0-14 the RK4
 #: stages, 15-18 the frequency deviations and their rates now, 19-22 one step back.
 WORK_ROWS = 23
-_DEV = 15
-_DEV_PREV = 19
+DEV_ROW = 15
+DEV_PREV_ROW = 19
+_DEV = DEV_ROW
+_DEV_PREV = DEV_PREV_ROW
 
 #: Points per step at which :func:`make_model_kernels`' dense output looks for the first time
 #: the criterion holds, once a cheap bound says it may hold inside the step; the crossing is then
@@ -841,6 +843,10 @@ class ModelKernels(NamedTuple):
     euler_step: Callable
     rk4_step: Callable
     sync_steps: Callable
+    measure: Callable
+    deviations: Callable
+    order_crossing: Callable
+    frequency_crossing: Callable
 
 
 def make_model_kernels(jit, base: Kernels) -> ModelKernels:
@@ -1226,4 +1232,13 @@ def make_model_kernels(jit, base: Kernels) -> ModelKernels:
         return NOT_SYNCED, max_steps, 0.0
 
     sync_steps = jit(sync_steps)
-    return ModelKernels(rhs=rhs, euler_step=euler_step, rk4_step=rk4_step, sync_steps=sync_steps)
+    return ModelKernels(
+        rhs=rhs,
+        euler_step=euler_step,
+        rk4_step=rk4_step,
+        sync_steps=sync_steps,
+        measure=measure,
+        deviations=deviations,
+        order_crossing=order_crossing,
+        frequency_crossing=frequency_crossing,
+    )

@@ -69,6 +69,7 @@ def _integrate_items(
     criterion,
     targets,
     max_steps,
+    todo,
     status0,
     steps0,
     frac0,
@@ -85,6 +86,8 @@ def _integrate_items(
         v = item % per - 1
         if v >= 0 and var_is_base[v]:
             continue  # copied from the undamaged result below
+        if todo.shape[0] > 0 and not todo[r, v + 1]:
+            continue  # not asked for: left at -1 / NaN
         c = np.empty(n)
         s = np.empty(n)
         nu = np.zeros(n)
@@ -154,10 +157,13 @@ def simulate_model(
     integrator: str = "euler",
     threads: int | None = None,
     realizations: np.ndarray | None = None,
+    todo: np.ndarray | None = None,
 ) -> SimResult:
     """Integrate realizations ``first .. first+count-1`` of a generalized model for the base
     network and every variant (same arguments as :func:`antisync.kernels.cpu.simulate`, plus
-    the model's ``params``; ``threshold`` is in ``params.targets``).
+    the model's ``params``; ``threshold`` is in ``params.targets``). ``todo`` (bool, ``(m, V +
+    1)``) integrates only the marked items, as in :func:`antisync.kernels.cpu.simulate`: the
+    others get status and steps ``-1`` and ``frac`` NaN.
 
     Returns a :class:`~antisync.kernels.cpu.SimResult` with ``frac0``/``frac`` (where inside
     the last step the criterion is met).
@@ -172,6 +178,14 @@ def simulate_model(
     var_w = np.ascontiguousarray(variant_weights, dtype=np.float64).reshape(-1, base_weights.size)
     n_var = var_w.shape[0]
     var_is_base = np.array([np.array_equal(w, base_weights) for w in var_w], dtype=np.bool_)
+    if todo is None:
+        todo = np.zeros((0, 0), dtype=np.bool_)
+    else:
+        todo = np.ascontiguousarray(todo, dtype=np.bool_)
+        if todo.shape != (m, n_var + 1):
+            raise ValueError(f"todo must have shape {(m, n_var + 1)}, got {todo.shape}")
+        # a variant equal to the base is integrated, not copied from a base that may not run
+        var_is_base[:] = False
     freqs = np.ascontiguousarray(params.freqs, dtype=np.float64)
     n = indptr.size - 1
     if freqs.ndim != 2 or freqs.shape[1] != n or freqs.shape[0] not in (1, m):
@@ -179,12 +193,12 @@ def simulate_model(
     targets = np.ascontiguousarray(params.targets, dtype=np.float64)
     if targets.shape != (n_var + 1,):
         raise ValueError(f"targets must have shape ({n_var + 1},), got {targets.shape}")
-    status0 = np.empty(m, dtype=np.int8)
-    steps0 = np.empty(m, dtype=np.int64)
-    frac0 = np.empty(m)
-    status = np.empty((m, n_var), dtype=np.int8)
-    steps = np.empty((m, n_var), dtype=np.int64)
-    frac = np.empty((m, n_var))
+    status0 = np.full(m, -1, dtype=np.int8)
+    steps0 = np.full(m, -1, dtype=np.int64)
+    frac0 = np.full(m, np.nan)
+    status = np.full((m, n_var), -1, dtype=np.int8)
+    steps = np.full((m, n_var), -1, dtype=np.int64)
+    frac = np.full((m, n_var), np.nan)
     with _Threads(threads):
         _integrate_items(
             ks,
@@ -204,6 +218,7 @@ def simulate_model(
             int(params.criterion),
             targets,
             int(max_steps),
+            todo,
             status0,
             steps0,
             frac0,
