@@ -62,8 +62,11 @@ class Result:
     records : list of dict
         One record per (graph, directed edge, beta): ``F_mean``, ``lambda_km``, ``tau0_mean``
         with their standard errors, status counts (``n``, ``n_excluded``, ``n_not_synced``),
-        ``complete`` and, when computed, ``lambda_xi2``, ``lambda_rw``, ``lambda_linear``,
-        ``lambda_km_nnc``; ``antisync summary FILE --format json`` prints the same.
+        ``complete``, ``sign_resolved`` and ``sign_per_link``
+        (:func:`antisync.records.flag_signs`), ``r_star`` and ``r_star_damaged``
+        (``sync.criterion: relative``, else None) and, when computed, ``lambda_xi2``,
+        ``lambda_rw``, ``lambda_linear``, ``lambda_km_nnc``; ``antisync summary FILE --format
+        json`` prints the same.
     complete : bool
         Whether every realization (every stage, for a sweep) has been computed.
     config_yaml : str
@@ -74,6 +77,12 @@ class Result:
     stop : dict or None
         For a run with a stopping rule (docs/stopping.md): its looks, ``budget``,
         ``stopped_at``, ``stopped_early`` and the last look's counts and open links.
+    model : str or None
+        Which model ran, in one line (:func:`antisync.report.describe.model_line`).
+    r_star : list of dict
+        ``sync.criterion: relative``: per graph, the r* of the undamaged network and its range
+        over the damaged variants (:func:`antisync.summary.r_star_rows`); empty for another
+        criterion and for a file written before r* was stored.
     """
 
     path: Path
@@ -83,6 +92,8 @@ class Result:
     config_yaml: str = ""
     sweep: dict | None = field(default=None, repr=False)
     stop: dict | None = field(default=None, repr=False)
+    model: str | None = field(default=None, repr=False)
+    r_star: list[dict] = field(default_factory=list, repr=False)
 
     def to_pandas(self):
         """The records as a :class:`pandas.DataFrame` (needs pandas: ``pip install pandas``)."""
@@ -118,7 +129,8 @@ def load(path: str | Path) -> Result:
     path = _result_path(path)
     s = summarize(path)
     sweep = s if s["kind"] == "sweep" else None
-    return Result(path, s["kind"], s["records"], s["complete"], s["config_yaml"], sweep, s["stop"])
+    fields = {k: s[k] for k in ("config_yaml", "stop", "model", "r_star")}
+    return Result(path, s["kind"], s["records"], s["complete"], sweep=sweep, **fields)
 
 
 def summarize(path: str | Path) -> dict:
@@ -130,10 +142,13 @@ def summarize(path: str | Path) -> dict:
     ``null`` or empty lists, and ``thresholds`` the run's one threshold), and ``stop``, what
     a run's stopping rule did (:func:`antisync.store.stop_record`; ``null`` without one), and
     ``sum_rule``, per node whose out-links were all measured with normalized coupling, the sum
-    of their Lambda with its interval (:func:`antisync.sum_rule.node_sums`). The
-    records carry ``sign_resolved`` (at false discovery rate 0.05 over the file's links) and
-    ``sign_per_link`` (:func:`antisync.records.flag_signs`); the CLI orders them with
-    ``--sort`` (:func:`antisync.records.sort_records`).
+    of their Lambda with its interval (:func:`antisync.sum_rule.node_sums`), ``model``, which
+    model ran in one line (:func:`antisync.report.describe.model_line`), and ``r_star``, per
+    graph run with ``sync.criterion: relative`` the r* of the undamaged network and its range
+    over the damaged variants (:func:`antisync.summary.r_star_rows`; empty for a file written
+    before r* was stored). The records carry ``sign_resolved`` (at false discovery rate 0.05
+    over the file's links) and ``sign_per_link`` (:func:`antisync.records.flag_signs`); the CLI
+    orders them with ``--sort`` (:func:`antisync.records.sort_records`).
 
     Raises
     ------
@@ -152,12 +167,15 @@ def summarize(path: str | Path) -> dict:
 def _summarize(path: Path) -> dict:
     from antisync.errors import StoreError
     from antisync.records import flag_signs
+    from antisync.report.describe import model_line, stored_config
     from antisync.store import is_sweep_file, read_views, root_attrs, stop_record
     from antisync.sum_rule import views_sums
-    from antisync.summary import view_records
+    from antisync.summary import r_star_rows, view_records
     from antisync.sweeps import sweep_summary
 
     root = root_attrs(path)
+    views = read_views(path)  # decoded once: the records and the sum rule read the same jobs
+    model = {"model": model_line(stored_config(root["config_yaml"])), "r_star": r_star_rows(views)}
     if is_sweep_file(path):
         s = sweep_summary(path)
         return {
@@ -165,12 +183,12 @@ def _summarize(path: Path) -> dict:
             "file": str(path),
             "complete": bool(s["complete"]),
             "records": flag_signs(s["records"]),
-            "sum_rule": views_sums(read_views(path)),
+            "sum_rule": views_sums(views),
             "config_yaml": root["config_yaml"],
             "stop": None,
+            **model,
             **{k: s[k] for k in _SWEEP_KEYS},
         }
-    views = read_views(path)  # decoded once: the records and the sum rule read the same jobs
     recs = view_records(views)
     import yaml
 
@@ -189,6 +207,7 @@ def _summarize(path: Path) -> dict:
         "sum_rule": views_sums(views),
         "config_yaml": root["config_yaml"],
         "stop": stop_record(path),
+        **model,
         "sweep": None,
         "family": None,
         "thresholds": thresholds,

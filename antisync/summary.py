@@ -29,6 +29,7 @@ __all__ = [
     "is_kuramoto",
     "job_records",
     "lambda_intervals",
+    "r_star_rows",
     "sign_resolved",
     "view_records",
     "warning_kind",
@@ -69,6 +70,9 @@ class JobView:
     attrs: dict | None = None
     measures: dict | None = None  # Lambda^(linear, xi2, RW) arrays, see measures.pipeline
     unsynced_hint: str | None = None  # why nothing may lock (antisync.model.unsynced_hint)
+    # sync.criterion relative: r* of the undamaged network, then of each variant, (1 + V,);
+    # None for another criterion and for a file written before it was stored
+    r_star: np.ndarray | None = None
 
     def variant(self, edge_index: int, beta: float) -> int:
         hit = np.flatnonzero((self.variant_edge == edge_index) & np.isclose(self.variant_beta, beta))
@@ -353,11 +357,46 @@ def job_records(view: JobView) -> list[dict]:
                     # an interrupted run's estimates are partial: say so in every record
                     "realizations": int(view.realizations),
                     "complete": complete,
+                    **_r_star_fields(view, e, beta),
                 }
             )
             rec.update(measure_fields(view.measures, e))
             out.append(rec)
     return out if is_kuramoto(view) else [_exact_only(r) for r in out]
+
+
+def _r_star_fields(view: JobView, e: int, beta: float | None) -> dict:
+    """``r_star``, the undamaged network's r* (``sync.criterion: relative``), and
+    ``r_star_damaged``, that of edge ``e`` damaged by ``beta`` (None without a beta); both None
+    where the file stores no r* (another criterion, or written before r* was stored)."""
+    if view.r_star is None:
+        return {"r_star": None, "r_star_damaged": None}
+    v = view.variant(e, beta) if beta is not None else -1
+    return {
+        "r_star": _num(float(view.r_star[0])),
+        "r_star_damaged": _num(float(view.r_star[1 + v])) if v >= 0 else None,
+    }
+
+
+def r_star_rows(views: list[JobView]) -> list[dict]:
+    """Per job that stores r* (``sync.criterion: relative``): ``graph``, ``undamaged`` (its
+    r*), and ``damaged_min`` / ``damaged_max`` over its ``damaged`` variants (None without
+    variants)."""
+    rows = []
+    for view in views:
+        if view.r_star is None or not view.r_star.size:
+            continue
+        damaged = view.r_star[1:]
+        rows.append(
+            {
+                "graph": view.graph,
+                "undamaged": _num(float(view.r_star[0])),
+                "damaged_min": _num(float(damaged.min())) if damaged.size else None,
+                "damaged_max": _num(float(damaged.max())) if damaged.size else None,
+                "damaged": int(damaged.size),
+            }
+        )
+    return rows
 
 
 def view_records(views: list[JobView]) -> list[dict]:

@@ -3,10 +3,14 @@ a worker killed mid-chunk, and through the CLI. A real two-process LocalCluster,
 
 from __future__ import annotations
 
+import contextlib
 import json
+import logging
 import os
 import signal
+import socket
 import time
+import warnings
 
 import h5py
 import numpy as np
@@ -231,3 +235,82 @@ def test_stopping_rule_on_the_cluster_stops_where_the_local_run_does(client, tmp
         remote = run_config(cfg, output=tmp_path / "dask.h5", executor=ex, chunk_realizations=50)
     assert stop_record(remote) == stop_record(local) and stop_record(local)["stopped_at"] == stopped_at
     assert records(remote) == records(local)
+
+
+# ---- a quiet cluster -------------------------------------------------------------------------
+NOISE = ("already in use", "still alive", "CancelledError")
+
+
+@contextlib.contextmanager
+def _port_taken(port: int):
+    """Hold ``port`` (if it is free) as another cluster's dashboard would."""
+    sock = socket.socket()
+    try:
+        sock.bind(("", port))
+        sock.listen()
+    except OSError:
+        pass  # taken already: all the better
+    try:
+        yield
+    finally:
+        sock.close()
+
+
+class _Records(logging.Handler):
+    """What distributed logs in this process (it does not propagate to pytest's caplog)."""
+
+    def __init__(self):
+        super().__init__(logging.DEBUG)
+        self.messages: list[str] = []
+
+    def emit(self, record):
+        self.messages.append(record.getMessage())
+
+
+@contextlib.contextmanager
+def _distributed_logs():
+    handler = _Records()
+    logger = logging.getLogger("distributed")
+    logger.addHandler(handler)
+    try:
+        yield handler.messages
+    finally:
+        logger.removeHandler(handler)
+
+
+def test_executor_dask_run_prints_no_cluster_noise(config_path, reference, tmp_path, capfd):
+    """``executor: dask`` starts a LocalCluster: with port 8787 taken by another cluster, no
+    "Port 8787 is already in use" warning (the dashboard takes a free port), and no shutdown
+    warnings ("Worker process still alive ..., killing") on stderr; the numbers are the local
+    executor's."""
+    cfg = tmp_path / "dask.yaml"
+    cfg.write_text(config_path.read_text() + "executor: dask\n")
+    out = tmp_path / "q.h5"
+    with _port_taken(8787), _distributed_logs() as logged, warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        res = CliRunner().invoke(app, ["run", str(cfg), "--workers", "2", "-o", str(out)])
+    assert res.exit_code == 0, res.output
+    assert "LocalCluster of 2" in res.stderr and "Dask dashboard: " in res.stderr
+    err = capfd.readouterr().err + res.stderr + "\n".join(logged) + "\n".join(str(w.message) for w in caught)
+    assert not [n for n in NOISE if n in err], err
+    _assert_same(out, reference)
+
+
+def test_closing_a_cluster_that_still_computes_is_quiet(config_path, capfd):
+    """A chunk still running when the executor closes its LocalCluster (a stopping rule or an
+    error ended the run): the worker is killed after 4 s without a warning; errors would show,
+    and the log level is restored after."""
+    logger = logging.getLogger("distributed")
+    level = logger.level
+    ex = DaskExecutor.from_options(load_config(config_path), workers=1)
+    fut = ex.client.submit(time.sleep, 60, pure=False)
+    deadline = time.monotonic() + 60
+    while not any(ex.client.processing().values()) and time.monotonic() < deadline:
+        time.sleep(0.1)
+    time.sleep(0.5)  # the task is executing on the worker
+    with _distributed_logs() as logged:
+        ex.close()
+    del fut
+    err = capfd.readouterr().err + "\n".join(logged)
+    assert not [n for n in NOISE if n in err], err
+    assert logger.level == level and ex.client is None

@@ -36,8 +36,13 @@ def summary(
     "symmetry", "thresholds", ...} (see antisync.api.summarize). Every record printed here also
     carries sign_resolved: +1 antifragile, -1 fragile, 0 unresolved (Benjamini-Hochberg at
     false discovery rate 0.05 over the file's links), and sign_per_link (its own 95% interval
-    lambda_km_ci_low..lambda_km_ci_high alone), null without Lambda^KM. CSV holds the records only;
-    the table ends with warnings and, for a sweep, the excluded graphs.
+    lambda_km_ci_low..lambda_km_ci_high alone), null without Lambda^KM, and r_star, r_star_damaged
+    (sync.criterion relative: r* of the undamaged and of the record's damaged network); the
+    object's "model" says which model ran and "r_star" lists each graph's r*. CSV holds the
+    records only. The table has one row per link (Lambda^KM with its standard error, or its
+    interval [low, high] where asymmetric) and, with betas, one per (link, beta) (<F_beta>);
+    columns empty on every row are left out. It ends with warnings (one line per kind), which
+    model ran and, for a sweep, the excluded graphs.
     """
     import json
 
@@ -59,6 +64,10 @@ def summary(
     elif is_sweep_file(results):
         s = sweep_summary(results)
         typer.echo(format_sweep({**s, "records": listed(s["records"])}, format))
+        if format == "table":
+            note = _model_note(results, s["records"], None)
+            if note:
+                typer.echo(note)
     else:
         views = read_views(results)  # decoded once for the records and the sum rule
         recs = listed(view_records(views))
@@ -67,6 +76,26 @@ def summary(
             quantities = {r.get("lambda_quantity") for r in recs} - {None}
             quantity = quantities.pop() if len(quantities) == 1 else None
             rule = sum_rule_note(views_sums(views), quantity)
-            for note in (sign_rule_note(recs), rule, stop_note(stop_record(results))):
+            notes = (
+                _model_note(results, recs, views),
+                sign_rule_note(recs),
+                rule,
+                stop_note(stop_record(results)),
+            )
+            for note in notes:
                 if note:
                     typer.echo(note)
+
+
+def _model_note(path, records: list[dict], views) -> str | None:
+    """The table's ``model: ...; sync: ...`` line (with r* for ``sync.criterion: relative``);
+    None for a file without a Kuramoto run (its exact measures depend on no model)."""
+    from antisync.report.describe import model_line, relative_criterion, stored_config
+    from antisync.store import read_views, root_attrs
+    from antisync.summary import r_star_rows
+
+    if not any(r.get("realizations") for r in records):
+        return None
+    cfg = stored_config(root_attrs(path)["config_yaml"])
+    rows = r_star_rows(views if views is not None else read_views(path)) if relative_criterion(cfg) else None
+    return model_line(cfg, rows)

@@ -13,6 +13,7 @@ how often a chunk was retried therefore cannot change the numbers.
 from __future__ import annotations
 
 import contextlib
+import logging
 import os
 import socket
 import threading
@@ -24,7 +25,7 @@ from antisync.compute import ChunkResult, compute_chunk
 from antisync.errors import AntisyncError
 from antisync.jobs import Chunk, Job
 
-__all__ = ["CONNECT_TIMEOUT", "TASKS_PER_THREAD", "DaskExecutor"]
+__all__ = ["CONNECT_TIMEOUT", "DASHBOARD_ADDRESS", "TASKS_PER_THREAD", "DaskExecutor", "quiet_shutdown"]
 
 #: Tasks kept in flight per worker thread: enough that a worker never waits for the client
 #: between chunks, few enough that a 1e9-realization job is not millions of futures at once.
@@ -32,6 +33,10 @@ TASKS_PER_THREAD = 3
 
 #: Seconds to wait for a scheduler before giving up with a one-line error.
 CONNECT_TIMEOUT = 5.0
+
+#: Where a ``LocalCluster`` of :meth:`DaskExecutor.from_options` serves its dashboard: a free
+#: port (``":0"``), never a fixed one that another cluster may hold.
+DASHBOARD_ADDRESS = ":0"
 
 # times one chunk may be resubmitted after the cluster cancelled it, before the run stops
 _MAX_RESUBMITS = 3
@@ -173,8 +178,13 @@ class DaskExecutor:
             from distributed import Client, LocalCluster
 
             n = workers or _cores()
-            cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True)
+            # the dashboard on a free port (its link is said below): the default 8787 is often
+            # taken by another cluster, and distributed then warns "Port 8787 is already in use"
+            cluster = LocalCluster(
+                n_workers=n, threads_per_worker=1, processes=True, dashboard_address=DASHBOARD_ADDRESS
+            )
             client = Client(cluster, set_as_default=False)
+            client.register_plugin(_quiet_close_plugin())
             say(
                 f"Dask: started a LocalCluster of {n} single-threaded worker process"
                 f"{'es' if n != 1 else ''} at {cluster.scheduler_address}"
@@ -276,9 +286,10 @@ class DaskExecutor:
         executor for every stage and leave it open.
         """
         if self._owns_client and self.client is not None:
-            self.client.close()
-            if self._cluster is not None:
-                self._cluster.close()
+            with quiet_shutdown():
+                self.client.close()  # the client first: the cluster then has no one to tell
+                if self._cluster is not None:
+                    self._cluster.close()
             self.client = None
             self._cluster = None
 
@@ -329,6 +340,48 @@ class DaskExecutor:
     def _workers_threads(self) -> tuple[int, int]:
         nthreads = self.client.nthreads()
         return len(nthreads), sum(nthreads.values())
+
+
+@contextlib.contextmanager
+def quiet_shutdown(level: int = logging.ERROR) -> Iterator[None]:
+    """Raise the level of distributed's loggers to ``level`` while a cluster shuts down.
+
+    Closing a ``LocalCluster`` whose worker is still computing a chunk (one cancelled when a
+    stopping rule or an error ended the run: a numba kernel cannot be interrupted) makes its
+    nanny wait 4 s, kill the process and warn "Worker process still alive after 4.0 seconds,
+    killing": noise after a correct run. Errors still show, and the levels are restored after.
+    """
+    logger = logging.getLogger("distributed")
+    old = logger.level
+    logger.setLevel(max(level, logger.getEffectiveLevel()))
+    try:
+        yield
+    finally:
+        logger.setLevel(old)
+
+
+def _quiet_close_plugin():
+    """A worker plugin for the executor's own ``LocalCluster``: a worker process that closes
+    while computing a chunk (see :func:`quiet_shutdown`) logs no warning about it ("Async
+    instruction ... ended with CancelledError"); errors, and every message of a running
+    worker, still show."""
+    from distributed.diagnostics.plugin import WorkerPlugin
+
+    class QuietClose(WorkerPlugin):
+        name = "antisync-quiet-close"
+
+        def setup(self, worker):
+            from distributed.core import Status
+
+            closing = {Status.closing, Status.closing_gracefully, Status.closed}
+
+            def keep(record: logging.LogRecord) -> bool:
+                return record.levelno >= logging.ERROR or worker.status not in closing
+
+            for handler in logging.getLogger("distributed").handlers:
+                handler.addFilter(keep)
+
+    return QuietClose()
 
 
 def _plural(n: int, word: str) -> str:

@@ -5,39 +5,61 @@ from __future__ import annotations
 import csv
 import io
 import json
+import math
 
 from antisync.summary import warning_kind
 
-__all__ = ["fmt_pm", "format_records", "format_sweep", "format_table1"]
+__all__ = [
+    "ASYMMETRY",
+    "asymmetric",
+    "fmt_interval",
+    "fmt_pm",
+    "format_records",
+    "format_sweep",
+    "format_table1",
+    "lambda_warnings",
+    "link_rows",
+    "sync_warnings",
+]
 
-_TABLE_COLUMNS = [
+# a link's columns: its Lambda (one row per link, whatever its betas), the undamaged network's
+# <tau0> and Lambda's counts (r0>=r and unsynced only where a link has no beta rows: with betas
+# they are the counts of each beta's damaged network, in the per-beta table)
+_LINK_COLUMNS = [
     ("graph", "graph", "{}"),
     ("edge", "edge", "{}"),
-    ("beta", "beta", "{:.3g}"),
-    ("F_mean", "<F>", "{:.4f}"),
-    ("F_se", "se", "{:.4f}"),
     ("lambda_km", "Lambda_KM", "{:+.4f}"),
     ("lambda_km_se", "se", "{:.4f}"),
     ("sign_resolved", "sign", "{:+d}"),
     ("tau0_mean", "<tau0>", "{:.4f}"),
     ("tau0_se", "se", "{:.4f}"),
+    ("lambda_n", "n", "{:,}"),
+    ("n_excluded", "r0>=r", "{}"),
+    ("n_not_synced", "unsynced", "{}"),
+]
+# one row per (link, beta): only where some record has a beta
+_BETA_COLUMNS = [
+    ("graph", "graph", "{}"),
+    ("edge", "edge", "{}"),
+    ("beta", "beta", "{:.3g}"),
+    ("F_mean", "<F>", "{:.4f}"),
+    ("F_se", "se", "{:.4f}"),
     ("n", "n", "{:,}"),
     ("n_excluded", "r0>=r", "{}"),
     ("n_not_synced", "unsynced", "{}"),
 ]
 # the Kuramoto run's columns: left out when no record has a realization (a file run without km)
 _KM_KEYS = {
-    "beta",
-    "F_mean",
-    "F_se",
     "lambda_km",
     "lambda_km_se",
     "tau0_mean",
     "tau0_se",
-    "n",
+    "lambda_n",
     "n_excluded",
     "n_not_synced",
 }
+# kept when every row is "-": the run's headline number, whose absence the warnings explain
+_ALWAYS = {"graph", "edge", "lambda_km"}
 # shown only when some record has them (measures: linear, xi2, rw, km_nnc; Lambda^tau, format 4)
 _MEASURE_COLUMNS = [
     ("lambda_linear", "Lambda_lin", "{:+.4f}"),
@@ -58,9 +80,22 @@ _SYNC_COLUMNS = [
     ("p_sync_response_ci_high", "ci_high", "{:+.3f}"),
 ]
 
+#: Lambda^KM's interval is shown as ``[low, high]`` instead of ``se`` when, for some link, its
+#: two arms (estimate to low end, estimate to high end) differ by more than this share of its
+#: half-width: the tail model's interval is not centred on the estimate
+ASYMMETRY = 0.1
+
 
 def format_records(records: list[dict], fmt: str = "table") -> str:
-    """Render summary records; ``fmt`` is ``table``, ``json`` or ``csv``."""
+    """Render summary records; ``fmt`` is ``table``, ``json`` or ``csv``.
+
+    JSON and CSV hold every record with every key. The table is for reading: one row per
+    link (Lambda^KM with its standard error, or its interval ``[low, high]`` where some link's
+    interval is asymmetric, :data:`ASYMMETRY`; the sign; <tau0>; the counts; the exact
+    measures), then, where some record has a beta, one row per (link, beta) with <F_beta>.
+    A column that is ``-`` on every row is left out (``beta`` and ``<F>`` of a run with
+    ``betas: []``). Warnings follow, one line per kind.
+    """
     if fmt == "json":
         return json.dumps(records, indent=2)
     if fmt == "csv":
@@ -71,19 +106,10 @@ def format_records(records: list[dict], fmt: str = "table") -> str:
             writer.writerows(records)
         return buf.getvalue().rstrip("\n")
     kuramoto = not records or any(r.get("realizations") for r in records)
-    columns = [
-        c
-        for c in _TABLE_COLUMNS
-        if (kuramoto or c[0] not in _KM_KEYS) and (c[0] != "sign_resolved" or _has(records, c[0]))
-    ]
-    columns += [c for c in _MEASURE_COLUMNS if _has(records, c[0])]
-    if any(r.get("p_sync_response") is not None and (r.get("p_sync") or 1) < 1 for r in records):
-        columns += _SYNC_COLUMNS  # only where some realizations never synchronized
-    rows = [[h for _, h, _ in columns]]
-    for r in records:
-        rows.append([_cell(r.get(k), f) for k, _, f in columns])
-    widths = [max(len(row[i]) for row in rows) for i in range(len(rows[0]))]
-    lines = ["  ".join(c.rjust(w) for c, w in zip(row, widths, strict=True)) for row in rows]
+    lines = _aligned(_link_columns(records, kuramoto), link_rows(records))
+    betas = [r for r in records if r.get("beta") is not None]
+    if betas and kuramoto:
+        lines += [""] + _aligned(_BETA_COLUMNS, betas)
     lines += lambda_warnings(records)
     lines += [f"warning: {w}" for w in sync_warnings(records)]
     for graph in dict.fromkeys(r["graph"] for r in records if r.get("complete") is False):
@@ -93,6 +119,82 @@ def format_records(records: list[dict], fmt: str = "table") -> str:
             f"{r['realizations']:,} realizations done): rerun the same command with --resume"
         )
     return "\n".join(lines)
+
+
+def link_rows(records: list[dict]) -> list[dict]:
+    """One record per link (:func:`antisync.multiplicity.link_key`), the first of its betas,
+    in the order of ``records``; ``n_excluded`` and ``n_not_synced`` are left out (None) of a
+    link with beta rows, where they count a damaged network, not Lambda's realizations."""
+    from antisync.multiplicity import link_key
+
+    first: dict[tuple, dict] = {}
+    for r in records:
+        first.setdefault(link_key(r), r)
+    return [
+        r if r.get("beta") is None else {**r, "n_excluded": None, "n_not_synced": None}
+        for r in first.values()
+    ]
+
+
+def _link_columns(records: list[dict], kuramoto: bool) -> list[tuple]:
+    """The link table's columns for ``records``: the Kuramoto ones of a Kuramoto run, the sign
+    once flagged, Lambda's interval in place of its ``se`` where asymmetric, then the measures
+    and the synchronized fraction's response that some record has."""
+    columns = [
+        c
+        for c in _LINK_COLUMNS
+        if (kuramoto or c[0] not in _KM_KEYS) and (c[0] != "sign_resolved" or _has(records, c[0]))
+    ]
+    if any(asymmetric(r) for r in records):
+        level = next((r["lambda_km_ci_level"] for r in records if r.get("lambda_km_ci_level")), 0.95)
+        interval = ("lambda_km_ci_low", f"{level:.0%} interval", _interval_cell)
+        columns = [interval if c[0] == "lambda_km_se" else c for c in columns]
+    columns += [c for c in _MEASURE_COLUMNS if _has(records, c[0])]
+    if any(r.get("p_sync_response") is not None and (r.get("p_sync") or 1) < 1 for r in records):
+        columns += _SYNC_COLUMNS  # only where some realizations never synchronized
+    return columns
+
+
+def asymmetric(record: dict, tolerance: float = ASYMMETRY) -> bool:
+    """Whether ``record``'s Lambda^KM interval is off-centre: its arms from the estimate differ
+    by more than ``tolerance`` of its half-width (False without an interval)."""
+    lam, low, high = (record.get(k) for k in ("lambda_km", "lambda_km_ci_low", "lambda_km_ci_high"))
+    if lam is None or low is None or high is None or not high > low:
+        return False
+    return abs((high - lam) - (lam - low)) > tolerance * (high - low) / 2
+
+
+def fmt_interval(low: float | None, high: float | None, digits: int = 2) -> str:
+    """``[low, high]`` with signs, each end to ``digits`` significant digits of the half-width,
+    or of the end itself where that shows more (an end near 0 keeps its sign and digits:
+    ``[+0.00016, +0.035]``); ``-`` without an interval."""
+    if low is None or high is None or not (math.isfinite(low) and math.isfinite(high)):
+        return "-"
+
+    def decimals(x: float) -> int:
+        return digits - 1 - math.floor(math.log10(abs(x))) if x else 0
+
+    width = decimals((high - low) / 2) if high > low else 0
+    ends = [f"{x:+.{min(max(width, decimals(x), 0), 8)}f}" for x in (low, high)]
+    return f"[{ends[0]}, {ends[1]}]"
+
+
+def _interval_cell(record: dict) -> str:
+    return fmt_interval(record.get("lambda_km_ci_low"), record.get("lambda_km_ci_high"))
+
+
+def _aligned(columns: list[tuple], records: list[dict]) -> list[str]:
+    """``records`` as right-aligned text columns under their headers; a column that is ``-``
+    on every row is left out (unless in :data:`_ALWAYS`)."""
+    cells = [[_cell(r, key, f) for key, _, f in columns] for r in records]
+    keep = [
+        i
+        for i, (key, _, _) in enumerate(columns)
+        if key in _ALWAYS or not cells or any(row[i] != "-" for row in cells)
+    ]
+    rows = [[columns[i][1] for i in keep]] + [[row[i] for i in keep] for row in cells]
+    widths = [max(len(row[i]) for row in rows) for i in range(len(keep))]
+    return ["  ".join(c.rjust(w) for c, w in zip(row, widths, strict=True)) for row in rows]
 
 
 def lambda_warnings(records: list[dict], most: int = 5) -> list[str]:
@@ -120,7 +222,11 @@ def lambda_warnings(records: list[dict], most: int = 5) -> list[str]:
     return lines
 
 
-def _cell(value, fmt: str) -> str:
+def _cell(record: dict, key: str, fmt) -> str:
+    """One cell: ``fmt(record)`` for a computed cell, else ``record[key]`` formatted."""
+    if callable(fmt):
+        return fmt(record)
+    value = record.get(key)
     if value is None:
         return "-"
     return "0" if fmt == "{:+d}" and value == 0 else fmt.format(value)
@@ -130,37 +236,69 @@ def _has(records: list[dict], key: str) -> bool:
     return any(r.get(key) is not None for r in records)
 
 
-def sync_warnings(records: list[dict]) -> list[str]:
-    """One line per graph where realizations never reached the threshold, saying what to do."""
-    out = []
+def sync_warnings(records: list[dict], most: int = 5) -> list[str]:
+    """Where realizations never reached the threshold, saying what to do: one line per graph,
+    or, where several graphs share a remedy (raise t_max; or nothing, they are counted), one
+    line for them that counts them, names the first ``most`` and quotes the worst."""
+    kinds: dict[str, list[tuple]] = {}
     for graph in dict.fromkeys(r["graph"] for r in records):
         rs = [r for r in records if r["graph"] == graph]
         worst = max(rs, key=lambda r: r.get("n_not_synced") or 0)
         n_bad, done = worst.get("n_not_synced") or 0, worst.get("realizations_done") or 0
-        if not n_bad or not done:
+        if n_bad and done:
+            kinds.setdefault(_sync_hint(n_bad, done), []).append((graph, worst, rs))
+    out = []
+    for hint, graphs in kinds.items():
+        if len(graphs) == 1:
+            graph, worst, rs = graphs[0]
+            p = worst.get("p_sync")
+            shown = f"P_sync = {p:.3f} undamaged" if p is not None else "P_sync"
+            out.append(f"{graph}: {_unsynced(worst)}; {hint}{_conditioned(rs, shown)}")
             continue
-        hint = (
-            (
-                "raise dynamics.t_max, or check that this graph synchronizes (rings and other "
-                "graphs with stable twisted states do not)"
-            )
-            if n_bad > done / 2
-            else "they are counted (unsynced) and left out of every mean"
-        )
-        p = worst.get("p_sync")
-        conditioned = (
-            f"; Lambda_KM and <F> are conditioned on synchronizing (P_sync = {p:.3f} undamaged), "
-            "and dPsync is each link's effect on that fraction"
-            if p is not None and p < 1 and any(r.get("p_sync_response") is not None for r in rs)
-            else ""
-        )
+        graph, worst, _ = max(graphs, key=lambda g: g[1]["n_not_synced"] / g[1]["realizations_done"])
+        names = ", ".join(g[0] for g in graphs[:most]) + (", ..." if len(graphs) > most else "")
+        every = [r for g in graphs for r in g[2]]
         out.append(
-            f"{graph}: {n_bad:,} of {done:,} realizations did not synchronize by t_max "
-            f"({worst['edge']}"
-            + (f", beta {worst['beta']:g}" if worst.get("beta") else "")
-            + f"); {hint}{conditioned}"
+            f"{len(graphs)} graphs ({names}): realizations did not synchronize by t_max, most in "
+            f"{graph} ({worst['n_not_synced']:,} of {worst['realizations_done']:,}, {_where(worst)}); "
+            f"{hint}{_conditioned(every, 'P_sync of each graph in --format json')}"
         )
     return out
+
+
+def _sync_hint(n_bad: int, done: int) -> str:
+    """What to do about ``n_bad`` of ``done`` realizations that never synchronized."""
+    if n_bad > done / 2:
+        return (
+            "raise dynamics.t_max, or check that this graph synchronizes (rings and other "
+            "graphs with stable twisted states do not)"
+        )
+    return "they are counted (unsynced) and left out of every mean"
+
+
+def _unsynced(worst: dict) -> str:
+    """``12 of 200 realizations did not synchronize by t_max (2->1, beta 0.5)``."""
+    return (
+        f"{worst['n_not_synced']:,} of {worst['realizations_done']:,} realizations did not "
+        f"synchronize by t_max ({_where(worst)})"
+    )
+
+
+def _where(record: dict) -> str:
+    """The link of ``record`` and its beta: ``2->1, beta 0.5`` (``2->1`` without a beta)."""
+    return record["edge"] + (f", beta {record['beta']:g}" if record.get("beta") else "")
+
+
+def _conditioned(records: list[dict], p_sync: str) -> str:
+    """What the Kuramoto numbers of ``records`` are conditioned on, where some undamaged
+    realizations never synchronized and the records have dPsync ("" otherwise)."""
+    partial = any(r.get("p_sync") is not None and r["p_sync"] < 1 for r in records)
+    if not partial or not any(r.get("p_sync_response") is not None for r in records):
+        return ""
+    return (
+        f"; Lambda_KM and <F> are conditioned on synchronizing ({p_sync}), "
+        "and dPsync is each link's effect on that fraction"
+    )
 
 
 # ---- sweeps --------------------------------------------------------------------------------

@@ -25,6 +25,9 @@ Layout (one file per run or sweep)::
                                              sum_tau0 (Lambda^tau; format 4)
         lambda_tail_counts (E, 2 bins) int64 signed log histogram of Lambda per realization
         hist               (H, bins, bins) int64, [v, i_tau0, i_tau_beta] on [0, tau_max)
+        r_star             (1 + V,) float64, only with sync.criterion relative: r* of the
+                           undamaged network's stable locked state, then of each variant's
+                           (absent from files written before it was stored: read as None)
         kept/status0, kept/steps0, kept/status, kept/steps, kept/lambda: the first keep_pairs
                            realizations (steps are integration steps: tau = steps * dt;
                            status -1 = not run; lambda = per-realization estimate per edge)
@@ -343,9 +346,20 @@ def _write_state(g, st: JobState) -> None:
     hint = unsynced_hint(cfg)
     if hint:
         g.attrs["unsynced_hint"] = hint
+    r_star = _r_star(job)
+    if r_star is not None:
+        g.create_dataset("r_star", data=r_star)
     if st.measures is not None:
         write_measures(g, st.measures, cfg, st.measures_seconds)
     g.attrs["summary_json"] = json.dumps(job_records(state_view(st)))
+
+
+def _r_star(job: Job) -> np.ndarray | None:
+    """``job``'s r* per trajectory kind (undamaged, then each variant) with ``sync.criterion:
+    relative`` (:class:`antisync.model.ModelSetup`), else None."""
+    if job.model is None or job.model.r_star is None:
+        return None
+    return np.asarray(job.model.r_star, dtype=np.float64)
 
 
 def _read_state(path: Path, g, st: JobState) -> None:
@@ -411,6 +425,7 @@ def state_view(st: JobState) -> JobView:
         attrs={"lambda_quantity": estimators.LAMBDA_QUANTITY[job.config.lambda_.method]},
         measures=st.measures,
         unsynced_hint=unsynced_hint(job.config),
+        r_star=_r_star(job),
     )
 
 
@@ -548,6 +563,7 @@ def read_views(path: str | Path) -> list[JobView]:
                 attrs=r.read("attributes", r.plain_attrs),
                 measures=r.read("measures group", r.measures),
                 unsynced_hint=str(g.attrs["unsynced_hint"]) if "unsynced_hint" in g.attrs else None,
+                r_star=r.optional("r_star", np.float64),
             )
             problem = _shape_problem(view)
             if problem:
@@ -574,6 +590,12 @@ class _GroupReader:
 
     def data(self, key: str) -> np.ndarray:
         return self.read(f"dataset {key!r}", lambda: self.group[key][...])
+
+    def optional(self, key: str, dtype) -> np.ndarray | None:
+        """Dataset ``key`` as ``dtype``, or None where the group has none (an older file)."""
+        if key not in self.group:
+            return None
+        return self.read(f"dataset {key!r}", lambda: self.group[key][...].astype(dtype))
 
     def attr(self, key: str, cast):
         return self.read(f"attribute {key!r}", lambda: cast(self.group.attrs[key]))
@@ -628,6 +650,8 @@ def _shape_problem(view: JobView) -> str | None:
         return "dataset 'variant_edge' points past the edges attribute"
     if view.hist_variants.size and (view.hist_variants.min() < 0 or view.hist_variants.max() >= nv):
         return "dataset 'hist_variants' points past the variants"
+    if view.r_star is not None and view.r_star.shape != (1 + nv,):
+        return f"dataset 'r_star' has shape {view.r_star.shape}, expected {(1 + nv,)} from its variants"
     return None
 
 
