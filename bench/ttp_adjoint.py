@@ -14,7 +14,9 @@ seconds per realization), so the ratio of the two estimators' times is
 ``(t_FD max_e var_FD) / (t_AH max_e var_AH)``, whatever ``se``; the median link's ratio is
 printed beside it. Graphs: ``karate`` (156 links) and ``lesmis`` (Les Miserables, weighted,
 508 links, as configs/lesmis.yaml); integrators: ``euler`` (dt 0.001) or ``rk4`` (dt 0.04,
-the configs' choice).
+the configs' choice). ``--config configs/ieee14_grid.yaml`` (or any config) takes the graph,
+model and dynamics from a config instead (a generalized model's adjoint and secants run on the
+model kernels, antisync/kernels/model_adjoint.py).
 
 The two are timed interleaved, so that a change in the machine's load falls on both: the finite
 difference runs in pieces of ``--piece`` realizations, and after each piece the adjoint-hybrid
@@ -39,7 +41,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 import numpy as np  # noqa: E402
 
 from antisync.compute import lambda_values, simulate_job  # noqa: E402
-from antisync.config import load_config_text  # noqa: E402
+from antisync.config import load_config, load_config_text  # noqa: E402
 from antisync.jobs import make_job  # noqa: E402
 from antisync.status import SYNCED  # noqa: E402
 
@@ -50,7 +52,16 @@ GRAPHS = {
 STEPS = {"euler": 0.001, "rk4": 0.04}
 
 
-def job_for(graph: str, method: str, integrator: str, m: int):
+def job_for(graph: str, method: str, integrator: str, m: int, config: str | None = None):
+    if config is not None:
+        sets = [
+            f"lambda.method={method}",
+            "lambda.dbeta=0.01",
+            "lambda.hybrid_cut=2.0",
+            f"realizations={m}",
+            "seed=3",
+        ]
+        return make_job(load_config(config, sets + ["betas=[]", "edges=all"]))
     return make_job(
         load_config_text(f"""
 graph: {GRAPHS[graph]}
@@ -107,10 +118,13 @@ def main() -> None:
         help="the finite difference to time against: the paper's forward secant (another quantity) "
         "or central differences (the derivative adjoint-hybrid estimates; issue 28)",
     )
+    ap.add_argument("--config", help="take graph, model and dynamics from this config file")
     args = ap.parse_args()
     m = args.realizations
     methods = (args.baseline, "adjoint-hybrid")
-    fd_job, ah_job = (job_for(args.graph, method, args.integrator, m) for method in methods)
+    fd_job, ah_job = (job_for(args.graph, method, args.integrator, m, args.config) for method in methods)
+    if args.config:
+        args.graph, args.integrator = fd_job.name, fd_job.config.dynamics.integrator
     out, ah_seconds = interleaved(fd_job, ah_job, m, args.piece)
     spread = np.array(ah_seconds) / m
     print(
