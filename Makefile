@@ -40,8 +40,8 @@ run: $(STAMP)
 
 # lint and format checks first (seconds), then the suite; pytest's exit 5 (no tests) fails too
 test: $(STAMP)
-	$(BIN)/ruff check antisync tests bench
-	$(BIN)/ruff format --check antisync tests bench
+	$(BIN)/ruff check antisync tests bench tools
+	$(BIN)/ruff format --check antisync tests bench tools
 	$(BIN)/python -m pytest
 
 test-slow: $(STAMP)
@@ -62,11 +62,11 @@ bench: $(STAMP)
 	$(BIN)/python bench/bench_dask.py
 
 lint: $(STAMP)
-	$(BIN)/ruff check antisync tests bench
-	$(BIN)/ruff format --check antisync tests bench
+	$(BIN)/ruff check antisync tests bench tools
+	$(BIN)/ruff format --check antisync tests bench tools
 
 format: $(STAMP)
-	$(BIN)/ruff format antisync tests bench
+	$(BIN)/ruff format antisync tests bench tools
 
 clean:
 	rm -rf $(VENV) .pytest_cache .ruff_cache build *.egg-info
