@@ -30,6 +30,8 @@ CASES = {
     "mixed-inertia-frequency": MIXED + FREQUENCY,
     "mixed-inertia-relative": MIXED + RELATIVE,
 }
+
+
 def _central_differences(job, params, dt, count, integrator, H=1e-6):
     """d tau0 / d beta_e of every link by central differences (beta = +-H) of the model
     driver's interpolated crossing, each row with its own target; and d target / d beta_e."""
