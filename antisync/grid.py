@@ -1,0 +1,589 @@
+"""Static indicators of power-grid lines: what weakening or removing one line does to the
+phase-locked operating state (docs/power_grids.md).
+
+The model is antisync's generalized one (docs/models.md),
+``m_i theta_i'' + gamma_i theta_i' = P_i + sum_j w_ij sin(theta_j - theta_i - alpha)``, its
+phase-locked state connected to synchrony found by :func:`antisync.locked.locked_state`
+(Newton continuation from ``P = 0``). For one network ``W`` the static indicators of that state
+``phi`` are (:class:`GridState`):
+
+- ``exists`` / ``stable``: a locked state is found on the branch connected to synchrony, and
+  every eigenvalue of its linearization but the rotation's zero has a negative real part;
+- ``max_flow = max_{w_ij > 0} w_ij |sin(phi_j - phi_i)|``, the largest line flow (the power a
+  line carries, ``F_ij = K_ij sin(theta_j - theta_i)`` in the lossless power-flow picture of
+  Witthaut and Timme, New J. Phys. 14, 083036 (2012), Sec. 2);
+- ``max_load = max_{w_ij > 0} |sin(phi_j - phi_i)|``, the largest relative load, flow over
+  capacity: a line at ``|sin| = 1`` is at its static limit, and a load change that would push
+  a line past it makes the locked state disappear (a saddle-node bifurcation). Witthaut and
+  Timme's Braess's paradox is this: adding a line, or raising the capacity of one, can reroute
+  flow onto a line that is already near ``|sin| = 1`` and so destroy the locked state;
+- ``margin = -max Re(lambda)`` over the eigenvalues of the linearization
+  (:func:`antisync.locked.linearization`, per-node inertia and damping included: load buses
+  with ``m_i = 0`` stay first order as in the structure-preserving model of Nishikawa and
+  Motter, New J. Phys. 17, 015012 (2015)) other than the zero of the global rotation: the
+  slowest decay rate of a small perturbation, the linear stability measure whose Braess
+  paradox (a capacity increase that lowers it) Coletta and Jacquod study in Phys. Rev. E 93,
+  032222 (2016). For the first-order model with ``P = 0`` it is the second smallest
+  eigenvalue of the Laplacian of ``W``; negative for an unstable state;
+- ``lambda2 = -max Re(mu)`` over the eigenvalues ``mu`` of the first-order Jacobian
+  ``J_ik = w_ik cos(phi_k - phi_i - alpha)`` (minus the row sum on the diagonal) other than the
+  rotation's zero: ``margin`` of the first-order model, the smallest nonzero eigenvalue of the
+  loaded Laplacian (Coletta and Jacquod's stability measure). With inertia ``margin`` can
+  saturate (uniform ``m``, ``gamma``: every mode with ``lambda_k > gamma^2 / 4m`` decays at
+  ``gamma / 2m``), and ``lambda2`` still resolves a change;
+- ``r``, the order parameter ``|mean_j exp(i phi_j)|`` of the locked state (``r*``).
+
+Lag (``alpha != 0``) is accepted and enters the state and its stability; the loads above stay
+``|sin(phi_j - phi_i)|`` as defined (their ``|sin| = 1`` limit is the ``alpha = 0`` one).
+
+:func:`line_indicators` recomputes the state after weakening each line in both directions,
+``Omega_ij -> (1 - beta) Omega_ij`` and ``Omega_ji -> (1 - beta) Omega_ji`` (``beta = 1``
+removes the line; ``beta < 0`` strengthens it), and reports every indicator after the change
+and its change from the intact grid (:class:`LineIndicators`). A line whose removal (or
+weakening) *improves* the state, restoring a stable one, raising the margin or lowering the
+largest relative load, is a static Braess candidate (:meth:`LineTable.braess_lines`); a line
+whose removal destroys the stable state or lowers the margin most is a troublemaker
+(:meth:`LineTable.troublemakers`). These are static statements about the operating point;
+whether the grid's dynamics reaches the new state after a sudden removal is a dynamic question
+this module does not answer.
+
+Pure numpy/scipy/networkx: nothing here compiles.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import networkx as nx
+import numpy as np
+
+from antisync.coupling import coupling_matrix
+from antisync.errors import AntisyncError
+from antisync.locked import jacobian, locked_state
+
+__all__ = [
+    "Grid",
+    "GridError",
+    "GridState",
+    "LineIndicators",
+    "LineTable",
+    "format_table",
+    "grid_state",
+    "line_indicators",
+    "load_grid",
+    "load_grid_config",
+    "static_table",
+]
+
+#: The changes :meth:`LineTable.ranked` sorts by.
+RANK_KEYS = ("d_margin", "d_lambda2", "d_max_load", "d_max_flow", "d_r")
+#: Default tolerance of :meth:`LineTable.braess_lines`: an indicator must improve by more.
+BRAESS_TOL = 1e-9
+
+
+class GridError(AntisyncError, ValueError):
+    """A grid or line request that cannot be evaluated: the message names the line or file."""
+
+
+@dataclass(frozen=True)
+class GridState:
+    """The static indicators of one network's locked state (module docstring).
+
+    ``exists`` is False when :func:`~antisync.locked.locked_state` finds no locked state
+    connected to synchrony; then every number is ``nan`` and ``stable`` is False.
+    """
+
+    exists: bool
+    stable: bool
+    margin: float
+    max_flow: float
+    max_load: float
+    r: float
+    lambda2: float
+    #: 0-based end nodes ``(i, j)``, ``i < j``, of the line at ``max_load`` (None: no state)
+    max_load_line: tuple[int, int] | None = None
+
+    @classmethod
+    def missing(cls) -> GridState:
+        nan = math.nan
+        return cls(False, False, nan, nan, nan, nan, nan)
+
+
+@dataclass(frozen=True)
+class LineIndicators:
+    """One line's row: the state after weakening the line by ``beta`` and the changes.
+
+    ``line``: the two end nodes (labels, ``u < v`` in node order); ``nodes``: their 0-based
+    indices. ``stable``, ``margin``, ``max_flow``, ``max_load``, ``r``: the state after the
+    change (:class:`GridState`; ``nan`` when none exists; an unstable state's values are
+    kept, its margin negative). ``d_*``: after minus before, between two stable states
+    (``nan`` when either is missing or unstable). ``restores``: the intact grid has no stable locked
+    state and the changed one has; ``destroys``: the reverse.
+    """
+
+    line: tuple
+    nodes: tuple[int, int]
+    beta: float
+    exists: bool
+    stable: bool
+    margin: float
+    max_flow: float
+    max_load: float
+    r: float
+    lambda2: float
+    d_margin: float
+    d_max_flow: float
+    d_max_load: float
+    d_r: float
+    d_lambda2: float
+    restores: bool
+    destroys: bool
+
+    @property
+    def label(self) -> str:
+        return f"{self.line[0]}-{self.line[1]}"
+
+    def as_dict(self) -> dict:
+        d = asdict(self)
+        d["label"] = self.label
+        return d
+
+
+@dataclass(frozen=True)
+class LineTable:
+    """The rows of :func:`line_indicators` (a sequence of :class:`LineIndicators`) with the
+    intact grid's state ``base`` and the rankings of the static Braess and troublemaker lines."""
+
+    base: GridState
+    rows: tuple[LineIndicators, ...]
+    beta: float
+    skipped: tuple = field(default=())  # bridges left out (``skip_bridges=True``)
+    seconds: float = 0.0
+    labels: tuple = field(default=())  # node labels in matrix order
+
+    def name(self, line: tuple[int, int] | None) -> str:
+        """``"u-v"`` of 0-based end nodes (e.g. ``base.max_load_line``) by the node labels."""
+        if line is None:
+            return "-"
+        lab = self.labels or tuple(range(max(line) + 1))
+        return f"{lab[line[0]]}-{lab[line[1]]}"
+
+    def __len__(self) -> int:
+        return len(self.rows)
+
+    def __iter__(self):
+        return iter(self.rows)
+
+    def __getitem__(self, k):
+        return self.rows[k]
+
+    def row(self, u, v) -> LineIndicators:
+        """The row of line ``u-v`` (labels, either order)."""
+        for r in self.rows:
+            if r.line in ((u, v), (v, u)):
+                return r
+        raise GridError(f"line {u}-{v} is not in the table")
+
+    def to_dicts(self) -> list[dict]:
+        return [r.as_dict() for r in self.rows]
+
+    def ranked(self, by: str = "d_margin", tol: float = BRAESS_TOL) -> list[LineIndicators]:
+        """Rows most harmful first: those left without a stable locked state, then by ``by``
+        ascending (``d_margin``, ``d_lambda2``, ``d_r``) or descending (``d_max_load``,
+        ``d_max_flow``: a rising load harms). Changes within ``tol`` of each other count as
+        equal (a saturated margin, rounding) and are ordered by ``d_max_load``, largest first."""
+        if by not in RANK_KEYS:
+            raise GridError(f"rank by one of {', '.join(RANK_KEYS)}, got {by!r}")
+        sign = -1.0 if by in ("d_max_flow", "d_max_load") else 1.0  # harmful: load rises
+
+        def key(r):
+            v = getattr(r, by)
+            if not (r.stable and math.isfinite(v)):
+                return (0, 0.0, 0.0)
+            return (1, sign * v if abs(v) > tol else 0.0, -np.nan_to_num(r.d_max_load))
+
+        return sorted(self.rows, key=key)
+
+    def braess_lines(self, tol: float = BRAESS_TOL, margin: str = "d_margin") -> list[LineIndicators]:
+        """Static Braess candidates: lines whose weakening or removal improves the operating
+        state. A row qualifies when it ``restores`` a stable state, or both states are stable
+        and the margin (``margin``: ``"d_margin"`` or ``"d_lambda2"``) rises by more than
+        ``tol`` or the largest relative load falls by more than ``tol``. Sorted: restoring rows
+        first, then by the margin's rise, then by the load's fall, largest first."""
+        _check_margin_key(margin)
+        out = []
+        for r in self.rows:
+            both = self.base.stable and r.stable
+            if r.restores or (both and (getattr(r, margin) > tol or r.d_max_load < -tol)):
+                out.append(r)
+
+        def key(r):
+            rise = getattr(r, margin)
+            return (not r.restores, -(rise if rise > tol else 0.0), np.nan_to_num(r.d_max_load))
+
+        return sorted(out, key=key)
+
+    def troublemakers(self, k: int | None = 5, by: str = "d_margin") -> list[LineIndicators]:
+        """Lines whose weakening or removal harms most: those that destroy the stable state
+        first, then by the change of ``by`` (``"d_margin"`` or ``"d_lambda2"``), most negative
+        first; rows whose ``by`` does not fall by more than :data:`BRAESS_TOL` (a saturated
+        margin, see the module docstring) are left out. The first ``k`` (all: None)."""
+        _check_margin_key(by)
+        if not self.base.stable:
+            return []  # nothing to destroy: see braess_lines for lines that restore a state
+        rows = [r for r in self.ranked(by) if r.destroys or getattr(r, by) < -BRAESS_TOL]
+        return rows if k is None else rows[:k]
+
+
+def _check_margin_key(key: str) -> None:
+    if key not in ("d_margin", "d_lambda2"):
+        raise GridError(f"the margin is d_margin or d_lambda2, got {key!r}")
+
+
+def _state_of(w: np.ndarray, p: np.ndarray, lag, inertia, damping) -> GridState:
+    st = locked_state(w, p, lag, inertia, damping)
+    if st is None:
+        return GridState.missing()
+    mask = w > 0
+    d = st.phi[None, :] - st.phi[:, None]
+    s = np.abs(np.sin(d))
+    if np.any(np.asarray(inertia) > 0):
+        ev = np.linalg.eigvals(jacobian(st.phi, w, lag))
+        ev = np.delete(ev, np.argmin(np.abs(ev)))  # the rotation's zero, as locked.py drops it
+        lambda2 = float(-np.max(ev.real)) if ev.size else math.inf
+    else:
+        lambda2 = float(-st.max_real)  # the linearization is the Jacobian itself
+    load = np.where(mask, s, -1.0)
+    i, j = np.unravel_index(int(np.argmax(load)), load.shape)
+    return GridState(
+        True,
+        bool(st.stable),
+        float(-st.max_real),
+        float((w * s)[mask].max()) if mask.any() else 0.0,
+        float(s[mask].max()) if mask.any() else 0.0,
+        float(st.r),
+        lambda2,
+        (int(min(i, j)), int(max(i, j))) if mask.any() else None,
+    )
+
+
+def _changes(after: GridState, before: GridState) -> dict:
+    """``d_*`` of :class:`LineIndicators`: after minus before, both stable, else ``nan``."""
+    both = after.stable and before.stable
+    keys = ("margin", "max_flow", "max_load", "r", "lambda2")
+    return {f"d_{k}": getattr(after, k) - getattr(before, k) if both else math.nan for k in keys}
+
+
+def _check_inputs(omega, p, coupling, lag, inertia, damping):
+    omega = np.asarray(omega, dtype=np.float64)
+    if omega.ndim != 2 or omega.shape[0] != omega.shape[1]:
+        raise GridError(f"omega must be a square matrix, got shape {omega.shape}")
+    n = omega.shape[0]
+    if not np.isfinite(omega).all() or (omega < 0).any() or np.any(np.diag(omega) != 0):
+        raise GridError("omega must be finite and non-negative with a zero diagonal")
+    if not np.array_equal(omega > 0, (omega > 0).T):
+        raise GridError("omega must have its lines in both directions (Omega_ij > 0 iff Omega_ji > 0)")
+    p = np.asarray(p, dtype=np.float64)
+    if p.shape != (n,) or not np.isfinite(p).all():
+        raise GridError(f"p must hold {n} finite injections, one per node, got shape {p.shape}")
+    if coupling not in ("raw", "normalized"):
+        raise GridError(f"coupling must be 'raw' or 'normalized', got {coupling!r}")
+    for name, v in (("inertia", inertia), ("damping", damping)):
+        a = np.asarray(v, dtype=np.float64)
+        if a.shape not in ((), (n,)) or not np.isfinite(a).all():
+            raise GridError(f"{name} must be one number or {n} (one per node)")
+    if (np.asarray(inertia) < 0).any() or (np.asarray(damping) <= 0).any():
+        raise GridError("inertia must be >= 0 and damping > 0")
+    if not math.isfinite(lag):
+        raise GridError(f"lag must be finite, got {lag}")
+    return omega, p
+
+
+def grid_state(omega, p, *, coupling: str = "raw", lag: float = 0.0, inertia=0.0, damping=1.0) -> GridState:
+    """The static indicators (module docstring) of the grid ``omega`` with injections ``p``
+    (used as given: remove their mean first for a balanced grid; it only shifts ``nu``)."""
+    omega, p = _check_inputs(omega, p, coupling, lag, inertia, damping)
+    return _state_of(coupling_matrix(omega, coupling), p, lag, inertia, damping)
+
+
+def _lines_of(omega: np.ndarray, labels: list, lines) -> list[tuple[int, int]]:
+    n = omega.shape[0]
+    if lines is None:
+        i, j = np.nonzero(np.triu(omega > 0))
+        return list(zip(i.tolist(), j.tolist(), strict=True))
+    index = {lab: k for k, lab in enumerate(labels)}
+    out, seen = [], set()
+    for line in lines:
+        try:
+            u, v = line
+        except (TypeError, ValueError):
+            raise GridError(f"a line is a pair of nodes (u, v), got {line!r}") from None
+        if u not in index or v not in index:
+            raise GridError(f"line {u}-{v}: no such node (nodes: {labels[0]}..{labels[n - 1]})")
+        a, b = sorted((index[u], index[v]))
+        if omega[a, b] <= 0:
+            raise GridError(f"line {u}-{v} is not a line of the grid")
+        if (a, b) in seen:
+            raise GridError(f"line {u}-{v} is listed twice")
+        seen.add((a, b))
+        out.append((a, b))
+    return out
+
+
+def line_indicators(
+    omega,
+    p,
+    *,
+    coupling: str = "raw",
+    lag: float = 0.0,
+    inertia=0.0,
+    damping=1.0,
+    beta: float = 1.0,
+    lines=None,
+    labels=None,
+    skip_bridges: bool = False,
+) -> LineTable:
+    """The static indicators after weakening each line (both directions) by ``beta``.
+
+    Parameters
+    ----------
+    omega : ndarray (N, N)
+        Symmetric line capacities ``Omega`` (raw coupling: ``W = Omega``, the power-grid case).
+    p : ndarray (N,)
+        Injections ``P_i``, used as given (power grids: ``P - P.mean()``, :func:`load_grid`).
+    coupling : "raw" or "normalized"
+        ``W = coupling_matrix(Omega)`` before and after the change.
+    lag, inertia, damping
+        ``alpha``, ``m`` and ``gamma`` as in :func:`antisync.locked.locked_state` (numbers or
+        per-node arrays; ``m_i = 0`` nodes are first order).
+    beta : float
+        ``Omega_ij, Omega_ji -> (1 - beta) Omega_ij``: 1 removes the line (the default), 0.5
+        halves it, a negative value strengthens it. ``beta <= 1``.
+    lines : list of (u, v), optional
+        The lines to change, as node labels (``labels``; 0-based indices without). Default:
+        every line, in node order.
+    labels : sequence, optional
+        Node labels in matrix order, for naming lines (default ``0..N-1``).
+    skip_bridges : bool
+        With ``beta = 1`` a bridge (a line whose removal splits the grid into islands) is
+        refused with :class:`GridError`; with ``skip_bridges=True`` bridges are left out and
+        listed in the table's ``skipped`` instead.
+
+    Returns
+    -------
+    LineTable
+        One :class:`LineIndicators` per line, the intact grid's :class:`GridState` as
+        ``base``, the wall time as ``seconds``.
+    """
+    t0 = time.perf_counter()
+    omega, p = _check_inputs(omega, p, coupling, lag, inertia, damping)
+    n = omega.shape[0]
+    labels = list(range(n)) if labels is None else list(labels)
+    if len(labels) != n:
+        raise GridError(f"labels must name the {n} nodes, got {len(labels)}")
+    try:
+        beta = float(beta)
+    except (TypeError, ValueError):
+        raise GridError(f"beta must be a number <= 1, got {beta!r}") from None
+    if not (math.isfinite(beta) and beta <= 1.0):
+        raise GridError(f"beta must be a finite number <= 1 (1 removes the line), got {beta}")
+    todo = _lines_of(omega, labels, lines)
+    skipped = []
+    if beta == 1.0:
+        g = nx.Graph()
+        g.add_nodes_from(range(n))
+        g.add_edges_from(zip(*np.nonzero(np.triu(omega > 0)), strict=True))
+        if not nx.is_connected(g):
+            raise GridError("the grid is not connected: it has no common locked state to compare")
+        bridges = {tuple(sorted(e)) for e in nx.bridges(g)}
+        hit = [e for e in todo if e in bridges]
+        if hit and not skip_bridges:
+            a, b = hit[0]
+            more = f" (and {len(hit) - 1} other bridge(s))" if len(hit) > 1 else ""
+            raise GridError(
+                f"line {labels[a]}-{labels[b]} is a bridge: removing it islands the grid{more}; "
+                "weaken it (beta < 1) or pass skip_bridges=True"
+            )
+        skipped = [(labels[a], labels[b]) for a, b in hit]
+        todo = [e for e in todo if e not in bridges]
+    base = _state_of(coupling_matrix(omega, coupling), p, lag, inertia, damping)
+    rows = []
+    for a, b in todo:
+        changed = omega.copy()
+        changed[a, b] *= 1.0 - beta
+        changed[b, a] *= 1.0 - beta
+        st = _state_of(coupling_matrix(changed, coupling), p, lag, inertia, damping)
+        rows.append(
+            LineIndicators(
+                line=(labels[a], labels[b]),
+                nodes=(a, b),
+                beta=beta,
+                exists=st.exists,
+                stable=st.stable,
+                margin=st.margin,
+                max_flow=st.max_flow,
+                max_load=st.max_load,
+                r=st.r,
+                lambda2=st.lambda2,
+                **_changes(st, base),
+                restores=bool(st.stable and not base.stable),
+                destroys=bool(base.stable and not st.stable),
+            )
+        )
+    return LineTable(base, tuple(rows), beta, tuple(skipped), time.perf_counter() - t0, tuple(labels))
+
+
+# --- grids from files -------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class Grid:
+    """A power grid ready for :func:`line_indicators`: ``omega`` in :func:`antisync.graphs.
+    node_order` (bus ``i`` is row ``labels.index(i)``; for buses 1..N, row ``i - 1``), ``p``
+    with its mean removed, ``inertia`` and ``damping`` (numbers or per-node arrays)."""
+
+    name: str
+    labels: list
+    omega: np.ndarray
+    p: np.ndarray
+    inertia: object = 0.0
+    damping: object = 1.0
+    coupling: str = "raw"
+
+
+def _vector(path: Path, n: int, what: str) -> np.ndarray:
+    try:
+        v = np.loadtxt(path, comments="#", dtype=np.float64, ndmin=1)
+    except (OSError, ValueError) as exc:
+        raise GridError(f"{path}: cannot read the {what} ({exc})") from None
+    if v.shape != (n,) or not np.isfinite(v).all():
+        raise GridError(f"{path}: expected {n} finite {what} (one per line), got {v.size}")
+    return v
+
+
+def load_grid(
+    edges,
+    power,
+    inertia=0.0,
+    damping=1.0,
+    *,
+    scale: float = 1.0,
+    coupling: str = "raw",
+    name: str | None = None,
+) -> Grid:
+    """Read a grid from an edge list (``u v capacity``, :func:`antisync.graphs.from_edgelist`)
+    and a file of injections (one per node in node order); ``inertia``/``damping``: a number
+    or a file like the injections. ``scale`` multiplies every capacity. The injections' mean
+    is removed (the line losses of a case, docs/models.md)."""
+    from antisync.graphs import from_edgelist, node_order, omega_matrix
+
+    edges = Path(edges)
+    g = from_edgelist(edges)
+    labels = node_order(g)
+    omega = omega_matrix(g) * float(scale)
+    n = len(labels)
+    p = _vector(Path(power), n, "injections")
+    per_node = []
+    for what, v in (("inertia", inertia), ("damping", damping)):
+        per_node.append(_vector(Path(v), n, what) if isinstance(v, str | Path) else v)
+    return Grid(name or edges.stem, labels, omega, p - p.mean(), per_node[0], per_node[1], coupling)
+
+
+def load_grid_config(path) -> Grid:
+    """A :class:`Grid` from an antisync config such as ``configs/ieee14_grid.yaml``: its
+    ``graph.path`` edge list, ``model.frequencies`` / ``inertia`` / ``damping`` (a number or
+    ``{file: PATH}``, paths relative to the config) and ``dynamics.coupling``. Only these keys
+    are read (not a full config validation)."""
+    import yaml
+
+    path = Path(path)
+    try:
+        cfg = yaml.safe_load(path.read_text(encoding="utf-8"))
+    except (OSError, yaml.YAMLError) as exc:
+        raise GridError(f"{path}: cannot read the config ({exc})") from None
+    graph = (cfg or {}).get("graph") or {}
+    model = cfg.get("model") or {}
+    if graph.get("kind") != "edgelist" or "path" not in graph:
+        raise GridError(f"{path}: graph must be {{kind: edgelist, path: ...}} for a grid")
+
+    def value(key, default):
+        v = model.get(key, default)
+        if isinstance(v, dict) and set(v) == {"file"}:
+            return path.parent / v["file"]
+        if isinstance(v, int | float) and not isinstance(v, bool):
+            return float(v)
+        raise GridError(f"{path}: model.{key} must be a number or {{file: PATH}} here, got {v!r}")
+
+    freqs = value("frequencies", None)
+    if not isinstance(freqs, Path):
+        raise GridError(f"{path}: model.frequencies must be {{file: PATH}} (the injections)")
+    coupling = ((cfg.get("dynamics") or {}).get("coupling")) or "normalized"
+    return load_grid(
+        path.parent / graph["path"],
+        freqs,
+        value("inertia", 0.0),
+        value("damping", 1.0),
+        coupling=coupling,
+        name=cfg.get("name") or path.stem,
+    )
+
+
+def static_table(
+    grid: Grid, *, beta: float = 1.0, lag: float = 0.0, skip_bridges: bool = True, lines=None
+) -> LineTable:
+    """:func:`line_indicators` of a :class:`Grid` (bridges skipped by default when removing)."""
+    return line_indicators(
+        grid.omega,
+        grid.p,
+        coupling=grid.coupling,
+        lag=lag,
+        inertia=grid.inertia,
+        damping=grid.damping,
+        beta=beta,
+        lines=lines,
+        labels=grid.labels,
+        skip_bridges=skip_bridges,
+    )
+
+
+def _num(x: float, width: int = 9, digits: int = 4) -> str:
+    x = 0.0 if abs(x) < BRAESS_TOL else x  # a saturated margin's rounding: no sign
+    return f"{'-':>{width}}" if not math.isfinite(x) else f"{x:+{width}.{digits}f}"
+
+
+def format_table(table: LineTable, top: int | None = None, by: str = "d_margin") -> str:
+    """A markdown table of ``table`` ranked by ``by`` (:meth:`LineTable.ranked`), the first
+    ``top`` rows (all: None), after a line with the intact grid's values. The Braess column
+    marks :meth:`LineTable.braess_lines` with the same margin (``by`` if it is ``d_lambda2``)."""
+    b = table.base
+    skipped = ""
+    if table.skipped:
+        names = ", ".join(f"{u}-{v}" for u, v in table.skipped)
+        skipped = f" ({len(table.skipped)} bridges skipped: {names})"
+    head = (
+        f"intact: stable={b.stable} margin={b.margin:.4f} lambda2={b.lambda2:.4f} "
+        f"max_flow={b.max_flow:.4f} max_load={b.max_load:.4f} (line {table.name(b.max_load_line)}) "
+        f"r={b.r:.4f}; "
+        f"beta={table.beta:g}; {len(table)} lines{skipped}; {table.seconds:.2f} s"
+    )
+    margin = "d_lambda2" if by == "d_lambda2" else "d_margin"
+    braess = {r.line for r in table.braess_lines(margin=margin)}
+    lines = [
+        head,
+        "",
+        "| line | state | margin | d margin | d lambda2 | max load | d max load | d max flow "
+        "| d r | Braess |",
+        "|---|---|---|---|---|---|---|---|---|---|",
+    ]
+    rows = table.ranked(by)
+    for r in rows if top is None else rows[:top]:
+        state = "stable" if r.stable else ("unstable" if r.exists else "none")
+        lines.append(
+            f"| {r.label} | {state} | {_num(r.margin)} | {_num(r.d_margin)} "
+            f"| {_num(r.d_lambda2)} | {_num(r.max_load)} | {_num(r.d_max_load)} "
+            f"| {_num(r.d_max_flow)} | {_num(r.d_r)} | {'yes' if r.line in braess else ''} |"
+        )
+    return "\n".join(lines)
