@@ -19,6 +19,9 @@ Usage::
 
     python bench/calibrate_errors.py lollipop --realizations 2000000 --sizes 2000 20000
     python bench/calibrate_errors.py barbell --graph "{kind: barbell, m1: 3}" --realizations 1000000
+    python bench/calibrate_errors.py swing --method adjoint-hybrid --realizations 200000 \
+        --model "{frequencies: [0.3, -0.1, -0.15, 0.2, -0.1, -0.15], inertia: [1, 0, 0, 0.5, 0, 2]}" \
+        --sync "{criterion: frequency, tolerance: 0.002}"
 
 Results and the chosen method: bench/RESULTS.md ("Calibration of Lambda's error bars").
 """
@@ -42,7 +45,16 @@ Z95 = estimators.Z95
 LOLLIPOP = "{kind: lollipop, nodes: 6, path: 3}"
 
 
-def kept_lambdas(graph: str, realizations: int, seed: int, method: str, integrator: str, dt: float):
+def kept_lambdas(
+    graph: str,
+    realizations: int,
+    seed: int,
+    method: str,
+    integrator: str,
+    dt: float,
+    model: str = "",
+    sync: str = "",
+):
     """Every realization's Lambda estimate per link: ``(edges, values (m, E))`` for the
     realizations whose tau0 and every tau(beta) synchronized."""
     import h5py
@@ -60,6 +72,10 @@ def kept_lambdas(graph: str, realizations: int, seed: int, method: str, integrat
         "lambda": {"method": method},
         "dynamics": {"integrator": integrator, "dt": dt, "t_max": 400.0},
     }
+    if model:
+        cfg["model"] = yaml.safe_load(model)
+    if sync:
+        cfg["sync"] = yaml.safe_load(sync)
     antisync.run(cfg, realizations=realizations, output=out, progress=True)
     with h5py.File(out, "r") as f:
         (g,) = f["jobs"].values()
@@ -75,7 +91,14 @@ def pool(args) -> tuple[list[str], np.ndarray, float]:
     if not path.exists():
         t = time.perf_counter()
         edges, values = kept_lambdas(
-            args.graph, args.realizations, args.seed, args.method, args.integrator, args.dt
+            args.graph,
+            args.realizations,
+            args.seed,
+            args.method,
+            args.integrator,
+            args.dt,
+            args.model,
+            args.sync,
         )
         path.parent.mkdir(parents=True, exist_ok=True)
         np.savez(path, edges=np.array(edges, dtype=object), lam=values, ok=np.ones(values.shape, bool))
@@ -134,6 +157,8 @@ def main() -> None:
     p.add_argument("--method", default="finite-difference")
     p.add_argument("--integrator", default="rk4")
     p.add_argument("--dt", type=float, default=0.04)
+    p.add_argument("--model", default="", help="a model: section (YAML), docs/models.md")
+    p.add_argument("--sync", default="", help="a sync: section (YAML)")
     p.add_argument("--cache", default=str(Path(__file__).resolve().parent / ".cache"))
     args = p.parse_args()
     edges, values, dbeta = pool(args)
