@@ -74,10 +74,9 @@ _rotation = _B.rotation
 
 
 @njit(cache=True)
-def _coupling_vjp(c, s, b_k, net, bc, bs, g):
+def _coupling_vjp(c, s, b_k, indptr, indices, w, cl, sl, bc, bs, g):
     """Add ``(d K / d (c, s, w))^T b_k`` to ``bc``, ``bs``, ``g``, where ``K_i = cl (c_i S_i - s_i
     C_i) - sl (c_i C_i + s_i S_i)`` and ``C_i = sum_p w_p c_j``, ``S_i = sum_p w_p s_j``."""
-    indptr, indices, w, cl, sl = net[:5]
     n = c.shape[0]
     for i in range(n):
         if b_k[i] == 0.0:
@@ -99,11 +98,10 @@ def _coupling_vjp(c, s, b_k, net, bc, bs, g):
 
 
 @njit(cache=True)
-def _rates_vjp(c, s, b_th, b_dnu, net, bc, bs, bnu, g, b_k):
+def _rates_vjp(c, s, b_th, b_dnu, indptr, indices, w, cl, sl, mass, gamma, second, bc, bs, bnu, g, b_k):
     """Add the cotangents of ``(c, s, nu, w)`` from those of the rates ``theta'`` (``b_th``)
     and ``nu'`` (``b_dnu``) of :func:`~antisync.kernels.core.make_model_kernels`' ``rhs``;
     ``b_k`` is scratch."""
-    mass, gamma, second = net[5], net[6], net[7]
     n = c.shape[0]
     for i in range(n):
         if not second:
@@ -114,29 +112,28 @@ def _rates_vjp(c, s, b_th, b_dnu, net, bc, bs, bnu, g, b_k):
             bnu[i] += b_th[i] - gamma[i] / mass[i] * b_dnu[i]
         else:
             b_k[i] = b_th[i] / gamma[i]
-    _coupling_vjp(c, s, b_k, net, bc, bs, g)
+    _coupling_vjp(c, s, b_k, indptr, indices, w, cl, sl, bc, bs, g)
 
 
 @njit(cache=True)
-def _field_vjp(y, a, th, net, by, g, scratch):
+def _field_vjp(y, a, th, b_th, b_dnu, indptr, indices, w, cl, sl, mass, gamma, second, by, g, b_k):
     """Add ``(d f / d (y, w))^T a`` for ``f(y) = (-s theta', c theta', nu')`` at the state ``y``
     (rows c, s, nu) whose rates are ``th`` (``b_th``, ``b_dnu``, ``b_k`` are scratch)."""
-    b_th, b_dnu, b_k = scratch[0], scratch[1], scratch[2]
-    second = net[7]
     n = th.shape[0]
     for i in range(n):
         by[0, i] += th[i] * a[1, i]
         by[1, i] -= th[i] * a[0, i]
         b_th[i] = -y[1, i] * a[0, i] + y[0, i] * a[1, i]
         b_dnu[i] = a[2, i] if second else 0.0
-    _rates_vjp(y[0], y[1], b_th, b_dnu, net, by[0], by[1], by[2], g, b_k)
+    _rates_vjp(
+        y[0], y[1], b_th, b_dnu, indptr, indices, w, cl, sl, mass, gamma, second, by[0], by[1], by[2], g, b_k
+    )
 
 
 @njit(cache=True)
-def _kdot_vjp(c, s, th, b_kd, net, bc, bs, b_th, g):
+def _kdot_vjp(c, s, th, b_kd, indptr, indices, w, cl, sl, bc, bs, b_th, g):
     """Add the cotangents of ``(c, s, theta', w)`` from those of ``Kd_i = sum_p w_p cos(theta_j -
     theta_i - alpha) (theta_j' - theta_i')``."""
-    indptr, indices, w, cl, sl = net[:5]
     n = c.shape[0]
     for i in range(n):
         if b_kd[i] == 0.0:
@@ -159,24 +156,45 @@ def _kdot_vjp(c, s, th, b_kd, net, bc, bs, b_th, g):
 
 
 @njit(cache=True)
-def _state_rates(y, p, net, th, dnu):
-    indptr, indices, w, cl, sl, mass, gamma, second = net
-    _state_rates(y, p, net, th, dnu)
+def _state_rates(y, p, indptr, indices, w, cl, sl, mass, gamma, second, th, dnu):
+    _rhs(y[0], y[1], y[2], p, indptr, indices, w, cl, sl, mass, gamma, second, th, dnu)
 
 
 @njit(cache=True)
-def _rk4_vjp(y, lam, out, st, ak, by, th, dnu, p, net, dt, g, scratch):
+def _rk4_vjp(
+    y,
+    lam,
+    out,
+    st,
+    ak,
+    by,
+    th,
+    dnu,
+    b_th,
+    b_dnu,
+    b_k,
+    p,
+    indptr,
+    indices,
+    w,
+    cl,
+    sl,
+    mass,
+    gamma,
+    second,
+    dt,
+    g,
+):
     """``out = (d step / d y)^T lam`` and ``g += (d step / d w)^T lam`` for the RK4 step from
     ``y`` (rows c, s, nu). ``st`` (4, 3, n): the stage states; ``ak`` (4, 3, n), ``by`` (3, n):
     scratch."""
-    second = net[7]
     n = th.shape[0]
     # forward: stage states Y1..Y4 and their fields K1..K4 (K kept in ak for the final sum)
     for r in range(3):
         for i in range(n):
             st[0, r, i] = y[r, i]
     for stage in range(4):
-        _state_rates(st[stage], p, net, th, dnu)
+        _state_rates(st[stage], p, indptr, indices, w, cl, sl, mass, gamma, second, th, dnu)
         for i in range(n):
             ak[stage, 0, i] = -st[stage, 1, i] * th[i]
             ak[stage, 1, i] = st[stage, 0, i] * th[i]
@@ -214,8 +232,10 @@ def _rk4_vjp(y, lam, out, st, ak, by, th, dnu, p, net, dt, g, scratch):
         for r in range(3):
             for i in range(n):
                 by[r, i] = 0.0
-        _state_rates(st[stage], p, net, th, dnu)
-        _field_vjp(st[stage], ak[stage], th, net, by, g, scratch)
+        _state_rates(st[stage], p, indptr, indices, w, cl, sl, mass, gamma, second, th, dnu)
+        _field_vjp(
+            st[stage], ak[stage], th, b_th, b_dnu, indptr, indices, w, cl, sl, mass, gamma, second, by, g, b_k
+        )
         # by: the cotangent of Y_stage; Y_stage = y + h K_{stage-1} (stage >= 1)
         h = 0.0 if stage == 0 else (0.5 * dt if stage < 3 else dt)
         for r in range(3):
@@ -226,14 +246,14 @@ def _rk4_vjp(y, lam, out, st, ak, by, th, dnu, p, net, dt, g, scratch):
 
 
 @njit(cache=True)
-def _euler_vjp(y, lam, out, th, dnu, p, net, dt, g, scratch):
+def _euler_vjp(
+    y, lam, out, th, dnu, b_th, b_dnu, b_k, p, indptr, indices, w, cl, sl, mass, gamma, second, dt, g
+):
     """``out = (d step / d y)^T lam`` (and ``g``) for the Euler step from ``y``: a rotation of
     ``(c_i, s_i)`` by ``a_i = dt theta_i'`` and ``nu += dt nu'`` (renormalization: a projection
     that moves the state by rounding only, taken as the identity)."""
-    b_th, b_dnu, b_k = scratch[0], scratch[1], scratch[2]
-    second = net[7]
     n = th.shape[0]
-    _state_rates(y, p, net, th, dnu)
+    _state_rates(y, p, indptr, indices, w, cl, sl, mass, gamma, second, th, dnu)
     for i in range(n):
         ca, sa = _rotation(dt * th[i])
         cn = y[0, i] * ca - y[1, i] * sa
@@ -243,16 +263,35 @@ def _euler_vjp(y, lam, out, th, dnu, p, net, dt, g, scratch):
         out[2, i] = lam[2, i] if second else 0.0
         b_th[i] = dt * (-sn * lam[0, i] + cn * lam[1, i])
         b_dnu[i] = dt * lam[2, i] if second else 0.0
-    _rates_vjp(y[0], y[1], b_th, b_dnu, net, out[0], out[1], out[2], g, b_k)
+    _rates_vjp(
+        y[0],
+        y[1],
+        b_th,
+        b_dnu,
+        indptr,
+        indices,
+        w,
+        cl,
+        sl,
+        mass,
+        gamma,
+        second,
+        out[0],
+        out[1],
+        out[2],
+        g,
+        b_k,
+    )
 
 
 # ---- seeds: the crossing's dependence on the states at both ends of the last step ---------
 
 
 @njit(cache=True)
-def _order_seed(y, coef_r, coef_d, th, net, lam, g, scratch):
+def _order_seed(
+    y, coef_r, coef_d, th, b_th, b_dnu, b_k, indptr, indices, w, cl, sl, mass, gamma, second, lam, g
+):
     """``lam += coef_r dR/dy + coef_d d(dR/dt)/dy`` (and ``g``) at ``y`` with rates ``th``."""
-    b_th, b_dnu, b_k = scratch[0], scratch[1], scratch[2]
     n = th.shape[0]
     tc = 0.0
     ts = 0.0
@@ -269,15 +308,53 @@ def _order_seed(y, coef_r, coef_d, th, net, lam, g, scratch):
         b_th[i] = coef_d * 2.0 * (-tc * y[1, i] + ts * y[0, i])
         b_dnu[i] = 0.0
     if coef_d != 0.0:
-        _rates_vjp(y[0], y[1], b_th, b_dnu, net, lam[0], lam[1], lam[2], g, b_k)
+        _rates_vjp(
+            y[0],
+            y[1],
+            b_th,
+            b_dnu,
+            indptr,
+            indices,
+            w,
+            cl,
+            sl,
+            mass,
+            gamma,
+            second,
+            lam[0],
+            lam[1],
+            lam[2],
+            g,
+            b_k,
+        )
 
 
 @njit(cache=True)
-def _deviation_seed(y, node, row, coef_v, coef_r, th, dnu, net, lam, g, scratch):
+def _deviation_seed(
+    y,
+    node,
+    row,
+    coef_v,
+    coef_r,
+    th,
+    dnu,
+    b_th,
+    b_dnu,
+    b_k,
+    b_kd,
+    indptr,
+    indices,
+    w,
+    cl,
+    sl,
+    mass,
+    gamma,
+    second,
+    lam,
+    g,
+):
     """``lam += coef_v d(dev)/dy + coef_r d(rate of dev)/dy`` (and ``g``) for deviation ``row``
     (0: ``theta'_i - mean``, 1: ``g_i - mean``, ``g = (P + K) / gamma``) of node ``node``."""
-    b_th, b_dnu, b_k, b_kd = scratch
-    mass, gamma, second = net[5], net[6], net[7]
     n = th.shape[0]
     for i in range(n):
         sigma = (1.0 if i == node else 0.0) - 1.0 / n
@@ -295,10 +372,28 @@ def _deviation_seed(y, node, row, coef_v, coef_r, th, dnu, net, lam, g, scratch)
             b_k[i] = coef_v * sigma / gamma[i]
             b_kd[i] = coef_r * sigma / gamma[i]
     if row == 1:
-        _coupling_vjp(y[0], y[1], b_k, net, lam[0], lam[1], g)
+        _coupling_vjp(y[0], y[1], b_k, indptr, indices, w, cl, sl, lam[0], lam[1], g)
     # d K/dt depends on theta' as well: its cotangent joins b_th before the rates' VJP
-    _kdot_vjp(y[0], y[1], th, b_kd, net, lam[0], lam[1], b_th, g)
-    _rates_vjp(y[0], y[1], b_th, b_dnu, net, lam[0], lam[1], lam[2], g, b_k)
+    _kdot_vjp(y[0], y[1], th, b_kd, indptr, indices, w, cl, sl, lam[0], lam[1], b_th, g)
+    _rates_vjp(
+        y[0],
+        y[1],
+        b_th,
+        b_dnu,
+        indptr,
+        indices,
+        w,
+        cl,
+        sl,
+        mass,
+        gamma,
+        second,
+        lam[0],
+        lam[1],
+        lam[2],
+        g,
+        b_k,
+    )
 
 
 @njit(inline="always")
@@ -317,17 +412,16 @@ def _hermite_slope(x):
 
 
 @njit(cache=True)
-def _advance(y, th, dnu, work, p, net, dt, rk4, step):
+def _advance(y, th, dnu, work, p, indptr, indices, w, cl, sl, mass, gamma, second, dt, rk4, step):
     """One step of :func:`~antisync.kernels.core.make_model_kernels`' ``sync_steps`` (the same
     operations: the states are bit for bit the driver's); ``th``/``dnu`` current on entry and exit."""
-    indptr, indices, w, cl, sl, mass, gamma, second = net
     if rk4:
         _rk4_step(y[0], y[1], y[2], th, dnu, work, p, indptr, indices, w, cl, sl, mass, gamma, second, dt)
     else:
         _euler_step(y[0], y[1], y[2], th, dnu, dt, second)
         if step % RENORM_EVERY == 0:
             _renormalize(y[0], y[1])
-    _state_rates(y, p, net, th, dnu)
+    _rhs(y[0], y[1], y[2], p, indptr, indices, w, cl, sl, mass, gamma, second, th, dnu)
 
 
 @njit(cache=True)
@@ -341,7 +435,6 @@ def _model_adjoint(
     for i in range(n):
         second |= mass[i] > 0.0
     freq = criterion == CRIT_FREQUENCY
-    net = (indptr, indices, w, cl, sl, mass, gamma, second)
     y = y0.copy()
     th = np.empty(n)
     dnu = np.zeros(n)
@@ -375,22 +468,25 @@ def _model_adjoint(
     n_ck = (k - 1) // every + 1
     ck = np.empty((n_ck, 3, n))
     y[:] = y0
-    _state_rates(y, p, net, th, dnu)
+    _rhs(y[0], y[1], y[2], p, indptr, indices, w, cl, sl, mass, gamma, second, th, dnu)
     for step in range(k):
         if step % every == 0:
             ck[step // every] = y
         if step < k - 1:
-            _advance(y, th, dnu, work, p, net, dt, rk4, step + 1)
+            _advance(y, th, dnu, work, p, indptr, indices, w, cl, sl, mass, gamma, second, dt, rk4, step + 1)
     # y: state k - 1; y1: state k
     y1 = y.copy()
     th1 = np.empty(n)
     dnu1 = np.zeros(n)
     th1[:] = th
     dnu1[:] = dnu
-    _advance(y1, th1, dnu1, work, p, net, dt, rk4, k)
+    _advance(y1, th1, dnu1, work, p, indptr, indices, w, cl, sl, mass, gamma, second, dt, rk4, k)
     lam = np.zeros((3, n))  # the cotangent of state k
     lam0 = np.zeros((3, n))  # the seed at state k - 1
-    scratch = (np.empty(n), np.empty(n), np.empty(n), np.empty(n))  # b_th, b_dnu, b_k, b_kd
+    b_th = np.empty(n)
+    b_dnu = np.empty(n)
+    b_k = np.empty(n)
+    b_kd = np.empty(n)
     coef_target = 0.0
     if not freq:
         r0 = 0.0
@@ -414,13 +510,86 @@ def _model_adjoint(
             hx = s00 * r0 + s10 * dt * d0 + s01 * r1 + s11 * dt * d1
             # tau = dt (k - 1 + x): d tau = dt (dT - sum H_a da) / H_x
             f = dt / hx
-            coef = (-f * h00, -f * h10 * dt, -f * h01, -f * h11 * dt)
+            _order_seed(
+                y,
+                -f * h00,
+                -f * h10 * dt,
+                th,
+                b_th,
+                b_dnu,
+                b_k,
+                indptr,
+                indices,
+                w,
+                cl,
+                sl,
+                mass,
+                gamma,
+                second,
+                lam0,
+                g,
+            )
+            _order_seed(
+                y1,
+                -f * h01,
+                -f * h11 * dt,
+                th1,
+                b_th,
+                b_dnu,
+                b_k,
+                indptr,
+                indices,
+                w,
+                cl,
+                sl,
+                mass,
+                gamma,
+                second,
+                lam,
+                g,
+            )
+            coef_target = f
         else:
             f = dt / (r1 - r0)
-            coef = (-f * (1.0 - x), 0.0, -f * x, 0.0)
-        _order_seed(y, coef[0], coef[1], th, net, lam0, g, scratch)
-        _order_seed(y1, coef[2], coef[3], th1, net, lam, g, scratch)
-        coef_target = f
+            _order_seed(
+                y,
+                -f * (1.0 - x),
+                0.0,
+                th,
+                b_th,
+                b_dnu,
+                b_k,
+                indptr,
+                indices,
+                w,
+                cl,
+                sl,
+                mass,
+                gamma,
+                second,
+                lam0,
+                g,
+            )
+            _order_seed(
+                y1,
+                -f * x,
+                0.0,
+                th1,
+                b_th,
+                b_dnu,
+                b_k,
+                indptr,
+                indices,
+                w,
+                cl,
+                sl,
+                mass,
+                gamma,
+                second,
+                lam,
+                g,
+            )
+            coef_target = f
     else:
         # the active deviation at x: the one nearest the band's edge
         w0 = np.empty((WORK_ROWS, n))
@@ -452,11 +621,99 @@ def _model_adjoint(
                     slope = sl_
         f = dt / slope
         if rk4:
-            coef = (-f * h00, -f * h10 * dt, -f * h01, -f * h11 * dt)
+            _deviation_seed(
+                y,
+                node,
+                row,
+                -f * h00,
+                -f * h10 * dt,
+                th,
+                dnu,
+                b_th,
+                b_dnu,
+                b_k,
+                b_kd,
+                indptr,
+                indices,
+                w,
+                cl,
+                sl,
+                mass,
+                gamma,
+                second,
+                lam0,
+                g,
+            )
+            _deviation_seed(
+                y1,
+                node,
+                row,
+                -f * h01,
+                -f * h11 * dt,
+                th1,
+                dnu1,
+                b_th,
+                b_dnu,
+                b_k,
+                b_kd,
+                indptr,
+                indices,
+                w,
+                cl,
+                sl,
+                mass,
+                gamma,
+                second,
+                lam,
+                g,
+            )
         else:
-            coef = (-f * (1.0 - x), 0.0, -f * x, 0.0)
-        _deviation_seed(y, node, row, coef[0], coef[1], th, dnu, net, lam0, g, scratch)
-        _deviation_seed(y1, node, row, coef[2], coef[3], th1, dnu1, net, lam, g, scratch)
+            _deviation_seed(
+                y,
+                node,
+                row,
+                -f * (1.0 - x),
+                0.0,
+                th,
+                dnu,
+                b_th,
+                b_dnu,
+                b_k,
+                b_kd,
+                indptr,
+                indices,
+                w,
+                cl,
+                sl,
+                mass,
+                gamma,
+                second,
+                lam0,
+                g,
+            )
+            _deviation_seed(
+                y1,
+                node,
+                row,
+                -f * x,
+                0.0,
+                th1,
+                dnu1,
+                b_th,
+                b_dnu,
+                b_k,
+                b_kd,
+                indptr,
+                indices,
+                w,
+                cl,
+                sl,
+                mass,
+                gamma,
+                second,
+                lam,
+                g,
+            )
     # backwards over the steps k .. 1, segment by segment from the checkpoints
     seg = np.empty((every, 3, n))
     out = np.empty((3, n))
@@ -468,17 +725,60 @@ def _model_adjoint(
         lo = c_idx * every
         hi = min(k, lo + every)  # steps lo+1 .. hi start from states lo .. hi-1
         y[:] = ck[c_idx]
-        _state_rates(y, p, net, th, dnu)
+        _rhs(y[0], y[1], y[2], p, indptr, indices, w, cl, sl, mass, gamma, second, th, dnu)
         for j in range(lo, hi):
             seg[j - lo] = y
             if j < hi - 1:
-                _advance(y, th, dnu, work, p, net, dt, rk4, j + 1)
+                _advance(y, th, dnu, work, p, indptr, indices, w, cl, sl, mass, gamma, second, dt, rk4, j + 1)
         for j in range(hi - 1, lo - 1, -1):
             # the step j -> j + 1 from seg[j - lo]
             if rk4:
-                _rk4_vjp(seg[j - lo], lam, out, stg, ak, by, th, dnu, p, net, dt, g, scratch)
+                _rk4_vjp(
+                    seg[j - lo],
+                    lam,
+                    out,
+                    stg,
+                    ak,
+                    by,
+                    th,
+                    dnu,
+                    b_th,
+                    b_dnu,
+                    b_k,
+                    p,
+                    indptr,
+                    indices,
+                    w,
+                    cl,
+                    sl,
+                    mass,
+                    gamma,
+                    second,
+                    dt,
+                    g,
+                )
             else:
-                _euler_vjp(seg[j - lo], lam, out, th, dnu, p, net, dt, g, scratch)
+                _euler_vjp(
+                    seg[j - lo],
+                    lam,
+                    out,
+                    th,
+                    dnu,
+                    b_th,
+                    b_dnu,
+                    b_k,
+                    p,
+                    indptr,
+                    indices,
+                    w,
+                    cl,
+                    sl,
+                    mass,
+                    gamma,
+                    second,
+                    dt,
+                    g,
+                )
             lam[:] = out
             if first_seed:  # state k - 1: add the crossing's seed there
                 first_seed = False
