@@ -251,12 +251,29 @@ def simulate_job(
     )
 
 
+def _model_params(job: Job, ks: np.ndarray, targets: np.ndarray):
+    """The model kernels' :class:`~antisync.kernels.model_cpu.ModelParams` of ``job`` for
+    realizations ``ks``: fixed frequencies (one row), drawn ones (a row per realization, in the
+    rotating frame of docs/models.md, the distribution's mean never added) or none."""
+    from antisync.kernels.model_cpu import ModelParams
+    from antisync.model import drawn_frequencies
+
+    setup = job.model
+    n = len(job.nodes)
+    if job.config.model.drawn:
+        freqs = drawn_frequencies(job.config.model, job.config.seed, ks, n)
+    else:
+        freqs = (np.zeros(n) if setup.freqs is None else setup.freqs)[None, :]
+    return ModelParams(
+        freqs, setup.cos_lag, setup.sin_lag, setup.inertia, setup.damping, setup.criterion, targets
+    )
+
+
 def _simulate_model(
     job, first, count, backend, threads, variant_weights, realizations, todo=None, variant_targets=None
 ):
     """:func:`simulate_job` for a generalized model (docs/models.md)."""
     from antisync.kernels import model_cpu
-    from antisync.model import drawn_frequencies
 
     if backend == "cuda":
         from antisync.kernels.model_cuda import simulate_model
@@ -274,18 +291,8 @@ def _simulate_model(
         targets = np.concatenate([setup.targets[:1], variant_targets])
     else:
         raise ValueError("other weights for a generalized model need their variant_targets")
-    n = len(job.nodes)
     ks = model_cpu._realization_ids(first, count, realizations)
-    if job.config.model.drawn:
-        # the rotating frame of docs/models.md, the distribution's mean never added
-        freqs = drawn_frequencies(job.config.model, job.config.seed, ks, n)
-    elif setup.freqs is not None:
-        freqs = setup.freqs[None, :]
-    else:
-        freqs = np.zeros((1, n))
-    params = model_cpu.ModelParams(
-        freqs, setup.cos_lag, setup.sin_lag, setup.inertia, setup.damping, setup.criterion, targets
-    )
+    params = _model_params(job, ks, targets)
     dyn = job.config.dynamics
     return simulate_model(
         job.config.seed,
@@ -436,19 +443,10 @@ def _model_adjoint_pass(job: Job, first: int, count: int, threads: int | None):
     from antisync.kernels import model_cpu
     from antisync.kernels.adjoint import link_derivatives
     from antisync.kernels.model_adjoint import simulate_model_adjoint
-    from antisync.model import drawn_frequencies
 
     dyn = job.config.dynamics
     setup = job.model
-    n = len(job.nodes)
-    ks = model_cpu._realization_ids(first, count, None)
-    if job.config.model.drawn:
-        freqs = drawn_frequencies(job.config.model, job.config.seed, ks, n)
-    else:
-        freqs = (np.zeros(n) if setup.freqs is None else setup.freqs)[None, :]
-    params = model_cpu.ModelParams(
-        freqs, setup.cos_lag, setup.sin_lag, setup.inertia, setup.damping, setup.criterion, setup.targets[:1]
-    )
+    params = _model_params(job, model_cpu._realization_ids(first, count, None), setup.targets[:1])
     edge_a, edge_b, _, _ = job.tangent
     edges = list(zip(edge_a.tolist(), edge_b.tolist(), strict=True))
     return simulate_model_adjoint(

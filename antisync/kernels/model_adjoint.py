@@ -408,6 +408,17 @@ def _hermite_slope(x):
     return 6 * x * x - 6 * x, 3 * x * x - 4 * x + 1, -6 * x * x + 6 * x, 3 * x * x - 2 * x
 
 
+@njit(inline="always")
+def _seed_coefficients(f, x, dt, rk4):
+    """``-f dH/d(y0, rate0, y1, rate1)`` of the interpolant at ``x`` (Hermite for RK4, whose
+    end slopes are dt times the rates; the straight line for Euler): the seeds of the crossing
+    ``x`` with ``f = dt / H_x``."""
+    if rk4:
+        h00, h10, h01, h11 = _hermite_basis(x)
+        return -f * h00, -f * h10 * dt, -f * h01, -f * h11 * dt
+    return -f * (1.0 - x), 0.0, -f * x, 0.0
+
+
 # ---- one trajectory ---------------------------------------------------------------------
 
 
@@ -505,91 +516,20 @@ def _model_adjoint(
         if rk4:
             d0, _ = _measure(y[0], y[1], th, dnu, mass, gamma, second)
             d1, _ = _measure(y1[0], y1[1], th1, dnu1, mass, gamma, second)
-            h00, h10, h01, h11 = _hermite_basis(x)
             s00, s10, s01, s11 = _hermite_slope(x)
             hx = s00 * r0 + s10 * dt * d0 + s01 * r1 + s11 * dt * d1
             # tau = dt (k - 1 + x): d tau = dt (dT - sum H_a da) / H_x
             f = dt / hx
-            _order_seed(
-                y,
-                -f * h00,
-                -f * h10 * dt,
-                th,
-                b_th,
-                b_dnu,
-                b_k,
-                indptr,
-                indices,
-                w,
-                cl,
-                sl,
-                mass,
-                gamma,
-                second,
-                lam0,
-                g,
-            )
-            _order_seed(
-                y1,
-                -f * h01,
-                -f * h11 * dt,
-                th1,
-                b_th,
-                b_dnu,
-                b_k,
-                indptr,
-                indices,
-                w,
-                cl,
-                sl,
-                mass,
-                gamma,
-                second,
-                lam,
-                g,
-            )
-            coef_target = f
         else:
             f = dt / (r1 - r0)
-            _order_seed(
-                y,
-                -f * (1.0 - x),
-                0.0,
-                th,
-                b_th,
-                b_dnu,
-                b_k,
-                indptr,
-                indices,
-                w,
-                cl,
-                sl,
-                mass,
-                gamma,
-                second,
-                lam0,
-                g,
-            )
-            _order_seed(
-                y1,
-                -f * x,
-                0.0,
-                th1,
-                b_th,
-                b_dnu,
-                b_k,
-                indptr,
-                indices,
-                w,
-                cl,
-                sl,
-                mass,
-                gamma,
-                second,
-                lam,
-                g,
-            )
-            coef_target = f
+        c0, d0c, c1, d1c = _seed_coefficients(f, x, dt, rk4)
+        _order_seed(
+            y, c0, d0c, th, b_th, b_dnu, b_k, indptr, indices, w, cl, sl, mass, gamma, second, lam0, g
+        )
+        _order_seed(
+            y1, c1, d1c, th1, b_th, b_dnu, b_k, indptr, indices, w, cl, sl, mass, gamma, second, lam, g
+        )
+        coef_target = f
     else:
         # the active deviation at x: the one nearest the band's edge
         w0 = np.empty((WORK_ROWS, n))
@@ -619,101 +559,53 @@ def _model_adjoint(
                     node = i
                     row = rr
                     slope = sl_
-        f = dt / slope
-        if rk4:
-            _deviation_seed(
-                y,
-                node,
-                row,
-                -f * h00,
-                -f * h10 * dt,
-                th,
-                dnu,
-                b_th,
-                b_dnu,
-                b_k,
-                b_kd,
-                indptr,
-                indices,
-                w,
-                cl,
-                sl,
-                mass,
-                gamma,
-                second,
-                lam0,
-                g,
-            )
-            _deviation_seed(
-                y1,
-                node,
-                row,
-                -f * h01,
-                -f * h11 * dt,
-                th1,
-                dnu1,
-                b_th,
-                b_dnu,
-                b_k,
-                b_kd,
-                indptr,
-                indices,
-                w,
-                cl,
-                sl,
-                mass,
-                gamma,
-                second,
-                lam,
-                g,
-            )
-        else:
-            _deviation_seed(
-                y,
-                node,
-                row,
-                -f * (1.0 - x),
-                0.0,
-                th,
-                dnu,
-                b_th,
-                b_dnu,
-                b_k,
-                b_kd,
-                indptr,
-                indices,
-                w,
-                cl,
-                sl,
-                mass,
-                gamma,
-                second,
-                lam0,
-                g,
-            )
-            _deviation_seed(
-                y1,
-                node,
-                row,
-                -f * x,
-                0.0,
-                th1,
-                dnu1,
-                b_th,
-                b_dnu,
-                b_k,
-                b_kd,
-                indptr,
-                indices,
-                w,
-                cl,
-                sl,
-                mass,
-                gamma,
-                second,
-                lam,
-                g,
-            )
+        c0, d0c, c1, d1c = _seed_coefficients(dt / slope, x, dt, rk4)
+        _deviation_seed(
+            y,
+            node,
+            row,
+            c0,
+            d0c,
+            th,
+            dnu,
+            b_th,
+            b_dnu,
+            b_k,
+            b_kd,
+            indptr,
+            indices,
+            w,
+            cl,
+            sl,
+            mass,
+            gamma,
+            second,
+            lam0,
+            g,
+        )
+        _deviation_seed(
+            y1,
+            node,
+            row,
+            c1,
+            d1c,
+            th1,
+            dnu1,
+            b_th,
+            b_dnu,
+            b_k,
+            b_kd,
+            indptr,
+            indices,
+            w,
+            cl,
+            sl,
+            mass,
+            gamma,
+            second,
+            lam,
+            g,
+        )
     # backwards over the steps k .. 1, segment by segment from the checkpoints
     seg = np.empty((every, 3, n))
     out = np.empty((3, n))
