@@ -49,6 +49,7 @@ __all__ = [
     "summarize_variant",
     "summarize_lambda",
     "summarize_lambda_tau",
+    "lambda_tau_interval",
     "summarize_tau0",
     "sync_response",
     "tail_share",
@@ -268,6 +269,20 @@ def summarize_lambda_tau(rec_e: np.ndarray) -> Estimate | None:
     u = -(s[used] + ratio * t[used])
     se = math.sqrt(float(np.sum(u * u)) * k / (k - 1)) / total_t
     return Estimate(ratio, se, math.nan, se, int(n.sum()), k)
+
+
+def lambda_tau_interval(est: Estimate, level: float = 0.95) -> tuple[float, float]:
+    """Lambda^tau's interval at ``level`` from :func:`summarize_lambda_tau`'s estimate: ``R +- t
+    se`` with Student's ``t`` quantile on ``n_batches - 1`` degrees of freedom, since the error
+    comes from the batches' spread (a normal quantile covered 0.925-0.955 per link, 0.940 over
+    all, at 20 batches of the lollipop; bench/RESULTS.md, "Lambda^tau: time to precision and
+    coverage")."""
+    from scipy.stats import t as student
+
+    if est.n_batches < 2 or not math.isfinite(est.se):
+        return math.nan, math.nan
+    q = float(student.ppf((1 + level) / 2, est.n_batches - 1))
+    return est.mean - q * est.se, est.mean + q * est.se
 
 
 def sync_response(rec_e: np.ndarray, dbeta: float, level: float = 0.95) -> dict | None:

@@ -137,6 +137,7 @@ WARNING_KINDS = {
     "too few synchronized realizations": re.compile(
         r"\d+ synchronized realizations?: no (estimate|standard)"
     ),
+    "mean outside its interval": re.compile(r"the mean \S+ lies outside its interval"),
     "too few batches": re.compile(r"only \d+ batches"),
     "heavy tail, few tail values": re.compile(r"heavy tail: the interval rests on"),
     "heavy tail, no tail model": re.compile(r"heavy tail: top 0\.1% of samples"),
@@ -170,6 +171,12 @@ def _lambda(view: JobView, e: int, pooled: tuple[np.ndarray, int]) -> tuple[dict
         )
         if view.unsynced_hint and s["n_not_synced"]:
             warning += f"; {view.unsynced_hint}"
+    elif not low <= est.mean <= high:
+        warning = (
+            f"the mean {est.mean:+.4g} lies outside its interval [{low:.4g}, {high:.4g}]: a few "
+            "rare large values carry the mean, and the tail model weighs them by how often such "
+            "values come, not by their sizes; run more realizations before reading this link"
+        )
     elif est.n_batches < 10:
         warning = f"only {est.n_batches} batches: standard error is rough"
     elif _few_tail_values(iv, se, est.se):
@@ -224,7 +231,8 @@ def _lambda(view: JobView, e: int, pooled: tuple[np.ndarray, int]) -> tuple[dict
 def _lambda_tau(rec: np.ndarray) -> dict:
     """The additive response ``Lambda^tau = -d ln<tau(beta)>/dbeta`` at 0 of one edge
     (:func:`estimators.summarize_lambda_tau`), with a normal interval from its batch-means
-    error at the records' level; None where the file predates it (format 1-3)."""
+    error at the records' level (:func:`estimators.lambda_tau_interval`); None where the file
+    predates it (format 1-3)."""
     est = estimators.summarize_lambda_tau(rec)
     if est is None or math.isnan(est.mean):
         return {
@@ -233,12 +241,12 @@ def _lambda_tau(rec: np.ndarray) -> dict:
             "lambda_tau_ci_low": None,
             "lambda_tau_ci_high": None,
         }
-    z = NormalDist().inv_cdf((1 + CI_LEVEL) / 2)
+    low, high = estimators.lambda_tau_interval(est, CI_LEVEL)
     return {
         "lambda_tau": float(est.mean),
         "lambda_tau_se": _num(est.se),
-        "lambda_tau_ci_low": _num(est.mean - z * est.se),
-        "lambda_tau_ci_high": _num(est.mean + z * est.se),
+        "lambda_tau_ci_low": _num(low),
+        "lambda_tau_ci_high": _num(high),
     }
 
 

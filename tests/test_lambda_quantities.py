@@ -234,6 +234,22 @@ def test_lambda_tau_is_the_ratio_of_the_paired_means(tmp_path):
         assert recs[label]["lambda_tau"] == pytest.approx(direct, rel=1e-9, abs=1e-12), label
 
 
+def test_lambda_tau_interval_uses_the_batches_degrees_of_freedom():
+    """R +- t se with Student's t on n_batches - 1 degrees of freedom (a normal quantile covered
+    0.940 at 20 batches, bench/RESULTS.md); at many batches it is the normal interval."""
+    from scipy.stats import t as student
+
+    from antisync.estimators import Z95, Estimate, lambda_tau_interval
+
+    low, high = lambda_tau_interval(Estimate(0.3, 0.01, float("nan"), 0.01, 2000, 20))
+    q = student.ppf(0.975, 19)
+    assert q == pytest.approx(2.093, abs=1e-3)
+    assert (low, high) == pytest.approx((0.3 - q * 0.01, 0.3 + q * 0.01), rel=1e-12)
+    low, high = lambda_tau_interval(Estimate(0.3, 0.01, float("nan"), 0.01, 10**6, 10**5))
+    assert high - 0.3 == pytest.approx(Z95 * 0.01, rel=1e-4)
+    assert np.isnan(lambda_tau_interval(Estimate(0.3, float("nan"), float("nan"), float("nan"), 5, 1))).all()
+
+
 def test_lambda_tau_obeys_the_sum_rule_with_forward_secants(tmp_path):
     """Unlike <F>'s forward secant, Lambda^tau's forward secant keeps node 2's sum within its
     interval (measured +0.0023 +- 0.0031 at 400,000 realizations, bench/RESULTS.md)."""

@@ -178,6 +178,21 @@ def test_report_of_estimates_outside_their_interval(files, tmp_path):
     assert _png(tmp_path / "fig5_measures.png")
 
 
+def test_an_estimate_outside_its_interval_is_warned_of(files):
+    # a mean outside its own interval is no error of the tail model (it weighs rare large
+    # values by their count), but the summary must say so rather than print both silently
+    recs = antisync.load(files["outside"]).records
+    out = _outside(recs)
+    assert out
+    for r in out:
+        assert warning_kind(r["lambda_km_warning"]) == "mean outside its interval", r["lambda_km_warning"]
+        assert f"the mean {r['lambda_km']:+.4g} lies outside" in r["lambda_km_warning"]
+        # a sign is called from the interval, never from the mean outside it
+        assert not r["sign_resolved"] or r["lambda_km_ci_low"] > 0 or r["lambda_km_ci_high"] < 0
+    table = invoke("summary", files["outside"]).stdout
+    assert "mean outside its interval" in table or "lies outside its interval" in table
+
+
 @pytest.mark.parametrize("name", ["unsynced", "unsynced_large"])
 def test_report_of_a_file_where_nothing_synchronized(files, name, tmp_path):
     recs = antisync.load(files[name]).records
