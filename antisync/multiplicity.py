@@ -20,7 +20,7 @@ from __future__ import annotations
 import math
 from statistics import NormalDist
 
-__all__ = ["FDR_LEVEL", "SIGN_RULE", "fdr_signs", "link_key", "p_value"]
+__all__ = ["FDR_LEVEL", "SIGN_RULE", "benjamini_hochberg", "fdr_signs", "link_key", "p_value"]
 
 #: the false discovery rate of the sign calls of ``antisync summary`` and the report
 FDR_LEVEL = 0.05
@@ -41,10 +41,25 @@ def p_value(low: float, high: float, level: float = 0.95) -> float:
     return 2.0 * (1.0 - NormalDist().cdf(abs(centre) / se))
 
 
+def benjamini_hochberg(pvalues, q: float = FDR_LEVEL) -> list[bool]:
+    """Which of ``pvalues`` the Benjamini-Hochberg step-up procedure at level ``q`` calls: those
+    up to the largest rank ``k`` with ``p_(k) <= k q / m`` (NaN counts as 1)."""
+    p = [1.0 if p is None or not math.isfinite(p) else float(p) for p in pvalues]
+    order = sorted(range(len(p)), key=p.__getitem__)
+    cut = 0
+    for k, i in enumerate(order, start=1):
+        if p[i] <= k * q / len(p):
+            cut = k
+    called = [False] * len(p)
+    for i in order[:cut]:
+        called[i] = True
+    return called
+
+
 def link_key(record: dict) -> tuple:
-    """The link a record's Lambda^KM belongs to: its job (graph, threshold, repeat, stage) and
-    edge; the beta rows of one link share one Lambda."""
-    return tuple(record.get(k) for k in ("graph", "threshold", "repeat", "stage", "edge"))
+    """The link a record's Lambda^KM belongs to: its job (graph, threshold, repeat, stage, the
+    grid point of a grid sweep) and edge; the beta rows of one link share one Lambda."""
+    return tuple(record.get(k) for k in ("graph", "threshold", "repeat", "stage", "point", "edge"))
 
 
 def fdr_signs(records: list[dict], q: float = FDR_LEVEL) -> list[int | None]:
@@ -63,13 +78,10 @@ def fdr_signs(records: list[dict], q: float = FDR_LEVEL) -> list[int | None]:
         p = p_value(lo, hi, level)
         sign = 0 if lo is None or hi is None else (1 if lo + hi > 0 else -1)
         pvals.setdefault(link_key(r), (p, sign))
-    ranked = sorted(pvals.items(), key=lambda kv: kv[1][0])
-    m = len(ranked)
-    cut = 0  # the step-up: the largest k with p_(k) <= k q / m
-    for k, (_, (p, _)) in enumerate(ranked, start=1):
-        if p <= k * q / m:
-            cut = k
-    called = {key for key, _ in ranked[:cut]}
+    keys = list(pvals)
+    called = {
+        key for key, c in zip(keys, benjamini_hochberg([pvals[k][0] for k in keys], q), strict=True) if c
+    }
     out: list[int | None] = []
     for r in records:
         if r.get("lambda_km") is None:

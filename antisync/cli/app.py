@@ -11,6 +11,7 @@ from typer.core import TyperGroup
 
 from antisync._version import __version__
 from antisync.cli.common import fail
+from antisync.cli.grid import grid
 from antisync.cli.paper import paper
 from antisync.cli.report import report
 from antisync.cli.run import run
@@ -105,6 +106,7 @@ app.command()(summary)
 app.command()(report)
 app.command()(validate)
 app.command()(paper)
+app.command()(grid)
 
 
 def main() -> None:

@@ -1,0 +1,74 @@
+"""`antisync grid CONFIG`: a grid's lines, static indicators or dynamic removal (docs/power_grids.md)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from antisync.cli.common import DebugOpt, QuietOpt, SetOpt, info, user_errors
+
+
+@user_errors
+def grid(
+    config: Annotated[
+        Path, typer.Argument(help="YAML config of a grid (configs/ieee39_grid.yaml).", show_default=False)
+    ],
+    removal: Annotated[
+        bool,
+        typer.Option("--removal", help="Integrate each line's removal on the same starts (dynamic N-1)."),
+    ] = False,
+    lines: Annotated[
+        str | None, typer.Option(help='Lines to change, "4-5,2-3" (default: every line, bridges skipped).')
+    ] = None,
+    beta: Annotated[float, typer.Option(help="Weaken each line by beta in (0, 1]; 1 removes it.")] = 1.0,
+    realizations: Annotated[int | None, typer.Option(help="Override `realizations` (--removal).")] = None,
+    seed: Annotated[int | None, typer.Option(help="Override `seed` (--removal).")] = None,
+    islanding: Annotated[
+        bool, typer.Option("--islanding", help="Remove bridges too, marking the rows (default: refused).")
+    ] = False,
+    threads: Annotated[int | None, typer.Option(help="CPU threads (default: all cores).")] = None,
+    top: Annotated[int | None, typer.Option(help="Print only the first TOP rows of the ranking.")] = None,
+    out: Annotated[
+        Path | None, typer.Option("--out", "-o", help="Write the removal table as JSON (atomically).")
+    ] = None,
+    overwrite: Annotated[bool, typer.Option("--overwrite", help="Replace an existing --out file.")] = False,
+    set_: SetOpt = None,
+    quiet: QuietOpt = False,
+    debug: DebugOpt = False,
+) -> None:
+    """Rank CONFIG's lines: the static indicators of the locked state after each line's removal
+    (default), or with --removal the paired dynamic response (P_sync lost/gained with exact
+    intervals, the change of tau), troublemaker and Braess lines marked."""
+    from antisync.config import load_config
+    from antisync.grid import GridError, format_table, load_grid_config, static_table
+    from antisync.removal import check_beta, check_output, line_removal, parse_lines, write_table
+    from antisync.store.provenance import command_line
+
+    beta = check_beta(beta)
+    if out is not None and not removal:
+        raise GridError("--out writes the dynamic removal table: add --removal")
+    if out is not None:
+        check_output(out, overwrite)
+    if not removal:
+        g = load_grid_config(config)
+        picked = parse_lines(lines, g.labels)
+        table = static_table(g, beta=beta, lines=picked, skip_bridges=picked is None)
+        typer.echo(format_table(table, top=top))
+        return
+    cfg = load_config(config, list(set_ or []))
+    table = line_removal(
+        cfg,
+        lines=lines,
+        beta=beta,
+        realizations=realizations,
+        seed=seed,
+        islanding=islanding,
+        threads=threads,
+        log=None if quiet else (lambda m: info(f"antisync grid: {m}")),
+    )
+    typer.echo(table.to_markdown(top=top))
+    if out is not None:
+        path = write_table(table, out, overwrite=overwrite, command=command_line())
+        info(f"wrote {path}", quiet)

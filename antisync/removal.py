@@ -1,0 +1,728 @@
+"""Dynamic line removal (dynamic N-1) of a power grid: does the grid still synchronize, and
+how fast, when one line is removed or weakened (docs/power_grids.md, issue 27)?
+
+For every line ``i-j`` both directions are weakened, ``Omega_ij, Omega_ji -> (1 - beta)
+Omega_ij`` (``beta = 1`` removes the line), and the damaged grid is integrated from the **same**
+initial conditions as the intact one: realization ``k`` starts from the counter-based phases
+``theta_i(0) = 2 pi u(seed, k, i)`` of :mod:`antisync.phases` (``theta_i'(0) = 0``), whatever
+line, chunk or thread. The integration is the compiled model driver
+:func:`antisync.kernels.model_cpu.simulate_model` (the intact grid as the base network, one
+variant per line on the same CSR pattern, a removed line's weights 0), so an intact run's
+``tau0`` is the ordinary ``antisync run``'s ``tau0`` of the same seed, realization by
+realization (tested).
+
+Per line (:class:`LineRemoval`), from the paired outcomes of ``M`` realizations:
+
+- ``P_sync`` before and after (synchronized: the criterion of ``sync:`` met by ``t_max``),
+  each with its exact Clopper-Pearson interval; the basin-stability change (Menck et al.,
+  Nat. Phys. 9, 89 (2013)) is ``d_psync = P_after - P_before``;
+- ``lost`` (synchronized intact, not after) and ``gained`` (the reverse), with Clopper-Pearson
+  intervals of ``lost / M`` and ``gained / M``; ``d_psync = (gained - lost) / M``. The paired
+  test is McNemar's exact one: conditional on the ``d = lost + gained`` discordant pairs,
+  ``gained ~ Binomial(d, q)`` with ``q = 1/2`` under no change (``p_value``, two-sided), and
+  the interval of ``d_psync`` is ``(d / M)(2 q - 1)`` at the ends of ``q``'s Clopper-Pearson
+  interval (conditional on ``d``; ``[0, 0]`` when no pair is discordant: then ``lost_ci`` and
+  ``gained_ci`` bound the change);
+- on the pairs that synchronize both times (status SYNCED both), the mean of ``d_tau = tau -
+  tau0`` with its standard error, and the mean ratio ``tau0 / tau`` (the paper's ``F``) with its
+  standard error.
+
+Rankings (:class:`RemovalTable`): **troublemaker lines** (removal costs the most synchrony:
+largest ``lost - gained``) and **dynamic Braess lines** (removal or weakening raises ``P_sync``
+or speeds synchronization, ``d_tau < 0``). A change is *resolved* when the Benjamini-Hochberg
+procedure at false discovery rate 0.05 over the table's lines calls it (McNemar's exact
+p-values for ``P_sync``, normal ones of ``d_tau / se`` for tau; :mod:`antisync.multiplicity`,
+as the sign calls of ``antisync summary``): a per-line 5% test would call about one line in
+twenty of an unaffected grid.
+
+A bridge (a line whose removal islands the grid) at ``beta = 1`` is refused with a one-line
+:class:`~antisync.grid.GridError`; ``islanding=True`` integrates it anyway and marks the row
+``islanding`` (the islands cannot share one frequency unless each is balanced, so with the
+frequency criterion such a row normally loses every realization).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import tempfile
+import time
+from collections.abc import Mapping
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import networkx as nx
+import numpy as np
+
+from antisync.grid import Grid, GridError
+from antisync.multiplicity import FDR_LEVEL, benjamini_hochberg
+from antisync.status import ALREADY_SYNCED, SYNCED
+
+__all__ = [
+    "FORMAT",
+    "LineRemoval",
+    "RemovalTable",
+    "clopper_pearson",
+    "line_removal",
+    "mcnemar_exact",
+    "tau_p_value",
+    "parse_lines",
+    "check_beta",
+    "check_output",
+    "write_table",
+]
+
+#: The ``format`` of a JSON file written by :func:`write_table`.
+FORMAT = "antisync-line-removal"
+FORMAT_VERSION = 1
+#: Realizations integrated per call of the compiled driver (progress and memory).
+CHUNK = 256
+
+
+# --- exact intervals -------------------------------------------------------------------------
+
+
+def clopper_pearson(k: int, n: int, level: float = 0.95) -> tuple[float, float]:
+    """The exact (Clopper-Pearson) interval of a binomial proportion ``k / n`` at ``level``:
+    the ``(1 - level)/2`` and ``(1 + level)/2`` quantiles of ``Beta(k, n - k + 1)`` and
+    ``Beta(k + 1, n - k)`` (0 for ``k = 0``, 1 for ``k = n``). ``(nan, nan)`` for ``n = 0``."""
+    from scipy.stats import beta
+
+    if n == 0:
+        return math.nan, math.nan
+    if not 0 <= k <= n:
+        raise ValueError(f"k must lie in [0, n], got k={k}, n={n}")
+    a = 1.0 - level
+    lo = 0.0 if k == 0 else float(beta.ppf(a / 2, k, n - k + 1))
+    hi = 1.0 if k == n else float(beta.ppf(1 - a / 2, k + 1, n - k))
+    return lo, hi
+
+
+def mcnemar_exact(lost: int, gained: int, n: int, level: float = 0.95) -> tuple[float, float, float]:
+    """McNemar's exact test of a paired change of ``P_sync`` and its conditional interval.
+
+    Conditional on the ``d = lost + gained`` discordant pairs, ``gained ~ Binomial(d, q)``; no
+    change is ``q = 1/2``. Returns ``(p_value, low, high)``: the two-sided exact p-value
+    (``scipy.stats.binomtest``; 1 when ``d = 0``) and the interval ``(d / n)(2 q - 1)`` of the
+    change ``(gained - lost) / n`` at the ends of ``q``'s Clopper-Pearson interval."""
+    from scipy.stats import binomtest
+
+    d = lost + gained
+    if d == 0:
+        return 1.0, 0.0, 0.0
+    p = float(binomtest(gained, d, 0.5).pvalue)
+    q_lo, q_hi = clopper_pearson(gained, d, level)
+    return p, d / n * (2 * q_lo - 1), d / n * (2 * q_hi - 1)
+
+
+def tau_p_value(d_tau: float | None, se: float | None) -> float:
+    """Two-sided p-value of "``d_tau = 0``" (normal, from ``d_tau`` and its standard error; 1
+    where there is no error)."""
+    if d_tau is None or se is None or not (math.isfinite(se) and se > 0 and math.isfinite(d_tau)):
+        return 1.0
+    return math.erfc(abs(d_tau) / se / math.sqrt(2.0))
+
+
+def _mean_se(x: np.ndarray) -> tuple[float, float]:
+    if x.size == 0:
+        return math.nan, math.nan
+    se = float(x.std(ddof=1) / math.sqrt(x.size)) if x.size > 1 else math.nan
+    return float(x.mean()), se
+
+
+# --- results ---------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class LineRemoval:
+    """One line's paired response to its removal (or weakening by ``beta``), module docstring.
+
+    ``line``: the end nodes' labels; ``n``: realizations; ``synced_before`` / ``synced_after``:
+    counts (SYNCED or ALREADY_SYNCED) with ``p_before`` / ``p_after`` and their Clopper-Pearson
+    intervals; ``lost`` / ``gained`` with the intervals of ``lost / n`` and ``gained / n``;
+    ``d_psync`` (the basin-stability change), McNemar's exact ``p_value`` and conditional
+    interval ``d_psync_ci``; ``both``: pairs SYNCED both times, ``d_tau`` / ``d_tau_se`` and
+    ``ratio`` / ``ratio_se`` (``tau0 / tau``) over them; ``islanding``: the line is a bridge
+    removed anyway (``islanding=True``).
+    """
+
+    line: tuple
+    nodes: tuple[int, int]
+    beta: float
+    n: int
+    synced_before: int
+    synced_after: int
+    p_before: float
+    p_before_ci: tuple[float, float]
+    p_after: float
+    p_after_ci: tuple[float, float]
+    lost: int
+    lost_ci: tuple[float, float]
+    gained: int
+    gained_ci: tuple[float, float]
+    d_psync: float
+    d_psync_ci: tuple[float, float]
+    p_value: float
+    both: int
+    d_tau: float
+    d_tau_se: float
+    ratio: float
+    ratio_se: float
+    islanding: bool = False
+
+    @property
+    def label(self) -> str:
+        return f"{self.line[0]}-{self.line[1]}"
+
+    @property
+    def net_lost(self) -> int:
+        """``lost - gained``: realizations that no longer synchronize, net."""
+        return self.lost - self.gained
+
+    @property
+    def tau_p_value(self) -> float:
+        return tau_p_value(self.d_tau, self.d_tau_se)
+
+    def as_dict(self) -> dict:
+        d = asdict(self)
+        d["label"] = self.label
+        d["line"] = list(self.line)
+        return d
+
+
+@dataclass(frozen=True)
+class RemovalTable:
+    """The rows of :func:`line_removal` (one :class:`LineRemoval` per line) and the intact
+    grid's outcome, with the rankings of troublemaker and dynamic Braess lines.
+
+    ``status0`` / ``tau0``: the intact grid's per-realization status and ``tau0`` (``nan``
+    unless SYNCED); ``status`` / ``tau``: ``(M, L)``, the same after each line's change.
+    """
+
+    name: str
+    beta: float
+    seed: int
+    rows: tuple[LineRemoval, ...]
+    status0: np.ndarray
+    tau0: np.ndarray
+    status: np.ndarray
+    tau: np.ndarray
+    seconds: float = 0.0
+    skipped: tuple = field(default=())
+    config: dict = field(default_factory=dict)
+    level: float = 0.95
+
+    def __len__(self) -> int:
+        return len(self.rows)
+
+    def __iter__(self):
+        return iter(self.rows)
+
+    def __getitem__(self, k):
+        return self.rows[k]
+
+    @property
+    def n(self) -> int:
+        return int(self.status0.size)
+
+    @property
+    def synced0(self) -> int:
+        return int(np.isin(self.status0, (SYNCED, ALREADY_SYNCED)).sum())
+
+    @property
+    def p_sync(self) -> float:
+        """The intact grid's ``P_sync`` (its basin stability at these starts)."""
+        return self.synced0 / self.n if self.n else math.nan
+
+    @property
+    def p_sync_ci(self) -> tuple[float, float]:
+        return clopper_pearson(self.synced0, self.n, self.level)
+
+    @property
+    def tau0_mean(self) -> tuple[float, float]:
+        """Mean and standard error of ``tau0`` over the intact grid's SYNCED realizations."""
+        return _mean_se(self.tau0[self.status0 == SYNCED])
+
+    def row(self, u, v) -> LineRemoval:
+        """The row of line ``u-v`` (labels, either order)."""
+        for r in self.rows:
+            if tuple(r.line) in ((u, v), (v, u)):
+                return r
+        raise GridError(f"line {u}-{v} is not in the table")
+
+    def sync_called(self, q: float = FDR_LEVEL) -> set:
+        """The lines whose change of ``P_sync`` is resolved: McNemar's exact p-values, called by
+        the Benjamini-Hochberg procedure at false discovery rate ``q`` over the table's lines
+        (about one line in twenty would pass a per-line 5% test by chance)."""
+        calls = benjamini_hochberg([r.p_value for r in self.rows], q)
+        return {r.line for r, c in zip(self.rows, calls, strict=True) if c}
+
+    def tau_called(self, q: float = FDR_LEVEL) -> set:
+        """The lines whose change of tau (``d_tau`` on the pairs that synchronize both times) is
+        resolved, by the same procedure over :attr:`LineRemoval.tau_p_value`."""
+        calls = benjamini_hochberg([r.tau_p_value for r in self.rows], q)
+        return {r.line for r, c in zip(self.rows, calls, strict=True) if c}
+
+    def troublemakers(self, k: int | None = 5) -> list[LineRemoval]:
+        """Lines whose removal costs the most synchrony: ``lost - gained > 0``, largest first
+        (ties by the slowdown ``d_tau``). The first ``k`` (all: None); the resolved ones are
+        those in :meth:`sync_called`."""
+        rows = [r for r in self.rows if r.net_lost > 0]
+        rows.sort(key=lambda r: (-r.net_lost, -np.nan_to_num(r.d_tau)))
+        return rows if k is None else rows[:k]
+
+    def braess_lines(self, q: float = FDR_LEVEL) -> list[LineRemoval]:
+        """Dynamic Braess lines: removal (or weakening) raises ``P_sync`` (in :meth:`sync_called`)
+        or speeds synchronization (``d_tau < 0``, in :meth:`tau_called`), both at false discovery
+        rate ``q``. Sorted by the gain of ``P_sync``, then by ``d_tau``."""
+        sync, tau = self.sync_called(q), self.tau_called(q)
+        rows = [
+            r for r in self.rows if (r.net_lost < 0 and r.line in sync) or (r.d_tau < 0 and r.line in tau)
+        ]
+        rows.sort(key=lambda r: (r.net_lost, np.nan_to_num(r.d_tau)))
+        return rows
+
+    def ranked(self) -> list[LineRemoval]:
+        """Every row, most harmful first: by ``lost - gained``, then by ``d_tau``."""
+        return sorted(self.rows, key=lambda r: (-r.net_lost, -np.nan_to_num(r.d_tau)))
+
+    def to_dicts(self) -> list[dict]:
+        return [r.as_dict() for r in self.rows]
+
+    def summary(self) -> dict:
+        """The intact grid's numbers and the run's, as plain data."""
+        t, se = self.tau0_mean
+        return {
+            "name": self.name,
+            "beta": self.beta,
+            "seed": self.seed,
+            "realizations": self.n,
+            "synced0": self.synced0,
+            "p_sync": self.p_sync,
+            "p_sync_ci": list(self.p_sync_ci),
+            "tau0_mean": t,
+            "tau0_se": se,
+            "lines": len(self.rows),
+            "skipped": [list(e) for e in self.skipped],
+            "seconds": self.seconds,
+            "level": self.level,
+        }
+
+    def to_markdown(self, top: int | None = None, q: float = FDR_LEVEL) -> str:
+        """A markdown table ranked by :meth:`ranked` (the first ``top`` rows, all: None) after
+        one line with the intact grid's ``P_sync`` and ``tau0``. ``T``: a troublemaker (``P_sync``
+        lost, in :meth:`sync_called`); ``B``: a dynamic Braess line (:meth:`braess_lines`);
+        ``slower``: ``d_tau > 0`` in :meth:`tau_called`; all at false discovery rate ``q``."""
+        lo, hi = self.p_sync_ci
+        t, se = self.tau0_mean
+        skipped = ""
+        if self.skipped:
+            skipped = f"; bridges skipped: {', '.join(f'{u}-{v}' for u, v in self.skipped)}"
+        head = (
+            f"{self.name}: beta={self.beta:g}, {self.n} realizations (seed {self.seed}): intact "
+            f"P_sync = {self.p_sync:.4f} [{lo:.4f}, {hi:.4f}], tau0 = {t:.3f} +- {se:.3f}; "
+            f"{len(self.rows)} lines{skipped}; {self.seconds:.1f} s"
+        )
+        braess = {r.line for r in self.braess_lines(q)}
+        sync, tau = self.sync_called(q), self.tau_called(q)
+        out = [
+            head,
+            "",
+            "| line | P_sync after [95% CI] | lost | gained | d P_sync [exact CI] | p (McNemar) "
+            "| both | d tau +- se | tau0/tau +- se | mark |",
+            "|---|---|---|---|---|---|---|---|---|---|",
+        ]
+        rows = self.ranked()
+        for r in rows if top is None else rows[:top]:
+            mark = []
+            if r.net_lost > 0 and r.line in sync:
+                mark.append("T")
+            if r.line in braess:
+                mark.append("B")
+            if r.d_tau > 0 and r.line in tau:
+                mark.append("slower")
+            if r.islanding:
+                mark.append("islands")
+            out.append(
+                f"| {r.label} | {r.p_after:.4f} [{r.p_after_ci[0]:.4f}, {r.p_after_ci[1]:.4f}] "
+                f"| {r.lost} | {r.gained} | {r.d_psync:+.4f} [{r.d_psync_ci[0]:+.4f}, "
+                f"{r.d_psync_ci[1]:+.4f}] | {_p(r.p_value)} | {r.both} | {_pm(r.d_tau, r.d_tau_se)} "
+                f"| {_pm(r.ratio, r.ratio_se, 4)} | {' '.join(mark)} |"
+            )
+        return "\n".join(out)
+
+
+def _p(p: float) -> str:
+    return "1" if p >= 0.9995 else f"{p:.3g}"
+
+
+def _pm(x: float, se: float, digits: int = 3) -> str:
+    if not math.isfinite(x):
+        return "-"
+    return f"{x:+.{digits}f} +- {se:.{digits}f}" if math.isfinite(se) else f"{x:+.{digits}f}"
+
+
+# --- the driver ------------------------------------------------------------------------------
+
+
+def _grid_mapping(grid: Grid) -> dict:
+    """A config mapping of a :class:`~antisync.grid.Grid` (its lines inline, injections,
+    inertia and damping per node), with the dynamics of configs/ieee118_grid.yaml (rk4, dt
+    0.01, t_max 400, frequency locking to 1e-3), which overrides may change."""
+    n = len(grid.labels)
+    rows, cols = np.nonzero(np.triu(grid.omega > 0))
+    links = [
+        [grid.labels[i], grid.labels[j], float(grid.omega[i, j])] for i, j in zip(rows, cols, strict=True)
+    ]
+
+    def node_values(v):
+        a = np.asarray(v, dtype=np.float64)
+        return float(a) if a.ndim == 0 else [float(x) for x in np.broadcast_to(a, (n,))]
+
+    inertia = node_values(grid.inertia)
+    model = {"frequencies": [float(x) for x in grid.p], "inertia": inertia}
+    if isinstance(inertia, list) and not any(inertia):
+        model["inertia"] = 0.0
+    elif not (isinstance(inertia, float) and inertia == 0):
+        model["damping"] = node_values(grid.damping)
+    return {
+        "name": grid.name,
+        "graph": {"kind": "inline", "links": links, "nodes": list(grid.labels)},
+        "model": model,
+        "sync": {"criterion": "frequency", "tolerance": 1e-3},
+        "dynamics": {"coupling": grid.coupling, "integrator": "rk4", "dt": 0.01, "t_max": 400.0},
+    }
+
+
+def _config_of(source, overrides: Mapping):
+    from antisync.api import _config
+    from antisync.errors import ConfigError
+
+    if isinstance(source, Grid):
+        source = _grid_mapping(source)
+    try:
+        return _config(source, dict(overrides), None)
+    except ConfigError as exc:
+        raise GridError(str(exc)) from None
+
+
+def parse_lines(text: str | None, labels) -> list[tuple] | None:
+    """``"4-5,2-3"`` as ``[(4, 5), (2, 3)]`` in the grid's labels (None: every line)."""
+    if text is None:
+        return None
+    by_name = {str(v): v for v in labels}
+    out = []
+    for item in str(text).split(","):
+        item = item.strip()
+        parts = item.split("-")
+        if len(parts) != 2 or parts[0].strip() not in by_name or parts[1].strip() not in by_name:
+            raise GridError(
+                f"line {item!r} is not u-v with two nodes of the grid (nodes: {labels[0]}..{labels[-1]}); "
+                'write --lines "4-5,2-3"'
+            )
+        out.append((by_name[parts[0].strip()], by_name[parts[1].strip()]))
+    if not out:
+        raise GridError("--lines names no line")
+    return out
+
+
+def _pick_lines(omega: np.ndarray, labels: list, lines, beta: float, islanding: bool):
+    """0-based ``(a, b)`` of the lines to change, the bridges among them, the skipped ones."""
+    from antisync.grid import _lines_of
+
+    if isinstance(lines, str):
+        lines = parse_lines(lines, labels)
+    todo = _lines_of(omega, labels, lines)
+    n = omega.shape[0]
+    g = nx.Graph()
+    g.add_nodes_from(range(n))
+    g.add_edges_from(zip(*np.nonzero(np.triu(omega > 0)), strict=True))
+    if not nx.is_connected(g):
+        raise GridError("the grid is not connected: it has no common synchronized state")
+    bridges = {tuple(sorted(e)) for e in nx.bridges(g)} if beta == 1.0 else set()
+    hit = [e for e in todo if e in bridges]
+    skipped = []
+    if hit and not islanding:
+        if lines is not None:
+            a, b = hit[0]
+            more = f" (and {len(hit) - 1} other bridge(s))" if len(hit) > 1 else ""
+            raise GridError(
+                f"line {labels[a]}-{labels[b]} is a bridge: removing it islands the grid{more}; "
+                "weaken it (beta < 1) or ask for islanding (islanding=True, --islanding)"
+            )
+        # every line asked for: the bridges are left out and listed
+        skipped = [(labels[a], labels[b]) for a, b in hit]
+        todo = [e for e in todo if e not in bridges]
+    return todo, bridges, skipped
+
+
+def check_beta(beta) -> float:
+    """``beta`` as a float in ``(0, 1]`` (1 removes the line), else a one-line GridError."""
+    try:
+        b = float(beta)
+    except (TypeError, ValueError):
+        raise GridError(f"beta must be a number in (0, 1] (1 removes the line), got {beta!r}") from None
+    if not (0.0 < b <= 1.0):
+        raise GridError(f"beta must be a number in (0, 1] (1 removes the line), got {beta!r}")
+    return b
+
+
+def line_removal(
+    grid_or_config,
+    *,
+    lines=None,
+    beta: float = 1.0,
+    realizations: int | None = None,
+    seed: int | None = None,
+    islanding: bool = False,
+    threads: int | None = None,
+    level: float = 0.95,
+    log=None,
+    **overrides,
+) -> RemovalTable:
+    """Paired dynamic removal (or weakening) of grid lines, module docstring.
+
+    Parameters
+    ----------
+    grid_or_config : path, mapping, Config or Grid
+        A config with a ``model:`` (``configs/ieee39_grid.yaml``), the same keys as a mapping,
+        an :class:`antisync.config.Config`, or a :class:`antisync.grid.Grid` (integrated with
+        rk4, ``dt = 0.01``, ``t_max = 400`` and frequency locking to 1e-3 unless ``overrides``
+        say otherwise).
+    lines : list of (u, v), str or None
+        The lines (node labels, or ``"4-5,2-3"``); default every line, the bridges left out
+        (at ``beta = 1``) and listed in ``skipped``. A bridge named here is refused.
+    beta : float
+        ``Omega_ij, Omega_ji -> (1 - beta) Omega_ij``, in ``(0, 1]``; 1 removes the line.
+    realizations, seed : int, optional
+        Override the config's (realization ``k`` starts from ``phase(seed, k, i)``).
+    islanding : bool
+        Integrate a bridge's removal too, its row marked ``islanding``.
+    threads : int, optional
+        CPU threads of the compiled driver (default: all cores).
+    level : float
+        Confidence level of the exact intervals.
+    log : callable, optional
+        Receives one-line progress messages.
+    **overrides
+        Config keys, as :func:`antisync.run` takes them (``dynamics={"t_max": 200}``).
+
+    Returns
+    -------
+    RemovalTable
+
+    Raises
+    ------
+    antisync.grid.GridError
+        A line not in the grid, a bridge at ``beta = 1``, ``beta`` outside ``(0, 1]``, or a
+        config value that is not valid (per-node files of the wrong length included): one line.
+    """
+    from antisync import coupling, graphs
+    from antisync.estimators import crossing_times
+    from antisync.jobs import check_step
+    from antisync.kernels.model_cpu import ModelParams, simulate_model
+    from antisync.model import drawn_frequencies, model_setup
+
+    t_start = time.perf_counter()
+    beta = check_beta(beta)
+    if not 0 < level < 1:
+        raise GridError(f"level must lie in (0, 1), got {level}")
+    if realizations is not None:
+        overrides["realizations"] = realizations
+    if seed is not None:
+        overrides["seed"] = seed
+    cfg = _config_of(grid_or_config, overrides)
+    from antisync.errors import AntisyncError
+
+    try:
+        g = graphs.build_graph(cfg.graph, seed=cfg.seed)
+        labels = graphs.node_order(g)
+        omega = graphs.omega_matrix(g)
+        check_step(omega, cfg)
+        todo, bridges, skipped = _pick_lines(omega, labels, lines, beta, islanding)
+        if not todo:
+            raise GridError("no line to remove: every line asked for is a bridge")
+        pattern = omega > 0
+        csr = coupling.to_csr(coupling.coupling_matrix(omega, cfg.dynamics.coupling), pattern=pattern)
+        variants = np.empty((len(todo), csr.weights.size))
+        for v, (a, b) in enumerate(todo):
+            changed = omega.copy()
+            changed[a, b] *= 1.0 - beta
+            changed[b, a] *= 1.0 - beta
+            variants[v] = coupling.to_csr(
+                coupling.coupling_matrix(changed, cfg.dynamics.coupling), pattern
+            ).weights
+        names = [f"line {labels[a]}-{labels[b]} beta {beta:g}" for a, b in todo]
+        setup, _, _ = model_setup(cfg, csr.indptr, csr.indices, [csr.weights, *variants], names)
+    except AntisyncError as exc:
+        if isinstance(exc, GridError):
+            raise
+        raise GridError(str(exc)) from None
+    except ValueError as exc:  # a normalized coupling left with an isolated node
+        raise GridError(f"cannot weaken the lines: {exc}") from None
+
+    dyn = cfg.dynamics
+    m = int(cfg.realizations)
+    n_nodes = len(labels)
+    status0 = np.empty(m, dtype=np.int8)
+    status = np.empty((m, len(todo)), dtype=np.int8)
+    tau0 = np.full(m, np.nan)
+    tau = np.full((m, len(todo)), np.nan)
+    for first in range(0, m, CHUNK):
+        ks = np.arange(first, min(m, first + CHUNK), dtype=np.int64)
+        if cfg.model.drawn:
+            freqs = drawn_frequencies(cfg.model, cfg.seed, ks, n_nodes)
+        else:
+            freqs = (np.zeros(n_nodes) if setup.freqs is None else setup.freqs)[None, :]
+        params = ModelParams(
+            freqs, setup.cos_lag, setup.sin_lag, setup.inertia, setup.damping, setup.criterion, setup.targets
+        )
+        sim = simulate_model(
+            cfg.seed,
+            0,
+            0,
+            csr.indptr,
+            csr.indices,
+            csr.weights,
+            variants,
+            params,
+            dt=dyn.dt,
+            max_steps=dyn.max_steps,
+            integrator=dyn.integrator,
+            threads=threads,
+            realizations=ks,
+        )
+        t0, t = crossing_times(sim, dyn.interpolate)
+        part = slice(ks[0], ks[-1] + 1)
+        status0[part] = sim.status0
+        status[part] = sim.status
+        tau0[part] = np.where(sim.status0 == SYNCED, t0 * dyn.dt, np.nan)
+        tau[part] = np.where(sim.status == SYNCED, t * dyn.dt, np.nan)
+        if log is not None:
+            took = time.perf_counter() - t_start
+            log(f"{ks[-1] + 1}/{m} realizations x {len(todo) + 1} grids, {took:.1f} s")
+
+    ok0 = np.isin(status0, (SYNCED, ALREADY_SYNCED))
+    rows = []
+    for v, (a, b) in enumerate(todo):
+        ok = np.isin(status[:, v], (SYNCED, ALREADY_SYNCED))
+        lost = int((ok0 & ~ok).sum())
+        gained = int((~ok0 & ok).sum())
+        p_value, lo, hi = mcnemar_exact(lost, gained, m, level)
+        both = (status0 == SYNCED) & (status[:, v] == SYNCED)
+        dt_mean, dt_se = _mean_se(tau[both, v] - tau0[both])
+        f_mean, f_se = _mean_se(tau0[both] / tau[both, v])
+        rows.append(
+            LineRemoval(
+                line=(labels[a], labels[b]),
+                nodes=(a, b),
+                beta=beta,
+                n=m,
+                synced_before=int(ok0.sum()),
+                synced_after=int(ok.sum()),
+                p_before=float(ok0.mean()),
+                p_before_ci=clopper_pearson(int(ok0.sum()), m, level),
+                p_after=float(ok.mean()),
+                p_after_ci=clopper_pearson(int(ok.sum()), m, level),
+                lost=lost,
+                lost_ci=clopper_pearson(lost, m, level),
+                gained=gained,
+                gained_ci=clopper_pearson(gained, m, level),
+                d_psync=(gained - lost) / m,
+                d_psync_ci=(lo, hi),
+                p_value=p_value,
+                both=int(both.sum()),
+                d_tau=dt_mean,
+                d_tau_se=dt_se,
+                ratio=f_mean,
+                ratio_se=f_se,
+                islanding=(a, b) in bridges,
+            )
+        )
+    return RemovalTable(
+        name=cfg.name,
+        beta=beta,
+        seed=int(cfg.seed),
+        rows=tuple(rows),
+        status0=status0,
+        tau0=tau0,
+        status=status,
+        tau=tau,
+        seconds=time.perf_counter() - t_start,
+        skipped=tuple(skipped),
+        config=cfg.to_dict(),
+        level=level,
+    )
+
+
+# --- files -----------------------------------------------------------------------------------
+
+
+def check_output(path: str | Path, overwrite: bool = False) -> Path:
+    """The JSON output ``path``, checked before any work: it must end in ``.json``, its folder
+    must exist, and an existing file is refused unless ``overwrite``."""
+    path = Path(path)
+    if path.suffix != ".json":
+        raise GridError(f"--out {path}: the removal table is written as JSON; name it *.json")
+    if path.is_dir():
+        raise GridError(f"--out {path} is a folder; give a file name ending in .json")
+    if path.exists() and not overwrite:
+        raise GridError(f"{path} exists; pass --overwrite to replace it (it is left as it is)")
+    if not path.parent.is_dir():
+        raise GridError(f"--out {path}: the folder {path.parent} does not exist")
+    return path
+
+
+def _plain(x):
+    if isinstance(x, dict):
+        return {str(k): _plain(v) for k, v in x.items()}
+    if isinstance(x, list | tuple):
+        return [_plain(v) for v in x]
+    if isinstance(x, np.integer):
+        return int(x)
+    if isinstance(x, float | np.floating):
+        return None if not math.isfinite(x) else float(x)
+    return x
+
+
+def write_table(table: RemovalTable, path: str | Path, overwrite: bool = False, command: str = "") -> Path:
+    """Write ``table`` as JSON (the summary, every row, the resolved config and provenance)
+    atomically: a temporary file in the same folder, renamed over ``path`` when complete, so
+    an existing result is never half-written. ``nan`` is written as ``null``."""
+    from antisync._version import __version__
+    from antisync.store.provenance import git_revision, now
+
+    path = check_output(path, overwrite)
+    doc = {
+        "format": FORMAT,
+        "format_version": FORMAT_VERSION,
+        "version": __version__,
+        "git_revision": git_revision(),
+        "command": command,
+        "written": now(),
+        "summary": table.summary(),
+        "troublemakers": [r.label for r in table.troublemakers(None)],
+        "braess_lines": [r.label for r in table.braess_lines()],
+        # the resolved changes (Benjamini-Hochberg, false discovery rate FDR_LEVEL over the lines)
+        "fdr_level": FDR_LEVEL,
+        "sync_called": [r.label for r in table.rows if r.line in table.sync_called()],
+        "tau_called": [r.label for r in table.rows if r.line in table.tau_called()],
+        "rows": table.to_dicts(),
+        "config": table.config,
+    }
+    text = json.dumps(_plain(doc), indent=1, default=str)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8") as fh:
+            fh.write(text + "\n")
+            fh.flush()
+            os.fsync(fh.fileno())
+        mask = os.umask(0)
+        os.umask(mask)
+        os.chmod(tmp, 0o666 & ~mask)  # mkstemp's 0600, as an ordinary new file would be
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+    return path

@@ -1,0 +1,220 @@
+"""Dynamic line removal (antisync/removal.py, docs/power_grids.md): paired on the same starts as
+the ordinary run, exact intervals, the Braess example in the dynamic indicator, bad input."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pytest
+from helpers import assert_one_line
+from scipy.stats import binomtest
+from typer.testing import CliRunner
+
+from antisync.cli.app import app
+from antisync.config import config_from_mapping
+from antisync.grid import GridError
+from antisync.removal import clopper_pearson, line_removal, mcnemar_exact, parse_lines, write_table
+from antisync.status import SYNCED
+
+runner = CliRunner()
+
+# The Braess construction of tests/test_grid_static.py: the line 0-1-2-3-4 at capacity K,
+# generators at 0 and 4, the consumer at 3; closing the ring with a line 0-4 at capacity K
+# destroys the stable locked state (Witthaut and Timme, New J. Phys. 14, 083036 (2012)).
+K = 1.12
+P_BRAESS = [1.0, 0.0, 0.0, -2.0, 1.0]
+
+
+def braess_config(kappa: float, realizations: int = 48, inertia: float = 0.0, **dyn) -> dict:
+    links = [[a, a + 1, K] for a in range(4)] + ([[0, 4, kappa]] if kappa > 0 else [])
+    return {
+        "name": "braess",
+        "graph": {"kind": "inline", "links": links, "nodes": [0, 1, 2, 3, 4]},
+        "model": {"frequencies": P_BRAESS, "inertia": inertia},
+        "sync": {"criterion": "frequency", "tolerance": 1e-3},
+        "dynamics": {"coupling": "raw", "integrator": "rk4", "dt": 0.02, "t_max": 100.0, **dyn},
+        "realizations": realizations,
+        "seed": 7,
+    }
+
+
+def ring_config(realizations: int = 32) -> dict:
+    """A six-bus ring with a chord, second order, comfortably above the critical coupling."""
+    links = [[i, (i + 1) % 6, 2.0] for i in range(6)] + [[0, 3, 1.0]]
+    return {
+        "name": "ring6",
+        "graph": {"kind": "inline", "links": links},
+        "model": {"frequencies": [1.0, -1.0, 0.5, -0.5, 0.8, -0.8], "inertia": 1.0, "damping": 1.0},
+        "sync": {"criterion": "frequency", "tolerance": 1e-3},
+        "dynamics": {"coupling": "raw", "integrator": "rk4", "dt": 0.02, "t_max": 80.0},
+        "realizations": realizations,
+        "seed": 11,
+    }
+
+
+# --- exact intervals ---------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize(("k", "n"), [(0, 10), (1, 10), (5, 10), (10, 10), (3, 97), (96, 97), (40, 400)])
+@pytest.mark.parametrize("level", [0.95, 0.99])
+def test_clopper_pearson_is_scipys_exact_interval(k, n, level):
+    ci = binomtest(k, n).proportion_ci(confidence_level=level, method="exact")
+    assert clopper_pearson(k, n, level) == pytest.approx((ci.low, ci.high), abs=1e-12)
+
+
+def test_mcnemar_is_the_exact_binomial_test_on_the_discordant_pairs():
+    p, lo, hi = mcnemar_exact(lost=2, gained=11, n=200)
+    assert p == pytest.approx(binomtest(11, 13, 0.5).pvalue)
+    ci = binomtest(11, 13).proportion_ci(method="exact")
+    assert (lo, hi) == pytest.approx((13 / 200 * (2 * ci.low - 1), 13 / 200 * (2 * ci.high - 1)))
+    assert lo < 9 / 200 < hi and lo > 0  # resolved: the interval excludes no change
+    # symmetric in lost and gained; no discordant pair: no evidence, no change
+    p2, lo2, hi2 = mcnemar_exact(lost=11, gained=2, n=200)
+    assert p2 == pytest.approx(p) and (lo2, hi2) == pytest.approx((-hi, -lo))
+    assert mcnemar_exact(0, 0, 50) == (1.0, 0.0, 0.0)
+    assert math.isnan(clopper_pearson(0, 0)[0])
+
+
+# --- paired on the same starts as the ordinary run -----------------------------------------------
+
+
+def test_intact_tau_is_the_ordinary_runs_tau0_and_removal_is_the_grid_without_the_line():
+    """The intact grid of a removal table is the job machinery's undamaged run of the same
+    config and seed, realization by realization; removing a line (beta = 1) is integrating the
+    grid without it, and beta -> 1 approaches it."""
+    from antisync.compute import simulate_job
+    from antisync.estimators import crossing_times
+    from antisync.jobs import make_job
+
+    cfg = ring_config()
+    table = line_removal(cfg, lines=[(0, 3), (1, 2)])
+    job = make_job(config_from_mapping(cfg))
+    none = np.empty((0, job.csr.weights.size))  # the undamaged network only
+    sim = simulate_job(job, 0, cfg["realizations"], variant_weights=none, variant_targets=np.empty(0))
+    t0, _ = crossing_times(sim, job.config.dynamics.interpolate)
+    tau0 = np.where(sim.status0 == SYNCED, t0 * job.config.dynamics.dt, np.nan)
+    np.testing.assert_array_equal(table.status0, sim.status0)
+    np.testing.assert_array_equal(table.tau0, tau0)
+    assert table.synced0 == cfg["realizations"]  # every start locks: a fair check of tau0
+
+    # removing the chord 0-3 = the ring without it, start by start
+    ring = {**cfg, "graph": {"kind": "inline", "links": cfg["graph"]["links"][:6]}}
+    without = line_removal(ring, lines=[(1, 2)])
+    np.testing.assert_array_equal(table.status[:, 0], without.status0)
+    np.testing.assert_allclose(table.tau[:, 0], without.tau0, rtol=1e-12)
+    near = line_removal(cfg, lines=[(0, 3)], beta=1 - 1e-9)
+    np.testing.assert_array_equal(near.status[:, 0], table.status[:, 0])
+    np.testing.assert_allclose(near.tau[:, 0], table.tau[:, 0], rtol=1e-6)
+    row = table.row(3, 0)
+    assert row.both == cfg["realizations"] and row.lost == row.gained == 0
+    assert row.d_tau == pytest.approx(np.mean(table.tau[:, 0] - table.tau0))
+    assert row.ratio == pytest.approx(np.nanmean(table.tau0 / table.tau[:, 0]))
+
+
+def test_braess_line_removal_restores_synchrony_in_the_dynamics():
+    """Witthaut and Timme's Braess paradox in the dynamic indicator: with the line 0-4 the ring
+    has no stable locked state and no start frequency-locks (P_sync = 0); removing 0-4 (or
+    weakening it to 5% of K) gains exactly the starts that lock on the tree itself, resolved by
+    McNemar's exact test, and it is the only dynamic Braess line. Removing any other line
+    leaves no locked state (test_grid_static.py): P_sync stays 0."""
+    ring = braess_config(K)
+    table = line_removal(ring)
+    tree = line_removal(braess_config(0.0), lines=[(0, 1)], beta=0.5)  # its intact run
+    assert table.synced0 == 0
+    assert tree.synced0 > ring["realizations"] // 2  # first order, the tree locks from (almost) every start
+    row = table.row(0, 4)
+    assert row.lost == 0 and row.gained == tree.synced0 and row.p_after == tree.p_sync
+    np.testing.assert_array_equal(table.status[:, table.rows.index(row)], tree.status0)
+    assert row.line in table.sync_called() and row.d_psync_ci[0] > 0
+    assert [r.line for r in table.braess_lines()] == [(0, 4)]
+    assert all(r.synced_after == 0 for r in table.rows if r.line != (0, 4))
+    assert table.troublemakers() == []
+    weak = line_removal(ring, lines=[(0, 4)], beta=0.95)
+    assert weak[0].gained > 0 and weak[0].lost == 0
+    # the other way round: on the tree, every line is a bridge (refused unless islanding), and
+    # with islanding no island is balanced, so every start is lost
+    with pytest.raises(GridError, match="bridge"):
+        line_removal(braess_config(0.0), lines=[(2, 3)])
+    isl = line_removal(braess_config(0.0), lines=[(2, 3)], islanding=True)
+    assert isl[0].islanding and isl[0].synced_after == 0 and isl[0].lost == tree.synced0
+    assert isl.troublemakers()[0].line == (2, 3)
+
+
+# --- bad input -----------------------------------------------------------------------------------
+
+
+def test_bad_requests_are_one_line_grid_errors():
+    cfg = ring_config(4)
+    for kwargs, message in (
+        ({"lines": [(0, 2)]}, "line 0-2 is not a line of the grid"),
+        ({"lines": [(0, 9)]}, "no such node"),
+        ({"beta": 0.0}, "beta must be a number in (0, 1]"),
+        ({"beta": 1.5}, "beta must be a number in (0, 1]"),
+        ({"model": {"inertia": [1.0, 1.0]}}, "model.inertia has 2 values"),
+    ):
+        with pytest.raises(GridError) as err:
+            line_removal(cfg, **kwargs)
+        assert message in str(err.value) and "\n" not in str(err.value)
+    with pytest.raises(GridError, match="not u-v"):
+        parse_lines("0-1,0:2", [0, 1, 2])
+
+
+def _grid_files(tmp_path, inertia_lines: int = 5):
+    """A five-bus config with per-node files, no bridge (a ring 0-1-2-3-4 with the chord 1-3)."""
+    (tmp_path / "g.edges").write_text("0 1 2\n1 2 2\n2 3 2\n3 4 2\n0 4 2\n1 3 2\n")
+    (tmp_path / "p.txt").write_text("1\n0\n0\n-2\n1\n")
+    (tmp_path / "m.txt").write_text("1\n" * inertia_lines)
+    cfg = tmp_path / "g.yaml"
+    cfg.write_text(
+        "name: g\ngraph: {kind: edgelist, path: g.edges}\n"
+        "model: {frequencies: {file: p.txt}, inertia: {file: m.txt}, damping: 1.0}\n"
+        "sync: {criterion: frequency, tolerance: 0.001}\n"
+        "dynamics: {coupling: raw, integrator: rk4, dt: 0.02, t_max: 60}\nrealizations: 8\n"
+    )
+    return cfg
+
+
+def test_cli_refuses_bad_input_with_one_line_and_leaves_the_file(tmp_path):
+    cfg = _grid_files(tmp_path)
+    out = tmp_path / "out.json"
+    out.write_text("keep me")
+    for args, message in (
+        (["--lines", "0-2", "--overwrite"], "line 0-2 is not a line of the grid"),
+        (["--lines", "0-9", "--overwrite"], "not u-v with two nodes of the grid"),
+        (["--lines", "0-1", "--beta", "2", "--overwrite"], "beta must be a number in (0, 1]"),
+        (["--lines", "0-1", "--overwrite", "--out", str(tmp_path / "x.h5")], "written as JSON"),
+        (["--lines", "0-1"], "exists; pass --overwrite"),
+    ):
+        res = runner.invoke(app, ["grid", str(cfg), "--removal", "--out", str(out), *args])
+        assert_one_line(res, message)
+        assert out.read_text() == "keep me"
+    bad = _grid_files(tmp_path, inertia_lines=4)
+    args = ["grid", str(bad), "--removal", "--lines", "0-1", "--out", str(out), "--overwrite"]
+    res = runner.invoke(app, args)
+    assert_one_line(res, "m.txt has 4 values; the graph has 5 nodes")
+    assert out.read_text() == "keep me"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["g.edges", "g.yaml", "m.txt", "out.json", "p.txt"]
+
+
+def test_cli_writes_the_table_atomically(tmp_path):
+    cfg = _grid_files(tmp_path)
+    out = tmp_path / "out.json"
+    res = runner.invoke(app, ["grid", str(cfg), "--removal", "--lines", "0-4,1-3", "--out", str(out), "-q"])
+    assert res.exit_code == 0, res.output
+    doc = json.loads(out.read_text())
+    assert doc["format"] == "antisync-line-removal" and doc["summary"]["realizations"] == 8
+    assert [r["label"] for r in doc["rows"]] == ["0-4", "1-3"]
+    assert "| 0-4 |" in res.stdout
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["g.edges", "g.yaml", "m.txt", "out.json", "p.txt"]
+    res = runner.invoke(app, ["grid", str(cfg)])  # the static table
+    assert res.exit_code == 0 and "| line | state | margin" in res.stdout
+
+
+def test_write_table_refuses_an_existing_file(tmp_path):
+    table = line_removal(ring_config(4), lines="0-3")
+    path = write_table(table, tmp_path / "t.json")
+    with pytest.raises(GridError, match="exists"):
+        write_table(table, path)
+    assert json.loads(path.read_text())["rows"][0]["label"] == "0-3"
