@@ -47,7 +47,17 @@ if TYPE_CHECKING:
 
 __all__ = ["Result", "load", "run", "summarize", "sweep"]
 
-_SWEEP_KEYS = ("sweep", "family", "thresholds", "ranking_threshold", "excluded", "top", "screen", "symmetry")
+_SWEEP_KEYS = (
+    "sweep",
+    "family",
+    "thresholds",
+    "ranking_threshold",
+    "excluded",
+    "top",
+    "screen",
+    "symmetry",
+    "grid",
+)
 
 
 @dataclass(frozen=True)
@@ -138,7 +148,8 @@ def summarize(path: str | Path) -> dict:
 
     One schema for both: ``kind`` ("run" or "sweep"), ``file``, ``complete``, ``records``,
     ``config_yaml``, and the sweep's ``sweep`` (name), ``family``, ``thresholds``,
-    ``ranking_threshold``, ``excluded``, ``top``, ``screen``, ``symmetry`` (for a run file:
+    ``ranking_threshold``, ``excluded``, ``top``, ``screen``, ``symmetry``, ``grid`` (a grid
+    sweep's axes, docs/sweeps.md; ``null`` without a grid) (for a run file:
     ``null`` or empty lists, and ``thresholds`` the run's one threshold), and ``stop``, what
     a run's stopping rule did (:func:`antisync.store.stop_record`; ``null`` without one), and
     ``sum_rule``, per node whose out-links were all measured with normalized coupling, the sum
@@ -216,6 +227,7 @@ def _summarize(path: Path) -> dict:
         "top": [],
         "screen": [],
         "symmetry": None,
+        "grid": None,
     }
 
 

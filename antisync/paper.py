@@ -246,10 +246,9 @@ def make_paper(
     """
     from antisync.config import load_config
     from antisync.errors import ConfigError
-    from antisync.report.figures import write_report
+    from antisync.report.figures import write_file_report
     from antisync.report.sweep import write_sweep_report
     from antisync.runner import run_config
-    from antisync.store import read_views
     from antisync.sweeps import load_sweep, run_sweep
 
     out = Path(out)
@@ -278,7 +277,7 @@ def make_paper(
         if step.kind == "run":
             cfg = load_config(folder / step.config, overrides)
             run_config(cfg, resume=not overwrite, overwrite=overwrite, progress=progress, log=log)
-            write_report(read_views(h5), out / step.name)
+            write_file_report(h5, out / step.name)
         else:
             sw = load_sweep(folder / step.config, overrides)
             run_sweep(sw, output=h5, resume=not overwrite, overwrite=overwrite, progress=progress, log=log)
@@ -307,8 +306,10 @@ def _finished(h5: Path) -> bool:
 
 
 def _extra_figures(out: Path) -> dict:
-    """Fig. 7e: Lambda^KM against Lambda^KM-NNC on the lollipop of Fig. 1."""
+    """Fig. 7e: Lambda^KM against Lambda^KM-NNC on the lollipop of Fig. 1, each with its 95%
+    interval (:func:`antisync.report.measures.plot_fig7e`)."""
     from antisync.report.figures import _plt
+    from antisync.report.measures import plot_fig7e
     from antisync.store import records
 
     plt = _plt()
@@ -317,23 +318,19 @@ def _extra_figures(out: Path) -> dict:
     if a.exists() and b.exists():
         km = {r["edge"]: r for r in records(a)}
         nnc = {r["edge"]: r for r in records(b)}
-        edges = [e for e in km if e in nnc]
-        fig, ax = plt.subplots(figsize=(5.2, 4.8))
-        x = [km[e]["lambda_km"] for e in edges]
-        y = [nnc[e]["lambda_km"] for e in edges]
-        ax.errorbar(
-            x,
-            y,
-            xerr=[km[e]["lambda_km_se"] for e in edges],
-            yerr=[nnc[e]["lambda_km_se"] for e in edges],
-            fmt="o",
-            ms=4,
-            capsize=2,
-        )
-        for e, xi, yi in zip(edges, x, y, strict=True):
-            ax.annotate(e, (xi, yi), fontsize=7, xytext=(3, 3), textcoords="offset points")
-        lim = max(abs(v) for v in x + y) * 1.1
-        ax.plot([-lim, lim], [-lim, lim], "k--", lw=0.7)
+        # the raw-coupling run's Lambda^KM is the normalized one's Lambda^KM-NNC
+        recs = [
+            {
+                **km[e],
+                "lambda_km_nnc": nnc[e]["lambda_km"],
+                "lambda_km_nnc_ci_low": nnc[e]["lambda_km_ci_low"],
+                "lambda_km_nnc_ci_high": nnc[e]["lambda_km_ci_high"],
+            }
+            for e in km
+            if e in nnc
+        ]
+        fig, ax = plt.subplots(figsize=(6.2, 5.8))
+        plot_fig7e(recs, ax)
         ax.set_xlabel(r"$\Lambda^{(\mathrm{KM})}$ (normalized coupling)")
         ax.set_ylabel(r"$\Lambda^{(\mathrm{KM-NNC})}$ (non-normalized)")
         p = out / "fig7e_km_vs_nnc.png"
@@ -463,11 +460,10 @@ def _readme(out: Path, scale: float, timings: dict, extra: dict) -> str:
         key = title.split(":")[0]
         lines.extend([f"## {title}", "", f"> **Paper:** {CAPTIONS.get(key, '')}", ""] + body)
 
-    # figures are named after the job (the graph), e.g. lollipop_6_3_graph.png
+    # figures are named after the config's name:, e.g. lollipop6_graph.png
     body = _img(out, "lollipop6/*_graph.png", 520) + _img(out, "lollipop6/*_F_beta.png", 560)
-    body += ["Histograms at beta = 0.5 (paper: (c) 2->1, (d) 5->6, (e) 6->4, (f) 2->3):", ""]
-    for e in ("2to1", "5to6", "6to4", "2to3"):
-        body += _img(out, f"lollipop6/*_hist_{e}_b0.5.png", 380)
+    body += ["Histograms at beta = 0.5, every link (paper: (c) 2->1, (d) 5->6, (e) 6->4, (f) 2->3):", ""]
+    body += _img(out, "lollipop6/*_histograms.png", 900)
     if (out / "lollipop6.h5").exists():
         from antisync.store import records
 
@@ -526,8 +522,7 @@ def _readme(out: Path, scale: float, timings: dict, extra: dict) -> str:
     section("Fig. 6: thresholds", body)
     body = _img(out, "lollipop6_raw/*_graph.png", 520)
     body += _img(out, "lollipop6_raw/*_F_beta.png", 560)
-    for e in ("2to1", "2to3"):
-        body += _img(out, f"lollipop6_raw/*_hist_{e}_b0.5.png", 380)
+    body += _img(out, "lollipop6_raw/*_histograms.png", 900)  # (c) 2->1, (d) 2->3 among them
     body += _img(out, "fig7e_km_vs_nnc.png", 480)
     section("Fig. 7: non-normalized coupling", body)
     lines += [

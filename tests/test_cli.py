@@ -71,9 +71,10 @@ def test_run_summary_report(tmp_path, cfg):
     res = invoke("report", out, "--out", tmp_path / "fig", "--pdf", "--quiet")
     assert res.exit_code == 0, res.output
     pngs = sorted(p.name for p in (tmp_path / "fig").glob("*.png"))
-    assert "lollipop_6_3_graph.png" in pngs and "lollipop_6_3_F_beta.png" in pngs
-    assert "lollipop_6_3_hist_2to1_b0.5.png" in pngs
-    assert (tmp_path / "fig" / "lollipop_6_3_graph.pdf").exists()
+    # named after the config (small.yaml, no name: its file name)
+    assert "small_graph.png" in pngs and "small_F_beta.png" in pngs
+    assert "small_histograms.png" in pngs
+    assert (tmp_path / "fig" / "small_graph.pdf").exists()
     with h5py.File(out, "r") as f:
         assert f.attrs["format"] == "antisync-results"
         assert "graph:" in f.attrs["config_yaml"] and f.attrs["complete"]

@@ -371,7 +371,7 @@ def test_nothing_synchronized_still_reports_and_says_why(tmp_path):
     assert "only 0 batches" not in table
     res = invoke("report", out, "--out", tmp_path / "figs", "-q")
     assert res.exit_code == 0, res.output
-    assert (tmp_path / "figs" / "lollipop_6_3_F_beta.png").exists()
+    assert (tmp_path / "figs" / "c_F_beta.png").exists()  # named after c.yaml
 
 
 def test_disk_full_while_writing_a_chunk_is_one_line_and_resumes(tmp_path):

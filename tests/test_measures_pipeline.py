@@ -141,8 +141,8 @@ def test_hdf5_measures_group(run):
 
 def test_report_draws_fig5_and_fig7e(run):
     pngs = {p.name for p in run["fig"].glob("*.png")}
-    assert {"fig5_measures.png", "lollipop_6_3_fig7e_km_nnc.png"} <= pngs
-    assert "lollipop_6_3_nnc_graph.png" in pngs  # the twin's own Fig. 7a
+    assert {"fig5_measures.png", "lolli_fig7e_km_nnc.png"} <= pngs  # named after lolli.yaml
+    assert "lolli_nnc_graph.png" in pngs  # the twin's own Fig. 7a
 
 
 def test_summary_table_shows_measure_columns(run):

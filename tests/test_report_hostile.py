@@ -174,8 +174,9 @@ def test_report_of_estimates_outside_their_interval(files, tmp_path):
     assert res.exit_code == 0, res.output
     (view,) = read_views(files["outside"])
     for stem in ("lambda_sorted", "top_links", "measure_pairs"):
-        assert _png(tmp_path / f"{view.graph}_{stem}.png"), stem
-    assert _png(tmp_path / "fig5_measures.png")
+        assert _png(tmp_path / f"karate6_{stem}.png"), stem  # the config's name
+    # its measure_pairs already shows Lambda^KM against Lambda^xi2: no repeat as fig5_measures
+    assert not (tmp_path / "fig5_measures.png").exists()
 
 
 def test_an_estimate_outside_its_interval_is_warned_of(files):
@@ -199,10 +200,14 @@ def test_report_of_a_file_where_nothing_synchronized(files, name, tmp_path):
     assert all(r["lambda_km"] is None and r["lambda_km_ci_low"] is None for r in recs)
     res = invoke("report", files[name], "--out", tmp_path, "--quiet")
     assert res.exit_code == 0, res.output
-    names = {p.name for p in tmp_path.iterdir()}
+    names = {p.name for p in tmp_path.iterdir()} - {"index.md"}
     assert names and all(_png(tmp_path / n) for n in names)
     if name == "unsynced":
-        assert {"lollipop_6_3_graph.png", "lollipop_6_3_F_beta.png", "fig5_measures.png"} <= names
+        assert {"unsynced_graph.png", "unsynced_F_beta.png"} <= names
+        # no Fig. 5 panel without Lambda^KM: the index says why instead
+        assert "fig5_measures.png" not in names
+        index = (tmp_path / "index.md").read_text()
+        assert "Lambda^KM is undefined: none of the 20 realizations" in index
     else:  # no measure at all: the sorted panel says why instead of nothing being written
         assert [n for n in names if n.endswith("_lambda_sorted.png")], names
     # a panel without Lambda^KM says it is undefined, not that km was never asked for

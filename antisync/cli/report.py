@@ -30,6 +30,9 @@ def report(
 ) -> None:
     """Write Fig. 1-style figures: graph coloured by Lambda^KM, <F_beta> vs beta, (tau0, tau) histograms.
 
+    Files are named after the config's `name:` (NAME_graph.png, NAME_F_beta.png,
+    NAME_histograms.png, ...); index.md lists them with the question each answers.
+
     For a graph of more than 20 nodes or 40 links, instead of the per-link labels of Fig. 1a:
     every link's Lambda sorted with its 95% interval, the network with the --top most
     antifragile and most fragile links strong, and Lambda^KM against Lambda^xi2 and Lambda^RW
@@ -39,8 +42,8 @@ def report(
     Fig. 2 for lollipop sweeps and Fig. 6 for threshold sweeps, with an index.md.
     """
     from antisync.errors import AntisyncError
-    from antisync.report.figures import write_report
-    from antisync.store import is_sweep_file, read_views
+    from antisync.report.figures import write_file_report
+    from antisync.store import is_sweep_file
 
     if top < 1:
         raise AntisyncError(f"--top must be a positive number of links, got {top}")
@@ -53,6 +56,6 @@ def report(
 
         paths = write_sweep_report(results, folder, pdf=pdf)
     else:
-        paths = write_report(read_views(results), folder, pdf=pdf, top=top)
+        paths = write_file_report(results, folder, pdf=pdf, top=top)
     for p in paths:
         info(f"wrote {p}", quiet)

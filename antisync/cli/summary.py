@@ -66,6 +66,9 @@ def summary(
         typer.echo(format_sweep({**s, "records": listed(s["records"])}, format))
         if format == "table":
             note = _model_note(results, s["records"], None)
+            if note and s.get("grid"):  # the stored config is the grid's base
+                keys = ", ".join(k for axis in s["grid"] for k in axis["keys"])
+                note = f"{note} (the base config; each grid point sets {keys})"
             if note:
                 typer.echo(note)
     else:

@@ -40,11 +40,29 @@ def sweep(
         int | None, typer.Option(help="Dask: start a LocalCluster with this many workers.")
     ] = None,
     scheduler: Annotated[str | None, typer.Option(help="Dask: address of an existing scheduler.")] = None,
+    grid: Annotated[
+        list[str] | None,
+        typer.Option(
+            "--grid",
+            help="Sweep a config key over values, every combination with the other --grid keys: "
+            "--grid model.phase_lag=0,0.1,0.2 (sets sweep.grid.KEY; values parsed as YAML). "
+            "Repeatable. On a run config (graph:, no sweep:) it sweeps that graph.",
+        ),
+    ] = None,
+    zip_: Annotated[
+        list[str] | None,
+        typer.Option(
+            "--zip",
+            help="Like --grid, but every --zip key moves together (equal lengths): "
+            "--zip model.inertia=0.5,1,2 --zip model.damping=1,0.5,0.25. Repeatable.",
+        ),
+    ] = None,
     set_: SetOpt = None,
     quiet: QuietOpt = False,
     debug: DebugOpt = False,
 ) -> None:
-    """Run the sweep of CONFIG (a config with a `sweep:` section, see configs/atlas6.yaml).
+    """Run the sweep of CONFIG (a config with a `sweep:` section, see configs/atlas6.yaml,
+    or a grid over config keys, see configs/lollipop_grid.yaml and docs/sweeps.md).
 
     Graphs whose realizations end in a stable non-synchronized state are excluded by a
     screening (listed by `antisync summary`).
@@ -59,7 +77,7 @@ def sweep(
     if resume and overwrite:
         raise AntisyncError("--resume and --overwrite exclude each other: choose one")
     values = typed_values(realizations=realizations, output=out, backend=backend, threads=threads)
-    sw = load_sweep(config, list(set_ or []), values)
+    sw = load_sweep(config, list(set_ or []), values, grid=list(grid or []), zip_=list(zip_ or []))
     with dask_executor(sw.base, workers=workers, scheduler=scheduler, quiet=quiet) as ex:
         with writing(sw.output):
             path = run_sweep(

@@ -25,7 +25,9 @@ def validate(config: ConfigArg, set_: SetOpt = None, debug: DebugOpt = False) ->
         typer.echo(
             f"# ok: sweep of {len(entries)} graph(s), {sum(len(e.edges) for e in entries)} directed "
             f"edge(s) in {sum(len(e.representatives) for e in entries)} orbit(s), "
-            f"{len(sw.thresholds)} threshold(s), {sw.repeats} repeat(s); screening not run"
+            f"{len(sw.thresholds)} threshold(s), {sw.repeats} repeat(s)"
+            + (f", {len(sw.points)} grid point(s)" if sw.points else "")
+            + "; screening not run"
         )
         return
     cfg = load_config(config, list(set_ or []))

@@ -10,7 +10,9 @@ Which outputs a sweep gets depends on what it holds:
 - the lollipop family: ``fig2a_F_beta`` (<F_beta> against beta, coloured by N) and
   ``fig2b_lambda_N`` (Lambda^KM against N, mean and standard deviation over repeats);
 - several thresholds: ``fig6a_thresholds`` and ``fig6b_xi2`` (Lambda^KM against Lambda^(xi2)
-  with the fits Lambda^KM = gamma Lambda^(xi2) + C; needs :mod:`antisync.measures.spectral`).
+  with the fits Lambda^KM = gamma Lambda^(xi2) + C; needs :mod:`antisync.measures.spectral`);
+- a grid over config keys (``sweep.grid``/``zip``): ``grid_lambda`` (.png, .md) only
+  (:mod:`antisync.report.grid_sweep`), since the figures above would mix the grid's points.
 
 Each directed edge ``a -> b`` is drawn as the half of the link next to ``a``: damaging
 ``a -> b`` changes row ``a`` of ``W`` (Eq. 4), so a link's two halves show its two directions.
@@ -23,7 +25,9 @@ from pathlib import Path
 
 import numpy as np
 
-from antisync.report.figures import CMAP, _norm, _plt, plot_histogram
+from antisync.estimators import Z95
+from antisync.report.figures import CMAP, _norm, _plt, hist_limit, plot_histogram
+from antisync.report.intervals import draw_intervals
 from antisync.report.tables import fmt_pm, format_table1
 from antisync.sweeps.analysis import edge_lambdas, ranking, trend_in_n
 from antisync.sweeps.results import sweep_summary
@@ -208,7 +212,12 @@ def plot_ranking(summary: dict, ncols: int = 11):
     t = summary["ranking_threshold"]
     rows = ranking(summary["records"], t)
     lam_all = edge_lambdas(summary["records"], t)
-    norm = _norm([v["lambda_km"] for v in lam_all.values()])
+    values = np.array([v["lambda_km"] for v in lam_all.values()], dtype=float)
+    # the scale ends at the 99.5% quantile of |Lambda|: a few noisy extremes would wash out
+    # every other link; the colour bar's arrows say that some values lie beyond
+    top = float(np.nanquantile(np.abs(values), 0.995)) if values.size else 1.0
+    norm = _norm([-top, top])
+    extend = "both" if values.size and np.nanmax(np.abs(values)) > top else "neither"
     cmap = plt.get_cmap(CMAP)
     gms = _graph_meta(summary)
     ncols = max(1, min(ncols, len(rows)))
@@ -237,7 +246,8 @@ def plot_ranking(summary: dict, ncols: int = 11):
         location="bottom",
         shrink=0.6,
         aspect=45,
-        pad=0.07,
+        pad=0.02,
+        extend=extend,
         label=r"$\Lambda^{(\mathrm{KM})}$ of $a\to b$, drawn on the half of the link at $a$",
     )
     n_ex = len(summary["excluded"])
@@ -304,6 +314,8 @@ def plot_top_histograms(summary: dict, views: list, n: int = 7):
         squeeze=False,
         gridspec_kw={"width_ratios": [1, 1.4], "hspace": 0.4},
     )
+    # one pair of axes for every histogram, fitted to the data (not to the histogram's tau_max)
+    limit = max(hist_limit([view.hist[k]], view.tau_max_hist) for _, view, k in panels)
     for (row, view, k), (ax_g, ax_h) in zip(panels, axes, strict=True):
         lam = {e: v["lambda_km"] for (g, e), v in lam_all.items() if g == row["graph"]}
         a, b = row["edge"].split("->")
@@ -315,9 +327,19 @@ def plot_top_histograms(summary: dict, views: list, n: int = 7):
             + f" = {lm} ± {ls}",
             fontsize=9,
         )
-        plot_histogram(view, k, ax_h)
+        plot_histogram(view, k, ax_h, limit=limit)
     sm = plt.cm.ScalarMappable(norm=norm, cmap=cmap)
     fig.colorbar(sm, ax=axes[:, 0].tolist(), location="left", shrink=0.5, label=r"$\Lambda^{(\mathrm{KM})}$")
+    fig.suptitle(
+        "left: each graph coloured by "
+        + r"$\Lambda^{(\mathrm{KM})}$"
+        + ", its most antifragile link a->b; right: synchronization times from the same initial\n"
+        "phases without (" + r"$\tau_0$" + ") and with (" + r"$\tau(\beta)$" + ") damage to a->b; "
+        "below the dashed line the damaged network synchronized faster",
+        fontsize=9,
+        y=1 - 0.15 / fig.get_figheight(),
+    )
+    fig.subplots_adjust(top=1 - 0.9 / fig.get_figheight())  # the default top leaves inches blank
     return fig
 
 
@@ -352,9 +374,13 @@ def plot_fig2(summary: dict):
             ax.plot(beta, f, color=color, lw=1.3)
             ax.fill_between(beta, np.subtract(f, se), np.add(f, se), color=color, alpha=0.25, lw=0)
         ax.axhline(1.0, color="k", ls="--", lw=0.8)
-        ax.set_xlabel(r"$\beta$")
-        ax.set_ylabel(r"$\langle \mathcal{F}_\beta \rangle$")
-        ax.set_title(f"lollipops, edge a->b in the clique away from the bridge (r = {t:g})", fontsize=9)
+        ax.set_xlabel(r"damage $\beta$")
+        ax.set_ylabel(r"$\langle \mathcal{F}_\beta \rangle = \langle \tau_0/\tau(\beta) \rangle$")
+        ax.set_title(
+            f"lollipops, edge a->b in the clique away from the bridge (r = {t:g});\n"
+            "bands: ± 1 standard error; dashed: no change",
+            fontsize=9,
+        )
         fig_a.colorbar(plt.cm.ScalarMappable(norm=norm, cmap=cmap), ax=ax, label="N")
     lam = edge_lambdas(recs, t)
     rows = {}
@@ -454,6 +480,7 @@ def plot_fig6(summary: dict):
     ax.plot([-lim, lim], [-lim, lim], "k--", lw=0.7)
     ax.set_xlabel(r"$\Lambda^{(\mathrm{KM})}$, r = " + f"{ref:g}")
     ax.set_ylabel(r"$\Lambda^{(\mathrm{KM})}$, r = r*")
+    ax.set_title(f"(a) each link's Lambda at threshold r* against r = {ref:g}; dashed: y = x", fontsize=9)
     ax.legend(fontsize=8)
     try:
         xi2 = _stored_measure(summary, "lambda_xi2") or lambda_xi2_records(summary)
@@ -464,7 +491,10 @@ def plot_fig6(summary: dict):
             [],
             (f"Fig. 6b skipped: Lambda^(xi2) needs antisync.measures.spectral.lambda_xi2 ({exc})"),
         )
-    fig_b, ax = plt.subplots(figsize=(5.6, 5.0))
+    # the slopes gamma beside the scatter, not over it
+    fig_b, (ax, ax_g) = plt.subplots(
+        1, 2, figsize=(8.4, 4.6), gridspec_kw={"width_ratios": [2.2, 1]}, layout="constrained"
+    )
     fits = []
     for i, t in enumerate(ts):
         ks = [k for k in lam[t] if k in xi2]
@@ -479,8 +509,12 @@ def plot_fig6(summary: dict):
     ax.set_xlabel(r"$\Lambda^{(\xi_2)}$")
     ax.set_ylabel(r"$\Lambda^{(\mathrm{KM})}$, r = r*")
     ax.legend(fontsize=8, loc="upper left")
+    ax.set_title(
+        r"(b) fits $\Lambda^{(\mathrm{KM})} = \gamma\,\Lambda^{(\xi_2)} + C$ per threshold", fontsize=9
+    )
+    ax_g.set_visible(bool(fits))
     if fits:
-        inset = ax.inset_axes([0.62, 0.1, 0.33, 0.3])
+        inset = ax_g
         inset.errorbar(
             [f["threshold"] for f in fits],
             [f["gamma"] for f in fits],
@@ -494,10 +528,10 @@ def plot_fig6(summary: dict):
             "function", functions=(lambda r: -np.log10(np.clip(1 - r, 1e-12, None)), lambda u: 1 - 10 ** (-u))
         )
         inset.set_xticks(ts)
-        inset.set_xticklabels([f"{t:g}" for t in ts], fontsize=6)
-        inset.tick_params(labelsize=6)
-        inset.set_xlabel("r*", fontsize=7)
-        inset.set_ylabel(r"$\gamma^{(\xi_2-\mathrm{KM})}$", fontsize=7)
+        inset.set_xticklabels([f"{t:g}" for t in ts], fontsize=8)
+        inset.tick_params(labelsize=8)
+        inset.set_xlabel("threshold r*", fontsize=9)
+        inset.set_ylabel(r"slope $\gamma^{(\xi_2-\mathrm{KM})}$ ± standard error", fontsize=9)
     return fig_a, fig_b, fits, ""
 
 
@@ -520,7 +554,9 @@ def plot_fig5(summary: dict):
     """
     plt = _plt()
     t = summary["ranking_threshold"]
-    km = {k: v["lambda_km"] for k, v in edge_lambdas(summary["records"], t).items()}
+    lam = edge_lambdas(summary["records"], t)
+    km = {k: v["lambda_km"] for k, v in lam.items()}
+    km_se = {k: v["lambda_km_se"] for k, v in lam.items()}
     m = {name: _stored_measure(summary, f"lambda_{name}") for name in ("linear", "xi2", "rw")}
     missing = [name for name, v in m.items() if not v]
     if len(missing) == 3:
@@ -532,25 +568,43 @@ def plot_fig5(summary: dict):
         "rw": r"$\Lambda^{(\mathrm{RW})}$",
     }
     data = {"km": km, **m}
+    # the paper's panels, Lambda^KM on the y axis; a measure not computed gets no panel (the
+    # index says which were not)
     panels = [("a", "linear", "km"), ("b", "xi2", "km"), ("c", "rw", "km"), ("d", "xi2", "rw")]
-    fig, axes = plt.subplots(2, 2, figsize=(9.5, 9), layout="constrained")
-    for ax, (tag, xk, yk) in zip(axes.flat, panels, strict=True):
+    panels = [p for p in panels if any(k in data[p[2]] for k in data[p[1]])]
+    if not panels:
+        return None, missing
+    ncols = len(panels) if len(panels) <= 3 else 2
+    nrows = -(-len(panels) // ncols)
+    fig, axes = plt.subplots(
+        nrows, ncols, figsize=(4.8 * ncols, 4.6 * nrows), squeeze=False, layout="constrained"
+    )
+    for ax in axes.flat[len(panels) :]:
+        ax.set_visible(False)
+    for ax, (tag, xk, yk) in zip(axes.flat, panels, strict=False):
         keys = [k for k in data[xk] if k in data[yk]]
         ax.set_xlabel(label[xk])
         ax.set_ylabel(label[yk])
-        ax.set_title(f"({tag})", loc="left")
-        if not keys:
-            ax.text(
-                0.5,
-                0.5,
-                f"{label[xk] if xk in missing else label[yk]} not computed",
-                ha="center",
-                transform=ax.transAxes,
-            )
-            continue
+        ax.set_title(f"({tag}) {label[yk]} against {label[xk]}", loc="left", fontsize=10)
         x = np.array([data[xk][k] for k in keys])
         y = np.array([data[yk][k] for k in keys])
-        ax.scatter(x, y, s=8, alpha=0.6)
+        if yk == "km":
+            # Lambda^KM's 95% interval (estimate -/+ 1.96 standard errors of the mean), and the
+            # points whose interval excludes 0 dark, the others grey; the axis is fitted to the
+            # points, so a wide interval runs off the frame
+            se = np.array([km_se.get(k, np.nan) for k in keys])
+            lo, hi = y - Z95 * se, y + Z95 * se
+            draw_intervals(ax, x, lo, hi, color="#9ecae1", lw=0.6, alpha=0.5, zorder=1)
+            resolved = (lo > 0) | (hi < 0)
+            ax.scatter(
+                x[~resolved], y[~resolved], s=8, color="#aaaaaa", zorder=2, label="interval contains 0"
+            )
+            ax.scatter(x[resolved], y[resolved], s=8, color="C0", zorder=3, label="interval excludes 0")
+            top = 1.1 * float(np.max(np.abs(y))) if y.size else 1.0
+            ax.set_ylim(-top, top)
+            ax.legend(fontsize=7, loc="upper left" if tag != "b" else "upper right", framealpha=0.85)
+        else:
+            ax.scatter(x, y, s=8, alpha=0.6, zorder=2)
         ax.axhline(0, color="k", lw=0.5)
         ax.axvline(0, color="k", lw=0.5)
         if tag == "b":  # the paper: signs agree for |Lambda^KM| >= 0.1
@@ -572,7 +626,11 @@ def plot_fig5(summary: dict):
                 ha="right",
                 fontsize=7,
             )
-    fig.suptitle(f"response measures of every directed edge (r = {t:g})", fontsize=10)
+    fig.suptitle(
+        f"response measures of every directed edge (r = {t:g}); bars: 95% interval of "
+        r"$\Lambda^{(\mathrm{KM})}$ (cut at the frame)",
+        fontsize=10,
+    )
     return fig, missing
 
 
@@ -605,7 +663,12 @@ def write_sweep_report(path: str | Path, folder: str | Path, *, pdf: bool = Fals
 
     family = summary["family"]["family"]
     kept = sorted({r["graph"] for r in summary["records"]})
-    if family == "lollipop":
+    grid = summary.get("grid")
+    if grid:  # one Lambda per grid point: the family's figures would mix the points
+        from antisync.report.grid_sweep import write_grid_report
+
+        write_grid_report(summary, save, text, notes)
+    elif family == "lollipop":
         fig_a, fig_b, rows_b = plot_fig2(summary)
         save(fig_a, "fig2a_F_beta")
         save(fig_b, "fig2b_lambda_N")
@@ -634,7 +697,7 @@ def write_sweep_report(path: str | Path, folder: str | Path, *, pdf: bool = Fals
         if fig is None:
             notes.append("Fig. 4 skipped: no (tau0, tau(beta)) histograms (set top.graphs > 0)")
         save(fig, "fig4_histograms")
-    if len(summary["thresholds"]) > 1:
+    if len(summary["thresholds"]) > 1 and not grid:
         fig_a, fig_b, fits, note = plot_fig6(summary)
         save(fig_a, "fig6a_thresholds")
         save(fig_b, "fig6b_xi2")
@@ -653,6 +716,18 @@ def write_sweep_report(path: str | Path, folder: str | Path, *, pdf: bool = Fals
     return written
 
 
+def _grid_lines(summary: dict) -> list[str]:
+    """The index's line per grid axis (none without a grid)."""
+    out = []
+    for axis in summary.get("grid") or []:
+        keys = " + ".join(axis["keys"])
+        vals = ", ".join(
+            "/".join(f"{v:g}" if isinstance(v, float | int) else str(v) for v in t) for t in axis["values"]
+        )
+        out.append(f"- grid{' (zip)' if axis['zip'] else ''}: {keys} = {vals}")
+    return out
+
+
 def _index(summary: dict, written: list[Path], notes: list[str]) -> str:
     s = summary["symmetry"]
     screens = [x for x in summary["screen"] if x]
@@ -664,6 +739,7 @@ def _index(summary: dict, written: list[Path], notes: list[str]) -> str:
         f"- graphs: {len(summary['meta']['graphs'])} ({summary['family']['family']}), "
         f"excluded by screening: {len(summary['excluded'])}",
         f"- thresholds: {', '.join(f'{t:g}' for t in summary['thresholds'])}",
+        *_grid_lines(summary),
         f"- symmetry: {s['directed_edges']} directed edges in {s['representatives']} orbits; "
         f"{s['integrations_saved']:,} of {s['integrations_without_symmetry']:,} integrations "
         f"saved ({s['fraction_saved']:.0%})",

@@ -312,6 +312,7 @@ _SWEEP_JSON_KEYS = (
     "top",
     "screen",
     "symmetry",
+    "grid",
 )
 
 
@@ -321,21 +322,34 @@ def format_sweep(summary: dict, fmt: str = "table") -> str:
     ``json``: one object with ``records`` (per directed edge, with ``graph``), ``excluded``
     (``{graph, reason, fraction_not_synced, ...}``), ``top``, ``screen`` and ``symmetry``.
     ``csv``: the records only. ``table``: the records, then excluded graphs and savings.
+    A grid sweep's records are grouped by grid point (``table``) or carry one column per
+    grid key (``csv``).
     """
     if fmt == "json":
-        return json.dumps({k: summary[k] for k in _SWEEP_JSON_KEYS}, indent=2)
+        return json.dumps({k: summary.get(k) for k in _SWEEP_JSON_KEYS}, indent=2)
     if fmt == "csv":
-        return format_records(summary["records"] + summary["top"], "csv")
+        flat = [
+            {**{k: v for k, v in r.items() if k != "grid"}, **(r.get("grid") or {})}
+            for r in summary["records"]
+        ]
+        return format_records(flat + summary["top"], "csv")
     # per-edge warnings would repeat for every graph: count them instead
     rough = sum(1 for r in summary["records"] + summary["top"] if r.get("lambda_km_warning"))
     records = [{**r, "lambda_km_warning": None} for r in summary["records"]]
     lines = []
     thresholds = sorted({r["threshold"] for r in records})
-    for t in thresholds:
-        part = [r for r in records if r["threshold"] == t]
-        if len(thresholds) > 1:
-            lines.append(f"== threshold r = {t:g}")
-        lines.append(format_records(part, "table"))
+    points = list(dict.fromkeys(r.get("point") for r in records))  # None without a grid
+    for point in points:
+        for t in thresholds:
+            part = [r for r in records if r["threshold"] == t and r.get("point") == point]
+            if not part:
+                continue
+            head = [f"grid point {point}"] if point is not None else []
+            if len(thresholds) > 1 and (point is None or "threshold=" not in point):
+                head.append(f"threshold r = {t:g}")
+            if head:
+                lines.append("== " + "; ".join(head))
+            lines.append(format_records(part, "table"))
     if summary["top"]:
         lines.append(f"== top stage (edge of largest Lambda_KM, r = {summary['ranking_threshold']:g})")
         lines.append(format_records([{**r, "lambda_km_warning": None} for r in summary["top"]], "table"))

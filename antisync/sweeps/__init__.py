@@ -20,6 +20,11 @@ Families (``sweep.family``):
 - ``graphs``: ``graphs``: a list of graph specs as in a run config (``{kind: atlas, index: 105}``,
   ...), each with an optional ``name``.
 
+Grids (``sweep.grid`` / ``sweep.zip``, :mod:`~antisync.sweeps.points`): any config key that
+decides the numbers (``model.phase_lag``, ``dynamics.threshold``, ``model.inertia``, ...)
+over a list of values, on one graph (a top-level ``graph:`` and no ``family``) or on every
+graph of a family; one job per (graph, grid point, repeat).
+
 What a sweep does (:func:`run_sweep`):
 
 1. **Screening** (:mod:`antisync.screening`): every graph is integrated from
@@ -46,6 +51,7 @@ Modules:
   :func:`load_sweep`);
 - :mod:`~antisync.sweeps.families`: the graphs of a family, their edges and orbits
   (:func:`family_graphs`);
+- :mod:`~antisync.sweeps.points`: the points of a grid over config keys;
 - :mod:`~antisync.sweeps.stages`: running it (:func:`run_sweep`);
 - :mod:`~antisync.sweeps.analysis`: pure statistics over records (:func:`ranking`,
   :func:`edge_lambdas`, :func:`trend_in_n`, :func:`expand_records`);

@@ -53,11 +53,14 @@ def summarize(meta: dict, views: list) -> dict:
     dict
         ``records``: main-stage records fanned out to every selected directed edge of every
         kept graph (keys of :func:`antisync.summary.job_records` plus ``job``,
-        ``threshold``, ``repeat``, ``representative``, ``orbit_size``);
+        ``threshold``, ``repeat``, ``representative``, ``orbit_size``, and in a grid sweep
+        ``grid``, the point's ``{key: value}``, and ``point``, its label
+        ``model.phase_lag=0.1, ...``);
         ``top``: records of the top stage (plus ``rank``);
         ``excluded``: ``{graph, reason, fraction_not_synced, fraction_stuck, screened}``;
         ``screen``: the screening of every graph; ``symmetry``: integrations saved;
-        ``complete``: whether every stage finished.
+        ``complete``: whether every stage finished; ``grid``: the grid's axes
+        (``[{keys, values, zip}, ...]``, ``None`` without a grid).
     """
     from antisync.summary import view_records  # here: it loads numba, a config needs none
 
@@ -77,6 +80,7 @@ def summarize(meta: dict, views: list) -> dict:
                 "job": jm["job"],
                 "threshold": jm["threshold"],
                 "repeat": jm["repeat"],
+                **_point_fields(jm),
             }
             for r in by_job[jm["job"]]
         ]
@@ -114,8 +118,17 @@ def summarize(meta: dict, views: list) -> dict:
         "excluded": excluded,
         "screen": [g["screen"] for g in meta["graphs"] if g.get("screen")],
         "symmetry": meta["symmetry"],
+        "grid": meta.get("grid"),
         "meta": meta,
     }
+
+
+def _point_fields(job_meta: dict) -> dict:
+    """A grid job's ``grid`` (``{key: value}``) and ``point`` (its label); ``{}`` otherwise."""
+    from antisync.sweeps.points import point_label
+
+    point = job_meta.get("point")
+    return {"grid": point, "point": point_label(point)} if point is not None else {}
 
 
 def edge_lambdas(records: list[dict], threshold: float) -> dict[tuple, dict]:

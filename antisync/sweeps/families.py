@@ -101,20 +101,24 @@ def family_graphs(sweep, *, symmetry: bool = True) -> list[GraphEntry]:
         Group the edges into automorphism orbits; otherwise each edge is its own orbit. Off
         whatever is asked when the model has fixed per-node frequencies (an automorphism
         does not map them onto themselves); frequencies drawn independently per node, a
-        phase lag or inertia keep every orbit's edges equal in distribution.
+        phase lag or inertia keep every orbit's edges equal in distribution. With a grid,
+        every point's model counts.
     """
-    freqs = sweep.base.model.frequencies
-    if freqs is not None and not sweep.base.model.drawn:
-        # fixed per-node frequencies tell automorphic edges apart: integrate every edge
-        symmetry = False
+    configs = [sweep.base] + [p.config for p in sweep.points]
+    for cfg in configs:
+        if cfg.model.frequencies is not None and not cfg.model.drawn:
+            # fixed per-node frequencies tell automorphic edges apart: integrate every edge
+            symmetry = False
     out = []
     for name, spec in family_specs(sweep.family):
         g = graphs_mod.build_graph(spec, seed=sweep.base.seed)
         g.graph["name"] = name
-        try:  # before the screening spends time on a step that cannot synchronize
-            check_step(graphs_mod.omega_matrix(g), sweep.base)
-        except ConfigError as exc:
-            raise ConfigError(f"graph {name}: {exc}") from None
+        omega = graphs_mod.omega_matrix(g)
+        for cfg in configs:
+            try:  # before the screening spends time on a step that cannot synchronize
+                check_step(omega, cfg)
+            except ConfigError as exc:
+                raise ConfigError(f"graph {name}: {exc}") from None
         edges = _select_edges(sweep, spec, g, name)
         rep = edge_orbits(g, edges) if symmetry else {e: e for e in edges}
         out.append(GraphEntry(name, spec, g, edges, rep))

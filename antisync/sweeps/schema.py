@@ -1,5 +1,8 @@
 """A sweep config: the ``sweep:``, ``thresholds``, ``repeats``, ``screen`` and ``top`` keys.
 
+``sweep:`` names a family of graphs, a grid over config keys (``grid``/``zip``,
+:mod:`antisync.sweeps.points`) on one ``graph:`` or on a family, or both.
+
 :func:`load_sweep` reads and validates a sweep config into a frozen :class:`Sweep`; errors
 name the file and the key. What the keys mean is in :mod:`antisync.sweeps` and
 docs/sweeps.md.
@@ -23,6 +26,7 @@ from antisync.config import (
 )
 from antisync.errors import ConfigError
 from antisync.sweeps.families import FAMILIES, family_specs
+from antisync.sweeps.points import Axis, GridPoint, axis_option, grid_points, sweep_axes
 from antisync.validation import choice, number, positive, unknown_keys
 
 __all__ = ["PAPER_THRESHOLD", "Screen", "Sweep", "Top", "load_sweep", "load_sweep_text"]
@@ -31,9 +35,9 @@ __all__ = ["PAPER_THRESHOLD", "Screen", "Sweep", "Top", "load_sweep", "load_swee
 PAPER_THRESHOLD = 0.99
 
 _FAMILY_KEYS = {
-    "atlas": ({"nodes"}, set()),
-    "lollipop": ({"nodes", "path"}, set()),
-    "graphs": ({"graphs"}, set()),
+    "atlas": ({"nodes"}, {"grid", "zip"}),
+    "lollipop": ({"nodes", "path"}, {"grid", "zip"}),
+    "graphs": ({"graphs"}, {"grid", "zip"}),
 }
 _SWEEP_KEYS = {"sweep", "thresholds", "repeats", "screen", "top"}
 
@@ -106,6 +110,11 @@ class Sweep:
     top : Top
     base : Config
         The run keys shared by every job (its ``graph`` is the first graph of the family).
+    axes : tuple of Axis
+        The ``sweep.grid`` and ``sweep.zip`` axes (:mod:`antisync.sweeps.points`); ``()``
+        without a grid.
+    points : tuple of GridPoint
+        Every point of the grid with its validated config; ``()`` without a grid.
     """
 
     name: str
@@ -116,6 +125,8 @@ class Sweep:
     screen: Screen
     top: Top
     base: Config
+    axes: tuple[Axis, ...] = ()
+    points: tuple[GridPoint, ...] = ()
 
     @property
     def output(self) -> str:
@@ -126,9 +137,14 @@ class Sweep:
         for k in ("graph", "edges", "name"):
             run.pop(k)
         run["dynamics"].pop("threshold")
-        return {
+        family = dict(self.family)
+        for part in ("grid", "zip"):
+            given = {k: list(v) for a in self.axes if a.zipped == (part == "zip") for k, v in _columns(a)}
+            if given:
+                family[part] = given
+        out = {
             "name": self.name,
-            "sweep": self.family,
+            "sweep": family,
             "edges": self.edges if isinstance(self.edges, str) else list(self.edges),
             "thresholds": list(self.thresholds),
             "repeats": self.repeats,
@@ -136,6 +152,9 @@ class Sweep:
             "top": {**asdict(self.top), "betas": list(self.top.betas)},
             **run,
         }
+        if any(p.threshold is not None for p in self.points):
+            del out["thresholds"]  # the grid's (reloading both would be refused)
+        return out
 
     def to_yaml(self) -> str:
         return yaml.safe_dump(self.to_dict(), sort_keys=False)
@@ -152,33 +171,71 @@ class Sweep:
         return min(self.thresholds, key=lambda t: (abs(t - PAPER_THRESHOLD), t))
 
 
-def load_sweep(path: str | Path, overrides: list[str] | None = None, values: dict | None = None) -> Sweep:
+def _columns(axis: Axis) -> list[tuple[str, tuple]]:
+    """``[(key, its values along the axis), ...]``."""
+    return [(key, tuple(v[i] for v in axis.values)) for i, key in enumerate(axis.keys)]
+
+
+def load_sweep(
+    path: str | Path,
+    overrides: list[str] | None = None,
+    values: dict | None = None,
+    *,
+    grid: list[str] | None = None,
+    zip_: list[str] | None = None,
+) -> Sweep:
     """Read and validate a sweep config file; errors name the file and the key.
 
-    ``overrides`` and ``values`` are those of :func:`antisync.config.load_config`.
+    ``overrides`` and ``values`` are those of :func:`antisync.config.load_config`; ``grid``
+    and ``zip_`` are ``KEY=V1,V2,...`` items of the CLI's ``--grid`` / ``--zip``, which set
+    (or replace) ``sweep.grid.KEY`` / ``sweep.zip.KEY`` (a run config with ``graph:`` and no
+    ``sweep:`` becomes a grid sweep of that graph).
     """
     path = Path(path)
     text = read_config_text(path)
     try:
-        return load_sweep_text(text, overrides, source=path, values=values)
+        return load_sweep_text(text, overrides, source=path, values=values, grid=grid, zip_=zip_)
     except ConfigError as exc:
         msg = str(exc)
         raise ConfigError(msg if msg.startswith(str(path)) else f"{path}: {msg}") from None
 
 
 def load_sweep_text(
-    text: str, overrides: list[str] | None = None, source: Path | None = None, values: dict | None = None
+    text: str,
+    overrides: list[str] | None = None,
+    source: Path | None = None,
+    values: dict | None = None,
+    *,
+    grid: list[str] | None = None,
+    zip_: list[str] | None = None,
 ) -> Sweep:
     """Like :func:`load_sweep` for YAML text."""
     raw = parse_mapping(text, overrides, values)
+    _apply_axis_options(raw, grid, zip_)
     if "sweep" not in raw:
         raise ConfigError(
             "missing key 'sweep' (e.g. sweep: {family: atlas, nodes: 6}); "
-            "a config with graph: is run with `antisync run`"
+            "a config with graph: is run with `antisync run` (or swept with --grid KEY=V1,V2)"
         )
+    section = raw["sweep"]
+    if not isinstance(section, dict):
+        raise ConfigError(f"sweep must be a mapping such as {{family: atlas, nodes: 6}}, got {section!r}")
+    has_axes = bool(section.get("grid") or section.get("zip"))
     if "graph" in raw:
-        raise ConfigError("a sweep config has no 'graph' key: its graphs come from 'sweep:'")
-    family = _family(raw["sweep"])
+        if "family" in section:
+            raise ConfigError(
+                "a sweep config with sweep.family has no 'graph' key: its graphs come from 'sweep:' "
+                "(a grid over one graph: graph: plus sweep: {grid: {...}})"
+            )
+        if not has_axes:
+            raise ConfigError(
+                "a sweep of one graph: needs sweep.grid or sweep.zip, such as "
+                "sweep: {grid: {model.phase_lag: [0, 0.1, 0.2]}}"
+            )
+        unknown_keys(section, {"grid", "zip"}, "sweep.")
+        section = {**section, "family": "graphs", "graphs": [raw["graph"]]}
+    family = _family(section)
+    axes = sweep_axes(family.pop("axes"))
     if family["family"] == "graphs":  # graph files are relative to the sweep file, as in a run
         family["graphs"] = [resolve_graph_path(spec, source) for spec in family["graphs"]]
     specs = family_specs(family)
@@ -202,6 +259,7 @@ def load_sweep_text(
         )
     rest = {k: v for k, v in raw.items() if k not in _SWEEP_KEYS}
     rest["graph"] = specs[0][1]
+    rest.pop("name", None)  # the jobs are named by the stages
     rest.setdefault("keep_pairs", 0)  # per-realization pairs of hundreds of jobs would not fit
     if edges == "fig2":
         rest["edges"] = "all"
@@ -224,6 +282,17 @@ def load_sweep_text(
             f"a sweep screens and ranks its graphs by Lambda^KM: measures must include km, got "
             f"{list(base.measures)}; for exact measures only use `antisync run` or antisync.measures"
         )
+    points = grid_points(axes, rest, source)
+    swept = [p.threshold for p in points if p.threshold is not None]
+    if swept:
+        if "thresholds" in raw:
+            raise ConfigError("give either thresholds: [...] or a grid over dynamics.threshold, not both")
+        thresholds = tuple(sorted(set(swept)))
+    if points and top.graphs > 0:
+        raise ConfigError(
+            "top.graphs ranks the graphs at one config; a sweep with a grid has one config per "
+            "point: set top.graphs: 0 (or remove top)"
+        )
     base = replace(base, dynamics=replace(base.dynamics, threshold=thresholds[0]))
     name = raw.get("name") or (source.stem if source else "sweep")
     if not raw.get("output"):
@@ -244,6 +313,8 @@ def load_sweep_text(
         screen=screen,
         top=top,
         base=base,
+        axes=axes,
+        points=points,
     )
 
 
@@ -319,9 +390,32 @@ def _int_list(key: str, value, lo: int, hi: int) -> list[int]:
     return sorted(set(items))
 
 
+def _apply_axis_options(raw: dict, grid: list[str] | None, zip_: list[str] | None) -> None:
+    """Set ``--grid`` / ``--zip`` items into ``raw["sweep"]`` (made for a run config)."""
+    if not grid and not zip_:
+        return
+    section = raw.get("sweep")
+    if section is None:
+        section = raw["sweep"] = {}
+    if not isinstance(section, dict):
+        return  # refused with the config's own message
+    for option, part, items in (("--grid", "grid", grid), ("--zip", "zip", zip_)):
+        for item in items or []:
+            key, values = axis_option(option, item)
+            if not isinstance(section.get(part), dict):
+                section[part] = {}
+            section[part][key] = values
+
+
 def _family(value) -> dict:
+    """The validated ``sweep:`` section: its family keys, and ``axes`` (its ``grid``/``zip``)."""
     if not isinstance(value, dict):
         raise ConfigError(f"sweep must be a mapping such as {{family: atlas, nodes: 6}}, got {value!r}")
+    axes = {k: value[k] for k in ("grid", "zip") if k in value}
+    if "family" not in value and axes:
+        raise ConfigError(
+            "a sweep with a grid needs a graph: (one graph) or sweep.family (atlas, lollipop, graphs)"
+        )
     fam = value.get("family")
     choice("sweep.family", fam, FAMILIES)
     required, optional = _FAMILY_KEYS[fam]
@@ -330,12 +424,13 @@ def _family(value) -> dict:
     if missing:
         raise ConfigError(f"sweep of family {fam} needs key(s) {', '.join('sweep.' + m for m in missing)}")
     if fam == "atlas":
-        return {"family": fam, "nodes": _int_list("sweep.nodes", value["nodes"], 2, 7)}
+        return {"family": fam, "nodes": _int_list("sweep.nodes", value["nodes"], 2, 7), "axes": axes}
     if fam == "lollipop":
         return {
             "family": fam,
             "nodes": _int_list("sweep.nodes", value["nodes"], 3, 500),
             "path": _int_list("sweep.path", value["path"], 1, 498),
+            "axes": axes,
         }
     items = value["graphs"]
     if not isinstance(items, list) or not items:
@@ -347,4 +442,4 @@ def _family(value) -> dict:
         if not isinstance(spec, dict):
             raise ConfigError(f"sweep.graphs[{k}] must be a mapping such as {{kind: atlas, index: 105}}")
         out.append(dict(spec))
-    return {"family": fam, "graphs": out}
+    return {"family": fam, "graphs": out, "axes": axes}

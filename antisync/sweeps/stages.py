@@ -19,14 +19,17 @@ from antisync.errors import ConfigError, StoreError
 from antisync.jobs import make_job
 from antisync.sweeps.analysis import ranking
 from antisync.sweeps.families import GraphEntry, family_graphs
+from antisync.sweeps.points import GridPoint, point_suffix
 from antisync.sweeps.schema import Sweep
 
 __all__ = ["check_sweep", "main_jobs", "run_sweep", "top_jobs"]
 
 
-def _job_name(graph: str, threshold: float, repeat: int, sweep: Sweep) -> str:
+def _job_name(graph: str, threshold: float, repeat: int, sweep: Sweep, point: GridPoint | None = None) -> str:
     name = graph
-    if len(sweep.thresholds) > 1:
+    if point is not None:
+        name += point_suffix(point, sweep.axes)
+    if len(sweep.thresholds) > 1 and (point is None or point.threshold is None):
         name += f"_r{threshold:g}"
     if sweep.repeats > 1:
         name += f"_rep{repeat}"
@@ -43,39 +46,50 @@ def _job_config(
     betas: tuple,
     realizations: int | None = None,
     name: str,
+    point: GridPoint | None = None,
 ) -> Config:
-    base = sweep.base
+    base = sweep.base if point is None else point.config
     return replace(
         base,
         name=name,
         graph=entry.spec,
         edges=[graphs_mod.edge_label(*e) for e in edges],
         betas=tuple(betas),
-        seed=seed,
+        seed=base.seed + seed - sweep.base.seed,
         realizations=realizations or base.realizations,
         dynamics=replace(base.dynamics, threshold=threshold),
     )
 
 
 def main_jobs(sweep: Sweep, entries: list[GraphEntry]) -> tuple[list, list[dict]]:
-    """Jobs of the main stage (representative edges only) and their descriptions."""
+    """Jobs of the main stage (representative edges only) and their descriptions.
+
+    One job per (graph, grid point, threshold, repeat); a point that sets the threshold has
+    only its own. The description of a grid's job has its ``point`` (``{key: value}``).
+    """
     jobs, meta = [], []
     for entry in entries:
-        for t in sweep.thresholds:
-            for k in range(sweep.repeats):
-                name = _job_name(entry.name, t, k, sweep)
-                betas = sweep.base.betas if k == 0 else ()
-                cfg = _job_config(
-                    sweep,
-                    entry,
-                    entry.representatives,
-                    threshold=t,
-                    seed=sweep.base.seed + k,
-                    betas=betas,
-                    name=name,
-                )
-                jobs.append(make_job(cfg, graph=entry.graph, name=name))
-                meta.append({"job": name, "graph": entry.name, "threshold": t, "repeat": k, "stage": "main"})
+        for point in sweep.points or (None,):
+            thresholds = sweep.thresholds if point is None or point.threshold is None else (point.threshold,)
+            for t in thresholds:
+                for k in range(sweep.repeats):
+                    name = _job_name(entry.name, t, k, sweep, point)
+                    betas = sweep.base.betas if k == 0 else ()
+                    cfg = _job_config(
+                        sweep,
+                        entry,
+                        entry.representatives,
+                        threshold=t,
+                        seed=sweep.base.seed + k,
+                        betas=betas,
+                        name=name,
+                        point=point,
+                    )
+                    jobs.append(make_job(cfg, graph=entry.graph, name=name))
+                    desc = {"job": name, "graph": entry.name, "threshold": t, "repeat": k, "stage": "main"}
+                    if point is not None:
+                        desc["point"] = point.as_dict()
+                    meta.append(desc)
     return jobs, meta
 
 
@@ -193,11 +207,13 @@ def _run_sweep_locked(
             "make it writable or use --out for a new file"
         )
     store.start_journal(key)
+    grid = f", {len(sweep.points)} grid point(s)" if sweep.points else ""
     say(
-        f"sweep {sweep.name}: {len(entries)} graph(s) of family {sweep.family['family']}, "
+        f"sweep {sweep.name}: {len(entries)} graph(s) of family {sweep.family['family']}{grid}, "
         f"{len(sweep.thresholds)} threshold(s), {sweep.repeats} repeat(s)"
     )
-    if sweep.screen.enabled and sweep.base.generalized:
+    generalized = sweep.base.generalized or any(p.config.generalized for p in sweep.points)
+    if sweep.screen.enabled and generalized:
         # the screening's classifier rests on the gradient flow of identical first-order
         # oscillators (docs/sweeps.md); it has no verdict on another model or criterion
         say(
@@ -404,7 +420,7 @@ def _meta(sweep, entries, screens, excluded, jobs_meta, saved) -> dict:
                 "screen": s.to_dict() if s is not None else None,
             }
         )
-    return {
+    meta = {
         "format": SWEEP_FORMAT,
         "format_version": SWEEP_FORMAT_VERSION,
         "name": sweep.name,
@@ -421,6 +437,11 @@ def _meta(sweep, entries, screens, excluded, jobs_meta, saved) -> dict:
         "dbeta": sweep.base.lambda_.dbeta,
         "betas": list(sweep.base.betas),
     }
+    if sweep.axes:  # the grid's axes in their order: keys moving together, their values
+        meta["grid"] = [
+            {"keys": list(a.keys), "values": [list(v) for v in a.values], "zip": a.zipped} for a in sweep.axes
+        ]
+    return meta
 
 
 def _jsonable(v):
