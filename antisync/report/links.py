@@ -38,6 +38,7 @@ from antisync.report.measures import (
     available,
     compare,
     link_signs,
+    pair_panels,
     plot_pair,
     spearman,
 )
@@ -333,13 +334,7 @@ def link_figures(view: JobView, recs: list[dict], *, k: int = 10):
     yield fig, "top_links"
     pairs = available_pairs(recs)
     if pairs:
-        ncols = len(pairs) if len(pairs) <= 3 else 2
-        nrows = -(-len(pairs) // ncols)
-        fig, axes = plt.subplots(
-            nrows, ncols, figsize=(6 * ncols, 5.4 * nrows), squeeze=False, layout="constrained"
-        )
-        for ax in axes.ravel()[len(pairs) :]:
-            ax.set_visible(False)
-        plot_measure_pairs(recs, axes.ravel())
+        fig, axes = pair_panels(plt, len(pairs), 6, 5.4)
+        plot_measure_pairs(recs, axes)
         fig.suptitle(f"{view.graph}: the response measures of every directed link", fontsize=11)
         yield fig, "measure_pairs"

@@ -38,6 +38,7 @@ __all__ = [
     "measure_figures",
     "missing_note",
     "not_computed",
+    "pair_panels",
     "plot_fig5",
     "plot_fig7e",
     "plot_pair",
@@ -263,6 +264,19 @@ def not_computed(recs: list[dict]) -> list[str]:
     return [k for k in keys if not np.isfinite(_column(recs, k)).any()]
 
 
+def pair_panels(plt, count: int, width: float, height: float):
+    """``(fig, axes)``: ``count`` panels of ``width`` x ``height`` inches in one row (up to three)
+    or two columns, the spare ones hidden; ``axes`` is flat."""
+    ncols = count if count <= 3 else 2
+    nrows = -(-count // ncols)
+    fig, axes = plt.subplots(
+        nrows, ncols, figsize=(width * ncols, height * nrows), squeeze=False, layout="constrained"
+    )
+    for ax in axes.ravel()[count:]:
+        ax.set_visible(False)
+    return fig, axes.ravel()
+
+
 def plot_fig5(recs: list[dict], axes) -> None:
     """The panels of Fig. 5 on ``axes``, one per :func:`available` pair of :data:`PAIRS`,
     lettered in the paper's order."""
@@ -314,14 +328,8 @@ def measure_figures(
         with_measures = {r["graph"] for r in recs if any(r.get(k) is not None for k in _MEASURE)}
         pairs = available(recs)
         if pairs and not with_measures <= set(covered):
-            ncols = len(pairs) if len(pairs) <= 3 else 2
-            nrows = -(-len(pairs) // ncols)
-            fig, axes = plt.subplots(
-                nrows, ncols, figsize=(5.6 * ncols, 5.2 * nrows), squeeze=False, layout="constrained"
-            )
-            for ax in axes.ravel()[len(pairs) :]:
-                ax.set_visible(False)
-            plot_fig5(recs, axes.ravel())
+            fig, axes = pair_panels(plt, len(pairs), 5.6, 5.2)
+            plot_fig5(recs, axes)
             fig.suptitle(
                 "Response to damage: measures of every directed edge (the paper's Fig. 5)", fontsize=11
             )
