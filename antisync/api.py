@@ -85,7 +85,7 @@ class Result:
         For a sweep: ``excluded`` graphs, ``top`` stage records, ``screen``, ``symmetry``,
         ``thresholds`` and ``ranking_threshold`` (see :func:`antisync.sweeps.sweep_summary`).
     stop : dict or None
-        For a run with a stopping rule (docs/stopping.md): its looks, ``budget``,
+        For a run or sweep with a stopping rule (docs/stopping.md): its looks, ``budget``,
         ``stopped_at``, ``stopped_early`` and the last look's counts and open links.
     model : str or None
         Which model ran, in one line (:func:`antisync.report.describe.model_line`).
@@ -151,7 +151,8 @@ def summarize(path: str | Path) -> dict:
     ``ranking_threshold``, ``excluded``, ``top``, ``screen``, ``symmetry``, ``grid`` (a grid
     sweep's axes, docs/sweeps.md; ``null`` without a grid) (for a run file:
     ``null`` or empty lists, and ``thresholds`` the run's one threshold), and ``stop``, what
-    a run's stopping rule did (:func:`antisync.store.stop_record`; ``null`` without one), and
+    a run's or sweep's stopping rule did (:func:`antisync.store.stop_record`; ``null`` without
+    one), and
     ``sum_rule``, per node whose out-links were all measured with normalized coupling, the sum
     of their Lambda with its interval (:func:`antisync.sum_rule.node_sums`), ``model``, which
     model ran in one line (:func:`antisync.report.describe.model_line`), and ``r_star``, per
@@ -196,7 +197,7 @@ def _summarize(path: Path) -> dict:
             "records": flag_signs(s["records"]),
             "sum_rule": views_sums(views),
             "config_yaml": root["config_yaml"],
-            "stop": None,
+            "stop": stop_record(path),
             **model,
             **{k: s[k] for k in _SWEEP_KEYS},
         }

@@ -105,10 +105,7 @@ def run_jobs(
             # the stopping rule ended this run: its groups hold fewer realizations than the budget
             if writable:
                 store.drop_journal()
-            say(
-                f"{store.path} is already complete: the stopping rule ended it at "
-                f"{stopped['stopped_at']:,} of {stopped['budget']:,} realizations; nothing to do"
-            )
+            say(stopping.already_stopped(store.path, stopped))
             return store.path
         states = store.load_states(jobs, key) if resume else {job.name: JobState(job) for job in jobs}
         if resume and store.file_complete() and all(st.complete for st in states.values()):

@@ -41,7 +41,7 @@ from dataclasses import dataclass
 from antisync.store import JobState, state_view
 from antisync.summary import CI_LEVEL, lambda_intervals
 
-__all__ = ["Look", "look_level", "stop_note", "take_look"]
+__all__ = ["Look", "already_stopped", "look_level", "stop_note", "take_look"]
 
 
 def look_level(looks: int) -> float:
@@ -116,9 +116,10 @@ def _settled_words(tolerance: float) -> str:
     return f"within +-{tolerance:g}" if tolerance > 0 else "neutral (every value 0)"
 
 
-def stop_note(record: dict | None) -> str | None:
+def stop_note(record: dict | None, what: str = "run") -> str | None:
     """One line on what the stopping rule did (``record``: :func:`antisync.store.stop_record`),
-    for the end of ``antisync summary``; None for a run without a rule."""
+    for the end of ``antisync summary``; None for a file without a rule. ``what``: ``"run"``,
+    or ``"sweep"`` (the rule ended its main stage: every job at once)."""
     if not record:
         return None
     look = record["last_look"]
@@ -127,8 +128,17 @@ def stop_note(record: dict | None) -> str | None:
     if look["settled"]:
         known += f", {look['settled']} {_settled_words(record['tolerance'])}"
     if record["stopped_early"]:
-        return f"stop: the rule ended the run at {n:,} of {budget:,} realizations ({known})"
+        return f"stop: the rule ended the {what} at {n:,} of {budget:,} realizations ({known})"
     if not look["unresolved"]:
         return f"stop: {known} only at the budget's {budget:,} realizations"
     shown = ", ".join(look["unresolved"][:8]) + (" ..." if len(look["unresolved"]) > 8 else "")
     return f"stop: the budget of {budget:,} realizations is spent with {known}; open: {shown}"
+
+
+def already_stopped(path, record: dict) -> str:
+    """The line ``--resume`` says on a file its stopping rule ended (``record``:
+    :meth:`antisync.store.ResultStore.stopped_early`): nothing is left to run."""
+    return (
+        f"{path} is already complete: the stopping rule ended it at "
+        f"{record['stopped_at']:,} of {record['budget']:,} realizations; nothing to do"
+    )

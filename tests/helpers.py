@@ -26,3 +26,58 @@ def assert_one_line(res, message: str = "") -> None:
     lines = res.stderr.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith("antisync: error: "), res.stderr
     assert message in lines[0], (message, lines[0])
+
+
+def datasets(path, group: str = "/") -> dict:
+    """Every dataset of the HDF5 file ``path`` below ``group``, by name, as arrays."""
+    import h5py
+
+    out = {}
+
+    def keep(name, obj):
+        if isinstance(obj, h5py.Dataset):
+            out[name] = obj[...]
+
+    with h5py.File(path, "r") as f:
+        f[group].visititems(keep)
+    return out
+
+
+class CrashAfter:
+    """A local executor that dies after ``n`` chunks, counted over every call of ``run`` (a
+    sweep's stages, a stopping rule's looks): ``RuntimeError`` stands for a kill (nothing more
+    is written), ``KeyboardInterrupt`` for Ctrl-C (the runner checkpoints first)."""
+
+    def __init__(self, n: int, exc: type = RuntimeError):
+        from antisync.executors.local import LocalExecutor
+
+        self.inner = LocalExecutor("cpu", None)
+        self.left = n
+        self.exc = exc
+
+    def run(self, work):
+        for item in self.inner.run(work):
+            if self.left == 0:
+                raise self.exc("killed")
+            self.left -= 1
+            yield item
+
+    def describe(self):
+        return "crashing"
+
+    def close(self):
+        pass
+
+
+def sweep_cli(folder, name: str, text: str, *options: str):
+    """Write the sweep config ``text`` to ``folder/name.yaml`` and run it with ``antisync
+    sweep --out folder/name.h5 --quiet``; returns ``(config path, output path)``."""
+    from typer.testing import CliRunner
+
+    from antisync.cli.app import app
+
+    cfg, out = folder / f"{name}.yaml", folder / f"{name}.h5"
+    cfg.write_text(text)
+    res = CliRunner().invoke(app, ["sweep", str(cfg), "--out", str(out), "--quiet", *options])
+    assert res.exit_code == 0, res.output
+    return cfg, out

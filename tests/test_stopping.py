@@ -14,7 +14,7 @@ import sys
 import h5py
 import numpy as np
 import pytest
-from helpers import HANG_GUARD_S
+from helpers import HANG_GUARD_S, datasets
 
 from antisync.api import summarize
 from antisync.config import load_config_text
@@ -42,18 +42,6 @@ def _config(text: str, *overrides: str):
     return load_config_text(text, list(overrides))
 
 
-def _datasets(path) -> dict:
-    out = {}
-
-    def keep(name, obj):
-        if isinstance(obj, h5py.Dataset):
-            out[name] = obj[...]
-
-    with h5py.File(path, "r") as f:
-        f.visititems(keep)
-    return out
-
-
 def _cli(*args) -> subprocess.CompletedProcess:
     return subprocess.run(
         [sys.executable, "-m", "antisync", *map(str, args)],
@@ -65,7 +53,7 @@ def _cli(*args) -> subprocess.CompletedProcess:
 
 def _same_numbers(a, b) -> None:
     """Every dataset and every record of two result files equal (provenance aside)."""
-    da, db = _datasets(a), _datasets(b)
+    da, db = datasets(a), datasets(b)
     assert sorted(da) == sorted(db)
     for name in da:
         assert np.array_equal(da[name], db[name]), name
@@ -140,7 +128,9 @@ def test_bad_stop_option_on_the_command_line_exits_2_and_writes_nothing(tmp_path
     assert sorted(p.name for p in tmp_path.iterdir()) == ["s.yaml"]
 
 
-def test_a_sweep_refuses_a_stop_section():
+def test_a_sweep_takes_a_stop_section_without_a_top_stage():
+    """The rule looks at every main-stage job of a sweep together (tests/test_sweep_stop.py);
+    a top stage, which ranks the graphs on the finished main stage, is refused with it."""
     from antisync.sweeps.schema import load_sweep_text
 
     text = """
@@ -149,8 +139,9 @@ edges: fig2
 realizations: 100
 stop: {when: signs-resolved}
 """
-    with pytest.raises(ConfigError, match="stop: is for `antisync run`"):
-        load_sweep_text(text)
+    assert load_sweep_text(text).base.stop_looks == [100]
+    with pytest.raises(ConfigError, match="stop: with top.graphs > 0"):
+        load_sweep_text(text + "top: {graphs: 1}\n")
 
 
 # ---- runs --------------------------------------------------------------------------------------

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from helpers import assert_one_line, comparable
+from helpers import CrashAfter, assert_one_line, comparable, sweep_cli
 from typer.testing import CliRunner
 
 from antisync.cli.app import app
@@ -65,8 +65,13 @@ def test_grid_refuses_what_it_cannot_combine():
         load_sweep_text(base + "thresholds: [0.9]")
     with pytest.raises(ConfigError, match="top.graphs"):
         load_sweep_text(base + "top: {graphs: 2}")
-    with pytest.raises(ConfigError, match="stop: is for `antisync run`"):
-        load_sweep_text(base + "stop: {when: signs-resolved}")
+    with pytest.raises(ConfigError, match=r"stop: with top.graphs > 0"):
+        load_sweep_text(
+            base.replace("grid: {dynamics.threshold: [0.9, 0.99]}", "") + "top: {graphs: 2}\n"
+            "stop: {when: signs-resolved}"
+        )
+    with pytest.raises(ConfigError, match=r"stop.when cannot be swept \(stop: is one rule"):
+        load_sweep_text(base.replace("dynamics.threshold", "stop.when"))
     with pytest.raises(ConfigError, match="--grid expects KEY=V1,V2"):
         load_sweep_text("graph: {kind: lollipop, nodes: 6, path: 3}", grid=["model.phase_lag"])
 
@@ -132,38 +137,10 @@ def test_grid_on_a_run_config_and_nested_frequency_keys():
 
 
 # ---- running, resuming, summary, report ----------------------------------------------------
-class _CrashAfter:
-    """A local executor that dies after ``n`` chunks (a kill: nothing more is written)."""
-
-    def __init__(self, n: int):
-        from antisync.executors.local import LocalExecutor
-
-        self.inner = LocalExecutor("cpu", None)
-        self.left = n
-
-    def run(self, work):
-        for item in self.inner.run(work):
-            if self.left == 0:
-                raise RuntimeError("killed")
-            self.left -= 1
-            yield item
-
-    def describe(self):
-        return "crashing"
-
-    def close(self):
-        pass
-
-
 @pytest.fixture(scope="module")
 def grid_reference(tmp_path_factory):
     """The grid sweep run uninterrupted through the CLI."""
-    folder = tmp_path_factory.mktemp("grid")
-    cfg = folder / "grid.yaml"
-    cfg.write_text(GRID)
-    out = folder / "grid.h5"
-    res = CliRunner().invoke(app, ["sweep", str(cfg), "--out", str(out), "--quiet"])
-    assert res.exit_code == 0, res.output
+    cfg, out = sweep_cli(tmp_path_factory.mktemp("grid"), "grid", GRID)
     return cfg, out, comparable(sweep_summary(out))
 
 
@@ -195,7 +172,7 @@ def test_killed_grid_sweep_resumes_to_the_same_file(grid_reference, tmp_path):
     cfg, _, ref = grid_reference
     out = tmp_path / "grid.h5"
     with pytest.raises(RuntimeError, match="killed"):
-        run_sweep(load_sweep(cfg), output=out, progress=False, chunk_realizations=16, executor=_CrashAfter(5))
+        run_sweep(load_sweep(cfg), output=out, progress=False, chunk_realizations=16, executor=CrashAfter(5))
     assert (tmp_path / "grid.h5.partial").exists()  # the kill left its journal, unfinished
     res = CliRunner().invoke(app, ["sweep", str(cfg), "--out", str(out), "--resume", "--quiet"])
     assert res.exit_code == 0, res.output

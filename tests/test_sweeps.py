@@ -10,7 +10,7 @@ import h5py
 import networkx as nx
 import numpy as np
 import pytest
-from helpers import comparable
+from helpers import CrashAfter, comparable
 
 from antisync import graphs
 from antisync.errors import ConfigError
@@ -90,7 +90,8 @@ SHIPPED = sorted(p.stem for p in (REPO / "configs").glob("*.yaml"))
 
 
 def test_every_config_is_shipped_and_checked():
-    assert {"atlas6", "lollipop_L1", "threshold", "lollipop6", "karate", "lesmis"} <= set(SHIPPED)
+    shipped = {"atlas6", "lollipop_L1", "threshold", "lollipop6", "karate", "lesmis"}
+    assert shipped | {"ieee39_grid", "ieee118_grid", "ieee300_grid"} <= set(SHIPPED)
 
 
 @pytest.mark.parametrize("name", SHIPPED)
@@ -302,32 +303,6 @@ def test_screening_of_the_whole_atlas_excludes_exactly_three():
 
 
 # ---- running and resuming ----------------------------------------------------------------
-class _CrashAfter:
-    """A local executor that dies after ``n`` chunks, in whichever stage: ``RuntimeError``
-    stands for a kill (nothing more is written), ``KeyboardInterrupt`` for Ctrl-C (the
-    runner checkpoints first)."""
-
-    def __init__(self, n: int, exc: type = RuntimeError):
-        from antisync.executors.local import LocalExecutor
-
-        self.inner = LocalExecutor("cpu", None)
-        self.left = n
-        self.exc = exc
-
-    def run(self, work):
-        for item in self.inner.run(work):
-            if self.left == 0:
-                raise self.exc("killed")
-            self.left -= 1
-            yield item
-
-    def describe(self):
-        return "crashing"
-
-    def close(self):
-        pass
-
-
 @pytest.fixture(scope="module")
 def tiny_reference(tmp_path_factory):
     sw = load_sweep_text(TINY)
@@ -396,7 +371,7 @@ def test_interrupted_sweep_resumes_to_the_same_file(tiny_reference, tmp_path, cr
     path = tmp_path / "tiny.h5"
     with pytest.raises(Interrupted if exc is KeyboardInterrupt else RuntimeError):
         run_sweep(
-            sw, output=path, progress=False, chunk_realizations=20, executor=_CrashAfter(crash_after, exc)
+            sw, output=path, progress=False, chunk_realizations=20, executor=CrashAfter(crash_after, exc)
         )
     if stage == "main":  # screening results wait in the journal until the first checkpoint
         assert len(list((tmp_path / "tiny.h5.partial" / "screen").glob("*.json"))) == 4

@@ -69,8 +69,9 @@ def summary(
             if note and s.get("grid"):  # the stored config is the grid's base
                 keys = ", ".join(k for axis in s["grid"] for k in axis["keys"])
                 note = f"{note} (the base config; each grid point sets {keys})"
-            if note:
-                typer.echo(note)
+            for line in (note, stop_note(stop_record(results), "sweep")):
+                if line:
+                    typer.echo(line)
     else:
         views = read_views(results)  # decoded once for the records and the sum rule
         recs = listed(view_records(views))

@@ -27,6 +27,7 @@ def validate(config: ConfigArg, set_: SetOpt = None, debug: DebugOpt = False) ->
             f"edge(s) in {sum(len(e.representatives) for e in entries)} orbit(s), "
             f"{len(sw.thresholds)} threshold(s), {sw.repeats} repeat(s)"
             + (f", {len(sw.points)} grid point(s)" if sw.points else "")
+            + (f", {_budget(sw.base)}" if sw.base.stop.active else "")
             + "; screening not run"
         )
         return
@@ -34,20 +35,22 @@ def validate(config: ConfigArg, set_: SetOpt = None, debug: DebugOpt = False) ->
     job = make_job(cfg)
     preflight(cfg, [job])
     typer.echo(cfg.resolved().to_yaml().rstrip())
-    budget = (
-        f"up to {cfg.realizations:,} realizations (stop {cfg.stop.when}: looks at "
-        f"{', '.join(f'{n:,}' for n in cfg.stop_looks)})"
-        if cfg.stop.active
-        else f"{cfg.realizations:,} realizations"
-    )
     run = (
-        f"{job.integrations_per_realization - 1} damaged variant(s), {budget}"
+        f"{job.integrations_per_realization - 1} damaged variant(s), {_budget(cfg)}"
         if job.kuramoto
         else f"no Kuramoto integration (measures: {', '.join(cfg.measures)})"
     )
     typer.echo(
         f"# ok: graph {job.name} with {len(job.nodes)} nodes, {len(job.edges)} directed edge(s), {run}"
     )
+
+
+def _budget(cfg) -> str:
+    """``N realizations``, or with a stopping rule the budget and its looks."""
+    if not cfg.stop.active:
+        return f"{cfg.realizations:,} realizations"
+    looks = ", ".join(f"{n:,}" for n in cfg.stop_looks)
+    return f"up to {cfg.realizations:,} realizations (stop {cfg.stop.when}: looks at {looks})"
 
 
 def preflight(cfg, jobs) -> str:

@@ -35,7 +35,9 @@ What a sweep does (:func:`run_sweep`):
    (:func:`~antisync.graphs.edge_orbits`) and its records are fanned out to the whole
    orbit when the file is summarized (:func:`sweep_summary`).
 3. **Main stage**: one job per (kept graph, threshold, repeat). Repeat 0 carries ``betas``;
-   later repeats estimate Lambda only.
+   later repeats estimate Lambda only. With a ``stop:`` section (docs/stopping.md) the
+   stopping rule looks at every job of the stage together and ends it at the first look
+   where every link of every job has a known sign (refused with ``top.graphs > 0``).
 4. **Top stage** (optional, ``top.graphs > 0``): the graphs ranked first by the sum of their
    positive Lambda^KM (Fig. 3 of the paper) get a job for their most antifragile edge with
    ``top.betas`` and ``top.realizations`` (Table 1 and the histograms of Fig. 4).

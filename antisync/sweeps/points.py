@@ -65,7 +65,7 @@ _REFUSED = {
     "edges": "the links are the sweep's edges:",
     "betas": "the betas are the sweep's betas:",
     "measures": "every point computes the sweep's measures:",
-    "stop": "a sweep spends its realizations by its own stages",
+    "stop": "stop: is one rule over every job of the sweep",
     "thresholds": "give the thresholds as a grid over dynamics.threshold, or as thresholds:",
 }
 

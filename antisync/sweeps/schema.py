@@ -272,11 +272,6 @@ def load_sweep_text(
         if "unknown key" in str(exc):
             raise ConfigError(f"{exc}; sweep keys: {', '.join(sorted(_SWEEP_KEYS))}") from None
         raise
-    if base.stop.active:
-        raise ConfigError(
-            "stop: is for `antisync run`; a sweep spends its realizations by its own stages "
-            "(screen, then refine): remove the stop section"
-        )
     if "km" not in base.measures:  # a run may omit km (exact measures only); a sweep may not
         raise ConfigError(
             f"a sweep screens and ranks its graphs by Lambda^KM: measures must include km, got "
@@ -293,6 +288,8 @@ def load_sweep_text(
             "top.graphs ranks the graphs at one config; a sweep with a grid has one config per "
             "point: set top.graphs: 0 (or remove top)"
         )
+    if base.stop.active:
+        _check_stop(top, axes)
     base = replace(base, dynamics=replace(base.dynamics, threshold=thresholds[0]))
     name = raw.get("name") or (source.stem if source else "sweep")
     if not raw.get("output"):
@@ -316,6 +313,23 @@ def load_sweep_text(
         axes=axes,
         points=points,
     )
+
+
+def _check_stop(top: Top, axes: tuple[Axis, ...]) -> None:
+    """Refuse what a stopping rule cannot combine with: it looks at every main-stage job at
+    once (one ``run_jobs``), at looks of one budget (docs/stopping.md, "Sweeps")."""
+    if top.graphs > 0:
+        raise ConfigError(
+            "stop: with top.graphs > 0: the top stage ranks the graphs on the main stage's "
+            "finished numbers, and the rule ends only the main stage; set top.graphs: 0 (then run "
+            "the chosen edges with their own config) or remove the stop section"
+        )
+    if any("realizations" in a.keys for a in axes):
+        raise ConfigError(
+            "stop: with a grid over realizations: the rule's looks are one budget for every job "
+            "(realizations: is the budget); remove realizations from sweep.grid/sweep.zip or "
+            "remove the stop section"
+        )
 
 
 def _section(raw: dict, key: str, cls):

@@ -185,6 +185,7 @@ def _run_sweep_locked(
 
     from antisync.runner import run_jobs
     from antisync.screening import ScreenResult, screen_graph
+    from antisync.stopping import already_stopped
     from antisync.store import read_sweep_meta, write_sweep_meta
     from antisync.sweeps.results import sweep_summary
 
@@ -199,7 +200,8 @@ def _run_sweep_locked(
         # every stage finished with this key: the file stays exactly as it is
         if writable:
             store.drop_journal()  # left by a kill after the last checkpoint
-        say(f"{path} is already complete; nothing to do")
+        stopped = store.stopped_early(key)  # its groups hold fewer realizations than the budget
+        say(already_stopped(path, stopped) if stopped else f"{path} is already complete; nothing to do")
         return path
     if not writable:
         raise StoreError(
