@@ -68,8 +68,12 @@ __all__ = [
     "mcnemar_exact",
     "tau_p_value",
     "parse_lines",
+    "resolve_config",
+    "table_document",
+    "replace_atomically",
     "check_beta",
     "check_output",
+    "check_new_file",
     "write_table",
 ]
 
@@ -395,7 +399,10 @@ def _grid_mapping(grid: Grid) -> dict:
     }
 
 
-def _config_of(source, overrides: Mapping):
+def resolve_config(source, overrides: Mapping):
+    """The :class:`~antisync.config.Config` of a grid (a :class:`~antisync.grid.Grid`, as
+    :func:`line_removal` integrates it), a YAML path, a mapping or a Config, with ``overrides``
+    (config keys); a value that is not valid is a one-line GridError."""
     from antisync.api import _config
     from antisync.errors import ConfigError
 
@@ -532,7 +539,7 @@ def line_removal(
         overrides["realizations"] = realizations
     if seed is not None:
         overrides["seed"] = seed
-    cfg = _config_of(grid_or_config, overrides)
+    cfg = resolve_config(grid_or_config, overrides)
     from antisync.errors import AntisyncError
 
     try:
@@ -660,17 +667,27 @@ def line_removal(
 
 
 def check_output(path: str | Path, overwrite: bool = False) -> Path:
-    """The JSON output ``path``, checked before any work: it must end in ``.json``, its folder
-    must exist, and an existing file is refused unless ``overwrite``."""
+    """The JSON output ``path``, checked before any work (:func:`check_new_file`)."""
+    return check_new_file(
+        path, overwrite, "--out", (".json",), "the removal table is written as JSON; name it *.json"
+    )
+
+
+def check_new_file(
+    path: str | Path, overwrite: bool, option: str, suffixes: tuple[str, ...], hint: str
+) -> Path:
+    """An output ``path`` checked before any work: its suffix one of ``suffixes`` (else ``hint``),
+    its folder existing, and an existing file refused unless ``overwrite``; one-line GridErrors
+    that name ``option``."""
     path = Path(path)
-    if path.suffix != ".json":
-        raise GridError(f"--out {path}: the removal table is written as JSON; name it *.json")
+    if path.suffix.lower() not in suffixes:
+        raise GridError(f"{option} {path}: {hint}")
     if path.is_dir():
-        raise GridError(f"--out {path} is a folder; give a file name ending in .json")
+        raise GridError(f"{option} {path} is a folder; give a file name ending in {suffixes[0]}")
     if path.exists() and not overwrite:
         raise GridError(f"{path} exists; pass --overwrite to replace it (it is left as it is)")
     if not path.parent.is_dir():
-        raise GridError(f"--out {path}: the folder {path.parent} does not exist")
+        raise GridError(f"{option} {path}: the folder {path.parent} does not exist")
     return path
 
 
@@ -686,14 +703,14 @@ def _plain(x):
     return x
 
 
-def write_table(table: RemovalTable, path: str | Path, overwrite: bool = False, command: str = "") -> Path:
-    """Write ``table`` as JSON (the summary, every row, the resolved config and provenance)
-    atomically: a temporary file in the same folder, renamed over ``path`` when complete, so
-    an existing result is never half-written. ``nan`` is written as ``null``."""
+def table_document(table: RemovalTable, command: str = "") -> dict:
+    """``table`` as the plain mapping :func:`write_table` writes (the summary, every row, the
+    troublemaker and Braess lists, the resolved calls, the resolved config and provenance;
+    ``nan`` as ``None``)."""
     from antisync._version import __version__
     from antisync.store.provenance import git_revision, now
 
-    path = check_output(path, overwrite)
+    sync, tau = table.sync_called(), table.tau_called()
     doc = {
         "format": FORMAT,
         "format_version": FORMAT_VERSION,
@@ -706,18 +723,37 @@ def write_table(table: RemovalTable, path: str | Path, overwrite: bool = False, 
         "braess_lines": [r.label for r in table.braess_lines()],
         # the resolved changes (Benjamini-Hochberg, false discovery rate FDR_LEVEL over the lines)
         "fdr_level": FDR_LEVEL,
-        "sync_called": [r.label for r in table.rows if r.line in table.sync_called()],
-        "tau_called": [r.label for r in table.rows if r.line in table.tau_called()],
+        "sync_called": [r.label for r in table.rows if r.line in sync],
+        "tau_called": [r.label for r in table.rows if r.line in tau],
         "rows": table.to_dicts(),
         "config": table.config,
     }
-    text = json.dumps(_plain(doc), indent=1, default=str)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8") as fh:
+    return _plain(doc)
+
+
+def write_table(table: RemovalTable, path: str | Path, overwrite: bool = False, command: str = "") -> Path:
+    """Write ``table`` as JSON (:func:`table_document`) atomically (:func:`replace_atomically`),
+    so an existing result is never half-written. ``nan`` is written as ``null``."""
+    path = check_output(path, overwrite)
+    text = json.dumps(table_document(table, command), indent=1, default=str)
+
+    def write(tmp: Path) -> None:
+        with open(tmp, "w", encoding="utf-8") as fh:
             fh.write(text + "\n")
             fh.flush()
             os.fsync(fh.fileno())
+
+    return replace_atomically(path, write)
+
+
+def replace_atomically(path: Path, write) -> Path:
+    """Call ``write(tmp)`` on a temporary file in ``path``'s folder, then rename it over
+    ``path``: a reader sees the old file or the whole new one, never half of it; on an error the
+    temporary file is removed and ``path`` is left as it was."""
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=f".tmp{path.suffix}", dir=path.parent)
+    os.close(fd)
+    try:
+        write(Path(tmp))
         mask = os.umask(0)
         os.umask(mask)
         os.chmod(tmp, 0o666 & ~mask)  # mkstemp's 0600, as an ordinary new file would be

@@ -24,6 +24,7 @@ __all__ = [
     "LINEAR_METHODS",
     "MEASURES",
     "PRECISIONS",
+    "REMOVAL_BY",
     "STOP_RULES",
     "Backend",
     "Coupling",
@@ -34,6 +35,7 @@ __all__ = [
     "LinearMethod",
     "Measure",
     "Precision",
+    "RemovalBy",
     "StopRule",
 ]
 
@@ -59,6 +61,9 @@ StopRule = Literal["never", "signs-resolved"]
 """When a run may end before its ``realizations`` (see :class:`antisync.config.Stop`)."""
 Coupling = Literal["normalized", "raw"]
 """``W = S^-1 Omega`` (Eq. 1) or ``W = Omega`` (Eq. 20), see :mod:`antisync.coupling`."""
+RemovalBy = Literal["speedup", "psync"]
+"""What colours a line in :func:`antisync.report.removal.removal_figure`: ``F_1 - 1`` (the mean
+``tau0 / tau - 1`` without the line, > 0: faster) or ``d P_sync`` (> 0: more starts lock)."""
 
 BACKENDS: tuple[Backend, ...] = get_args(Backend)
 EXECUTORS: tuple[Executor, ...] = get_args(Executor)
@@ -70,3 +75,4 @@ MEASURES: tuple[Measure, ...] = get_args(Measure)
 LINEAR_METHODS: tuple[LinearMethod, ...] = get_args(LinearMethod)
 PRECISIONS: tuple[Precision, ...] = get_args(Precision)
 COUPLINGS: tuple[Coupling, ...] = get_args(Coupling)
+REMOVAL_BY: tuple[RemovalBy, ...] = get_args(RemovalBy)

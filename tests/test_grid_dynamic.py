@@ -218,3 +218,60 @@ def test_write_table_refuses_an_existing_file(tmp_path):
     with pytest.raises(GridError, match="exists"):
         write_table(table, path)
     assert json.loads(path.read_text())["rows"][0]["label"] == "0-3"
+
+
+# --- the report: the grid drawn with each line's response (antisync/report/removal.py) --------
+
+PNG = b"\x89PNG\r\n\x1a\n"
+
+
+def test_removal_figure_is_drawn_from_a_table_or_its_json(tmp_path):
+    from antisync.report.removal import removal_doc, removal_figure, resolved
+
+    table = line_removal(ring_config(4), lines="0-3,0-1")
+    path = removal_figure(table, ring_config(4), tmp_path / "speedup.png")
+    assert path.read_bytes().startswith(PNG)
+    saved = write_table(table, tmp_path / "t.json")
+    # from the JSON file, its stored config, coloured by d P_sync
+    path = removal_figure(saved, None, tmp_path / "psync.png", by="psync")
+    assert path.read_bytes().startswith(PNG)
+    assert removal_doc(saved)["rows"] == removal_doc(table)["rows"]
+    assert set(resolved(removal_doc(table))) == {"troublemakers", "braess", "faster", "slower"}
+    with pytest.raises(GridError, match="exists; pass --overwrite"):
+        removal_figure(saved, None, path)
+    with pytest.raises(GridError, match="by must be one of speedup, psync"):
+        removal_figure(saved, None, tmp_path / "x.png", by="tau")
+    (tmp_path / "other.json").write_text('{"rows": []}')
+    with pytest.raises(GridError, match="not a removal table"):
+        removal_figure(tmp_path / "other.json", None, tmp_path / "y.png")
+    with pytest.raises(GridError, match="cannot read the removal table"):
+        removal_figure(tmp_path / "psync.png", None, tmp_path / "y.png")
+    with pytest.raises(GridError, match="lines that are not in this grid"):
+        removal_figure(saved, braess_config(0.0), tmp_path / "z.png")
+    names = sorted(p.name for p in tmp_path.iterdir())
+    assert names == ["other.json", "psync.png", "speedup.png", "t.json"]
+
+
+def test_cli_figure_is_written_and_never_overwritten_without_overwrite(tmp_path):
+    cfg = _grid_files(tmp_path)
+    fig = tmp_path / "g.png"
+    args = ["grid", str(cfg), "--removal", "--lines", "0-4,1-3", "--figure", str(fig), "-q"]
+    res = runner.invoke(app, args)
+    assert res.exit_code == 0, res.output
+    first = fig.read_bytes()
+    assert first.startswith(PNG)
+    res = runner.invoke(app, args)
+    assert_one_line(res, "g.png exists; pass --overwrite")
+    assert fig.read_bytes() == first
+    res = runner.invoke(app, [*args, "--overwrite", "--by", "psync"])
+    assert res.exit_code == 0, res.output
+    for extra, message in (
+        (["--figure", str(tmp_path / "no" / "f.png")], "does not exist"),
+        (["--figure", str(tmp_path / "f.txt")], "name it *.png"),
+        (["--figure", str(tmp_path / "f.png"), "--by", "tau"], "--by must be one of speedup, psync"),
+    ):
+        res = runner.invoke(app, ["grid", str(cfg), "--removal", "--lines", "0-4", *extra])
+        assert_one_line(res, message)
+    res = runner.invoke(app, ["grid", str(cfg), "--figure", str(tmp_path / "f.png")])
+    assert_one_line(res, "--figure writes the dynamic removal table: add --removal")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["g.edges", "g.png", "g.yaml", "m.txt", "p.txt"]

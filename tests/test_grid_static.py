@@ -265,3 +265,18 @@ def test_ieee14_every_line_halved_keeps_a_stable_locked_state():
         static_table(grid, beta=1.0, skip_bridges=False)
     removed = static_table(grid, beta=1.0)
     assert removed.skipped == ((7, 8),) and len(removed) == 19
+
+
+def test_ieee300_shipped_operating_point_is_a_stable_locked_state():
+    """configs/ieee300_grid.yaml (tools/grid_case.py --case case300): 299 buses (bus 1201, a
+    series capacitor without injection, Kron-eliminated into the line 118-120), every line of
+    positive capacity, inertia at the 69 generator buses only, and the injections of the solved
+    power flow have a stable locked state (docs/power_grids.md, "IEEE 300")."""
+    grid = load_grid_config(ROOT / "configs" / "ieee300_grid.yaml")
+    assert len(grid.labels) == 299 and 1201 not in grid.labels and grid.labels[-1] == 9533
+    i, j = grid.labels.index(118), grid.labels.index(120)
+    assert grid.omega[i, j] > 0 and (grid.omega >= 0).all()
+    assert int((np.asarray(grid.inertia) > 0).sum()) == 69
+    state = grid_state(grid.omega, grid.p, inertia=grid.inertia, damping=grid.damping)
+    assert state.exists and state.stable
+    assert 0 < state.margin < 0.1 and state.max_load < 0.5

@@ -94,19 +94,25 @@ def main() -> None:
     ap.add_argument("--prefix", required=True)
     ap.add_argument("--check", action="store_true", help="compare with the files in --out instead of writing")
     args = ap.parse_args()
+    write_or_check(files(args.case, args.capacity, args.prefix), args.out, args.check, "pypower_grid")
+
+
+def write_or_check(texts: dict[str, str], out: Path, check: bool, tool: str) -> None:
+    """Write each ``{file name: text}`` into ``out``, or with ``check`` exit unless the files
+    there are exactly these texts (tools/grid_case.py uses it too)."""
     differ = []
-    for name, text in files(args.case, args.capacity, args.prefix).items():
-        path = args.out / name
-        if args.check:
+    for name, text in texts.items():
+        path = out / name
+        if check:
             if not path.is_file() or path.read_text() != text:
                 differ.append(str(path))
         else:
             path.write_text(text)
             print(f"wrote {path}")
     if differ:
-        sys.exit("pypower_grid: differs from the conversion: " + ", ".join(differ))
-    if args.check:
-        print("pypower_grid: the shipped files are the conversion's output")
+        sys.exit(f"{tool}: differs from the conversion: " + ", ".join(differ))
+    if check:
+        print(f"{tool}: the shipped files are the conversion's output")
 
 
 if __name__ == "__main__":

@@ -7,7 +7,8 @@ from typing import Annotated
 
 import typer
 
-from antisync.cli.common import DebugOpt, QuietOpt, SetOpt, info, user_errors
+from antisync.cli.common import DebugOpt, QuietOpt, SetOpt, info, one_of, user_errors
+from antisync.types import RemovalBy
 
 
 @user_errors
@@ -33,24 +34,42 @@ def grid(
     out: Annotated[
         Path | None, typer.Option("--out", "-o", help="Write the removal table as JSON (atomically).")
     ] = None,
-    overwrite: Annotated[bool, typer.Option("--overwrite", help="Replace an existing --out file.")] = False,
+    figure: Annotated[
+        Path | None,
+        typer.Option(
+            "--figure", help="Draw the grid, lines coloured by the removal response (.png, .pdf, .svg)."
+        ),
+    ] = None,
+    by: Annotated[
+        RemovalBy,
+        typer.Option(
+            "--by", parser=one_of("--by", RemovalBy), help="--figure's colour: F_1 - 1 (speedup) or d P_sync."
+        ),
+    ] = "speedup",
+    overwrite: Annotated[
+        bool, typer.Option("--overwrite", help="Replace an existing --out or --figure file.")
+    ] = False,
     set_: SetOpt = None,
     quiet: QuietOpt = False,
     debug: DebugOpt = False,
 ) -> None:
     """Rank CONFIG's lines: the static indicators of the locked state after each line's removal
     (default), or with --removal the paired dynamic response (P_sync lost/gained with exact
-    intervals, the change of tau), troublemaker and Braess lines marked."""
+    intervals, the change of tau), troublemaker and Braess lines marked; --figure draws it."""
     from antisync.config import load_config
     from antisync.grid import GridError, format_table, load_grid_config, static_table
     from antisync.removal import check_beta, check_output, line_removal, parse_lines, write_table
+    from antisync.report.removal import check_figure, removal_figure
     from antisync.store.provenance import command_line
 
     beta = check_beta(beta)
-    if out is not None and not removal:
-        raise GridError("--out writes the dynamic removal table: add --removal")
+    for name, path in (("--out", out), ("--figure", figure)):
+        if path is not None and not removal:
+            raise GridError(f"{name} writes the dynamic removal table: add --removal")
     if out is not None:
         check_output(out, overwrite)
+    if figure is not None:
+        check_figure(figure, overwrite)
     if not removal:
         g = load_grid_config(config)
         picked = parse_lines(lines, g.labels)
@@ -71,4 +90,7 @@ def grid(
     typer.echo(table.to_markdown(top=top))
     if out is not None:
         path = write_table(table, out, overwrite=overwrite, command=command_line())
+        info(f"wrote {path}", quiet)
+    if figure is not None:
+        path = removal_figure(table, cfg, figure, by=by, overwrite=overwrite)
         info(f"wrote {path}", quiet)

@@ -1,0 +1,465 @@
+"""The report of a dynamic line removal (:mod:`antisync.removal`, docs/power_grids.md): the grid
+drawn with each line coloured by its response, troublemaker and Braess lines marked
+(:func:`removal_figure`), and the removal response beside the static indicators of the locked
+state and Lambda, with rank correlations (:func:`side_by_side_report`).
+
+A removal table is read once by :func:`removal_doc`, from a
+:class:`~antisync.removal.RemovalTable`, the JSON file :func:`antisync.removal.write_table`
+writes, or that file's parsed mapping; everything else here takes the plain mapping it returns.
+A line is *resolved* as the table resolves it: at false discovery rate 0.05 over the lines
+(``sync_called`` for ``P_sync``, ``tau_called`` for tau). matplotlib is imported only when a
+figure is drawn, with the Agg backend.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import networkx as nx
+import numpy as np
+
+from antisync.grid import GridError
+from antisync.removal import check_new_file, replace_atomically
+from antisync.types import REMOVAL_BY, RemovalBy
+
+__all__ = [
+    "FIGURE_SUFFIXES",
+    "check_figure",
+    "lambda_by_line",
+    "rank_correlations",
+    "removal_doc",
+    "removal_figure",
+    "resolved",
+    "side_by_side",
+    "side_by_side_report",
+]
+
+#: The file types :func:`removal_figure` writes (matplotlib picks the format from the suffix).
+FIGURE_SUFFIXES = (".png", ".pdf", ".svg")
+#: Layouts: Kamada-Kawai up to this many nodes, a spring layout with a fixed seed above.
+KAMADA_KAWAI_MAX = 200
+LAYOUT_SEED = 1
+
+
+def _num(x) -> float:
+    """A JSON number (``null`` for ``nan``) as a float."""
+    return math.nan if x is None else float(x)
+
+
+# --- the table, read once --------------------------------------------------------------------
+
+
+def removal_doc(source) -> dict:
+    """A removal table as the plain mapping of :func:`antisync.removal.write_table`'s JSON.
+
+    Parameters
+    ----------
+    source : RemovalTable, str, Path or dict
+        A table from :func:`antisync.removal.line_removal`, its JSON file, or that file parsed.
+
+    Returns
+    -------
+    dict
+        ``summary``, ``rows`` (one dict per line, ``nan`` as ``None``), ``sync_called``,
+        ``tau_called`` (labels resolved at false discovery rate ``fdr_level``) and ``config``.
+
+    Raises
+    ------
+    antisync.grid.GridError
+        A file that cannot be read or is not a removal table: one line.
+    """
+    from antisync.removal import FORMAT, RemovalTable, table_document
+
+    if isinstance(source, RemovalTable):
+        return table_document(source)
+    if isinstance(source, str | Path):
+        path = Path(source)
+        try:
+            doc = json.loads(path.read_text(encoding="utf-8"))
+        except (OSError, UnicodeDecodeError, ValueError) as exc:
+            raise GridError(f"{path}: cannot read the removal table ({exc})") from None
+        if not isinstance(doc, dict) or doc.get("format") != FORMAT:
+            raise GridError(f"{path}: not a removal table (written by antisync grid --removal --out)")
+        return doc
+    if isinstance(source, dict) and isinstance(source.get("rows"), list):
+        return source
+    kind = type(source).__name__
+    raise GridError(f"expected a RemovalTable, its JSON file or that file's mapping, got {kind}")
+
+
+def resolved(doc: dict) -> dict[str, set]:
+    """The table's calls by label: ``troublemakers`` (``P_sync`` lost, resolved), ``braess``
+    (``P_sync`` gained or ``d_tau < 0``, resolved: :meth:`~antisync.removal.RemovalTable.
+    braess_lines`), ``faster`` and ``slower`` (``d_tau`` resolved, by its sign)."""
+    rows = doc["rows"]
+    if "sync_called" in doc and "tau_called" in doc:
+        sync, tau = set(doc["sync_called"]), set(doc["tau_called"])
+    else:  # a file written before the calls were stored: the same procedure on its rows
+        from antisync.multiplicity import benjamini_hochberg
+        from antisync.removal import tau_p_value
+
+        calls = benjamini_hochberg([r["p_value"] for r in rows])
+        sync = {r["label"] for r, c in zip(rows, calls, strict=True) if c}
+        calls = benjamini_hochberg([tau_p_value(r["d_tau"], r["d_tau_se"]) for r in rows])
+        tau = {r["label"] for r, c in zip(rows, calls, strict=True) if c}
+    faster = {r["label"] for r in rows if r["label"] in tau and _num(r["d_tau"]) < 0}
+    return {
+        "troublemakers": {r["label"] for r in rows if r["lost"] > r["gained"] and r["label"] in sync},
+        "braess": faster | {r["label"] for r in rows if r["gained"] > r["lost"] and r["label"] in sync},
+        "faster": faster,
+        "slower": {r["label"] for r in rows if r["label"] in tau and _num(r["d_tau"]) > 0},
+    }
+
+
+# --- the figure ------------------------------------------------------------------------------
+
+
+def check_figure(path, overwrite: bool = False) -> Path:
+    """The figure's ``path``, checked before any work: a ``.png``, ``.pdf`` or ``.svg`` file in
+    an existing folder, and an existing file only with ``overwrite``; else a one-line GridError."""
+    return check_new_file(path, overwrite, "--figure", FIGURE_SUFFIXES, "name it *.png, *.pdf or *.svg")
+
+
+def _network(config) -> tuple[nx.Graph, dict]:
+    """The grid as a weighted graph and each node's inertia, from a config (path, mapping,
+    Config) or a :class:`~antisync.grid.Grid`."""
+    from antisync.grid import Grid
+
+    if isinstance(config, Grid):
+        labels, omega = list(config.labels), config.omega
+        inertia = np.broadcast_to(np.asarray(config.inertia, dtype=float), (len(labels),))
+    else:
+        from antisync import graphs
+        from antisync.errors import AntisyncError
+        from antisync.model import node_parameters
+        from antisync.removal import resolve_config
+
+        cfg = resolve_config(config, {})
+        try:
+            g = graphs.build_graph(cfg.graph, seed=cfg.seed)
+            labels, omega = graphs.node_order(g), graphs.omega_matrix(g)
+            inertia = node_parameters(cfg.model, len(labels))[0]
+        except AntisyncError as exc:
+            raise GridError(str(exc)) from None
+    g = nx.Graph()
+    g.add_nodes_from(labels)
+    for i, j in zip(*np.nonzero(np.triu(omega > 0)), strict=True):
+        g.add_edge(labels[i], labels[j], weight=float(omega[i, j]))
+    return g, {v: float(m) for v, m in zip(labels, inertia, strict=True)}
+
+
+def _layout(g: nx.Graph) -> dict:
+    if g.number_of_nodes() <= KAMADA_KAWAI_MAX:
+        return nx.kamada_kawai_layout(g, weight=None)
+    return nx.spring_layout(g, seed=LAYOUT_SEED, weight=None)
+
+
+def removal_figure(source, config, path, *, by: RemovalBy = "speedup", overwrite: bool = False) -> Path:
+    """Draw the grid with every removed line coloured by its response (issue 27's report).
+
+    Parameters
+    ----------
+    source : RemovalTable, str, Path or dict
+        The removal table, as :func:`removal_doc` takes it.
+    config : str, Path, dict, Config, Grid or None
+        The grid the table was run on (for its lines and which nodes have inertia); None: the
+        resolved config stored with the table.
+    path : str or Path
+        The figure (``.png``, ``.pdf`` or ``.svg``), written atomically (a temporary file in the
+        same folder, renamed over ``path``).
+    by : {"speedup", "psync"}
+        The colour: ``F_1 - 1`` (the mean ``tau0 / tau - 1`` on the pairs synchronized both
+        times) or ``d P_sync``.
+    overwrite : bool
+        Replace an existing file.
+
+    Returns
+    -------
+    Path
+        The file written.
+
+    Notes
+    -----
+    Troublemaker lines (``P_sync`` lost) are dashed and Braess lines (``P_sync`` gained or
+    synchronization faster) circled, both only where resolved at false discovery rate 0.05
+    over the lines (:func:`resolved`); the numbers are the net starts gained (``gained -
+    lost``; on grids of more than 60 nodes, which get no node labels, after the line's name);
+    bridges are dotted, lines not in the table thin and grey, lines without a value (no pair
+    synchronized both times) dark grey, generators (``m > 0``) squares. Layout: Kamada-Kawai
+    up to 200 nodes, else a spring layout of seed 1.
+    """
+    if by not in REMOVAL_BY:
+        raise GridError(f"by must be one of {', '.join(REMOVAL_BY)}, got {by!r}")
+    path = check_figure(path, overwrite)
+    doc = removal_doc(source)
+    g, inertia = _network(doc.get("config") if config is None else config)
+    rows = {frozenset(r["line"]): r for r in doc["rows"]}
+    if not all(len(k) == 2 and g.has_edge(*k) for k in rows):
+        raise GridError("the removal table names lines that are not in this grid's config")
+    marks = resolved(doc)
+
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from matplotlib.lines import Line2D
+
+    def value(r) -> float:
+        return _num(r["ratio"]) - 1 if by == "speedup" else _num(r["d_psync"])
+
+    small = g.number_of_nodes() <= 60
+    pos = _layout(g)
+    fig, ax = plt.subplots(figsize=(9, 7.5) if small else (11, 9.5))
+    cmap = plt.get_cmap("coolwarm")
+    finite = [abs(value(r)) for r in rows.values() if math.isfinite(value(r))]
+    lim = max(finite) if finite and max(finite) > 0 else 1.0
+    norm = matplotlib.colors.Normalize(-lim, lim)
+    bridges = {frozenset(e) for e in nx.bridges(g)}
+    edges = list(g.edges)
+    others = [e for e in edges if frozenset(e) not in rows]
+    kinds = {
+        "bridge": ([e for e in others if frozenset(e) in bridges], {"style": "dotted", "edge_color": "0.55"}),
+        "other": ([e for e in others if frozenset(e) not in bridges], {"edge_color": "0.82"}),
+    }
+    for drawn, style in kinds.values():
+        if drawn:
+            nx.draw_networkx_edges(g, pos, edgelist=drawn, ax=ax, width=1.2 if small else 0.8, **style)
+    lines = [e for e in edges if frozenset(e) in rows]
+    colours = [
+        cmap(norm(value(rows[frozenset(e)]))) if math.isfinite(value(rows[frozenset(e)])) else "0.3"
+        for e in lines
+    ]
+    nx.draw_networkx_edges(g, pos, edgelist=lines, ax=ax, edge_color=colours, width=4)
+    trouble = [e for e in lines if rows[frozenset(e)]["label"] in marks["troublemakers"]]
+    if trouble:
+        nx.draw_networkx_edges(g, pos, edgelist=trouble, ax=ax, edge_color="k", width=1.2, style="dashed")
+    for e in lines:
+        r = rows[frozenset(e)]
+        mid = (np.asarray(pos[e[0]]) + np.asarray(pos[e[1]])) / 2
+        if r["label"] in marks["braess"]:
+            ax.plot(*mid, marker="o", ms=7, mfc="none", mec="k", mew=1.5, zorder=4)
+        net = r["gained"] - r["lost"]
+        # a large grid draws no node labels: name the line itself
+        text = (f"{net:+d}" if net else "") if small else r["label"] + (f" ({net:+d})" if net else "")
+        if text and len(rows) <= 80:
+            box = None if small else {"fc": "white", "ec": "none", "alpha": 0.7, "pad": 0.5}
+            ax.annotate(text, mid, fontsize=7, xytext=(3, 3), textcoords="offset points", bbox=box)
+    gens = [v for v in g.nodes if inertia[v] > 0]
+    loads = [v for v in g.nodes if inertia[v] <= 0]
+    size = (260, 200) if small else (45, 18)
+    if gens:
+        nx.draw_networkx_nodes(
+            g, pos, nodelist=gens, ax=ax, node_color="#f2c14e", node_size=size[0], node_shape="s"
+        )
+    if loads:
+        nx.draw_networkx_nodes(
+            g, pos, nodelist=loads, ax=ax, node_color="white", edgecolors="k", node_size=size[1]
+        )
+    if small:
+        nx.draw_networkx_labels(g, pos, ax=ax, font_size=7)
+
+    sm = matplotlib.cm.ScalarMappable(norm=norm, cmap=cmap)
+    label = {
+        "speedup": "F_1 - 1 = mean tau0/tau - 1 without the line (> 0: faster)",
+        "psync": "d P_sync without the line (> 0: more starts lock)",
+    }[by]
+    fig.colorbar(sm, ax=ax, shrink=0.7, label=label)
+    s = doc["summary"]
+    change = "removal" if s["beta"] == 1 else f"weakening by beta = {s['beta']:g}"
+    ax.set_title(
+        f"{s['name']}: dynamic N-1, each line's {change}\n"
+        f"{s['realizations']} paired starts, intact P_sync = {s['p_sync']:.3f}; {len(rows)} lines",
+        fontsize=10,
+    )
+    handles = [
+        Line2D([], [], color="k", ls="--", label="troublemaker: P_sync lost (FDR 0.05)"),
+        Line2D(
+            [], [], ls="", marker="o", mfc="none", mec="k", label="Braess: P_sync up or faster (FDR 0.05)"
+        ),
+        Line2D([], [], color="0.55", ls=":", label="bridge (not removed)"),
+        Line2D([], [], ls="", marker="s", color="#f2c14e", label="generator (inertia > 0)"),
+        Line2D([], [], ls="", marker="o", mfc="white", mec="k", label="first-order bus"),
+    ]
+    if kinds["other"][0]:
+        handles.insert(3, Line2D([], [], color="0.82", label="line not in the table"))
+    if len(rows) <= 80:
+        handles.append(Line2D([], [], ls="", marker="$+n$", ms=14, color="k", label="net starts gained"))
+    if any(not math.isfinite(value(r)) for r in rows.values()):
+        handles.append(Line2D([], [], color="0.3", lw=4, label="no pair synchronized both times"))
+    ax.legend(
+        handles=handles, loc="upper center", bbox_to_anchor=(0.5, 0.0), ncol=2, fontsize=8, frameon=False
+    )
+    ax.axis("off")
+    fmt = path.suffix.lower().lstrip(".")
+    try:
+        replace_atomically(path, lambda tmp: fig.savefig(tmp, dpi=130, bbox_inches="tight", format=fmt))
+    finally:
+        plt.close(fig)
+    return path
+
+
+# --- the table beside the static indicators and Lambda ---------------------------------------
+
+
+def lambda_by_line(records) -> dict:
+    """``{(u, v): (Lambda_line, se)}`` from a run's records (``edge`` ``"u->v"``, ``lambda_km``,
+    ``lambda_km_se``): both directions summed, their standard errors combined as independent
+    (an upper bound for positively correlated ones). Integer labels stay integers."""
+
+    def node(x: str):
+        return int(x) if x.lstrip("-").isdigit() else x
+
+    per = {}
+    for r in records:
+        a, b = (node(x) for x in str(r["edge"]).split("->"))
+        per[(a, b)] = (_num(r["lambda_km"]), _num(r["lambda_km_se"]))
+    out = {}
+    for (a, b), (x, se) in per.items():
+        if (b, a) in per and (b, a) not in out:
+            y, se2 = per[(b, a)]
+            out[(a, b)] = (x + y, math.hypot(se, se2))
+    return out
+
+
+def side_by_side(doc: dict, static, lam: dict | None = None) -> list[dict]:
+    """One dict per line of the removal table, with the static indicators of the same change
+    (``static``: a :class:`~antisync.grid.LineTable` of :func:`antisync.grid.static_table`) and
+    ``Lambda_line`` (:func:`lambda_by_line`; ``nan`` without): ``label``, ``lost``, ``gained``,
+    ``dp``, ``dp_ci``, ``p``, ``dtau``, ``dtau_se``, ``f1`` (``F_1 - 1``), ``lam``, ``lam_se``,
+    ``dm`` (d margin), ``dl2`` (d lambda2), ``dload`` (d max load). Ranked from the largest net
+    loss of ``P_sync`` to the largest gain, then by ``d_tau``."""
+    st = {frozenset(r.line): r for r in static.rows}
+    lam = {frozenset(k): v for k, v in (lam or {}).items()}
+    out = []
+    for r in sorted(doc["rows"], key=lambda r: (r["gained"] - r["lost"], -_num(r["d_tau"]))):
+        key = frozenset(r["line"])
+        if key not in st:
+            raise GridError(f"line {r['label']} is not in the static table (another grid or beta?)")
+        sr = st[key]
+        lv, lse = lam.get(key, (math.nan, math.nan))
+        out.append(
+            {
+                "label": r["label"],
+                "lost": r["lost"],
+                "gained": r["gained"],
+                "dp": r["d_psync"],
+                "dp_ci": r["d_psync_ci"],
+                "p": r["p_value"],
+                "dtau": _num(r["d_tau"]),
+                "dtau_se": _num(r["d_tau_se"]),
+                "f1": _num(r["ratio"]) - 1,
+                "lam": lv,
+                "lam_se": lse,
+                "dm": sr.d_margin,
+                "dl2": sr.d_lambda2,
+                "dload": sr.d_max_load,
+            }
+        )
+    return out
+
+
+def _spearman(x, y) -> tuple[float, float, int]:
+    from scipy.stats import spearmanr
+
+    x, y = np.asarray(x, float), np.asarray(y, float)
+    ok = np.isfinite(x) & np.isfinite(y)
+    if ok.sum() < 3 or np.ptp(x[ok]) == 0 or np.ptp(y[ok]) == 0:
+        return math.nan, math.nan, int(ok.sum())  # too few lines, or one side constant
+    res = spearmanr(x[ok], y[ok])
+    return float(res.statistic), float(res.pvalue), int(ok.sum())
+
+
+#: (name, key, name, key, sign of the second): the rank correlations reported.
+PAIRS = (
+    ("F_1 - 1", "f1", "Lambda_line", "lam", 1),
+    ("F_1 - 1", "f1", "d margin", "dm", 1),
+    ("F_1 - 1", "f1", "d lambda2", "dl2", 1),
+    ("F_1 - 1", "f1", "-d max load", "dload", -1),
+    ("d P_sync", "dp", "d margin", "dm", 1),
+    ("d P_sync", "dp", "d lambda2", "dl2", 1),
+    ("d P_sync", "dp", "-d max load", "dload", -1),
+    ("d P_sync", "dp", "Lambda_line", "lam", 1),
+    ("d P_sync", "dp", "F_1 - 1", "f1", 1),
+)
+
+
+def rank_correlations(rows: list[dict]) -> list[tuple[str, str, float, float, int]]:
+    """Spearman's rank correlations of :data:`PAIRS` over the lines of :func:`side_by_side`:
+    ``(name, name, rho, p, lines)``, ``nan`` where fewer than 3 lines have both or one side is
+    constant."""
+    out = []
+    for na, a, nb, b, sign in PAIRS:
+        rho, p, k = _spearman([r[a] for r in rows], [sign * r[b] for r in rows])
+        out.append((na, nb, rho, p, k))
+    return out
+
+
+def _pm(x: float, se: float) -> str:
+    return "-" if math.isnan(x) else f"{x:+.3f} +- {se:.3f}"
+
+
+def _f(x: float) -> str:
+    return "-" if math.isnan(x) else f"{x:+.4f}"
+
+
+def side_by_side_report(
+    doc: dict, static, lam: dict | None = None, seconds_static: float | None = None
+) -> str:
+    """The removal table beside the static indicators and Lambda as markdown, then the rank
+    correlations, the sign agreement of ``d tau`` and ``Lambda_line`` where both are resolved,
+    and the dynamic Braess lines against the static candidates (docs/power_grids.md)."""
+    from antisync.multiplicity import benjamini_hochberg
+
+    rows = side_by_side(doc, static, lam)
+    marks = resolved(doc)
+    s = doc["summary"]
+    took = "" if seconds_static is None else f"; static table {seconds_static:.2f} s"
+    out = [
+        f"{s['name']}: {s['realizations']} realizations, intact P_sync {s['p_sync']:.4f} "
+        f"[{s['p_sync_ci'][0]:.4f}, {s['p_sync_ci'][1]:.4f}], tau0 {_num(s['tau0_mean']):.3f} +- "
+        f"{_num(s['tau0_se']):.3f}; removal table {s['seconds']:.0f} s{took}",
+        "",
+        "| line | lost | gained | d P_sync [exact 95%] | p | d tau +- se | F_1 - 1 | Lambda_line +- se "
+        "| d margin | d lambda2 | d max load |",
+        "|---|---|---|---|---|---|---|---|---|---|---|",
+    ]
+    for r in rows:
+        ci = r["dp_ci"]
+        out.append(
+            f"| {r['label']} | {r['lost']} | {r['gained']} | {r['dp']:+.4f} [{ci[0]:+.4f}, {ci[1]:+.4f}] "
+            f"| {r['p']:.3g} | {_pm(r['dtau'], r['dtau_se'])} | {_f(r['f1'])} | {_pm(r['lam'], r['lam_se'])} "
+            f"| {_f(r['dm'])} | {_f(r['dl2'])} | {_f(r['dload'])} |"
+        )
+    out += ["", "Spearman rank correlations over the lines (rho, p, lines):"]
+    for na, nb, rho, p, k in rank_correlations(rows):
+        out.append(f"- {na} vs {nb}: rho = {rho:+.3f} (p = {p:.2g}, {k} lines)")
+    if lam:
+        # removal speeds synchronization (resolved) vs Lambda_line > 0 (resolved at the same
+        # false discovery rate over the lines)
+        keys = list(lam)
+        p_lam = [math.erfc(abs(lam[k][0]) / lam[k][1] / math.sqrt(2)) if lam[k][1] > 0 else 1.0 for k in keys]
+        lam_called = {frozenset(k) for k, c in zip(keys, benjamini_hochberg(p_lam), strict=True) if c}
+        lam_of = {frozenset(k): v[0] for k, v in lam.items()}
+        res = [
+            (r["label"] in marks["faster"], lam_of[frozenset(r["line"])] > 0)
+            for r in doc["rows"]
+            if r["label"] in marks["faster"] | marks["slower"] and frozenset(r["line"]) in lam_called
+        ]
+        agree = sum(a == b for a, b in res)
+        out.append(f"- sign of d tau (resolved) vs sign of Lambda_line (resolved): {agree}/{len(res)} agree")
+    static_m = {r.label for r in static.braess_lines()} & {r["label"] for r in doc["rows"]}
+    static_l2 = {r.label for r in static.braess_lines(margin="d_lambda2")} & {r["label"] for r in doc["rows"]}
+    dyn = marks["braess"]
+    out.append(f"- dynamic Braess lines ({len(dyn)}): {', '.join(sorted(dyn)) or 'none'}")
+    for what, names in (
+        ("static Braess candidates by margin/load", static_m),
+        ("static Braess candidates by lambda2/load", static_l2),
+        ("both dynamic and static by margin/load", dyn & static_m),
+    ):
+        out.append(f"- {what} ({len(names)}): {', '.join(sorted(names)) or 'none'}")
+    trouble = [r["label"] for r in doc["rows"] if r["label"] in marks["troublemakers"]]
+    out.append(f"- troublemakers resolved (McNemar, FDR 0.05 over the lines): {', '.join(trouble) or 'none'}")
+    out.append(f"- removal slows synchronization (resolved): {', '.join(sorted(marks['slower'])) or 'none'}")
+    return "\n".join(out)

@@ -1,0 +1,256 @@
+"""Regenerate a shipped grid with dynamic data from a PYPOWER case (never needed at run time).
+
+    pip install "antisync[grids]"                        # PYPOWER (numpy, scipy), the only extra
+    python tools/grid_case.py --case case39 --out configs    # writes configs/ieee39_grid.*
+    python tools/grid_case.py --case case300 --out configs   # writes configs/ieee300_grid.*
+    python tools/grid_case.py --case case39 --check          # the shipped files are the output
+
+The reduction is the structure-preserving model (Bergen and Hill, IEEE Trans. PAS-100, 25 (1981);
+Nishikawa and Motter, New J. Phys. 17, 015012 (2015), Sec. 2.3) without the generators' internal
+nodes: every bus is a node,
+
+    m_i theta_i'' + D_i theta_i' = P_i + sum_j K_ij sin(theta_j - theta_i),
+
+time in seconds, angles in radians, powers in per unit of the case's 100 MVA base, frequencies in
+rad/s relative to omega_R = 2 pi 60 rad/s:
+
+- ``K_ij = |V_i| |V_j| B_ij`` with ``B_ij = Im(Y_ij) > 0`` the off-diagonal susceptance of the bus
+  admittance matrix (transformer taps included, parallel circuits summed, line charging and
+  conductances dropped: the lossless approximation), ``|V_i|`` the magnitudes of PYPOWER's
+  solved AC power flow (``runpf``).
+- ``P_i = Pg_i - Pd_i`` of the solved power flow (the slack's ``Pg`` includes the losses, so
+  ``sum P`` is the losses, which antisync removes with the mean).
+- ``m_i = 2 H_i / omega_R`` at generator buses (``H_i`` in seconds on the 100 MVA base), ``m_i =
+  0`` at the other buses (first order; Bergen and Hill's frequency-dependent loads).
+- Damping: ``D_i = m_i * GAMMA_GEN`` at generators (every machine's swing decays at the same rate
+  ``GAMMA_GEN / 2``) and ``D_LOAD`` at the other buses (p.u. power per rad/s). Not in the
+  sources: chosen.
+
+Per case (:data:`CASES`):
+
+- **case39** (IEEE 39-bus New England, buses 1..39): ``H_i`` at the ten generator buses 30..39
+  are the classic values of Athay, Podmore and Virmani, IEEE Trans. PAS-98, 573 (1979), as
+  tabulated by Pai, "Energy Function Analysis for Power System Stability" (Kluwer, 1989), G1 at
+  bus 39 (the New York interconnection aggregated into one machine) 500 s (:data:`H_PAI`). When
+  ANDES is installed the script checks them against ANDES's ieee39 case (``andes/cases/ieee39/
+  ieee39_full.xlsx``, GENROU ``M = 2 H``: Pai's values on a 1000 MVA base, ``H_100 = 5 M``) and
+  stops on a difference.
+- **case300** (IEEE 300-bus, buses numbered 1..9533, labels kept): the case has no dynamic data.
+  Every machine (69 generator rows at 69 buses, synchronous condensers included) gets the
+  same inertia constant ``H_RATED = 5 s`` on its own rating, so ``H_i`` on the 100 MVA base is
+  ``5 s x S_i / 100`` (``m_i`` proportional to the rating: our choice, not taken from a source;
+  Nishikawa and Motter, New J. Phys. 17, 015012 (2015), discuss estimating the dynamical
+  parameters that grid datasets lack). The rating ``S_i`` is the case's ``Pmax`` (MW, taken as
+  MVA); in this case ``Pmax = Pg + 100`` at every machine, a dispatch plus 100 MW. The branch
+  120-1201 has a negative reactance (series compensation, ``x = -0.3697``) in series with
+  118-1201 (``x = 0.6163``) at bus 1201, which has no load, generator or shunt: bus 1201 is
+  removed by Kron reduction of the bus admittance matrix (exact for a bus without injection),
+  leaving one line 118-120 of positive susceptance; the grid has 299 nodes.
+  (:func:`eliminate_negative`.)
+
+Files: ``<prefix>.edges`` (``from to K``), ``<prefix>_power.txt``, ``<prefix>_inertia.txt``,
+``<prefix>_damping.txt`` (one number per bus, in increasing bus number: antisync's node order).
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import math
+import sys
+from pathlib import Path
+
+import numpy as np
+from pypower_grid import write_or_check  # tools/ is on the path of a script run from it
+
+#: Inertia constants H (s) on the 100 MVA system base, generator bus -> H: Athay et al. (1979),
+#: Pai (1989). G1 (bus 39) is the New York interconnection aggregated into one machine.
+H_PAI = {30: 42.0, 31: 30.3, 32: 35.8, 33: 28.6, 34: 26.0, 35: 34.8, 36: 26.4, 37: 24.3, 38: 34.5, 39: 500.0}
+#: case300: one inertia constant (s) on every machine's own rating (Pmax, MW as MVA).
+H_RATED = 5.0
+#: The system frequency (Hz) and omega_R = 2 pi f (rad/s).
+F_R = 60.0
+OMEGA_R = 2 * math.pi * F_R
+#: Generator damping over inertia, D_i / m_i (1/s): a swing decays as exp(-GAMMA_GEN t / 2).
+GAMMA_GEN = 1.0
+#: Damping of the first-order (load and transfer) buses, p.u. power per rad/s.
+D_LOAD = 1.0
+
+LICENCE = "BSD 3-clause (see {prefix}_LICENSE.txt)"
+#: case -> title, default file prefix, inertia source (a line of the files' headers).
+CASES = {
+    "case39": (
+        "IEEE 39-bus New England system",
+        "ieee39",
+        "# Inertia constants of Athay, Podmore and Virmani, IEEE Trans. PAS-98, 573 (1979), as in\n"
+        "# M. A. Pai, Energy Function Analysis for Power System Stability (1989), checked against\n"
+        "# ANDES's ieee39 case.\n",
+    ),
+    "case300": (
+        "IEEE 300-bus system",
+        "ieee300",
+        f"# No dynamic data in the case: H = {H_RATED:g} s on each machine's rating (Pmax, MW as MVA),\n"
+        "# m_i proportional to the rating (our choice, not from a source); bus 1201 (series\n"
+        "# capacitor, no injection) Kron-eliminated.\n",
+    ),
+}
+
+
+def solved_case(name: str) -> dict:
+    try:
+        from pypower.api import ppoption, runpf
+
+        case = getattr(importlib.import_module(f"pypower.{name}"), name)
+    except ImportError as exc:
+        sys.exit(f"grid_case: cannot import PYPOWER's {name} ({exc}); pip install 'antisync[grids]'")
+    result, ok = runpf(case(), ppoption(VERBOSE=0, OUT_ALL=0))
+    if not ok:
+        sys.exit(f"grid_case: PYPOWER's power flow of {name} did not converge")
+    return result
+
+
+def check_andes() -> str:
+    """Compare :data:`H_PAI` with ANDES's ieee39 case when ANDES is installed: its GENROU sheet
+    lists ``M = 2 H`` per machine, the same numbers as Pai's table on a 1000 MVA base (``H_100 =
+    5 M``). (ANDES rates the machines at their own ``Sn``, 836 to 1684 MVA, so its own model's
+    inertias differ from Pai's by up to 40%; the numbers taken here are Pai's.)"""
+    try:
+        import andes
+        import openpyxl
+    except ImportError:
+        return "ANDES not installed: inertia constants not cross-checked"
+    path = Path(andes.__file__).parent / "cases" / "ieee39" / "ieee39_full.xlsx"
+    if not path.is_file():
+        return f"ANDES {andes.__version__}: no {path.name}: not cross-checked"
+    rows = list(openpyxl.load_workbook(path, read_only=True)["GENROU"].iter_rows(values_only=True))
+    col = {name: k for k, name in enumerate(rows[0])}
+    found = {int(r[col["bus"]]): 5.0 * float(r[col["M"]]) for r in rows[1:] if r[col["bus"]] is not None}
+    if found.keys() != H_PAI.keys() or any(abs(found[b] - H_PAI[b]) > 1e-9 for b in H_PAI):
+        sys.exit(f"grid_case: ANDES's inertia constants differ from Pai's table: {found}")
+    return f"ANDES {andes.__version__} {path.name}: M = 2 H of the 10 machines = Pai's table / 5"
+
+
+def eliminate_negative(ybus: np.ndarray, free: np.ndarray) -> np.ndarray:
+    """The buses kept (a boolean mask) after Kron-eliminating every bus without injection
+    (``free``) that ends a branch of negative susceptance ``Im(Y_ij) < 0`` (a series capacitor);
+    ``ybus`` is reduced in place on the kept buses' rows. Exits when such a branch has no free
+    end, or when a negative one is left."""
+    keep = np.ones(ybus.shape[0], dtype=bool)
+    while True:
+        off = ybus.imag.copy()
+        np.fill_diagonal(off, 0.0)
+        off[~keep, :] = 0.0
+        off[:, ~keep] = 0.0
+        bad = np.argwhere(np.triu(off < 0))
+        if bad.size == 0:
+            return keep
+        a, b = bad[0]
+        k = a if free[a] else b if free[b] else None
+        if k is None:
+            sys.exit(f"grid_case: the branch of buses {a}-{b} (0-based) has a negative susceptance")
+        # Kron reduction of bus k: Y <- Y - Y[:, k] Y[k, :] / Y[k, k] (exact without injection at k)
+        ybus -= np.outer(ybus[:, k], ybus[k, :]) / ybus[k, k]
+        keep[k] = False
+        ybus[k, :] = 0.0
+        ybus[:, k] = 0.0
+
+
+def convert(name: str, case: dict):
+    """``(buses, lines, K, P, m, D)`` of a solved case (module docstring): ``buses`` the kept
+    bus numbers in increasing order, ``lines`` pairs of bus numbers."""
+    from pypower.ext2int import ext2int
+    from pypower.makeYbus import makeYbus
+
+    internal = ext2int(case)  # buses renumbered 0..N-1, in the case's order
+    bus, gen, branch = internal["bus"], internal["gen"], internal["branch"]
+    numbers = case["bus"][:, 0].astype(int)
+    if list(numbers) != sorted(numbers):
+        sys.exit(f"grid_case: {name}'s buses are not listed in increasing order")
+    ybus = makeYbus(internal["baseMVA"], bus, branch)[0].toarray()
+    base = internal["baseMVA"]
+    p = -bus[:, 2].astype(float)
+    rating = np.zeros(p.size)
+    for g in gen:
+        if g[7] > 0:  # in service
+            p[int(g[0])] += g[1]
+            rating[int(g[0])] += g[8]
+    p /= base
+    free = (bus[:, 2] == 0) & (bus[:, 3] == 0) & (bus[:, 4] == 0) & (bus[:, 5] == 0) & (rating == 0)
+    keep = eliminate_negative(ybus, free)
+    idx = np.flatnonzero(keep)
+    vm = bus[:, 7]
+    lines = [(a, b) for a in idx for b in idx if a < b and ybus[a, b] != 0]
+    k = np.array([vm[a] * vm[b] * ybus[a, b].imag for a, b in lines])
+    if (k <= 0).any():
+        sys.exit(f"grid_case: {name} has a line with a non-positive susceptance")
+    if name == "case39":
+        if list(numbers) != list(range(1, 40)):
+            sys.exit("grid_case: case39's buses are not numbered 1..39")
+        h = np.array([H_PAI.get(b, 0.0) for b in numbers])
+    else:
+        h = H_RATED * rating / base
+    m = 2 * h / OMEGA_R
+    d = np.where(m > 0, m * GAMMA_GEN, D_LOAD)
+    pairs = [(int(numbers[a]), int(numbers[b])) for a, b in lines]
+    return [int(x) for x in numbers[idx]], pairs, k, p[idx], m[idx], d[idx]
+
+
+def files(name: str, prefix: str) -> dict[str, str]:
+    title, short, inertia_source = CASES[name]
+    buses, lines, k, p, m, d = convert(name, solved_case(name))
+    n, gens = p.size, int((m > 0).sum())
+    head = (
+        f"# {title}, structure-preserving swing equation (tools/grid_case.py --case {name}).\n"
+        "# Source: PYPOWER 5.1.21 (https://pypi.org/project/PYPOWER/), pypower/{name}.py (network and\n"
+        "# dispatch, solved by runpf), {licence}.\n"
+        "# Written by tools/grid_case.py (the structure-preserving reduction: see its docstring).\n"
+    ).format(name=name, licence=LICENCE.format(prefix=short)) + inertia_source
+    order = f"bus {buses[0]}..{buses[-1]}" if buses == list(range(1, n + 1)) else f"the {n} buses, increasing"
+    edges = (
+        f"# The {len(lines)} distinct branches (from to K): K_ij = |V_i||V_j| B_ij in p.u. of 100 MVA,\n"
+        "# B_ij = Im(Ybus_ij), |V| of the solved AC power flow (raw coupling).\n" + head
+    )
+    edges += "".join(f"{a} {b} {x:.6g}\n" for (a, b), x in zip(lines, k, strict=True))
+    power = (
+        f"# P_i = Pg_i - Pd_i of {order}, p.u. of 100 MVA, from the solved power flow; the sum,\n"
+        f"# {p.sum():.4f} p.u., is the losses (antisync removes the mean).\n" + head
+    )
+    power += "".join(f"{x + 0.0:.6f}\n" for x in p)  # + 0.0: no "-0.000000"
+    if name == "case39":
+        where = "Pai's table on 100 MVA at the 10 generator buses 30..39"
+    else:
+        where = f"{H_RATED:g} s x rating / 100 MVA at the {gens} generator buses"
+    mass = (
+        f"# m_i = 2 H_i / omega_R (s^2/rad in p.u.), omega_R = 2 pi {F_R:g} rad/s,\n# H_i = {where};\n"
+        f"# 0 at the {n - gens} other buses (first order); {order}.\n" + head
+    )
+    mass += "".join(f"{x:.8g}\n" for x in m)
+    damping = (
+        f"# D_i (p.u. power per rad/s): m_i * {GAMMA_GEN:g}/s at the {gens} generators (not in the sources,\n"
+        f"# chosen: every swing decays at {GAMMA_GEN / 2:g}/s), {D_LOAD:g} at the other buses (loads).\n"
+        + head
+    )
+    damping += "".join(f"{x:.8g}\n" for x in d)
+    return {
+        f"{prefix}.edges": edges,
+        f"{prefix}_power.txt": power,
+        f"{prefix}_inertia.txt": mass,
+        f"{prefix}_damping.txt": damping,
+    }
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--case", choices=sorted(CASES), default="case39")
+    ap.add_argument("--out", type=Path, default=Path("configs"))
+    ap.add_argument("--prefix", help="file prefix (default: ieee39_grid, ieee300_grid)")
+    ap.add_argument("--check", action="store_true", help="compare with the files in --out instead of writing")
+    args = ap.parse_args()
+    prefix = args.prefix or f"{CASES[args.case][1]}_grid"
+    if args.case == "case39":
+        print(f"grid_case: {check_andes()}")
+    write_or_check(files(args.case, prefix), args.out, args.check, "grid_case")
+
+
+if __name__ == "__main__":
+    main()
