@@ -333,6 +333,32 @@ def _lines_of(omega: np.ndarray, labels: list, lines) -> list[tuple[int, int]]:
     return out
 
 
+def grid_bridges(omega: np.ndarray) -> set:
+    """The bridges ``(a, b)``, ``a < b``, of the grid whose lines are ``omega > 0``: the lines
+    whose removal islands it. A grid that is not connected is refused (one line)."""
+    g = nx.Graph()
+    g.add_nodes_from(range(omega.shape[0]))
+    g.add_edges_from(zip(*np.nonzero(np.triu(omega > 0)), strict=True))
+    if not nx.is_connected(g):
+        raise GridError("the grid is not connected: it has no common locked state")
+    return {tuple(sorted(e)) for e in nx.bridges(g)}
+
+
+def split_bridges(omega, labels, todo, bridges, *, refuse: bool, hint: str) -> tuple[list, list]:
+    """``(todo without the bridges, the bridges left out as label pairs)``; with ``refuse``, a
+    bridge in ``todo`` is a one-line :class:`GridError` instead, ending with ``hint`` (how to
+    ask for it anyway)."""
+    hit = [e for e in todo if e in bridges]
+    if hit and refuse:
+        a, b = hit[0]
+        more = f" (and {len(hit) - 1} other bridge(s))" if len(hit) > 1 else ""
+        raise GridError(
+            f"line {labels[a]}-{labels[b]} is a bridge: removing it islands the grid{more}; "
+            f"weaken it (beta < 1) or {hint}"
+        )
+    return [e for e in todo if e not in bridges], [(labels[a], labels[b]) for a, b in hit]
+
+
 def line_indicators(
     omega,
     p,
@@ -393,22 +419,9 @@ def line_indicators(
     todo = _lines_of(omega, labels, lines)
     skipped = []
     if beta == 1.0:
-        g = nx.Graph()
-        g.add_nodes_from(range(n))
-        g.add_edges_from(zip(*np.nonzero(np.triu(omega > 0)), strict=True))
-        if not nx.is_connected(g):
-            raise GridError("the grid is not connected: it has no common locked state to compare")
-        bridges = {tuple(sorted(e)) for e in nx.bridges(g)}
-        hit = [e for e in todo if e in bridges]
-        if hit and not skip_bridges:
-            a, b = hit[0]
-            more = f" (and {len(hit) - 1} other bridge(s))" if len(hit) > 1 else ""
-            raise GridError(
-                f"line {labels[a]}-{labels[b]} is a bridge: removing it islands the grid{more}; "
-                "weaken it (beta < 1) or pass skip_bridges=True"
-            )
-        skipped = [(labels[a], labels[b]) for a, b in hit]
-        todo = [e for e in todo if e not in bridges]
+        todo, skipped = split_bridges(
+            omega, labels, todo, grid_bridges(omega), refuse=not skip_bridges, hint="pass skip_bridges=True"
+        )
     base = _state_of(coupling_matrix(omega, coupling), p, lag, inertia, damping)
     rows = []
     for a, b in todo:

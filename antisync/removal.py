@@ -52,7 +52,6 @@ from collections.abc import Mapping
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
-import networkx as nx
 import numpy as np
 
 from antisync.grid import Grid, GridError
@@ -435,32 +434,27 @@ def parse_lines(text: str | None, labels) -> list[tuple] | None:
 
 
 def _pick_lines(omega: np.ndarray, labels: list, lines, beta: float, islanding: bool):
-    """0-based ``(a, b)`` of the lines to change, the bridges among them, the skipped ones."""
-    from antisync.grid import _lines_of
+    """0-based ``(a, b)`` of the lines to change, the bridges among them, the skipped ones: a
+    bridge asked for by name is refused unless ``islanding``; with every line asked for, the
+    bridges are left out and listed."""
+    from antisync.grid import _lines_of, grid_bridges, split_bridges
 
     if isinstance(lines, str):
         lines = parse_lines(lines, labels)
     todo = _lines_of(omega, labels, lines)
-    n = omega.shape[0]
-    g = nx.Graph()
-    g.add_nodes_from(range(n))
-    g.add_edges_from(zip(*np.nonzero(np.triu(omega > 0)), strict=True))
-    if not nx.is_connected(g):
-        raise GridError("the grid is not connected: it has no common synchronized state")
-    bridges = {tuple(sorted(e)) for e in nx.bridges(g)} if beta == 1.0 else set()
-    hit = [e for e in todo if e in bridges]
-    skipped = []
-    if hit and not islanding:
-        if lines is not None:
-            a, b = hit[0]
-            more = f" (and {len(hit) - 1} other bridge(s))" if len(hit) > 1 else ""
-            raise GridError(
-                f"line {labels[a]}-{labels[b]} is a bridge: removing it islands the grid{more}; "
-                "weaken it (beta < 1) or ask for islanding (islanding=True, --islanding)"
-            )
-        # every line asked for: the bridges are left out and listed
-        skipped = [(labels[a], labels[b]) for a, b in hit]
-        todo = [e for e in todo if e not in bridges]
+    bridges = grid_bridges(omega)  # refuses a grid that is not connected, whatever beta
+    if beta != 1.0:
+        return todo, set(), []
+    if islanding:
+        return todo, bridges, []
+    todo, skipped = split_bridges(
+        omega,
+        labels,
+        todo,
+        bridges,
+        refuse=lines is not None,
+        hint="ask for islanding (islanding=True, --islanding)",
+    )
     return todo, bridges, skipped
 
 
