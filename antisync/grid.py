@@ -152,8 +152,21 @@ class LineIndicators:
         return d
 
 
+class Rows:
+    """A table of per-line rows (``self.rows``) read as a sequence of them."""
+
+    def __len__(self) -> int:
+        return len(self.rows)
+
+    def __iter__(self):
+        return iter(self.rows)
+
+    def __getitem__(self, k):
+        return self.rows[k]
+
+
 @dataclass(frozen=True)
-class LineTable:
+class LineTable(Rows):
     """The rows of :func:`line_indicators` (a sequence of :class:`LineIndicators`) with the
     intact grid's state ``base`` and the rankings of the static Braess and troublemaker lines."""
 
@@ -170,15 +183,6 @@ class LineTable:
             return "-"
         lab = self.labels or tuple(range(max(line) + 1))
         return f"{lab[line[0]]}-{lab[line[1]]}"
-
-    def __len__(self) -> int:
-        return len(self.rows)
-
-    def __iter__(self):
-        return iter(self.rows)
-
-    def __getitem__(self, k):
-        return self.rows[k]
 
     def row(self, u, v) -> LineIndicators:
         """The row of line ``u-v`` (labels, either order)."""

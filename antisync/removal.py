@@ -54,7 +54,7 @@ from pathlib import Path
 
 import numpy as np
 
-from antisync.grid import Grid, GridError
+from antisync.grid import Grid, GridError, Rows
 from antisync.multiplicity import FDR_LEVEL, benjamini_hochberg
 from antisync.status import ALREADY_SYNCED, SYNCED
 
@@ -195,7 +195,7 @@ class LineRemoval:
 
 
 @dataclass(frozen=True)
-class RemovalTable:
+class RemovalTable(Rows):
     """The rows of :func:`line_removal` (one :class:`LineRemoval` per line) and the intact
     grid's outcome, with the rankings of troublemaker and dynamic Braess lines.
 
@@ -215,15 +215,6 @@ class RemovalTable:
     skipped: tuple = field(default=())
     config: dict = field(default_factory=dict)
     level: float = 0.95
-
-    def __len__(self) -> int:
-        return len(self.rows)
-
-    def __iter__(self):
-        return iter(self.rows)
-
-    def __getitem__(self, k):
-        return self.rows[k]
 
     @property
     def n(self) -> int:
