@@ -248,30 +248,22 @@ def plot_top_intervals(recs: list[dict], key: str, ax, *, k: int = 10) -> None:
     ax.set_xlabel(LABELS[key] + (" and its 95% interval" if key == "lambda_km" else " (exact)"))
     # a side without a resolved link says so in a row of its own, above or below its group
     top, bottom = 0.8, min(y, default=-1) - 0.8
-    if not any(resolved for _, resolved in pos_links):
-        top += 1.2
-        ax.text(
-            0.5,
-            top - 0.9,
-            "no antifragile link resolved",
-            transform=ax.get_yaxis_transform(),
-            ha="center",
-            va="center",
-            fontsize=9,
-            color="#555555",
-        )
-    if not any(resolved for _, resolved in neg_links):
-        bottom -= 1.2
-        ax.text(
-            0.5,
-            bottom + 0.9,
-            "no fragile link resolved",
-            transform=ax.get_yaxis_transform(),
-            ha="center",
-            va="center",
-            fontsize=9,
-            color="#555555",
-        )
+    empty_pos = not any(resolved for _, resolved in pos_links)
+    empty_neg = not any(resolved for _, resolved in neg_links)
+    top += 1.2 * empty_pos
+    bottom -= 1.2 * empty_neg
+    for empty, at, side in ((empty_pos, top - 0.9, "antifragile"), (empty_neg, bottom + 0.9, "fragile")):
+        if empty:
+            ax.text(
+                0.5,
+                at,
+                f"no {side} link resolved",
+                transform=ax.get_yaxis_transform(),
+                ha="center",
+                va="center",
+                fontsize=9,
+                color="#555555",
+            )
     if not rows:
         ax.set_yticks([])
     ax.set_ylim(bottom, top)
