@@ -7,7 +7,7 @@ import os
 from antisync.errors import AntisyncError
 from antisync.types import Backend
 
-__all__ = ["cuda_usable", "resolve_backend"]
+__all__ = ["compiler_problem", "cuda_usable", "resolve_backend"]
 
 
 def cuda_usable() -> tuple[bool, str]:
@@ -19,6 +19,9 @@ def cuda_usable() -> tuple[bool, str]:
     try:
         if cuda.is_available():
             simulated = os.environ.get("NUMBA_ENABLE_CUDASIM") == "1"
+            problem = None if simulated else compiler_problem()
+            if problem is not None:
+                return False, problem
             name = "the CUDA simulator" if simulated else cuda.get_current_device().name
             if isinstance(name, bytes):
                 name = name.decode()
@@ -26,6 +29,36 @@ def cuda_usable() -> tuple[bool, str]:
     except Exception as exc:  # the driver can fail in many ways; report, do not crash
         return False, f"numba.cuda found no usable GPU ({exc})"
     return False, "numba.cuda.is_available() is False: no NVIDIA driver or GPU was found"
+
+
+def compiler_problem() -> str | None:
+    """Why numba-cuda cannot compile kernels with the installed numpy, or None.
+
+    numba-cuda loads its typing and lowering registries at the first kernel compilation, so a
+    numpy it does not support fails there, deep inside the first launch (numba-cuda 0.30.4
+    with numpy 2.5, which removed ``np.row_stack``: bench/RESULTS.md). Importing the registry
+    here (under a second, no GPU needed) turns that into one sentence naming both versions.
+    """
+    try:
+        import numba.cuda.cudaimpl  # noqa: F401
+    except Exception as exc:  # whatever the registry trips on, report it
+        import numpy
+
+        return (
+            f"numba-cuda {_version('numba-cuda')} cannot compile kernels with numpy {numpy.__version__} "
+            f"({type(exc).__name__}: {exc}); install a numpy that it supports (for numba-cuda 0.30: "
+            "pip install 'numpy<2.5') or a newer numba-cuda"
+        )
+    return None
+
+
+def _version(dist: str) -> str:
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return version(dist)
+    except PackageNotFoundError:
+        return "?"
 
 
 def resolve_backend(backend: Backend) -> tuple[str, str]:

@@ -215,3 +215,24 @@ def test_kernels_compile_for_a_real_gpu():
     if proc.returncode == 3:
         pytest.skip(proc.stdout.strip() or "no CUDA toolkit")
     assert proc.returncode == 0, proc.stdout + proc.stderr[-4000:]
+
+
+def test_a_numpy_that_numba_cuda_cannot_compile_with_is_named_in_one_line():
+    """numba-cuda 0.30.4 with numpy 2.5 (no ``np.row_stack``) failed deep inside the first
+    launch on a real GPU (bench/RESULTS.md); compiler_problem names both versions instead."""
+    from antisync.backends import compiler_problem
+
+    assert compiler_problem() is None  # this environment compiles
+    code = (
+        "import numpy; del numpy.row_stack\n"
+        "from antisync.backends import compiler_problem\n"
+        "print(compiler_problem())\n"
+    )
+    env = {k: v for k, v in os.environ.items() if not k.startswith("NUMBA_")}
+    proc = subprocess.run(
+        [sys.executable, "-c", code], env=env, cwd=ROOT, capture_output=True, text=True, timeout=HANG_GUARD_S
+    )
+    assert proc.returncode == 0, proc.stderr
+    line = proc.stdout.strip()
+    assert "cannot compile kernels with numpy" in line and "row_stack" in line, line
+    assert "\n" not in line

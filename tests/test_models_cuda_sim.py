@@ -24,3 +24,10 @@ def test_model_kernels_identical_to_cpu():
 
 def test_model_run_on_cuda_matches_cpu(tmp_path):
     assert "identical on cpu and cuda" in _check("runner", str(tmp_path))
+
+
+def test_gpu_models_check_tiny_runs_under_simulator():
+    """The script run on a GPU machine (bench/gpu_models_check.py) still runs: its code path."""
+    proc = _simulated(str(ROOT / "bench" / "gpu_models_check.py"), "--tiny")
+    assert proc.returncode == 0, proc.stdout + proc.stderr[-4000:]
+    assert "agreement: OK" in proc.stdout and proc.stdout.count("| 2 x ") == 3
