@@ -51,6 +51,7 @@ import time
 from collections.abc import Mapping
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 
@@ -81,6 +82,9 @@ FORMAT = "antisync-line-removal"
 FORMAT_VERSION = 1
 #: Realizations integrated per call of the compiled driver (progress and memory).
 CHUNK = 256
+#: Tasks per Dask worker thread that :func:`line_removal` aims for (lines are grouped so that a
+#: few realizations x many lines still spread over the cluster).
+TASKS_PER_WORKER = 4
 
 
 # --- exact intervals -------------------------------------------------------------------------
@@ -471,6 +475,7 @@ def line_removal(
     threads: int | None = None,
     level: float = 0.95,
     log=None,
+    client=None,
     **overrides,
 ) -> RemovalTable:
     """Paired dynamic removal (or weakening) of grid lines, module docstring.
@@ -492,7 +497,12 @@ def line_removal(
     islanding : bool
         Integrate a bridge's removal too, its row marked ``islanding``.
     threads : int, optional
-        CPU threads of the compiled driver (default: all cores).
+        CPU threads of the compiled driver (default: all cores; on Dask, per task: 1).
+    client : distributed.Client, optional
+        Integrate on this Dask cluster's workers: tasks of up to :data:`CHUNK` realizations x a
+        group of lines (the intact grid in the first group), about :data:`TASKS_PER_WORKER` per
+        worker thread. Every trajectory is a function of ``(seed, k, weights)`` alone, so the
+        table equals the local one, array for array (tests/test_grid_dynamic.py).
     level : float
         Confidence level of the exact intervals.
     log : callable, optional
@@ -511,10 +521,8 @@ def line_removal(
         config value that is not valid (per-node files of the wrong length included): one line.
     """
     from antisync import coupling, graphs
-    from antisync.estimators import crossing_times
     from antisync.jobs import check_step
-    from antisync.kernels.model_cpu import ModelParams, simulate_model
-    from antisync.model import drawn_frequencies, model_setup
+    from antisync.model import model_setup
 
     t_start = time.perf_counter()
     beta = check_beta(beta)
@@ -556,44 +564,33 @@ def line_removal(
 
     dyn = cfg.dynamics
     m = int(cfg.realizations)
-    n_nodes = len(labels)
     status0 = np.empty(m, dtype=np.int8)
     status = np.empty((m, len(todo)), dtype=np.int8)
     tau0 = np.full(m, np.nan)
     tau = np.full((m, len(todo)), np.nan)
-    for first in range(0, m, CHUNK):
-        ks = np.arange(first, min(m, first + CHUNK), dtype=np.int64)
-        if cfg.model.drawn:
-            freqs = drawn_frequencies(cfg.model, cfg.seed, ks, n_nodes)
-        else:
-            freqs = (np.zeros(n_nodes) if setup.freqs is None else setup.freqs)[None, :]
-        params = ModelParams(
-            freqs, setup.cos_lag, setup.sin_lag, setup.inertia, setup.damping, setup.criterion, setup.targets
-        )
-        sim = simulate_model(
-            cfg.seed,
-            0,
-            0,
-            csr.indptr,
-            csr.indices,
-            csr.weights,
-            variants,
-            params,
-            dt=dyn.dt,
-            max_steps=dyn.max_steps,
-            integrator=dyn.integrator,
-            threads=threads,
-            realizations=ks,
-        )
-        t0, t = crossing_times(sim, dyn.interpolate)
-        part = slice(ks[0], ks[-1] + 1)
-        status0[part] = sim.status0
-        status[part] = sim.status
-        tau0[part] = np.where(sim.status0 == SYNCED, t0 * dyn.dt, np.nan)
-        tau[part] = np.where(sim.status == SYNCED, t * dyn.dt, np.nan)
+    fixed = dict(
+        seed=int(cfg.seed),
+        indptr=csr.indptr,
+        indices=csr.indices,
+        base=csr.weights,
+        setup=_Setup.of(setup, cfg.model, len(labels)),
+        dt=dyn.dt,
+        max_steps=dyn.max_steps,
+        integrator=dyn.integrator,
+        interpolate=dyn.interpolate,
+    )
+    tasks = _plan(m, variants, base=csr.weights, groups=1 if client is None else _groups(client, m))
+    done = 0
+    for (ks, group, intact), part in _run_tasks(tasks, variants, fixed, threads, client):
+        span = slice(ks[0], ks[-1] + 1)
+        if intact:
+            status0[span], tau0[span] = part[0], part[1]
+        status[span, group], tau[span, group] = part[2], part[3]
+        done += ks.size * (group.size + intact)
         if log is not None:
             took = time.perf_counter() - t_start
-            log(f"{ks[-1] + 1}/{m} realizations x {len(todo) + 1} grids, {took:.1f} s")
+            grids = len(todo) + 1
+            log(f"{done}/{m * grids} trajectories ({m} realizations x {grids} grids), {took:.1f} s")
 
     ok0 = np.isin(status0, (SYNCED, ALREADY_SYNCED))
     rows = []
@@ -646,6 +643,128 @@ def line_removal(
         config=cfg.to_dict(),
         level=level,
     )
+
+
+# --- the work: tasks of realizations x lines, run here or on Dask ----------------------------
+
+
+class _Setup(NamedTuple):
+    """What a task needs of the model (picklable: plain arrays and numbers)."""
+
+    freqs: np.ndarray | None  # fixed frequencies (None: drawn per realization, or none)
+    drawn: object  # the Model when frequencies are drawn, else None
+    n_nodes: int
+    cos_lag: float
+    sin_lag: float
+    inertia: object
+    damping: object
+    criterion: int
+    targets: np.ndarray
+
+    @classmethod
+    def of(cls, setup, model, n_nodes: int) -> _Setup:
+        return cls(
+            None if model.drawn else setup.freqs,
+            model if model.drawn else None,
+            n_nodes,
+            setup.cos_lag,
+            setup.sin_lag,
+            setup.inertia,
+            setup.damping,
+            setup.criterion,
+            np.asarray(setup.targets, dtype=np.float64),
+        )
+
+
+def _plan(m: int, variants: np.ndarray, base: np.ndarray, groups: int) -> list[tuple]:
+    """Tasks ``(realizations, line indices, with the intact grid)``: chunks of :data:`CHUNK`
+    realizations x ``groups`` groups of lines; the first group of a chunk integrates the intact
+    grid too, and so does any group holding a line whose change leaves the weights as they are
+    (the driver copies such a line's result from the intact one)."""
+    same = np.array([np.array_equal(w, base) for w in variants], dtype=bool)
+    parts = [g for g in np.array_split(np.arange(variants.shape[0]), max(1, groups)) if g.size]
+    out = []
+    for first in range(0, m, CHUNK):
+        ks = np.arange(first, min(m, first + CHUNK), dtype=np.int64)
+        out += [(ks, g, j == 0 or bool(same[g].any())) for j, g in enumerate(parts)]
+    return out
+
+
+def _groups(client, m: int) -> int:
+    threads = sum(client.nthreads().values()) or 1
+    chunks = -(-m // CHUNK)
+    return max(1, -(-TASKS_PER_WORKER * threads // chunks))
+
+
+def _removal_task(ks, variants, intact: bool, fixed: dict, threads):
+    """Integrate realizations ``ks`` of the intact grid (if ``intact``) and of ``variants``:
+    ``(status0, tau0, status, tau)``, times in the model's units (NaN where not SYNCED)."""
+    from antisync.estimators import crossing_times
+    from antisync.kernels.model_cpu import ModelParams, simulate_model
+    from antisync.model import drawn_frequencies
+
+    st = fixed["setup"]
+    if st.drawn is not None:
+        freqs = drawn_frequencies(st.drawn, fixed["seed"], ks, st.n_nodes)
+    else:
+        freqs = (np.zeros(st.n_nodes) if st.freqs is None else st.freqs)[None, :]
+    params = ModelParams(freqs, st.cos_lag, st.sin_lag, st.inertia, st.damping, st.criterion, st.targets)
+    todo = None
+    if not intact:
+        todo = np.ones((ks.size, variants.shape[0] + 1), dtype=np.bool_)
+        todo[:, 0] = False
+    sim = simulate_model(
+        fixed["seed"],
+        0,
+        0,
+        fixed["indptr"],
+        fixed["indices"],
+        fixed["base"],
+        variants,
+        params,
+        dt=fixed["dt"],
+        max_steps=fixed["max_steps"],
+        integrator=fixed["integrator"],
+        threads=threads,
+        realizations=ks,
+        todo=todo,
+    )
+    t0, t = crossing_times(sim, fixed["interpolate"])
+    dt = fixed["dt"]
+    return (
+        sim.status0,
+        np.where(sim.status0 == SYNCED, t0 * dt, np.nan),
+        sim.status,
+        np.where(sim.status == SYNCED, t * dt, np.nan),
+    )
+
+
+def _run_tasks(tasks, variants, fixed, threads, client):
+    """Yield ``(task, result)`` of :func:`_removal_task`: here in order, or on ``client``'s
+    workers as they finish (each task's ``targets`` cut to its own lines)."""
+
+    def args(task):
+        ks, group, intact = task
+        setup = fixed["setup"]
+        targets = np.concatenate([setup.targets[:1], setup.targets[1:][group]])
+        return ks, variants[group], intact, {**fixed, "setup": setup._replace(targets=targets)}
+
+    if client is None:
+        for task in tasks:
+            yield task, _removal_task(*args(task), threads)
+        return
+    from distributed import as_completed
+
+    futures = {}
+    for task in tasks:
+        ks, var, intact, fx = args(task)
+        fut = client.submit(_removal_task, ks, var, intact, fx, threads or 1, pure=False)
+        futures[fut] = task
+    try:
+        for fut in as_completed(list(futures), loop=client.loop):
+            yield futures[fut], fut.result()
+    finally:
+        client.cancel(list(futures))
 
 
 # --- files -----------------------------------------------------------------------------------

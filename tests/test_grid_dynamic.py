@@ -273,5 +273,48 @@ def test_cli_figure_is_written_and_never_overwritten_without_overwrite(tmp_path)
         res = runner.invoke(app, ["grid", str(cfg), "--removal", "--lines", "0-4", *extra])
         assert_one_line(res, message)
     res = runner.invoke(app, ["grid", str(cfg), "--figure", str(tmp_path / "f.png")])
-    assert_one_line(res, "--figure writes the dynamic removal table: add --removal")
+    assert_one_line(res, "--figure is for the dynamic removal table: add --removal")
     assert sorted(p.name for p in tmp_path.iterdir()) == ["g.edges", "g.png", "g.yaml", "m.txt", "p.txt"]
+
+
+# --- Dask --------------------------------------------------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def client():
+    from distributed import Client, LocalCluster
+
+    with LocalCluster(
+        n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1", dashboard_address=None
+    ) as cluster:
+        with Client(cluster, set_as_default=False) as c:
+            yield c
+
+
+def test_removal_on_a_dask_cluster_equals_the_local_table(client):
+    """Tasks of realizations x groups of lines on two worker processes (the intact grid in one
+    group only) give the local table, array for array and row for row."""
+    from antisync import removal
+
+    cfg = ring_config(realizations=removal.CHUNK + 8)  # two chunks of realizations
+    here = line_removal(cfg)
+    tasks = removal._plan(cfg["realizations"], np.zeros((7, 1)), np.ones(1), removal._groups(client, 264))
+    assert len({t[1].tobytes() for t in tasks}) > 1  # the lines are split over tasks
+    there = line_removal(cfg, client=client)
+    for name in ("status0", "tau0", "status", "tau"):
+        np.testing.assert_array_equal(getattr(there, name), getattr(here, name), err_msg=name)
+    assert there.rows == here.rows
+
+
+def test_cli_removal_with_workers_equals_the_local_run(tmp_path):
+    cfg = _grid_files(tmp_path)
+    out = {}
+    for name, extra in (("local", []), ("dask", ["--workers", "2"])):
+        path = tmp_path / f"{name}.json"
+        res = runner.invoke(app, ["grid", str(cfg), "--removal", "--out", str(path), *extra])
+        assert res.exit_code == 0, res.output
+        out[name] = json.loads(path.read_text())
+    assert "LocalCluster of 2" in res.stderr
+    assert out["dask"]["rows"] == out["local"]["rows"]
+    res = runner.invoke(app, ["grid", str(cfg), "--workers", "2"])
+    assert_one_line(res, "--workers is for the dynamic removal table: add --removal")

@@ -7,7 +7,7 @@ from typing import Annotated
 
 import typer
 
-from antisync.cli.common import DebugOpt, QuietOpt, SetOpt, info, one_of, user_errors
+from antisync.cli.common import DebugOpt, QuietOpt, SetOpt, dask_executor, info, one_of, user_errors
 from antisync.types import RemovalBy
 
 
@@ -29,7 +29,16 @@ def grid(
     islanding: Annotated[
         bool, typer.Option("--islanding", help="Remove bridges too, marking the rows (default: refused).")
     ] = False,
-    threads: Annotated[int | None, typer.Option(help="CPU threads (default: all cores).")] = None,
+    threads: Annotated[
+        int | None, typer.Option(help="CPU threads (default: all cores; with Dask, per task: 1).")
+    ] = None,
+    workers: Annotated[
+        int | None,
+        typer.Option(help="--removal on a local Dask cluster of this many single-threaded workers."),
+    ] = None,
+    scheduler: Annotated[
+        str | None, typer.Option(help="--removal on the Dask cluster at this address (tcp://host:8786).")
+    ] = None,
     top: Annotated[int | None, typer.Option(help="Print only the first TOP rows of the ranking.")] = None,
     out: Annotated[
         Path | None, typer.Option("--out", "-o", help="Write the removal table as JSON (atomically).")
@@ -63,9 +72,14 @@ def grid(
     from antisync.store.provenance import command_line
 
     beta = check_beta(beta)
-    for name, path in (("--out", out), ("--figure", figure)):
-        if path is not None and not removal:
-            raise GridError(f"{name} writes the dynamic removal table: add --removal")
+    for name, value in (
+        ("--out", out),
+        ("--figure", figure),
+        ("--workers", workers),
+        ("--scheduler", scheduler),
+    ):
+        if value is not None and not removal:
+            raise GridError(f"{name} is for the dynamic removal table: add --removal")
     if out is not None:
         check_output(out, overwrite)
     if figure is not None:
@@ -77,16 +91,18 @@ def grid(
         typer.echo(format_table(table, top=top))
         return
     cfg = load_config(config, list(set_ or []))
-    table = line_removal(
-        cfg,
-        lines=lines,
-        beta=beta,
-        realizations=realizations,
-        seed=seed,
-        islanding=islanding,
-        threads=threads,
-        log=None if quiet else (lambda m: info(f"antisync grid: {m}")),
-    )
+    with dask_executor(cfg, workers=workers, scheduler=scheduler, quiet=quiet) as ex:
+        table = line_removal(
+            cfg,
+            lines=lines,
+            beta=beta,
+            realizations=realizations,
+            seed=seed,
+            islanding=islanding,
+            threads=threads,
+            log=None if quiet else (lambda m: info(f"antisync grid: {m}")),
+            client=None if ex is None else ex.client,
+        )
     typer.echo(table.to_markdown(top=top))
     if out is not None:
         path = write_table(table, out, overwrite=overwrite, command=command_line())
