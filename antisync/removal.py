@@ -43,6 +43,7 @@ frequency criterion such a row normally loses every realization).
 
 from __future__ import annotations
 
+import contextlib
 import json
 import math
 import os
@@ -63,6 +64,9 @@ __all__ = [
     "FORMAT",
     "LineRemoval",
     "RemovalTable",
+    "RemovalJournal",
+    "journal_folder",
+    "remove_journal",
     "clopper_pearson",
     "line_removal",
     "mcnemar_exact",
@@ -476,6 +480,8 @@ def line_removal(
     level: float = 0.95,
     log=None,
     client=None,
+    journal: str | Path | None = None,
+    restart: bool = False,
     **overrides,
 ) -> RemovalTable:
     """Paired dynamic removal (or weakening) of grid lines, module docstring.
@@ -503,6 +509,13 @@ def line_removal(
         group of lines (the intact grid in the first group), about :data:`TASKS_PER_WORKER` per
         worker thread. Every trajectory is a function of ``(seed, k, weights)`` alone, so the
         table equals the local one, array for array (tests/test_grid_dynamic.py).
+    journal : path, optional
+        A folder (``<out>.partial`` for ``antisync grid --out``) where every finished task is
+        saved at once: a run killed at any moment and started again with the same journal and
+        arguments integrates only what is missing (:class:`RemovalJournal`). A journal of other
+        work (another config, seed, realization count, line set or beta) is refused in one line.
+    restart : bool
+        Discard what ``journal`` holds (once the arguments are checked) and start over.
     level : float
         Confidence level of the exact intervals.
     log : callable, optional
@@ -581,11 +594,24 @@ def line_removal(
     )
     tasks = _plan(m, variants, base=csr.weights, groups=1 if client is None else _groups(client, m))
     done = 0
+    book = None
+    if journal is not None:
+        key = {"config": cfg.to_dict(), "lines": [[str(labels[a]), str(labels[b])] for a, b in todo]}
+        if restart:
+            remove_journal(journal)
+        book = RemovalJournal(journal, {**key, "beta": beta, "islanding": bool(islanding)})
+        have = book.load(status0, tau0, status, tau)
+        tasks = _unfinished(tasks, have)
+        done = int(have.sum())
+        if done and log is not None:
+            log(f"resumed: {done} trajectories read from {book.folder}")
     for (ks, group, intact), part in _run_tasks(tasks, variants, fixed, threads, client):
         span = slice(ks[0], ks[-1] + 1)
         if intact:
             status0[span], tau0[span] = part[0], part[1]
         status[span, group], tau[span, group] = part[2], part[3]
+        if book is not None:
+            book.save(ks, group, intact, part)
         done += ks.size * (group.size + intact)
         if log is not None:
             took = time.perf_counter() - t_start
@@ -765,6 +791,105 @@ def _run_tasks(tasks, variants, fixed, threads, client):
             yield futures[fut], fut.result()
     finally:
         client.cancel(list(futures))
+
+
+def _unfinished(tasks: list[tuple], have: np.ndarray) -> list[tuple]:
+    """``tasks`` less what ``have`` (bool ``(m, 1 + lines)``: column 0 the intact grid) holds."""
+    out = []
+    for ks, group, intact in tasks:
+        intact = intact and not have[ks, 0].all()
+        group = group[~have[ks][:, 1 + group].all(axis=0)]
+        if intact or group.size:
+            out.append((ks, group, intact))
+    return out
+
+
+class RemovalJournal:
+    """Finished removal tasks on disk, so that an interrupted :func:`line_removal` resumes.
+
+    The folder holds ``removal_key.json`` (the work: resolved config, lines, beta, islanding)
+    and one ``task_<first realization>_<first line>_<lines>.npz`` per finished task (written to
+    a temporary name, then renamed: a file is whole or absent). A folder whose key is another
+    work's is refused with one line and left as it is.
+    """
+
+    KEY_FILE = "removal_key.json"
+
+    def __init__(self, folder: str | Path, key: dict):
+        self.folder = Path(folder)
+        self.key = json.loads(json.dumps(_plain(key), sort_keys=True))
+        key_path = self.folder / self.KEY_FILE
+        if key_path.exists():
+            try:
+                theirs = json.loads(key_path.read_text())
+            except (OSError, ValueError):
+                theirs = None
+            if theirs != self.key:
+                raise GridError(
+                    f"{self.folder} holds the unfinished work of another removal run (other config, seed, "
+                    "realizations, lines or beta): pass the same arguments to finish it, or --overwrite to "
+                    "discard it"
+                )
+        elif self.folder.exists() and any(self.folder.iterdir()):
+            raise GridError(f"{self.folder} exists and is not a removal journal; move it away")
+        else:
+            self.folder.mkdir(parents=True, exist_ok=True)
+            replace_atomically(key_path, lambda tmp: tmp.write_text(json.dumps(self.key, sort_keys=True)))
+
+    def tasks(self) -> list[Path]:
+        return sorted(self.folder.glob("task_*.npz"))
+
+    def load(self, status0, tau0, status, tau) -> np.ndarray:
+        """Fill the arrays from the saved tasks; return which cells they held."""
+        have = np.zeros((status0.size, 1 + status.shape[1]), dtype=bool)
+        for path in self.tasks():
+            try:
+                with np.load(path) as f:
+                    ks, group, intact = f["ks"], f["group"], bool(f["intact"])
+                    if intact:
+                        status0[ks], tau0[ks] = f["status0"], f["tau0"]
+                        have[ks, 0] = True
+                    status[np.ix_(ks, group)], tau[np.ix_(ks, group)] = f["status"], f["tau"]
+                    have[np.ix_(ks, 1 + group)] = True
+            except (OSError, ValueError, KeyError, IndexError):
+                continue  # not whole, or not ours: its work is done again
+        return have
+
+    def save(self, ks, group, intact: bool, part) -> None:
+        name = f"task_{ks[0]}_{group[0] if group.size else 0}_{group.size}_{int(intact)}.npz"
+
+        def write(tmp: Path) -> None:
+            with open(tmp, "wb") as fh:
+                np.savez(
+                    fh,
+                    ks=ks,
+                    group=group,
+                    intact=intact,
+                    status0=part[0],
+                    tau0=part[1],
+                    status=part[2],
+                    tau=part[3],
+                )
+
+        replace_atomically(self.folder / name, write)
+
+
+def remove_journal(folder: str | Path) -> None:
+    """Delete a :class:`RemovalJournal`'s files and its folder (once empty); nothing else."""
+    folder = Path(folder)
+    if not folder.is_dir():
+        return
+    for path in folder.glob("task_*.npz"):
+        path.unlink(missing_ok=True)
+    (folder / RemovalJournal.KEY_FILE).unlink(missing_ok=True)
+    with contextlib.suppress(OSError):
+        folder.rmdir()
+
+
+def journal_folder(out: str | Path) -> Path:
+    """Where ``antisync grid --removal --out X.json`` keeps its journal: ``X.json.partial``."""
+    out = Path(out)
+    return out.with_name(out.name + ".partial")
 
 
 # --- files -----------------------------------------------------------------------------------

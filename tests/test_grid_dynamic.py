@@ -318,3 +318,64 @@ def test_cli_removal_with_workers_equals_the_local_run(tmp_path):
     assert out["dask"]["rows"] == out["local"]["rows"]
     res = runner.invoke(app, ["grid", str(cfg), "--workers", "2"])
     assert_one_line(res, "--workers is for the dynamic removal table: add --removal")
+
+
+# --- an interrupted removal resumes --------------------------------------------------------------
+
+
+class _StopAfter:
+    """A ``log`` that interrupts the run (as Ctrl-C would) after ``n`` progress messages."""
+
+    def __init__(self, n: int):
+        self.n, self.seen = n, []
+
+    def __call__(self, message: str) -> None:
+        self.seen.append(message)
+        if len(self.seen) >= self.n:
+            raise KeyboardInterrupt
+
+
+def test_an_interrupted_removal_resumes_from_its_journal_and_redoes_nothing(tmp_path):
+    from antisync import removal
+
+    cfg = ring_config(realizations=removal.CHUNK + 8)  # two tasks: 256 and 8 realizations
+    whole = line_removal(cfg)
+    journal = tmp_path / "t.json.partial"
+    with pytest.raises(KeyboardInterrupt):
+        line_removal(cfg, journal=journal, log=_StopAfter(1))
+    assert len(list(journal.glob("task_*.npz"))) == 1
+    # another work's journal is refused in one line and left as it is
+    before = sorted(p.name for p in journal.iterdir())
+    with pytest.raises(GridError, match="holds the unfinished work of another removal run"):
+        line_removal({**cfg, "seed": 12}, journal=journal)
+    assert sorted(p.name for p in journal.iterdir()) == before
+    seen = []
+    resumed = line_removal(cfg, journal=journal, log=seen.append)
+    assert seen[0].startswith(f"resumed: {removal.CHUNK * 8} trajectories")
+    assert len(seen) == 2  # only the missing task ran
+    for name in ("status0", "tau0", "status", "tau"):
+        np.testing.assert_array_equal(getattr(resumed, name), getattr(whole, name), err_msg=name)
+    assert resumed.rows == whole.rows
+
+
+def test_cli_resume_finishes_and_removes_the_journal(tmp_path):
+    from antisync.config import load_config
+    from antisync.removal import journal_folder
+
+    cfg = _grid_files(tmp_path)
+    out = tmp_path / "r.json"
+    journal = journal_folder(out)
+    with pytest.raises(KeyboardInterrupt):  # a first run killed after its first task
+        line_removal(load_config(cfg), lines="0-4,1-3", journal=journal, log=_StopAfter(1))
+    args = ["grid", str(cfg), "--removal", "--lines", "0-4,1-3", "--out", str(out)]
+    res = runner.invoke(app, args)
+    assert_one_line(res, "an interrupted removal run left")
+    assert not out.exists() and journal.exists()
+    res = runner.invoke(app, [*args, "--resume"])
+    assert res.exit_code == 0, res.output
+    assert out.exists() and not journal.exists()
+    res = runner.invoke(app, [*args, "--resume"])
+    assert res.exit_code == 0 and "is complete: nothing to resume" in res.stderr
+    reference = tmp_path / "ref.json"
+    res = runner.invoke(app, ["grid", str(cfg), "--removal", "--lines", "0-4,1-3", "--out", str(reference)])
+    assert json.loads(out.read_text())["rows"] == json.loads(reference.read_text())["rows"]

@@ -58,6 +58,12 @@ def grid(
     overwrite: Annotated[
         bool, typer.Option("--overwrite", help="Replace an existing --out or --figure file.")
     ] = False,
+    resume: Annotated[
+        bool,
+        typer.Option(
+            "--resume", help="Finish an interrupted --removal --out run from its OUT.partial folder."
+        ),
+    ] = False,
     set_: SetOpt = None,
     quiet: QuietOpt = False,
     debug: DebugOpt = False,
@@ -67,21 +73,38 @@ def grid(
     intervals, the change of tau), troublemaker and Braess lines marked; --figure draws it."""
     from antisync.config import load_config
     from antisync.grid import GridError, format_table, load_grid_config, static_table
-    from antisync.removal import check_beta, check_output, line_removal, parse_lines, write_table
+    from antisync.removal import (
+        check_beta,
+        check_output,
+        journal_folder,
+        line_removal,
+        parse_lines,
+        remove_journal,
+        write_table,
+    )
     from antisync.report.removal import check_figure, removal_figure
     from antisync.store.provenance import command_line
 
     beta = check_beta(beta)
-    for name, value in (
-        ("--out", out),
-        ("--figure", figure),
-        ("--workers", workers),
-        ("--scheduler", scheduler),
-    ):
+    removal_only = {"--out": out, "--figure": figure, "--workers": workers, "--scheduler": scheduler}
+    for name, value in removal_only.items():
         if value is not None and not removal:
             raise GridError(f"{name} is for the dynamic removal table: add --removal")
+    if resume and overwrite:
+        raise GridError("--resume finishes the interrupted run and --overwrite starts over: give one")
+    if resume and out is None:
+        raise GridError("--resume finishes an interrupted --removal --out X.json run: give its --out")
+    journal = None if out is None else journal_folder(out)
+    if journal is not None and journal.exists() and not (resume or overwrite):
+        raise GridError(
+            f"an interrupted removal run left {journal}: pass --resume to finish it (same arguments) "
+            "or --overwrite to start over"
+        )
+    if resume and out.exists() and not journal.exists():
+        info(f"{out} is complete: nothing to resume (it is left as it is)", quiet)
+        return
     if out is not None:
-        check_output(out, overwrite)
+        check_output(out, overwrite or (resume and journal.exists()))
     if figure is not None:
         check_figure(figure, overwrite)
     if not removal:
@@ -91,21 +114,30 @@ def grid(
         typer.echo(format_table(table, top=top))
         return
     cfg = load_config(config, list(set_ or []))
-    with dask_executor(cfg, workers=workers, scheduler=scheduler, quiet=quiet) as ex:
-        table = line_removal(
-            cfg,
-            lines=lines,
-            beta=beta,
-            realizations=realizations,
-            seed=seed,
-            islanding=islanding,
-            threads=threads,
-            log=None if quiet else (lambda m: info(f"antisync grid: {m}")),
-            client=None if ex is None else ex.client,
-        )
+    try:
+        with dask_executor(cfg, workers=workers, scheduler=scheduler, quiet=quiet) as ex:
+            table = line_removal(
+                cfg,
+                lines=lines,
+                beta=beta,
+                realizations=realizations,
+                seed=seed,
+                islanding=islanding,
+                threads=threads,
+                log=None if quiet else (lambda m: info(f"antisync grid: {m}")),
+                client=None if ex is None else ex.client,
+                journal=journal,
+                restart=overwrite,
+            )
+    except KeyboardInterrupt:
+        kept = f"finished tasks are in {journal}; the same command with --resume finishes it"
+        kept = kept if journal else "nothing was saved (no --out)"
+        typer.echo(f"antisync grid: interrupted; {kept}", err=True)
+        raise typer.Exit(130) from None
     typer.echo(table.to_markdown(top=top))
     if out is not None:
-        path = write_table(table, out, overwrite=overwrite, command=command_line())
+        path = write_table(table, out, overwrite=overwrite or resume, command=command_line())
+        remove_journal(journal)
         info(f"wrote {path}", quiet)
     if figure is not None:
         path = removal_figure(table, cfg, figure, by=by, overwrite=overwrite)
