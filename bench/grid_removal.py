@@ -16,6 +16,8 @@ damaging both directions, ``> 0``: antifragile), and the static ``d margin``, ``
 them, and the share of lines whose signs agree, where both are resolved from zero. The table and
 the figure are the package's (antisync/report/removal.py: ``side_by_side_report``,
 ``removal_figure``); ``antisync grid CONFIG --removal --figure X.png`` draws the same figure.
+Several JSON files are parts of one run split by ``--lines`` (same config, seed, realizations
+and beta): they are merged first, the calls made again over all their lines (``merge_docs``).
 """
 
 from __future__ import annotations
@@ -36,7 +38,12 @@ ROOT = Path(__file__).resolve().parent.parent
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("removal", type=Path, help="JSON of antisync grid --removal")
+    ap.add_argument(
+        "removal",
+        type=Path,
+        nargs="+",
+        help="JSON of antisync grid --removal; several: parts with disjoint --lines, merged (merge_docs)",
+    )
     ap.add_argument("--config", type=Path, default=ROOT / "configs" / "ieee39_grid.yaml")
     ap.add_argument("--lambda", dest="lam", type=Path, help="HDF5 of antisync run (Lambda per directed line)")
     ap.add_argument("--figure", type=Path, help="PNG of the grid coloured by the removal response")
@@ -46,9 +53,15 @@ def main(argv=None) -> int:
     sys.path.insert(0, str(ROOT))
     import antisync
     from antisync.grid import load_grid_config, static_table
-    from antisync.report.removal import lambda_by_line, removal_doc, removal_figure, side_by_side_report
+    from antisync.report.removal import (
+        lambda_by_line,
+        merge_docs,
+        removal_doc,
+        removal_figure,
+        side_by_side_report,
+    )
 
-    doc = removal_doc(args.removal)
+    doc = removal_doc(args.removal[0]) if len(args.removal) == 1 else merge_docs(args.removal)
     t0 = time.perf_counter()
     table = static_table(load_grid_config(args.config), beta=float(doc["summary"]["beta"]))
     t_static = time.perf_counter() - t0

@@ -379,3 +379,26 @@ def test_cli_resume_finishes_and_removes_the_journal(tmp_path):
     reference = tmp_path / "ref.json"
     res = runner.invoke(app, ["grid", str(cfg), "--removal", "--lines", "0-4,1-3", "--out", str(reference)])
     assert json.loads(out.read_text())["rows"] == json.loads(reference.read_text())["rows"]
+
+
+def test_parts_split_by_lines_merge_into_the_one_run_table():
+    """Two parts with disjoint lines (as on two machines) merge into the table of one run over
+    all the lines: the same rows, and the calls made again over the union."""
+    from antisync.removal import table_document
+    from antisync.report.removal import merge_docs
+
+    cfg = ring_config(realizations=24)
+    one = table_document(line_removal(cfg))
+    a = table_document(line_removal(cfg, lines=[(0, 1), (1, 2), (2, 3)]))
+    b = table_document(line_removal(cfg, lines=[(3, 4), (4, 5), (0, 5), (0, 3)]))
+    merged = merge_docs([a, b])
+    by_label = lambda doc: {r["label"]: r for r in doc["rows"]}  # noqa: E731
+    assert by_label(merged) == by_label(one)
+    for key in ("sync_called", "tau_called", "troublemakers", "braess_lines"):
+        assert sorted(merged[key]) == sorted(one[key]), key
+    assert merged["summary"]["lines"] == 7 and len(merged["merged_from"]) == 2
+    with pytest.raises(GridError, match="line 0-1 is in two parts"):
+        merge_docs([a, a])
+    other = table_document(line_removal({**cfg, "seed": 12}, lines=[(3, 4)]))
+    with pytest.raises(GridError, match="merge only parts run with the same config, seed"):
+        merge_docs([a, other])

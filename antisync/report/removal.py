@@ -28,6 +28,7 @@ __all__ = [
     "FIGURE_SUFFIXES",
     "check_figure",
     "lambda_by_line",
+    "merge_docs",
     "rank_correlations",
     "removal_doc",
     "removal_figure",
@@ -97,13 +98,7 @@ def resolved(doc: dict) -> dict[str, set]:
     if "sync_called" in doc and "tau_called" in doc:
         sync, tau = set(doc["sync_called"]), set(doc["tau_called"])
     else:  # a file written before the calls were stored: the same procedure on its rows
-        from antisync.multiplicity import benjamini_hochberg
-        from antisync.removal import tau_p_value
-
-        calls = benjamini_hochberg([r["p_value"] for r in rows])
-        sync = {r["label"] for r, c in zip(rows, calls, strict=True) if c}
-        calls = benjamini_hochberg([tau_p_value(r["d_tau"], r["d_tau_se"]) for r in rows])
-        tau = {r["label"] for r, c in zip(rows, calls, strict=True) if c}
+        sync, tau = _calls(rows)
     faster = {r["label"] for r in rows if r["label"] in tau and _num(r["d_tau"]) < 0}
     return {
         "troublemakers": {r["label"] for r in rows if r["lost"] > r["gained"] and r["label"] in sync},
@@ -111,6 +106,81 @@ def resolved(doc: dict) -> dict[str, set]:
         "faster": faster,
         "slower": {r["label"] for r in rows if r["label"] in tau and _num(r["d_tau"]) > 0},
     }
+
+
+def _calls(rows: list[dict]) -> tuple[set, set]:
+    """Labels of the rows whose ``P_sync`` change and whose ``d_tau`` are resolved, at false
+    discovery rate ``FDR_LEVEL`` over ``rows`` (as :class:`antisync.removal.RemovalTable`)."""
+    from antisync.multiplicity import benjamini_hochberg
+    from antisync.removal import tau_p_value
+
+    calls = benjamini_hochberg([r["p_value"] for r in rows])
+    sync = {r["label"] for r, c in zip(rows, calls, strict=True) if c}
+    calls = benjamini_hochberg([tau_p_value(r["d_tau"], r["d_tau_se"]) for r in rows])
+    return sync, {r["label"] for r, c in zip(rows, calls, strict=True) if c}
+
+
+#: What the parts of one removal table must share (:func:`merge_docs`).
+_SAME = ("name", "beta", "seed", "realizations", "synced0", "p_sync", "tau0_mean", "level")
+
+
+def merge_docs(sources) -> dict:
+    """One removal table from parts that removed disjoint lines of the same grid from the same
+    starts (``antisync grid --removal --lines ... --out part.json`` on several machines, with
+    the same config, seed, realizations and beta).
+
+    The intact grid is integrated by every part from the same starts, so its numbers must agree
+    exactly; the resolved calls (troublemakers, Braess lines, faster and slower) are made again
+    at false discovery rate 0.05 over the union of the lines, as one run over all of them would
+    make them (a part's own calls are over its lines only). ``summary.seconds`` is the parts'
+    sum and ``merged_from`` lists each part's command and time.
+
+    Raises
+    ------
+    antisync.grid.GridError
+        No part, a part that is not a removal table, parts of different runs, or a line in two
+        parts: one line.
+    """
+    docs = [removal_doc(s) for s in sources]
+    if not docs:
+        raise GridError("no removal table to merge")
+    head = docs[0]
+    for k, doc in enumerate(docs[1:], start=2):
+        for key in _SAME:
+            a, b = head["summary"].get(key), doc["summary"].get(key)
+            if a != b and not (_num(a) != _num(a) and _num(b) != _num(b)):  # nan == nan here
+                raise GridError(
+                    f"part {k} differs from part 1 in {key} ({b} against {a}): merge only parts run with "
+                    "the same config, seed, realizations and beta"
+                )
+        if doc.get("config") != head.get("config"):
+            raise GridError(f"part {k} was run with another config than part 1: merge only parts of one run")
+    rows = [r for doc in docs for r in doc["rows"]]
+    seen: set = set()
+    for r in rows:
+        if r["label"] in seen:
+            raise GridError(f"line {r['label']} is in two parts: give each line to one part only")
+        seen.add(r["label"])
+    sync, tau = _calls(rows)
+    merged = {
+        **head,
+        "rows": rows,
+        "summary": {
+            **head["summary"],
+            "lines": len(rows),
+            "seconds": sum(float(d["summary"].get("seconds") or 0.0) for d in docs),
+        },
+        "sync_called": [r["label"] for r in rows if r["label"] in sync],
+        "tau_called": [r["label"] for r in rows if r["label"] in tau],
+        "merged_from": [{"command": d.get("command", ""), "written": d.get("written", "")} for d in docs],
+    }
+    # as RemovalTable.troublemakers(None) and .braess_lines() order them
+    tau_of = {r["label"]: 0.0 if _num(r["d_tau"]) != _num(r["d_tau"]) else _num(r["d_tau"]) for r in rows}
+    net = {r["label"]: r["lost"] - r["gained"] for r in rows}
+    trouble = sorted((lab for lab in net if net[lab] > 0), key=lambda lab: (-net[lab], -tau_of[lab]))
+    braess = sorted(resolved(merged)["braess"], key=lambda lab: (net[lab], tau_of[lab]))
+    merged["troublemakers"], merged["braess_lines"] = trouble, braess
+    return merged
 
 
 # --- the figure ------------------------------------------------------------------------------
