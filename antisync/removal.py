@@ -779,6 +779,8 @@ def _run_tasks(tasks, variants, fixed, threads, client):
         for task in tasks:
             yield task, _removal_task(*args(task), threads)
         return
+    from concurrent.futures import CancelledError
+
     from distributed import as_completed
 
     futures = {}
@@ -786,9 +788,18 @@ def _run_tasks(tasks, variants, fixed, threads, client):
         ks, var, intact, fx = args(task)
         fut = client.submit(_removal_task, ks, var, intact, fx, threads or 1, pure=False)
         futures[fut] = task
+    from distributed.scheduler import KilledWorker
+
     try:
         for fut in as_completed(list(futures), loop=client.loop):
-            yield futures[fut], fut.result()
+            try:
+                result = fut.result()
+            except (KilledWorker, CancelledError) as exc:
+                raise GridError(
+                    f"the Dask cluster lost a removal task ({type(exc).__name__}: {exc}); with --out, "
+                    "the finished tasks are kept: run the same command with --resume"
+                ) from None
+            yield futures[fut], result
     finally:
         client.cancel(list(futures))
 
