@@ -1,5 +1,6 @@
 """Small helpers shared by test modules (tests/ is on sys.path, see conftest.py)."""
 
+import contextlib
 import json
 
 # How long a test waits for a process of its own before calling it hung. A hang guard, not a
@@ -81,3 +82,16 @@ def sweep_cli(folder, name: str, text: str, *options: str):
     res = CliRunner().invoke(app, ["sweep", str(cfg), "--out", str(out), "--quiet", *options])
     assert res.exit_code == 0, res.output
     return cfg, out
+
+
+@contextlib.contextmanager
+def local_cluster_client(workers: int = 2):
+    """A real Dask cluster for a test: ``workers`` single-threaded worker processes on the
+    loopback address, no dashboard; yields its client (not the default one)."""
+    from distributed import Client, LocalCluster
+
+    with LocalCluster(
+        n_workers=workers, threads_per_worker=1, processes=True, host="127.0.0.1", dashboard_address=None
+    ) as cluster:
+        with Client(cluster, set_as_default=False) as client:
+            yield client

@@ -19,6 +19,8 @@ from typer.testing import CliRunner
 
 pytest.importorskip("distributed")
 
+from helpers import local_cluster_client  # noqa: E402
+
 from antisync.cli.app import app  # noqa: E402
 from antisync.config import load_config  # noqa: E402
 from antisync.errors import AntisyncError  # noqa: E402
@@ -41,13 +43,8 @@ UNREACHABLE = "tcp://127.0.0.1:1"
 
 @pytest.fixture(scope="module")
 def client():
-    from distributed import Client, LocalCluster
-
-    with LocalCluster(
-        n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1", dashboard_address=None
-    ) as cluster:
-        with Client(cluster, set_as_default=False) as c:
-            yield c
+    with local_cluster_client() as c:
+        yield c
 
 
 @pytest.fixture(scope="module")

@@ -8,7 +8,7 @@ import math
 
 import numpy as np
 import pytest
-from helpers import assert_one_line
+from helpers import assert_one_line, local_cluster_client
 from scipy.stats import binomtest
 from typer.testing import CliRunner
 
@@ -282,13 +282,8 @@ def test_cli_figure_is_written_and_never_overwritten_without_overwrite(tmp_path)
 
 @pytest.fixture(scope="module")
 def client():
-    from distributed import Client, LocalCluster
-
-    with LocalCluster(
-        n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1", dashboard_address=None
-    ) as cluster:
-        with Client(cluster, set_as_default=False) as c:
-            yield c
+    with local_cluster_client() as c:
+        yield c
 
 
 def test_removal_on_a_dask_cluster_equals_the_local_table(client):

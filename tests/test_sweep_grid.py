@@ -288,18 +288,15 @@ def test_grid_curves_mark_resolved_sign_flips_only():
 def test_grid_sweep_on_dask_gives_the_local_numbers(grid_reference, tmp_path):
     """A grid point is just more jobs: a two-process LocalCluster gives the CLI's numbers."""
     pytest.importorskip("distributed")
-    from distributed import Client, LocalCluster
+    from helpers import local_cluster_client
 
     from antisync.executors.dask import DaskExecutor
 
     cfg, _, ref = grid_reference
     out = tmp_path / "grid.h5"
-    with LocalCluster(
-        n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1", dashboard_address=None
-    ) as cluster:
-        with Client(cluster, set_as_default=False) as client:
-            with DaskExecutor(client, "cpu") as ex:
-                run_sweep(load_sweep(cfg), output=out, progress=False, executor=ex, chunk_realizations=32)
+    with local_cluster_client() as client:
+        with DaskExecutor(client, "cpu") as ex:
+            run_sweep(load_sweep(cfg), output=out, progress=False, executor=ex, chunk_realizations=32)
     assert comparable(sweep_summary(out)) == ref
 
 
