@@ -392,6 +392,11 @@ def test_parts_split_by_lines_merge_into_the_one_run_table():
     for key in ("sync_called", "tau_called", "troublemakers", "braess_lines"):
         assert sorted(merged[key]) == sorted(one[key]), key
     assert merged["summary"]["lines"] == 7 and len(merged["merged_from"]) == 2
+    # a part run elsewhere: other threads, output and a folder of its own for the same files
+    elsewhere = {**b["config"], "threads": 8, "output": "/scratch/x.h5"}
+    elsewhere["model"] = {**elsewhere["model"], "inertia": {"file": "/scratch/antisync/m.txt"}}
+    here = {**a["config"], "model": {**a["config"]["model"], "inertia": {"file": "/home/m.txt"}}}
+    assert merge_docs([{**a, "config": here}, {**b, "config": elsewhere}])["rows"] == merged["rows"]
     with pytest.raises(GridError, match="line 0-1 is in two parts"):
         merge_docs([a, a])
     other = table_document(line_removal({**cfg, "seed": 12}, lines=[(3, 4)]))

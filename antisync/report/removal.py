@@ -120,6 +120,22 @@ def _calls(rows: list[dict]) -> tuple[set, set]:
     return sync, {r["label"] for r, c in zip(rows, calls, strict=True) if c}
 
 
+def _same_run(config):
+    """A part's config as :func:`merge_docs` compares it: where it ran (executor, threads,
+    backend, output) left out and files by name, since parts run on other machines resolve the
+    same shipped files to other folders (the intact grid's numbers, equal to the bit, are the
+    check that the files held the same grid)."""
+    if isinstance(config, dict):
+        return {
+            k: (Path(v).name if k in ("path", "file") and isinstance(v, str) else _same_run(v))
+            for k, v in config.items()
+            if k not in ("executor", "threads", "backend", "output")
+        }
+    if isinstance(config, list):
+        return [_same_run(v) for v in config]
+    return config
+
+
 #: What the parts of one removal table must share (:func:`merge_docs`).
 _SAME = ("name", "beta", "seed", "realizations", "synced0", "p_sync", "tau0_mean", "level")
 
@@ -153,7 +169,7 @@ def merge_docs(sources) -> dict:
                     f"part {k} differs from part 1 in {key} ({b} against {a}): merge only parts run with "
                     "the same config, seed, realizations and beta"
                 )
-        if doc.get("config") != head.get("config"):
+        if _same_run(doc.get("config")) != _same_run(head.get("config")):
             raise GridError(f"part {k} was run with another config than part 1: merge only parts of one run")
     rows = [r for doc in docs for r in doc["rows"]]
     seen: set = set()
