@@ -402,3 +402,15 @@ def test_parts_split_by_lines_merge_into_the_one_run_table():
     other = table_document(line_removal({**cfg, "seed": 12}, lines=[(3, 4)]))
     with pytest.raises(GridError, match="merge only parts run with the same config, seed"):
         merge_docs([a, other])
+
+
+def test_a_large_grids_figure_names_only_the_resolved_the_moved_and_the_largest_lines():
+    from antisync.report.removal import NAMED_LINES, _named_lines
+
+    rows = {k: {"label": f"{k}-{k + 1}", "gained": int(k == 3), "lost": 0, "v": k / 100} for k in range(40)}
+    marks = {"troublemakers": {"0-1"}, "braess": set(), "faster": set(), "slower": {"5-6"}}
+    value = lambda r: r["v"]  # noqa: E731
+    named = _named_lines(rows, marks, value, small=False)
+    largest = {f"{k}-{k + 1}" for k in range(40 - NAMED_LINES, 40)}
+    assert named == {"0-1", "5-6", "3-4"} | largest
+    assert len(_named_lines(rows, marks, value, small=True)) == 40

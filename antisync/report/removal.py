@@ -242,6 +242,24 @@ def _layout(g: nx.Graph) -> dict:
     return nx.spring_layout(g, seed=LAYOUT_SEED, weight=None)
 
 
+#: Lines named on a large grid's figure beyond the resolved ones and those that lost or gained
+#: starts: the largest responses (the table names every line).
+NAMED_LINES = 8
+
+
+def _named_lines(rows: dict, marks: dict, value, small: bool) -> set:
+    """The labels written beside their line: every line on a small grid or a short table; on a
+    large grid with many lines (their names collide) the resolved lines, those that lost or
+    gained starts, and the :data:`NAMED_LINES` largest responses."""
+    if small or len(rows) <= 2 * NAMED_LINES:
+        return {r["label"] for r in rows.values()}
+    called = set().union(*marks.values())
+    moved = {r["label"] for r in rows.values() if r["gained"] != r["lost"]}
+    finite = [r for r in rows.values() if math.isfinite(value(r))]
+    top = sorted(finite, key=lambda r: -abs(value(r)))[:NAMED_LINES]
+    return called | moved | {r["label"] for r in top}
+
+
 def removal_figure(source, config, path, *, by: RemovalBy = "speedup", overwrite: bool = False) -> Path:
     """Draw the grid with every removed line coloured by its response (issue 27's report).
 
@@ -271,7 +289,9 @@ def removal_figure(source, config, path, *, by: RemovalBy = "speedup", overwrite
     Troublemaker lines (``P_sync`` lost) are dashed and Braess lines (``P_sync`` gained or
     synchronization faster) circled, both only where resolved at false discovery rate 0.05
     over the lines (:func:`resolved`); the numbers are the net starts gained (``gained -
-    lost``; on grids of more than 60 nodes, which get no node labels, after the line's name);
+    lost``; on grids of more than 60 nodes, which get no node labels, after the line's name,
+    and there, with more than 16 lines in the table, only the resolved lines, those that lost
+    or gained starts and the 8 largest responses are named: :func:`_named_lines`);
     bridges are dotted, lines not in the table thin and grey, lines without a value (no pair
     synchronized both times) dark grey, generators (``m > 0``) squares. Layout: Kamada-Kawai
     up to 200 nodes, else a spring layout of seed 1.
@@ -321,6 +341,7 @@ def removal_figure(source, config, path, *, by: RemovalBy = "speedup", overwrite
     trouble = [e for e in lines if rows[frozenset(e)]["label"] in marks["troublemakers"]]
     if trouble:
         nx.draw_networkx_edges(g, pos, edgelist=trouble, ax=ax, edge_color="k", width=1.2, style="dashed")
+    named = _named_lines(rows, marks, value, small)
     for e in lines:
         r = rows[frozenset(e)]
         mid = (np.asarray(pos[e[0]]) + np.asarray(pos[e[1]])) / 2
@@ -329,7 +350,7 @@ def removal_figure(source, config, path, *, by: RemovalBy = "speedup", overwrite
         net = r["gained"] - r["lost"]
         # a large grid draws no node labels: name the line itself
         text = (f"{net:+d}" if net else "") if small else r["label"] + (f" ({net:+d})" if net else "")
-        if text and len(rows) <= 80:
+        if text and r["label"] in named:
             box = None if small else {"fc": "white", "ec": "none", "alpha": 0.7, "pad": 0.5}
             ax.annotate(text, mid, fontsize=7, xytext=(3, 3), textcoords="offset points", bbox=box)
     gens = [v for v in g.nodes if inertia[v] > 0]
