@@ -251,22 +251,26 @@ def simulate_job(
     )
 
 
-def _model_params(job: Job, ks: np.ndarray, targets: np.ndarray):
-    """The model kernels' :class:`~antisync.kernels.model_cpu.ModelParams` of ``job`` for
-    realizations ``ks``: fixed frequencies (one row), drawn ones (a row per realization, in the
+def model_params(setup, model, seed: int, ks: np.ndarray, n: int, targets: np.ndarray):
+    """The model kernels' :class:`~antisync.kernels.model_cpu.ModelParams` for realizations
+    ``ks`` of ``n`` nodes (``setup``: :class:`~antisync.model.ModelSetup`; ``model``: the config's
+    model section): fixed frequencies (one row), drawn ones (a row per realization, in the
     rotating frame of docs/models.md, the distribution's mean never added) or none."""
     from antisync.kernels.model_cpu import ModelParams
     from antisync.model import drawn_frequencies
 
-    setup = job.model
-    n = len(job.nodes)
-    if job.config.model.drawn:
-        freqs = drawn_frequencies(job.config.model, job.config.seed, ks, n)
+    if model.drawn:
+        freqs = drawn_frequencies(model, seed, ks, n)
     else:
         freqs = (np.zeros(n) if setup.freqs is None else setup.freqs)[None, :]
     return ModelParams(
         freqs, setup.cos_lag, setup.sin_lag, setup.inertia, setup.damping, setup.criterion, targets
     )
+
+
+def _model_params(job: Job, ks: np.ndarray, targets: np.ndarray):
+    """:func:`model_params` of ``job``."""
+    return model_params(job.model, job.config.model, job.config.seed, ks, len(job.nodes), targets)
 
 
 def _simulate_model(

@@ -52,7 +52,6 @@ import time
 from collections.abc import Mapping
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
-from typing import NamedTuple
 
 import numpy as np
 
@@ -586,7 +585,9 @@ def line_removal(
         indptr=csr.indptr,
         indices=csr.indices,
         base=csr.weights,
-        setup=_Setup.of(setup, cfg.model, len(labels)),
+        setup=setup,
+        model=cfg.model,
+        n_nodes=len(labels),
         dt=dyn.dt,
         max_steps=dyn.max_steps,
         integrator=dyn.integrator,
@@ -674,34 +675,6 @@ def line_removal(
 # --- the work: tasks of realizations x lines, run here or on Dask ----------------------------
 
 
-class _Setup(NamedTuple):
-    """What a task needs of the model (picklable: plain arrays and numbers)."""
-
-    freqs: np.ndarray | None  # fixed frequencies (None: drawn per realization, or none)
-    drawn: object  # the Model when frequencies are drawn, else None
-    n_nodes: int
-    cos_lag: float
-    sin_lag: float
-    inertia: object
-    damping: object
-    criterion: int
-    targets: np.ndarray
-
-    @classmethod
-    def of(cls, setup, model, n_nodes: int) -> _Setup:
-        return cls(
-            None if model.drawn else setup.freqs,
-            model if model.drawn else None,
-            n_nodes,
-            setup.cos_lag,
-            setup.sin_lag,
-            setup.inertia,
-            setup.damping,
-            setup.criterion,
-            np.asarray(setup.targets, dtype=np.float64),
-        )
-
-
 def _plan(m: int, variants: np.ndarray, base: np.ndarray, groups: int) -> list[tuple]:
     """Tasks ``(realizations, line indices, with the intact grid)``: chunks of :data:`CHUNK`
     realizations x ``groups`` groups of lines; the first group of a chunk integrates the intact
@@ -725,16 +698,13 @@ def _groups(client, m: int) -> int:
 def _removal_task(ks, variants, intact: bool, fixed: dict, threads):
     """Integrate realizations ``ks`` of the intact grid (if ``intact``) and of ``variants``:
     ``(status0, tau0, status, tau)``, times in the model's units (NaN where not SYNCED)."""
+    from antisync.compute import model_params
     from antisync.estimators import crossing_times
-    from antisync.kernels.model_cpu import ModelParams, simulate_model
-    from antisync.model import drawn_frequencies
+    from antisync.kernels.model_cpu import simulate_model
 
-    st = fixed["setup"]
-    if st.drawn is not None:
-        freqs = drawn_frequencies(st.drawn, fixed["seed"], ks, st.n_nodes)
-    else:
-        freqs = (np.zeros(st.n_nodes) if st.freqs is None else st.freqs)[None, :]
-    params = ModelParams(freqs, st.cos_lag, st.sin_lag, st.inertia, st.damping, st.criterion, st.targets)
+    params = model_params(
+        fixed["setup"], fixed["model"], fixed["seed"], ks, fixed["n_nodes"], fixed["targets"]
+    )
     todo = None
     if not intact:
         todo = np.ones((ks.size, variants.shape[0] + 1), dtype=np.bool_)
@@ -771,9 +741,9 @@ def _run_tasks(tasks, variants, fixed, threads, client):
 
     def args(task):
         ks, group, intact = task
-        setup = fixed["setup"]
-        targets = np.concatenate([setup.targets[:1], setup.targets[1:][group]])
-        return ks, variants[group], intact, {**fixed, "setup": setup._replace(targets=targets)}
+        targets = fixed["setup"].targets
+        targets = np.concatenate([targets[:1], targets[1:][group]])
+        return ks, variants[group], intact, {**fixed, "targets": targets}
 
     if client is None:
         for task in tasks:
@@ -782,13 +752,9 @@ def _run_tasks(tasks, variants, fixed, threads, client):
     from concurrent.futures import CancelledError
 
     from distributed import as_completed
-
-    futures = {}
-    for task in tasks:
-        ks, var, intact, fx = args(task)
-        fut = client.submit(_removal_task, ks, var, intact, fx, threads or 1, pure=False)
-        futures[fut] = task
     from distributed.scheduler import KilledWorker
+
+    futures = {client.submit(_removal_task, *args(task), threads or 1, pure=False): task for task in tasks}
 
     try:
         for fut in as_completed(list(futures), loop=client.loop):

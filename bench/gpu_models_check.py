@@ -9,9 +9,9 @@ Usage::
 Cases (``--realizations`` each, default 2000; ``--tiny``: 2 realizations, the first lollipop
 model and both grids over a short ``t_max``):
 
-- the three lollipop models of tests/cudasim_model_checks.py (Euler with phase lag and drawn
-  frequencies; RK4 with inertia and the relative criterion; Euler with inertia and the frequency
-  criterion), edges 2->1 and 3->4 at beta 0.5;
+- the three lollipop models of tests/cudasim_model_checks.py, imported from there (Euler with
+  phase lag and drawn frequencies; RK4 with inertia and the relative criterion; Euler with
+  inertia and the frequency criterion), edges 2->1 and 3->4 at beta 0.5;
 - ``configs/ieee14_grid.yaml`` (swing equation, RK4 dt 0.02, frequency criterion): all 40
   directed lines at dbeta (the finite difference's variants);
 - ``configs/ieee39_grid.yaml`` (per-node inertia, 29 first-order load buses, RK4 dt 0.0025):
@@ -43,30 +43,16 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tests"))
 sys.path.insert(0, str(ROOT))
 
-LOLLIPOP = """
-graph: {kind: lollipop, nodes: 6, path: 3}
-edges: ['2->1', '3->4']
-betas: [0.5]
-"""
-
 IEEE39_LINES = "['1->2', '2->1', '1->39', '39->1', '2->3', '3->2', '2->25', '25->2']"
 
 
 def _cases(tiny: bool):
+    from cudasim_model_checks import BASE, MODELS  # the simulator tests' three models
+
     from antisync.config import load_config, load_config_text
 
-    models = {
-        "lollipop euler, lag 0.3, normal freqs": "model: {frequencies: {distribution: normal, sd: 0.1}, "
-        "phase_lag: 0.3}\ndynamics: {dt: 0.02, t_max: 30, threshold: 0.9}\n",
-        "lollipop rk4, inertia 0.5, relative": "model: {frequencies: [0.1, -0.1, 0.05, 0, 0, -0.05], "
-        "inertia: 0.5}\nsync: {criterion: relative, fraction: 0.97}\n"
-        "dynamics: {integrator: rk4, dt: 0.05, t_max: 30}\n",
-        "lollipop euler, inertia 1, frequency": "model: {frequencies: {distribution: uniform, width: 0.1}, "
-        "inertia: 1.0}\nsync: {criterion: frequency, tolerance: 0.01}\n"
-        "dynamics: {dt: 0.02, t_max: 30, crossing: interpolated}\n",
-    }
-    for name, text in models.items():
-        yield name, load_config_text(LOLLIPOP + text)
+    for name, text in MODELS.items():
+        yield f"lollipop {name}", load_config_text(BASE + text)
         if tiny:  # the simulator runs each GPU thread as a Python thread: one model is enough
             break
     yield (
