@@ -201,6 +201,8 @@ class DaskExecutor:
     def run(self, work: Iterable[tuple[Job, Chunk]]) -> Iterator[tuple[Job, ChunkResult]]:
         """Submit ``(job, chunk)`` pairs, at most the in-flight limit at a time; yield results
         in the order they finish (the runner merges them by block position)."""
+        from concurrent.futures import CancelledError
+
         from distributed import as_completed
         from distributed.scheduler import KilledWorker
 
@@ -230,7 +232,19 @@ class DaskExecutor:
                 fut = next(finished)
                 job, chunk = pending.pop(fut)
                 self._unref(job, scattered)
-                if fut.status == "cancelled":
+                try:
+                    res = None if fut.status == "cancelled" else fut.result()
+                except CancelledError:
+                    # finished, then its worker died before the result was gathered: the
+                    # scheduler reschedules it and, when the scattered job died too, cancels it
+                    res = None
+                except KilledWorker as exc:
+                    raise AntisyncError(
+                        f"chunk at block {chunk.first_block} of {job.name} killed "
+                        f"{exc.allowed_failures + 1} Dask workers (out of memory? see the worker "
+                        "logs); finished chunks are saved: fix the workers and rerun with --resume"
+                    ) from None
+                if res is None:
                     # the scheduler dropped it (e.g. every copy of the scattered job was lost
                     # with its workers): scatter again and resubmit; nothing was merged yet
                     key = (job.name, chunk.first_block)
@@ -249,14 +263,6 @@ class DaskExecutor:
                     pending[fut] = (job, chunk)
                     finished.add(fut)
                     continue
-                try:
-                    res = fut.result()
-                except KilledWorker as exc:
-                    raise AntisyncError(
-                        f"chunk at block {chunk.first_block} of {job.name} killed "
-                        f"{exc.allowed_failures + 1} Dask workers (out of memory? see the worker "
-                        "logs); finished chunks are saved: fix the workers and rerun with --resume"
-                    ) from None
                 del fut
                 key = (job.name, chunk.first_block)
                 if key in done:  # a duplicate can only come from a resubmission: drop it
