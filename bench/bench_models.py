@@ -1,14 +1,27 @@
-"""Model kernels (docs/models.md) against the default lane driver, one core.
+"""The models on the lane driver against the identical model's lanes, per trajectory-step.
 
-    python bench/bench_models.py
+    python bench/bench_models.py [--threads 1] [--realizations 200]
 
-The model kernel runs with ``P = 0, alpha = 0, m = 0``, so both integrate the same
-trajectories (identical steps, checked) and the ratio is the cost of the one-trajectory-per-
-thread driver and the general step.
+For each network (the paper's lollipop N = 6, the karate club N = 34, the IEEE 118-bus topology
+N = 118), the same three damaged links at beta = 0.5, and each integrator, one run of:
+
+- ``identical``: the default lane driver (:func:`antisync.kernels.cpu.simulate`), the baseline;
+- ``model P=0``: the model lane driver with no frequencies, lag or inertia (the same
+  trajectories, checked: the ratio is the general step's cost alone);
+- ``frequencies``, ``lag``, ``inertia``: the model lane driver with natural frequencies (normal,
+  sd 0.1), a phase lag of 0.3, and inertia m = 1 (damping 1), order-parameter criterion;
+- ``one-per-thread``: the one-trajectory model driver (``lanes=0``) on the frequency model, what
+  the models ran on before.
+
+Each is timed per trajectory-step (its own total of steps over every integrated item), and
+the ratio to ``identical`` is printed. The models' trajectories differ from the identical
+model's, so only the per-step cost is compared. The first round compiles (or loads the cache).
 """
 
 from __future__ import annotations
 
+import argparse
+import platform
 import time
 
 import numpy as np
@@ -17,38 +30,67 @@ from antisync.config import load_config_text
 from antisync.jobs import make_job
 from antisync.kernels import cpu, model_cpu
 
+NETWORKS = {
+    "lollipop N=6": "graph: {kind: lollipop, nodes: 6, path: 3}\nedges: ['2->1', '3->4', '5->6']\n",
+    "karate N=34": "graph: {kind: networkx, generator: karate_club_graph}\n"
+    "edges: ['0->1', '0->31', '33->32']\n",
+    "IEEE 118 N=118": "graph: {kind: edgelist, path: configs/ieee118.edges}\n"
+    "edges: ['1->2', '49->69', '100->103']\n",
+}
+INTEGRATORS = {"euler": 0.01, "rk4": 0.04}
+
+
+def _params(job, kind: str, m: int):
+    n = len(job.nodes)
+    targets = np.full(job.variant_weights.shape[0] + 1, (0.99 * n) ** 2)
+    freqs = np.zeros((1, n))
+    lag, inertia = 0.0, 0.0
+    if kind == "frequencies" or kind == "one-per-thread":
+        rng = np.random.default_rng(1)
+        freqs = rng.normal(0.0, 0.1, (m, n))
+        freqs -= freqs.mean(axis=1, keepdims=True)
+    elif kind == "lag":
+        lag = 0.3
+    elif kind == "inertia":
+        inertia = 1.0
+    cl, sl = model_cpu.lag_terms(lag)
+    return model_cpu.ModelParams(freqs, cl, sl, inertia, 1.0, 0, targets)
+
+
+def _steps(sim) -> int:
+    return int(np.maximum(sim.steps0, 0).sum() + np.maximum(sim.steps, 0).sum())
+
 
 def main() -> None:
-    job = make_job(
-        load_config_text(
-            "graph: {kind: lollipop, nodes: 6, path: 3}\nedges: ['2->1', '5->6']\nbetas: [0.5]\n"
-        )
-    )
-    n = len(job.nodes)
-    v = job.variant_weights.shape[0]
-    args = (1, 0, 400, job.csr.indptr, job.csr.indices, job.csr.weights, job.variant_weights)
-    params = model_cpu.ModelParams(np.zeros((1, n)), 1.0, 0.0, 0.0, 1.0, 0, np.full(v + 1, (0.99 * n) ** 2))
-    for _ in range(2):  # the first round compiles (or loads the cache)
-        t = time.perf_counter()
-        ref = cpu.simulate(*args, dt=0.001, threshold=0.99, max_steps=200000, threads=1)
-        lanes = time.perf_counter() - t
-        t = time.perf_counter()
-        got = model_cpu.simulate_model(*args, params, dt=0.001, max_steps=200000, threads=1)
-        model = time.perf_counter() - t
-        t = time.perf_counter()
-        model_cpu.simulate_model(*args, params, dt=0.04, max_steps=5000, threads=1, integrator="rk4")
-        model_rk4 = time.perf_counter() - t
-        t = time.perf_counter()
-        cpu.simulate(*args, dt=0.04, threshold=0.99, max_steps=5000, threads=1, integrator="rk4")
-        lanes_rk4 = time.perf_counter() - t
-    same = np.array_equal(ref.steps, got.steps) and np.array_equal(ref.steps0, got.steps0)
-    steps = int(ref.steps0.sum() + ref.steps.sum())
-    print(f"{400 * (v + 1)} trajectories, {steps} Euler steps (dt = 0.001), identical: {same}")
-    print(
-        f"euler: lanes {lanes:.2f} s ({steps / lanes / 1e6:.1f} M steps/s), model {model:.2f} s "
-        f"({steps / model / 1e6:.1f} M steps/s), ratio {model / lanes:.1f}"
-    )
-    print(f"rk4 dt = 0.04: lanes {lanes_rk4:.3f} s, model {model_rk4:.3f} s")
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--threads", type=int, default=1)
+    ap.add_argument("--realizations", type=int, default=200)
+    a = ap.parse_args()
+    m = a.realizations
+    print(f"{platform.processor() or platform.machine()}, numba threads {a.threads}, {m} realizations")
+    print("| network | integrator | run | steps | ns / trajectory-step | ratio to identical |")
+    print("|---|---|---|---|---|---|")
+    for net, text in NETWORKS.items():
+        for integ, dt in INTEGRATORS.items():
+            job = make_job(load_config_text(text + "betas: [0.5]\n"))
+            args = (1, 0, m, job.csr.indptr, job.csr.indices, job.csr.weights, job.variant_weights)
+            kw = {"dt": dt, "max_steps": int(round(200 / dt)), "integrator": integ, "threads": a.threads}
+            for _ in range(2):
+                rows = []
+                t = time.perf_counter()
+                ref = cpu.simulate(*args, threshold=0.99, **kw)
+                base = (time.perf_counter() - t) / _steps(ref)
+                rows.append(("identical", _steps(ref), base))
+                for kind in ("model P=0", "frequencies", "lag", "inertia", "one-per-thread"):
+                    params = _params(job, kind, m)
+                    lanes = 0 if kind == "one-per-thread" else model_cpu.LANES
+                    t = time.perf_counter()
+                    sim = model_cpu.simulate_model(*args, params, lanes=lanes, **kw)
+                    rows.append((kind, _steps(sim), (time.perf_counter() - t) / _steps(sim)))
+                    if kind == "model P=0":
+                        assert np.array_equal(sim.steps, ref.steps) and np.array_equal(sim.steps0, ref.steps0)
+            for kind, steps, per in rows:
+                print(f"| {net} | {integ} dt {dt} | {kind} | {steps} | {per * 1e9:.1f} | {per / base:.2f} |")
 
 
 if __name__ == "__main__":

@@ -277,9 +277,11 @@ class Kernels(NamedTuple):
     """
 
     rotation: Callable
+    taylor_rotation: Callable
     euler_step: Callable
     euler_step_lanes: Callable
     euler_step_vec: Callable
+    edge_vec: Callable
     tangent_step_lanes: Callable
     rk4_step_lanes: Callable
     rk4_step_vec: Callable
@@ -802,9 +804,11 @@ def make_kernels(jit, dtype=np.float64) -> Kernels:
     sync_steps = jit(sync_steps)
     return Kernels(
         rotation=rotation,
+        taylor_rotation=taylor_rotation,
         euler_step=euler_step,
         euler_step_lanes=euler_step_lanes,
         euler_step_vec=euler_step_vec,
+        edge_vec=edge_vec,
         tangent_step_lanes=tangent_step_lanes,
         rk4_step_lanes=rk4_step_lanes,
         rk4_step_vec=rk4_step_vec,

@@ -15,9 +15,24 @@ import numpy as np
 from numba import njit, prange
 
 from antisync import _numba_cache  # noqa: F401 -- before any cache=True function (see there)
-from antisync.kernels.core import CRIT_FREQUENCY, CRIT_ORDER, WORK_ROWS, make_kernels, make_model_kernels
-from antisync.kernels.cpu import SimResult, _realization_ids, _Threads
+from antisync.kernels.core import (
+    CRIT_FREQUENCY,
+    CRIT_ORDER,
+    DEV_PREV_ROW,
+    DEV_ROW,
+    RENORM_EVERY,
+    TAYLOR_MAX_ANGLE,
+    VEC,
+    WORK_ROWS,
+    make_kernels,
+    make_model_kernels,
+    vload,
+    vsplat,
+    vstore,
+)
+from antisync.kernels.cpu import LANES, SimResult, _next_item, _realization_ids, _Threads
 from antisync.phases import make_uniform, phase
+from antisync.status import ALREADY_SYNCED, NOT_SYNCED, SYNCED
 
 __all__ = ["ModelParams", "draw_frequencies", "simulate_model"]
 
@@ -27,8 +42,19 @@ STREAM_FREQ_A = 1
 STREAM_FREQ_B = 2
 
 _jit = lambda f: njit(f, inline="always", cache=True)  # noqa: E731
-_MK = make_model_kernels(_jit, make_kernels(_jit))
+_K = make_kernels(_jit)
+_MK = make_model_kernels(_jit, _K)
 _model_sync = _MK.sync_steps
+_model_rhs = _MK.rhs
+_model_measure = _MK.measure
+_model_deviations = _MK.deviations
+_order_crossing = _MK.order_crossing
+_frequency_crossing = _MK.frequency_crossing
+_rotation = _K.rotation
+_edge_vec = _K.edge_vec
+_taylor = _K.taylor_rotation
+_order2 = _K.order2
+_renormalize = _K.renormalize
 
 
 class ModelParams(NamedTuple):
@@ -137,6 +163,544 @@ def _integrate_items(
                 frac[r, v] = frac0[r]
 
 
+# --- the lane driver ---------------------------------------------------------------------------
+# The step functions of make_model_kernels on a [node, lane] state: every loop over nodes or
+# edges has an inner loop over the lanes l0 <= l < l1 performing, per lane, exactly the
+# one-trajectory function's operations in the same order (so a lane's trajectory is the
+# one-trajectory driver's, bit for bit); the inner loops are what LLVM turns into machine vectors.
+# The refill path (one fresh lane) calls the one-trajectory functions on the lane's column.
+
+
+@njit(inline="always")
+def _rhs_vec(c, s, nu, p, lw, indptr, indices, cl, sl, mass, gamma, second, th, dnu):
+    """make_model_kernels' ``rhs`` for every lane, on machine vectors: two vectors of VEC lanes
+    at a time, their coupling sums kept in registers over each node's edges (``edge_vec``). The
+    lane count must be a multiple of ``2 VEC``; per lane the operations and their order are
+    ``rhs``'s."""
+    n, lanes = c.shape
+    zero = vsplat(0.0)
+    for qa in range(0, lanes, 2 * VEC):
+        for i in range(n):
+            sca, ssa, scb, ssb = zero, zero, zero, zero
+            for e in range(indptr[i], indptr[i + 1]):
+                sca, ssa, scb, ssb = _edge_vec(c, s, lw, gamma, False, indices, e, qa, sca, ssa, scb, ssb)
+            _node_vec(c, s, nu, p, cl, sl, mass, gamma, second, th, dnu, i * lanes + qa, sca, ssa, i)
+            _node_vec(c, s, nu, p, cl, sl, mass, gamma, second, th, dnu, i * lanes + qa + VEC, scb, ssb, i)
+
+
+@njit(inline="always")
+def _node_vec(c, s, nu, p, cl, sl, mass, gamma, second, th, dnu, o, sc, ss, i):
+    """``rhs``' node ``i`` for the lane vector at flat offset ``o`` from its coupling sums."""
+    ci = vload(c, o)
+    si = vload(s, o)
+    k = (ci * ss - si * sc) * cl - (ci * sc + si * ss) * sl
+    if not second:
+        vstore(th, o, vload(p, o) + k)
+    elif mass[i] > 0.0:
+        v = vload(nu, o)
+        vstore(th, o, v)
+        vstore(dnu, o, (vload(p, o) + k - v * gamma[i]) / mass[i])
+    else:
+        vstore(th, o, (vload(p, o) + k) / gamma[i])
+        vstore(dnu, o, vsplat(0.0))
+
+
+@njit(inline="always")
+def _euler_lanes(c, s, nu, th, dnu, dt, second, r2, sum_c, sum_s, l0, l1):
+    for q in range(l0, l1):
+        sum_c[q] = 0.0
+        sum_s[q] = 0.0
+    for i in range(c.shape[0]):
+        # rotation() is the Taylor polynomial wherever |angle| <= TAYLOR_MAX_ANGLE: when every
+        # lane's angle is, the branch-free loop computes the same numbers on machine vectors
+        big = 0
+        for q in range(l0, l1):
+            big += abs(dt * th[i, q]) > TAYLOR_MAX_ANGLE  # an integer sum: vectorizes
+        if big == 0:
+            for q in range(l0, l1):
+                ca, sa = _taylor(dt * th[i, q])
+                ci = c[i, q]
+                si = s[i, q]
+                c[i, q] = ci * ca - si * sa
+                s[i, q] = si * ca + ci * sa
+        else:
+            for q in range(l0, l1):
+                ca, sa = _rotation(dt * th[i, q])
+                ci = c[i, q]
+                si = s[i, q]
+                c[i, q] = ci * ca - si * sa
+                s[i, q] = si * ca + ci * sa
+        for q in range(l0, l1):
+            sum_c[q] += c[i, q]
+            sum_s[q] += s[i, q]
+        if second:
+            for q in range(l0, l1):
+                nu[i, q] += dt * dnu[i, q]
+    for q in range(l0, l1):
+        r2[q] = sum_c[q] * sum_c[q] + sum_s[q] * sum_s[q]
+
+
+@njit(inline="always")
+def _rk4_lanes(c, s, nu, th, dnu, work, p, lw, indptr, indices, cl, sl, mass, gamma, second, dt, l0, l1):
+    # work rows as make_model_kernels' rk4_step: 0-3 dc of the stages, 4-7 ds, 8-11 dnu, 12-14
+    # the stage state (c, s, nu)
+    n = c.shape[0]
+    for i in range(n):
+        for q in range(l0, l1):
+            work[0, i, q] = -s[i, q] * th[i, q]
+            work[4, i, q] = c[i, q] * th[i, q]
+            work[8, i, q] = dnu[i, q] if second else 0.0
+    for stage in range(1, 4):
+        h = 0.5 * dt if stage < 3 else dt
+        for i in range(n):
+            for q in range(l0, l1):
+                work[12, i, q] = c[i, q] + h * work[stage - 1, i, q]
+                work[13, i, q] = s[i, q] + h * work[stage + 3, i, q]
+                work[14, i, q] = nu[i, q] + h * work[stage + 7, i, q]
+        _rhs_vec(work[12], work[13], work[14], p, lw, indptr, indices, cl, sl, mass, gamma, second, th, dnu)
+        for i in range(n):
+            for q in range(l0, l1):
+                work[stage, i, q] = -work[13, i, q] * th[i, q]
+                work[stage + 4, i, q] = work[12, i, q] * th[i, q]
+                work[stage + 8, i, q] = dnu[i, q] if second else 0.0
+    for i in range(n):
+        for q in range(l0, l1):
+            cn = c[i, q] + dt / 6.0 * (
+                work[0, i, q] + 2.0 * work[1, i, q] + 2.0 * work[2, i, q] + work[3, i, q]
+            )
+            sn = s[i, q] + dt / 6.0 * (
+                work[4, i, q] + 2.0 * work[5, i, q] + 2.0 * work[6, i, q] + work[7, i, q]
+            )
+            inv = 1.0 / math.sqrt(cn * cn + sn * sn)
+            c[i, q] = cn * inv
+            s[i, q] = sn * inv
+        if second:
+            for q in range(l0, l1):
+                nu[i, q] += (
+                    dt / 6.0 * (work[8, i, q] + 2.0 * work[9, i, q] + 2.0 * work[10, i, q] + work[11, i, q])
+                )
+
+
+@njit(inline="always")
+def _order_lanes(c, s, th, r2, dr2, tc, ts, dc, ds, l0, l1):
+    """``R`` (``order2``'s sums) and ``dR/dt`` (``measure``'s) of every lane."""
+    for q in range(l0, l1):
+        tc[q] = 0.0
+        ts[q] = 0.0
+        dc[q] = 0.0
+        ds[q] = 0.0
+    for i in range(c.shape[0]):
+        for q in range(l0, l1):
+            tc[q] += c[i, q]
+            ts[q] += s[i, q]
+            dc[q] -= s[i, q] * th[i, q]
+            ds[q] += c[i, q] * th[i, q]
+    for q in range(l0, l1):
+        r2[q] = tc[q] * tc[q] + ts[q] * ts[q]
+        dr2[q] = 2.0 * (tc[q] * dc[q] + ts[q] * ds[q])
+
+
+@njit(inline="always")
+def _deviations_lanes(c, s, th, dnu, lw, indptr, indices, cl, sl, mass, gamma, second, work, m4, l0, l1):
+    """make_model_kernels' ``deviations`` for every lane (rows DEV_ROW.. of ``work``)."""
+    n = c.shape[0]
+    d = DEV_ROW
+    for k in range(4):
+        for q in range(l0, l1):
+            m4[k, q] = 0.0
+    for i in range(n):
+        for q in range(l0, l1):
+            work[d + 1, i, q] = 0.0  # kd
+        for e in range(indptr[i], indptr[i + 1]):
+            j = indices[e]
+            for q in range(l0, l1):
+                ca = cl * (c[j, q] * c[i, q] + s[j, q] * s[i, q]) + sl * (
+                    s[j, q] * c[i, q] - c[j, q] * s[i, q]
+                )
+                work[d + 1, i, q] += lw[e, q] * ca * (th[j, q] - th[i, q])
+        for q in range(l0, l1):
+            kd = work[d + 1, i, q]
+            work[d, i, q] = th[i, q]
+            if not second:
+                work[d + 1, i, q] = kd
+            else:
+                work[d + 1, i, q] = dnu[i, q] if mass[i] > 0.0 else kd / gamma[i]
+                work[d + 2, i, q] = th[i, q] + mass[i] / gamma[i] * dnu[i, q]
+                work[d + 3, i, q] = kd / gamma[i]
+                m4[2, q] += work[d + 2, i, q]
+                m4[3, q] += work[d + 3, i, q]
+            m4[0, q] += work[d, i, q]
+            m4[1, q] += work[d + 1, i, q]
+    for i in range(n):
+        for q in range(l0, l1):
+            work[d, i, q] -= m4[0, q] / n
+            work[d + 1, i, q] -= m4[1, q] / n
+            if second:
+                work[d + 2, i, q] -= m4[2, q] / n
+                work[d + 3, i, q] -= m4[3, q] / n
+
+
+@njit(cache=True)
+def _model_load(
+    q,
+    qr,
+    qv,
+    r_hi,
+    seed,
+    ks,
+    base_w,
+    var_w,
+    var_is_base,
+    todo,
+    freqs,
+    targets,
+    cl,
+    sl,
+    mass,
+    gamma,
+    second,
+    freq,
+    indptr,
+    indices,
+    c,
+    s,
+    nu,
+    th,
+    dnu,
+    p,
+    lw,
+    work,
+    r2,
+    dr2,
+    lane_r,
+    lane_v,
+    lane_t0,
+    lane_target,
+    t,
+    status0,
+    steps0,
+    frac0,
+    status,
+    steps,
+    frac,
+):
+    """Put the next queued item that needs integrating into lane ``q`` (the one-trajectory
+    ``sync_steps``' start on the lane's column); items met at t = 0 are recorded on the spot.
+    Returns the advanced cursor and 1 if the lane was filled, 0 if the queue is empty."""
+    n = c.shape[0]
+    while qr < r_hi:
+        r, v = qr, qv
+        qr, qv = _next_item(qr, qv, r_hi, var_is_base)
+        if todo.shape[0] > 0 and not todo[r, v + 1]:
+            continue
+        row = r if freqs.shape[0] > 1 else 0
+        for i in range(n):
+            theta = phase(seed, ks[r], i)
+            c[i, q] = np.cos(theta)
+            s[i, q] = np.sin(theta)
+            nu[i, q] = 0.0
+            dnu[i, q] = 0.0
+            p[i, q] = freqs[row, i]
+        for e in range(lw.shape[0]):
+            lw[e, q] = base_w[e] if v < 0 else var_w[v, e]
+        target = targets[v + 1]
+        cq, sq, thq, dnuq = c[:, q], s[:, q], th[:, q], dnu[:, q]
+        _model_rhs(
+            cq, sq, nu[:, q], p[:, q], indptr, indices, lw[:, q], cl, sl, mass, gamma, second, thq, dnuq
+        )
+        r2[q] = _order2(cq, sq)
+        d, dev = _model_measure(cq, sq, thq, dnuq, mass, gamma, second)
+        dr2[q] = d
+        if freq:
+            met = dev < target
+            if not met:
+                _model_deviations(
+                    cq, sq, thq, dnuq, indptr, indices, lw[:, q], cl, sl, mass, gamma, second, work[:, :, q]
+                )
+        else:
+            met = r2[q] >= target
+        if met:
+            if v < 0:
+                status0[r] = ALREADY_SYNCED
+                steps0[r] = 0
+                frac0[r] = 0.0
+            else:
+                status[r, v] = ALREADY_SYNCED
+                steps[r, v] = 0
+                frac[r, v] = 0.0
+            continue
+        lane_r[q] = r
+        lane_v[q] = v
+        lane_t0[q] = t
+        lane_target[q] = target
+        return qr, qv, 1
+    return qr, qv, 0
+
+
+@njit(parallel=True, cache=True)
+def _integrate_model_lanes(
+    ks,
+    seed,
+    indptr,
+    indices,
+    base_w,
+    var_w,
+    var_is_base,
+    freqs,
+    cl,
+    sl,
+    mass,
+    gamma,
+    dt,
+    rk4,
+    criterion,
+    targets,
+    max_steps,
+    todo,
+    lanes,
+    n_groups,
+    status0,
+    steps0,
+    frac0,
+    status,
+    steps,
+    frac,
+):
+    """Lanes of trajectories with refill (as :func:`antisync.kernels.cpu._integrate_lanes`):
+    each parallel task steps ``lanes`` items of its range of realizations together and refills
+    a lane when its item is done. Same results as :func:`_integrate_items`, bit for bit."""
+    m = ks.shape[0]
+    n = indptr.shape[0] - 1
+    nnz = base_w.shape[0]
+    n_var = var_w.shape[0]
+    second = False
+    for i in range(n):
+        second |= mass[i] > 0.0
+    freq = criterion == CRIT_FREQUENCY
+    d = DEV_ROW
+    dp = DEV_PREV_ROW
+    per = (m + n_groups - 1) // n_groups
+    width = (lanes + 2 * VEC - 1) // (2 * VEC) * (2 * VEC)
+    for group in prange(n_groups):
+        r_lo = group * per
+        r_hi = min(m, r_lo + per)
+        if r_lo >= r_hi:
+            continue
+        # the vector step needs a multiple of 2 VEC lanes: lanes past `lanes` stay empty
+        # (phases 0, weights 0)
+        c = np.ones((n, width))
+        s = np.zeros((n, width))
+        nu = np.zeros((n, width))
+        th = np.zeros((n, width))
+        dnu = np.zeros((n, width))
+        p = np.zeros((n, width))
+        lw = np.zeros((nnz, width))
+        work = np.zeros((WORK_ROWS, n, width))
+        r2 = np.zeros(width)
+        dr2 = np.zeros(width)
+        r2_prev = np.zeros(width)
+        dr2_prev = np.zeros(width)
+        acc = np.zeros((4, width))
+        lane_r = np.full(width, -1, dtype=np.int64)
+        lane_v = np.zeros(width, dtype=np.int64)
+        lane_t0 = np.zeros(width, dtype=np.int64)
+        lane_target = np.zeros(width)
+        qr, qv = r_lo, -1
+        active = 0
+        t = 0
+        for q in range(lanes):
+            qr, qv, filled = _model_load(
+                q,
+                qr,
+                qv,
+                r_hi,
+                seed,
+                ks,
+                base_w,
+                var_w,
+                var_is_base,
+                todo,
+                freqs,
+                targets,
+                cl,
+                sl,
+                mass,
+                gamma,
+                second,
+                freq,
+                indptr,
+                indices,
+                c,
+                s,
+                nu,
+                th,
+                dnu,
+                p,
+                lw,
+                work,
+                r2,
+                dr2,
+                lane_r,
+                lane_v,
+                lane_t0,
+                lane_target,
+                t,
+                status0,
+                steps0,
+                frac0,
+                status,
+                steps,
+                frac,
+            )
+            active += filled
+        # a lane's step count is t - lane_t0; the per-lane loop below runs only when some lane
+        # may have met the criterion (a vectorized test) or reaches the step cap, and lanes are
+        # renormalized (Euler) only at their own multiples of RENORM_EVERY, as in sync_steps
+        next_cap = t + max_steps
+        next_renorm = t + RENORM_EVERY
+        while active > 0:
+            t += 1
+            r2, r2_prev = r2_prev, r2
+            dr2, dr2_prev = dr2_prev, dr2
+            if freq:
+                for k in range(4):
+                    for i in range(n):
+                        for q in range(width):
+                            work[dp + k, i, q] = work[d + k, i, q]
+            if rk4:
+                _rk4_lanes(
+                    c,
+                    s,
+                    nu,
+                    th,
+                    dnu,
+                    work,
+                    p,
+                    lw,
+                    indptr,
+                    indices,
+                    cl,
+                    sl,
+                    mass,
+                    gamma,
+                    second,
+                    dt,
+                    0,
+                    width,
+                )
+            else:
+                _euler_lanes(c, s, nu, th, dnu, dt, second, r2, acc[0], acc[1], 0, width)
+                if t >= next_renorm:
+                    next_renorm = t + RENORM_EVERY
+                    for q in range(width):
+                        if lane_r[q] < 0:
+                            continue
+                        k = t - lane_t0[q]
+                        if k % RENORM_EVERY == 0:
+                            _renormalize(c[:, q], s[:, q])
+                        next_renorm = min(next_renorm, t + RENORM_EVERY - k % RENORM_EVERY)
+            _rhs_vec(c, s, nu, p, lw, indptr, indices, cl, sl, mass, gamma, second, th, dnu)
+            if freq:
+                _deviations_lanes(
+                    c, s, th, dnu, lw, indptr, indices, cl, sl, mass, gamma, second, work, acc, 0, width
+                )
+                hits = 1  # the criterion's own bound test, per lane, below
+            elif rk4:
+                _order_lanes(c, s, th, r2, dr2, acc[0], acc[1], acc[2], acc[3], 0, width)
+                # the Hermite interpolant of R over the step stays below max(R_0, R_1) +
+                # 4/27 (|m0| + |m1|) (its slope basis functions peak at 4/27): a lane below
+                # that bound cannot cross in this step
+                hits = 0
+                for q in range(width):
+                    top = max(r2_prev[q], r2[q]) + 0.15 * dt * (abs(dr2_prev[q]) + abs(dr2[q]))
+                    hits += (top >= lane_target[q]) & (lane_r[q] >= 0)
+            else:
+                hits = 0
+                for q in range(width):
+                    hits += (r2[q] >= lane_target[q]) & (lane_r[q] >= 0)
+            if hits == 0 and t < next_cap:
+                continue
+            next_cap = t + max_steps
+            for q in range(width):
+                if lane_r[q] < 0:
+                    continue
+                k = t - lane_t0[q]
+                if freq:
+                    x = _frequency_crossing(work[:, :, q], n, second, dt, rk4, lane_target[q])
+                else:
+                    x = _order_crossing(r2_prev[q], dr2_prev[q], r2[q], dr2[q], dt, rk4, lane_target[q])
+                if x >= 0.0:
+                    st = SYNCED
+                elif k >= max_steps:
+                    st = NOT_SYNCED
+                    x = 0.0
+                else:
+                    next_cap = min(next_cap, lane_t0[q] + max_steps)
+                    continue
+                r = lane_r[q]
+                v = lane_v[q]
+                if v < 0:
+                    status0[r] = st
+                    steps0[r] = k
+                    frac0[r] = x
+                else:
+                    status[r, v] = st
+                    steps[r, v] = k
+                    frac[r, v] = x
+                lane_r[q] = -1
+                active -= 1
+                qr, qv, filled = _model_load(
+                    q,
+                    qr,
+                    qv,
+                    r_hi,
+                    seed,
+                    ks,
+                    base_w,
+                    var_w,
+                    var_is_base,
+                    todo,
+                    freqs,
+                    targets,
+                    cl,
+                    sl,
+                    mass,
+                    gamma,
+                    second,
+                    freq,
+                    indptr,
+                    indices,
+                    c,
+                    s,
+                    nu,
+                    th,
+                    dnu,
+                    p,
+                    lw,
+                    work,
+                    r2,
+                    dr2,
+                    lane_r,
+                    lane_v,
+                    lane_t0,
+                    lane_target,
+                    t,
+                    status0,
+                    steps0,
+                    frac0,
+                    status,
+                    steps,
+                    frac,
+                )
+                active += filled
+        for r in range(r_lo, r_hi):
+            for v in range(n_var):
+                if var_is_base[v]:
+                    status[r, v] = status0[r]
+                    steps[r, v] = steps0[r]
+                    frac[r, v] = frac0[r]
+
+
 def _per_node(value, n: int) -> np.ndarray:
     """Inertia or damping as the kernels' per-node array (a number is every node's)."""
     return np.ascontiguousarray(np.broadcast_to(np.asarray(value, dtype=np.float64), (n,)))
@@ -158,12 +722,15 @@ def simulate_model(
     threads: int | None = None,
     realizations: np.ndarray | None = None,
     todo: np.ndarray | None = None,
+    lanes: int = LANES,
 ) -> SimResult:
     """Integrate realizations ``first .. first+count-1`` of a generalized model for the base
     network and every variant (same arguments as :func:`antisync.kernels.cpu.simulate`, plus
     the model's ``params``; ``threshold`` is in ``params.targets``). ``todo`` (bool, ``(m, V +
     1)``) integrates only the marked items, as in :func:`antisync.kernels.cpu.simulate`: the
-    others get status and steps ``-1`` and ``frac`` NaN.
+    others get status and steps ``-1`` and ``frac`` NaN. ``lanes`` trajectories are stepped
+    together per thread (the lane driver); ``lanes=0`` runs one trajectory per thread (the plain
+    reference driver). Both give the same results, bit for bit.
 
     Returns a :class:`~antisync.kernels.cpu.SimResult` with ``frac0``/``frac`` (where inside
     the last step the criterion is met).
@@ -199,33 +766,37 @@ def simulate_model(
     status = np.full((m, n_var), -1, dtype=np.int8)
     steps = np.full((m, n_var), -1, dtype=np.int64)
     frac = np.full((m, n_var), np.nan)
-    with _Threads(threads):
-        _integrate_items(
-            ks,
-            np.uint64(seed),
-            indptr.astype(np.int64),
-            indices.astype(np.int64),
-            base_weights,
-            var_w,
-            var_is_base,
-            freqs,
-            float(params.cos_lag),
-            float(params.sin_lag),
-            _per_node(params.inertia, n),
-            _per_node(params.damping, n),
-            float(dt),
-            integrator == "rk4",
-            int(params.criterion),
-            targets,
-            int(max_steps),
-            todo,
-            status0,
-            steps0,
-            frac0,
-            status,
-            steps,
-            frac,
-        )
+    args = (
+        ks,
+        np.uint64(seed),
+        indptr.astype(np.int64),
+        indices.astype(np.int64),
+        base_weights,
+        var_w,
+        var_is_base,
+        freqs,
+        float(params.cos_lag),
+        float(params.sin_lag),
+        _per_node(params.inertia, n),
+        _per_node(params.damping, n),
+        float(dt),
+        integrator == "rk4",
+        int(params.criterion),
+        targets,
+        int(max_steps),
+        todo,
+    )
+    outputs = (status0, steps0, frac0, status, steps, frac)
+    if lanes < 0:
+        raise ValueError(f"lanes must be >= 0, got {lanes}")
+    with _Threads(threads) as groups:
+        if not lanes:
+            _integrate_items(*args, *outputs)
+        else:
+            if todo.shape[0] > 0:
+                # few scattered items: no more groups (row ranges) than it takes to fill the lanes
+                groups = min(groups, max(1, -(-int(todo.sum()) // int(lanes))))
+            _integrate_model_lanes(*args, int(lanes), groups, *outputs)
     return SimResult(status0, steps0, status, steps, frac0, frac)
 
 
