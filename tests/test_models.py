@@ -552,7 +552,9 @@ def test_lane_driver_is_the_one_trajectory_driver_bit_for_bit(name):
     for lanes in (model_cpu.LANES, 7):
         got = _model_sim(job, 60, lanes=lanes)
         for field in ("status0", "steps0", "status", "steps", "frac0", "frac"):
-            np.testing.assert_array_equal(getattr(got, field), getattr(ref, field), err_msg=f"{field} {lanes}")
+            np.testing.assert_array_equal(
+                getattr(got, field), getattr(ref, field), err_msg=f"{field} {lanes}"
+            )
 
 
 def test_lane_driver_todo_integrates_only_the_marked_items():
