@@ -340,7 +340,7 @@ def _deviations_lanes(c, s, th, dnu, lw, indptr, indices, cl, sl, mass, gamma, s
                 work[d + 3, i, q] -= m4[3, q] / n
 
 
-@njit(cache=True)
+@njit(cache=True)  # not inlined: numba's inline pass fails on it ("closure with *args")
 def _model_load(
     q,
     qr,
@@ -609,10 +609,12 @@ def _integrate_model_lanes(
                 _order_lanes(c, s, th, r2, dr2, acc[0], acc[1], acc[2], acc[3], 0, width)
                 # the Hermite interpolant of R over the step stays below max(R_0, R_1) +
                 # 4/27 (|m0| + |m1|) (its slope basis functions peak at 4/27): a lane below
-                # that bound cannot cross in this step
+                # that bound, widened for rounding, cannot cross in this step
                 hits = 0
                 for q in range(width):
-                    top = max(r2_prev[q], r2[q]) + 0.15 * dt * (abs(dr2_prev[q]) + abs(dr2[q]))
+                    top = max(r2_prev[q], r2[q]) * (1.0 + 1e-12) + 0.15 * dt * (
+                        abs(dr2_prev[q]) + abs(dr2[q])
+                    )
                     hits += (top >= lane_target[q]) & (lane_r[q] >= 0)
             else:
                 hits = 0
