@@ -269,6 +269,27 @@ def vsqrt(typingctx, a):
     return a(a), codegen
 
 
+@intrinsic
+def vany_outside(typingctx, a, bound):
+    """Whether some lane has ``|a| > bound`` or is NaN: the lanes for which ``abs(x) <= bound``
+    is False (the Taylor rotation's range test, for a whole vector)."""
+    if not isinstance(a, _LaneVec) or not isinstance(bound, (types.Float, types.Integer)):
+        return None
+
+    def codegen(context, builder, sig, args):
+        vt = sig.args[0]
+        fnty = ir.FunctionType(vt.ir_type, [vt.ir_type])
+        suffix = "f64" if vt.dtype == types.float64 else "f32"
+        fabs = cgutils.get_or_insert_function(builder.module, fnty, f"llvm.fabs.v{vt.lanes}{suffix}")
+        outside = builder.fcmp_unordered(
+            ">", builder.call(fabs, [args[0]]), _splat(context, builder, args[1], sig.args[1], vt)
+        )
+        bits = builder.bitcast(outside, ir.IntType(vt.lanes))
+        return builder.icmp_unsigned("!=", bits, ir.Constant(ir.IntType(vt.lanes), 0))
+
+    return types.boolean(a, bound), codegen
+
+
 class Kernels(NamedTuple):
     """The compiled functions of :func:`make_kernels`, by name (see there for each signature).
 

@@ -26,11 +26,12 @@ from antisync.kernels.core import (
     WORK_ROWS,
     make_kernels,
     make_model_kernels,
+    vany_outside,
     vload,
     vsplat,
     vstore,
 )
-from antisync.kernels.cpu import LANES, SimResult, _next_item, _realization_ids, _Threads
+from antisync.kernels.cpu import LANES, SimResult, _next_item, _realization_ids, _row_sum_bound, _Threads
 from antisync.phases import make_uniform, phase
 from antisync.status import ALREADY_SYNCED, NOT_SYNCED, SYNCED
 
@@ -203,6 +204,87 @@ def _node_vec(c, s, nu, p, cl, sl, mass, gamma, second, th, dnu, o, sc, ss, i):
     else:
         vstore(th, o, (vload(p, o) + k) / gamma[i])
         vstore(dnu, o, vsplat(0.0))
+
+
+@njit(inline="always")
+def _euler_vec(c, s, cn, sn, nu, p, lw, indptr, indices, cl, sl, mass, gamma, second, dt, taylor, r2, spare):
+    """One Euler step of every lane on machine vectors, fused as the identical model's
+    ``euler_step_vec``: per node the coupling sums over its edges (in registers), ``rhs``'
+    rates at the current state, the rotation of ``(c_i, s_i)`` by ``dt theta_i'`` into ``(cn,
+    sn)`` (the caller swaps the buffers) and ``nu_i += dt nu_i'``; ``r2`` gets each lane's
+    ``R``. The rates are not kept (the order criteria with Euler need only ``R``). Per lane the
+    operations and their order are ``rhs``' and ``euler_step``'s. ``taylor`` promises every
+    angle is within the Taylor range (else each vector is tested); ``spare`` (VEC floats) is
+    scratch for a vector with an angle outside it."""
+    n, lanes = c.shape
+    zero = vsplat(0.0)
+    for qa in range(0, lanes, 2 * VEC):
+        qb = qa + VEC
+        tca, tsa, tcb, tsb = zero, zero, zero, zero
+        for i in range(n):
+            sca, ssa, scb, ssb = zero, zero, zero, zero
+            for e in range(indptr[i], indptr[i + 1]):
+                sca, ssa, scb, ssb = _edge_vec(c, s, lw, gamma, False, indices, e, qa, sca, ssa, scb, ssb)
+            o = i * lanes
+            xa, ya = _euler_node_vec(
+                c, s, cn, sn, nu, p, cl, sl, mass, gamma, second, dt, taylor, o + qa, sca, ssa, i, spare
+            )
+            xb, yb = _euler_node_vec(
+                c, s, cn, sn, nu, p, cl, sl, mass, gamma, second, dt, taylor, o + qb, scb, ssb, i, spare
+            )
+            tca = tca + xa
+            tsa = tsa + ya
+            tcb = tcb + xb
+            tsb = tsb + yb
+        vstore(r2, qa, tca * tca + tsa * tsa)
+        vstore(r2, qb, tcb * tcb + tsb * tsb)
+
+
+@njit(cache=True)  # not inlined: the rare path stays out of the vector loop's registers
+def _rotate_each(c, s, cn, sn, angles, o):
+    """Some lane's angle is outside the Taylor range: ``rotation()`` lane by lane for the lane
+    vector at flat offset ``o`` (angles in ``angles``)."""
+    lanes = c.shape[1]
+    row = o // lanes
+    q0 = o - row * lanes
+    for q in range(VEC):
+        ca, sa = _rotation(angles[q])
+        ci = c[row, q0 + q]
+        si = s[row, q0 + q]
+        cn[row, q0 + q] = ci * ca - si * sa
+        sn[row, q0 + q] = si * ca + ci * sa
+
+
+@njit(inline="always")
+def _euler_node_vec(c, s, cn, sn, nu, p, cl, sl, mass, gamma, second, dt, taylor, o, sc, ss, i, spare):
+    """Node ``i`` of :func:`_euler_vec` for the lane vector at flat offset ``o``."""
+    ci = vload(c, o)
+    si = vload(s, o)
+    k = (ci * ss - si * sc) * cl - (ci * sc + si * ss) * sl
+    dnu = vsplat(0.0)
+    if not second:
+        th = vload(p, o) + k
+    elif mass[i] > 0.0:
+        v = vload(nu, o)
+        th = v
+        dnu = (vload(p, o) + k - v * gamma[i]) / mass[i]
+    else:
+        th = (vload(p, o) + k) / gamma[i]
+    a = th * dt
+    if taylor or not vany_outside(a, TAYLOR_MAX_ANGLE):
+        ca, sa = _taylor(a)
+        x = ci * ca - si * sa
+        y = si * ca + ci * sa
+        vstore(cn, o, x)
+        vstore(sn, o, y)
+    else:
+        vstore(spare, 0, a)
+        _rotate_each(c, s, cn, sn, spare, o)
+        x = vload(cn, o)
+        y = vload(sn, o)
+    if second:
+        vstore(nu, o, vload(nu, o) + dnu * dt)
+    return x, y
 
 
 @njit(inline="always")
@@ -458,6 +540,7 @@ def _integrate_model_lanes(
     max_steps,
     todo,
     lanes,
+    taylor,
     n_groups,
     status0,
     steps0,
@@ -477,6 +560,8 @@ def _integrate_model_lanes(
     for i in range(n):
         second |= mass[i] > 0.0
     freq = criterion == CRIT_FREQUENCY
+    # Euler with an order criterion needs no rates after the step: the step is fused
+    fused = not rk4 and not freq
     d = DEV_ROW
     dp = DEV_PREV_ROW
     per = (m + n_groups - 1) // n_groups
@@ -490,6 +575,9 @@ def _integrate_model_lanes(
         # (phases 0, weights 0)
         c = np.ones((n, width))
         s = np.zeros((n, width))
+        cn = np.ones((n, width) if fused else (0, width))
+        sn = np.zeros((n, width) if fused else (0, width))
+        spare = np.empty(VEC)
         nu = np.zeros((n, width))
         th = np.zeros((n, width))
         dnu = np.zeros((n, width))
@@ -589,7 +677,31 @@ def _integrate_model_lanes(
                     width,
                 )
             else:
-                _euler_lanes(c, s, nu, th, dnu, dt, second, r2, acc[0], acc[1], 0, width)
+                if fused:
+                    _euler_vec(
+                        c,
+                        s,
+                        cn,
+                        sn,
+                        nu,
+                        p,
+                        lw,
+                        indptr,
+                        indices,
+                        cl,
+                        sl,
+                        mass,
+                        gamma,
+                        second,
+                        dt,
+                        taylor,
+                        r2,
+                        spare,
+                    )
+                    c, cn = cn, c
+                    s, sn = sn, s
+                else:
+                    _euler_lanes(c, s, nu, th, dnu, dt, second, r2, acc[0], acc[1], 0, width)
                 if t >= next_renorm:
                     next_renorm = t + RENORM_EVERY
                     for q in range(width):
@@ -599,7 +711,8 @@ def _integrate_model_lanes(
                         if k % RENORM_EVERY == 0:
                             _renormalize(c[:, q], s[:, q])
                         next_renorm = min(next_renorm, t + RENORM_EVERY - k % RENORM_EVERY)
-            _rhs_vec(c, s, nu, p, lw, indptr, indices, cl, sl, mass, gamma, second, th, dnu)
+            if not fused:
+                _rhs_vec(c, s, nu, p, lw, indptr, indices, cl, sl, mass, gamma, second, th, dnu)
             if freq:
                 _deviations_lanes(
                     c, s, th, dnu, lw, indptr, indices, cl, sl, mass, gamma, second, work, acc, 0, width
@@ -789,6 +902,7 @@ def simulate_model(
         todo,
     )
     outputs = (status0, steps0, frac0, status, steps, frac)
+    taylor = _taylor_everywhere(dt, indptr, base_weights, var_w, freqs, params, n)
     if lanes < 0:
         raise ValueError(f"lanes must be >= 0, got {lanes}")
     with _Threads(threads) as groups:
@@ -798,8 +912,20 @@ def simulate_model(
             if todo.shape[0] > 0:
                 # few scattered items: no more groups (row ranges) than it takes to fill the lanes
                 groups = min(groups, max(1, -(-int(todo.sum()) // int(lanes))))
-            _integrate_model_lanes(*args, int(lanes), groups, *outputs)
+            _integrate_model_lanes(*args, int(lanes), taylor, groups, *outputs)
     return SimResult(status0, steps0, status, steps, frac0, frac)
+
+
+def _taylor_everywhere(dt, indptr, base_w, var_w, freqs, params: ModelParams, n: int) -> bool:
+    """Whether every Euler rotation angle ``dt theta_i'`` of a first-order model is within
+    :data:`~antisync.kernels.core.TAYLOR_MAX_ANGLE`: ``|theta_i'| <= max |P| + (|cos alpha| +
+    |sin alpha|) max_i sum_j |w_ij|`` (a margin of 1e-9 for rounding). Never for inertia
+    (``theta_i' = nu_i`` has no such bound)."""
+    if (_per_node(params.inertia, n) > 0.0).any():
+        return False
+    coupling = abs(params.cos_lag) + abs(params.sin_lag)
+    rate = float(np.abs(freqs).max(initial=0.0)) + coupling * _row_sum_bound(indptr, base_w, var_w)
+    return float(dt) * rate * (1.0 + 1e-9) <= TAYLOR_MAX_ANGLE
 
 
 def lag_terms(phase_lag: float) -> tuple[float, float]:
