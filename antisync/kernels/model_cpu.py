@@ -596,57 +596,93 @@ def _integrate_model_lanes(
         qr, qv = r_lo, -1
         active = 0
         t = 0
-        for q in range(lanes):
-            qr, qv, filled = _model_load(
-                q,
-                qr,
-                qv,
-                r_hi,
-                seed,
-                ks,
-                base_w,
-                var_w,
-                var_is_base,
-                todo,
-                freqs,
-                targets,
-                cl,
-                sl,
-                mass,
-                gamma,
-                second,
-                freq,
-                indptr,
-                indices,
-                c,
-                s,
-                nu,
-                th,
-                dnu,
-                p,
-                lw,
-                work,
-                r2,
-                dr2,
-                lane_r,
-                lane_v,
-                lane_t0,
-                lane_target,
-                t,
-                status0,
-                steps0,
-                frac0,
-                status,
-                steps,
-                frac,
-            )
-            active += filled
-        # a lane's step count is t - lane_t0; the per-lane loop below runs only when some lane
-        # may have met the criterion (a vectorized test) or reaches the step cap, and lanes are
-        # renormalized (Euler) only at their own multiples of RENORM_EVERY, as in sync_steps
+        # a lane's step count is t - lane_t0; the per-lane pass below runs only when some lane
+        # may have met the criterion (a vectorized test) or reaches the step cap (and at t = 0,
+        # to fill the lanes): it records what ended and refills the lane from the queue. Lanes
+        # are renormalized (Euler) only at their own multiples of RENORM_EVERY, as in sync_steps
         next_cap = t + max_steps
         next_renorm = t + RENORM_EVERY
-        while active > 0:
+        event = True
+        while True:
+            if event:
+                next_cap = t + max_steps
+                for q in range(width):
+                    if lane_r[q] >= 0:
+                        k = t - lane_t0[q]
+                        if freq:
+                            x = _frequency_crossing(work[:, :, q], n, second, dt, rk4, lane_target[q])
+                        else:
+                            x = _order_crossing(
+                                r2_prev[q], dr2_prev[q], r2[q], dr2[q], dt, rk4, lane_target[q]
+                            )
+                        if x >= 0.0:
+                            st = SYNCED
+                        elif k >= max_steps:
+                            st = NOT_SYNCED
+                            x = 0.0
+                        else:
+                            next_cap = min(next_cap, lane_t0[q] + max_steps)
+                            continue
+                        r = lane_r[q]
+                        v = lane_v[q]
+                        if v < 0:
+                            status0[r] = st
+                            steps0[r] = k
+                            frac0[r] = x
+                        else:
+                            status[r, v] = st
+                            steps[r, v] = k
+                            frac[r, v] = x
+                        lane_r[q] = -1
+                        active -= 1
+                    if q >= lanes:
+                        continue  # padding of the vector width: never filled
+                    qr, qv, filled = _model_load(
+                        q,
+                        qr,
+                        qv,
+                        r_hi,
+                        seed,
+                        ks,
+                        base_w,
+                        var_w,
+                        var_is_base,
+                        todo,
+                        freqs,
+                        targets,
+                        cl,
+                        sl,
+                        mass,
+                        gamma,
+                        second,
+                        freq,
+                        indptr,
+                        indices,
+                        c,
+                        s,
+                        nu,
+                        th,
+                        dnu,
+                        p,
+                        lw,
+                        work,
+                        r2,
+                        dr2,
+                        lane_r,
+                        lane_v,
+                        lane_t0,
+                        lane_target,
+                        t,
+                        status0,
+                        steps0,
+                        frac0,
+                        status,
+                        steps,
+                        frac,
+                    )
+                    active += filled
+            if active == 0:
+                break
             t += 1
             r2, r2_prev = r2_prev, r2
             dr2, dr2_prev = dr2_prev, dr2
@@ -733,81 +769,7 @@ def _integrate_model_lanes(
                 hits = 0
                 for q in range(width):
                     hits += (r2[q] >= lane_target[q]) & (lane_r[q] >= 0)
-            if hits == 0 and t < next_cap:
-                continue
-            next_cap = t + max_steps
-            for q in range(width):
-                if lane_r[q] < 0:
-                    continue
-                k = t - lane_t0[q]
-                if freq:
-                    x = _frequency_crossing(work[:, :, q], n, second, dt, rk4, lane_target[q])
-                else:
-                    x = _order_crossing(r2_prev[q], dr2_prev[q], r2[q], dr2[q], dt, rk4, lane_target[q])
-                if x >= 0.0:
-                    st = SYNCED
-                elif k >= max_steps:
-                    st = NOT_SYNCED
-                    x = 0.0
-                else:
-                    next_cap = min(next_cap, lane_t0[q] + max_steps)
-                    continue
-                r = lane_r[q]
-                v = lane_v[q]
-                if v < 0:
-                    status0[r] = st
-                    steps0[r] = k
-                    frac0[r] = x
-                else:
-                    status[r, v] = st
-                    steps[r, v] = k
-                    frac[r, v] = x
-                lane_r[q] = -1
-                active -= 1
-                qr, qv, filled = _model_load(
-                    q,
-                    qr,
-                    qv,
-                    r_hi,
-                    seed,
-                    ks,
-                    base_w,
-                    var_w,
-                    var_is_base,
-                    todo,
-                    freqs,
-                    targets,
-                    cl,
-                    sl,
-                    mass,
-                    gamma,
-                    second,
-                    freq,
-                    indptr,
-                    indices,
-                    c,
-                    s,
-                    nu,
-                    th,
-                    dnu,
-                    p,
-                    lw,
-                    work,
-                    r2,
-                    dr2,
-                    lane_r,
-                    lane_v,
-                    lane_t0,
-                    lane_target,
-                    t,
-                    status0,
-                    steps0,
-                    frac0,
-                    status,
-                    steps,
-                    frac,
-                )
-                active += filled
+            event = hits > 0 or t >= next_cap
         for r in range(r_lo, r_hi):
             for v in range(n_var):
                 if var_is_base[v]:
