@@ -1,9 +1,13 @@
 """CPU driver of the generalized models (natural frequencies, phase lag, inertia; docs/models.md).
 
-One trajectory per thread: a parallel loop over (realization, variant) items, each integrated
-by :func:`antisync.kernels.core.make_model_kernels`' ``sync_steps`` from the realization's
-counter-based phases (and natural frequencies). The identical first-order model never comes
-here: it keeps the default lane driver of :mod:`antisync.kernels.cpu`.
+Lanes of trajectories (:func:`simulate_model`, ``lanes=LANES``): each parallel task steps 32
+(realization, variant) items together on the default path's ``[node, lane]`` layout and machine
+vectors, refilling a lane when its item ends; every lane follows
+:func:`antisync.kernels.core.make_model_kernels`' ``sync_steps`` from the realization's
+counter-based phases (and natural frequencies) bit for bit. ``lanes=0`` runs that one-trajectory
+function per item (:func:`_integrate_items`), the slow obvious reference the tests hold the
+lanes to. The identical first-order model never comes here: it keeps the default lane driver of
+:mod:`antisync.kernels.cpu`.
 """
 
 from __future__ import annotations
@@ -29,6 +33,7 @@ from antisync.kernels.core import (
     vany_outside,
     vload,
     vsplat,
+    vsqrt,
     vstore,
 )
 from antisync.kernels.cpu import LANES, SimResult, _next_item, _realization_ids, _row_sum_bound, _Threads
@@ -165,19 +170,37 @@ def _integrate_items(
 
 
 # --- the lane driver ---------------------------------------------------------------------------
-# The step functions of make_model_kernels on a [node, lane] state: every loop over nodes or
-# edges has an inner loop over the lanes l0 <= l < l1 performing, per lane, exactly the
-# one-trajectory function's operations in the same order (so a lane's trajectory is the
-# one-trajectory driver's, bit for bit); the inner loops are what LLVM turns into machine vectors.
-# The refill path (one fresh lane) calls the one-trajectory functions on the lane's column.
+# The step functions of make_model_kernels on a [node, lane] state, on machine vectors of VEC
+# lanes (two vectors at a time; the lane count a multiple of 2 VEC): per lane every function
+# performs exactly the one-trajectory function's operations in the same order, so a lane's
+# trajectory is the one-trajectory driver's, bit for bit. The refill path (one fresh lane) calls
+# the one-trajectory functions on the lane's column.
+
+
+@njit(inline="always")
+def _rates_vec(c, s, nu, p, cl, sl, mass, gamma, second, o, sc, ss, i):
+    """``rhs``' node ``i`` for the lane vector at flat offset ``o`` of the state ``(c, s, nu)``
+    from its coupling sums ``sc, ss``: ``(c_i, s_i, theta_i', nu_i')`` (``nu_i' = 0`` where the
+    node or the model is first order)."""
+    ci = vload(c, o)
+    si = vload(s, o)
+    k = (ci * ss - si * sc) * cl - (ci * sc + si * ss) * sl
+    dnu = vsplat(0.0)
+    if not second:
+        th = vload(p, o) + k
+    elif mass[i] > 0.0:
+        v = vload(nu, o)
+        th = v
+        dnu = (vload(p, o) + k - v * gamma[i]) / mass[i]
+    else:
+        th = (vload(p, o) + k) / gamma[i]
+    return ci, si, th, dnu
 
 
 @njit(inline="always")
 def _rhs_vec(c, s, nu, p, lw, indptr, indices, cl, sl, mass, gamma, second, th, dnu):
-    """make_model_kernels' ``rhs`` for every lane, on machine vectors: two vectors of VEC lanes
-    at a time, their coupling sums kept in registers over each node's edges (``edge_vec``). The
-    lane count must be a multiple of ``2 VEC``; per lane the operations and their order are
-    ``rhs``'s."""
+    """make_model_kernels' ``rhs`` for every lane: the coupling sums of each node kept in
+    registers over its edges (``edge_vec``), then the rates into ``th``, ``dnu``."""
     n, lanes = c.shape
     zero = vsplat(0.0)
     for qa in range(0, lanes, 2 * VEC):
@@ -185,37 +208,25 @@ def _rhs_vec(c, s, nu, p, lw, indptr, indices, cl, sl, mass, gamma, second, th, 
             sca, ssa, scb, ssb = zero, zero, zero, zero
             for e in range(indptr[i], indptr[i + 1]):
                 sca, ssa, scb, ssb = _edge_vec(c, s, lw, gamma, False, indices, e, qa, sca, ssa, scb, ssb)
-            _node_vec(c, s, nu, p, cl, sl, mass, gamma, second, th, dnu, i * lanes + qa, sca, ssa, i)
-            _node_vec(c, s, nu, p, cl, sl, mass, gamma, second, th, dnu, i * lanes + qa + VEC, scb, ssb, i)
-
-
-@njit(inline="always")
-def _node_vec(c, s, nu, p, cl, sl, mass, gamma, second, th, dnu, o, sc, ss, i):
-    """``rhs``' node ``i`` for the lane vector at flat offset ``o`` from its coupling sums."""
-    ci = vload(c, o)
-    si = vload(s, o)
-    k = (ci * ss - si * sc) * cl - (ci * sc + si * ss) * sl
-    if not second:
-        vstore(th, o, vload(p, o) + k)
-    elif mass[i] > 0.0:
-        v = vload(nu, o)
-        vstore(th, o, v)
-        vstore(dnu, o, (vload(p, o) + k - v * gamma[i]) / mass[i])
-    else:
-        vstore(th, o, (vload(p, o) + k) / gamma[i])
-        vstore(dnu, o, vsplat(0.0))
+            o = i * lanes + qa
+            _, _, ta, da = _rates_vec(c, s, nu, p, cl, sl, mass, gamma, second, o, sca, ssa, i)
+            _, _, tb, db = _rates_vec(c, s, nu, p, cl, sl, mass, gamma, second, o + VEC, scb, ssb, i)
+            vstore(th, o, ta)
+            vstore(th, o + VEC, tb)
+            if second:
+                vstore(dnu, o, da)
+                vstore(dnu, o + VEC, db)
 
 
 @njit(inline="always")
 def _euler_vec(c, s, cn, sn, nu, p, lw, indptr, indices, cl, sl, mass, gamma, second, dt, taylor, r2, spare):
-    """One Euler step of every lane on machine vectors, fused as the identical model's
-    ``euler_step_vec``: per node the coupling sums over its edges (in registers), ``rhs``'
-    rates at the current state, the rotation of ``(c_i, s_i)`` by ``dt theta_i'`` into ``(cn,
-    sn)`` (the caller swaps the buffers) and ``nu_i += dt nu_i'``; ``r2`` gets each lane's
-    ``R``. The rates are not kept (the order criteria with Euler need only ``R``). Per lane the
-    operations and their order are ``rhs``' and ``euler_step``'s. ``taylor`` promises every
-    angle is within the Taylor range (else each vector is tested); ``spare`` (VEC floats) is
-    scratch for a vector with an angle outside it."""
+    """One Euler step of every lane, fused as the identical model's ``euler_step_vec``: per node
+    the coupling sums over its edges (in registers), ``rhs``' rates at the current state, the
+    rotation of ``(c_i, s_i)`` by ``dt theta_i'`` into ``(cn, sn)`` (the caller swaps the
+    buffers) and ``nu_i += dt nu_i'``; ``r2`` gets each lane's ``R``. The rates are not kept
+    (the order criteria with Euler need only ``R``). ``taylor`` promises every angle is within
+    the Taylor range (else each vector is tested); ``spare`` (VEC floats) is scratch for a
+    vector with an angle outside it."""
     n, lanes = c.shape
     zero = vsplat(0.0)
     for qa in range(0, lanes, 2 * VEC):
@@ -258,18 +269,7 @@ def _rotate_each(c, s, cn, sn, angles, o):
 @njit(inline="always")
 def _euler_node_vec(c, s, cn, sn, nu, p, cl, sl, mass, gamma, second, dt, taylor, o, sc, ss, i, spare):
     """Node ``i`` of :func:`_euler_vec` for the lane vector at flat offset ``o``."""
-    ci = vload(c, o)
-    si = vload(s, o)
-    k = (ci * ss - si * sc) * cl - (ci * sc + si * ss) * sl
-    dnu = vsplat(0.0)
-    if not second:
-        th = vload(p, o) + k
-    elif mass[i] > 0.0:
-        v = vload(nu, o)
-        th = v
-        dnu = (vload(p, o) + k - v * gamma[i]) / mass[i]
-    else:
-        th = (vload(p, o) + k) / gamma[i]
+    ci, si, th, dnu = _rates_vec(c, s, nu, p, cl, sl, mass, gamma, second, o, sc, ss, i)
     a = th * dt
     if taylor or not vany_outside(a, TAYLOR_MAX_ANGLE):
         ca, sa = _taylor(a)
@@ -288,119 +288,168 @@ def _euler_node_vec(c, s, cn, sn, nu, p, cl, sl, mass, gamma, second, dt, taylor
 
 
 @njit(inline="always")
-def _euler_lanes(c, s, nu, th, dnu, dt, second, r2, sum_c, sum_s, l0, l1):
-    for q in range(l0, l1):
-        sum_c[q] = 0.0
-        sum_s[q] = 0.0
-    for i in range(c.shape[0]):
+def _euler_lanes(c, s, nu, th, dnu, dt, second):
+    """make_model_kernels' ``euler_step`` for every lane from the rates in ``th``, ``dnu`` (the
+    frequency criterion needs the rates of every step, so this step is not fused; ``R`` is not
+    computed: that criterion does not use it)."""
+    n, lanes = c.shape
+    for i in range(n):
         # rotation() is the Taylor polynomial wherever |angle| <= TAYLOR_MAX_ANGLE: when every
         # lane's angle is, the branch-free loop computes the same numbers on machine vectors
         big = 0
-        for q in range(l0, l1):
+        for q in range(lanes):
             big += abs(dt * th[i, q]) > TAYLOR_MAX_ANGLE  # an integer sum: vectorizes
         if big == 0:
-            for q in range(l0, l1):
+            for q in range(lanes):
                 ca, sa = _taylor(dt * th[i, q])
                 ci = c[i, q]
                 si = s[i, q]
                 c[i, q] = ci * ca - si * sa
                 s[i, q] = si * ca + ci * sa
         else:
-            for q in range(l0, l1):
+            for q in range(lanes):
                 ca, sa = _rotation(dt * th[i, q])
                 ci = c[i, q]
                 si = s[i, q]
                 c[i, q] = ci * ca - si * sa
                 s[i, q] = si * ca + ci * sa
-        for q in range(l0, l1):
-            sum_c[q] += c[i, q]
-            sum_s[q] += s[i, q]
         if second:
-            for q in range(l0, l1):
+            for q in range(lanes):
                 nu[i, q] += dt * dnu[i, q]
-    for q in range(l0, l1):
-        r2[q] = sum_c[q] * sum_c[q] + sum_s[q] * sum_s[q]
 
 
 @njit(inline="always")
-def _rk4_lanes(c, s, nu, th, dnu, work, p, lw, indptr, indices, cl, sl, mass, gamma, second, dt, l0, l1):
-    # work rows as make_model_kernels' rk4_step: 0-3 dc of the stages, 4-7 ds, 8-11 dnu, 12-14
-    # the stage state (c, s, nu)
-    n = c.shape[0]
+def _rk4_inner_vec(c, s, nu, src, dst, acc, p, lw, indptr, indices, cl, sl, mass, gamma, second, h, qa):
+    """An inner RK4 stage of the lane vectors at ``qa`` and ``qa + VEC``: per node the rates at
+    the stage state ``src`` (rows c, s, nu), ``acc += 2 k`` and ``dst = (c, s, nu) + h k``."""
+    n, lanes = c.shape
+    size = n * lanes
+    zero = vsplat(0.0)
+    two = vsplat(2.0)
+    src_c, src_s, src_nu = src[0], src[1], src[2]
     for i in range(n):
-        for q in range(l0, l1):
-            work[0, i, q] = -s[i, q] * th[i, q]
-            work[4, i, q] = c[i, q] * th[i, q]
-            work[8, i, q] = dnu[i, q] if second else 0.0
-    for stage in range(1, 4):
-        h = 0.5 * dt if stage < 3 else dt
+        sca, ssa, scb, ssb = zero, zero, zero, zero
+        for e in range(indptr[i], indptr[i + 1]):
+            sca, ssa, scb, ssb = _edge_vec(src_c, src_s, lw, gamma, False, indices, e, qa, sca, ssa, scb, ssb)
+        for v in range(2):
+            o = i * lanes + qa + v * VEC
+            sc = sca if v == 0 else scb
+            ss = ssa if v == 0 else ssb
+            ci, si, th, dnu = _rates_vec(src_c, src_s, src_nu, p, cl, sl, mass, gamma, second, o, sc, ss, i)
+            kc = -si * th
+            ks = ci * th
+            vstore(acc, o, vload(acc, o) + two * kc)
+            vstore(acc, size + o, vload(acc, size + o) + two * ks)
+            vstore(dst, o, vload(c, o) + h * kc)
+            vstore(dst, size + o, vload(s, o) + h * ks)
+            if second:
+                vstore(acc, 2 * size + o, vload(acc, 2 * size + o) + two * dnu)
+                vstore(dst, 2 * size + o, vload(nu, o) + h * dnu)
+
+
+@njit(inline="always")
+def _rk4_vec(
+    c, s, nu, th, dnu, ya, yb, acc, p, lw, indptr, indices, cl, sl, mass, gamma, second, dt, order, r2, dr2
+):
+    """make_model_kernels' ``rk4_step`` for every lane, then ``rhs`` at the new state (into
+    ``th``, ``dnu``) and, for ``order``, ``R`` and ``dR/dt`` (``measure``'s sums) into ``r2``,
+    ``dr2``. Each block of ``2 VEC`` lanes runs its whole step before the next; ``acc`` (rows
+    c, s, nu) sums ``k1 + 2 k2 + 2 k3`` in ``rk4_step``'s order of additions, ``ya``, ``yb``
+    hold the stage states in turn. ``th``, ``dnu`` on entry: the rates at the current state."""
+    n, lanes = c.shape
+    size = n * lanes
+    hh = 0.5 * dt
+    sixth = dt / 6.0
+    zero = vsplat(0.0)
+    ya_c, ya_s, ya_nu = ya[0], ya[1], ya[2]
+    for qa in range(0, lanes, 2 * VEC):
+        qb = qa + VEC
+        # stage 1 from the rates on entry
         for i in range(n):
-            for q in range(l0, l1):
-                work[12, i, q] = c[i, q] + h * work[stage - 1, i, q]
-                work[13, i, q] = s[i, q] + h * work[stage + 3, i, q]
-                work[14, i, q] = nu[i, q] + h * work[stage + 7, i, q]
-        _rhs_vec(work[12], work[13], work[14], p, lw, indptr, indices, cl, sl, mass, gamma, second, th, dnu)
+            for v in range(2):
+                o = i * lanes + qa + v * VEC
+                t = vload(th, o)
+                kc = -vload(s, o) * t
+                ks = vload(c, o) * t
+                vstore(acc, o, kc)
+                vstore(acc, size + o, ks)
+                vstore(ya_c, o, vload(c, o) + hh * kc)
+                vstore(ya_s, o, vload(s, o) + hh * ks)
+                if second:
+                    kn = vload(dnu, o)
+                    vstore(acc, 2 * size + o, kn)
+                    vstore(ya_nu, o, vload(nu, o) + hh * kn)
+        _rk4_inner_vec(c, s, nu, ya, yb, acc, p, lw, indptr, indices, cl, sl, mass, gamma, second, hh, qa)
+        _rk4_inner_vec(c, s, nu, yb, ya, acc, p, lw, indptr, indices, cl, sl, mass, gamma, second, dt, qa)
+        # stage 4, the update and the projection of (c_i, s_i) to the unit circle
         for i in range(n):
-            for q in range(l0, l1):
-                work[stage, i, q] = -work[13, i, q] * th[i, q]
-                work[stage + 4, i, q] = work[12, i, q] * th[i, q]
-                work[stage + 8, i, q] = dnu[i, q] if second else 0.0
-    for i in range(n):
-        for q in range(l0, l1):
-            cn = c[i, q] + dt / 6.0 * (
-                work[0, i, q] + 2.0 * work[1, i, q] + 2.0 * work[2, i, q] + work[3, i, q]
-            )
-            sn = s[i, q] + dt / 6.0 * (
-                work[4, i, q] + 2.0 * work[5, i, q] + 2.0 * work[6, i, q] + work[7, i, q]
-            )
-            inv = 1.0 / math.sqrt(cn * cn + sn * sn)
-            c[i, q] = cn * inv
-            s[i, q] = sn * inv
-        if second:
-            for q in range(l0, l1):
-                nu[i, q] += (
-                    dt / 6.0 * (work[8, i, q] + 2.0 * work[9, i, q] + 2.0 * work[10, i, q] + work[11, i, q])
+            sca, ssa, scb, ssb = zero, zero, zero, zero
+            for e in range(indptr[i], indptr[i + 1]):
+                sca, ssa, scb, ssb = _edge_vec(
+                    ya_c, ya_s, lw, gamma, False, indices, e, qa, sca, ssa, scb, ssb
                 )
+            for v in range(2):
+                o = i * lanes + qa + v * VEC
+                sc = sca if v == 0 else scb
+                ss = ssa if v == 0 else ssb
+                ci, si, t, dn = _rates_vec(ya_c, ya_s, ya_nu, p, cl, sl, mass, gamma, second, o, sc, ss, i)
+                cn = vload(c, o) + sixth * (vload(acc, o) + -si * t)
+                sn = vload(s, o) + sixth * (vload(acc, size + o) + ci * t)
+                inv = 1.0 / vsqrt(cn * cn + sn * sn)
+                vstore(c, o, cn * inv)
+                vstore(s, o, sn * inv)
+                if second:
+                    vstore(nu, o, vload(nu, o) + sixth * (vload(acc, 2 * size + o) + dn))
+        # the rates at the new state (stage 1 of the next step), R and dR/dt
+        tca, tsa, dca, dsa = zero, zero, zero, zero
+        tcb, tsb, dcb, dsb = zero, zero, zero, zero
+        for i in range(n):
+            sca, ssa, scb, ssb = zero, zero, zero, zero
+            for e in range(indptr[i], indptr[i + 1]):
+                sca, ssa, scb, ssb = _edge_vec(c, s, lw, gamma, False, indices, e, qa, sca, ssa, scb, ssb)
+            o = i * lanes + qa
+            ca, sa, ta, da = _rates_vec(c, s, nu, p, cl, sl, mass, gamma, second, o, sca, ssa, i)
+            cb, sb, tb, db = _rates_vec(c, s, nu, p, cl, sl, mass, gamma, second, o + VEC, scb, ssb, i)
+            vstore(th, o, ta)
+            vstore(th, o + VEC, tb)
+            if second:
+                vstore(dnu, o, da)
+                vstore(dnu, o + VEC, db)
+            if order:
+                tca = tca + ca
+                tsa = tsa + sa
+                dca = dca - sa * ta
+                dsa = dsa + ca * ta
+                tcb = tcb + cb
+                tsb = tsb + sb
+                dcb = dcb - sb * tb
+                dsb = dsb + cb * tb
+        if order:
+            vstore(r2, qa, tca * tca + tsa * tsa)
+            vstore(dr2, qa, 2.0 * (tca * dca + tsa * dsa))
+            vstore(r2, qb, tcb * tcb + tsb * tsb)
+            vstore(dr2, qb, 2.0 * (tcb * dcb + tsb * dsb))
 
 
 @njit(inline="always")
-def _order_lanes(c, s, th, r2, dr2, tc, ts, dc, ds, l0, l1):
-    """``R`` (``order2``'s sums) and ``dR/dt`` (``measure``'s) of every lane."""
-    for q in range(l0, l1):
-        tc[q] = 0.0
-        ts[q] = 0.0
-        dc[q] = 0.0
-        ds[q] = 0.0
-    for i in range(c.shape[0]):
-        for q in range(l0, l1):
-            tc[q] += c[i, q]
-            ts[q] += s[i, q]
-            dc[q] -= s[i, q] * th[i, q]
-            ds[q] += c[i, q] * th[i, q]
-    for q in range(l0, l1):
-        r2[q] = tc[q] * tc[q] + ts[q] * ts[q]
-        dr2[q] = 2.0 * (tc[q] * dc[q] + ts[q] * ds[q])
-
-
-@njit(inline="always")
-def _deviations_lanes(c, s, th, dnu, lw, indptr, indices, cl, sl, mass, gamma, second, work, m4, l0, l1):
+def _deviations_lanes(c, s, th, dnu, lw, indptr, indices, cl, sl, mass, gamma, second, work, m4):
     """make_model_kernels' ``deviations`` for every lane (rows DEV_ROW.. of ``work``)."""
-    n = c.shape[0]
+    n, lanes = c.shape
     d = DEV_ROW
     for k in range(4):
-        for q in range(l0, l1):
+        for q in range(lanes):
             m4[k, q] = 0.0
     for i in range(n):
-        for q in range(l0, l1):
+        for q in range(lanes):
             work[d + 1, i, q] = 0.0  # kd
         for e in range(indptr[i], indptr[i + 1]):
             j = indices[e]
-            for q in range(l0, l1):
+            for q in range(lanes):
                 ca = cl * (c[j, q] * c[i, q] + s[j, q] * s[i, q]) + sl * (
                     s[j, q] * c[i, q] - c[j, q] * s[i, q]
                 )
                 work[d + 1, i, q] += lw[e, q] * ca * (th[j, q] - th[i, q])
-        for q in range(l0, l1):
+        for q in range(lanes):
             kd = work[d + 1, i, q]
             work[d, i, q] = th[i, q]
             if not second:
@@ -414,7 +463,7 @@ def _deviations_lanes(c, s, th, dnu, lw, indptr, indices, cl, sl, mass, gamma, s
             m4[0, q] += work[d, i, q]
             m4[1, q] += work[d + 1, i, q]
     for i in range(n):
-        for q in range(l0, l1):
+        for q in range(lanes):
             work[d, i, q] -= m4[0, q] / n
             work[d + 1, i, q] -= m4[1, q] / n
             if second:
@@ -584,6 +633,10 @@ def _integrate_model_lanes(
         p = np.zeros((n, width))
         lw = np.zeros((nnz, width))
         work = np.zeros((WORK_ROWS, n, width))
+        # RK4: the stage states in turn and the sum k1 + 2 k2 + 2 k3 (rows c, s, nu)
+        ya = np.zeros((3, n if rk4 else 0, width))
+        yb = np.zeros((3, n if rk4 else 0, width))
+        kacc = np.zeros((3, n if rk4 else 0, width))
         r2 = np.zeros(width)
         dr2 = np.zeros(width)
         r2_prev = np.zeros(width)
@@ -692,13 +745,15 @@ def _integrate_model_lanes(
                         for q in range(width):
                             work[dp + k, i, q] = work[d + k, i, q]
             if rk4:
-                _rk4_lanes(
+                _rk4_vec(
                     c,
                     s,
                     nu,
                     th,
                     dnu,
-                    work,
+                    ya,
+                    yb,
+                    kacc,
                     p,
                     lw,
                     indptr,
@@ -709,8 +764,9 @@ def _integrate_model_lanes(
                     gamma,
                     second,
                     dt,
-                    0,
-                    width,
+                    not freq,
+                    r2,
+                    dr2,
                 )
             else:
                 if fused:
@@ -737,7 +793,7 @@ def _integrate_model_lanes(
                     c, cn = cn, c
                     s, sn = sn, s
                 else:
-                    _euler_lanes(c, s, nu, th, dnu, dt, second, r2, acc[0], acc[1], 0, width)
+                    _euler_lanes(c, s, nu, th, dnu, dt, second)
                 if t >= next_renorm:
                     next_renorm = t + RENORM_EVERY
                     for q in range(width):
@@ -747,15 +803,12 @@ def _integrate_model_lanes(
                         if k % RENORM_EVERY == 0:
                             _renormalize(c[:, q], s[:, q])
                         next_renorm = min(next_renorm, t + RENORM_EVERY - k % RENORM_EVERY)
-            if not fused:
+            if freq and not rk4:
                 _rhs_vec(c, s, nu, p, lw, indptr, indices, cl, sl, mass, gamma, second, th, dnu)
             if freq:
-                _deviations_lanes(
-                    c, s, th, dnu, lw, indptr, indices, cl, sl, mass, gamma, second, work, acc, 0, width
-                )
+                _deviations_lanes(c, s, th, dnu, lw, indptr, indices, cl, sl, mass, gamma, second, work, acc)
                 hits = 1  # the criterion's own bound test, per lane, below
             elif rk4:
-                _order_lanes(c, s, th, r2, dr2, acc[0], acc[1], acc[2], acc[3], 0, width)
                 # the Hermite interpolant of R over the step stays below max(R_0, R_1) +
                 # 4/27 (|m0| + |m1|) (its slope basis functions peak at 4/27): a lane below
                 # that bound, widened for rounding, cannot cross in this step
