@@ -308,6 +308,21 @@ def _next_item(r, v, r_hi, var_is_base):
 
 
 @njit(inline="always")
+def _record(status0, steps0, frac0, status, steps, frac, r, v, st, k, x):
+    """Store item ``(r, v)``'s status, steps and crossing fraction: the undamaged network's for
+    ``v < 0``, else variant ``v``'s. (The arrays one by one: outputs passed in a tuple lose
+    their writes inside a parallel loop.)"""
+    if v < 0:
+        status0[r] = st
+        steps0[r] = k
+        frac0[r] = x
+    else:
+        status[r, v] = st
+        steps[r, v] = k
+        frac[r, v] = x
+
+
+@njit(inline="always")
 def _start_state(seed, k, ci, si, r2_target):
     """Initial (cos, sin) of realization k (computed in double, stored in the state's precision);
     returns True when r(0) already reaches the threshold."""
@@ -364,14 +379,7 @@ def _load_lane(
             start[0] = r
             start[1] = _start_state(seed, ks[r], ci, si, r2_target)
         if start[1]:
-            if v < 0:
-                status0[r] = ALREADY_SYNCED
-                steps0[r] = 0
-                frac0[r] = 0.0
-            else:
-                status[r, v] = ALREADY_SYNCED
-                steps[r, v] = 0
-                frac[r, v] = 0.0
+            _record(status0, steps0, frac0, status, steps, frac, r, v, ALREADY_SYNCED, 0, 0.0)
             continue
         for i in range(n):
             c[i, q] = ci[i]
@@ -619,14 +627,7 @@ def _integrate_lanes(ks, graph, run, out, tangents, n_groups):
                     next_event = min(next_event, t + min(renorm - k % renorm, max_steps - k))
                     continue
                 v = lane_v[q]
-                if v < 0:
-                    status0[r] = st
-                    steps0[r] = k
-                    frac0[r] = x
-                else:
-                    status[r, v] = st
-                    steps[r, v] = k
-                    frac[r, v] = x
+                _record(status0, steps0, frac0, status, steps, frac, r, v, st, k, x)
                 lane_r[q] = -1
                 active -= 1
                 qr, qv, filled = _load_lane(

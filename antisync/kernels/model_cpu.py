@@ -36,7 +36,15 @@ from antisync.kernels.core import (
     vsqrt,
     vstore,
 )
-from antisync.kernels.cpu import LANES, SimResult, _next_item, _realization_ids, _row_sum_bound, _Threads
+from antisync.kernels.cpu import (
+    LANES,
+    SimResult,
+    _next_item,
+    _realization_ids,
+    _record,
+    _row_sum_bound,
+    _Threads,
+)
 from antisync.phases import make_uniform, phase
 from antisync.status import ALREADY_SYNCED, NOT_SYNCED, SYNCED
 
@@ -80,6 +88,16 @@ class ModelParams(NamedTuple):
     damping: float | np.ndarray
     criterion: int
     targets: np.ndarray
+
+
+@njit(inline="always")
+def _share_base(var_is_base, r, status0, steps0, frac0, status, steps, frac):
+    """Realization ``r``'s variants that leave the weights unchanged get the undamaged result."""
+    for v in range(var_is_base.shape[0]):
+        if var_is_base[v]:
+            status[r, v] = status0[r]
+            steps[r, v] = steps0[r]
+            frac[r, v] = frac0[r]
 
 
 @njit(parallel=True, cache=True)
@@ -153,20 +171,9 @@ def _integrate_items(
             targets[v + 1],
             max_steps,
         )
-        if v < 0:
-            status0[r] = st
-            steps0[r] = k
-            frac0[r] = x
-        else:
-            status[r, v] = st
-            steps[r, v] = k
-            frac[r, v] = x
+        _record(status0, steps0, frac0, status, steps, frac, r, v, st, k, x)
     for r in prange(m):
-        for v in range(n_var):
-            if var_is_base[v]:
-                status[r, v] = status0[r]
-                steps[r, v] = steps0[r]
-                frac[r, v] = frac0[r]
+        _share_base(var_is_base, r, status0, steps0, frac0, status, steps, frac)
 
 
 # --- the lane driver ---------------------------------------------------------------------------
@@ -551,14 +558,7 @@ def _model_load(
         else:
             met = r2[q] >= target
         if met:
-            if v < 0:
-                status0[r] = ALREADY_SYNCED
-                steps0[r] = 0
-                frac0[r] = 0.0
-            else:
-                status[r, v] = ALREADY_SYNCED
-                steps[r, v] = 0
-                frac[r, v] = 0.0
+            _record(status0, steps0, frac0, status, steps, frac, r, v, ALREADY_SYNCED, 0, 0.0)
             continue
         lane_r[q] = r
         lane_v[q] = v
@@ -604,7 +604,6 @@ def _integrate_model_lanes(
     m = ks.shape[0]
     n = indptr.shape[0] - 1
     nnz = base_w.shape[0]
-    n_var = var_w.shape[0]
     second = False
     for i in range(n):
         second |= mass[i] > 0.0
@@ -678,14 +677,7 @@ def _integrate_model_lanes(
                             continue
                         r = lane_r[q]
                         v = lane_v[q]
-                        if v < 0:
-                            status0[r] = st
-                            steps0[r] = k
-                            frac0[r] = x
-                        else:
-                            status[r, v] = st
-                            steps[r, v] = k
-                            frac[r, v] = x
+                        _record(status0, steps0, frac0, status, steps, frac, r, v, st, k, x)
                         lane_r[q] = -1
                         active -= 1
                     if q >= lanes:
@@ -824,11 +816,7 @@ def _integrate_model_lanes(
                     hits += (r2[q] >= lane_target[q]) & (lane_r[q] >= 0)
             event = hits > 0 or t >= next_cap
         for r in range(r_lo, r_hi):
-            for v in range(n_var):
-                if var_is_base[v]:
-                    status[r, v] = status0[r]
-                    steps[r, v] = steps0[r]
-                    frac[r, v] = frac0[r]
+            _share_base(var_is_base, r, status0, steps0, frac0, status, steps, frac)
 
 
 def _per_node(value, n: int) -> np.ndarray:
@@ -869,6 +857,8 @@ def simulate_model(
         raise ValueError(f"integrator must be 'euler' or 'rk4', got {integrator!r}")
     if params.criterion not in (CRIT_ORDER, CRIT_FREQUENCY):
         raise ValueError(f"unknown criterion code {params.criterion}")
+    if lanes < 0:
+        raise ValueError(f"lanes must be >= 0, got {lanes}")
     ks = _realization_ids(first, count, realizations)
     m = ks.size
     base_weights = np.ascontiguousarray(base_weights, dtype=np.float64)
@@ -918,8 +908,6 @@ def simulate_model(
     )
     outputs = (status0, steps0, frac0, status, steps, frac)
     taylor = _taylor_everywhere(dt, indptr, base_weights, var_w, freqs, params, n)
-    if lanes < 0:
-        raise ValueError(f"lanes must be >= 0, got {lanes}")
     with _Threads(threads) as groups:
         if not lanes:
             _integrate_items(*args, *outputs)
