@@ -25,7 +25,7 @@ from antisync.report.figures import (  # noqa: E402
     plot_graph,
     plot_histograms,
 )
-from antisync.report.links import link_figures, link_signs  # noqa: E402
+from antisync.report.links import link_figures, link_signs, plot_resolved_map  # noqa: E402
 from antisync.report.measures import measure_figures  # noqa: E402
 from antisync.store import read_views  # noqa: E402
 from antisync.summary import job_records  # noqa: E402
@@ -180,7 +180,7 @@ def test_top_links_mark_resolution_and_never_say_zero_most(karate):
     (view,) = read_views(karate)
     recs = list({r["edge"]: r for r in job_records(view)}.values())
     figs = dict((suffix, fig) for fig, suffix in link_figures(view, recs, k=2))
-    assert set(figs) == {"lambda_sorted", "top_links", "measure_pairs"}
+    assert set(figs) == {"lambda_sorted", "top_links", "map", "measure_pairs"}
     for fig in figs.values():
         for text in _texts(fig):
             assert not re.search(r"\b0 most", text), text
@@ -197,6 +197,32 @@ def test_top_links_mark_resolution_and_never_say_zero_most(karate):
     assert forest.collections, "intervals drawn"
     for fig in figs.values():
         plt.close(fig)
+
+
+def test_map_draws_every_resolved_link_and_no_other(karate):
+    """The map: one arrow per link whose sign is resolved, red or blue by that sign, wider for
+    a larger |Lambda|; capped at ``most`` links of largest |Lambda|, as its title says."""
+    (view,) = read_views(karate)
+    recs = list({r["edge"]: r for r in job_records(view)}.values())
+    signs = dict(zip((r["edge"] for r in recs), link_signs(recs, "lambda_km"), strict=True))
+    value = {r["edge"]: r["lambda_km"] for r in recs}
+    resolved = {e for e, s in signs.items() if s}
+    assert 2 <= len(resolved) < len(recs)
+    fig, ax = plt.subplots()
+    plot_resolved_map(view, recs, "lambda_km", ax)
+    styles = _arrow_styles(ax)
+    assert set(styles) == resolved
+    colours = {signs[e]: colour for e, (_, colour, _) in styles.items()}
+    assert len(colours) == len({signs[e] for e in resolved}), "one colour per sign"
+    by_size = sorted(resolved, key=lambda e: abs(value[e]))
+    assert styles[by_size[-1]][2] > styles[by_size[0]][2]
+    assert f"all {len(resolved)} links of {len(recs)}" in ax.get_title()
+    plt.close(fig)
+    fig, ax = plt.subplots()
+    plot_resolved_map(view, recs, "lambda_km", ax, most=1)
+    assert set(_arrow_styles(ax)) == {by_size[-1]}
+    assert f"the 1 largest of {len(resolved)}" in ax.get_title()
+    plt.close(fig)
 
 
 # ---- Fig. 5 --------------------------------------------------------------------------------

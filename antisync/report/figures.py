@@ -16,7 +16,7 @@ Files are named ``<stem>_<figure>.png``, ``<stem>`` the config's ``name:`` as th
   the 99.5% quantile of the times (for a large graph only the links drawn strong in
   ``<stem>_top_links``);
 - for a graph with more than 20 nodes or 40 links, instead of ``<stem>_graph``:
-  ``<stem>_lambda_sorted``, ``<stem>_top_links``, ``<stem>_measure_pairs``, see
+  ``<stem>_lambda_sorted``, ``<stem>_top_links``, ``<stem>_map``, ``<stem>_measure_pairs``, see
   :mod:`antisync.report.links`;
 - ``fig5_measures``, ``<stem>_fig7e_km_nnc``: see :mod:`antisync.report.measures`;
 - ``index.md``: every file with the question it answers, what was not computed, and the
@@ -505,6 +505,7 @@ ANSWERS = (
     ("_histograms", "Realization by realization, is the damaged network faster (below the line) or slower?"),
     ("_lambda_sorted", "How are the links' Lambda distributed, and which are resolved from 0?"),
     ("_top_links", "Where in the network are the most antifragile and most fragile links, and how sure?"),
+    ("_map", "Where in the network is every link whose sign is resolved, and how strong is it?"),
     ("_measure_pairs", "Do the cheap exact measures rank and sign the links as Lambda^KM does?"),
     ("fig5_measures", "Do the response measures agree with each other (the paper's Fig. 5)?"),
     ("_fig7e_km_nnc", "Does non-normalized coupling change each link's Lambda (the paper's Fig. 7e)?"),

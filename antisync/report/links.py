@@ -12,6 +12,9 @@ the config's name, :func:`antisync.report.figures.job_stems`):
   layout above), every link thin and grey, the ``k`` most antifragile and ``k`` most fragile
   links (:func:`strongest`) as arrows: solid and coloured where the sign is resolved, grey and
   dashed where it is not; right, the same links with their 95% intervals, filled or hollow;
+- ``<stem>_map``: (d) when some sign is resolved, the network with every resolved link (at
+  most :data:`MAP_LINKS`, the largest ``|Lambda|``) as an arrow coloured by its value
+  (:func:`plot_resolved_map`);
 - ``<stem>_measure_pairs``: (c) Lambda^KM (y) against Lambda^(linear), Lambda^(xi2) and
   Lambda^(RW), and Lambda^(RW) against Lambda^(xi2), a panel for each pair that was computed,
   each titled with the Spearman rank correlation over every link and the sign agreement over
@@ -52,6 +55,8 @@ __all__ = [
     "is_large",
     "link_figures",
     "link_signs",
+    "map_links",
+    "plot_resolved_map",
     "plot_measure_pairs",
     "plot_sorted",
     "plot_top_intervals",
@@ -171,10 +176,9 @@ def strongest(recs: list[dict], key: str, k: int) -> tuple[list[tuple[dict, bool
 UNRESOLVED = {"color": "#8c8c8c", "style": "--"}
 
 
-def plot_top_links(view: JobView, recs: list[dict], key: str, ax, *, k: int = 10) -> None:
-    """(b) the network, with the ``k`` most antifragile and ``k`` most fragile links strong:
-    solid and coloured where the sign is resolved, grey and dashed where it is not (a side
-    with fewer than ``k`` resolved links is filled with its largest unresolved estimates)."""
+def _backbone(view: JobView, ax):
+    """The network thin and grey on ``ax`` (every line once): ``(graph, positions, node
+    size)`` for the arrows drawn over it."""
     import networkx as nx
 
     und = nx.Graph()
@@ -189,30 +193,115 @@ def plot_top_links(view: JobView, recs: list[dict], key: str, ax, *, k: int = 10
     nx.draw_networkx_nodes(
         und, pos, ax=ax, node_color="#eeeeee", edgecolors="#777777", node_size=node_size, linewidths=0.5
     )
+    return und, pos, node_size
+
+
+def _arrow(ax, pos, node_size, label: str, **style) -> tuple[str, str]:
+    """Draw the directed link ``label`` ("a->b") over :func:`_backbone`; returns its ends."""
+    import networkx as nx
+
+    a, b = label.split("->")
+    arrows = nx.draw_networkx_edges(
+        nx.DiGraph([(a, b)]),
+        pos,
+        ax=ax,
+        arrows=True,
+        node_size=node_size,
+        connectionstyle="arc3,rad=0.15",
+        **style,
+    )
+    for patch in arrows:
+        patch.set_gid(f"link {label}")  # so a test (or a reader of the SVG) finds each link
+    return a, b
+
+
+def _name_nodes(ax, und, pos, touched: set) -> None:
+    """Every name up to :data:`LABEL_NODES` nodes; beyond, the ends of the drawn links and the
+    ten best connected (all 77 names of Les Miserables overlap)."""
+    import networkx as nx
+
+    named = (
+        set(und.nodes)
+        if und.number_of_nodes() <= LABEL_NODES
+        else touched | set(sorted(und, key=und.degree)[-10:])
+    )
+    nx.draw_networkx_labels(und, pos, labels={v: v for v in named}, ax=ax, font_size=7)
+    ax.set_axis_off()
+
+
+def plot_top_links(view: JobView, recs: list[dict], key: str, ax, *, k: int = 10) -> None:
+    """(b) the network, with the ``k`` most antifragile and ``k`` most fragile links strong:
+    solid and coloured where the sign is resolved, grey and dashed where it is not (a side
+    with fewer than ``k`` resolved links is filled with its largest unresolved estimates)."""
+    und, pos, node_size = _backbone(view, ax)
     touched = set()
     for links, s in zip(strongest(recs, key, k), (1, -1), strict=True):
         for rank, (r, resolved) in enumerate(links):
-            a, b = r["edge"].split("->")
-            touched |= {a, b}
-            arrows = nx.draw_networkx_edges(
-                nx.DiGraph([(a, b)]),
-                pos,
-                ax=ax,
-                edge_color=COLORS[s] if resolved else UNRESOLVED["color"],
-                style="solid" if resolved else UNRESOLVED["style"],
-                width=(3.0 - 1.5 * rank / max(1, k)) if resolved else 1.2,
-                arrows=True,
-                arrowsize=12 if resolved else 9,
-                node_size=node_size,
-                connectionstyle="arc3,rad=0.15",
+            touched |= set(
+                _arrow(
+                    ax,
+                    pos,
+                    node_size,
+                    r["edge"],
+                    edge_color=COLORS[s] if resolved else UNRESOLVED["color"],
+                    style="solid" if resolved else UNRESOLVED["style"],
+                    width=(3.0 - 1.5 * rank / max(1, k)) if resolved else 1.2,
+                    arrowsize=12 if resolved else 9,
+                )
             )
-            for patch in arrows:
-                patch.set_gid(f"link {r['edge']}")
-    # every name up to 40 nodes; beyond, the ends of the drawn links and the ten best connected
-    # (all 77 names of Les Miserables overlap)
-    named = set(und.nodes) if n <= LABEL_NODES else touched | set(sorted(und, key=und.degree)[-10:])
-    nx.draw_networkx_labels(und, pos, labels={v: v for v in named}, ax=ax, font_size=7)
-    ax.set_axis_off()
+    _name_nodes(ax, und, pos, touched)
+
+
+#: the map draws at most this many resolved links (those of largest |Lambda|)
+MAP_LINKS = 150
+
+
+def map_links(recs: list[dict], key: str, most: int = MAP_LINKS) -> tuple[list[dict], int]:
+    """``(drawn, resolved)``: the records of the links whose sign is resolved, at most ``most``
+    of them (largest ``|key|`` first), and how many are resolved in all."""
+    signs = link_signs(recs, key)
+    resolved = [r for r, s in zip(recs, signs, strict=True) if s != 0]
+    return sorted(resolved, key=lambda r: -abs(r[key]))[:most], len(resolved)
+
+
+def plot_resolved_map(view: JobView, recs: list[dict], key: str, ax, *, most: int = MAP_LINKS) -> None:
+    """(d) the network with every link whose sign is resolved as an arrow, red (antifragile) or
+    blue (fragile), its width proportional to ``|value|``; unresolved links are only the grey
+    backbone. Beyond ``most`` resolved links, the ``most`` of largest ``|value|``."""
+    from matplotlib.lines import Line2D
+
+    drawn, resolved = map_links(recs, key, most)
+    und, pos, node_size = _backbone(view, ax)
+    top = max((abs(r[key]) for r in drawn), default=1.0) or 1.0
+
+    def width(v: float) -> float:
+        return 0.6 + 3.4 * abs(v) / top
+
+    touched = set()
+    for r in sorted(drawn, key=lambda r: abs(r[key])):  # the strongest drawn last, on top
+        color = COLORS[1 if r[key] > 0 else -1]
+        touched |= set(
+            _arrow(ax, pos, node_size, r["edge"], edge_color=color, width=width(r[key]), arrowsize=9)
+        )
+    _name_nodes(ax, und, pos, touched if und.number_of_nodes() > LABEL_NODES else set(und.nodes))
+    scale = [top, top / 3, top / 10]
+    handles = [
+        Line2D([], [], color=COLORS[1], lw=width(top), label="antifragile"),
+        Line2D([], [], color=COLORS[-1], lw=width(top), label="fragile"),
+    ]
+    handles += [
+        Line2D([], [], color="#555555", lw=width(v), label=f"|{LABELS[key]}| = {v:.2g}") for v in scale
+    ]
+    ax.legend(
+        handles=handles, loc="upper center", bbox_to_anchor=(0.5, 0.0), ncol=5, frameon=False, fontsize=9
+    )
+    shown = f"all {resolved}" if len(drawn) == resolved else f"the {len(drawn)} largest of {resolved}"
+    rule = "false discovery rate 0.05" if key == "lambda_km" else "exact, nonzero"
+    ax.set_title(
+        f"{view.graph}: {shown} links of {len(recs)} whose sign is resolved ({rule}), width by {LABELS[key]}"
+        "\n(grey: the lines; a link a→b without an arrow is unresolved)",
+        fontsize=11,
+    )
 
 
 def plot_top_intervals(recs: list[dict], key: str, ax, *, k: int = 10) -> None:
@@ -324,6 +413,10 @@ def link_figures(view: JobView, recs: list[dict], *, k: int = 10):
         fontsize=11,
     )
     yield fig, "top_links"
+    if map_links(recs, key)[1]:
+        fig, ax = plt.subplots(figsize=(11, 8.5), layout="constrained")
+        plot_resolved_map(view, recs, key, ax)
+        yield fig, "map"
     pairs = available_pairs(recs)
     if pairs:
         fig, axes = pair_panels(plt, len(pairs), 6, 5.4)
