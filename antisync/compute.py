@@ -113,6 +113,16 @@ def check_backend(config, backend: str) -> None:
         )
 
 
+def host_part(config, backend: str) -> str | None:
+    """What of a run on ``backend`` runs on the CPU all the same, or None: with a generalized
+    model the CUDA kernel integrates the undamaged and damaged trajectories, while the Lambda
+    pass of every method but ``finite-difference`` (the model adjoint, the secants, the orbit
+    and central-difference rows) runs on the CPU lanes."""
+    if backend == "cuda" and config.generalized and config.lambda_.method != "finite-difference":
+        return f"lambda.method {config.lambda_.method} of a model runs its Lambda pass on the CPU"
+    return None
+
+
 def check_job(job: Job, backend: str) -> None:
     """:func:`check_backend` for ``job``'s config, plus what depends on its graph (the CUDA
     kernels keep a trajectory's state in fixed-size per-thread arrays of ``MAX_NODES``; a

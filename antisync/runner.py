@@ -13,7 +13,7 @@ from pathlib import Path
 
 from antisync import stopping
 from antisync.backends import resolve_backend
-from antisync.compute import check_job
+from antisync.compute import check_job, host_part
 from antisync.config import Config
 from antisync.errors import StoreError
 from antisync.executors import Executor
@@ -97,6 +97,8 @@ def run_jobs(
     backend, note = resolve_backend(config.backend)
     for job in jobs:  # the options and the graph: refused before any file or folder exists
         check_job(job, backend)
+    host = host_part(config, backend)
+    note = note if host is None else f"{note} ({host})"
     key = config.simulation_key() if key is None else key
     with store.lock(read_only_ok=resume) as writable:
         store.prepare(resume=resume, overwrite=overwrite)
