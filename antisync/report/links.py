@@ -52,6 +52,7 @@ __all__ = [
     "LARGE_NODES",
     "available_pairs",
     "compare",
+    "draw_link",
     "is_large",
     "link_figures",
     "link_signs",
@@ -196,8 +197,9 @@ def _backbone(view: JobView, ax):
     return und, pos, node_size
 
 
-def _arrow(ax, pos, node_size, label: str, **style) -> tuple[str, str]:
-    """Draw the directed link ``label`` ("a->b") over :func:`_backbone`; returns its ends."""
+def draw_link(ax, pos, node_size, label: str, rad: float = 0.15, **style) -> tuple[str, str]:
+    """Draw the directed link ``label`` ("a->b") as a curved arrow (``rad``: its bend) with
+    networkx's ``style`` keywords; returns its ends. The arrow's gid is ``link a->b``."""
     import networkx as nx
 
     a, b = label.split("->")
@@ -207,7 +209,7 @@ def _arrow(ax, pos, node_size, label: str, **style) -> tuple[str, str]:
         ax=ax,
         arrows=True,
         node_size=node_size,
-        connectionstyle="arc3,rad=0.15",
+        connectionstyle=f"arc3,rad={rad}",
         **style,
     )
     for patch in arrows:
@@ -238,7 +240,7 @@ def plot_top_links(view: JobView, recs: list[dict], key: str, ax, *, k: int = 10
     for links, s in zip(strongest(recs, key, k), (1, -1), strict=True):
         for rank, (r, resolved) in enumerate(links):
             touched |= set(
-                _arrow(
+                draw_link(
                     ax,
                     pos,
                     node_size,
@@ -281,7 +283,7 @@ def plot_resolved_map(view: JobView, recs: list[dict], key: str, ax, *, most: in
     for r in sorted(drawn, key=lambda r: abs(r[key])):  # the strongest drawn last, on top
         color = COLORS[1 if r[key] > 0 else -1]
         touched |= set(
-            _arrow(ax, pos, node_size, r["edge"], edge_color=color, width=width(r[key]), arrowsize=9)
+            draw_link(ax, pos, node_size, r["edge"], edge_color=color, width=width(r[key]), arrowsize=9)
         )
     _name_nodes(ax, und, pos, touched if und.number_of_nodes() > LABEL_NODES else set(und.nodes))
     scale = [top, top / 3, top / 10]
