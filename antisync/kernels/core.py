@@ -253,6 +253,14 @@ def _vec_neg(a):
     return None
 
 
+def _llvm_vec_fn(builder, vt, name: str):
+    """LLVM's lane-wise intrinsic ``llvm.<name>`` (``sqrt``, ``fabs``) for the lane vector
+    type ``vt``: one vector in, one out."""
+    fnty = ir.FunctionType(vt.ir_type, [vt.ir_type])
+    suffix = "f64" if vt.dtype == types.float64 else "f32"
+    return cgutils.get_or_insert_function(builder.module, fnty, f"llvm.{name}.v{vt.lanes}{suffix}")
+
+
 @intrinsic
 def vsqrt(typingctx, a):
     """Lane-wise square root (correctly rounded, as ``math.sqrt``)."""
@@ -260,11 +268,7 @@ def vsqrt(typingctx, a):
         return None
 
     def codegen(context, builder, sig, args):
-        vt = sig.args[0]
-        fnty = ir.FunctionType(vt.ir_type, [vt.ir_type])
-        suffix = "f64" if vt.dtype == types.float64 else "f32"
-        sqrt = cgutils.get_or_insert_function(builder.module, fnty, f"llvm.sqrt.v{vt.lanes}{suffix}")
-        return builder.call(sqrt, args)
+        return builder.call(_llvm_vec_fn(builder, sig.args[0], "sqrt"), args)
 
     return a(a), codegen
 
@@ -278,9 +282,7 @@ def vany_outside(typingctx, a, bound):
 
     def codegen(context, builder, sig, args):
         vt = sig.args[0]
-        fnty = ir.FunctionType(vt.ir_type, [vt.ir_type])
-        suffix = "f64" if vt.dtype == types.float64 else "f32"
-        fabs = cgutils.get_or_insert_function(builder.module, fnty, f"llvm.fabs.v{vt.lanes}{suffix}")
+        fabs = _llvm_vec_fn(builder, vt, "fabs")
         outside = builder.fcmp_unordered(
             ">", builder.call(fabs, [args[0]]), _splat(context, builder, args[1], sig.args[1], vt)
         )
@@ -299,6 +301,7 @@ class Kernels(NamedTuple):
 
     rotation: Callable
     taylor_rotation: Callable
+    rotate_by_vec: Callable
     euler_step: Callable
     euler_step_lanes: Callable
     euler_step_vec: Callable
@@ -458,16 +461,23 @@ def make_kernels(jit, dtype=np.float64) -> Kernels:
 
     euler_step_lanes = jit(euler_step_lanes)
 
-    def rotate_vec(c, s, cn, sn, o, sc, ss, dt):
-        """Rotate the lane vector ``(c, s)[o : o + VEC]`` by ``dt (c ss - s sc)`` into ``(cn, sn)``."""
-        ci = vload(c, o)
-        si = vload(s, o)
-        ca, sa = taylor_rotation(dt * (ci * ss - si * sc))
+    def rotate_by_vec(ci, si, cn, sn, o, angle):
+        """Store ``(ci, si)`` rotated by ``angle`` (Taylor rotation, every lane within its range)
+        at ``(cn, sn)[o : o + VEC]``; returns the rotated pair."""
+        ca, sa = taylor_rotation(angle)
         x = ci * ca - si * sa
         y = si * ca + ci * sa
         vstore(cn, o, x)
         vstore(sn, o, y)
         return x, y
+
+    rotate_by_vec = jit(rotate_by_vec)
+
+    def rotate_vec(c, s, cn, sn, o, sc, ss, dt):
+        """Rotate the lane vector ``(c, s)[o : o + VEC]`` by ``dt (c ss - s sc)`` into ``(cn, sn)``."""
+        ci = vload(c, o)
+        si = vload(s, o)
+        return rotate_by_vec(ci, si, cn, sn, o, dt * (ci * ss - si * sc))
 
     rotate_vec = jit(rotate_vec)
 
@@ -826,6 +836,7 @@ def make_kernels(jit, dtype=np.float64) -> Kernels:
     return Kernels(
         rotation=rotation,
         taylor_rotation=taylor_rotation,
+        rotate_by_vec=rotate_by_vec,
         euler_step=euler_step,
         euler_step_lanes=euler_step_lanes,
         euler_step_vec=euler_step_vec,

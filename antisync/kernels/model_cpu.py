@@ -66,6 +66,7 @@ _order_crossing = _MK.order_crossing
 _frequency_crossing = _MK.frequency_crossing
 _rotation = _K.rotation
 _edge_vec = _K.edge_vec
+_rotate_by_vec = _K.rotate_by_vec
 _taylor = _K.taylor_rotation
 _order2 = _K.order2
 _renormalize = _K.renormalize
@@ -279,11 +280,7 @@ def _euler_node_vec(c, s, cn, sn, nu, p, cl, sl, mass, gamma, second, dt, taylor
     ci, si, th, dnu = _rates_vec(c, s, nu, p, cl, sl, mass, gamma, second, o, sc, ss, i)
     a = th * dt
     if taylor or not vany_outside(a, TAYLOR_MAX_ANGLE):
-        ca, sa = _taylor(a)
-        x = ci * ca - si * sa
-        y = si * ca + ci * sa
-        vstore(cn, o, x)
-        vstore(sn, o, y)
+        x, y = _rotate_by_vec(ci, si, cn, sn, o, a)
     else:
         vstore(spare, 0, a)
         _rotate_each(c, s, cn, sn, spare, o)
