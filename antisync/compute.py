@@ -262,11 +262,11 @@ def simulate_job(
 
 
 def model_params(setup, model, seed: int, ks: np.ndarray, n: int, targets: np.ndarray):
-    """The model kernels' :class:`~antisync.kernels.model_cpu.ModelParams` for realizations
+    """The model kernels' :class:`~antisync.kernels.model_steps.ModelParams` for realizations
     ``ks`` of ``n`` nodes (``setup``: :class:`~antisync.model.ModelSetup`; ``model``: the config's
     model section): fixed frequencies (one row), drawn ones (a row per realization, in the
     rotating frame of docs/models.md, the distribution's mean never added) or none."""
-    from antisync.kernels.model_cpu import ModelParams
+    from antisync.kernels.model_steps import ModelParams
     from antisync.model import drawn_frequencies
 
     if model.drawn:
@@ -287,12 +287,12 @@ def _simulate_model(
     job, first, count, backend, threads, variant_weights, realizations, todo=None, variant_targets=None
 ):
     """:func:`simulate_job` for a generalized model (docs/models.md)."""
-    from antisync.kernels import model_cpu
+    from antisync.kernels import cpu
 
     if backend == "cuda":
-        from antisync.kernels.model_cuda import simulate_model
+        from antisync.kernels.cuda import simulate_model
     else:
-        simulate_model = functools.partial(model_cpu.simulate_model, threads=threads)
+        simulate_model = functools.partial(cpu.simulate_model, threads=threads)
 
     setup = job.model
     targets = setup.targets
@@ -305,7 +305,7 @@ def _simulate_model(
         targets = np.concatenate([setup.targets[:1], variant_targets])
     else:
         raise ValueError("other weights for a generalized model need their variant_targets")
-    ks = model_cpu._realization_ids(first, count, realizations)
+    ks = cpu._realization_ids(first, count, realizations)
     params = _model_params(job, ks, targets)
     dyn = job.config.dynamics
     return simulate_model(
@@ -454,13 +454,13 @@ def _derivative_pass(job: Job, first: int, count: int, threads: int | None):
 def _model_adjoint_pass(job: Job, first: int, count: int, threads: int | None):
     """``d tau0 / d beta_e`` of a generalized model by the adjoint of its step and of its
     dense-output crossing (:mod:`antisync.kernels.model_adjoint`)."""
-    from antisync.kernels import model_cpu
     from antisync.kernels.adjoint import link_derivatives
+    from antisync.kernels.cpu import _realization_ids
     from antisync.kernels.model_adjoint import simulate_model_adjoint
 
     dyn = job.config.dynamics
     setup = job.model
-    params = _model_params(job, model_cpu._realization_ids(first, count, None), setup.targets[:1])
+    params = _model_params(job, _realization_ids(first, count, None), setup.targets[:1])
     edge_a, edge_b, _, _ = job.tangent
     edges = list(zip(edge_a.tolist(), edge_b.tolist(), strict=True))
     return simulate_model_adjoint(

@@ -2,7 +2,7 @@
 
 ``model:`` chooses the dynamics. Its default is the paper's identical first-order Kuramoto
 model (Eq. 2), which runs on the unchanged default kernels; anything else runs on the model
-kernels of :mod:`antisync.kernels.model_cpu`:
+kernels of :mod:`antisync.kernels.model_steps` (run by the lane driver of :mod:`antisync.kernels.cpu`):
 
 - natural frequencies ``P_i`` (``frequencies``: fixed values, a file, or drawn per
   realization from a counter-based stream of their own, so ``tau0`` and every ``tau(beta)`` of a
@@ -387,7 +387,7 @@ def drawn_frequencies(model: Model, seed: int, ks: np.ndarray, n: int) -> np.nda
     ``theta_i' = 0`` in the rotating frame (module docstring). So the numbers are those of
     ``mean: 0`` bit for bit, whatever the mean.
     """
-    from antisync.kernels.model_cpu import draw_frequencies
+    from antisync.kernels.model_steps import draw_frequencies
 
     freqs = draw_frequencies({**model.frequencies, "mean": 0.0}, seed, ks, n)
     freqs -= freqs.mean(axis=1, keepdims=True)

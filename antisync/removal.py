@@ -6,7 +6,7 @@ Omega_ij`` (``beta = 1`` removes the line), and the damaged grid is integrated f
 initial conditions as the intact one: realization ``k`` starts from the counter-based phases
 ``theta_i(0) = 2 pi u(seed, k, i)`` of :mod:`antisync.phases` (``theta_i'(0) = 0``), whatever
 line, chunk or thread. The integration is the compiled model driver
-:func:`antisync.kernels.model_cpu.simulate_model` (the intact grid as the base network, one
+:func:`antisync.kernels.cpu.simulate_model` (the intact grid as the base network, one
 variant per line on the same CSR pattern, a removed line's weights 0), so an intact run's
 ``tau0`` is the ordinary ``antisync run``'s ``tau0`` of the same seed, realization by
 realization (tested).
@@ -700,7 +700,7 @@ def _removal_task(ks, variants, intact: bool, fixed: dict, threads):
     ``(status0, tau0, status, tau)``, times in the model's units (NaN where not SYNCED)."""
     from antisync.compute import model_params
     from antisync.estimators import crossing_times
-    from antisync.kernels.model_cpu import simulate_model
+    from antisync.kernels.cpu import simulate_model
 
     params = model_params(
         fixed["setup"], fixed["model"], fixed["seed"], ks, fixed["n_nodes"], fixed["targets"]

@@ -19,7 +19,7 @@ import numpy as np
 
 from antisync.config import load_config
 from antisync.jobs import make_job
-from antisync.kernels import model_cpu
+from antisync.kernels import cpu
 
 CONFIG = Path(__file__).resolve().parents[1] / "configs" / "ieee14_grid.yaml"
 
@@ -27,7 +27,7 @@ CONFIG = Path(__file__).resolve().parents[1] / "configs" / "ieee14_grid.yaml"
 def _rate(overrides: list[str], count: int) -> tuple[float, float]:
     job = make_job(load_config(CONFIG, ["edges=['1->2']", "realizations=10", *overrides]))
     s = job.model
-    params = model_cpu.ModelParams(
+    params = cpu.ModelParams(
         s.freqs[None, :], s.cos_lag, s.sin_lag, s.inertia, s.damping, s.criterion, s.targets[:1]
     )
     args = (
@@ -40,11 +40,11 @@ def _rate(overrides: list[str], count: int) -> tuple[float, float]:
         np.zeros((0, job.csr.weights.size)),
     )
     kw = dict(dt=0.02, max_steps=10000, integrator="rk4", threads=1)
-    model_cpu.simulate_model(*args[:2], 8, *args[3:], params, **kw)  # compile or load the cache
+    cpu.simulate_model(*args[:2], 8, *args[3:], params, **kw)  # compile or load the cache
     best = np.inf
     for _ in range(3):
         t = time.perf_counter()
-        sim = model_cpu.simulate_model(*args, params, **kw)
+        sim = cpu.simulate_model(*args, params, **kw)
         best = min(best, time.perf_counter() - t)
     steps = float(sim.steps0.sum())
     return steps / best, steps / count

@@ -31,7 +31,7 @@ import numpy as np
 
 from antisync.config import load_config_text
 from antisync.jobs import make_job
-from antisync.kernels import cpu, model_cpu
+from antisync.kernels import cpu, model_steps
 
 NETWORKS = {
     "lollipop N=6": "graph: {kind: lollipop, nodes: 6, path: 3}\nedges: ['2->1', '3->4', '5->6']\n",
@@ -58,8 +58,8 @@ def _params(job, kind: str, m: int):
         lag = 0.3
     elif kind == "inertia":
         inertia = 1.0
-    cl, sl = model_cpu.lag_terms(lag)
-    return model_cpu.ModelParams(freqs, cl, sl, inertia, 1.0, 0, targets)
+    cl, sl = model_steps.lag_terms(lag)
+    return cpu.ModelParams(freqs, cl, sl, inertia, 1.0, 0, targets)
 
 
 def _steps(sim) -> int:
@@ -91,9 +91,9 @@ def main() -> None:
                 runs = [("identical", _steps(ref), (time.perf_counter() - t) / _steps(ref))]
                 for kind in ("model P=0", "frequencies", "lag", "inertia", "one-per-thread"):
                     params = _params(job, kind, m)
-                    lanes = 0 if kind == "one-per-thread" else model_cpu.LANES
+                    lanes = 0 if kind == "one-per-thread" else cpu.LANES
                     t = time.perf_counter()
-                    sim = model_cpu.simulate_model(*args, params, lanes=lanes, **kw)
+                    sim = cpu.simulate_model(*args, params, lanes=lanes, **kw)
                     runs.append((kind, _steps(sim), (time.perf_counter() - t) / _steps(sim)))
                     if kind == "model P=0":
                         assert np.array_equal(sim.steps, ref.steps) and np.array_equal(sim.steps0, ref.steps0)

@@ -1,4 +1,4 @@
-"""Check the generalized models' CUDA twin (kernels/model_cuda.py) against the CPU model driver
+"""Check the generalized models' CUDA twin (kernels/cuda.py, simulate_model) against the CPU model driver
 on a real GPU, and time both.
 
 Usage::

@@ -1,6 +1,6 @@
 """Model-kernel checks under the numba CUDA simulator, each in its own process (see
 tests/test_cuda_sim.py for why): ``python tests/cudasim_model_checks.py NAME [ARG]`` with
-``NUMBA_ENABLE_CUDASIM=1``. The CUDA twin (kernels/model_cuda.py) must give the CPU driver's
+``NUMBA_ENABLE_CUDASIM=1``. The CUDA twin (kernels/cuda.py, simulate_model) must give the CPU driver's
 statuses, steps and crossing fractions exactly. Sizes are tiny: the simulator runs each GPU
 thread as a Python thread.
 """

@@ -9,7 +9,7 @@ from test_models import LOLLIPOP, dense_w, job_of
 
 from antisync import coupling
 from antisync.compute import lambda_values
-from antisync.kernels import model_cpu
+from antisync.kernels import cpu
 from antisync.kernels.adjoint import link_derivatives
 from antisync.kernels.model_adjoint import simulate_model_adjoint
 from antisync.locked import locked_state
@@ -50,7 +50,7 @@ def _central_differences(job, params, dt, count, integrator, H=1e-6):
                     dense_w(job, w), params.freqs[0], job.config.model.phase_lag, s.inertia, s.damping
                 ).r
                 targets.append((job.config.sync.fraction * r * n) ** 2)
-    sim = model_cpu.simulate_model(
+    sim = cpu.simulate_model(
         job.config.seed,
         0,
         count,
@@ -83,7 +83,7 @@ def test_adjoint_equals_central_differences_of_the_crossing(case, integrator, dt
     )
     s = job.model
     count = 16
-    params = model_cpu.ModelParams(
+    params = cpu.ModelParams(
         s.freqs[None, :], s.cos_lag, s.sin_lag, s.inertia, s.damping, s.criterion, s.targets[:1]
     )
     index = {v: i for i, v in enumerate(job.nodes)}
@@ -104,7 +104,7 @@ def test_adjoint_equals_central_differences_of_the_crossing(case, integrator, dt
         integrator=integrator,
         dtarget=dtarget if s.r_star is not None else None,
     )
-    base = model_cpu.simulate_model(
+    base = cpu.simulate_model(
         job.config.seed,
         0,
         count,

@@ -219,7 +219,7 @@ def test_central_difference_runs_every_model_with_each_variants_own_target():
     ``tau0 (1/tau(+h) - 1/tau(-h)) / (2 h)`` of trajectories integrated one by one."""
     from antisync import coupling as cp
     from antisync.compute import lambda_values
-    from antisync.kernels import model_cpu
+    from antisync.kernels import cpu
 
     job = job_of(
         LOLLIPOP + "edges: ['2->1', '4->3']\nbetas: []\nlambda: {method: central-difference, dbeta: 0.02}\n"
@@ -239,7 +239,7 @@ def test_central_difference_runs_every_model_with_each_variants_own_target():
             w = cp.variant_weights(job.omega, job.csr, [(index[a], index[b], h)], "normalized")[0]
             state = locked_state(dense_w(job, w), setup.freqs, 0.3, setup.inertia, setup.damping)
             target = (0.98 * state.r * 6) ** 2
-            params = model_cpu.ModelParams(
+            params = cpu.ModelParams(
                 setup.freqs[None, :],
                 setup.cos_lag,
                 setup.sin_lag,
@@ -248,7 +248,7 @@ def test_central_difference_runs_every_model_with_each_variants_own_target():
                 setup.criterion,
                 np.array([setup.targets[0], target]),
             )
-            sim = model_cpu.simulate_model(
+            sim = cpu.simulate_model(
                 job.config.seed,
                 0,
                 count,

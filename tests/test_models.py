@@ -17,7 +17,7 @@ from antisync.compute import simulate_job
 from antisync.config import load_config_text
 from antisync.errors import ConfigError
 from antisync.jobs import make_job
-from antisync.kernels import cpu, model_cpu
+from antisync.kernels import cpu, model_steps
 from antisync.locked import locked_state
 from antisync.phases import initial_phases
 from antisync.status import Status
@@ -55,10 +55,10 @@ def test_model_kernel_with_default_parameters_is_the_default_kernel_bit_for_bit(
     v = job.variant_weights.shape[0]
     args = (1, 0, 150, job.csr.indptr, job.csr.indices, job.csr.weights, job.variant_weights)
     ref = cpu.simulate(*args, dt=0.01, threshold=0.99, max_steps=5000)
-    cl, sl = model_cpu.lag_terms(0.0)
+    cl, sl = model_steps.lag_terms(0.0)
     assert (cl, sl) == (1.0, 0.0)
-    params = model_cpu.ModelParams(np.zeros((1, n)), cl, sl, 0.0, 1.0, 0, np.full(v + 1, (0.99 * n) ** 2))
-    got = model_cpu.simulate_model(*args, params, dt=0.01, max_steps=5000)
+    params = cpu.ModelParams(np.zeros((1, n)), cl, sl, 0.0, 1.0, 0, np.full(v + 1, (0.99 * n) ** 2))
+    got = cpu.simulate_model(*args, params, dt=0.01, max_steps=5000)
     np.testing.assert_array_equal(got.status0, ref.status0)
     np.testing.assert_array_equal(got.steps0, ref.steps0)
     np.testing.assert_array_equal(got.status, ref.status)
@@ -232,7 +232,7 @@ def _reference(job, realizations, integrate):
     n = len(job.nodes)
     ks = np.arange(realizations, dtype=np.uint64)
     if cfg.model.drawn:
-        freqs = model_cpu.draw_frequencies(cfg.model.frequencies, cfg.seed, ks, n)
+        freqs = model_steps.draw_frequencies(cfg.model.frequencies, cfg.seed, ks, n)
     else:
         freqs = np.repeat(np.array(cfg.model.frequencies)[None, :], realizations, axis=0)
     freqs = freqs - freqs.mean(axis=1, keepdims=True)
@@ -298,15 +298,15 @@ def test_euler_matches_the_obvious_euler(name):
 
 def test_drawn_frequencies_are_per_realization_and_shared_by_its_variants():
     spec = {"distribution": "normal", "sd": 0.3, "mean": 0.0}
-    a = model_cpu.draw_frequencies(spec, 5, np.arange(0, 4000), 6)
-    b = model_cpu.draw_frequencies(spec, 5, np.arange(1000, 1010), 6)
+    a = model_steps.draw_frequencies(spec, 5, np.arange(0, 4000), 6)
+    b = model_steps.draw_frequencies(spec, 5, np.arange(1000, 1010), 6)
     np.testing.assert_array_equal(a[1000:1010], b)  # keyed by (seed, k, node): any chunking
     assert abs(a.mean()) < 0.02 and a.std() == pytest.approx(0.3, rel=0.03)
     uniform = {"distribution": "uniform", "width": 0.2, "mean": 1.0}
-    u = model_cpu.draw_frequencies(uniform, 5, np.arange(4000), 6)
+    u = model_steps.draw_frequencies(uniform, 5, np.arange(4000), 6)
     assert u.min() >= 0.8 and u.max() < 1.2 and u.std() == pytest.approx(0.4 / math.sqrt(12), rel=0.03)
     # the frequency stream is not the phase stream
-    first = model_cpu.draw_frequencies(spec, 5, np.arange(3), 6)
+    first = model_steps.draw_frequencies(spec, 5, np.arange(3), 6)
     assert not np.allclose(first, 0.3 * initial_phases(5, 0, 3, 6))
 
 
@@ -524,7 +524,7 @@ def _model_sim(job, count, **kw):
     ks = np.arange(count, dtype=np.uint64)
     params = _model_params(job, ks, job.model.targets)
     dyn = job.config.dynamics
-    return model_cpu.simulate_model(
+    return cpu.simulate_model(
         job.config.seed,
         0,
         0,
@@ -549,7 +549,7 @@ def test_lane_driver_is_the_one_trajectory_driver_bit_for_bit(name):
     job = job_of(LOLLIPOP + "edges: ['2->1', '3->4', '5->6']\nbetas: [0.5]\n" + LANE_MODELS[name])
     ref = _model_sim(job, 60, lanes=0)
     assert (ref.status0 == Status.SYNCED).sum() >= 20, ref.status0
-    for lanes in (model_cpu.LANES, 7):
+    for lanes in (cpu.LANES, 7):
         got = _model_sim(job, 60, lanes=lanes)
         for field in ("status0", "steps0", "status", "steps", "frac0", "frac"):
             np.testing.assert_array_equal(

@@ -1,24 +1,28 @@
 """CPU backend: numba batch drivers around the shared step functions of :mod:`.core`.
 
 Layers (as in stumpy): the step functions of :mod:`antisync.kernels.core` advance a state;
-the private drivers here run batches of realizations in parallel threads; :func:`simulate` and
-:func:`simulate_pathwise` are the public, validated entry points.
+the private drivers here run batches of realizations in parallel threads; :func:`simulate`,
+:func:`simulate_model` and :func:`simulate_pathwise` are the public, validated entry points.
 
-Two drivers give identical results, bit for bit:
+One lane driver, ``_integrate_lanes``, runs every model: each thread steps ``LANES``
+trajectories together in a ``[node, lane]`` layout; a finished lane is refilled with the next
+(realization, variant) item of the thread's queue, and the driver keeps one step clock and looks
+at the lanes only when one may have met its criterion or reaches the step cap. The identical
+first-order oscillators of the paper are the case without a model (``model=None``), which numba
+compiles without any of the models' code: their Euler step with Taylor rotations and their RK4
+step run on explicit machine vectors (``euler_step_vec``, ``rk4_step_vec`` of :mod:`.core`, the
+lane count rounded up to a multiple of ``2 VEC``), the others on the lane loops of
+:mod:`.core`. A generalized model (natural frequencies, phase lag, inertia, the frequency
+criterion; docs/models.md) adds its per-lane frequencies and targets and the step functions of
+:mod:`.model_steps`.
 
-- ``_integrate_batch``: one trajectory at a time per thread (the plain reference path,
-  the same loop structure as the CUDA kernel);
-- ``_integrate_lanes`` (default): each thread steps ``LANES`` trajectories together in a
-  ``[node, lane]`` layout; a finished lane is refilled with the next (realization, variant)
-  item of the thread's queue. The Euler step with Taylor rotations and the RK4 step run on
-  explicit machine vectors (``euler_step_vec``, ``rk4_step_vec`` of :mod:`.core`, the lane
-  count rounded up to a multiple of ``2 VEC``); the others on the lane loops of :mod:`.core`.
-  The driver keeps one step clock and looks at the lanes only when one crosses the
-  threshold, must be renormalized or reaches the step cap.
+Beside it, the plain one-trajectory-per-thread references that the lanes match bit for bit:
+``_integrate_batch`` (identical oscillators; the loop structure of the CUDA kernel) and
+``_integrate_items`` (a model; ``make_model_kernels``' ``sync_steps``), selected by ``lanes=0``.
 
-Both drivers are compiled per state precision: ``precision="float32"`` runs the Euler step
-with Taylor rotations on float32 lanes (twice as many per machine vector), bit for bit the
-one-trajectory float32 driver.
+The identical model's drivers are compiled per state precision: ``precision="float32"`` runs
+the Euler step with Taylor rotations on float32 lanes (twice as many per machine vector), bit
+for bit the one-trajectory float32 driver.
 
 With tangents switched on, the lane driver integrates the undamaged network with forward
 sensitivities for every damaged edge at once (the tangent of the Euler step, exact for the
@@ -36,14 +40,21 @@ from numba import njit, prange, types
 from numba.extending import overload
 
 from antisync import _numba_cache  # noqa: F401 -- before any cache=True function (see there)
+from antisync.kernels import model_steps as ms
 from antisync.kernels.core import (
+    CRIT_FREQUENCY,
+    CRIT_ORDER,
+    DEV_PREV_ROW,
+    DEV_ROW,
     RENORM_EVERY,
     TAYLOR_MAX_ANGLE,
     VEC,
+    WORK_ROWS,
     lanes_per_vector,
     make_kernels,
     renorm_interval,
 )
+from antisync.kernels.model_steps import ModelParams, per_node
 from antisync.phases import phase
 from antisync.status import ALREADY_SYNCED, NOT_SYNCED, SYNCED
 from antisync.types import Integrator
@@ -53,8 +64,10 @@ __all__ = [
     "PRECISIONS",
     "PathwiseResult",
     "SimResult",
+    "ModelParams",
     "rotation_angle_bound",
     "simulate",
+    "simulate_model",
     "simulate_pathwise",
 ]
 
@@ -69,6 +82,13 @@ _renorm64, _renorm32 = _K.renormalize, _K32.renormalize
 _order2_64, _order2_32 = _K.order2, _K32.order2
 _step_lanes64 = _K.euler_step_lanes
 _rk4_vec64 = _K.rk4_step_vec
+# the generalized models' one-trajectory functions (make_model_kernels, float64)
+_model_sync = ms.MK.sync_steps
+_model_rhs = ms.MK.rhs
+_model_measure = ms.MK.measure
+_model_deviations = ms.MK.deviations
+_order_crossing = ms.MK.order_crossing
+_frequency_crossing = ms.MK.frequency_crossing
 
 PRECISIONS = ("float64", "float32")
 """Arithmetic of the lane state. float32 runs the Euler step with Taylor rotations only
@@ -252,6 +272,24 @@ class _Tangents(NamedTuple):
 _NO_TANGENTS = _Tangents(np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64), np.zeros(0), np.zeros(0))
 
 
+class _Model(NamedTuple):
+    """A generalized model's constants for the lane driver (:class:`ModelParams` as arrays);
+    the driver takes ``None`` for the identical first-order oscillators."""
+
+    freqs: np.ndarray
+    """float64 (1 or m, N): natural frequencies, one row for all realizations or one each."""
+    cos_lag: float
+    sin_lag: float
+    mass: np.ndarray
+    """float64 (N,): inertia m_i (0: a first-order node)."""
+    gamma: np.ndarray
+    """float64 (N,): damping."""
+    criterion: int
+    """CRIT_ORDER or CRIT_FREQUENCY."""
+    targets: np.ndarray
+    """float64 (V + 1,): the criterion's target of the undamaged network, then of each variant."""
+
+
 @njit(parallel=True, cache=True)
 def _integrate_batch(ks, graph, run, status0, steps0, status, steps):
     # fields as locals before the prange (see _integrate_lanes)
@@ -426,15 +464,201 @@ def _lane_initial(c, s, kv, lw, indptr, indices, rk4, q, r2, dr2, u, dr2t):
             u[e, i, q] = 0.0
 
 
+@njit(inline="always")
+def _share_base(var_is_base, r, status0, steps0, frac0, status, steps, frac):
+    """Realization ``r``'s variants that leave the weights unchanged get the undamaged result."""
+    for v in range(var_is_base.shape[0]):
+        if var_is_base[v]:
+            status[r, v] = status0[r]
+            steps[r, v] = steps0[r]
+            frac[r, v] = frac0[r]
+
+
 @njit(parallel=True, cache=True)
-def _integrate_lanes(ks, graph, run, out, tangents, n_groups):
-    """Lanes of trajectories with refill: realizations ``ks`` (split into ``n_groups`` ranges,
-    one per parallel task) of ``graph`` (a :class:`_Graph`) with the constants ``run`` (a
+def _integrate_items(
+    ks,
+    seed,
+    indptr,
+    indices,
+    base_w,
+    var_w,
+    var_is_base,
+    todo,
+    freqs,
+    cl,
+    sl,
+    inertia,
+    damping,
+    criterion,
+    targets,
+    dt,
+    rk4,
+    max_steps,
+    status0,
+    steps0,
+    frac0,
+    status,
+    steps,
+    frac,
+):
+    """A generalized model one trajectory per item (the fields of :class:`_Graph` and
+    :class:`_Model` one by one): ``make_model_kernels``' ``sync_steps`` from the realization's
+    phases, the plain reference that the lane driver matches bit for bit."""
+    m = ks.shape[0]
+    n = indptr.shape[0] - 1
+    n_var = var_w.shape[0]
+    per = n_var + 1
+    for item in prange(m * per):
+        r = item // per
+        v = item % per - 1
+        if v >= 0 and var_is_base[v]:
+            continue  # copied from the undamaged result below
+        if todo.shape[0] > 0 and not todo[r, v + 1]:
+            continue  # not asked for: left at -1 / NaN
+        c = np.empty(n)
+        s = np.empty(n)
+        nu = np.zeros(n)
+        th = np.empty(n)
+        dnu = np.zeros(n)
+        work = np.empty((WORK_ROWS, n))
+        for i in range(n):
+            theta = phase(seed, ks[r], i)
+            c[i] = np.cos(theta)
+            s[i] = np.sin(theta)
+        p = freqs[r] if freqs.shape[0] > 1 else freqs[0]
+        w = base_w if v < 0 else var_w[v]
+        st, k, x = _model_sync(
+            c,
+            s,
+            nu,
+            th,
+            dnu,
+            work,
+            p,
+            indptr,
+            indices,
+            w,
+            cl,
+            sl,
+            inertia,
+            damping,
+            dt,
+            rk4,
+            criterion,
+            targets[v + 1],
+            max_steps,
+        )
+        _record(status0, steps0, frac0, status, steps, frac, r, v, st, k, x)
+    for r in prange(m):
+        _share_base(var_is_base, r, status0, steps0, frac0, status, steps, frac)
+
+
+@njit(cache=True)  # not inlined: numba's inline pass fails on it ("closure with *args")
+def _model_load(
+    q,
+    qr,
+    qv,
+    r_hi,
+    seed,
+    ks,
+    base_w,
+    var_w,
+    var_is_base,
+    todo,
+    freqs,
+    targets,
+    cl,
+    sl,
+    mass,
+    gamma,
+    second,
+    freq,
+    indptr,
+    indices,
+    c,
+    s,
+    nu,
+    th,
+    dnu,
+    p,
+    lw,
+    work,
+    r2,
+    dr2,
+    lane_r,
+    lane_v,
+    lane_t0,
+    lane_target,
+    t,
+    status0,
+    steps0,
+    frac0,
+    status,
+    steps,
+    frac,
+):
+    """Put the next queued item that needs integrating into lane ``q`` (the one-trajectory
+    ``sync_steps``' start on the lane's column); items met at t = 0 are recorded on the spot.
+    Returns the advanced cursor and 1 if the lane was filled, 0 if the queue is empty."""
+    n = c.shape[0]
+    while qr < r_hi:
+        r, v = qr, qv
+        qr, qv = _next_item(qr, qv, r_hi, var_is_base)
+        if todo.shape[0] > 0 and not todo[r, v + 1]:
+            continue
+        row = r if freqs.shape[0] > 1 else 0
+        for i in range(n):
+            theta = phase(seed, ks[r], i)
+            c[i, q] = np.cos(theta)
+            s[i, q] = np.sin(theta)
+            nu[i, q] = 0.0
+            dnu[i, q] = 0.0
+            p[i, q] = freqs[row, i]
+        for e in range(lw.shape[0]):
+            lw[e, q] = base_w[e] if v < 0 else var_w[v, e]
+        target = targets[v + 1]
+        cq, sq, thq, dnuq = c[:, q], s[:, q], th[:, q], dnu[:, q]
+        _model_rhs(
+            cq, sq, nu[:, q], p[:, q], indptr, indices, lw[:, q], cl, sl, mass, gamma, second, thq, dnuq
+        )
+        r2[q] = _order2(cq, sq)
+        d, dev = _model_measure(cq, sq, thq, dnuq, mass, gamma, second)
+        dr2[q] = d
+        if freq:
+            met = dev < target
+            if not met:
+                _model_deviations(
+                    cq, sq, thq, dnuq, indptr, indices, lw[:, q], cl, sl, mass, gamma, second, work[:, :, q]
+                )
+        else:
+            met = r2[q] >= target
+        if met:
+            _record(status0, steps0, frac0, status, steps, frac, r, v, ALREADY_SYNCED, 0, 0.0)
+            continue
+        lane_r[q] = r
+        lane_v[q] = v
+        lane_t0[q] = t
+        lane_target[q] = target
+        return qr, qv, 1
+    return qr, qv, 0
+
+
+@njit(cache=True)
+def _lane_group(ks, graph, run, model, out, tangents, r_lo, r_hi):
+    """Lanes of trajectories with refill, for realizations ``ks[r_lo:r_hi]`` (one parallel task
+    of :func:`_integrate_lanes`) of ``graph`` (a :class:`_Graph`) with the constants ``run`` (a
     :class:`_Run`), results into ``out`` (:class:`_Outputs`). With ``tangents.edge_a`` non-empty
     (and no variants) every trajectory also carries forward sensitivities and ``out.dtau[r, e]``
-    receives d tau0/d beta_e."""
-    # every field as a local before the prange: a parallel loop that writes to an array
-    # reached through a named tuple loses the writes (numba issues #5872, #7135, #10338)
+    receives d tau0/d beta_e.
+
+    ``model`` (a :class:`_Model`) adds natural frequencies, a phase lag, inertia and the other
+    criteria (:mod:`antisync.kernels.model_steps`); ``None`` is the identical first-order
+    model, and numba compiles that case without any of the model's terms (the branches on
+    ``model is None`` are pruned before typing), so its code is the default path's alone.
+
+    Not itself parallel: inside a ``prange`` body, numba's parallel pass mixed up the arrays of
+    the pruned and the kept branches (a lane array arrived as another of shape (0, 0)); a plain
+    function per task keeps the pruning where it is reliable."""
     indptr = graph.indptr
     indices = graph.indices
     base_w = graph.base_w
@@ -448,6 +672,8 @@ def _integrate_lanes(ks, graph, run, out, tangents, n_groups):
     taylor = run.taylor
     rk4 = run.rk4
     lanes = run.lanes
+    renorm = run.renorm
+    block = run.block
     status0 = out.status0
     steps0 = out.steps0
     frac0 = out.frac0
@@ -459,44 +685,54 @@ def _integrate_lanes(ks, graph, run, out, tangents, n_groups):
     edge_b = tangents.edge_b
     rho = tangents.rho
     mu = tangents.mu
-    m = status0.shape[0]
     n = indptr.shape[0] - 1
     nnz = base_w.shape[0]
     n_var = var_w.shape[0]
     n_edges = edge_a.shape[0]
     tangent = n_edges > 0
-    # the Euler step with Taylor rotations and the RK4 step run on pairs of machine vectors of
-    # VEC lanes: the arrays are `width` lanes wide, lanes >= `lanes` stay empty (state (1, 0),
-    # weights 0)
-    vec = taylor and not rk4 and not tangent
-    block = run.block
-    width = (lanes + block - 1) // block * block if vec or rk4 else lanes
+    if model is None:
+        freq = False
+        # the Euler step with Taylor rotations and the RK4 step run on pairs of machine vectors
+        fused = taylor and not rk4 and not tangent
+        wide = fused or rk4
+    else:
+        freqs = model.freqs
+        cl = model.cos_lag
+        sl = model.sin_lag
+        mass = model.mass
+        gamma = model.gamma
+        targets = model.targets
+        freq = model.criterion == CRIT_FREQUENCY
+        second = False
+        for i in range(n):
+            second |= mass[i] > 0.0
+        # Euler with an order criterion needs no rates after the step: the step is fused
+        fused = not rk4 and not freq
+        wide = True
+    # the vector steps take `block` lanes at a time: the arrays are `width` lanes wide, lanes
+    # >= `lanes` stay empty (state (1, 0), weights 0)
+    width = (lanes + block - 1) // block * block if wide else lanes
     # every lane integrates the undamaged network: its weights can be broadcast
     shared = n_var == 0
-    # a lane's step count is `t - lane_t0`; between events (a crossing, a renormalization or
-    # the step cap of some lane) no lane needs looking at
-    renorm = run.renorm if not rk4 else max_steps + 1
-    per = (m + n_groups - 1) // n_groups
-    for group in prange(n_groups):
-        r_lo = group * per
-        r_hi = min(m, r_lo + per)
-        if r_lo >= r_hi:
-            continue
-        # the state and weights in the run's precision (float32 or float64)
-        c = np.ones((n, width), base_w.dtype)
-        s = np.zeros((n, width), base_w.dtype)
-        cn = np.empty((n, width) if vec else (0, width), base_w.dtype)
-        sn = np.empty((n, width) if vec else (0, width), base_w.dtype)
+    # the state and weights in the run's precision (float32 or float64)
+    c = np.ones((n, width), base_w.dtype)
+    s = np.zeros((n, width), base_w.dtype)
+    cn = np.ones((n, width) if fused else (0, width), base_w.dtype)
+    sn = np.zeros((n, width) if fused else (0, width), base_w.dtype)
+    lw = np.zeros((nnz, width), base_w.dtype)
+    r2 = np.zeros(width, base_w.dtype)
+    r2_prev = np.zeros(width, base_w.dtype)
+    dr2 = np.zeros(width)
+    dr2_prev = np.zeros(width)
+    lane_r = np.full(width, -1, dtype=np.int64)
+    lane_v = np.zeros(width, dtype=np.int64)
+    lane_t0 = np.zeros(width, dtype=np.int64)
+    if model is None:
         acc = np.empty((n, width))
         sum_c = np.empty((n, width))
         sum_s = np.empty((n, width))
-        lw = np.zeros((nnz, width), base_w.dtype)
         tot_c = np.empty(width)
         tot_s = np.empty(width)
-        r2 = np.zeros(width, base_w.dtype)
-        r2_prev = np.zeros(width, base_w.dtype)
-        dr2 = np.zeros(width)
-        dr2_prev = np.zeros(width)
         # RK4 scratch: stage velocities kv[2 * stage + (0 for c, 1 for s)], two stage states
         kv = np.zeros((8 if rk4 else 2, n, width))
         yc = np.empty((n, width))
@@ -510,56 +746,158 @@ def _integrate_lanes(ks, graph, run, out, tangents, n_groups):
         su = np.empty((n, width))
         dr2t = np.zeros((n_edges, width))
         dr2t_prev = np.zeros((n_edges, width))
-        lane_r = np.full(width, -1, dtype=np.int64)
-        lane_v = np.zeros(width, dtype=np.int64)
-        lane_t0 = np.zeros(width, dtype=np.int64)
         ci = np.empty(n, base_w.dtype)
         si = np.empty(n, base_w.dtype)
         start = np.full(2, -1, dtype=np.int64)  # realization in (ci, si), synchronized at t = 0
-        qr, qv = r_lo, -1
-        active = 0
-        t = 0
-        for q in range(lanes):
-            qr, qv, filled = _load_lane(
-                q,
-                qr,
-                qv,
-                r_hi,
-                seed,
-                ks,
-                base_w,
-                var_w,
-                var_is_base,
-                todo,
-                r2_target,
-                c,
-                s,
-                lw,
-                ci,
-                si,
-                start,
-                lane_r,
-                lane_v,
-                lane_t0,
-                t,
-                status0,
-                steps0,
-                frac0,
-                status,
-                steps,
-                frac,
-            )
-            active += filled
-            if filled:
-                _lane_initial(c, s, kv, lw, indptr, indices, rk4, q, r2, dr2, u, dr2t)
-        next_event = t + min(renorm, max_steps)
-        while active > 0:
-            # the step writes r2 (dr2, dr2t) afresh for every lane: swap instead of copying
-            r2, r2_prev = r2_prev, r2
-            dr2, dr2_prev = dr2_prev, dr2
+    else:
+        spare = np.empty(VEC)
+        nu = np.zeros((n, width))
+        th = np.zeros((n, width))
+        dnu = np.zeros((n, width))
+        lane_p = np.zeros((n, width))
+        work = np.zeros((WORK_ROWS, n, width))
+        # RK4: the stage states in turn and the sum k1 + 2 k2 + 2 k3 (rows c, s, nu)
+        ya = np.zeros((3, n if rk4 else 0, width))
+        yb = np.zeros((3, n if rk4 else 0, width))
+        kacc = np.zeros((3, n if rk4 else 0, width))
+        m4 = np.zeros((4, width))
+        lane_target = np.zeros(width)
+    qr, qv = r_lo, -1
+    active = 0
+    t = 0
+    # a lane's step count is t - lane_t0; the per-lane pass below runs only when some lane
+    # may have met the criterion (a vectorized test) or reaches the step cap (and at t = 0,
+    # to fill the lanes): it records what ended and refills the lane from the queue. Euler
+    # lanes are renormalized at their own multiples of `renorm` steps, as in sync_steps
+    next_cap = t + max_steps
+    next_renorm = t + renorm
+    event = True
+    while True:
+        if event:
+            next_cap = t + max_steps
+            for q in range(width):
+                if lane_r[q] >= 0:
+                    k = t - lane_t0[q]
+                    r = lane_r[q]
+                    if model is None:
+                        x = -1.0
+                        if r2[q] >= r2_target:
+                            span = r2[q] - r2_prev[q]
+                            if rk4:
+                                x = _hermite(r2_prev[q], dr2_prev[q], r2[q], dr2[q], dt, r2_target)
+                            else:
+                                # where a straight line through R crosses the target
+                                x = (r2_target - r2_prev[q]) / span
+                            # tau = dt (k - 1 + x), x linear in R between the two steps:
+                            # dx/dbeta = -((1 - x) dR_{k-1} + x dR_k) / (R_k - R_{k-1})
+                            for e in range(n_edges):
+                                dtau[r, e] = -dt * ((1.0 - x) * dr2t_prev[e, q] + x * dr2t[e, q]) / span
+                        elif k >= max_steps:
+                            for e in range(n_edges):
+                                dtau[r, e] = 0.0
+                    elif freq:
+                        x = _frequency_crossing(work[:, :, q], n, second, dt, rk4, lane_target[q])
+                    else:
+                        x = _order_crossing(r2_prev[q], dr2_prev[q], r2[q], dr2[q], dt, rk4, lane_target[q])
+                    if x >= 0.0:
+                        st = SYNCED
+                    elif k >= max_steps:
+                        st = NOT_SYNCED
+                        x = 0.0
+                    else:
+                        next_cap = min(next_cap, lane_t0[q] + max_steps)
+                        continue
+                    _record(status0, steps0, frac0, status, steps, frac, r, lane_v[q], st, k, x)
+                    lane_r[q] = -1
+                    active -= 1
+                if q >= lanes:
+                    continue  # padding of the vector width: never filled
+                if model is None:
+                    qr, qv, filled = _load_lane(
+                        q,
+                        qr,
+                        qv,
+                        r_hi,
+                        seed,
+                        ks,
+                        base_w,
+                        var_w,
+                        var_is_base,
+                        todo,
+                        r2_target,
+                        c,
+                        s,
+                        lw,
+                        ci,
+                        si,
+                        start,
+                        lane_r,
+                        lane_v,
+                        lane_t0,
+                        t,
+                        status0,
+                        steps0,
+                        frac0,
+                        status,
+                        steps,
+                        frac,
+                    )
+                    if filled:
+                        _lane_initial(c, s, kv, lw, indptr, indices, rk4, q, r2, dr2, u, dr2t)
+                else:
+                    qr, qv, filled = _model_load(
+                        q,
+                        qr,
+                        qv,
+                        r_hi,
+                        seed,
+                        ks,
+                        base_w,
+                        var_w,
+                        var_is_base,
+                        todo,
+                        freqs,
+                        targets,
+                        cl,
+                        sl,
+                        mass,
+                        gamma,
+                        second,
+                        freq,
+                        indptr,
+                        indices,
+                        c,
+                        s,
+                        nu,
+                        th,
+                        dnu,
+                        lane_p,
+                        lw,
+                        work,
+                        r2,
+                        dr2,
+                        lane_r,
+                        lane_v,
+                        lane_t0,
+                        lane_target,
+                        t,
+                        status0,
+                        steps0,
+                        frac0,
+                        status,
+                        steps,
+                        frac,
+                    )
+                active += filled
+        if active == 0:
+            break
+        # the step writes r2 (dr2, dr2t) afresh for every lane: swap instead of copying
+        t += 1
+        r2, r2_prev = r2_prev, r2
+        dr2, dr2_prev = dr2_prev, dr2
+        if model is None:
             dr2t, dr2t_prev = dr2t_prev, dr2t
-            t += 1
-            if vec:
+            if fused:
                 _step_vec(c, s, cn, sn, lw, base_w, shared, indptr, indices, dt, r2)
                 c, cn = cn, c
                 s, sn = sn, s
@@ -592,86 +930,115 @@ def _integrate_lanes(ks, graph, run, out, tangents, n_groups):
                 )
             else:
                 _step_lanes(c, s, acc, sum_c, sum_s, tot_c, tot_s, lw, indptr, indices, dt, r2, taylor)
-            crossed = False
-            for q in range(width):
-                crossed |= (r2[q] >= r2_target) & (lane_r[q] >= 0)
-            if not crossed and t < next_event:
-                continue
-            next_event = t + min(renorm, max_steps)
+        else:
+            if freq:
+                # the deviations one step back, for the crossing inside the step
+                for row in range(4):
+                    for i in range(n):
+                        for q in range(width):
+                            work[DEV_PREV_ROW + row, i, q] = work[DEV_ROW + row, i, q]
+            if rk4:
+                ms.rk4_vec(
+                    c,
+                    s,
+                    nu,
+                    th,
+                    dnu,
+                    ya,
+                    yb,
+                    kacc,
+                    lane_p,
+                    lw,
+                    indptr,
+                    indices,
+                    cl,
+                    sl,
+                    mass,
+                    gamma,
+                    second,
+                    dt,
+                    not freq,
+                    r2,
+                    dr2,
+                )
+            elif fused:
+                ms.euler_vec(
+                    c,
+                    s,
+                    cn,
+                    sn,
+                    nu,
+                    lane_p,
+                    lw,
+                    indptr,
+                    indices,
+                    cl,
+                    sl,
+                    mass,
+                    gamma,
+                    second,
+                    dt,
+                    taylor,
+                    r2,
+                    spare,
+                )
+                c, cn = cn, c
+                s, sn = sn, s
+            else:
+                ms.euler_lanes(c, s, nu, th, dnu, dt, second)
+        if not rk4 and t >= next_renorm:
+            next_renorm = t + renorm
             for q in range(width):
                 if lane_r[q] < 0:
                     continue
                 k = t - lane_t0[q]
-                r = lane_r[q]
-                if r2[q] >= r2_target:
-                    st = SYNCED
-                    span = r2[q] - r2_prev[q]
-                    if rk4:
-                        x = _hermite(r2_prev[q], dr2_prev[q], r2[q], dr2[q], dt, r2_target)
-                    else:
-                        # where inside the last step a straight line through R crosses the target
-                        x = (r2_target - r2_prev[q]) / span
-                    # tau = dt (k - 1 + x), x linear in R between the two steps:
-                    # dx/dbeta = -((1 - x) dR_{k-1} + x dR_k) / (R_k - R_{k-1})
-                    for e in range(n_edges):
-                        dtau[r, e] = -dt * ((1.0 - x) * dr2t_prev[e, q] + x * dr2t[e, q]) / span
-                elif k >= max_steps:
-                    st = NOT_SYNCED
-                    x = 0.0
-                    for e in range(n_edges):
-                        dtau[r, e] = 0.0
-                else:
-                    if k % renorm == 0:
-                        _renormalize(c[:, q], s[:, q])
-                    # this lane's next renormalization or step cap
-                    next_event = min(next_event, t + min(renorm - k % renorm, max_steps - k))
-                    continue
-                v = lane_v[q]
-                _record(status0, steps0, frac0, status, steps, frac, r, v, st, k, x)
-                lane_r[q] = -1
-                active -= 1
-                qr, qv, filled = _load_lane(
-                    q,
-                    qr,
-                    qv,
-                    r_hi,
-                    seed,
-                    ks,
-                    base_w,
-                    var_w,
-                    var_is_base,
-                    todo,
-                    r2_target,
-                    c,
-                    s,
-                    lw,
-                    ci,
-                    si,
-                    start,
-                    lane_r,
-                    lane_v,
-                    lane_t0,
-                    t,
-                    status0,
-                    steps0,
-                    frac0,
-                    status,
-                    steps,
-                    frac,
-                )
-                active += filled
-                if filled:
-                    _lane_initial(c, s, kv, lw, indptr, indices, rk4, q, r2, dr2, u, dr2t)
-        for r in range(r_lo, r_hi):
-            # variants that leave W unchanged share the undamaged result
-            for v in range(n_var):
-                if var_is_base[v]:
-                    status[r, v] = status0[r]
-                    steps[r, v] = steps0[r]
-                    frac[r, v] = frac0[r]
-            if status0[r] == ALREADY_SYNCED:
-                for e in range(n_edges):
-                    dtau[r, e] = 0.0
+                if k % renorm == 0:
+                    _renormalize(c[:, q], s[:, q])
+                next_renorm = min(next_renorm, t + renorm - k % renorm)
+        if model is None:
+            hits = 0
+            for q in range(width):
+                hits += (r2[q] >= r2_target) & (lane_r[q] >= 0)
+        else:
+            if freq and not rk4:
+                ms.rhs_vec(c, s, nu, lane_p, lw, indptr, indices, cl, sl, mass, gamma, second, th, dnu)
+            if freq:
+                ms.deviations_lanes(c, s, th, dnu, lw, indptr, indices, cl, sl, mass, gamma, second, work, m4)
+                hits = 1  # the criterion's own bound test, per lane, in the pass above
+            elif rk4:
+                # the Hermite interpolant of R over the step stays below max(R_0, R_1) +
+                # 4/27 (|m0| + |m1|) (its slope basis functions peak at 4/27): a lane below
+                # that bound, widened for rounding, cannot cross in this step
+                hits = 0
+                for q in range(width):
+                    top = max(r2_prev[q], r2[q]) * (1.0 + 1e-12) + 0.15 * dt * (
+                        abs(dr2_prev[q]) + abs(dr2[q])
+                    )
+                    hits += (top >= lane_target[q]) & (lane_r[q] >= 0)
+            else:
+                hits = 0
+                for q in range(width):
+                    hits += (r2[q] >= lane_target[q]) & (lane_r[q] >= 0)
+        event = hits > 0 or t >= next_cap
+    for r in range(r_lo, r_hi):
+        # variants that leave W unchanged share the undamaged result
+        _share_base(var_is_base, r, status0, steps0, frac0, status, steps, frac)
+        if status0[r] == ALREADY_SYNCED:
+            for e in range(n_edges):
+                dtau[r, e] = 0.0
+
+
+@njit(parallel=True, cache=True)
+def _integrate_lanes(ks, graph, run, model, out, tangents, n_groups):
+    """The lane driver: realizations ``ks`` split into ``n_groups`` ranges, one per parallel
+    task, each run by :func:`_lane_group` (which says what the arguments are)."""
+    m = ks.shape[0]
+    per = (m + n_groups - 1) // n_groups
+    for group in prange(n_groups):
+        r_lo = group * per
+        r_hi = min(m, r_lo + per)
+        if r_lo < r_hi:
+            _lane_group(ks, graph, run, model, out, tangents, r_lo, r_hi)
 
 
 @dataclass(frozen=True)
@@ -875,7 +1242,7 @@ def simulate(
         if todo is not None:
             # few scattered items: no more groups (row ranges) than it takes to fill the lanes
             groups = min(groups, max(1, -(-int(todo.sum()) // max(1, int(lanes)))))
-        _integrate_lanes(ks, graph, run, out, _NO_TANGENTS, groups)
+        _integrate_lanes(ks, graph, run, None, out, _NO_TANGENTS, groups)
     return SimResult(status0, steps0, status, steps, frac0, frac)
 
 
@@ -933,5 +1300,105 @@ def simulate_pathwise(
         np.asarray(mu, dtype=np.float64),
     )
     with _Threads(threads) as groups:
-        _integrate_lanes(ks, graph, run, out, tangents, groups)
+        _integrate_lanes(ks, graph, run, None, out, tangents, groups)
     return PathwiseResult(out.status0, out.steps0, out.frac0, out.dtau)
+
+
+def simulate_model(
+    seed: int,
+    first: int,
+    count: int,
+    indptr: np.ndarray,
+    indices: np.ndarray,
+    base_weights: np.ndarray,
+    variant_weights: np.ndarray,
+    params: ModelParams,
+    *,
+    dt: float,
+    max_steps: int,
+    integrator: str = "euler",
+    threads: int | None = None,
+    realizations: np.ndarray | None = None,
+    todo: np.ndarray | None = None,
+    lanes: int = LANES,
+) -> SimResult:
+    """Integrate realizations ``first .. first+count-1`` of a generalized model for the base
+    network and every variant (same arguments as :func:`antisync.kernels.cpu.simulate`, plus
+    the model's ``params``; ``threshold`` is in ``params.targets``). ``todo`` (bool, ``(m, V +
+    1)``) integrates only the marked items, as in :func:`antisync.kernels.cpu.simulate`: the
+    others get status and steps ``-1`` and ``frac`` NaN. ``lanes`` trajectories are stepped
+    together per thread (the lane driver); ``lanes=0`` runs one trajectory per thread (the plain
+    reference driver). Both give the same results, bit for bit.
+
+    Returns a :class:`~antisync.kernels.cpu.SimResult` with ``frac0``/``frac`` (where inside
+    the last step the criterion is met).
+    """
+    if integrator not in ("euler", "rk4"):
+        raise ValueError(f"integrator must be 'euler' or 'rk4', got {integrator!r}")
+    if params.criterion not in (CRIT_ORDER, CRIT_FREQUENCY):
+        raise ValueError(f"unknown criterion code {params.criterion}")
+    if lanes < 0:
+        raise ValueError(f"lanes must be >= 0, got {lanes}")
+    ks = _realization_ids(first, count, realizations)
+    m = ks.size
+    base_weights = np.ascontiguousarray(base_weights, dtype=np.float64)
+    var_w = np.ascontiguousarray(variant_weights, dtype=np.float64).reshape(-1, base_weights.size)
+    n_var = var_w.shape[0]
+    var_is_base = np.array([np.array_equal(w, base_weights) for w in var_w], dtype=np.bool_)
+    if todo is None:
+        todo = np.zeros((0, 0), dtype=np.bool_)
+    else:
+        todo = np.ascontiguousarray(todo, dtype=np.bool_)
+        if todo.shape != (m, n_var + 1):
+            raise ValueError(f"todo must have shape {(m, n_var + 1)}, got {todo.shape}")
+        # a variant equal to the base is integrated, not copied from a base that may not run
+        var_is_base[:] = False
+    freqs = np.ascontiguousarray(params.freqs, dtype=np.float64)
+    n = indptr.size - 1
+    if freqs.ndim != 2 or freqs.shape[1] != n or freqs.shape[0] not in (1, m):
+        raise ValueError(f"freqs must have shape (1, {n}) or ({m}, {n}), got {freqs.shape}")
+    targets = np.ascontiguousarray(params.targets, dtype=np.float64)
+    if targets.shape != (n_var + 1,):
+        raise ValueError(f"targets must have shape ({n_var + 1},), got {targets.shape}")
+    status0 = np.full(m, -1, dtype=np.int8)
+    steps0 = np.full(m, -1, dtype=np.int64)
+    frac0 = np.full(m, np.nan)
+    status = np.full((m, n_var), -1, dtype=np.int8)
+    steps = np.full((m, n_var), -1, dtype=np.int64)
+    frac = np.full((m, n_var), np.nan)
+    graph = _Graph(indptr.astype(np.int64), indices.astype(np.int64), base_weights, var_w, var_is_base, todo)
+    model = _Model(
+        freqs,
+        float(params.cos_lag),
+        float(params.sin_lag),
+        per_node(params.inertia, n),
+        per_node(params.damping, n),
+        int(params.criterion),
+        targets,
+    )
+    rk4 = integrator == "rk4"
+    outputs = (status0, steps0, frac0, status, steps, frac)
+    with _Threads(threads) as groups:
+        if not lanes:
+            _integrate_items(ks, np.uint64(seed), *graph, *model, float(dt), rk4, int(max_steps), *outputs)
+        else:
+            if todo.shape[0] > 0:
+                # few scattered items: no more groups (row ranges) than it takes to fill the lanes
+                groups = min(groups, max(1, -(-int(todo.sum()) // int(lanes))))
+            taylor = _taylor_everywhere(dt, indptr, base_weights, var_w, freqs, params, n)
+            run = _Run(np.uint64(seed), float(dt), 0.0, int(max_steps), taylor, rk4, int(lanes))
+            out = _Outputs(*outputs, np.empty((m, 0)))
+            _integrate_lanes(ks, graph, run, model, out, _NO_TANGENTS, groups)
+    return SimResult(status0, steps0, status, steps, frac0, frac)
+
+
+def _taylor_everywhere(dt, indptr, base_w, var_w, freqs, params: ModelParams, n: int) -> bool:
+    """Whether every Euler rotation angle ``dt theta_i'`` of a first-order model is within
+    :data:`~antisync.kernels.core.TAYLOR_MAX_ANGLE`: ``|theta_i'| <= max |P| + (|cos alpha| +
+    |sin alpha|) max_i sum_j |w_ij|`` (a margin of 1e-9 for rounding). Never for inertia
+    (``theta_i' = nu_i`` has no such bound)."""
+    if (per_node(params.inertia, n) > 0.0).any():
+        return False
+    coupling = abs(params.cos_lag) + abs(params.sin_lag)
+    rate = float(np.abs(freqs).max(initial=0.0)) + coupling * _row_sum_bound(indptr, base_w, var_w)
+    return float(dt) * rate * (1.0 + 1e-9) <= TAYLOR_MAX_ANGLE

@@ -758,13 +758,13 @@ def simulate_model_adjoint(
     Parameters
     ----------
     seed, first, count, realizations, threads
-        As in :func:`antisync.kernels.model_cpu.simulate_model`.
+        As in :func:`antisync.kernels.cpu.simulate_model`.
     indptr, indices, weights
         CSR form of the undamaged ``W``.
     deriv : LinkDerivatives
         ``dW/dbeta_e`` of each link (:func:`antisync.kernels.adjoint.link_derivatives`).
     params : ModelParams
-        The model (:class:`antisync.kernels.model_cpu.ModelParams`); ``params.targets[0]`` is
+        The model (:class:`antisync.kernels.model_steps.ModelParams`); ``params.targets[0]`` is
         the undamaged network's target.
     dtarget : array (E,), optional
         ``d target / d beta_e`` (the relative criterion's ``(fraction r* N)^2`` moves with the
@@ -778,7 +778,7 @@ def simulate_model_adjoint(
         ``status0``, ``steps0``, ``frac0`` as the model driver's (bit for bit) and ``dtau``
         ``(m, E)``, 0 where the trajectory did not synchronize.
     """
-    from antisync.kernels.model_cpu import _per_node
+    from antisync.kernels.model_steps import per_node
 
     if integrator not in ("euler", "rk4"):
         raise ValueError(f"integrator must be 'euler' or 'rk4', got {integrator!r}")
@@ -802,8 +802,8 @@ def simulate_model_adjoint(
             freqs,
             float(params.cos_lag),
             float(params.sin_lag),
-            _per_node(params.inertia, n),
-            _per_node(params.damping, n),
+            per_node(params.inertia, n),
+            per_node(params.damping, n),
             float(dt),
             integrator == "rk4",
             int(params.criterion),
