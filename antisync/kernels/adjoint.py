@@ -1250,7 +1250,7 @@ def _lane_order(ks, indptr, indices, w, run: _Run) -> np.ndarray:
         np.empty((m, 0)),
     )
     threads = numba.get_num_threads()
-    _integrate_lanes(ks, graph, lane_run, out, _NO_TANGENTS, threads)
+    _integrate_lanes(ks, graph, lane_run, None, out, _NO_TANGENTS, threads)
     by_steps = np.argsort(out.steps0, kind="stable")
     n_groups = (m + LANES - 1) // LANES
     groups = [by_steps[g * LANES : (g + 1) * LANES] for g in range(n_groups)]

@@ -89,6 +89,11 @@ _model_measure = ms.MK.measure
 _model_deviations = ms.MK.deviations
 _order_crossing = ms.MK.order_crossing
 _frequency_crossing = ms.MK.frequency_crossing
+_model_euler_vec = ms.euler_vec
+_model_rk4_vec = ms.rk4_vec
+_model_euler_lanes = ms.euler_lanes
+_model_rhs_vec = ms.rhs_vec
+_model_deviations_lanes = ms.deviations_lanes
 
 PRECISIONS = ("float64", "float32")
 """Arithmetic of the lane state. float32 runs the Euler step with Taylor rotations only
@@ -643,10 +648,10 @@ def _model_load(
     return qr, qv, 0
 
 
-@njit(cache=True)
-def _lane_group(ks, graph, run, model, out, tangents, r_lo, r_hi):
-    """Lanes of trajectories with refill, for realizations ``ks[r_lo:r_hi]`` (one parallel task
-    of :func:`_integrate_lanes`) of ``graph`` (a :class:`_Graph`) with the constants ``run`` (a
+@njit(parallel=True, cache=True)
+def _integrate_lanes(ks, graph, run, model, out, tangents, n_groups):
+    """Lanes of trajectories with refill: realizations ``ks`` (split into ``n_groups`` ranges,
+    one per parallel task) of ``graph`` (a :class:`_Graph`) with the constants ``run`` (a
     :class:`_Run`), results into ``out`` (:class:`_Outputs`). With ``tangents.edge_a`` non-empty
     (and no variants) every trajectory also carries forward sensitivities and ``out.dtau[r, e]``
     receives d tau0/d beta_e.
@@ -656,9 +661,15 @@ def _lane_group(ks, graph, run, model, out, tangents, r_lo, r_hi):
     model, and numba compiles that case without any of the model's terms (the branches on
     ``model is None`` are pruned before typing), so its code is the default path's alone.
 
-    Not itself parallel: inside a ``prange`` body, numba's parallel pass mixed up the arrays of
-    the pruned and the kept branches (a lane array arrived as another of shape (0, 0)); a plain
-    function per task keeps the pruning where it is reliable."""
+    Two rules keep numba's parallel pass right here, both learnt the hard way: every name is
+    bound whatever ``model`` is (a lane array bound in a pruned branch only once arrived as
+    another array of shape (0, 0)), and ``model`` itself is not used inside the ``prange`` body
+    (an expression on it there made the model's Euler step twice as slow; a plain function per
+    task, instead of the ``prange`` body, made it four times as slow: its inlined step functions
+    kept their reference counting in the vector loops).
+    """
+    # every field as a local before the prange: a parallel loop that writes to an array
+    # reached through a named tuple loses the writes (numba issues #5872, #7135, #10338)
     indptr = graph.indptr
     indices = graph.indices
     base_w = graph.base_w
@@ -690,8 +701,17 @@ def _lane_group(ks, graph, run, model, out, tangents, r_lo, r_hi):
     n_var = var_w.shape[0]
     n_edges = edge_a.shape[0]
     tangent = n_edges > 0
+    # every name is bound on both sides of a branch on `model is None` (numba prunes the
+    # branch before typing; a name bound on one side only confused its parallel pass)
     if model is None:
+        freqs = np.zeros((1, 0))
+        cl = 1.0
+        sl = 0.0
+        mass = np.zeros(0)
+        gamma = np.zeros(0)
+        targets = np.zeros(0)
         freq = False
+        second = False
         # the Euler step with Taylor rotations and the RK4 step run on pairs of machine vectors
         fused = taylor and not rk4 and not tangent
         wide = fused or rk4
@@ -714,31 +734,41 @@ def _lane_group(ks, graph, run, model, out, tangents, r_lo, r_hi):
     width = (lanes + block - 1) // block * block if wide else lanes
     # every lane integrates the undamaged network: its weights can be broadcast
     shared = n_var == 0
-    # the state and weights in the run's precision (float32 or float64)
-    c = np.ones((n, width), base_w.dtype)
-    s = np.zeros((n, width), base_w.dtype)
-    cn = np.ones((n, width) if fused else (0, width), base_w.dtype)
-    sn = np.zeros((n, width) if fused else (0, width), base_w.dtype)
-    lw = np.zeros((nnz, width), base_w.dtype)
-    r2 = np.zeros(width, base_w.dtype)
-    r2_prev = np.zeros(width, base_w.dtype)
-    dr2 = np.zeros(width)
-    dr2_prev = np.zeros(width)
-    lane_r = np.full(width, -1, dtype=np.int64)
-    lane_v = np.zeros(width, dtype=np.int64)
-    lane_t0 = np.zeros(width, dtype=np.int64)
-    if model is None:
-        acc = np.empty((n, width))
-        sum_c = np.empty((n, width))
-        sum_s = np.empty((n, width))
+    # the scratch of the default model's steps (ni rows) and of a model's (nm rows)
+    ni = n if model is None else 0
+    nm = n - ni
+    m = ks.shape[0]
+    per = (m + n_groups - 1) // n_groups
+    for group in prange(n_groups):
+        r_lo = group * per
+        r_hi = min(m, r_lo + per)
+        if r_lo >= r_hi:
+            continue
+        # the state and weights in the run's precision (float32 or float64)
+        c = np.ones((n, width), base_w.dtype)
+        s = np.zeros((n, width), base_w.dtype)
+        cn = np.ones((n, width) if fused else (0, width), base_w.dtype)
+        sn = np.zeros((n, width) if fused else (0, width), base_w.dtype)
+        lw = np.zeros((nnz, width), base_w.dtype)
+        r2 = np.zeros(width, base_w.dtype)
+        r2_prev = np.zeros(width, base_w.dtype)
+        dr2 = np.zeros(width)
+        dr2_prev = np.zeros(width)
+        lane_r = np.full(width, -1, dtype=np.int64)
+        lane_v = np.zeros(width, dtype=np.int64)
+        lane_t0 = np.zeros(width, dtype=np.int64)
+        # the default model's scratch (empty with a model) ...
+        acc = np.empty((ni, width))
+        sum_c = np.empty((ni, width))
+        sum_s = np.empty((ni, width))
         tot_c = np.empty(width)
         tot_s = np.empty(width)
         # RK4 scratch: stage velocities kv[2 * stage + (0 for c, 1 for s)], two stage states
-        kv = np.zeros((8 if rk4 else 2, n, width))
-        yc = np.empty((n, width))
-        ys = np.empty((n, width))
-        ybc = np.empty((n, width) if rk4 else (0, width))
-        ybs = np.empty((n, width) if rk4 else (0, width))
+        kv = np.zeros((8 if rk4 else 2, ni, width))
+        yc = np.empty((ni, width))
+        ys = np.empty((ni, width))
+        ybc = np.empty((ni if rk4 else 0, width))
+        ybs = np.empty((ni if rk4 else 0, width))
         # tangent scratch: u[e] = d theta / d beta_e, and d R / d beta_e now and one step back
         u = np.zeros((n_edges, n, width))
         du = np.empty((n, width))
@@ -749,296 +779,289 @@ def _lane_group(ks, graph, run, model, out, tangents, r_lo, r_hi):
         ci = np.empty(n, base_w.dtype)
         si = np.empty(n, base_w.dtype)
         start = np.full(2, -1, dtype=np.int64)  # realization in (ci, si), synchronized at t = 0
-    else:
+        # ... and a model's (empty without one)
         spare = np.empty(VEC)
-        nu = np.zeros((n, width))
-        th = np.zeros((n, width))
-        dnu = np.zeros((n, width))
-        lane_p = np.zeros((n, width))
-        work = np.zeros((WORK_ROWS, n, width))
+        nu = np.zeros((nm, width))
+        th = np.zeros((nm, width))
+        dnu = np.zeros((nm, width))
+        lane_p = np.zeros((nm, width))
+        work = np.zeros((WORK_ROWS, nm, width))
         # RK4: the stage states in turn and the sum k1 + 2 k2 + 2 k3 (rows c, s, nu)
-        ya = np.zeros((3, n if rk4 else 0, width))
-        yb = np.zeros((3, n if rk4 else 0, width))
-        kacc = np.zeros((3, n if rk4 else 0, width))
+        ya = np.zeros((3, nm if rk4 else 0, width))
+        yb = np.zeros((3, nm if rk4 else 0, width))
+        kacc = np.zeros((3, nm if rk4 else 0, width))
         m4 = np.zeros((4, width))
         lane_target = np.zeros(width)
-    qr, qv = r_lo, -1
-    active = 0
-    t = 0
-    # a lane's step count is t - lane_t0; the per-lane pass below runs only when some lane
-    # may have met the criterion (a vectorized test) or reaches the step cap (and at t = 0,
-    # to fill the lanes): it records what ended and refills the lane from the queue. Euler
-    # lanes are renormalized at their own multiples of `renorm` steps, as in sync_steps
-    next_cap = t + max_steps
-    next_renorm = t + renorm
-    event = True
-    while True:
-        if event:
-            next_cap = t + max_steps
-            for q in range(width):
-                if lane_r[q] >= 0:
-                    k = t - lane_t0[q]
-                    r = lane_r[q]
-                    if model is None:
-                        x = -1.0
-                        if r2[q] >= r2_target:
-                            span = r2[q] - r2_prev[q]
-                            if rk4:
-                                x = _hermite(r2_prev[q], dr2_prev[q], r2[q], dr2[q], dt, r2_target)
-                            else:
-                                # where a straight line through R crosses the target
-                                x = (r2_target - r2_prev[q]) / span
-                            # tau = dt (k - 1 + x), x linear in R between the two steps:
-                            # dx/dbeta = -((1 - x) dR_{k-1} + x dR_k) / (R_k - R_{k-1})
-                            for e in range(n_edges):
-                                dtau[r, e] = -dt * ((1.0 - x) * dr2t_prev[e, q] + x * dr2t[e, q]) / span
+        qr, qv = r_lo, -1
+        active = 0
+        t = 0
+        # a lane's step count is t - lane_t0; the per-lane pass below runs only when some lane
+        # may have met the criterion (a vectorized test) or reaches the step cap (and at t = 0,
+        # to fill the lanes): it records what ended and refills the lane from the queue. Euler
+        # lanes are renormalized at their own multiples of `renorm` steps, as in sync_steps
+        next_cap = t + max_steps
+        next_renorm = t + renorm
+        event = True
+        while True:
+            if event:
+                next_cap = t + max_steps
+                for q in range(width):
+                    if lane_r[q] >= 0:
+                        k = t - lane_t0[q]
+                        r = lane_r[q]
+                        if model is None:
+                            x = -1.0
+                            if r2[q] >= r2_target:
+                                span = r2[q] - r2_prev[q]
+                                if rk4:
+                                    x = _hermite(r2_prev[q], dr2_prev[q], r2[q], dr2[q], dt, r2_target)
+                                else:
+                                    # where a straight line through R crosses the target
+                                    x = (r2_target - r2_prev[q]) / span
+                                # tau = dt (k - 1 + x), x linear in R between the two steps:
+                                # dx/dbeta = -((1 - x) dR_{k-1} + x dR_k) / (R_k - R_{k-1})
+                                for e in range(n_edges):
+                                    dtau[r, e] = -dt * ((1.0 - x) * dr2t_prev[e, q] + x * dr2t[e, q]) / span
+                            elif k >= max_steps:
+                                for e in range(n_edges):
+                                    dtau[r, e] = 0.0
+                        elif freq:
+                            x = _frequency_crossing(work[:, :, q], n, second, dt, rk4, lane_target[q])
+                        else:
+                            x = _order_crossing(
+                                r2_prev[q], dr2_prev[q], r2[q], dr2[q], dt, rk4, lane_target[q]
+                            )
+                        if x >= 0.0:
+                            st = SYNCED
                         elif k >= max_steps:
-                            for e in range(n_edges):
-                                dtau[r, e] = 0.0
-                    elif freq:
-                        x = _frequency_crossing(work[:, :, q], n, second, dt, rk4, lane_target[q])
+                            st = NOT_SYNCED
+                            x = 0.0
+                        else:
+                            next_cap = min(next_cap, lane_t0[q] + max_steps)
+                            continue
+                        _record(status0, steps0, frac0, status, steps, frac, r, lane_v[q], st, k, x)
+                        lane_r[q] = -1
+                        active -= 1
+                    if q >= lanes:
+                        continue  # padding of the vector width: never filled
+                    if model is None:
+                        qr, qv, filled = _load_lane(
+                            q,
+                            qr,
+                            qv,
+                            r_hi,
+                            seed,
+                            ks,
+                            base_w,
+                            var_w,
+                            var_is_base,
+                            todo,
+                            r2_target,
+                            c,
+                            s,
+                            lw,
+                            ci,
+                            si,
+                            start,
+                            lane_r,
+                            lane_v,
+                            lane_t0,
+                            t,
+                            status0,
+                            steps0,
+                            frac0,
+                            status,
+                            steps,
+                            frac,
+                        )
+                        if filled:
+                            _lane_initial(c, s, kv, lw, indptr, indices, rk4, q, r2, dr2, u, dr2t)
                     else:
-                        x = _order_crossing(r2_prev[q], dr2_prev[q], r2[q], dr2[q], dt, rk4, lane_target[q])
-                    if x >= 0.0:
-                        st = SYNCED
-                    elif k >= max_steps:
-                        st = NOT_SYNCED
-                        x = 0.0
-                    else:
-                        next_cap = min(next_cap, lane_t0[q] + max_steps)
-                        continue
-                    _record(status0, steps0, frac0, status, steps, frac, r, lane_v[q], st, k, x)
-                    lane_r[q] = -1
-                    active -= 1
-                if q >= lanes:
-                    continue  # padding of the vector width: never filled
-                if model is None:
-                    qr, qv, filled = _load_lane(
-                        q,
-                        qr,
-                        qv,
-                        r_hi,
-                        seed,
-                        ks,
-                        base_w,
-                        var_w,
-                        var_is_base,
-                        todo,
-                        r2_target,
+                        qr, qv, filled = _model_load(
+                            q,
+                            qr,
+                            qv,
+                            r_hi,
+                            seed,
+                            ks,
+                            base_w,
+                            var_w,
+                            var_is_base,
+                            todo,
+                            freqs,
+                            targets,
+                            cl,
+                            sl,
+                            mass,
+                            gamma,
+                            second,
+                            freq,
+                            indptr,
+                            indices,
+                            c,
+                            s,
+                            nu,
+                            th,
+                            dnu,
+                            lane_p,
+                            lw,
+                            work,
+                            r2,
+                            dr2,
+                            lane_r,
+                            lane_v,
+                            lane_t0,
+                            lane_target,
+                            t,
+                            status0,
+                            steps0,
+                            frac0,
+                            status,
+                            steps,
+                            frac,
+                        )
+                    active += filled
+            if active == 0:
+                break
+            # the step writes r2 (dr2, dr2t) afresh for every lane: swap instead of copying
+            t += 1
+            r2, r2_prev = r2_prev, r2
+            dr2, dr2_prev = dr2_prev, dr2
+            if model is None:
+                dr2t, dr2t_prev = dr2t_prev, dr2t
+                if fused:
+                    _step_vec(c, s, cn, sn, lw, base_w, shared, indptr, indices, dt, r2)
+                    c, cn = cn, c
+                    s, sn = sn, s
+                elif rk4:
+                    _rk4_vec(c, s, kv, yc, ys, ybc, ybs, lw, base_w, shared, indptr, indices, dt, r2, dr2)
+                elif tangent:
+                    _tangent_lanes(
                         c,
                         s,
+                        acc,
+                        sum_c,
+                        sum_s,
+                        tot_c,
+                        tot_s,
                         lw,
-                        ci,
-                        si,
-                        start,
-                        lane_r,
-                        lane_v,
-                        lane_t0,
-                        t,
-                        status0,
-                        steps0,
-                        frac0,
-                        status,
-                        steps,
-                        frac,
-                    )
-                    if filled:
-                        _lane_initial(c, s, kv, lw, indptr, indices, rk4, q, r2, dr2, u, dr2t)
-                else:
-                    qr, qv, filled = _model_load(
-                        q,
-                        qr,
-                        qv,
-                        r_hi,
-                        seed,
-                        ks,
-                        base_w,
-                        var_w,
-                        var_is_base,
-                        todo,
-                        freqs,
-                        targets,
-                        cl,
-                        sl,
-                        mass,
-                        gamma,
-                        second,
-                        freq,
                         indptr,
                         indices,
+                        dt,
+                        r2,
+                        taylor,
+                        u,
+                        du,
+                        cu,
+                        su,
+                        edge_a,
+                        edge_b,
+                        rho,
+                        mu,
+                        dr2t,
+                    )
+                else:
+                    _step_lanes(c, s, acc, sum_c, sum_s, tot_c, tot_s, lw, indptr, indices, dt, r2, taylor)
+            else:
+                if freq:
+                    # the deviations one step back, for the crossing inside the step
+                    for row in range(4):
+                        for i in range(n):
+                            for q in range(width):
+                                work[DEV_PREV_ROW + row, i, q] = work[DEV_ROW + row, i, q]
+                if rk4:
+                    _model_rk4_vec(
                         c,
                         s,
                         nu,
                         th,
                         dnu,
+                        ya,
+                        yb,
+                        kacc,
                         lane_p,
                         lw,
-                        work,
+                        indptr,
+                        indices,
+                        cl,
+                        sl,
+                        mass,
+                        gamma,
+                        second,
+                        dt,
+                        not freq,
                         r2,
                         dr2,
-                        lane_r,
-                        lane_v,
-                        lane_t0,
-                        lane_target,
-                        t,
-                        status0,
-                        steps0,
-                        frac0,
-                        status,
-                        steps,
-                        frac,
                     )
-                active += filled
-        if active == 0:
-            break
-        # the step writes r2 (dr2, dr2t) afresh for every lane: swap instead of copying
-        t += 1
-        r2, r2_prev = r2_prev, r2
-        dr2, dr2_prev = dr2_prev, dr2
-        if model is None:
-            dr2t, dr2t_prev = dr2t_prev, dr2t
-            if fused:
-                _step_vec(c, s, cn, sn, lw, base_w, shared, indptr, indices, dt, r2)
-                c, cn = cn, c
-                s, sn = sn, s
-            elif rk4:
-                _rk4_vec(c, s, kv, yc, ys, ybc, ybs, lw, base_w, shared, indptr, indices, dt, r2, dr2)
-            elif tangent:
-                _tangent_lanes(
-                    c,
-                    s,
-                    acc,
-                    sum_c,
-                    sum_s,
-                    tot_c,
-                    tot_s,
-                    lw,
-                    indptr,
-                    indices,
-                    dt,
-                    r2,
-                    taylor,
-                    u,
-                    du,
-                    cu,
-                    su,
-                    edge_a,
-                    edge_b,
-                    rho,
-                    mu,
-                    dr2t,
-                )
-            else:
-                _step_lanes(c, s, acc, sum_c, sum_s, tot_c, tot_s, lw, indptr, indices, dt, r2, taylor)
-        else:
-            if freq:
-                # the deviations one step back, for the crossing inside the step
-                for row in range(4):
-                    for i in range(n):
-                        for q in range(width):
-                            work[DEV_PREV_ROW + row, i, q] = work[DEV_ROW + row, i, q]
-            if rk4:
-                ms.rk4_vec(
-                    c,
-                    s,
-                    nu,
-                    th,
-                    dnu,
-                    ya,
-                    yb,
-                    kacc,
-                    lane_p,
-                    lw,
-                    indptr,
-                    indices,
-                    cl,
-                    sl,
-                    mass,
-                    gamma,
-                    second,
-                    dt,
-                    not freq,
-                    r2,
-                    dr2,
-                )
-            elif fused:
-                ms.euler_vec(
-                    c,
-                    s,
-                    cn,
-                    sn,
-                    nu,
-                    lane_p,
-                    lw,
-                    indptr,
-                    indices,
-                    cl,
-                    sl,
-                    mass,
-                    gamma,
-                    second,
-                    dt,
-                    taylor,
-                    r2,
-                    spare,
-                )
-                c, cn = cn, c
-                s, sn = sn, s
-            else:
-                ms.euler_lanes(c, s, nu, th, dnu, dt, second)
-        if not rk4 and t >= next_renorm:
-            next_renorm = t + renorm
-            for q in range(width):
-                if lane_r[q] < 0:
-                    continue
-                k = t - lane_t0[q]
-                if k % renorm == 0:
-                    _renormalize(c[:, q], s[:, q])
-                next_renorm = min(next_renorm, t + renorm - k % renorm)
-        if model is None:
-            hits = 0
-            for q in range(width):
-                hits += (r2[q] >= r2_target) & (lane_r[q] >= 0)
-        else:
-            if freq and not rk4:
-                ms.rhs_vec(c, s, nu, lane_p, lw, indptr, indices, cl, sl, mass, gamma, second, th, dnu)
-            if freq:
-                ms.deviations_lanes(c, s, th, dnu, lw, indptr, indices, cl, sl, mass, gamma, second, work, m4)
-                hits = 1  # the criterion's own bound test, per lane, in the pass above
-            elif rk4:
-                # the Hermite interpolant of R over the step stays below max(R_0, R_1) +
-                # 4/27 (|m0| + |m1|) (its slope basis functions peak at 4/27): a lane below
-                # that bound, widened for rounding, cannot cross in this step
+                elif fused:
+                    _model_euler_vec(
+                        c,
+                        s,
+                        cn,
+                        sn,
+                        nu,
+                        lane_p,
+                        lw,
+                        indptr,
+                        indices,
+                        cl,
+                        sl,
+                        mass,
+                        gamma,
+                        second,
+                        dt,
+                        taylor,
+                        r2,
+                        spare,
+                    )
+                    c, cn = cn, c
+                    s, sn = sn, s
+                else:
+                    _model_euler_lanes(c, s, nu, th, dnu, dt, second)
+            if not rk4 and t >= next_renorm:
+                next_renorm = t + renorm
+                for q in range(width):
+                    if lane_r[q] < 0:
+                        continue
+                    k = t - lane_t0[q]
+                    if k % renorm == 0:
+                        _renormalize(c[:, q], s[:, q])
+                    next_renorm = min(next_renorm, t + renorm - k % renorm)
+            if model is None:
                 hits = 0
                 for q in range(width):
-                    top = max(r2_prev[q], r2[q]) * (1.0 + 1e-12) + 0.15 * dt * (
-                        abs(dr2_prev[q]) + abs(dr2[q])
-                    )
-                    hits += (top >= lane_target[q]) & (lane_r[q] >= 0)
+                    hits += (r2[q] >= r2_target) & (lane_r[q] >= 0)
             else:
-                hits = 0
-                for q in range(width):
-                    hits += (r2[q] >= lane_target[q]) & (lane_r[q] >= 0)
-        event = hits > 0 or t >= next_cap
-    for r in range(r_lo, r_hi):
-        # variants that leave W unchanged share the undamaged result
-        _share_base(var_is_base, r, status0, steps0, frac0, status, steps, frac)
-        if status0[r] == ALREADY_SYNCED:
-            for e in range(n_edges):
-                dtau[r, e] = 0.0
-
-
-@njit(parallel=True, cache=True)
-def _integrate_lanes(ks, graph, run, model, out, tangents, n_groups):
-    """The lane driver: realizations ``ks`` split into ``n_groups`` ranges, one per parallel
-    task, each run by :func:`_lane_group` (which says what the arguments are)."""
-    m = ks.shape[0]
-    per = (m + n_groups - 1) // n_groups
-    for group in prange(n_groups):
-        r_lo = group * per
-        r_hi = min(m, r_lo + per)
-        if r_lo < r_hi:
-            _lane_group(ks, graph, run, model, out, tangents, r_lo, r_hi)
+                if freq and not rk4:
+                    _model_rhs_vec(
+                        c, s, nu, lane_p, lw, indptr, indices, cl, sl, mass, gamma, second, th, dnu
+                    )
+                if freq:
+                    _model_deviations_lanes(
+                        c, s, th, dnu, lw, indptr, indices, cl, sl, mass, gamma, second, work, m4
+                    )
+                    hits = 1  # the criterion's own bound test, per lane, in the pass above
+                elif rk4:
+                    # the Hermite interpolant of R over the step stays below max(R_0, R_1) +
+                    # 4/27 (|m0| + |m1|) (its slope basis functions peak at 4/27): a lane below
+                    # that bound, widened for rounding, cannot cross in this step
+                    hits = 0
+                    for q in range(width):
+                        top = max(r2_prev[q], r2[q]) * (1.0 + 1e-12) + 0.15 * dt * (
+                            abs(dr2_prev[q]) + abs(dr2[q])
+                        )
+                        hits += (top >= lane_target[q]) & (lane_r[q] >= 0)
+                else:
+                    hits = 0
+                    for q in range(width):
+                        hits += (r2[q] >= lane_target[q]) & (lane_r[q] >= 0)
+            event = hits > 0 or t >= next_cap
+        for r in range(r_lo, r_hi):
+            # variants that leave W unchanged share the undamaged result
+            _share_base(var_is_base, r, status0, steps0, frac0, status, steps, frac)
+            if status0[r] == ALREADY_SYNCED:
+                for e in range(n_edges):
+                    dtau[r, e] = 0.0
 
 
 @dataclass(frozen=True)
