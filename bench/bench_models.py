@@ -15,10 +15,13 @@ N = 118), the same three damaged links at beta = 0.5, and each integrator, one r
 
 Realizations default per network (:data:`REALIZATIONS`) so that each timed run lasts about
 0.1-1 s: at 200 realizations the N = 6 runs last ~10 ms and their ratios moved by 0.3 between
-two runs. Each is timed per trajectory-step (its own total of steps over every integrated item), the
-fastest of ``--repeat`` rounds after a first that compiles (or loads the cache), and the ratio
-to ``identical`` is printed. The models' trajectories differ from the identical model's, so
-only the per-step cost is compared.
+two runs. Each is timed per trajectory-step (its own total of steps over every integrated item).
+A round runs every kind once, back to back, after a first round that compiles (or loads the
+cache). Printed: the fastest of ``--repeat`` rounds per kind and its ratio to the fastest
+``identical``, and the median and range over the rounds of each round's own ratio (the kind
+against the ``identical`` run of the same round: this machine's speed drifts by 20% over
+minutes, and a ratio within one round sees the least of that drift). The models' trajectories
+differ from the identical model's, so only the per-step cost is compared.
 """
 
 from __future__ import annotations
@@ -41,6 +44,7 @@ NETWORKS = {
     "edges: ['1->2', '49->69', '100->103']\n",
 }
 INTEGRATORS = {"euler": 0.01, "rk4": 0.04}
+KINDS = ("model P=0", "frequencies", "lag", "inertia", "one-per-thread")
 #: realizations per network unless --realizations says otherwise
 REALIZATIONS = {"lollipop N=6": 4000, "karate N=34": 400, "IEEE 118 N=118": 200}
 
@@ -72,10 +76,13 @@ def main() -> None:
     ap.add_argument("--realizations", type=int, default=None, help="default: REALIZATIONS per network")
     ap.add_argument("--repeat", type=int, default=3, help="timed rounds after the first; the fastest counts")
     ap.add_argument("--only", default="", help="networks and integrators whose name contains this")
+    ap.add_argument("--kinds", default="", help="comma-separated runs besides identical (default: all)")
     a = ap.parse_args()
     print(f"{platform.processor() or platform.machine()}, numba threads {a.threads}")
-    print("| network | realizations | integrator | run | steps | ns / trajectory-step | ratio to identical |")
-    print("|---|---|---|---|---|---|---|")
+    kinds = [k for k in KINDS if not a.kinds or k in a.kinds.split(",")]
+    head = "| network | realizations | integrator | run | steps | ns / trajectory-step | ratio to identical |"
+    print(head + " per-round ratio: median (range) |")
+    print("|---|---|---|---|---|---|---|---|")
     for net, text in NETWORKS.items():
         m = a.realizations or REALIZATIONS[net]
         for integ, dt in INTEGRATORS.items():
@@ -85,11 +92,12 @@ def main() -> None:
             args = (1, 0, m, job.csr.indptr, job.csr.indices, job.csr.weights, job.variant_weights)
             kw = {"dt": dt, "max_steps": int(round(200 / dt)), "integrator": integ, "threads": a.threads}
             best: dict = {}
+            ratios: dict = {}
             for round_ in range(1 + a.repeat):  # round 0 compiles (or loads the cache)
                 t = time.perf_counter()
                 ref = cpu.simulate(*args, threshold=0.99, **kw)
                 runs = [("identical", _steps(ref), (time.perf_counter() - t) / _steps(ref))]
-                for kind in ("model P=0", "frequencies", "lag", "inertia", "one-per-thread"):
+                for kind in kinds:
                     params = _params(job, kind, m)
                     lanes = 0 if kind == "one-per-thread" else cpu.LANES
                     t = time.perf_counter()
@@ -99,10 +107,14 @@ def main() -> None:
                         assert np.array_equal(sim.steps, ref.steps) and np.array_equal(sim.steps0, ref.steps0)
                 for kind, steps, per in runs if round_ else []:
                     best[kind] = (steps, min(per, best.get(kind, (0, np.inf))[1]))
+                    ratios.setdefault(kind, []).append(per / runs[0][2])
             rows = [(kind, steps, per) for kind, (steps, per) in best.items()]
             base = best["identical"][1]
             for kind, steps, per in rows:
-                cells = (net, m, f"{integ} dt {dt}", kind, steps, f"{per * 1e9:.1f}", f"{per / base:.2f}")
+                q = ratios[kind]
+                spread = f"{np.median(q):.2f} ({min(q):.2f}-{max(q):.2f})"
+                ns = f"{per * 1e9:.1f}"
+                cells = (net, m, f"{integ} dt {dt}", kind, steps, ns, f"{per / base:.2f}", spread)
                 print("| " + " | ".join(map(str, cells)) + " |")
 
 

@@ -946,6 +946,7 @@ def make_model_kernels(jit, base: Kernels) -> ModelKernels:
 
     def rhs(c, s, nu, p, indptr, indices, weights, cl, sl, mass, gamma, second, th, dnu):
         n = c.shape[0]
+        lagged = sl != 0.0 or cl != 1.0
         for i in range(n):
             sc = 0.0
             ss = 0.0
@@ -955,7 +956,9 @@ def make_model_kernels(jit, base: Kernels) -> ModelKernels:
                 sc += w * c[j]
                 ss += w * s[j]
             # sum_j w_ij sin(theta_j - theta_i - alpha), from the sums of Eq. 2
-            k = cl * (c[i] * ss - s[i] * sc) - sl * (c[i] * sc + s[i] * ss)
+            k = c[i] * ss - s[i] * sc
+            if lagged:
+                k = cl * k - sl * (c[i] * sc + s[i] * ss)
             if not second:
                 th[i] = p[i] + k
             elif mass[i] > 0.0:

@@ -91,6 +91,7 @@ _order_crossing = ms.MK.order_crossing
 _frequency_crossing = ms.MK.frequency_crossing
 _model_euler_vec = ms.euler_vec
 _model_rk4_vec = ms.rk4_vec
+_model_rk4_start = ms.rk4_start
 _model_euler_lanes = ms.euler_lanes
 _model_rhs_vec = ms.rhs_vec
 _model_deviations_lanes = ms.deviations_lanes
@@ -920,6 +921,8 @@ def _integrate_lanes(ks, graph, run, model, out, tangents, n_groups):
                             steps,
                             frac,
                         )
+                        if filled and rk4:
+                            _model_rk4_start(c, s, nu, th, dnu, kacc, ya, q, 0.5 * dt, second)
                     active += filled
             if active == 0:
                 break

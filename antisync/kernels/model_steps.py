@@ -80,7 +80,9 @@ def rates_vec(c, s, nu, p, cl, sl, mass, gamma, second, o, sc, ss, i):
     node or the model is first order)."""
     ci = vload(c, o)
     si = vload(s, o)
-    k = (ci * ss - si * sc) * cl - (ci * sc + si * ss) * sl
+    k = ci * ss - si * sc
+    if sl != 0.0 or cl != 1.0:
+        k = k * cl - (ci * sc + si * ss) * sl
     dnu = vsplat(0.0)
     if not second:
         th = vload(p, o) + k
@@ -243,11 +245,17 @@ def _rk4_inner_vec(c, s, nu, src, dst, acc, p, lw, indptr, indices, cl, sl, mass
 def rk4_vec(
     c, s, nu, th, dnu, ya, yb, acc, p, lw, indptr, indices, cl, sl, mass, gamma, second, dt, order, r2, dr2
 ):
-    """make_model_kernels' ``rk4_step`` for every lane, then ``rhs`` at the new state (into
-    ``th``, ``dnu``) and, for ``order``, ``R`` and ``dR/dt`` (``measure``'s sums) into ``r2``,
-    ``dr2``. Each block of ``2 VEC`` lanes runs its whole step before the next; ``acc`` (rows
-    c, s, nu) sums ``k1 + 2 k2 + 2 k3`` in ``rk4_step``'s order of additions, ``ya``, ``yb``
-    hold the stage states in turn. ``th``, ``dnu`` on entry: the rates at the current state."""
+    """make_model_kernels' ``rk4_step`` for every lane, then ``rhs`` at the new state and, for
+    ``order``, ``R`` and ``dR/dt`` (``measure``'s sums) into ``r2``, ``dr2``. Each block of
+    ``2 VEC`` lanes runs its whole step before the next; ``acc`` (rows c, s, nu) sums
+    ``k1 + 2 k2 + 2 k3`` in ``rk4_step``'s order of additions, ``ya``, ``yb`` hold the stage
+    states in turn.
+
+    The first stage of a step is the rates at its state, so the pass that computes them at the
+    end of a step also writes the next step's ``k1`` (into ``acc``) and its first stage state
+    (into ``ya``): on entry ``acc`` and ``ya`` hold them (:func:`rk4_start` for a lane just
+    loaded). The rates themselves go to ``th``, ``dnu`` only without ``order`` (the frequency
+    criterion's deviations read them); the order criteria need ``R`` and ``dR/dt`` alone."""
     n, lanes = c.shape
     size = n * lanes
     hh = 0.5 * dt
@@ -256,21 +264,6 @@ def rk4_vec(
     ya_c, ya_s, ya_nu = ya[0], ya[1], ya[2]
     for qa in range(0, lanes, 2 * VEC):
         qb = qa + VEC
-        # stage 1 from the rates on entry
-        for i in range(n):
-            for v in range(2):
-                o = i * lanes + qa + v * VEC
-                t = vload(th, o)
-                kc = -vload(s, o) * t
-                ks = vload(c, o) * t
-                vstore(acc, o, kc)
-                vstore(acc, size + o, ks)
-                vstore(ya_c, o, vload(c, o) + hh * kc)
-                vstore(ya_s, o, vload(s, o) + hh * ks)
-                if second:
-                    kn = vload(dnu, o)
-                    vstore(acc, 2 * size + o, kn)
-                    vstore(ya_nu, o, vload(nu, o) + hh * kn)
         _rk4_inner_vec(c, s, nu, ya, yb, acc, p, lw, indptr, indices, cl, sl, mass, gamma, second, hh, qa)
         _rk4_inner_vec(c, s, nu, yb, ya, acc, p, lw, indptr, indices, cl, sl, mass, gamma, second, dt, qa)
         # stage 4, the update and the projection of (c_i, s_i) to the unit circle
@@ -302,11 +295,14 @@ def rk4_vec(
             o = i * lanes + qa
             ca, sa, ta, da = rates_vec(c, s, nu, p, cl, sl, mass, gamma, second, o, sca, ssa, i)
             cb, sb, tb, db = rates_vec(c, s, nu, p, cl, sl, mass, gamma, second, o + VEC, scb, ssb, i)
-            vstore(th, o, ta)
-            vstore(th, o + VEC, tb)
-            if second:
-                vstore(dnu, o, da)
-                vstore(dnu, o + VEC, db)
+            if not order:
+                vstore(th, o, ta)
+                vstore(th, o + VEC, tb)
+                if second:
+                    vstore(dnu, o, da)
+                    vstore(dnu, o + VEC, db)
+            _rk4_first_stage(c, nu, acc, ya, o, size, ca, sa, ta, da, hh, second)
+            _rk4_first_stage(c, nu, acc, ya, o + VEC, size, cb, sb, tb, db, hh, second)
             if order:
                 tca = tca + ca
                 tsa = tsa + sa
@@ -321,6 +317,37 @@ def rk4_vec(
             vstore(dr2, qa, 2.0 * (tca * dca + tsa * dsa))
             vstore(r2, qb, tcb * tcb + tsb * tsb)
             vstore(dr2, qb, 2.0 * (tcb * dcb + tsb * dsb))
+
+
+@njit(inline="always")
+def _rk4_first_stage(c, nu, acc, ya, o, size, ci, si, th, dnu, hh, second):
+    """``k1`` into ``acc`` and ``ya = y + (dt / 2) k1`` for the lane vector at ``o``, from the
+    state's ``c_i``, ``s_i`` and rates ``th``, ``dnu`` (``rk4_step``'s first stage)."""
+    kc = -si * th
+    ks = ci * th
+    vstore(acc, o, kc)
+    vstore(acc, size + o, ks)
+    vstore(ya, o, ci + hh * kc)
+    vstore(ya, size + o, si + hh * ks)
+    if second:
+        vstore(acc, 2 * size + o, dnu)
+        vstore(ya, 2 * size + o, vload(nu, o) + hh * dnu)
+
+
+@njit(cache=True)  # not inlined: it runs when a lane is loaded, outside the vector loop
+def rk4_start(c, s, nu, th, dnu, acc, ya, q, hh, second):
+    """:func:`rk4_vec`'s entry state for lane ``q`` just loaded (its rates in ``th``, ``dnu``):
+    ``k1`` into ``acc`` and the first stage state into ``ya``, as the step writes them."""
+    for i in range(c.shape[0]):
+        kc = -s[i, q] * th[i, q]
+        ks = c[i, q] * th[i, q]
+        acc[0, i, q] = kc
+        acc[1, i, q] = ks
+        ya[0, i, q] = c[i, q] + hh * kc
+        ya[1, i, q] = s[i, q] + hh * ks
+        if second:
+            acc[2, i, q] = dnu[i, q]
+            ya[2, i, q] = nu[i, q] + hh * dnu[i, q]
 
 
 @njit(inline="always")
