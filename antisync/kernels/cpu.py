@@ -1359,18 +1359,14 @@ def simulate_model(
     Returns a :class:`~antisync.kernels.cpu.SimResult` with ``frac0``/``frac`` (where inside
     the last step the criterion is met).
     """
-    if integrator not in ("euler", "rk4"):
-        raise ValueError(f"integrator must be 'euler' or 'rk4', got {integrator!r}")
-    if params.criterion not in (CRIT_ORDER, CRIT_FREQUENCY):
-        raise ValueError(f"unknown criterion code {params.criterion}")
     if lanes < 0:
         raise ValueError(f"lanes must be >= 0, got {lanes}")
-    ks = _realization_ids(first, count, realizations)
+    ks, base_weights, var_w, var_is_base, freqs, targets = model_inputs(
+        first, count, realizations, indptr, base_weights, variant_weights, params, integrator
+    )
     m = ks.size
-    base_weights = np.ascontiguousarray(base_weights, dtype=np.float64)
-    var_w = np.ascontiguousarray(variant_weights, dtype=np.float64).reshape(-1, base_weights.size)
     n_var = var_w.shape[0]
-    var_is_base = np.array([np.array_equal(w, base_weights) for w in var_w], dtype=np.bool_)
+    n = indptr.size - 1
     if todo is None:
         todo = np.zeros((0, 0), dtype=np.bool_)
     else:
@@ -1379,13 +1375,6 @@ def simulate_model(
             raise ValueError(f"todo must have shape {(m, n_var + 1)}, got {todo.shape}")
         # a variant equal to the base is integrated, not copied from a base that may not run
         var_is_base[:] = False
-    freqs = np.ascontiguousarray(params.freqs, dtype=np.float64)
-    n = indptr.size - 1
-    if freqs.ndim != 2 or freqs.shape[1] != n or freqs.shape[0] not in (1, m):
-        raise ValueError(f"freqs must have shape (1, {n}) or ({m}, {n}), got {freqs.shape}")
-    targets = np.ascontiguousarray(params.targets, dtype=np.float64)
-    if targets.shape != (n_var + 1,):
-        raise ValueError(f"targets must have shape ({n_var + 1},), got {targets.shape}")
     status0 = np.full(m, -1, dtype=np.int8)
     steps0 = np.full(m, -1, dtype=np.int64)
     frac0 = np.full(m, np.nan)
@@ -1416,6 +1405,30 @@ def simulate_model(
             out = _Outputs(*outputs, np.empty((m, 0)))
             _integrate_lanes(ks, graph, run, model, out, _NO_TANGENTS, groups)
     return SimResult(status0, steps0, status, steps, frac0, frac)
+
+
+def model_inputs(first, count, realizations, indptr, base_weights, variant_weights, params, integrator):
+    """A model run's arguments checked and in the kernels' types, for the CPU and CUDA drivers:
+    ``(ks, base_weights, var_w, var_is_base, freqs, targets)``; ``ValueError`` names what is
+    wrong (the integrator, the criterion code, the shapes of ``freqs`` and ``targets``)."""
+    if integrator not in ("euler", "rk4"):
+        raise ValueError(f"integrator must be 'euler' or 'rk4', got {integrator!r}")
+    if params.criterion not in (CRIT_ORDER, CRIT_FREQUENCY):
+        raise ValueError(f"unknown criterion code {params.criterion}")
+    ks = _realization_ids(first, count, realizations)
+    m = ks.size
+    n = indptr.size - 1
+    base = np.ascontiguousarray(base_weights, dtype=np.float64)
+    var_w = np.ascontiguousarray(variant_weights, dtype=np.float64).reshape(-1, base.size)
+    n_var = var_w.shape[0]
+    var_is_base = np.array([np.array_equal(w, base) for w in var_w], dtype=np.bool_)
+    freqs = np.ascontiguousarray(params.freqs, dtype=np.float64)
+    if freqs.ndim != 2 or freqs.shape[1] != n or freqs.shape[0] not in (1, m):
+        raise ValueError(f"freqs must have shape (1, {n}) or ({m}, {n}), got {freqs.shape}")
+    targets = np.ascontiguousarray(params.targets, dtype=np.float64)
+    if targets.shape != (n_var + 1,):
+        raise ValueError(f"targets must have shape ({n_var + 1},), got {targets.shape}")
+    return ks, base, var_w, var_is_base, freqs, targets
 
 
 def _taylor_everywhere(dt, indptr, base_w, var_w, freqs, params: ModelParams, n: int) -> bool:

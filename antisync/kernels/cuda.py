@@ -48,7 +48,7 @@ from antisync.estimators import (
     TAU0_FIELDS,
 )
 from antisync.kernels.core import WORK_ROWS, make_kernels, make_model_kernels
-from antisync.kernels.cpu import SimResult, _realization_ids
+from antisync.kernels.cpu import SimResult, model_inputs
 from antisync.kernels.model_steps import per_node
 from antisync.phases import make_phase
 from antisync.status import ALREADY_SYNCED, NOT_SYNCED, SYNCED
@@ -803,8 +803,11 @@ def simulate_model(
     AntisyncError
         No usable GPU (or simulator), or more than ``MAX_NODES`` nodes.
     """
-    if integrator not in ("euler", "rk4"):
-        raise ValueError(f"integrator must be 'euler' or 'rk4', got {integrator!r}")
+    ks, base, var_w, var_is_base, freqs, targets = model_inputs(
+        first, count, realizations, indptr, base_weights, variant_weights, params, integrator
+    )
+    m = ks.size
+    n_var = var_w.shape[0]
     n = int(indptr.size) - 1
     if n > MAX_NODES:
         raise AntisyncError(
@@ -812,18 +815,6 @@ def simulate_model(
             "(antisync.kernels.cuda.MAX_NODES); use backend cpu"
         )
     _require_cuda()
-    ks = _realization_ids(first, count, realizations)
-    m = ks.size
-    base = np.ascontiguousarray(base_weights, dtype=np.float64)
-    var_w = np.ascontiguousarray(variant_weights, dtype=np.float64).reshape(-1, base.size)
-    n_var = var_w.shape[0]
-    var_is_base = np.array([np.array_equal(w, base) for w in var_w], dtype=np.bool_)
-    freqs = np.ascontiguousarray(params.freqs, dtype=np.float64)
-    if freqs.ndim != 2 or freqs.shape[1] != n or freqs.shape[0] not in (1, m):
-        raise ValueError(f"freqs must have shape (1, {n}) or ({m}, {n}), got {freqs.shape}")
-    targets = np.ascontiguousarray(params.targets, dtype=np.float64)
-    if targets.shape != (n_var + 1,):
-        raise ValueError(f"targets must have shape ({n_var + 1},), got {targets.shape}")
     out = {
         "status0": np.zeros(m, np.int8),
         "steps0": np.zeros(m, np.int64),
