@@ -65,6 +65,34 @@ def test_model_kernel_with_default_parameters_is_the_default_kernel_bit_for_bit(
     np.testing.assert_array_equal(got.steps, ref.steps)
 
 
+@pytest.mark.parametrize(
+    "change, message",
+    [
+        ({"integrator": "heun"}, "integrator must be 'euler' or 'rk4', got 'heun'"),
+        ({"criterion": 7}, "unknown criterion code 7"),
+        ({"freqs": np.zeros((2, 6))}, "freqs must have shape (1, 6) or (3, 6), got (2, 6)"),
+        ({"freqs": np.zeros((1, 5))}, "freqs must have shape (1, 6) or (3, 6), got (1, 5)"),
+        ({"targets": np.zeros(1)}, "targets must have shape ({v1},), got (1,)"),
+    ],
+)
+def test_model_inputs_name_what_is_wrong(change, message):
+    """The model drivers' shared input check (CPU and CUDA call it first) names the argument,
+    what it got and what would be valid."""
+    job = job_of(LOLLIPOP + "betas: [0.5]\n")
+    v = job.variant_weights.shape[0]
+    fields = {"freqs": np.zeros((1, 6)), "criterion": 0, "targets": np.ones(v + 1)}
+    fields.update({k: x for k, x in change.items() if k != "integrator"})
+    params = cpu.ModelParams(fields["freqs"], 1.0, 0.0, 0.0, 1.0, fields["criterion"], fields["targets"])
+    args = (0, 3, None, job.csr.indptr, job.csr.weights, job.variant_weights, params)
+    with pytest.raises(ValueError) as err:
+        cpu.model_inputs(*args, change.get("integrator", "euler"))
+    assert str(err.value) == message.format(v1=v + 1)
+    good = cpu.ModelParams(np.zeros((1, 6)), 1.0, 0.0, 0.0, 1.0, 0, np.ones(v + 1))
+    ks, base, var_w, var_is_base, _, _ = cpu.model_inputs(*args[:-1], good, "rk4")
+    assert ks.tolist() == [0, 1, 2] and var_w.shape == (v, base.size)
+    assert var_is_base.tolist() == [bool((w == base).all()) for w in var_w]
+
+
 def test_explicit_default_model_section_changes_nothing():
     """``model: {phase_lag: 0, frequencies: null, inertia: 0}`` and ``sync: {criterion:
     order-parameter, threshold: 0.99}`` are today's config: same stored config, default path."""
