@@ -65,9 +65,10 @@ def _kernel(backend: str):
 def check_backend(config, backend: str) -> None:
     """Refuse options the resolved ``backend`` does not implement (before any file is written).
 
-    The CUDA backend runs the paper's procedure: Euler steps, grid crossing times,
-    finite-difference Lambda, in float64 or float32. The CPU backend runs everything in
-    float64, and the Euler finite difference in float32 as well.
+    The CUDA backend integrates the paper's procedure: Euler steps and grid crossing times, in
+    float64 or float32; the derivative methods' Lambda pass (float64) runs on the CPU lanes
+    beside it (:func:`host_part`). The CPU backend runs everything in float64, and the Euler
+    finite difference in float32 as well.
 
     Raises
     ------
@@ -82,25 +83,20 @@ def check_backend(config, backend: str) -> None:
                 "the model:/sync: sections (docs/models.md) run in dynamics.precision float64 only"
             )
         return
-    if dyn.precision != "float64" and backend != "cuda":
+    if dyn.precision != "float64" and backend != "cuda" and dyn.integrator != "euler":
         # the CPU lanes run float32 for the Euler step with Taylor rotations only
-        if dyn.integrator != "euler":
-            raise ConfigError(
-                f"dynamics.precision {dyn.precision} runs dynamics.integrator euler only "
-                f"(got {dyn.integrator}); use precision float64 or integrator euler"
-            )
-        if config.lambda_.method != "finite-difference":
-            raise ConfigError(
-                f"dynamics.precision {dyn.precision} runs lambda.method finite-difference only "
-                f"(got {config.lambda_.method}); use precision float64 or method finite-difference"
-            )
+        raise ConfigError(
+            f"dynamics.precision {dyn.precision} runs dynamics.integrator euler only "
+            f"(got {dyn.integrator}); use precision float64 or integrator euler"
+        )
+    if dyn.precision != "float64" and config.lambda_.method != "finite-difference":
+        # the derivative passes are float64; their tau0 would not be the float32 run's
+        raise ConfigError(
+            f"dynamics.precision {dyn.precision} runs lambda.method finite-difference only "
+            f"(got {config.lambda_.method}); use precision float64 or method finite-difference"
+        )
     if backend != "cuda":
         return
-    if config.lambda_.method != "finite-difference":
-        raise ConfigError(
-            f"lambda.method {config.lambda_.method} runs on the cpu backend only; "
-            "use --backend cpu or lambda.method finite-difference"
-        )
     if dyn.integrator != "euler":
         raise ConfigError(
             f"dynamics.integrator {dyn.integrator} runs on the cpu backend only; "
@@ -114,12 +110,13 @@ def check_backend(config, backend: str) -> None:
 
 
 def host_part(config, backend: str) -> str | None:
-    """What of a run on ``backend`` runs on the CPU all the same, or None: with a generalized
-    model the CUDA kernel integrates the undamaged and damaged trajectories, while the Lambda
-    pass of every method but ``finite-difference`` (the model adjoint, the secants, the orbit
-    and central-difference rows) runs on the CPU lanes."""
-    if backend == "cuda" and config.generalized and config.lambda_.method != "finite-difference":
-        return f"lambda.method {config.lambda_.method} of a model runs its Lambda pass on the CPU"
+    """What of a run on ``backend`` runs on the CPU all the same, or None: the CUDA kernel
+    integrates the undamaged and damaged trajectories of the ``betas`` (tau0, tau(beta), F),
+    while the Lambda pass of every method but ``finite-difference`` (the forward tangents, the
+    adjoint, the secants, the orbit and central-difference rows) runs on the CPU lanes."""
+    if backend == "cuda" and config.lambda_.method != "finite-difference":
+        model = " of a model" if config.generalized else ""
+        return f"lambda.method {config.lambda_.method}{model} runs its Lambda pass on the CPU"
     return None
 
 
@@ -567,10 +564,10 @@ def compute_chunk(job: Job, chunk: Chunk, backend: str = "cpu", threads: int | N
     """
     start = time.perf_counter()
     first, count = chunk.realizations(job.block_size, job.config.realizations)
-    if backend == "cuda" and job.config.keep_pairs <= first and job.model is None:
+    derivative = job.config.lambda_.method != "finite-difference"
+    if backend == "cuda" and job.config.keep_pairs <= first and job.model is None and not derivative:
         check_backend(job.config, backend)
         return _compute_on_device(job, chunk, first, count, start)
-    derivative = job.config.lambda_.method != "finite-difference"
     if derivative and len(job.variant_edge) == 0:
         sim = None  # Lambda only: the Lambda pass integrates the undamaged network itself
     else:

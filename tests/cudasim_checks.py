@@ -185,6 +185,34 @@ def check_runner(tmp: str) -> None:
     print(f"run_config: {len(out['cpu', 0])} summary records identical on cpu and cuda")
 
 
+def check_runner_derivatives(tmp: str) -> None:
+    """A derivative method with ``backend: cuda``: the GPU integrates tau0 and the pairs, the
+    Lambda pass runs on the CPU lanes (no chunk is reduced on the device), and the stored
+    summary is the ``backend: cpu`` run's."""
+    from antisync import store
+    from antisync.runner import run_config
+
+    text = HOUSE_RAW + "edges: ['0->1', '2->4']\nrealizations: 20\nblock_size: 10\nkeep_pairs: 0\n"
+    calls = []
+    reduced = gpu.simulate_reduced
+
+    def counted(*args, **kwargs):
+        calls.append(args[1])
+        return reduced(*args, **kwargs)
+
+    gpu.simulate_reduced = counted
+    for method in ("adjoint-hybrid", "central-difference"):
+        out = {}
+        for backend in ("cpu", "cuda"):
+            cfg = load_config_text(text, [f"backend={backend}", f"lambda.method={method}"])
+            path = os.path.join(tmp, f"{method}-{backend}.h5")
+            out[backend] = store.records(run_config(cfg, output=path, progress=False, chunk_realizations=10))
+        assert out["cpu"] == out["cuda"], (method, out)
+        assert all(r["lambda_n"] > 0 for r in out["cpu"] if "lambda_n" in r), out["cpu"]
+    assert calls == [], calls
+    print(f"derivative methods: {len(out['cpu'])} summary records identical on cpu and cuda")
+
+
 def check_float32() -> None:
     """float32 runs the same kernels in single precision: close to, not equal to, float64."""
     job = make_job(load_config_text(LOLLIPOP, ["edges=['3->4']"]))

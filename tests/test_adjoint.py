@@ -14,7 +14,7 @@ import pytest
 
 import antisync
 from antisync import coupling, graphs
-from antisync.compute import check_backend
+from antisync.compute import check_backend, host_part
 from antisync.config import load_config_text
 from antisync.errors import ConfigError
 from antisync.kernels.adjoint import link_derivatives, simulate_adjoint
@@ -175,7 +175,7 @@ def test_run_adjoint_equals_pathwise(tmp_path):
     assert all(r["lambda_n_flagged"] == 0 for r in res["adjoint"].records)
 
 
-def test_adjoint_runs_rk4_and_only_on_the_cpu(tmp_path):
+def test_adjoint_runs_rk4_on_the_cpu_and_euler_beside_the_gpu(tmp_path):
     text = """
 graph: {kind: lollipop, nodes: 6, path: 3}
 lambda: {method: adjoint}
@@ -183,8 +183,11 @@ dynamics: {integrator: rk4, dt: 0.04}
 """
     cfg = load_config_text(text)
     check_backend(cfg, "cpu")
-    with pytest.raises(ConfigError, match="lambda.method adjoint runs on the cpu backend only"):
+    with pytest.raises(ConfigError, match="dynamics.integrator rk4 runs on the cpu backend only"):
         check_backend(cfg, "cuda")
+    euler = load_config_text(text.replace("integrator: rk4, dt: 0.04", "integrator: euler"))
+    check_backend(euler, "cuda")
+    assert host_part(euler, "cuda") == "lambda.method adjoint runs its Lambda pass on the CPU"
     with pytest.raises(ConfigError, match="needs dynamics.integrator euler"):
         load_config_text(text.replace("method: adjoint", "method: pathwise"))
 

@@ -26,7 +26,9 @@ def test_the_docs_show_the_current_table():
         (("identical", "finite-difference", "euler", "cpu", "float64"), True, None),
         (("identical", "adjoint", "rk4", "cpu", "float64"), True, None),
         (("identical", "finite-difference", "euler", "cuda", "float32"), True, None),
-        (("identical", "adjoint", "euler", "cuda", "float64"), False, "runs on the cpu backend only"),
+        (("identical", "adjoint", "euler", "cuda", "float64"), True, "Lambda pass on the CPU"),
+        (("identical", "orbit", "euler", "cuda", "float32"), False, "float32 runs lambda.method finite"),
+        (("identical", "adjoint", "rk4", "cuda", "float64"), False, "rk4 runs on the cpu backend only"),
         (("identical", "pathwise", "rk4", "cpu", "float64"), False, "needs dynamics.integrator euler"),
         (("model", "finite-difference", "rk4", "cuda", "float64"), True, None),
         (("model", "adjoint-hybrid", "rk4", "cuda", "float64"), True, "Lambda pass on the CPU"),
@@ -51,3 +53,5 @@ def test_a_cuda_model_run_says_what_stays_on_the_cpu():
     assert host_part(cfg, "cpu") is None
     plain = load_config_text("graph: {kind: lollipop, nodes: 6, path: 3}\n")
     assert host_part(plain, "cuda") is None
+    derivative = load_config_text("graph: {kind: lollipop, nodes: 6, path: 3}\nlambda: {method: hybrid}\n")
+    assert host_part(derivative, "cuda") == "lambda.method hybrid runs its Lambda pass on the CPU"

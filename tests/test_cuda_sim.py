@@ -64,6 +64,11 @@ def test_run_config_cuda_matches_cpu(tmp_path):
     assert "identical on cpu and cuda" in _check("runner", str(tmp_path))
 
 
+def test_run_config_cuda_with_a_derivative_method_matches_cpu(tmp_path):
+    """Every lambda.method runs with ``backend: cuda``; the Lambda pass stays on the CPU."""
+    assert "identical on cpu and cuda" in _check("runner_derivatives", str(tmp_path))
+
+
 def test_float32_close():
     assert "float32" in _check("float32")
 
@@ -170,10 +175,8 @@ def test_float32_on_cpu_refuses_what_its_lanes_do_not_run(tmp_path, override, me
 @pytest.mark.parametrize(
     "setting, key",
     [
-        ("lambda: {method: pathwise}", "lambda.method pathwise"),
-        ("lambda: {method: hybrid}", "lambda.method hybrid"),
-        ("lambda: {method: orbit}", "lambda.method orbit"),
         ("dynamics: {integrator: rk4, dt: 0.04}", "dynamics.integrator rk4"),
+        ("lambda: {method: adjoint}\ndynamics: {integrator: rk4, dt: 0.04}", "dynamics.integrator rk4"),
         ("dynamics: {crossing: interpolated}", "dynamics.crossing interpolated"),
     ],
 )
