@@ -156,12 +156,9 @@ def check_reductions(flips: bool = False) -> None:
     )
 
 
-def check_runner(tmp: str) -> None:
-    """``backend: cuda`` through run_config stores the same summary as ``backend: cpu``."""
-    from antisync import store
-    from antisync.runner import run_config
-
-    text = HOUSE_RAW + "edges: ['0->1', '2->4']\nrealizations: 30\nblock_size: 10\n"
+def _count_device_reductions() -> list:
+    """From now on, every chunk reduced on the device appends its first realization to the
+    returned list (compute_chunk imports ``simulate_reduced`` from the module at call time)."""
     calls = []
     reduced = gpu.simulate_reduced
 
@@ -169,7 +166,17 @@ def check_runner(tmp: str) -> None:
         calls.append(args[1])
         return reduced(*args, **kwargs)
 
-    gpu.simulate_reduced = counted  # compute_chunk imports it from the module at call time
+    gpu.simulate_reduced = counted
+    return calls
+
+
+def check_runner(tmp: str) -> None:
+    """``backend: cuda`` through run_config stores the same summary as ``backend: cpu``."""
+    from antisync import store
+    from antisync.runner import run_config
+
+    text = HOUSE_RAW + "edges: ['0->1', '2->4']\nrealizations: 30\nblock_size: 10\n"
+    calls = _count_device_reductions()
     out = {}
     for backend, keep in (("cpu", 0), ("cuda", 0), ("cuda", 12)):
         # keep_pairs 0: every chunk is reduced on the device; 12: the first two chunks
@@ -193,14 +200,7 @@ def check_runner_derivatives(tmp: str) -> None:
     from antisync.runner import run_config
 
     text = HOUSE_RAW + "edges: ['0->1', '2->4']\nrealizations: 20\nblock_size: 10\nkeep_pairs: 0\n"
-    calls = []
-    reduced = gpu.simulate_reduced
-
-    def counted(*args, **kwargs):
-        calls.append(args[1])
-        return reduced(*args, **kwargs)
-
-    gpu.simulate_reduced = counted
+    calls = _count_device_reductions()
     for method in ("adjoint-hybrid", "central-difference"):
         out = {}
         for backend in ("cpu", "cuda"):
