@@ -301,8 +301,25 @@ def rk4_vec(
                 if second:
                     vstore(dnu, o, da)
                     vstore(dnu, o + VEC, db)
-            _rk4_first_stage(c, nu, acc, ya, o, size, ca, sa, ta, da, hh, second)
-            _rk4_first_stage(c, nu, acc, ya, o + VEC, size, cb, sb, tb, db, hh, second)
+            # k1 and the first stage state of the next step (written out here: as an inlined
+            # helper taking the arrays it ran 1.8x slower, numba's reference counting in the loop)
+            kca = -sa * ta
+            ksa = ca * ta
+            kcb = -sb * tb
+            ksb = cb * tb
+            vstore(acc, o, kca)
+            vstore(acc, o + VEC, kcb)
+            vstore(acc, size + o, ksa)
+            vstore(acc, size + o + VEC, ksb)
+            vstore(ya, o, ca + hh * kca)
+            vstore(ya, o + VEC, cb + hh * kcb)
+            vstore(ya, size + o, sa + hh * ksa)
+            vstore(ya, size + o + VEC, sb + hh * ksb)
+            if second:
+                vstore(acc, 2 * size + o, da)
+                vstore(acc, 2 * size + o + VEC, db)
+                vstore(ya, 2 * size + o, vload(nu, o) + hh * da)
+                vstore(ya, 2 * size + o + VEC, vload(nu, o + VEC) + hh * db)
             if order:
                 tca = tca + ca
                 tsa = tsa + sa
@@ -317,21 +334,6 @@ def rk4_vec(
             vstore(dr2, qa, 2.0 * (tca * dca + tsa * dsa))
             vstore(r2, qb, tcb * tcb + tsb * tsb)
             vstore(dr2, qb, 2.0 * (tcb * dcb + tsb * dsb))
-
-
-@njit(inline="always")
-def _rk4_first_stage(c, nu, acc, ya, o, size, ci, si, th, dnu, hh, second):
-    """``k1`` into ``acc`` and ``ya = y + (dt / 2) k1`` for the lane vector at ``o``, from the
-    state's ``c_i``, ``s_i`` and rates ``th``, ``dnu`` (``rk4_step``'s first stage)."""
-    kc = -si * th
-    ks = ci * th
-    vstore(acc, o, kc)
-    vstore(acc, size + o, ks)
-    vstore(ya, o, ci + hh * kc)
-    vstore(ya, size + o, si + hh * ks)
-    if second:
-        vstore(acc, 2 * size + o, dnu)
-        vstore(ya, 2 * size + o, vload(nu, o) + hh * dnu)
 
 
 @njit(cache=True)  # not inlined: it runs when a lane is loaded, outside the vector loop
