@@ -73,7 +73,7 @@ _rotation = _B.rotation
 # ---- the vector-Jacobian products of the right-hand side ----------------------------------
 
 
-@njit(cache=True)
+@njit(inline="always")
 def _coupling_vjp(c, s, b_k, indptr, indices, w, cl, sl, bc, bs, g):
     """Add ``(d K / d (c, s, w))^T b_k`` to ``bc``, ``bs``, ``g``, where ``K_i = cl (c_i S_i - s_i
     C_i) - sl (c_i C_i + s_i S_i)`` and ``C_i = sum_p w_p c_j``, ``S_i = sum_p w_p s_j``."""
@@ -97,7 +97,7 @@ def _coupling_vjp(c, s, b_k, indptr, indices, w, cl, sl, bc, bs, g):
             g[q] += b_sc * c[j] + b_ss * s[j]
 
 
-@njit(cache=True)
+@njit(inline="always")
 def _rates_vjp(c, s, b_th, b_dnu, indptr, indices, w, cl, sl, mass, gamma, second, bc, bs, bnu, g, b_k):
     """Add the cotangents of ``(c, s, nu, w)`` from those of the rates ``theta'`` (``b_th``)
     and ``nu'`` (``b_dnu``) of :func:`~antisync.kernels.core.make_model_kernels`' ``rhs``;
@@ -115,7 +115,7 @@ def _rates_vjp(c, s, b_th, b_dnu, indptr, indices, w, cl, sl, mass, gamma, secon
     _coupling_vjp(c, s, b_k, indptr, indices, w, cl, sl, bc, bs, g)
 
 
-@njit(cache=True)
+@njit(inline="always")
 def _field_vjp(y, a, th, b_th, b_dnu, indptr, indices, w, cl, sl, mass, gamma, second, by, g, b_k):
     """Add ``(d f / d (y, w))^T a`` for ``f(y) = (-s theta', c theta', nu')`` at the state ``y``
     (rows c, s, nu) whose rates are ``th`` (``b_th``, ``b_dnu``, ``b_k`` are scratch)."""
@@ -155,7 +155,7 @@ def _kdot_vjp(c, s, th, b_kd, indptr, indices, w, cl, sl, bc, bs, b_th, g):
 # ---- the vector-Jacobian products of one step ---------------------------------------------
 
 
-@njit(cache=True)
+@njit(inline="always")
 def _state_rates(y, p, indptr, indices, w, cl, sl, mass, gamma, second, th, dnu):
     _rhs(y[0], y[1], y[2], p, indptr, indices, w, cl, sl, mass, gamma, second, th, dnu)
 
@@ -166,6 +166,7 @@ def _rk4_vjp(
     lam,
     out,
     st,
+    sth,
     ak,
     by,
     th,
@@ -186,8 +187,9 @@ def _rk4_vjp(
     g,
 ):
     """``out = (d step / d y)^T lam`` and ``g += (d step / d w)^T lam`` for the RK4 step from
-    ``y`` (rows c, s, nu). ``st`` (4, 3, n): the stage states; ``ak`` (4, 3, n), ``by`` (3, n):
-    scratch."""
+    ``y`` (rows c, s, nu). ``st`` (4, 3, n): the stage states; ``sth`` (4, n): their phase
+    rates ``theta'``, kept from the forward stages for the backward ones; ``ak`` (4, 3, n),
+    ``by`` (3, n): scratch."""
     n = th.shape[0]
     # forward: stage states Y1..Y4 and their fields K1..K4 (K kept in ak for the final sum)
     for r in range(3):
@@ -196,6 +198,7 @@ def _rk4_vjp(
     for stage in range(4):
         _state_rates(st[stage], p, indptr, indices, w, cl, sl, mass, gamma, second, th, dnu)
         for i in range(n):
+            sth[stage, i] = th[i]
             ak[stage, 0, i] = -st[stage, 1, i] * th[i]
             ak[stage, 1, i] = st[stage, 0, i] * th[i]
             ak[stage, 2, i] = dnu[i] if second else 0.0
@@ -232,9 +235,23 @@ def _rk4_vjp(
         for r in range(3):
             for i in range(n):
                 by[r, i] = 0.0
-        _state_rates(st[stage], p, indptr, indices, w, cl, sl, mass, gamma, second, th, dnu)
         _field_vjp(
-            st[stage], ak[stage], th, b_th, b_dnu, indptr, indices, w, cl, sl, mass, gamma, second, by, g, b_k
+            st[stage],
+            ak[stage],
+            sth[stage],
+            b_th,
+            b_dnu,
+            indptr,
+            indices,
+            w,
+            cl,
+            sl,
+            mass,
+            gamma,
+            second,
+            by,
+            g,
+            b_k,
         )
         # by: the cotangent of Y_stage; Y_stage = y + h K_{stage-1} (stage >= 1)
         h = 0.0 if stage == 0 else (0.5 * dt if stage < 3 else dt)
@@ -610,6 +627,7 @@ def _model_adjoint(
     seg = np.empty((every, 3, n))
     out = np.empty((3, n))
     stg = np.empty((4, 3, n))
+    stg_th = np.empty((4, n))
     ak = np.empty((4, 3, n))
     by = np.empty((3, n))
     first_seed = True
@@ -630,6 +648,7 @@ def _model_adjoint(
                     lam,
                     out,
                     stg,
+                    stg_th,
                     ak,
                     by,
                     th,
