@@ -113,10 +113,30 @@ def test_todo_integrates_only_the_marked_items_with_the_same_bits(integrator):
         assert np.array_equal(got[mask], want[mask]), name
         skipped = got[~mask]
         assert (np.isnan(skipped) if name.startswith("frac") else skipped == -1).all(), name
+    # the default 32 lanes narrowed to 16 for these few items (_scattered_layout): same bits
+    wide = simulate(5, 0, 40, *args, todo=todo, **kw)
+    for name in ("status0", "steps0", "status", "steps"):
+        assert np.array_equal(getattr(wide, name), getattr(part, name)), name
+    for name in ("frac0", "frac"):
+        np.testing.assert_array_equal(getattr(wide, name), getattr(part, name))
     with pytest.raises(ValueError, match=r"todo must have shape \(40, 4\)"):
         simulate(5, 0, 40, *args, todo=todo[:, :3], **kw)
     with pytest.raises(ValueError, match="todo runs in the lane driver"):
         simulate(5, 0, 40, *args, todo=todo, lanes=0, dt=0.002, threshold=0.99, max_steps=100)
+
+
+def test_scattered_items_narrow_the_lanes_and_the_groups():
+    """A todo run's layout: 32 lanes halved to 16 (never below, never widened) while a group
+    would get fewer than eight items a lane, and no more groups than it takes to fill them."""
+    from antisync.kernels.cpu import _scattered_layout
+
+    assert _scattered_layout(46, 1, 32) == (1, 16)
+    assert _scattered_layout(46, 2, 32) == (2, 16)
+    assert _scattered_layout(10, 2, 32) == (1, 16)
+    assert _scattered_layout(256, 1, 32) == (1, 32)
+    assert _scattered_layout(300, 2, 32) == (2, 16)
+    assert _scattered_layout(5, 4, 8) == (1, 8)
+    assert _scattered_layout(0, 2, 32) == (1, 16)
 
 
 @pytest.mark.parametrize("kind", ["normalized", "raw"])

@@ -148,3 +148,27 @@ def test_the_hybrid_and_the_adjoint_estimate_the_derivative_on_a_model():
     for e in range(2):
         d = hyb[:, e] - cen[:, e]
         assert abs(d.mean()) < 4 * d.std() / np.sqrt(d.size) + 1e-12
+
+
+@pytest.mark.parametrize("integrator,dt", [("rk4", 0.02), ("euler", 0.005)])
+def test_checkpoint_spacing_never_changes_the_results(integrator, dt):
+    """``every`` (steps between stored states; RK4's forward pass runs in pieces of that many
+    steps) changes the memory only: statuses, steps, crossings and every d tau0 / d beta_e are
+    the same bits for 1, 5, 64 and a spacing longer than the trajectories."""
+    job = job_of(
+        LOLLIPOP + "edges: all\nbetas: []\n" + CASES["mixed-inertia-frequency"],
+        [f"dynamics.integrator={integrator}", f"dynamics.dt={dt}", "dynamics.t_max=80"],
+    )
+    s = job.model
+    params = cpu.ModelParams(
+        s.freqs[None, :], s.cos_lag, s.sin_lag, s.inertia, s.damping, s.criterion, s.targets[:1]
+    )
+    index = {v: i for i, v in enumerate(job.nodes)}
+    deriv = link_derivatives(job.omega, job.csr, [(index[a], index[b]) for a, b in job.edges])
+    args = (job.config.seed, 0, 12, job.csr.indptr, job.csr.indices, job.csr.weights, deriv, params)
+    kw = dict(dt=dt, max_steps=int(80 / dt), integrator=integrator)
+    runs = [simulate_model_adjoint(*args, every=every, **kw) for every in (64, 1, 5, 100_000)]
+    assert (runs[0].status0 == Status.SYNCED).all()
+    for other in runs[1:]:
+        for name in ("status0", "steps0", "frac0", "dtau"):
+            np.testing.assert_array_equal(getattr(other, name), getattr(runs[0], name), err_msg=name)

@@ -1247,27 +1247,26 @@ def simulate(
             a.fill(-1)
         # a variant equal to the base is integrated, not copied from a base that may not run
         graph = graph._replace(var_is_base=np.zeros_like(var_is_base), todo=todo)
-    run = _Run(
-        np.uint64(seed),
-        ftype(dt),
-        ftype((threshold * n) ** 2),
-        int(max_steps),
-        taylor,
-        integrator == "rk4",
-        int(lanes),
-        renorm_interval(ftype),
-        2 * lanes_per_vector(ftype),
-    )
     with _Threads(threads) as groups:
+        if todo is not None and lanes:
+            groups, lanes = _scattered_layout(int(todo.sum()), groups, int(lanes))
+        run = _Run(
+            np.uint64(seed),
+            ftype(dt),
+            ftype((threshold * n) ** 2),
+            int(max_steps),
+            taylor,
+            integrator == "rk4",
+            int(lanes),
+            renorm_interval(ftype),
+            2 * lanes_per_vector(ftype),
+        )
         if not lanes:
             _integrate_batch(ks, graph, run, status0, steps0, status, steps)
             return SimResult(status0, steps0, status, steps)
         frac0 = np.empty(m) if todo is None else np.full(m, np.nan)
         frac = np.empty((m, var_w.shape[0])) if todo is None else np.full((m, var_w.shape[0]), np.nan)
         out = _Outputs(status0, steps0, frac0, status, steps, frac, np.empty((m, 0)))
-        if todo is not None:
-            # few scattered items: no more groups (row ranges) than it takes to fill the lanes
-            groups = min(groups, max(1, -(-int(todo.sum()) // max(1, int(lanes)))))
         _integrate_lanes(ks, graph, run, None, out, _NO_TANGENTS, groups)
     return SimResult(status0, steps0, status, steps, frac0, frac)
 
@@ -1398,13 +1397,26 @@ def simulate_model(
             _integrate_items(ks, np.uint64(seed), *graph, *model, float(dt), rk4, int(max_steps), *outputs)
         else:
             if todo.shape[0] > 0:
-                # few scattered items: no more groups (row ranges) than it takes to fill the lanes
-                groups = min(groups, max(1, -(-int(todo.sum()) // int(lanes))))
+                groups, lanes = _scattered_layout(int(todo.sum()), groups, int(lanes))
             taylor = _taylor_everywhere(dt, indptr, base_weights, var_w, freqs, params, n)
             run = _Run(np.uint64(seed), float(dt), 0.0, int(max_steps), taylor, rk4, int(lanes))
             out = _Outputs(*outputs, np.empty((m, 0)))
             _integrate_lanes(ks, graph, run, model, out, _NO_TANGENTS, groups)
     return SimResult(status0, steps0, status, steps, frac0, frac)
+
+
+def _scattered_layout(items: int, groups: int, lanes: int) -> tuple[int, int]:
+    """``(groups, lanes)`` for a run of ``items`` scattered items (``todo``): half the lanes,
+    down to 16, while a group would get fewer than eight items a lane, then no more groups (row
+    ranges) than it takes to fill the lanes. A group steps until its last lane is done, so a
+    few items, long ones among them (the hybrid's secants pass near saddles), leave most of 32
+    lanes idle. Either gives the same results, bit for bit. Measured, one thread, the secants of
+    ``adjoint-hybrid`` (ms per realization, 32 against 16 lanes): IEEE 118 swing, 46 items, 24
+    against 16; karate, 242 items, 0.23-0.28 against 0.16-0.18; les miserables, 56 items,
+    0.43-0.50 against 0.26-0.29 (bench/RESULTS.md)."""
+    while lanes > 16 and items < 8 * lanes * groups:
+        lanes //= 2
+    return min(groups, max(1, -(-items // lanes))), lanes
 
 
 def model_inputs(first, count, realizations, indptr, base_weights, variant_weights, params, integrator):

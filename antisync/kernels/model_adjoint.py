@@ -25,10 +25,17 @@ The crossing's derivative, by criterion (``H`` the interpolant at the crossing `
   realizations are a set of measure zero.
 
 Memory as in :mod:`antisync.kernels.adjoint`: the forward pass keeps every ``every``-th state,
-the backward pass recomputes each segment from its checkpoint with the same step functions (bit
-for bit the same states) and walks it backwards. The forward pass runs twice (once to find
-``k``, once to store the checkpoints): simpler than sizing the store on the fly, and about one
-more trajectory of cost per realization.
+the backward pass recomputes each segment from its checkpoint (bit for bit the same states) and
+walks it backwards. The RK4 forward pass is the driver's ``sync_steps`` run in pieces of
+``every`` steps, storing each piece's start (:func:`_forward`); Euler's renormalization counts
+steps from the call's start, so its forward pass runs twice (once to find ``k``, once to store
+the checkpoints). The replay of an RK4 segment keeps each step's stage states and phase rates
+(:func:`_rk4_record`, the driver's step with the same operations), so the step's adjoint
+(:func:`_rk4_vjp`) evaluates no right-hand side: per step, the forward pass makes 5 passes
+over the edges (4 stages and the frequency criterion's rates), the replay 4 and the backward pass
+4, each gathering and scattering in one pass (IEEE 14 swing: 2.4-2.5 ms per
+realization, from 4.4-4.9 with the second forward pass and the backward stages' right-hand
+sides; bench/RESULTS.md). ``every`` never changes the results.
 
 Tests (tests/test_model_adjoint.py): per realization, for each model (frequencies, lag,
 inertia, mixed inertia) and criterion, Euler and RK4, ``d tau0 / d beta_e`` equals a central
@@ -53,7 +60,7 @@ from antisync.kernels.core import (
 )
 from antisync.kernels.cpu import PathwiseResult, _realization_ids, _Threads
 from antisync.phases import phase
-from antisync.status import SYNCED
+from antisync.status import NOT_SYNCED, SYNCED
 
 __all__ = ["simulate_model_adjoint"]
 
@@ -76,25 +83,41 @@ _rotation = _B.rotation
 @njit(inline="always")
 def _coupling_vjp(c, s, b_k, indptr, indices, w, cl, sl, bc, bs, g):
     """Add ``(d K / d (c, s, w))^T b_k`` to ``bc``, ``bs``, ``g``, where ``K_i = cl (c_i S_i - s_i
-    C_i) - sl (c_i C_i + s_i S_i)`` and ``C_i = sum_p w_p c_j``, ``S_i = sum_p w_p s_j``."""
+    C_i) - sl (c_i C_i + s_i S_i)`` and ``C_i = sum_p w_p c_j``, ``S_i = sum_p w_p s_j``.
+
+    One pass over each row: the cotangents of ``C_i``, ``S_i`` do not depend on the sums, so
+    the sums (for node ``i``'s own cotangent) are gathered in the same pass that scatters."""
     n = c.shape[0]
     for i in range(n):
         if b_k[i] == 0.0:
             continue
+        b_sc = b_k[i] * (-cl * s[i] - sl * c[i])
+        b_ss = b_k[i] * (cl * c[i] - sl * s[i])
         sc = 0.0
         ss = 0.0
         for q in range(indptr[i], indptr[i + 1]):
-            sc += w[q] * c[indices[q]]
-            ss += w[q] * s[indices[q]]
-        bc[i] += b_k[i] * (cl * ss - sl * sc)
-        bs[i] += b_k[i] * (-cl * sc - sl * ss)
-        b_sc = b_k[i] * (-cl * s[i] - sl * c[i])
-        b_ss = b_k[i] * (cl * c[i] - sl * s[i])
-        for q in range(indptr[i], indptr[i + 1]):
             j = indices[q]
+            cj = c[j]
+            sj = s[j]
+            sc += w[q] * cj
+            ss += w[q] * sj
             bc[j] += w[q] * b_sc
             bs[j] += w[q] * b_ss
-            g[q] += b_sc * c[j] + b_ss * s[j]
+            g[q] += b_sc * cj + b_ss * sj
+        bc[i] += b_k[i] * (cl * ss - sl * sc)
+        bs[i] += b_k[i] * (-cl * sc - sl * ss)
+
+
+@njit(inline="always")
+def _rate_cotangents(b_th, b_dnu, mass, gamma, second):
+    """``(b_k, b_nu)``: one node's cotangents of its coupling ``K`` and of ``nu`` from those of
+    its rates ``theta'`` (``b_th``) and ``nu'`` (``b_dnu``) in ``rhs``."""
+    if not second:
+        return b_th, 0.0
+    if mass > 0.0:
+        # theta' = nu, nu' = (P + K - gamma nu) / m
+        return b_dnu / mass, b_th - gamma / mass * b_dnu
+    return b_th / gamma, 0.0
 
 
 @njit(inline="always")
@@ -104,30 +127,9 @@ def _rates_vjp(c, s, b_th, b_dnu, indptr, indices, w, cl, sl, mass, gamma, secon
     ``b_k`` is scratch."""
     n = c.shape[0]
     for i in range(n):
-        if not second:
-            b_k[i] = b_th[i]
-        elif mass[i] > 0.0:
-            # theta' = nu, nu' = (P + K - gamma nu) / m
-            b_k[i] = b_dnu[i] / mass[i]
-            bnu[i] += b_th[i] - gamma[i] / mass[i] * b_dnu[i]
-        else:
-            b_k[i] = b_th[i] / gamma[i]
+        b_k[i], b_nu = _rate_cotangents(b_th[i], b_dnu[i], mass[i], gamma[i], second)
+        bnu[i] += b_nu
     _coupling_vjp(c, s, b_k, indptr, indices, w, cl, sl, bc, bs, g)
-
-
-@njit(inline="always")
-def _field_vjp(y, a, th, b_th, b_dnu, indptr, indices, w, cl, sl, mass, gamma, second, by, g, b_k):
-    """Add ``(d f / d (y, w))^T a`` for ``f(y) = (-s theta', c theta', nu')`` at the state ``y``
-    (rows c, s, nu) whose rates are ``th`` (``b_th``, ``b_dnu``, ``b_k`` are scratch)."""
-    n = th.shape[0]
-    for i in range(n):
-        by[0, i] += th[i] * a[1, i]
-        by[1, i] -= th[i] * a[0, i]
-        b_th[i] = -y[1, i] * a[0, i] + y[0, i] * a[1, i]
-        b_dnu[i] = a[2, i] if second else 0.0
-    _rates_vjp(
-        y[0], y[1], b_th, b_dnu, indptr, indices, w, cl, sl, mass, gamma, second, by[0], by[1], by[2], g, b_k
-    )
 
 
 @njit(cache=True)
@@ -156,69 +158,85 @@ def _kdot_vjp(c, s, th, b_kd, indptr, indices, w, cl, sl, bc, bs, b_th, g):
 
 
 @njit(inline="always")
-def _state_rates(y, p, indptr, indices, w, cl, sl, mass, gamma, second, th, dnu):
+def _rk4_record(y, st, sth, k, th, dnu, p, indptr, indices, w, cl, sl, mass, gamma, second, dt):
+    """One step of :func:`~antisync.kernels.core.make_model_kernels`' ``rk4_step`` from ``y``
+    (rows c, s, nu; ``th``/``dnu`` its rates on entry), with the same operations in the same
+    order (so bit for bit the same next state), keeping what the step's adjoint needs: the stage
+    states ``st`` (4, 3, n) and their phase rates ``sth`` (4, n). ``k`` (3, 4, n) is scratch for
+    the stage fields. On exit ``y`` is the next state and ``th``/``dnu`` its rates."""
+    n = th.shape[0]
+    for i in range(n):
+        st[0, 0, i] = y[0, i]
+        st[0, 1, i] = y[1, i]
+        st[0, 2, i] = y[2, i]
+        sth[0, i] = th[i]
+        k[0, 0, i] = -y[1, i] * th[i]
+        k[1, 0, i] = y[0, i] * th[i]
+        k[2, 0, i] = dnu[i] if second else 0.0
+    for stage in range(1, 4):
+        h = 0.5 * dt if stage < 3 else dt
+        for i in range(n):
+            st[stage, 0, i] = y[0, i] + h * k[0, stage - 1, i]
+            st[stage, 1, i] = y[1, i] + h * k[1, stage - 1, i]
+            st[stage, 2, i] = y[2, i] + h * k[2, stage - 1, i]
+        _rhs(
+            st[stage, 0],
+            st[stage, 1],
+            st[stage, 2],
+            p,
+            indptr,
+            indices,
+            w,
+            cl,
+            sl,
+            mass,
+            gamma,
+            second,
+            th,
+            dnu,
+        )
+        for i in range(n):
+            sth[stage, i] = th[i]
+            k[0, stage, i] = -st[stage, 1, i] * th[i]
+            k[1, stage, i] = st[stage, 0, i] * th[i]
+            k[2, stage, i] = dnu[i] if second else 0.0
+    for i in range(n):
+        cn = y[0, i] + dt / 6.0 * (k[0, 0, i] + 2.0 * k[0, 1, i] + 2.0 * k[0, 2, i] + k[0, 3, i])
+        sn = y[1, i] + dt / 6.0 * (k[1, 0, i] + 2.0 * k[1, 1, i] + 2.0 * k[1, 2, i] + k[1, 3, i])
+        inv = 1.0 / math.sqrt(cn * cn + sn * sn)
+        y[0, i] = cn * inv
+        y[1, i] = sn * inv
+        if second:
+            y[2, i] += dt / 6.0 * (k[2, 0, i] + 2.0 * k[2, 1, i] + 2.0 * k[2, 2, i] + k[2, 3, i])
     _rhs(y[0], y[1], y[2], p, indptr, indices, w, cl, sl, mass, gamma, second, th, dnu)
 
 
 @njit(cache=True)
-def _rk4_vjp(
-    y,
-    lam,
-    out,
-    st,
-    sth,
-    ak,
-    by,
-    th,
-    dnu,
-    b_th,
-    b_dnu,
-    b_k,
-    p,
-    indptr,
-    indices,
-    w,
-    cl,
-    sl,
-    mass,
-    gamma,
-    second,
-    dt,
-    g,
-):
-    """``out = (d step / d y)^T lam`` and ``g += (d step / d w)^T lam`` for the RK4 step from
-    ``y`` (rows c, s, nu). ``st`` (4, 3, n): the stage states; ``sth`` (4, n): their phase
-    rates ``theta'``, kept from the forward stages for the backward ones; ``ak`` (4, 3, n),
-    ``by`` (3, n): scratch."""
-    n = th.shape[0]
-    # forward: stage states Y1..Y4 and their fields K1..K4 (K kept in ak for the final sum)
-    for r in range(3):
-        for i in range(n):
-            st[0, r, i] = y[r, i]
-    for stage in range(4):
-        _state_rates(st[stage], p, indptr, indices, w, cl, sl, mass, gamma, second, th, dnu)
-        for i in range(n):
-            sth[stage, i] = th[i]
-            ak[stage, 0, i] = -st[stage, 1, i] * th[i]
-            ak[stage, 1, i] = st[stage, 0, i] * th[i]
-            ak[stage, 2, i] = dnu[i] if second else 0.0
-        if stage < 3:
-            h = 0.5 * dt if stage < 2 else dt
-            for r in range(3):
-                for i in range(n):
-                    st[stage + 1, r, i] = y[r, i] + h * ak[stage, r, i]
-    # the projection of (c, s) after the step: c' = z_c / rho, s' = z_s / rho
-    for r in range(3):
-        for i in range(n):
-            out[r, i] = 0.0
+def _rk4_vjp(st, sth, lam, out, ak, by, b_k, indptr, indices, w, cl, sl, mass, gamma, second, dt, g):
+    """``out = (d step / d y)^T lam`` and ``g += (d step / d w)^T lam`` for the RK4 step whose
+    stage states ``st`` (4, 3, n) and phase rates ``sth`` (4, n) :func:`_rk4_record` kept:
+    no right-hand side is evaluated again. ``ak`` (4, 3, n), ``by`` (3, n), ``b_k`` (n): scratch."""
+    n = sth.shape[1]
+    # the projection of (c, s) after the step: c' = z_c / rho, s' = z_s / rho, with
+    # z = y + dt/6 (K1 + 2 K2 + 2 K3 + K4) and K = (-s theta', c theta') at each stage
     for i in range(n):
-        zc = y[0, i] + dt / 6.0 * (ak[0, 0, i] + 2.0 * ak[1, 0, i] + 2.0 * ak[2, 0, i] + ak[3, 0, i])
-        zs = y[1, i] + dt / 6.0 * (ak[0, 1, i] + 2.0 * ak[1, 1, i] + 2.0 * ak[2, 1, i] + ak[3, 1, i])
+        zc = st[0, 0, i] + dt / 6.0 * (
+            -st[0, 1, i] * sth[0, i]
+            + 2.0 * -st[1, 1, i] * sth[1, i]
+            + 2.0 * -st[2, 1, i] * sth[2, i]
+            - st[3, 1, i] * sth[3, i]
+        )
+        zs = st[0, 1, i] + dt / 6.0 * (
+            st[0, 0, i] * sth[0, i]
+            + 2.0 * st[1, 0, i] * sth[1, i]
+            + 2.0 * st[2, 0, i] * sth[2, i]
+            + st[3, 0, i] * sth[3, i]
+        )
         rho = math.sqrt(zc * zc + zs * zs)
         cn = zc / rho
         sn = zs / rho
         dot = cn * lam[0, i] + sn * lam[1, i]
-        # reuse ak as the cotangents of the stage fields: b_K = (1, 2, 2, 1) dt/6 b_z
+        # the cotangents of the stage fields: b_K = (1, 2, 2, 1) dt/6 b_z
         bzc = (lam[0, i] - cn * dot) / rho
         bzs = (lam[1, i] - sn * dot) / rho
         bzn = lam[2, i] if second else 0.0
@@ -230,47 +248,39 @@ def _rk4_vjp(
             ak[stage, 0, i] = f * bzc
             ak[stage, 1, i] = f * bzs
             ak[stage, 2, i] = f * bzn
-    # backwards through the stages: Y_{s+1} = y + h_s K_s
+    # backwards through the stages: Y_{s+1} = y + h_s K_s with K_s = f(Y_s) = (-s theta',
+    # c theta', nu') at Y_s; the cotangent of the rates and of K in one pass over the nodes
     for stage in range(3, -1, -1):
-        for r in range(3):
-            for i in range(n):
-                by[r, i] = 0.0
-        _field_vjp(
-            st[stage],
-            ak[stage],
-            sth[stage],
-            b_th,
-            b_dnu,
-            indptr,
-            indices,
-            w,
-            cl,
-            sl,
-            mass,
-            gamma,
-            second,
-            by,
-            g,
-            b_k,
-        )
+        y = st[stage]
+        a = ak[stage]
+        th = sth[stage]
+        for i in range(n):
+            by[0, i] = th[i] * a[1, i]
+            by[1, i] = -(th[i] * a[0, i])
+            b_th = -y[1, i] * a[0, i] + y[0, i] * a[1, i]
+            b_k[i], by[2, i] = _rate_cotangents(b_th, a[2, i] if second else 0.0, mass[i], gamma[i], second)
+        _coupling_vjp(y[0], y[1], b_k, indptr, indices, w, cl, sl, by[0], by[1], g)
         # by: the cotangent of Y_stage; Y_stage = y + h K_{stage-1} (stage >= 1)
-        h = 0.0 if stage == 0 else (0.5 * dt if stage < 3 else dt)
-        for r in range(3):
+        for i in range(n):
+            out[0, i] += by[0, i]
+            out[1, i] += by[1, i]
+            out[2, i] += by[2, i]
+        if stage > 0:
+            h = 0.5 * dt if stage < 3 else dt
+            prev = ak[stage - 1]
             for i in range(n):
-                out[r, i] += by[r, i]
-                if stage > 0:
-                    ak[stage - 1, r, i] += h * by[r, i]
+                prev[0, i] += h * by[0, i]
+                prev[1, i] += h * by[1, i]
+                prev[2, i] += h * by[2, i]
 
 
 @njit(cache=True)
-def _euler_vjp(
-    y, lam, out, th, dnu, b_th, b_dnu, b_k, p, indptr, indices, w, cl, sl, mass, gamma, second, dt, g
-):
-    """``out = (d step / d y)^T lam`` (and ``g``) for the Euler step from ``y``: a rotation of
-    ``(c_i, s_i)`` by ``a_i = dt theta_i'`` and ``nu += dt nu'`` (renormalization: a projection
-    that moves the state by rounding only, taken as the identity)."""
+def _euler_vjp(y, th, lam, out, b_th, b_dnu, b_k, indptr, indices, w, cl, sl, mass, gamma, second, dt, g):
+    """``out = (d step / d y)^T lam`` (and ``g``) for the Euler step from ``y`` with phase
+    rates ``th`` (kept by the replay): a rotation of ``(c_i, s_i)`` by ``a_i = dt theta_i'`` and
+    ``nu += dt nu'`` (renormalization: a projection that moves the state by rounding only, taken
+    as the identity)."""
     n = th.shape[0]
-    _state_rates(y, p, indptr, indices, w, cl, sl, mass, gamma, second, th, dnu)
     for i in range(n):
         ca, sa = _rotation(dt * th[i])
         cn = y[0, i] * ca - y[1, i] * sa
@@ -453,20 +463,59 @@ def _advance(y, th, dnu, work, p, indptr, indices, w, cl, sl, mass, gamma, secon
 
 
 @njit(cache=True)
-def _model_adjoint(
-    y0, p, indptr, indices, w, cl, sl, mass, gamma, dt, rk4, criterion, target, max_steps, every, g
+def _forward(
+    y, th, dnu, work, p, indptr, indices, w, cl, sl, mass, gamma, dt, rk4, criterion, target, max_steps, every
 ):
-    """``(status, steps, x, coef_target)`` of one trajectory from ``y0`` and, when it synchronizes,
-    ``g[p] = d tau0 / d w_p``; ``coef_target = d tau0 / d target`` (for the relative criterion)."""
-    n = y0.shape[1]
-    second = False
-    for i in range(n):
-        second |= mass[i] > 0.0
-    freq = criterion == CRIT_FREQUENCY
-    y = y0.copy()
-    th = np.empty(n)
-    dnu = np.zeros(n)
-    work = np.empty((WORK_ROWS, n))
+    """``(status, steps, x, ck)``: :func:`~antisync.kernels.core.make_model_kernels`'
+    ``sync_steps`` from ``y`` (bit for bit), with ``ck[c]`` the state after ``c every`` steps
+    for every ``c every < steps`` (``y`` ends at the last state reached).
+
+    RK4 runs ``sync_steps`` in pieces of ``every`` steps, each from the state where the last one
+    stopped: a call recomputes at its start exactly the rates, ``R`` and deviations that the
+    step before computed at its end, so the pieces are the one call's operations, and the
+    states are stored on the way. (A piece cannot find its start already in the band: the
+    piece before would have found the crossing at ``x <= 1`` of its last step.) Euler counts its
+    renormalizations from the call's start, so it integrates once to find ``steps`` and once
+    more to store the states."""
+    n = th.shape[0]
+    if rk4:
+        ck = np.empty((16, 3, n))
+        done = 0
+        while True:
+            c = done // every
+            if c == ck.shape[0]:
+                grown = np.empty((2 * c, 3, n))
+                grown[:c] = ck
+                ck = grown
+            ck[c] = y
+            piece = min(every, max_steps - done)
+            st, k, x = _sync(
+                y[0],
+                y[1],
+                y[2],
+                th,
+                dnu,
+                work,
+                p,
+                indptr,
+                indices,
+                w,
+                cl,
+                sl,
+                mass,
+                gamma,
+                dt,
+                rk4,
+                criterion,
+                target,
+                piece,
+            )
+            if st != NOT_SYNCED:  # SYNCED, or ALREADY_SYNCED at done = 0
+                return st, done + k, x, ck
+            done += piece
+            if done >= max_steps:
+                return st, max_steps, x, ck
+    y0 = y.copy()
     st, k, x = _sync(
         y[0],
         y[1],
@@ -488,21 +537,67 @@ def _model_adjoint(
         target,
         max_steps,
     )
-    for q in range(g.shape[0]):
-        g[q] = 0.0
     if st != SYNCED:
-        return st, k, x, 0.0
-    # forward again, keeping every `every`-th state of steps 0 .. k - 1
-    n_ck = (k - 1) // every + 1
-    ck = np.empty((n_ck, 3, n))
+        return st, k, x, np.empty((0, 3, n))
+    ck = np.empty(((k - 1) // every + 1, 3, n))
     y[:] = y0
+    second = False
+    for i in range(n):
+        second |= mass[i] > 0.0
     _rhs(y[0], y[1], y[2], p, indptr, indices, w, cl, sl, mass, gamma, second, th, dnu)
     for step in range(k):
         if step % every == 0:
             ck[step // every] = y
         if step < k - 1:
             _advance(y, th, dnu, work, p, indptr, indices, w, cl, sl, mass, gamma, second, dt, rk4, step + 1)
-    # y: state k - 1; y1: state k
+    return st, k, x, ck
+
+
+@njit(cache=True)
+def _model_adjoint(
+    y0, p, indptr, indices, w, cl, sl, mass, gamma, dt, rk4, criterion, target, max_steps, every, g
+):
+    """``(status, steps, x, coef_target)`` of one trajectory from ``y0`` and, when it synchronizes,
+    ``g[p] = d tau0 / d w_p``; ``coef_target = d tau0 / d target`` (for the relative criterion)."""
+    n = y0.shape[1]
+    second = False
+    for i in range(n):
+        second |= mass[i] > 0.0
+    freq = criterion == CRIT_FREQUENCY
+    y = y0.copy()
+    th = np.empty(n)
+    dnu = np.zeros(n)
+    work = np.empty((WORK_ROWS, n))
+    st, k, x, ck = _forward(
+        y,
+        th,
+        dnu,
+        work,
+        p,
+        indptr,
+        indices,
+        w,
+        cl,
+        sl,
+        mass,
+        gamma,
+        dt,
+        rk4,
+        criterion,
+        target,
+        max_steps,
+        every,
+    )
+    for q in range(g.shape[0]):
+        g[q] = 0.0
+    if st != SYNCED:
+        return st, k, x, 0.0
+    n_ck = (k - 1) // every + 1
+    # y: state k - 1 (from its checkpoint); y1: state k
+    y[:] = ck[n_ck - 1]
+    _rhs(y[0], y[1], y[2], p, indptr, indices, w, cl, sl, mass, gamma, second, th, dnu)
+    for step in range((n_ck - 1) * every, k - 1):
+        _advance(y, th, dnu, work, p, indptr, indices, w, cl, sl, mass, gamma, second, dt, rk4, step + 1)
     y1 = y.copy()
     th1 = np.empty(n)
     dnu1 = np.zeros(n)
@@ -623,11 +718,15 @@ def _model_adjoint(
             lam,
             g,
         )
-    # backwards over the steps k .. 1, segment by segment from the checkpoints
+    # backwards over the steps k .. 1, segment by segment from the checkpoints: each segment is
+    # replayed forward keeping what its steps' adjoints need (RK4: the stage states and rates,
+    # Euler: the states and rates), then walked backwards
     seg = np.empty((every, 3, n))
+    seg_th = np.empty((every, n))
+    rec_st = np.empty((every if rk4 else 0, 4, 3, n))
+    rec_th = np.empty((every if rk4 else 0, 4, n))
+    kst = np.empty((3, 4, n))
     out = np.empty((3, n))
-    stg = np.empty((4, 3, n))
-    stg_th = np.empty((4, n))
     ak = np.empty((4, 3, n))
     by = np.empty((3, n))
     first_seed = True
@@ -637,26 +736,43 @@ def _model_adjoint(
         y[:] = ck[c_idx]
         _rhs(y[0], y[1], y[2], p, indptr, indices, w, cl, sl, mass, gamma, second, th, dnu)
         for j in range(lo, hi):
-            seg[j - lo] = y
-            if j < hi - 1:
-                _advance(y, th, dnu, work, p, indptr, indices, w, cl, sl, mass, gamma, second, dt, rk4, j + 1)
-        for j in range(hi - 1, lo - 1, -1):
-            # the step j -> j + 1 from seg[j - lo]
             if rk4:
-                _rk4_vjp(
-                    seg[j - lo],
-                    lam,
-                    out,
-                    stg,
-                    stg_th,
-                    ak,
-                    by,
+                _rk4_record(
+                    y,
+                    rec_st[j - lo],
+                    rec_th[j - lo],
+                    kst,
                     th,
                     dnu,
-                    b_th,
-                    b_dnu,
-                    b_k,
                     p,
+                    indptr,
+                    indices,
+                    w,
+                    cl,
+                    sl,
+                    mass,
+                    gamma,
+                    second,
+                    dt,
+                )
+            else:
+                seg[j - lo] = y
+                seg_th[j - lo] = th
+                if j < hi - 1:
+                    _advance(
+                        y, th, dnu, work, p, indptr, indices, w, cl, sl, mass, gamma, second, dt, rk4, j + 1
+                    )
+        for j in range(hi - 1, lo - 1, -1):
+            # the step j -> j + 1
+            if rk4:
+                _rk4_vjp(
+                    rec_st[j - lo],
+                    rec_th[j - lo],
+                    lam,
+                    out,
+                    ak,
+                    by,
+                    b_k,
                     indptr,
                     indices,
                     w,
@@ -671,14 +787,12 @@ def _model_adjoint(
             else:
                 _euler_vjp(
                     seg[j - lo],
+                    seg_th[j - lo],
                     lam,
                     out,
-                    th,
-                    dnu,
                     b_th,
                     b_dnu,
                     b_k,
-                    p,
                     indptr,
                     indices,
                     w,
