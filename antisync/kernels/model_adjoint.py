@@ -478,67 +478,47 @@ def _forward(
     renormalizations from the call's start, so it integrates once to find ``steps`` and once
     more to store the states."""
     n = th.shape[0]
-    if rk4:
-        ck = np.empty((16, 3, n))
-        done = 0
-        while True:
+    y0 = y.copy()
+    length = every if rk4 else max_steps  # Euler: one piece
+    ck = np.empty((16 if rk4 else 0, 3, n))
+    done = 0
+    while True:
+        if rk4:
             c = done // every
             if c == ck.shape[0]:
                 grown = np.empty((2 * c, 3, n))
                 grown[:c] = ck
                 ck = grown
             ck[c] = y
-            piece = min(every, max_steps - done)
-            st, k, x = _sync(
-                y[0],
-                y[1],
-                y[2],
-                th,
-                dnu,
-                work,
-                p,
-                indptr,
-                indices,
-                w,
-                cl,
-                sl,
-                mass,
-                gamma,
-                dt,
-                rk4,
-                criterion,
-                target,
-                piece,
-            )
-            if st != NOT_SYNCED:  # SYNCED, or ALREADY_SYNCED at done = 0
-                return st, done + k, x, ck
-            done += piece
-            if done >= max_steps:
-                return st, max_steps, x, ck
-    y0 = y.copy()
-    st, k, x = _sync(
-        y[0],
-        y[1],
-        y[2],
-        th,
-        dnu,
-        work,
-        p,
-        indptr,
-        indices,
-        w,
-        cl,
-        sl,
-        mass,
-        gamma,
-        dt,
-        rk4,
-        criterion,
-        target,
-        max_steps,
-    )
-    if st != SYNCED:
-        return st, k, x, np.empty((0, 3, n))
+        piece = min(length, max_steps - done)
+        st, k, x = _sync(
+            y[0],
+            y[1],
+            y[2],
+            th,
+            dnu,
+            work,
+            p,
+            indptr,
+            indices,
+            w,
+            cl,
+            sl,
+            mass,
+            gamma,
+            dt,
+            rk4,
+            criterion,
+            target,
+            piece,
+        )
+        # SYNCED, ALREADY_SYNCED (at done = 0 only), or NOT_SYNCED at the step cap
+        if st != NOT_SYNCED or done + piece >= max_steps:
+            break
+        done += piece
+    k += done
+    if rk4 or st != SYNCED:
+        return st, k, x, ck
     ck = np.empty(((k - 1) // every + 1, 3, n))
     y[:] = y0
     second = False
