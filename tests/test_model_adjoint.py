@@ -172,3 +172,36 @@ def test_checkpoint_spacing_never_changes_the_results(integrator, dt):
     for other in runs[1:]:
         for name in ("status0", "steps0", "frac0", "dtau"):
             np.testing.assert_array_equal(getattr(other, name), getattr(runs[0], name), err_msg=name)
+
+
+@pytest.mark.parametrize("case", ["lag-order", "mixed-inertia-frequency"])
+def test_the_replay_step_is_the_drivers_rk4_step_bit_for_bit(case):
+    """``_rk4_record`` (the backward pass's replay, which keeps the stage states) is written out
+    beside ``make_model_kernels``' ``rk4_step``: 300 steps of both from the same start give the
+    same states and rates, bit for bit, and the kept stage states are the step's own."""
+    from antisync.kernels.core import WORK_ROWS
+    from antisync.kernels.model_adjoint import _rhs, _rk4_record, _rk4_step
+    from antisync.kernels.model_steps import per_node
+
+    job = job_of(LOLLIPOP + "edges: all\nbetas: []\n" + CASES[case])
+    s = job.model
+    n = len(job.nodes)
+    mass, gamma = per_node(s.inertia, n), per_node(s.damping, n)
+    second = bool((mass > 0).any())
+    model = (job.csr.indptr, job.csr.indices, job.csr.weights, s.cos_lag, s.sin_lag, mass, gamma, second)
+    theta = np.random.default_rng(3).uniform(0, 2 * np.pi, n)
+    y = np.array([np.cos(theta), np.sin(theta), np.zeros(n)])
+    th, dnu = np.empty(n), np.zeros(n)
+    _rhs(y[0], y[1], y[2], s.freqs, *model, th, dnu)
+    ref, th_ref, dnu_ref = y.copy(), th.copy(), dnu.copy()
+    st, sth, k, work = np.empty((4, 3, n)), np.empty((4, n)), np.empty((3, 4, n)), np.empty((WORK_ROWS, n))
+    for _ in range(300):
+        start = y.copy()
+        _rk4_record(y, st, sth, k, th, dnu, s.freqs, *model, 0.02)
+        _rk4_step(ref[0], ref[1], ref[2], th_ref, dnu_ref, work, s.freqs, *model, 0.02)
+        _rhs(ref[0], ref[1], ref[2], s.freqs, *model, th_ref, dnu_ref)
+        np.testing.assert_array_equal(st[0], start)
+        for arr, want in ((y, ref), (th, th_ref), (dnu, dnu_ref)):
+            np.testing.assert_array_equal(arr, want)
+    # the last step's third stage state, as rk4_step leaves it in its work rows 12-14
+    np.testing.assert_array_equal(st[3], work[12:15])

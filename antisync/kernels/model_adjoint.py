@@ -258,7 +258,7 @@ def _rk4_vjp(st, sth, lam, out, ak, by, b_k, indptr, indices, w, cl, sl, mass, g
             by[0, i] = th[i] * a[1, i]
             by[1, i] = -(th[i] * a[0, i])
             b_th = -y[1, i] * a[0, i] + y[0, i] * a[1, i]
-            b_k[i], by[2, i] = _rate_cotangents(b_th, a[2, i] if second else 0.0, mass[i], gamma[i], second)
+            b_k[i], by[2, i] = _rate_cotangents(b_th, a[2, i], mass[i], gamma[i], second)
         _coupling_vjp(y[0], y[1], b_k, indptr, indices, w, cl, sl, by[0], by[1], g)
         # by: the cotangent of Y_stage; Y_stage = y + h K_{stage-1} (stage >= 1)
         for i in range(n):
@@ -464,7 +464,25 @@ def _advance(y, th, dnu, work, p, indptr, indices, w, cl, sl, mass, gamma, secon
 
 @njit(cache=True)
 def _forward(
-    y, th, dnu, work, p, indptr, indices, w, cl, sl, mass, gamma, dt, rk4, criterion, target, max_steps, every
+    y,
+    th,
+    dnu,
+    work,
+    p,
+    indptr,
+    indices,
+    w,
+    cl,
+    sl,
+    mass,
+    gamma,
+    second,
+    dt,
+    rk4,
+    criterion,
+    target,
+    max_steps,
+    every,
 ):
     """``(status, steps, x, ck)``: :func:`~antisync.kernels.core.make_model_kernels`'
     ``sync_steps`` from ``y`` (bit for bit), with ``ck[c]`` the state after ``c every`` steps
@@ -478,7 +496,7 @@ def _forward(
     renormalizations from the call's start, so it integrates once to find ``steps`` and once
     more to store the states."""
     n = th.shape[0]
-    y0 = y.copy()
+    y0 = y.copy()  # Euler's second pass starts here again
     length = every if rk4 else max_steps  # Euler: one piece
     ck = np.empty((16 if rk4 else 0, 3, n))
     done = 0
@@ -521,9 +539,6 @@ def _forward(
         return st, k, x, ck
     ck = np.empty(((k - 1) // every + 1, 3, n))
     y[:] = y0
-    second = False
-    for i in range(n):
-        second |= mass[i] > 0.0
     _rhs(y[0], y[1], y[2], p, indptr, indices, w, cl, sl, mass, gamma, second, th, dnu)
     for step in range(k):
         if step % every == 0:
@@ -561,6 +576,7 @@ def _model_adjoint(
         sl,
         mass,
         gamma,
+        second,
         dt,
         rk4,
         criterion,
@@ -701,8 +717,8 @@ def _model_adjoint(
     # backwards over the steps k .. 1, segment by segment from the checkpoints: each segment is
     # replayed forward keeping what its steps' adjoints need (RK4: the stage states and rates,
     # Euler: the states and rates), then walked backwards
-    seg = np.empty((every, 3, n))
-    seg_th = np.empty((every, n))
+    seg = np.empty((0 if rk4 else every, 3, n))
+    seg_th = np.empty((0 if rk4 else every, n))
     rec_st = np.empty((every if rk4 else 0, 4, 3, n))
     rec_th = np.empty((every if rk4 else 0, 4, n))
     kst = np.empty((3, 4, n))
