@@ -453,7 +453,7 @@ def tail_share(tail_counts: np.ndarray, top: float = 1e-3) -> float:
     return float(share / energy.sum())
 
 
-# ---- Lambda's interval: a Pareto model of the heavy tail (issue 18) ---------------------------
+# ---- Lambda's interval: a Pareto model of the heavy tail --------------------------------------
 
 #: the name of the interval method of :func:`lambda_interval` (stored in every record)
 TAIL_MODEL = "pareto-tail"
@@ -646,7 +646,7 @@ def lambda_interval(
     )
 
 
-#: what each ``lambda.method`` estimates, as every record names it (``lambda_quantity``; issue 28,
+#: what each ``lambda.method`` estimates, as every record names it (``lambda_quantity``;
 #: docs/equations.md "Lambda near saddle passages"): the paper's forward secant
 #: ``(<F_dbeta> - 1)/dbeta`` of Eq. 17 at the record's ``lambda_dbeta``, or the derivative
 #: ``d<F>/dbeta`` at 0 of Eq. 6. Near saddle passages the two differ at every usable dbeta.

@@ -1,4 +1,4 @@
-"""Sign calls that survive many links: the false discovery rate over a run's links (issue 28).
+"""Sign calls that survive many links: the false discovery rate over a run's links.
 
 A run over E links that calls each sign at 95% calls about E/20 null links "resolved" by
 chance: a 12-ring run flagged 7->6 where symmetry makes Lambda 0, and the largest of 40 noisy
