@@ -52,6 +52,7 @@ Pure numpy/scipy/networkx: nothing here compiles.
 
 from __future__ import annotations
 
+import json
 import math
 import time
 from dataclasses import asdict, dataclass, field
@@ -59,10 +60,14 @@ from pathlib import Path
 
 import networkx as nx
 import numpy as np
+import yaml
 
+from antisync import graphs
+from antisync.config import Config, load_config, yaml_load
 from antisync.coupling import coupling_matrix
 from antisync.errors import AntisyncError
 from antisync.locked import jacobian, locked_state
+from antisync.model import node_frequencies, node_parameters, read_frequency_file
 
 __all__ = [
     "Grid",
@@ -71,10 +76,12 @@ __all__ = [
     "LineIndicators",
     "LineTable",
     "format_table",
+    "grid_from_config",
     "grid_state",
     "line_indicators",
     "load_grid",
     "load_grid_config",
+    "parse_line_labels",
     "static_table",
 ]
 
@@ -375,6 +382,7 @@ def line_indicators(
     lines=None,
     labels=None,
     skip_bridges: bool = False,
+    bridge_hint: str = "pass skip_bridges=True",
 ) -> LineTable:
     """The static indicators after weakening each line (both directions) by ``beta``.
 
@@ -401,6 +409,8 @@ def line_indicators(
         With ``beta = 1`` a bridge (a line whose removal splits the grid into islands) is
         refused with :class:`GridError`; with ``skip_bridges=True`` bridges are left out and
         listed in the table's ``skipped`` instead.
+    bridge_hint : str
+        How to leave a bridge out, ending the refusal of one (the CLI names its option).
 
     Returns
     -------
@@ -424,7 +434,7 @@ def line_indicators(
     skipped = []
     if beta == 1.0:
         todo, skipped = split_bridges(
-            omega, labels, todo, grid_bridges(omega), refuse=not skip_bridges, hint="pass skip_bridges=True"
+            omega, labels, todo, grid_bridges(omega), refuse=not skip_bridges, hint=bridge_hint
         )
     base = _state_of(coupling_matrix(omega, coupling), p, lag, inertia, damping)
     rows = []
@@ -460,7 +470,8 @@ def line_indicators(
 class Grid:
     """A power grid ready for :func:`line_indicators`: ``omega`` in :func:`antisync.graphs.
     node_order` (bus ``i`` is row ``labels.index(i)``; for buses 1..N, row ``i - 1``), ``p``
-    with its mean removed, ``inertia`` and ``damping`` (numbers or per-node arrays)."""
+    with its mean removed, ``inertia`` and ``damping`` (numbers or per-node arrays), the
+    coupling and the phase lag ``alpha`` (``model.phase_lag``)."""
 
     name: str
     labels: list
@@ -469,15 +480,18 @@ class Grid:
     inertia: object = 0.0
     damping: object = 1.0
     coupling: str = "raw"
+    lag: float = 0.0
 
 
 def _vector(path: Path, n: int, what: str) -> np.ndarray:
+    """A per-node file read as a config's ``{file: PATH}`` is (one number per line, every
+    number finite: a ``nan`` is refused naming its line)."""
     try:
-        v = np.loadtxt(path, comments="#", dtype=np.float64, ndmin=1)
-    except (OSError, ValueError) as exc:
-        raise GridError(f"{path}: cannot read the {what} ({exc})") from None
-    if v.shape != (n,) or not np.isfinite(v).all():
-        raise GridError(f"{path}: expected {n} finite {what} (one per line), got {v.size}")
+        v = read_frequency_file(path, what)
+    except AntisyncError as exc:
+        raise GridError(str(exc)) from None
+    if v.shape != (n,):
+        raise GridError(f"{path}: expected {n} {what} (one per line, one line per node), got {v.size}")
     return v
 
 
@@ -495,12 +509,13 @@ def load_grid(
     and a file of injections (one per node in node order); ``inertia``/``damping``: a number
     or a file like the injections. ``scale`` multiplies every capacity. The injections' mean
     is removed (the line losses of a case, docs/models.md)."""
-    from antisync.graphs import from_edgelist, node_order, omega_matrix
-
     edges = Path(edges)
-    g = from_edgelist(edges)
-    labels = node_order(g)
-    omega = omega_matrix(g) * float(scale)
+    try:
+        g = graphs.from_edgelist(edges)
+    except AntisyncError as exc:
+        raise GridError(str(exc)) from None
+    labels = graphs.node_order(g)
+    omega = graphs.omega_matrix(g) * float(scale)
     n = len(labels)
     p = _vector(Path(power), n, "injections")
     per_node = []
@@ -509,61 +524,190 @@ def load_grid(
     return Grid(name or edges.stem, labels, omega, p - p.mean(), per_node[0], per_node[1], coupling)
 
 
-def load_grid_config(path) -> Grid:
-    """A :class:`Grid` from an antisync config such as ``configs/ieee14_grid.yaml``: its
-    ``graph.path`` edge list, ``model.frequencies`` / ``inertia`` / ``damping`` (a number or
-    ``{file: PATH}``, paths relative to the config) and ``dynamics.coupling``. Only these keys
-    are read (not a full config validation)."""
-    import yaml
+def grid_from_config(config: Config) -> Grid:
+    """The :class:`Grid` of a validated config, read as ``antisync run`` reads it: its graph
+    (any kind, ``graph.header``/``delimiter`` honoured; :func:`antisync.graphs.build_graph`),
+    ``model.frequencies`` (the injections, a list or ``{file: PATH}``; none: all 0), inertia,
+    damping and ``phase_lag``, and ``dynamics.coupling``.
 
-    path = Path(path)
+    Raises
+    ------
+    GridError
+        A graph or per-node value that cannot be read, or frequencies drawn per realization
+        (the static indicators need one operating point): one line.
+    """
+    model = config.model
+    if model.drawn:
+        raise GridError(
+            f"model.frequencies {model.frequencies} are drawn per realization; the static indicators "
+            "need the grid's injections: give model.frequencies as a list or {file: PATH} (or use --removal)"
+        )
     try:
-        cfg = yaml.safe_load(path.read_text(encoding="utf-8"))
-    except (OSError, yaml.YAMLError) as exc:
-        raise GridError(f"{path}: cannot read the config ({exc})") from None
-    graph = (cfg or {}).get("graph") or {}
-    model = cfg.get("model") or {}
-    if graph.get("kind") != "edgelist" or "path" not in graph:
-        raise GridError(f"{path}: graph must be {{kind: edgelist, path: ...}} for a grid")
-
-    def value(key, default):
-        v = model.get(key, default)
-        if isinstance(v, dict) and set(v) == {"file"}:
-            return path.parent / v["file"]
-        if isinstance(v, int | float) and not isinstance(v, bool):
-            return float(v)
-        raise GridError(f"{path}: model.{key} must be a number or {{file: PATH}} here, got {v!r}")
-
-    freqs = value("frequencies", None)
-    if not isinstance(freqs, Path):
-        raise GridError(f"{path}: model.frequencies must be {{file: PATH}} (the injections)")
-    coupling = ((cfg.get("dynamics") or {}).get("coupling")) or "normalized"
-    return load_grid(
-        path.parent / graph["path"],
-        freqs,
-        value("inertia", 0.0),
-        value("damping", 1.0),
-        coupling=coupling,
-        name=cfg.get("name") or path.stem,
+        g = graphs.build_graph(config.graph, seed=config.seed)
+        labels = graphs.node_order(g)
+        omega = graphs.omega_matrix(g)
+        n = len(labels)
+        p = node_frequencies(model, n)
+        mass, gamma = node_parameters(model, n)
+    except AntisyncError as exc:
+        raise GridError(str(exc)) from None
+    p = np.zeros(n) if p is None else np.asarray(p, dtype=np.float64)
+    # one number stays one number (as the model kernels see it); per-node values as arrays
+    inertia = model.inertia if isinstance(model.inertia, float) else mass
+    damping = model.damping if isinstance(model.damping, float) else gamma
+    return Grid(
+        config.name, labels, omega, p - p.mean(), inertia, damping, config.dynamics.coupling, model.phase_lag
     )
 
 
+def load_grid_config(path, overrides: list[str] | None = None) -> Grid:
+    """A :class:`Grid` from an antisync config such as ``configs/ieee14_grid.yaml``, read and
+    validated by :func:`antisync.config.load_config` exactly as ``antisync run`` reads it
+    (``overrides``: ``key=value`` strings, the CLI's ``--set``), then :func:`grid_from_config`.
+
+    Raises
+    ------
+    GridError
+        The config's one-line error (an unknown key, a value out of range, a file that cannot
+        be read), as ``antisync run`` words it.
+    """
+    try:
+        config = load_config(path, list(overrides or []))
+    except AntisyncError as exc:
+        raise GridError(str(exc)) from None
+    return grid_from_config(config)
+
+
 def static_table(
-    grid: Grid, *, beta: float = 1.0, lag: float = 0.0, skip_bridges: bool = True, lines=None
+    grid: Grid,
+    *,
+    beta: float = 1.0,
+    lag: float | None = None,
+    skip_bridges: bool = True,
+    lines=None,
+    bridge_hint: str = "pass skip_bridges=True",
 ) -> LineTable:
-    """:func:`line_indicators` of a :class:`Grid` (bridges skipped by default when removing)."""
+    """:func:`line_indicators` of a :class:`Grid` (bridges skipped by default when removing);
+    ``lag``: the grid's own (``model.phase_lag``) unless given."""
     return line_indicators(
         grid.omega,
         grid.p,
         coupling=grid.coupling,
-        lag=lag,
+        lag=grid.lag if lag is None else lag,
         inertia=grid.inertia,
         damping=grid.damping,
         beta=beta,
         lines=lines,
         labels=grid.labels,
         skip_bridges=skip_bridges,
+        bridge_hint=bridge_hint,
     )
+
+
+# --- naming lines ------------------------------------------------------------------------------
+
+#: How --lines names lines, for the messages (docs/power_grids.md).
+LINES_SYNTAX = (
+    'write --lines "4-5,2-3", or as a YAML list of pairs for any label: --lines \'[[a-b, c], ["x,y", -2]]\''
+)
+
+
+def parse_line_labels(text: str | None, labels) -> list[tuple] | None:
+    """The lines named by ``text`` (``--lines``) as pairs of the grid's ``labels`` (None: every
+    line).
+
+    Two forms (docs/power_grids.md):
+
+    - ``"4-5,2-3"``: lines separated by ``,``, each ``u-v``. A label may hold a dash (``a-b-c``,
+      the negative integer ``-1``: ``-1--2``): the split is accepted when exactly one dash splits
+      the item into two labels of the grid; two such readings are refused, naming both.
+    - a YAML (or JSON) list of pairs, ``[[a-b, c], ["x,y", 2], [-1, -2]]``, which can name any
+      label (one holding ``,``, or any other character, quoted): an item is the label with that
+      typed value (the integer ``2``), else the one label whose string form it is.
+
+    Raises
+    ------
+    GridError
+        An item that names no line, or names one ambiguously: one line saying which and why.
+    """
+    if text is None:
+        return None
+    text = str(text)
+    labels = list(labels)
+    if text.lstrip().startswith("["):
+        return _yaml_lines(text, labels)
+    by_name: dict[str, list] = {}
+    for lab in labels:
+        by_name.setdefault(str(lab), []).append(lab)
+    return [_dash_line(item.strip(), by_name, labels) for item in text.split(",")]
+
+
+def _nodes_hint(labels: list) -> str:
+    return f"nodes: {labels[0]}..{labels[-1]}" if labels else "the grid has no node"
+
+
+def _dash_line(item: str, by_name: dict, labels: list) -> tuple:
+    """``u-v`` split at the one dash that leaves two labels of the grid."""
+    readings = []
+    for i, ch in enumerate(item):
+        if ch == "-":
+            u, v = item[:i].strip(), item[i + 1 :].strip()
+            if u in by_name and v in by_name:
+                readings.append((u, v))
+    if not readings:
+        raise GridError(
+            f"line {item!r} is not u-v with two nodes of the grid ({_nodes_hint(labels)}); {LINES_SYNTAX}"
+        )
+    if len(readings) > 1:
+        forms = " or ".join("'" + json.dumps([[by_name[u][0], by_name[v][0]]]) + "'" for u, v in readings[:2])
+        raise GridError(
+            f"line {item!r} reads two ways, {' and '.join(f'{u} to {v}' for u, v in readings[:2])} "
+            f"(labels holding '-'): name the one you mean as a YAML list, --lines {forms}"
+        )
+    u, v = readings[0]
+    for name in (u, v):
+        if len(by_name[name]) > 1:
+            kinds = ", ".join(repr(x) for x in by_name[name])
+            raise GridError(
+                f"node {name!r} of line {item!r} is two labels of the grid ({kinds}); name it by its typed "
+                "value in a YAML list, --lines '[[1, \"1\"]]'"
+            )
+    return by_name[u][0], by_name[v][0]
+
+
+def _yaml_lines(text: str, labels: list) -> list[tuple]:
+    """``--lines '[[u, v], ...]'``: each item the label of that typed value, else the one
+    label of that string form."""
+    try:
+        items = yaml_load(text)
+    except yaml.YAMLError:
+        raise GridError(f"--lines {text!r} is not a YAML list of pairs; {LINES_SYNTAX}") from None
+    if not isinstance(items, list) or not items:
+        raise GridError(f"--lines {text!r} names no line; {LINES_SYNTAX}")
+    out = []
+    for pair in items:
+        if not isinstance(pair, list) or len(pair) != 2:
+            raise GridError(f"--lines item {pair!r} is not a pair [u, v]; {LINES_SYNTAX}")
+        out.append(tuple(_label(x, pair, labels) for x in pair))
+    return out
+
+
+def _label(x, pair: list, labels: list):
+    if isinstance(x, list | dict) or x is None:
+        raise GridError(f"--lines item {pair!r}: {x!r} is not a node label")
+    typed = [lab for lab in labels if type(lab) is type(x) and lab == x]
+    if typed:
+        return typed[0]
+    named = [lab for lab in labels if str(lab) == str(x)]
+    if len(named) == 1:
+        return named[0]
+    if named:
+        kinds = ", ".join(repr(v) for v in named)
+        raise GridError(
+            f"--lines item {pair!r}: {x!r} could be any of the labels {kinds}; write the label's typed "
+            'value (2, or "2" quoted for the string)'
+        )
+    raise GridError(f"--lines item {pair!r}: no node {x!r} in the grid ({_nodes_hint(labels)})")
 
 
 def _num(x: float, width: int = 9, digits: int = 4) -> str:

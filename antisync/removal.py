@@ -44,13 +44,14 @@ frequency criterion such a row normally loses every realization).
 from __future__ import annotations
 
 import contextlib
+import hashlib
 import json
 import math
 import os
 import tempfile
 import time
 from collections.abc import Mapping
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, fields
 from pathlib import Path
 
 import numpy as np
@@ -58,6 +59,7 @@ import numpy as np
 from antisync.grid import Grid, GridError, Rows
 from antisync.multiplicity import FDR_LEVEL, benjamini_hochberg
 from antisync.status import ALREADY_SYNCED, SYNCED
+from antisync.store.outputs import check_output_path, config_inputs, json_format_problem
 
 __all__ = [
     "FORMAT",
@@ -75,6 +77,9 @@ __all__ = [
     "table_document",
     "replace_atomically",
     "check_beta",
+    "planned_lines",
+    "WHERE_KEYS",
+    "work_config",
     "check_output",
     "check_new_file",
     "write_table",
@@ -383,6 +388,8 @@ def _grid_mapping(grid: Grid) -> dict:
 
     inertia = node_values(grid.inertia)
     model = {"frequencies": [float(x) for x in grid.p], "inertia": inertia}
+    if grid.lag:
+        model["phase_lag"] = float(grid.lag)
     if isinstance(inertia, list) and not any(inertia):
         model["inertia"] = 0.0
     elif not (isinstance(inertia, float) and inertia == 0):
@@ -412,23 +419,12 @@ def resolve_config(source, overrides: Mapping):
 
 
 def parse_lines(text: str | None, labels) -> list[tuple] | None:
-    """``"4-5,2-3"`` as ``[(4, 5), (2, 3)]`` in the grid's labels (None: every line)."""
-    if text is None:
-        return None
-    by_name = {str(v): v for v in labels}
-    out = []
-    for item in str(text).split(","):
-        item = item.strip()
-        parts = item.split("-")
-        if len(parts) != 2 or parts[0].strip() not in by_name or parts[1].strip() not in by_name:
-            raise GridError(
-                f"line {item!r} is not u-v with two nodes of the grid (nodes: {labels[0]}..{labels[-1]}); "
-                'write --lines "4-5,2-3"'
-            )
-        out.append((by_name[parts[0].strip()], by_name[parts[1].strip()]))
-    if not out:
-        raise GridError("--lines names no line")
-    return out
+    """``--lines`` as pairs of the grid's labels (None: every line): ``"4-5,2-3"`` (a dash
+    inside a label is read when one split gives two labels) or a YAML list of pairs
+    ``[[a-b, c], ["x,y", -2]]`` that can name any label (:func:`antisync.grid.parse_line_labels`)."""
+    from antisync.grid import parse_line_labels
+
+    return parse_line_labels(text, labels)
 
 
 def _pick_lines(omega: np.ndarray, labels: list, lines, beta: float, islanding: bool):
@@ -454,6 +450,37 @@ def _pick_lines(omega: np.ndarray, labels: list, lines, beta: float, islanding: 
         hint="ask for islanding (islanding=True, --islanding)",
     )
     return todo, bridges, skipped
+
+
+#: Config keys that say where the work runs, not what it computes (a finished table is the
+#: same run whatever they were).
+WHERE_KEYS = ("threads", "executor", "backend")
+
+
+def work_config(config) -> dict:
+    """A removal run's config as plain JSON data without :data:`WHERE_KEYS`: what a journal's
+    key and a finished table's check compare (the same run, wherever it runs)."""
+    d = json.loads(json.dumps(_plain(config if isinstance(config, dict) else {}), default=str))
+    return {k: v for k, v in d.items() if k not in WHERE_KEYS}
+
+
+def planned_lines(cfg, lines, beta: float, islanding: bool) -> dict:
+    """The lines a removal run of ``cfg`` would change, ``{(u, v) as strings: islanding}``,
+    found as :func:`antisync.removal.line_removal` finds them (its refusals, one line each:
+    a line not in the grid, a bridge, a per-node value that does not fit the graph)."""
+    from antisync import graphs
+    from antisync.errors import AntisyncError
+    from antisync.model import node_frequencies, node_parameters
+
+    try:
+        g = graphs.build_graph(cfg.graph, seed=cfg.seed)
+        labels = graphs.node_order(g)
+        node_frequencies(cfg.model, len(labels))
+        node_parameters(cfg.model, len(labels))
+    except AntisyncError as exc:
+        raise GridError(str(exc)) from None
+    todo, bridges, _ = _pick_lines(graphs.omega_matrix(g), labels, lines, beta, islanding)
+    return {(str(labels[a]), str(labels[b])): (a, b) in bridges for a, b in todo}
 
 
 def check_beta(beta) -> float:
@@ -507,12 +534,16 @@ def line_removal(
         Integrate on this Dask cluster's workers: tasks of up to :data:`CHUNK` realizations x a
         group of lines (the intact grid in the first group), about :data:`TASKS_PER_WORKER` per
         worker thread. Every trajectory is a function of ``(seed, k, weights)`` alone, so the
-        table equals the local one, array for array (tests/test_grid_dynamic.py).
+        table equals the local one, array for array (tests/test_grid_dynamic.py). The caller
+        owns the cluster: anything but an open ``distributed.Client`` (a scheduler address
+        included) is refused before any work.
     journal : path, optional
         A folder (``<out>.partial`` for ``antisync grid --out``) where every finished task is
         saved at once: a run killed at any moment and started again with the same journal and
         arguments integrates only what is missing (:class:`RemovalJournal`). A journal of other
-        work (another config, seed, realization count, line set or beta) is refused in one line.
+        work (another config, seed, realization count, line set or beta) is refused in one line
+        naming what differs; a task file in it that is damaged or not of this work (its tag) is
+        deleted and its work done again, never merged.
     restart : bool
         Discard what ``journal`` holds (once the arguments are checked) and start over.
     level : float
@@ -529,14 +560,16 @@ def line_removal(
     Raises
     ------
     antisync.grid.GridError
-        A line not in the grid, a bridge at ``beta = 1``, ``beta`` outside ``(0, 1]``, or a
-        config value that is not valid (per-node files of the wrong length included): one line.
+        A line not in the grid, a bridge at ``beta = 1``, ``beta`` outside ``(0, 1]``, a config
+        value that is not valid (per-node files of the wrong length included), a ``client`` that
+        is not an open ``distributed.Client``, or a ``journal`` of other work: one line.
     """
     from antisync import coupling, graphs
     from antisync.jobs import check_step
     from antisync.model import model_setup
 
     t_start = time.perf_counter()
+    _check_client(client)
     beta = check_beta(beta)
     if not 0 < level < 1:
         raise GridError(f"level must lie in (0, 1), got {level}")
@@ -597,10 +630,14 @@ def line_removal(
     done = 0
     book = None
     if journal is not None:
-        key = {"config": cfg.to_dict(), "lines": [[str(labels[a]), str(labels[b])] for a, b in todo]}
+        key = {
+            "config": work_config(cfg.to_dict()),
+            "lines": [[str(labels[a]), str(labels[b])] for a, b in todo],
+        }
         if restart:
             remove_journal(journal)
-        book = RemovalJournal(journal, {**key, "beta": beta, "islanding": bool(islanding)})
+        key = {**key, "beta": beta, "islanding": bool(islanding)}
+        book = RemovalJournal(journal, key, work=_work_digest(fixed, variants))
         have = book.load(status0, tau0, status, tau)
         tasks = _unfinished(tasks, have)
         done = int(have.sum())
@@ -687,6 +724,31 @@ def _plan(m: int, variants: np.ndarray, base: np.ndarray, groups: int) -> list[t
         ks = np.arange(first, min(m, first + CHUNK), dtype=np.int64)
         out += [(ks, g, j == 0 or bool(same[g].any())) for j, g in enumerate(parts)]
     return out
+
+
+#: What :func:`line_removal` says to a ``client`` that is not a ``distributed.Client``.
+CLIENT_HINT = (
+    "to use a scheduler address, open Client('tcp://...') yourself or use `antisync grid --scheduler`"
+)
+
+
+def _check_client(client) -> None:
+    """Refuse, before any work, a ``client`` that is not an open ``distributed.Client``.
+
+    The caller owns the cluster (Dask functions take a client and never build or close one), so
+    a scheduler address is not opened here: one line says how to do it.
+    """
+    if client is None:
+        return
+    # distributed is imported only when a client is given: importing it costs about a second
+    from distributed import Client
+
+    if not isinstance(client, Client):
+        raise GridError(
+            f"client must be a distributed.Client, got {type(client).__name__} {client!r:.80}; {CLIENT_HINT}"
+        )
+    if client.status not in ("running", "connecting", "newly-created"):
+        raise GridError(f"client is a distributed.Client that is {client.status}: pass an open one")
 
 
 def _groups(client, m: int) -> int:
@@ -781,31 +843,107 @@ def _unfinished(tasks: list[tuple], have: np.ndarray) -> list[tuple]:
     return out
 
 
+def key_changes(old, new, most: int = 4) -> str:
+    """What differs between two keys (a journal's, two tables' configs) as ``key: old -> new``
+    with dotted paths into nested mappings (``seed: 11 -> 12``, ``dynamics.t_max: 60 -> 80``;
+    ``(absent)`` for a key one side lacks), the first ``most`` and a count of the rest: a
+    refusal names what changed rather than every key."""
+    absent = object()
+
+    def walk(a, b, prefix: str):
+        if isinstance(a, dict) and isinstance(b, dict):
+            for k in [*a, *(k for k in b if k not in a)]:
+                yield from walk(a.get(k, absent), b.get(k, absent), f"{prefix}{k}.")
+        elif a != b:
+            yield prefix.rstrip(".") or "the whole key", a, b
+
+    def shown(v) -> str:
+        text = "(absent)" if v is absent else json.dumps(v, default=str)
+        return text if len(text) <= 40 else text[:37] + "..."
+
+    changes = [f"{k}: {shown(a)} -> {shown(b)}" for k, a, b in walk(old, new, "")]
+    if not changes:
+        return "no key differs"
+    more = f"; and {len(changes) - most} more" if len(changes) > most else ""
+    return "; ".join(changes[:most]) + more
+
+
+def _work_digest(fixed: dict, variants: np.ndarray) -> str:
+    """SHA-256 of the work as built: the grid's CSR pattern and weights, every line's changed
+    weights and the resolved model (per-node parameters, targets).
+
+    Part of a :class:`RemovalJournal`'s task tag beside its key: the key names per-node files
+    by path and a graph generator by its arguments, so an edited file or another built graph
+    under the same key must still keep the old tasks out.
+    """
+    h = hashlib.sha256()
+
+    def add(name: str, value) -> None:
+        h.update(name.encode())
+        if value is None:
+            h.update(b"none")
+        elif isinstance(value, np.ndarray):
+            h.update(f"{value.dtype.str}{value.shape}".encode())
+            h.update(np.ascontiguousarray(value).tobytes())
+        else:
+            h.update(repr(value).encode())
+
+    for name in ("indptr", "indices", "base"):
+        add(name, np.asarray(fixed[name]))
+    add("variants", np.asarray(variants))
+    setup = fixed["setup"]
+    for f in fields(setup):
+        add(f.name, getattr(setup, f.name))
+    return h.hexdigest()
+
+
 class RemovalJournal:
     """Finished removal tasks on disk, so that an interrupted :func:`line_removal` resumes.
 
     The folder holds ``removal_key.json`` (the work: resolved config, lines, beta, islanding)
-    and one ``task_<first realization>_<first line>_<lines>.npz`` per finished task (written to
-    a temporary name, then renamed: a file is whole or absent). A folder whose key is another
-    work's is refused with one line and left as it is.
+    and one ``task_<first realization>_<first line>_<lines>_<intact>.npz`` per finished task
+    (written to a temporary name, then renamed: a file is whole or absent). A folder whose key
+    is another work's is refused with one line and left as it is.
+
+    Every task file carries a tag (:attr:`tag`: a digest of the key and of the work as built,
+    :func:`_work_digest`), as the run journal's chunks do (:func:`antisync.store.journal.
+    chunk_tag`): on load, a task file that is damaged (cut off, empty, not an ``.npz``), tagged
+    for other work (copied from another run's journal), untagged, or whose arrays do not fit
+    this work (shapes, dtypes, realizations or lines out of range) is deleted and never
+    merged; its work is simply done again.
+
+    Parameters
+    ----------
+    folder : path
+        The journal folder (created when missing).
+    key : dict
+        The work, as plain JSON data; compared with the folder's ``removal_key.json``.
+    work : str
+        A digest of the work as built (:func:`_work_digest`), part of the tag.
     """
 
     KEY_FILE = "removal_key.json"
 
-    def __init__(self, folder: str | Path, key: dict):
+    def __init__(self, folder: str | Path, key: dict, work: str = ""):
         self.folder = Path(folder)
         self.key = json.loads(json.dumps(_plain(key), sort_keys=True))
+        self.tag = hashlib.sha256(f"{json.dumps(self.key, sort_keys=True)}\n{work}".encode()).hexdigest()
         key_path = self.folder / self.KEY_FILE
-        if key_path.exists():
+        if self.folder.exists() and not self.folder.is_dir():
+            raise GridError(f"{self.folder} is a file, not a removal journal (a folder); move it away")
+        if key_path.exists() or key_path.is_symlink():
             try:
-                theirs = json.loads(key_path.read_text())
-            except (OSError, ValueError):
-                theirs = None
-            if theirs != self.key:
+                theirs = json.loads(key_path.read_text(encoding="utf-8"))
+            except (OSError, ValueError) as exc:
                 raise GridError(
-                    f"{self.folder} holds the unfinished work of another removal run (other config, seed, "
-                    "realizations, lines or beta): pass the same arguments to finish it, or --overwrite to "
-                    "discard it"
+                    f"{key_path} cannot be read ({type(exc).__name__}), so the work this journal holds is "
+                    "unknown: pass --overwrite (restart=True) to discard it, or move the folder away"
+                ) from None
+            if theirs != self.key:
+                changed = key_changes(theirs, self.key)
+                raise GridError(
+                    f"{self.folder} holds the unfinished work of another removal run ({changed}): pass the "
+                    "same arguments to finish it, or --overwrite to discard it"
                 )
         elif self.folder.exists() and any(self.folder.iterdir()):
             raise GridError(f"{self.folder} exists and is not a removal journal; move it away")
@@ -817,20 +955,54 @@ class RemovalJournal:
         return sorted(self.folder.glob("task_*.npz"))
 
     def load(self, status0, tau0, status, tau) -> np.ndarray:
-        """Fill the arrays from the saved tasks; return which cells they held."""
+        """Fill the arrays from the saved tasks that carry this journal's :attr:`tag` and fit
+        the arrays; delete every other task file. Return which cells were filled (bool
+        ``(realizations, 1 + lines)``, column 0 the intact grid)."""
         have = np.zeros((status0.size, 1 + status.shape[1]), dtype=bool)
         for path in self.tasks():
-            try:
-                with np.load(path) as f:
-                    ks, group, intact = f["ks"], f["group"], bool(f["intact"])
-                    if intact:
-                        status0[ks], tau0[ks] = f["status0"], f["tau0"]
-                        have[ks, 0] = True
-                    status[np.ix_(ks, group)], tau[np.ix_(ks, group)] = f["status"], f["tau"]
-                    have[np.ix_(ks, 1 + group)] = True
-            except (OSError, ValueError, KeyError, IndexError):
-                continue  # not whole, or not ours: its work is done again
+            task = self._read(path, status0.size, status.shape[1])
+            if task is None:
+                with contextlib.suppress(OSError):  # a folder of that name: not ours to remove
+                    path.unlink()
+                continue
+            ks, group, intact, part = task
+            if intact:
+                status0[ks], tau0[ks] = part["status0"], part["tau0"]
+                have[ks, 0] = True
+            status[np.ix_(ks, group)], tau[np.ix_(ks, group)] = part["status"], part["tau"]
+            have[np.ix_(ks, 1 + group)] = True
         return have
+
+    def _read(self, path: Path, m: int, lines: int):
+        """``(ks, group, intact, arrays)`` of the task file ``path``, or None when it is damaged,
+        not tagged :attr:`tag`, or its arrays are not a task of ``m`` realizations x ``lines``
+        lines (checked whole before anything is merged)."""
+        try:
+            with np.load(path, allow_pickle=False) as f:
+                if str(f["tag"][()]) != self.tag:
+                    return None
+                ks, group, intact = f["ks"], f["group"], f["intact"]
+                part = {k: f[k] for k in ("status0", "tau0", "status", "tau")}
+        except Exception:  # any damage (cut off, empty, EOF, not a zip, a bad header, a
+            return None  # missing array, a pickle refused) means the same: the work is done again
+        n = ks.size
+        index_ok = all(
+            a.ndim == 1
+            and a.dtype.kind in "iu"
+            and a.size == np.unique(a).size
+            and (a.size == 0 or (a.min() >= 0 and a.max() < top))
+            for a, top in ((ks, m), (group, lines))
+        )
+        if not index_ok or n == 0 or intact.shape != () or intact.dtype != np.bool_:
+            return None
+        shapes = {"status": (n, group.size), "tau": (n, group.size)}
+        if intact:
+            shapes.update(status0=(n,), tau0=(n,))
+        for k, shape in shapes.items():
+            want = "iu" if k.startswith("status") else "f"
+            if part[k].shape != shape or part[k].dtype.kind not in want:
+                return None
+        return ks.astype(np.int64), group.astype(np.int64), bool(intact), part
 
     def save(self, ks, group, intact: bool, part) -> None:
         name = f"task_{ks[0]}_{group[0] if group.size else 0}_{group.size}_{int(intact)}.npz"
@@ -846,19 +1018,21 @@ class RemovalJournal:
                     tau0=part[1],
                     status=part[2],
                     tau=part[3],
+                    tag=np.array(self.tag),
                 )
 
         replace_atomically(self.folder / name, write)
 
 
 def remove_journal(folder: str | Path) -> None:
-    """Delete a :class:`RemovalJournal`'s files and its folder (once empty); nothing else."""
+    """Delete a :class:`RemovalJournal`'s files and its folder (once empty); nothing else (a
+    folder named like a task file, or any file not antisync's, stays, and so does the folder)."""
     folder = Path(folder)
     if not folder.is_dir():
         return
-    for path in folder.glob("task_*.npz"):
-        path.unlink(missing_ok=True)
-    (folder / RemovalJournal.KEY_FILE).unlink(missing_ok=True)
+    for path in [*folder.glob("task_*.npz"), folder / RemovalJournal.KEY_FILE]:
+        with contextlib.suppress(OSError):
+            path.unlink()
     with contextlib.suppress(OSError):
         folder.rmdir()
 
@@ -866,35 +1040,57 @@ def remove_journal(folder: str | Path) -> None:
 def journal_folder(out: str | Path) -> Path:
     """Where ``antisync grid --removal --out X.json`` keeps its journal: ``X.json.partial``."""
     out = Path(out)
+    if out.name in ("", ".", ".."):
+        raise GridError(f"--out {str(out)!r} names no file; give a file name ending in .json")
     return out.with_name(out.name + ".partial")
 
 
 # --- files -----------------------------------------------------------------------------------
 
 
-def check_output(path: str | Path, overwrite: bool = False) -> Path:
-    """The JSON output ``path``, checked before any work (:func:`check_new_file`)."""
+def check_output(path: str | Path, overwrite: bool = False, protect=()) -> Path:
+    """The JSON output ``path``, checked before any work (:func:`check_new_file`): an existing
+    file is replaced (``overwrite``) only when it is a removal table; ``protect``: the run's
+    inputs (:func:`antisync.store.outputs.config_inputs`), never replaced."""
     return check_new_file(
-        path, overwrite, "--out", (".json",), "the removal table is written as JSON; name it *.json"
+        path,
+        overwrite,
+        "--out",
+        (".json",),
+        "the removal table is written as JSON; name it *.json",
+        replaceable=lambda p: json_format_problem(p, FORMAT),
+        kind=f"an antisync removal table (JSON of format {FORMAT!r})",
+        protect=protect,
     )
 
 
 def check_new_file(
-    path: str | Path, overwrite: bool, option: str, suffixes: tuple[str, ...], hint: str
+    path: str | Path,
+    overwrite: bool,
+    option: str,
+    suffixes: tuple[str, ...],
+    hint: str,
+    *,
+    replaceable,
+    kind: str,
+    protect=(),
 ) -> Path:
-    """An output ``path`` checked before any work: its suffix one of ``suffixes`` (else ``hint``),
-    its folder existing, and an existing file refused unless ``overwrite``; one-line GridErrors
-    that name ``option``."""
-    path = Path(path)
-    if path.suffix.lower() not in suffixes:
-        raise GridError(f"{option} {path}: {hint}")
-    if path.is_dir():
-        raise GridError(f"{option} {path} is a folder; give a file name ending in {suffixes[0]}")
-    if path.exists() and not overwrite:
-        raise GridError(f"{path} exists; pass --overwrite to replace it (it is left as it is)")
-    if not path.parent.is_dir():
-        raise GridError(f"{option} {path}: the folder {path.parent} does not exist")
-    return path
+    """An output ``path`` checked before any work by antisync's one output policy
+    (:func:`antisync.store.outputs.check_output_path`): its suffix one of ``suffixes`` (else
+    ``hint``), its folder existing, no link, no input of the run (``protect``), nothing inside
+    a journal folder, and an existing file replaced only with ``overwrite`` and only when
+    ``replaceable`` accepts it (``kind``); one-line GridErrors that name ``option``."""
+    return check_output_path(
+        path,
+        option=option,
+        suffixes=suffixes,
+        hint=hint,
+        overwrite=overwrite,
+        replaceable=replaceable,
+        kind=kind,
+        protect=protect,
+        error=GridError,
+    )
 
 
 def _plain(x):
@@ -939,8 +1135,10 @@ def table_document(table: RemovalTable, command: str = "") -> dict:
 
 def write_table(table: RemovalTable, path: str | Path, overwrite: bool = False, command: str = "") -> Path:
     """Write ``table`` as JSON (:func:`table_document`) atomically (:func:`replace_atomically`),
-    so an existing result is never half-written. ``nan`` is written as ``null``."""
-    path = check_output(path, overwrite)
+    so an existing result is never half-written. ``nan`` is written as ``null``. An existing
+    ``path`` is replaced (``overwrite``) only when it is a removal table, and never when it is a
+    file the table's config reads (:func:`check_output`)."""
+    path = check_output(path, overwrite, protect=config_inputs(table.config))
     text = json.dumps(table_document(table, command), indent=1, default=str)
 
     def write(tmp: Path) -> None:

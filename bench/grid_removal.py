@@ -52,6 +52,7 @@ def main(argv=None) -> int:
     args = ap.parse_args(argv)
     sys.path.insert(0, str(ROOT))
     import antisync
+    from antisync.errors import AntisyncError
     from antisync.grid import load_grid_config, static_table
     from antisync.report.removal import (
         lambda_by_line,
@@ -61,15 +62,19 @@ def main(argv=None) -> int:
         side_by_side_report,
     )
 
-    doc = removal_doc(args.removal[0]) if len(args.removal) == 1 else merge_docs(args.removal)
-    t0 = time.perf_counter()
-    table = static_table(load_grid_config(args.config), beta=float(doc["summary"]["beta"]))
-    t_static = time.perf_counter() - t0
-    lam = lambda_by_line(antisync.load(args.lam).records) if args.lam else None
-    print(side_by_side_report(doc, table, lam, seconds_static=t_static))
-    if args.figure:
-        path = removal_figure(doc, args.config, args.figure, by=args.by, overwrite=args.overwrite)
-        print(f"wrote {path}")
+    try:
+        doc = removal_doc(args.removal[0]) if len(args.removal) == 1 else merge_docs(args.removal)
+        t0 = time.perf_counter()
+        table = static_table(load_grid_config(args.config), beta=float(doc["summary"]["beta"]))
+        t_static = time.perf_counter() - t0
+        lam = lambda_by_line(antisync.load(args.lam).records) if args.lam else None
+        print(side_by_side_report(doc, table, lam, seconds_static=t_static))
+        if args.figure:
+            path = removal_figure(doc, args.config, args.figure, by=args.by, overwrite=args.overwrite)
+            print(f"wrote {path}")
+    except AntisyncError as exc:  # parts that do not merge, a bad file: one line, as antisync's CLI
+        print(f"grid_removal.py: error: {' '.join(str(exc).split())}", file=sys.stderr)
+        return 2
     return 0
 
 

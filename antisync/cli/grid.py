@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 from pathlib import Path
 from typing import Annotated
 
@@ -21,7 +22,12 @@ def grid(
         typer.Option("--removal", help="Integrate each line's removal on the same starts (dynamic N-1)."),
     ] = False,
     lines: Annotated[
-        str | None, typer.Option(help='Lines to change, "4-5,2-3" (default: every line, bridges skipped).')
+        str | None,
+        typer.Option(
+            help='Lines to change, "4-5,2-3" (a label may hold a dash: "a-b-c" is read when one split '
+            "gives two nodes), or a YAML list of pairs for any label: '[[a-b, c], [\"x,y\", -2]]' "
+            "(default: every line, bridges skipped)."
+        ),
     ] = None,
     beta: Annotated[float, typer.Option(help="Weaken each line by beta in (0, 1]; 1 removes it.")] = 1.0,
     realizations: Annotated[int | None, typer.Option(help="Override `realizations` (--removal).")] = None,
@@ -71,74 +77,105 @@ def grid(
     """Rank CONFIG's lines: the static indicators of the locked state after each line's removal
     (default), or with --removal the paired dynamic response (P_sync lost/gained with exact
     intervals, the change of tau), troublemaker and Braess lines marked; --figure draws it."""
+    import dataclasses
+
+    from antisync.cli.common import typed_values
     from antisync.config import load_config
-    from antisync.grid import GridError, format_table, load_grid_config, static_table
+    from antisync.grid import GridError, format_table, grid_from_config, static_table
     from antisync.removal import (
         check_beta,
         check_output,
         journal_folder,
         line_removal,
         parse_lines,
+        planned_lines,
         remove_journal,
         write_table,
     )
-    from antisync.report.removal import check_figure, removal_figure
+    from antisync.report.removal import check_figure, check_finished_table, removal_figure
+    from antisync.store.lock import writer_lock
+    from antisync.store.outputs import config_inputs
     from antisync.store.provenance import command_line
 
     beta = check_beta(beta)
-    removal_only = {"--out": out, "--figure": figure, "--workers": workers, "--scheduler": scheduler}
+    removal_only = {
+        "--out": out,
+        "--figure": figure,
+        "--workers": workers,
+        "--scheduler": scheduler,
+        "--realizations": realizations,
+        "--seed": seed,
+    }
     for name, value in removal_only.items():
         if value is not None and not removal:
             raise GridError(f"{name} is for the dynamic removal table: add --removal")
+    if top is not None and top < 1:
+        raise GridError(f"--top must be an integer >= 1 (the number of rows printed), got {top}")
     if resume and overwrite:
         raise GridError("--resume finishes the interrupted run and --overwrite starts over: give one")
     if resume and out is None:
         raise GridError("--resume finishes an interrupted --removal --out X.json run: give its --out")
-    journal = None if out is None else journal_folder(out)
-    if journal is not None and journal.exists() and not (resume or overwrite):
-        raise GridError(
-            f"an interrupted removal run left {journal}: pass --resume to finish it (same arguments) "
-            "or --overwrite to start over"
-        )
-    if resume and out.exists() and not journal.exists():
-        info(f"{out} is complete: nothing to resume (it is left as it is)", quiet)
-        return
-    if out is not None:
-        check_output(out, overwrite or (resume and journal.exists()))
-    if figure is not None:
-        check_figure(figure, overwrite)
+    # the config, --set and the typed options read and refused exactly as `antisync run` does
+    values = typed_values(realizations=realizations, seed=seed, threads=threads)
+    cfg = load_config(config, list(set_ or []), values)
+    # threads only say where the work runs: kept out of the config a journal and a table store
+    threads, cfg = cfg.threads, dataclasses.replace(cfg, threads=None)
     if not removal:
-        g = load_grid_config(config)
+        g = grid_from_config(cfg)
         picked = parse_lines(lines, g.labels)
-        table = static_table(g, beta=beta, lines=picked, skip_bridges=picked is None)
+        hint = "leave it out of --lines (without --lines every bridge is skipped)"
+        table = static_table(g, beta=beta, lines=picked, skip_bridges=picked is None, bridge_hint=hint)
         typer.echo(format_table(table, top=top))
         return
-    cfg = load_config(config, list(set_ or []))
-    try:
-        with dask_executor(cfg, workers=workers, scheduler=scheduler, quiet=quiet) as ex:
-            table = line_removal(
-                cfg,
-                lines=lines,
-                beta=beta,
-                realizations=realizations,
-                seed=seed,
-                islanding=islanding,
-                threads=threads,
-                log=None if quiet else (lambda m: info(f"antisync grid: {m}")),
-                client=None if ex is None else ex.client,
-                journal=journal,
-                restart=overwrite,
+    # the work's own refusals (a line not in the grid, a bridge, a per-node file of the wrong
+    # length) come before any about the output files, as they did before the files were checked
+    asked = planned_lines(cfg, lines, beta, islanding)
+    inputs = config_inputs(cfg, config)
+    journal = None if out is None else journal_folder(out)
+    # one writer at a time, taken before the journal or the output is looked at: a second
+    # writer is told who holds it (pid, host, start, command), not to --resume
+    with writer_lock(out) if out is not None else contextlib.nullcontext():
+        if journal is not None and journal.is_symlink():
+            raise GridError(f"{journal} is a symbolic link, not a removal journal (a folder); move it away")
+        if journal is not None and journal.exists() and not journal.is_dir():
+            raise GridError(f"{journal} is a file, not a removal journal (a folder); move it away")
+        if journal is not None and journal.exists() and not (resume or overwrite):
+            raise GridError(
+                f"an interrupted removal run left {journal}: pass --resume to finish it (same arguments) "
+                "or --overwrite to start over"
             )
-    except KeyboardInterrupt:
-        kept = f"finished tasks are in {journal}; the same command with --resume finishes it"
-        kept = kept if journal else "nothing was saved (no --out)"
-        typer.echo(f"antisync grid: interrupted; {kept}", err=True)
-        raise typer.Exit(130) from None
-    typer.echo(table.to_markdown(top=top))
-    if out is not None:
-        path = write_table(table, out, overwrite=overwrite or resume, command=command_line())
-        remove_journal(journal)
-        info(f"wrote {path}", quiet)
-    if figure is not None:
-        path = removal_figure(table, cfg, figure, by=by, overwrite=overwrite)
-        info(f"wrote {path}", quiet)
+        if resume and out.exists() and not journal.exists():
+            # nothing is written: only the arguments are compared with the table's
+            check_finished_table(out, cfg, asked, beta)
+            info(f"{out} is complete: nothing to resume (it is left as it is)", quiet)
+            return
+        if out is not None:
+            check_output(out, overwrite or (resume and journal.exists()), protect=inputs)
+        if figure is not None:
+            check_figure(figure, overwrite, protect=inputs)
+        try:
+            with dask_executor(cfg, workers=workers, scheduler=scheduler, quiet=quiet) as ex:
+                table = line_removal(
+                    cfg,
+                    lines=lines,
+                    beta=beta,
+                    islanding=islanding,
+                    threads=threads,
+                    log=None if quiet else (lambda m: info(f"antisync grid: {m}")),
+                    client=None if ex is None else ex.client,
+                    journal=journal,
+                    restart=overwrite,
+                )
+        except KeyboardInterrupt:
+            kept = f"finished tasks are in {journal}; the same command with --resume finishes it"
+            kept = kept if journal else "nothing was saved (no --out)"
+            typer.echo(f"antisync grid: interrupted; {kept}", err=True)
+            raise typer.Exit(130) from None
+        typer.echo(table.to_markdown(top=top))
+        if out is not None:
+            path = write_table(table, out, overwrite=overwrite or resume, command=command_line())
+            remove_journal(journal)
+            info(f"wrote {path}", quiet)
+        if figure is not None:
+            path = removal_figure(table, cfg, figure, by=by, overwrite=overwrite)
+            info(f"wrote {path}", quiet)

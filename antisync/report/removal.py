@@ -21,7 +21,8 @@ import networkx as nx
 import numpy as np
 
 from antisync.grid import GridError
-from antisync.removal import check_new_file, replace_atomically
+from antisync.removal import check_new_file, key_changes, replace_atomically, work_config
+from antisync.store.outputs import image_problem
 from antisync.types import REMOVAL_BY, RemovalBy
 
 __all__ = [
@@ -29,6 +30,7 @@ __all__ = [
     "check_figure",
     "lambda_by_line",
     "merge_docs",
+    "check_finished_table",
     "rank_correlations",
     "removal_doc",
     "removal_figure",
@@ -69,25 +71,144 @@ def removal_doc(source) -> dict:
     Raises
     ------
     antisync.grid.GridError
-        A file that cannot be read or is not a removal table: one line.
+        A file that cannot be read or is not a removal table, or a table that lacks a key the
+        report reads or holds a value of the wrong kind there (:func:`_check_doc`): one line
+        naming the file and the key.
     """
+    return _read_doc(source, None)
+
+
+def _read_doc(source, where: str | None) -> dict:
+    """:func:`removal_doc`, its refusals starting with ``where`` (``"part 2"`` in
+    :func:`merge_docs`; a file's refusals name the file too)."""
     from antisync.removal import FORMAT, RemovalTable, table_document
 
     if isinstance(source, RemovalTable):
         return table_document(source)
     if isinstance(source, str | Path):
         path = Path(source)
+        where = str(path) if where is None else f"{where} ({path})"
         try:
             doc = json.loads(path.read_text(encoding="utf-8"))
         except (OSError, UnicodeDecodeError, ValueError) as exc:
-            raise GridError(f"{path}: cannot read the removal table ({exc})") from None
+            raise GridError(f"{where}: cannot read the removal table ({exc})") from None
         if not isinstance(doc, dict) or doc.get("format") != FORMAT:
-            raise GridError(f"{path}: not a removal table (written by antisync grid --removal --out)")
-        return doc
-    if isinstance(source, dict) and isinstance(source.get("rows"), list):
-        return source
+            raise GridError(f"{where}: not a removal table (written by antisync grid --removal --out)")
+        return _check_doc(doc, where)
+    if isinstance(source, dict):
+        where = "the removal table" if where is None else where
+        if "format" in source and source["format"] != FORMAT:
+            raise GridError(
+                f"{where}: format {source['format']!r} is not a removal table's ({FORMAT!r}, written by "
+                "antisync grid --removal --out)"
+            )
+        return _check_doc(source, where)
     kind = type(source).__name__
-    raise GridError(f"expected a RemovalTable, its JSON file or that file's mapping, got {kind}")
+    what = "" if where is None else f"{where}: "
+    raise GridError(f"{what}expected a RemovalTable, its JSON file or that file's mapping, got {kind}")
+
+
+def _is_int(x) -> bool:
+    return isinstance(x, int) and not isinstance(x, bool)
+
+
+def _is_number(x) -> bool:
+    return isinstance(x, int | float) and not isinstance(x, bool)
+
+
+def _is_value(x) -> bool:
+    """A number, or ``None`` (how the JSON file writes ``nan``)."""
+    return x is None or _is_number(x)
+
+
+def _is_interval(x) -> bool:
+    return isinstance(x, list | tuple) and len(x) == 2 and all(_is_value(v) for v in x)
+
+
+def _is_line(x) -> bool:
+    """Two node labels, as an edge list holds them (strings or numbers)."""
+    return isinstance(x, list | tuple) and len(x) == 2 and all(isinstance(v, str | int | float) for v in x)
+
+
+#: The keys a removal table's ``summary`` and rows must have for the report and
+#: :func:`merge_docs` to read them, with what each must hold (as :func:`antisync.removal.
+#: table_document` writes them; ``nan`` as ``None``).
+_SUMMARY_KEYS = {
+    "name": (lambda x: isinstance(x, str), "a string"),
+    "beta": (_is_number, "a number"),
+    "seed": (_is_int, "an integer"),
+    "realizations": (lambda x: _is_int(x) and x > 0, "a positive integer"),
+    "synced0": (_is_int, "an integer"),
+    "p_sync": (_is_number, "a number"),
+    "p_sync_ci": (_is_interval, "two numbers"),
+    "tau0_mean": (_is_value, "a number or null"),
+    "tau0_se": (_is_value, "a number or null"),
+    "lines": (_is_int, "an integer"),
+    "seconds": (_is_number, "a number"),
+    "level": (_is_number, "a number"),
+}
+_ROW_KEYS = {
+    "label": (lambda x: isinstance(x, str), "a string"),
+    "line": (_is_line, "two node labels"),
+    "beta": (_is_number, "a number"),
+    "n": (_is_int, "an integer"),
+    "lost": (lambda x: _is_int(x) and x >= 0, "a count"),
+    "gained": (lambda x: _is_int(x) and x >= 0, "a count"),
+    "d_psync": (_is_number, "a number"),
+    "d_psync_ci": (_is_interval, "two numbers"),
+    "p_value": (lambda x: _is_number(x) and 0 <= x <= 1, "a p-value in [0, 1]"),
+    "d_tau": (_is_value, "a number or null"),
+    "d_tau_se": (_is_value, "a number or null"),
+    "ratio": (_is_value, "a number or null"),
+    "ratio_se": (_is_value, "a number or null"),
+}
+
+
+def _check_doc(doc: dict, where: str) -> dict:
+    """``doc`` if it holds what the report and :func:`merge_docs` read (:data:`_SUMMARY_KEYS`,
+    :data:`_ROW_KEYS`, the calls as lists of labels, the config as a mapping), its rows one per
+    line and of the summary's realizations and beta; else a one-line GridError naming ``where``
+    and the first key that is missing or wrong."""
+
+    def refuse(what: str):
+        raise GridError(
+            f"{where}: not a whole removal table: {what} (written by antisync grid --removal --out)"
+        )
+
+    summary = doc.get("summary")
+    if not isinstance(summary, dict):
+        refuse("no 'summary' mapping" if summary is None else "'summary' is not a mapping")
+    for key, (ok, kind) in _SUMMARY_KEYS.items():
+        if key not in summary:
+            refuse(f"its summary lacks {key!r}")
+        if not ok(summary[key]):
+            refuse(f"summary.{key} is {summary[key]!r:.40}, not {kind}")
+    rows = doc.get("rows")
+    if not isinstance(rows, list):
+        refuse("no 'rows' list" if rows is None else "'rows' is not a list")
+    for k, row in enumerate(rows, start=1):
+        if not isinstance(row, dict):
+            refuse(f"row {k} is not a mapping")
+        for key, (ok, kind) in _ROW_KEYS.items():
+            if key not in row:
+                refuse(f"row {k} lacks {key!r}")
+            if not ok(row[key]):
+                refuse(f"row {k}'s {key} is {row[key]!r:.40}, not {kind}")
+        if row["lost"] + row["gained"] > row["n"]:
+            refuse(f"row {row['label']} has lost + gained = {row['lost'] + row['gained']} > n = {row['n']}")
+        if row["n"] != summary["realizations"] or row["beta"] != summary["beta"]:
+            refuse(
+                f"row {row['label']} has n = {row['n']}, beta = {row['beta']}; the summary says "
+                f"{summary['realizations']} realizations, beta = {summary['beta']}"
+            )
+    if summary["lines"] != len(rows):
+        refuse(f"summary.lines is {summary['lines']} but it has {len(rows)} rows")
+    for key in ("sync_called", "tau_called"):
+        if key in doc and not (isinstance(doc[key], list) and all(isinstance(v, str) for v in doc[key])):
+            refuse(f"{key!r} is not a list of line labels")
+    if not isinstance(doc.get("config", {}), dict):
+        refuse("'config' is not a mapping")
+    return doc
 
 
 def resolved(doc: dict) -> dict[str, set]:
@@ -157,20 +278,36 @@ def merge_docs(sources) -> dict:
         No part, a part that is not a removal table, parts of different runs, or a line in two
         parts: one line.
     """
-    docs = [removal_doc(s) for s in sources]
-    if not docs:
+    from antisync.removal import RemovalTable
+
+    if isinstance(sources, str | Path | dict | RemovalTable):
+        raise GridError("merge_docs takes a list of parts (removal tables, their JSON files or mappings)")
+    try:
+        sources = list(sources)
+    except TypeError:
+        kind = type(sources).__name__
+        raise GridError(
+            f"merge_docs takes a list of parts (removal tables or their files), got {kind}"
+        ) from None
+    if not sources:
         raise GridError("no removal table to merge")
+    names = [f"part {k}" + (f" ({s})" if isinstance(s, str | Path) else "") for k, s in enumerate(sources, 1)]
+    docs = [_read_doc(s, f"part {k}") for k, s in enumerate(sources, start=1)]
     head = docs[0]
-    for k, doc in enumerate(docs[1:], start=2):
+    for name, doc in zip(names[1:], docs[1:], strict=True):
         for key in _SAME:
-            a, b = head["summary"].get(key), doc["summary"].get(key)
+            a, b = head["summary"][key], doc["summary"][key]
             if a != b and not (_num(a) != _num(a) and _num(b) != _num(b)):  # nan == nan here
                 raise GridError(
-                    f"part {k} differs from part 1 in {key} ({b} against {a}): merge only parts run with "
+                    f"{name} differs from {names[0]} in {key} ({b} against {a}): merge only parts run with "
                     "the same config, seed, realizations and beta"
                 )
-        if _same_run(doc.get("config")) != _same_run(head.get("config")):
-            raise GridError(f"part {k} was run with another config than part 1: merge only parts of one run")
+        mine, theirs = _same_run(doc.get("config")), _same_run(head.get("config"))
+        if mine != theirs:
+            raise GridError(
+                f"{name} was run with another config than {names[0]} ({key_changes(theirs, mine)}): merge "
+                "only parts of one run"
+            )
     rows = [r for doc in docs for r in doc["rows"]]
     seen: set = set()
     for r in rows:
@@ -199,13 +336,67 @@ def merge_docs(sources) -> dict:
     return merged
 
 
+def check_finished_table(out: Path, cfg, asked: dict, beta: float) -> None:
+    """Refuse (one line naming what differs) a ``--resume`` whose finished table ``out`` holds
+    another run than the one asked for: its stored config (seed, realizations, model ...),
+    lines (``asked``: :func:`antisync.removal.planned_lines`), beta or islanding rows."""
+    doc = removal_doc(out)
+    rows = [r for r in doc.get("rows") or [] if isinstance(r, dict)]
+    stored = {}
+    for r in rows:
+        line = r.get("line")
+        if isinstance(line, list) and len(line) == 2:
+            stored[(str(line[0]), str(line[1]))] = bool(r.get("islanding"))
+
+    changes = []
+    summary = doc.get("summary") if isinstance(doc.get("summary"), dict) else {}
+    if summary.get("beta") != beta:
+        changes.append(f"beta: {summary.get('beta')} -> {beta:g}")
+    config_diff = key_changes(work_config(doc.get("config")), work_config(cfg.to_dict()))
+    if config_diff != "no key differs":
+        changes.append(config_diff)
+    gone = [f"{u}-{v}" for u, v in stored if (u, v) not in asked and (v, u) not in asked]
+    new = [f"{u}-{v}" for u, v in asked if (u, v) not in stored and (v, u) not in stored]
+    if gone or new:
+        parts = [f"{len(gone)} in the table not asked ({_few(gone)})"] if gone else []
+        parts += [f"{len(new)} asked not in the table ({_few(new)})"] if new else []
+        changes.append("lines: " + ", ".join(parts))
+    else:
+        flips = [f"{u}-{v}" for (u, v), isl in asked.items() if stored.get((u, v), stored.get((v, u))) != isl]
+        if flips:
+            changes.append(f"islanding: the bridge(s) {', '.join(flips[:3])} removed in one run only")
+    if changes:
+        raise GridError(
+            f"--resume: {out} is the finished table of another run ({'; '.join(changes)}): give the "
+            "arguments it was run with, --overwrite to replace it, or another --out (it is left as it is)"
+        )
+
+
+def _few(names: list[str], most: int = 3) -> str:
+    """The first ``most`` names and a count of the rest."""
+    more = f" and {len(names) - most} more" if len(names) > most else ""
+    return ", ".join(names[:most]) + more
+
+
 # --- the figure ------------------------------------------------------------------------------
 
 
-def check_figure(path, overwrite: bool = False) -> Path:
-    """The figure's ``path``, checked before any work: a ``.png``, ``.pdf`` or ``.svg`` file in
-    an existing folder, and an existing file only with ``overwrite``; else a one-line GridError."""
-    return check_new_file(path, overwrite, "--figure", FIGURE_SUFFIXES, "name it *.png, *.pdf or *.svg")
+def check_figure(path, overwrite: bool = False, protect=()) -> Path:
+    """The figure's ``path``, checked before any work by antisync's one output policy
+    (:func:`antisync.removal.check_new_file`): a ``.png``, ``.pdf`` or ``.svg`` file in an
+    existing folder, and an existing file replaced only with ``overwrite`` and only when it is
+    an image of that kind (by its first bytes), never one of ``protect`` (the run's inputs);
+    else a one-line GridError."""
+    return check_new_file(
+        path,
+        overwrite,
+        "--figure",
+        FIGURE_SUFFIXES,
+        "name it *.png, *.pdf or *.svg",
+        replaceable=image_problem,
+        kind="an image of the kind its suffix names (PNG, PDF or SVG, by its first bytes)",
+        protect=protect,
+    )
 
 
 def _network(config) -> tuple[nx.Graph, dict]:

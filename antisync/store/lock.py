@@ -22,6 +22,7 @@ from pathlib import Path
 
 from antisync.errors import StoreError
 from antisync.store.journal import foreign_entry
+from antisync.store.outputs import journal_around
 from antisync.store.provenance import command_line, now
 
 try:  # POSIX; elsewhere runs are not locked (see OutputLock.hold)
@@ -29,7 +30,7 @@ try:  # POSIX; elsewhere runs are not locked (see OutputLock.hold)
 except ImportError:  # pragma: no cover - Windows
     fcntl = None
 
-__all__ = ["OutputLock"]
+__all__ = ["OutputLock", "writer_lock"]
 
 
 @dataclass
@@ -65,8 +66,8 @@ class OutputLock:
 
         Refused: a symbolic link (the atomic rename would replace the link, not its target),
         a directory, device, FIFO or socket, a path below an existing file
-        (``--out cfg.yaml/x.h5``), and a ``.partial`` journal or ``.lock`` file that is not
-        antisync's.
+        (``--out cfg.yaml/x.h5``), a path inside a ``*.partial`` journal folder (another run's
+        unfinished work), and a ``.partial`` journal or ``.lock`` file that is not antisync's.
         """
         p = self.path
         if p.is_symlink():
@@ -80,6 +81,12 @@ class OutputLock:
             raise StoreError(
                 f"output {p} is not a regular file (a device, FIFO or socket); "
                 "give --out a file path ending in .h5"
+            )
+        inside = journal_around(p)
+        if inside is not None:
+            raise StoreError(
+                f"output {p} lies inside {inside}, where antisync keeps an unfinished run's work (writing "
+                "there would make that run unresumable); give --out a path outside it"
             )
         ancestor = p.parent
         while not os.path.lexists(ancestor) and ancestor != ancestor.parent:
@@ -107,7 +114,7 @@ class OutputLock:
                 )
 
     @contextlib.contextmanager
-    def hold(self, *, read_only_ok: bool = False) -> Iterator[bool]:
+    def hold(self, *, read_only_ok: bool = False, check: bool = True) -> Iterator[bool]:
         """Hold the exclusive writer lock of this output for the ``with`` block.
 
         The lock is an ``flock`` on ``<output>.lock``, which holds JSON ``{pid, host, started,
@@ -121,6 +128,9 @@ class OutputLock:
             When the folder does not allow creating the lock file (read-only), yield False
             instead of raising: nothing may then be written, but a ``--resume`` can still
             find the file complete and leave it alone.
+        check : bool
+            Run :meth:`check_target` first (a run's output and journal); False for a writer
+            that checks its own path and journal (:func:`writer_lock`).
 
         Yields
         ------
@@ -134,7 +144,8 @@ class OutputLock:
             its pid, host, start time and command. Or the path is refused by
             :meth:`check_target`.
         """
-        self.check_target()
+        if check:
+            self.check_target()
         try:
             key = self._acquire()
         except _NoLockFile:
@@ -286,6 +297,21 @@ class OutputLock:
             f"{field('host')}, started {field('started')}: {field('command')}); wait for it to "
             "finish or use --out for another file"
         )
+
+
+def writer_lock(path: str | Path) -> contextlib.AbstractContextManager[bool]:
+    """The one-writer lock of any output ``path`` antisync writes (``<path>.lock``, the lock a
+    run's HDF5 file has, see :meth:`OutputLock.hold`), for a writer with a journal of its own
+    (``antisync grid --removal --out X.json`` and its ``X.json.partial``).
+
+    Hold it before anything looks at the output or its journal: a second writer is then
+    refused with the first one's pid, host, start time and command, instead of finding the
+    journal and being told to ``--resume`` (which would make two writers of one journal).
+    Only the lock: the writer checks its own path and journal. Yields True.
+    """
+    p = Path(path)
+    lock = OutputLock(p, p.with_name(p.name + ".partial"), p.with_name(p.name + ".lock"))
+    return lock.hold(check=False)
 
 
 def _same_file(fd: int, path: Path) -> bool:
