@@ -431,12 +431,14 @@ def _columns_hint(line: str, sep: str | None, count: int) -> str:
     return f" (columns separated by {_delimiter_name(sep)}, graph.delimiter)"
 
 
-def from_graphml(path: str | Path, weight: str = "weight") -> nx.Graph:
+def from_graphml(path: str | Path, weight: str | None = None) -> nx.Graph:
     """Read a GraphML file (:func:`networkx.parse_graphml`; what Gephi and networkx write).
 
     Node ids are the labels (integers when every id is one, as in edge lists); the edge
-    attribute ``weight`` gives the weights (1 where an edge has none); parallel edges add up.
-    A directed graph, XML that is not well formed or not GraphML is refused with one line.
+    attribute ``weight`` (``graph.weight``; ``None``: the attribute ``weight``) gives the
+    weights, see :func:`_weight_attribute` for an attribute that edges lack; parallel edges
+    add up. A directed graph, XML that is not well formed or not GraphML is refused with one
+    line.
     """
     import xml.etree.ElementTree as ET
 
@@ -451,16 +453,23 @@ def from_graphml(path: str | Path, weight: str = "weight") -> nx.Graph:
         ) from None
     except Exception as exc:  # noqa: BLE001 -- networkx's message names what it could not read
         raise GraphError(f"{path}: networkx cannot read it as GraphML: {_reason(exc)}") from None
+    # a <default> of an edge key is the value of every edge without its own <data> (GraphML's
+    # rule); networkx keeps it aside in G.graph["edge_default"] instead of on the edges
+    defaults = g.graph.get("edge_default") or {}
+    for *_, d in g.edges(data=True):
+        for key, value in defaults.items():
+            d.setdefault(key, value)
     return _file_graph(g, path, "GraphML", 'edgedefault="undirected"', weight)
 
 
-def from_gml(path: str | Path, weight: str = "weight") -> nx.Graph:
+def from_gml(path: str | Path, weight: str | None = None) -> nx.Graph:
     """Read a GML file (:func:`networkx.parse_gml`).
 
     Nodes are named by their ``label`` (by their ``id`` when some node has no label); the
-    edge attribute ``weight`` gives the weights (1 where an edge has none); the parallel edges
-    of a ``multigraph 1`` file add up. A directed graph or a file that is not GML is refused
-    with one line.
+    edge attribute ``weight`` (``graph.weight``; ``None``: the attribute ``weight``) gives the
+    weights, see :func:`_weight_attribute` for an attribute that edges lack; the parallel
+    edges of a ``multigraph 1`` file add up. A directed graph or a file that is not GML is
+    refused with one line.
     """
     path = Path(path)
     text = read_input_text(path, "GML file", GraphError)
@@ -490,8 +499,9 @@ def _reason(exc: Exception) -> str:
     return text if len(text) <= 160 else text[:157] + "..."
 
 
-def _file_graph(g: nx.Graph, path: Path, fmt: str, undirected: str, weight: str) -> nx.Graph:
-    """A graph read from a file as :func:`simple_graph` makes it, its labels checked."""
+def _file_graph(g: nx.Graph, path: Path, fmt: str, undirected: str, weight: str | None) -> nx.Graph:
+    """A graph read from a file as :func:`simple_graph` makes it, its labels and its weight
+    attribute (:func:`_weight_attribute`) checked."""
     if g.is_directed():
         raise GraphError(
             f"{path}: the {fmt} graph is directed; antisync needs an undirected graph (Omega is "
@@ -503,7 +513,42 @@ def _file_graph(g: nx.Graph, path: Path, fmt: str, undirected: str, weight: str)
     for v in g.nodes:
         if "->" in str(v):
             raise GraphError(f"{path}: node {show(v)} contains '->'; edge labels 'a->b' could not name it")
-    return simple_graph(g, str(path), weight)
+    return simple_graph(g, str(path), _weight_attribute(g, path, fmt, weight))
+
+
+def _weight_attribute(g: nx.Graph, path: Path, fmt: str, weight: str | None) -> str:
+    """The edge attribute that holds the weights of the file's graph ``g``, checked.
+
+    ``weight``: ``graph.weight`` as given, ``None`` when not given (the attribute ``weight``).
+    A file whose edges all lack the attribute has unit weights only when the attribute was
+    not named: a named one (``graph.weight: value``) that no edge has is a misspelling or the
+    wrong file, refused naming the attributes the edges do have. An attribute that some edges
+    have and others lack is refused either way (naming how many lack it and one of them): a
+    weight of 1 for those would be a number the file never gave.
+    """
+    attr = "weight" if weight is None else weight
+    edges = list(g.edges(data=True))
+    lacking = [(u, v) for u, v, d in edges if attr not in d]
+    if not lacking or (len(lacking) == len(edges) and weight is None):
+        return attr
+    if not all(_usable_weight(d[attr]) for *_, d in edges if attr in d):
+        return attr  # a value that is no weight at all is the first thing to say (simple_graph)
+    if len(lacking) == len(edges):
+        names = sorted({str(k) for *_, d in edges for k in d})
+        have = (
+            f"the edges have {', '.join(names)}"
+            if names
+            else "the edges have no attributes (leave graph.weight out for unit weights)"
+        )
+        raise GraphError(
+            f"{path}: graph.weight names the edge attribute {attr!r}, which no edge of this "
+            f"{fmt} file has; {have}"
+        )
+    u, v = lacking[0]
+    raise GraphError(
+        f"{path}: {len(lacking)} of {len(edges)} edges lack the weight attribute {attr!r} "
+        f"(e.g. {u}-{v}); give every edge a weight (or none, for unit weights)"
+    )
 
 
 def simple_graph(graph: nx.Graph, where: str, weight: str = "weight") -> nx.Graph:
@@ -527,7 +572,7 @@ def simple_graph(graph: nx.Graph, where: str, weight: str = "weight") -> nx.Grap
     for u, v, w in graph.edges(data=weight, default=1.0):
         if u == v:
             raise GraphError(f"{where}: self-loop {u}-{v} is not allowed; remove it")
-        if isinstance(w, bool) or not isinstance(w, numbers.Real) or not (w > 0 and math.isfinite(w)):
+        if not _usable_weight(w):
             raise GraphError(
                 f"{where}: edge {u}-{v} has {weight} {show(w)}; weights must be positive finite numbers"
             )
@@ -549,6 +594,11 @@ def simple_graph(graph: nx.Graph, where: str, weight: str = "weight") -> nx.Grap
                 "could not be told apart; relabel them (networkx.convert_node_labels_to_integers)"
             )
     return g
+
+
+def _usable_weight(w) -> bool:
+    """A positive finite real number (not a bool, not a string of one)."""
+    return not isinstance(w, bool) and isinstance(w, numbers.Real) and w > 0 and math.isfinite(w)
 
 
 def graph_spec(graph: nx.Graph, where: str = "graph") -> dict:
@@ -678,8 +728,8 @@ def build_graph(spec: dict, seed: int | None = None) -> nx.Graph:
         if kind == "edgelist":
             g = from_edgelist(spec["path"], spec.get("delimiter"), spec.get("header"))
         else:
-            attr = spec.get("weight", "weight")
-            if not isinstance(attr, str) or not attr:
+            attr = spec.get("weight")  # None: the attribute "weight", unit weights if no edge has it
+            if attr is not None and (not isinstance(attr, str) or not attr):
                 raise GraphError(
                     f"graph.weight must name the edge attribute that holds the weights (default "
                     f"weight), got {show(attr)}"

@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import math
 import re
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from statistics import NormalDist
 
 import numpy as np
@@ -24,11 +24,14 @@ from antisync.measures.pipeline import join_nnc, measure_fields
 
 __all__ = [
     "CI_LEVEL",
+    "OUTSIDE_WHY",
     "WARNING_KINDS",
     "JobView",
     "is_kuramoto",
     "job_records",
+    "graph_names",
     "lambda_intervals",
+    "named_views",
     "r_star_rows",
     "sign_resolved",
     "view_records",
@@ -131,6 +134,13 @@ def lambda_intervals(view: JobView, level: float = CI_LEVEL) -> tuple[np.ndarray
     return ci, thin
 
 
+#: why a link's mean can lie outside its own interval: the words of the summary's warning, which
+#: the figures repeat beside such a link (:mod:`antisync.report.links`)
+OUTSIDE_WHY = (
+    "a few rare large values carry the mean, and the tail model weighs them by how often such "
+    "values come, not by their sizes; run more realizations before reading this link"
+)
+
 #: the kinds of ``lambda_km_warning`` that :func:`_lambda` writes, each by the words its text
 #: begins with (numbers vary per link); the summary table prints one line per kind
 WARNING_KINDS = {
@@ -172,11 +182,7 @@ def _lambda(view: JobView, e: int, pooled: tuple[np.ndarray, int]) -> tuple[dict
         if view.unsynced_hint and s["n_not_synced"]:
             warning += f"; {view.unsynced_hint}"
     elif not low <= est.mean <= high:
-        warning = (
-            f"the mean {est.mean:+.4g} lies outside its interval [{low:.4g}, {high:.4g}]: a few "
-            "rare large values carry the mean, and the tail model weighs them by how often such "
-            "values come, not by their sizes; run more realizations before reading this link"
-        )
+        warning = f"the mean {est.mean:+.4g} lies outside its interval [{low:.4g}, {high:.4g}]: {OUTSIDE_WHY}"
     elif est.n_batches < 10:
         warning = f"only {est.n_batches} batches: standard error is rough"
     elif _few_tail_values(iv, se, est.se):
@@ -405,6 +411,49 @@ def r_star_rows(views: list[JobView]) -> list[dict]:
             }
         )
     return rows
+
+
+def graph_names(views: list[JobView], name: str | None = None, safe=str) -> dict[str, str]:
+    """``{job: its name}``: the one name a job goes by in the summary's ``graph`` column, the
+    figures' titles and their file names (``safe``: :func:`antisync.report.figures.file_stem`
+    for those).
+
+    ``name`` is the config's ``name:`` (which defaults to the config file's stem): the name of
+    a file of one job (its km_nnc twin's is ``<name>_nnc``), ``<name>_<job>`` for each of
+    several; without ``name`` each job keeps its own (the graph's: ``lollipop_6_3``,
+    ``connected_watts_strogatz_graph``, an edge list's file name).
+    """
+    twins = {v.graph: str(v.attrs["nnc_of"]) for v in views if v.attrs and v.attrs.get("nnc_of")}
+    jobs = [v.graph for v in views if v.graph not in twins]
+    names = {}
+    for job in jobs:
+        if not name:
+            names[job] = safe(job)
+        elif len(jobs) == 1:
+            names[job] = safe(name)
+        else:
+            names[job] = f"{safe(name)}_{safe(job)}"
+    for twin, of in twins.items():
+        names[twin] = f"{names.get(of, safe(of))}_nnc"
+    return names
+
+
+def named_views(views: list[JobView], name: str | None) -> list[JobView]:
+    """``views`` with each job called by :func:`graph_names` (a twin's ``nnc_of`` renamed
+    alike), so that the records, the sum rule, r* and the figures all say the config's
+    ``name:`` where it has one. The views are copies; the file is not touched."""
+    if not name:
+        return list(views)
+    names = graph_names(views, name)
+    out = []
+    for v in views:
+        attrs = dict(v.attrs or {})
+        if attrs.get("nnc_of"):
+            attrs["nnc_of"] = names.get(str(attrs["nnc_of"]), str(attrs["nnc_of"]))
+        out.append(
+            replace(v, graph=names.get(v.graph, v.graph), attrs=attrs if v.attrs is not None else None)
+        )
+    return out
 
 
 def view_records(views: list[JobView]) -> list[dict]:

@@ -221,7 +221,7 @@ def test_sort_by_an_undefined_lambda_says_why(files):
     line = _one_line_error(
         invoke("summary", files["unsynced"], "--sort", "km"),
         "cannot sort by km: no record has lambda_km",
-        "Lambda^KM is undefined: none of the 20 realizations of lollipop_6_3 synchronized by t_max",
+        "Lambda^KM is undefined: none of the 20 realizations of unsynced synchronized by t_max",
         "(--sort lambda, xi2)",
     )
     assert "holds no records" not in line

@@ -10,7 +10,7 @@ import typer
 from typer.core import TyperGroup
 
 from antisync._version import __version__
-from antisync.cli.common import fail
+from antisync.cli.common import fail, flush_stdout
 from antisync.cli.grid import grid
 from antisync.cli.paper import paper
 from antisync.cli.report import report
@@ -110,4 +110,10 @@ app.command()(grid)
 
 
 def main() -> None:
-    app()
+    """The ``antisync`` program. Whatever ends it, standard output is flushed here, where a
+    reader that went away (``antisync summary f | head -1``) ends it quietly rather than
+    with Python's "Exception ignored ... BrokenPipeError" (see :func:`flush_stdout`)."""
+    try:
+        app()
+    finally:
+        flush_stdout()

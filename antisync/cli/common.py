@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import contextlib
 import functools
+import os
+import select
 import sys
 from collections.abc import Callable
 from pathlib import Path
@@ -86,6 +88,12 @@ def user_errors(func):
                 raise
             # one line, always: a value quoted from the user's input may hold a newline
             fail(" ".join(str(exc).split("\n")).strip() or type(exc).__name__)
+        except BrokenPipeError as exc:
+            if stdout_closed():  # `antisync summary f | head -1`: the reader has what it wanted
+                quiet_exit()
+            if debug:
+                raise
+            fail(os_message(exc))
         except OSError as exc:  # the machine refused: a full disk, a read-only folder
             if debug:
                 raise
@@ -95,6 +103,51 @@ def user_errors(func):
             raise typer.Exit(130) from None
 
     return wrapper
+
+
+def stdout_closed() -> bool:
+    """Whether standard output is a pipe whose reader has gone (``| head -1`` exited).
+
+    A BrokenPipeError is then the reader's choice, not a failure; one from anything else (a
+    pipe to another process) is not. On a pipe, ``poll`` reports POLLERR once no reader is
+    left; where it cannot tell (no ``poll``), a broken pipe is taken to be standard output's.
+    """
+    try:
+        fd = sys.stdout.fileno()
+    except (AttributeError, ValueError, OSError):  # replaced by a test runner, or closed
+        return False
+    if not hasattr(select, "poll"):  # pragma: no cover - Windows
+        return True
+    poller = select.poll()
+    poller.register(fd, select.POLLOUT)
+    return any(events & select.POLLERR for _, events in poller.poll(0))
+
+
+def quiet_exit() -> None:
+    """End quietly after standard output's reader went away: exit 0, no message.
+
+    Everything the reader asked for was delivered (the commands that print write no files
+    after their output). Standard output is pointed at the null device first, so that
+    Python's final flush of what is still buffered cannot print "Exception ignored ...
+    BrokenPipeError" on the way out.
+    """
+    with contextlib.suppress(OSError, ValueError, AttributeError):
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+        os.close(devnull)
+    raise typer.Exit(0)
+
+
+def flush_stdout() -> None:
+    """Flush standard output at the program's end, quietly when its reader has gone (a pipe
+    closed after the last write a command made: the buffer is flushed only at exit)."""
+    try:
+        sys.stdout.flush()
+    except BrokenPipeError:
+        with contextlib.suppress(typer.Exit):
+            quiet_exit()
+    except (OSError, ValueError, AttributeError):
+        pass
 
 
 def os_message(exc: OSError) -> str:

@@ -48,11 +48,12 @@ def summary(
 
     from antisync.api import summarize
     from antisync.records import flag_signs, sign_rule_note, sort_records
+    from antisync.report.describe import stored_name
     from antisync.report.tables import format_records, format_sweep
     from antisync.stopping import stop_note
-    from antisync.store import is_sweep_file, read_views, stop_record
+    from antisync.store import is_sweep_file, read_views, root_attrs, stop_record
     from antisync.sum_rule import sum_rule_note, views_sums
-    from antisync.summary import view_records
+    from antisync.summary import named_views, view_records
     from antisync.sweeps import sweep_summary
 
     def listed(recs: list[dict]) -> list[dict]:
@@ -73,7 +74,9 @@ def summary(
                 if line:
                     typer.echo(line)
     else:
-        views = read_views(results)  # decoded once for the records and the sum rule
+        # decoded once for the records and the sum rule; each job called by the config's
+        # name:, as the report's figures call it
+        views = named_views(read_views(results), stored_name(root_attrs(results)["config_yaml"]))
         recs = listed(view_records(views))
         typer.echo(format_records(recs, format))
         if format == "table":

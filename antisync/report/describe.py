@@ -63,6 +63,13 @@ def stored_config(text: str) -> dict | None:
     return cfg if isinstance(cfg, dict) else None
 
 
+def stored_name(text: str) -> str | None:
+    """The ``name:`` of a result file's ``config_yaml`` (None when it has none, or the text is
+    not a YAML mapping): what the summary and the report call its job."""
+    name = (stored_config(text) or {}).get("name")
+    return name if isinstance(name, str) and name else None
+
+
 def relative_criterion(cfg) -> bool:
     """Whether ``cfg`` synchronizes by ``sync.criterion: relative`` (r >= fraction r*)."""
     parts = _sections(cfg)

@@ -34,9 +34,18 @@ import numpy as np
 
 from antisync.records import primary_measure
 from antisync.report.labels import spread_labels
-from antisync.report.links import NAMES, draw_link, is_large, link_figures, link_signs, top_links
+from antisync.report.links import (
+    NAMES,
+    OUTSIDE_LABEL,
+    draw_link,
+    is_large,
+    link_figures,
+    link_signs,
+    outside_interval,
+    top_links,
+)
 from antisync.report.measures import LABELS, measure_figures
-from antisync.summary import JobView, job_records
+from antisync.summary import OUTSIDE_WHY, JobView, graph_names, job_records, named_views
 
 __all__ = [
     "HIST_QUANTILE",
@@ -95,19 +104,7 @@ def job_stems(views: list[JobView], name: str | None = None) -> dict[str, str]:
     """``{job: file stem}``: the config's ``name`` for a file of one job (its km_nnc twin gets
     ``<name>_nnc``), ``<name>_<job>`` for each of several; the job's own name (the graph's,
     made safe) without ``name``."""
-    twins = {v.graph: str(v.attrs["nnc_of"]) for v in views if v.attrs and v.attrs.get("nnc_of")}
-    jobs = [v.graph for v in views if v.graph not in twins]
-    stems = {}
-    for job in jobs:
-        if not name:
-            stems[job] = file_stem(job)
-        elif len(jobs) == 1:
-            stems[job] = file_stem(name)
-        else:
-            stems[job] = f"{file_stem(name)}_{file_stem(job)}"
-    for twin, of in twins.items():
-        stems[twin] = f"{stems.get(of, file_stem(of))}_nnc"
-    return stems
+    return graph_names(views, name, safe=file_stem)  # the summary's names, made safe
 
 
 # ---- Fig. 1a: the graph --------------------------------------------------------------------
@@ -211,12 +208,18 @@ def link_table(view: JobView) -> list[str]:
     name = {"lambda_km": "Lambda^KM", "lambda_xi2": "Lambda^xi2", "lambda_rw": "Lambda^RW"}.get(key, key)
     rule = "sign (FDR 0.05)" if key == "lambda_km" else "sign (exact)"
     lines = [f"| link | {name} | 95% interval | {rule} |", "|:---|---:|:---|:---|"]
+    outside = 0
     for r, s in rows:
         value = r.get(key)
         lo, hi = r.get(f"{key}_ci_low"), r.get(f"{key}_ci_high")
         interval = fmt_interval(lo, hi) if lo is not None and hi is not None else "exact"
         shown = "-" if value is None else f"{value:+.4g}"
+        if outside_interval([value], [lo], [hi])[0]:  # as the figures mark it, with the reason below
+            shown += " \u25c7"
+            outside += 1
         lines.append(f"| {r['edge']} | {shown} | {interval} | {NAMES[int(s)]} |")
+    if outside:
+        lines += ["", f"\u25c7 {OUTSIDE_LABEL} ({outside}): {OUTSIDE_WHY}"]
     return lines
 
 
@@ -539,6 +542,11 @@ def write_report(
     notes: list[str] = []
     tables: dict[str, list[str]] = {}
     stems = job_stems(views, name)
+    # each job called by the name the summary gives it (titles, notes, tables), its files by
+    # the same name made safe
+    names = graph_names(views, name)
+    stems = {names[job]: stem for job, stem in stems.items()}
+    views = named_views(views, name)
 
     def save(fig, stem: str, note: str | None = None) -> None:
         if note:
@@ -600,9 +608,8 @@ def write_file_report(
 ) -> list[Path]:
     """:func:`write_report` of the result file ``path`` (not a sweep's), its files named after
     the ``name:`` of the config it stores."""
-    from antisync.report.describe import stored_config
+    from antisync.report.describe import stored_name
     from antisync.store import read_views, root_attrs
 
-    cfg = stored_config(root_attrs(Path(path))["config_yaml"]) or {}
-    name = cfg.get("name") if isinstance(cfg.get("name"), str) else None
+    name = stored_name(root_attrs(Path(path))["config_yaml"])
     return write_report(read_views(path), folder, pdf=pdf, top=top, name=name)

@@ -45,7 +45,7 @@ from antisync.report.measures import (
     plot_pair,
     spearman,
 )
-from antisync.summary import JobView
+from antisync.summary import OUTSIDE_WHY, JobView
 
 __all__ = [
     "LARGE_LINKS",
@@ -57,6 +57,8 @@ __all__ = [
     "link_figures",
     "link_signs",
     "map_links",
+    "mark_outside",
+    "outside_interval",
     "plot_resolved_map",
     "plot_measure_pairs",
     "plot_sorted",
@@ -85,6 +87,49 @@ def _plt():
     import matplotlib.pyplot as plt
 
     return plt
+
+
+#: the legend's words for a link whose mean lies outside its own 95% interval, and the marker
+#: that draws it (over the link's usual point)
+OUTSIDE_LABEL = "mean outside its 95% interval"
+OUTSIDE_MARKER = {"marker": "D", "ms": 9, "mfc": "none", "mec": "black", "mew": 1.1, "ls": "none"}
+
+
+def outside_interval(values, low, high) -> np.ndarray:
+    """Where a link's estimate lies outside its own interval ``[low, high]`` (bool; False where
+    either is missing). The tail model's interval of Lambda^KM is not centred on the mean: a
+    few rare large values can carry the mean outside it (the summary's warning)."""
+    x, lo, hi = (np.asarray(a, dtype=float) for a in (values, low, high))
+    with np.errstate(invalid="ignore"):
+        return np.isfinite(x) & np.isfinite(lo) & np.isfinite(hi) & ((x < lo) | (x > hi))
+
+
+def mark_outside(ax, x, y, outside: np.ndarray, *, below: float = 36, width: int = 70) -> None:
+    """Ring the points ``(x, y)`` where ``outside`` with :data:`OUTSIDE_MARKER`, give the ring a
+    legend entry and write under the axes why such a point lies outside its bar, in the
+    summary's words (:data:`antisync.summary.OUTSIDE_WHY`), so that no figure shows a point
+    outside its interval unexplained. Nothing when no point is outside."""
+    import textwrap
+
+    outside = np.asarray(outside, dtype=bool)
+    if not outside.any():
+        return
+    count = f"{int(outside.sum())} link{'s' if outside.sum() > 1 else ''}"
+    (ring,) = ax.plot(np.asarray(x)[outside], np.asarray(y)[outside], **OUTSIDE_MARKER, label=OUTSIDE_LABEL)
+    ring.set_gid("outside interval")
+    # below the tick labels and the axis label: a fixed distance in points, whatever the size
+    note = ax.annotate(
+        textwrap.fill(f"\u25c7 {OUTSIDE_LABEL} ({count}): {OUTSIDE_WHY}", width),
+        xy=(0.0, 0.0),
+        xycoords="axes fraction",
+        xytext=(0, -below),
+        textcoords="offset points",
+        ha="left",
+        va="top",
+        fontsize=8,
+        color="#333333",
+    )
+    note.set_gid("outside note")
 
 
 def is_large(view: JobView) -> bool:
@@ -126,6 +171,8 @@ def plot_sorted(recs: list[dict], key: str, ax, *, graph: str = "") -> None:
                 color=COLORS[s],
                 label=f"{NAMES[s]}: {int(m.sum())} links",
             )
+    if key == "lambda_km":
+        mark_outside(ax, rank, vals, outside_interval(vals, lo, hi), width=110)
     # the extremes are named in a corner (beside the points their labels would overlap)
     if ranked:
         ax.text(
@@ -334,6 +381,9 @@ def plot_top_intervals(recs: list[dict], key: str, ax, *, k: int = 10) -> None:
             linestyles="solid" if resolved else "dashed",
         )
         ax.plot(x[i], y[i], "o", ms=6, color=color, mfc=color if resolved else "white", mew=1.3)
+    mark_outside(ax, x, y, outside_interval(x, lo, hi), width=55)
+    if ax.get_legend_handles_labels()[0]:
+        ax.legend(loc="lower right", fontsize=7)
     ax.set_yticks(y, [r["edge"] for r in recs_rows], fontsize=8)
     ax.axvline(0, color="k", lw=0.7)
     ax.set_xlabel(LABELS[key] + (" and its 95% interval" if key == "lambda_km" else " (exact)"))
