@@ -1,5 +1,5 @@
 """Dynamic line removal (dynamic N-1) of a power grid: does the grid still synchronize, and
-how fast, when one line is removed or weakened (docs/power_grids.md, issue 27)?
+how fast, when one line is removed or weakened (docs/power_grids.md)?
 
 For every line ``i-j`` both directions are weakened, ``Omega_ij, Omega_ji -> (1 - beta)
 Omega_ij`` (``beta = 1`` removes the line), and the damaged grid is integrated from the **same**

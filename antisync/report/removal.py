@@ -452,7 +452,7 @@ def _named_lines(rows: dict, marks: dict, value, small: bool) -> set:
 
 
 def removal_figure(source, config, path, *, by: RemovalBy = "speedup", overwrite: bool = False) -> Path:
-    """Draw the grid with every removed line coloured by its response (issue 27's report).
+    """Draw the grid with every removed line coloured by its response.
 
     Parameters
     ----------
