@@ -45,8 +45,9 @@ def sweep(
         typer.Option(
             "--grid",
             help="Sweep a config key over values, every combination with the other --grid keys: "
-            "--grid model.phase_lag=0,0.1,0.2 (sets sweep.grid.KEY; values parsed as YAML). "
-            "Repeatable. On a run config (graph:, no sweep:) it sweeps that graph.",
+            "--grid model.phase_lag=0,0.1,0.2 (sets sweep.grid.KEY, replacing the config's list; "
+            "values parsed as YAML). Repeatable, once per key; at most 10,000 jobs. On a run "
+            "config (graph:, no sweep:) it sweeps that graph.",
         ),
     ] = None,
     zip_: Annotated[
@@ -54,7 +55,7 @@ def sweep(
         typer.Option(
             "--zip",
             help="Like --grid, but every --zip key moves together (equal lengths): "
-            "--zip model.inertia=0.5,1,2 --zip model.damping=1,0.5,0.25. Repeatable.",
+            "--zip model.inertia=0.5,1,2 --zip model.damping=1,0.5,0.25. Repeatable, once per key.",
         ),
     ] = None,
     set_: SetOpt = None,
@@ -78,6 +79,8 @@ def sweep(
         raise AntisyncError("--resume and --overwrite exclude each other: choose one")
     values = typed_values(realizations=realizations, output=out, backend=backend, threads=threads)
     sw = load_sweep(config, list(set_ or []), values, grid=list(grid or []), zip_=list(zip_ or []))
+    for note in sw.notes:  # an option that replaced the config's list of a key
+        info(note, quiet)
     with dask_executor(sw.base, workers=workers, scheduler=scheduler, quiet=quiet) as ex:
         with writing(sw.output):
             path = run_sweep(

@@ -15,6 +15,8 @@ import math
 
 import numpy as np
 
+from antisync.errors import StoreError
+
 __all__ = ["edge_lambdas", "expand_records", "ranking", "summarize", "trend_in_n"]
 
 
@@ -64,6 +66,7 @@ def summarize(meta: dict, views: list) -> dict:
     """
     from antisync.summary import view_records  # here: it loads numba, a config needs none
 
+    _refuse_shared_jobs(meta["jobs"])
     by_job: dict[str, list] = {}
     # view_records joins lambda_km_nnc from `<job>_nnc` twins (measures: [km, km_nnc])
     for r in view_records(views):
@@ -121,6 +124,24 @@ def summarize(meta: dict, views: list) -> dict:
         "grid": meta.get("grid"),
         "meta": meta,
     }
+
+
+def _refuse_shared_jobs(jobs_meta: list[dict]) -> None:
+    """Refuse a file whose metadata lists two jobs of one name (written before grid values
+    were named in full: seeds 1000001 and 1000002 both ``1e+06``): its one group holds one
+    point's numbers, and both points would show them."""
+    from antisync.sweeps.points import point_label
+
+    seen: dict[str, dict] = {}
+    for jm in jobs_meta:
+        first = seen.setdefault(jm["job"], jm)
+        if first is not jm:
+            a, b = (point_label(x.get("point") or {}) or x["graph"] for x in (first, jm))
+            raise StoreError(
+                f"the sweep's jobs {a} and {b} share the name {jm['job']!r} (an antisync that named "
+                "grid values with 6 digits wrote it): one shows the other's numbers; run the sweep "
+                "again with --overwrite"
+            )
 
 
 def _point_fields(job_meta: dict) -> dict:

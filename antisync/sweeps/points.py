@@ -13,13 +13,18 @@ validated like a run config (:func:`antisync.config.config_from_mapping`), so a 
 run would refuse is refused here, naming the key and the point.
 
 :func:`sweep_axes` validates the section, :func:`grid_points` expands it, :func:`point_suffix`
-names a point's jobs.
+names a point's jobs and :func:`point_label` labels it. Both are injective on the values (a
+number is written as ``:g`` writes it when that reads back as the same number, else in full:
+``0.1`` and ``0.1000001``, seeds ``1000001`` and ``1000002``), so two points never share a job
+or a label. A grid has at most :data:`MAX_GRID_JOBS` jobs, refused from the axes' lengths
+before any point is expanded (:func:`check_grid_size`).
 """
 
 from __future__ import annotations
 
 import copy
 import itertools
+import json
 import math
 import re
 from dataclasses import dataclass
@@ -31,11 +36,15 @@ from antisync.validation import show, suggest
 
 __all__ = [
     "GRID_KEYS",
+    "MAX_GRID_JOBS",
     "THRESHOLD_KEYS",
     "Axis",
     "GridPoint",
     "axis_option",
+    "check_grid_size",
     "grid_points",
+    "number_name",
+    "point_text",
     "point_label",
     "point_suffix",
     "sweep_axes",
@@ -56,6 +65,11 @@ _TOP_GRID_KEYS = ("realizations", "seed")
 GRID_KEYS: tuple[str, ...] = _TOP_GRID_KEYS + tuple(f"{s}.{k}" for s, ks in _SECTION_KEYS.items() for k in ks)
 #: grid keys that set the synchronization threshold of a point's jobs
 THRESHOLD_KEYS = ("dynamics.threshold", "sync.threshold")
+#: the most jobs (graphs x points x thresholds x repeats) a sweep with a grid may have: each is
+#: a job group of the file, planned (graph, coupling arrays, checks) before anything runs, and
+#: every checkpoint rewrites the sweep's job list; 10,000 jobs already take minutes to plan and
+#: days to run at a few thousand realizations each (docs/sweeps.md, "Grids over any key")
+MAX_GRID_JOBS = 10_000
 # keys that are never swept, with the reason said when one is named
 _REFUSED = {
     "graph": "the graph of a grid sweep is its graph: (or sweep.family)",
@@ -142,8 +156,11 @@ def sweep_axes(section: dict) -> tuple[Axis, ...]:
                     f"sweep.{name}.{key} must be a non-empty list of values such as [0, 0.1, 0.2], "
                     f"got {show(values)}"
                 )
-            if any(_same(a, b) for i, a in enumerate(values) for b in values[i + 1 :]):
-                raise ConfigError(f"sweep.{name}.{key} lists a value twice: {show(values)}")
+            twice = _repeated(values)
+            if twice is not None:
+                raise ConfigError(
+                    f"sweep.{name}.{key} lists a value twice ({point_text(twice)}): {show(values)}"
+                )
     both = sorted(set(grid) & set(zipped))
     if both:
         raise ConfigError(f"{both[0]} is in both sweep.grid and sweep.zip: give it in one of them")
@@ -161,6 +178,38 @@ def sweep_axes(section: dict) -> tuple[Axis, ...]:
             raise ConfigError(f"the lists of sweep.zip must have equal lengths, got {detail}")
         axes.append(Axis(tuple(zipped), tuple(zip(*zipped.values(), strict=True)), zipped=True))
     return tuple(axes)
+
+
+def check_grid_size(axes: tuple[Axis, ...], per_point: int = 1, graphs: int = 1) -> None:
+    """Refuse a grid of more than :data:`MAX_GRID_JOBS` jobs from its axes' lengths alone.
+
+    ``per_point`` is the jobs of one point on one graph (thresholds x repeats), ``graphs`` the
+    family's graphs. Called before :func:`grid_points`, whose work (a validated config per
+    point) and the stages' (a job per point) grow with the count: a 900,000-point grid is
+    refused at once instead of being planned for many minutes.
+
+    Raises
+    ------
+    ConfigError
+        Naming the number of points (and jobs, where they differ) and the limit.
+    """
+    if not axes:
+        return
+    points = math.prod(len(a) for a in axes)
+    jobs = points * per_point * graphs
+    if jobs <= MAX_GRID_JOBS:
+        return
+    count = f"{points:,} grid points ({' x '.join(f'{len(a):,}' for a in axes)})"
+    if graphs > 1:
+        count += f" x {graphs:,} graphs"
+    if per_point > 1:
+        count += f" x {per_point:,} (thresholds x repeats)"
+    if jobs != points:
+        count += f" = {jobs:,} jobs"
+    raise ConfigError(
+        f"the sweep's grid has {count}; a grid sweep runs at most {MAX_GRID_JOBS:,} jobs "
+        "(docs/sweeps.md): use fewer values, or split it into several sweeps"
+    )
 
 
 def grid_points(axes: tuple[Axis, ...], rest: dict, source: Path | None) -> tuple[GridPoint, ...]:
@@ -189,9 +238,13 @@ def grid_points(axes: tuple[Axis, ...], rest: dict, source: Path | None) -> tupl
 
 
 def point_label(values) -> str:
-    """``model.phase_lag=0.1, dynamics.threshold=0.9``: a point as the user wrote it."""
+    """``model.phase_lag=0.1, dynamics.threshold=0.9``: a point as the user wrote it.
+
+    Injective: points with different values get different labels (:func:`point_text`); the
+    summary groups records by this label.
+    """
     items = values.items() if isinstance(values, dict) else values
-    return ", ".join(f"{k}={_text(v)}" for k, v in items)
+    return ", ".join(f"{k}={point_text(v)}" for k, v in items)
 
 
 def point_suffix(point: GridPoint, axes: tuple[Axis, ...]) -> str:
@@ -199,7 +252,9 @@ def point_suffix(point: GridPoint, axes: tuple[Axis, ...]) -> str:
 
     Each key by its last part (``r`` for a threshold), or its whole dotted path (dots as
     underscores) where two keys end alike; a value that is not a number or a short name by
-    its position on its axis (``_frequencies#2``).
+    its position on its axis (``_frequencies#2``). Injective on the points of one grid: a
+    value's text (:func:`point_text`) holds no ``_``, so the keys' parts cannot run together,
+    and different values of a key have different texts or positions.
     """
     keys = [k for a in axes for k in a.keys]
     last = [k.rsplit(".", 1)[-1] for k in keys]
@@ -212,27 +267,92 @@ def point_suffix(point: GridPoint, axes: tuple[Axis, ...]) -> str:
         elif last.count(short) > 1:
             short = key.replace(".", "_")
         value = flat[key]
-        text = _text(value)
+        text = point_text(value)
         if not re.fullmatch(r"[A-Za-z0-9.+-]{1,24}", text):
             text = f"#{position[key]}"
         out += f"_{short}{text}"
     return out
 
 
-def _text(value) -> str:
+def number_name(value: float) -> str:
+    """A number as a name: ``f"{value:g}"`` where that reads back as ``value`` (``0.1``,
+    ``1000``, ``1e+06``, ``0.001``: the names of files written before this rule), else in full
+    (an integer's digits, a float's shortest round-trip ``repr``: ``1000001``, ``0.1000001``).
+
+    Different numbers always get different texts, where ``:g`` (six significant digits) wrote
+    seeds 1000001 and 1000002 both as ``1e+06``.
+    """
+    try:
+        text = f"{value:g}"
+    except OverflowError:  # an integer beyond the float range
+        return str(value)
+    if float(text) == value:
+        return text
+    return str(value) if isinstance(value, int) else repr(float(value))
+
+
+def point_text(value) -> str:
+    """A grid value as :func:`point_label` and :func:`point_suffix` write it, one text per value:
+    a number by :func:`number_name`, ``true``/``false``/``none``, a plain string as it is
+    (quoted, ``"0.1"``, ``"true"``, ``"none"``, where it would read back as another value or
+    holds spaces or punctuation), a list or mapping in YAML's flow style, items written alike."""
     if isinstance(value, bool) or value is None:
         return str(value).lower()
     if isinstance(value, int | float):
-        return f"{value:g}"
+        return number_name(value)
     if isinstance(value, str):
-        return value
-    return show(value)
+        if re.fullmatch(r"[A-Za-z0-9.+/-]+", value) and _plain(value):
+            return value
+        return json.dumps(value)
+    if isinstance(value, dict):
+        return "{" + ", ".join(f"{point_text(k)}: {point_text(v)}" for k, v in value.items()) + "}"
+    if isinstance(value, list | tuple):
+        return "[" + ", ".join(point_text(v) for v in value) + "]"
+    return json.dumps(str(value))  # YAML's dates and the like: as their text, quoted
 
 
-def _same(a, b) -> bool:
-    if isinstance(a, int | float) and isinstance(b, int | float) and not isinstance(a, bool | str):
-        return not isinstance(b, bool) and (a == b or (math.isnan(a) and math.isnan(b)))
-    return a == b
+def _plain(text: str) -> bool:
+    """Whether ``text`` can be shown unquoted: YAML reads it as that string (not ``0.1``,
+    ``true``) and it is not the text of another value (``nan``, ``inf``, ``none``)."""
+    if text.lower() == "none":
+        return False
+    try:
+        float(text)
+        return False
+    except ValueError:
+        pass
+    try:
+        return yaml_load(text) == text
+    except Exception:
+        return False
+
+
+def _canonical(value):
+    """A hashable stand-in for ``value``, equal for values that set the same config: numbers by
+    value (``1`` and ``1.0`` are one value, every NaN is one), booleans apart from numbers,
+    containers item by item."""
+    if isinstance(value, bool) or value is None:
+        return ("const", value)
+    if isinstance(value, int | float):
+        return ("nan",) if isinstance(value, float) and math.isnan(value) else ("num", value)
+    if isinstance(value, dict):
+        return ("dict", frozenset((_canonical(k), _canonical(v)) for k, v in value.items()))
+    if isinstance(value, list | tuple):
+        return ("list", tuple(_canonical(v) for v in value))
+    if isinstance(value, str):
+        return ("str", value)
+    return ("other", repr(value))
+
+
+def _repeated(values: list):
+    """The first value of ``values`` listed twice (:func:`_canonical`), or None; one pass."""
+    seen = set()
+    for v in values:
+        c = _canonical(v)
+        if c in seen:
+            return v
+        seen.add(c)
+    return None
 
 
 def _check_key(where: str, key) -> None:

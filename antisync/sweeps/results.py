@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from antisync.errors import StoreError
 from antisync.sweeps.analysis import summarize
 
 __all__ = ["sweep_summary"]
@@ -29,4 +30,7 @@ def sweep_summary(path: str | Path, views=None) -> dict:
 
     meta = read_meta(path)
     views = views if views is not None else read_views(path)
-    return summarize(meta, views)
+    try:
+        return summarize(meta, views)
+    except StoreError as exc:  # a file that cannot be read as it is: say which
+        raise StoreError(f"{path}: {exc}") from None

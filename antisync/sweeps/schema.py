@@ -26,7 +26,15 @@ from antisync.config import (
 )
 from antisync.errors import ConfigError
 from antisync.sweeps.families import FAMILIES, family_specs
-from antisync.sweeps.points import Axis, GridPoint, axis_option, grid_points, sweep_axes
+from antisync.sweeps.points import (
+    THRESHOLD_KEYS,
+    Axis,
+    GridPoint,
+    axis_option,
+    check_grid_size,
+    grid_points,
+    sweep_axes,
+)
 from antisync.validation import choice, number, positive, unknown_keys
 
 __all__ = ["PAPER_THRESHOLD", "Screen", "Sweep", "Top", "load_sweep", "load_sweep_text"]
@@ -115,6 +123,9 @@ class Sweep:
         without a grid.
     points : tuple of GridPoint
         Every point of the grid with its validated config; ``()`` without a grid.
+    notes : tuple of str
+        What the command line changed in the config that the user should hear of (a
+        ``--grid KEY`` replacing the config's ``sweep.grid.KEY``); not part of the sweep.
     """
 
     name: str
@@ -127,6 +138,7 @@ class Sweep:
     base: Config
     axes: tuple[Axis, ...] = ()
     points: tuple[GridPoint, ...] = ()
+    notes: tuple[str, ...] = ()
 
     @property
     def output(self) -> str:
@@ -188,8 +200,10 @@ def load_sweep(
 
     ``overrides`` and ``values`` are those of :func:`antisync.config.load_config`; ``grid``
     and ``zip_`` are ``KEY=V1,V2,...`` items of the CLI's ``--grid`` / ``--zip``, which set
-    (or replace) ``sweep.grid.KEY`` / ``sweep.zip.KEY`` (a run config with ``graph:`` and no
-    ``sweep:`` becomes a grid sweep of that graph).
+    ``sweep.grid.KEY`` / ``sweep.zip.KEY`` (a run config with ``graph:`` and no ``sweep:``
+    becomes a grid sweep of that graph). An option replaces the config's list of its key, as
+    ``--set`` replaces a value, and says so in :attr:`Sweep.notes`; a key given twice on the
+    command line, or in ``grid`` on one side and ``zip`` on the other, is refused.
     """
     path = Path(path)
     text = read_config_text(path)
@@ -211,7 +225,7 @@ def load_sweep_text(
 ) -> Sweep:
     """Like :func:`load_sweep` for YAML text."""
     raw = parse_mapping(text, overrides, values)
-    _apply_axis_options(raw, grid, zip_)
+    notes = _apply_axis_options(raw, grid, zip_)
     if "sweep" not in raw:
         raise ConfigError(
             "missing key 'sweep' (e.g. sweep: {family: atlas, nodes: 6}); "
@@ -277,6 +291,9 @@ def load_sweep_text(
             f"a sweep screens and ranks its graphs by Lambda^KM: measures must include km, got "
             f"{list(base.measures)}; for exact measures only use `antisync run` or antisync.measures"
         )
+    # refused from the axes' lengths, before a config is validated per point
+    per_point = repeats * (1 if any(k in THRESHOLD_KEYS for a in axes for k in a.keys) else len(thresholds))
+    check_grid_size(axes, per_point=per_point, graphs=len(specs))
     points = grid_points(axes, rest, source)
     swept = [p.threshold for p in points if p.threshold is not None]
     if swept:
@@ -312,6 +329,7 @@ def load_sweep_text(
         base=base,
         axes=axes,
         points=points,
+        notes=tuple(notes),
     )
 
 
@@ -404,21 +422,51 @@ def _int_list(key: str, value, lo: int, hi: int) -> list[int]:
     return sorted(set(items))
 
 
-def _apply_axis_options(raw: dict, grid: list[str] | None, zip_: list[str] | None) -> None:
-    """Set ``--grid`` / ``--zip`` items into ``raw["sweep"]`` (made for a run config)."""
+def _apply_axis_options(raw: dict, grid: list[str] | None, zip_: list[str] | None) -> list[str]:
+    """Set ``--grid`` / ``--zip`` items into ``raw["sweep"]`` (made for a run config).
+
+    Returns the notes to show: each config list an option replaced. A key given twice on the
+    command line (the first list would be dropped), or given to one part on the command line
+    and in the other part in the config, is a :class:`ConfigError` naming it.
+    """
+    notes: list[str] = []
     if not grid and not zip_:
-        return
+        return notes
     section = raw.get("sweep")
     if section is None:
         section = raw["sweep"] = {}
     if not isinstance(section, dict):
-        return  # refused with the config's own message
+        return notes  # refused with the config's own message
+    given: dict[str, str] = {}  # key -> the option that gave it
     for option, part, items in (("--grid", "grid", grid), ("--zip", "zip", zip_)):
         for item in items or []:
             key, values = axis_option(option, item)
-            if not isinstance(section.get(part), dict):
-                section[part] = {}
-            section[part][key] = values
+            if key in given:
+                if given[key] == option:
+                    raise ConfigError(
+                        f"{option} {key} is given twice: give all its values in one list "
+                        f"({option} {key}=V1,V2,...)"
+                    )
+                raise ConfigError(f"{key} is given to both --grid and --zip: give it to one of them")
+            given[key] = option
+            other = "zip" if part == "grid" else "grid"
+            if isinstance(section.get(other), dict) and key in section[other]:
+                raise ConfigError(
+                    f"{option} {key}: the config's sweep.{other} already sweeps {key}; "
+                    f"give it in one of sweep.grid and sweep.zip"
+                )
+            current = section.get(part)
+            if current is None:
+                current = section[part] = {}
+            if not isinstance(current, dict):
+                return notes  # refused by sweep_axes, naming sweep.grid / sweep.zip
+            if key in current:
+                notes.append(
+                    f"{option} {key} replaces the config's sweep.{part}.{key} "
+                    f"({len(current[key]) if isinstance(current[key], list) else 1} value(s))"
+                )
+            current[key] = values
+    return notes
 
 
 def _family(value) -> dict:

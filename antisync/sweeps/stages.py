@@ -10,8 +10,12 @@ any moment and rerun with ``resume=True`` ends with the same numbers as an unint
 
 from __future__ import annotations
 
+import json
+import sys
 from dataclasses import asdict, replace
 from pathlib import Path
+
+from tqdm import tqdm
 
 from antisync import graphs as graphs_mod
 from antisync.config import Config
@@ -19,7 +23,7 @@ from antisync.errors import ConfigError, StoreError
 from antisync.jobs import make_job
 from antisync.sweeps.analysis import ranking
 from antisync.sweeps.families import GraphEntry, family_graphs
-from antisync.sweeps.points import GridPoint, point_suffix
+from antisync.sweeps.points import GridPoint, number_name, point_label, point_suffix
 from antisync.sweeps.schema import Sweep
 
 __all__ = ["check_sweep", "main_jobs", "run_sweep", "top_jobs"]
@@ -30,7 +34,7 @@ def _job_name(graph: str, threshold: float, repeat: int, sweep: Sweep, point: Gr
     if point is not None:
         name += point_suffix(point, sweep.axes)
     if len(sweep.thresholds) > 1 and (point is None or point.threshold is None):
-        name += f"_r{threshold:g}"
+        name += f"_r{number_name(threshold)}"  # 0.99 and 0.9900001 are two names
     if sweep.repeats > 1:
         name += f"_rep{repeat}"
     return name
@@ -61,36 +65,122 @@ def _job_config(
     )
 
 
-def main_jobs(sweep: Sweep, entries: list[GraphEntry]) -> tuple[list, list[dict]]:
+def main_jobs(sweep: Sweep, entries: list[GraphEntry], *, progress: bool = False) -> tuple[list, list[dict]]:
     """Jobs of the main stage (representative edges only) and their descriptions.
 
     One job per (graph, grid point, threshold, repeat); a point that sets the threshold has
     only its own. The description of a grid's job has its ``point`` (``{key: value}``).
+    ``progress``: a bar while the jobs are built (their coupling arrays take a few
+    milliseconds each: seconds for a grid of thousands of points).
+
+    Raises
+    ------
+    ConfigError
+        Two jobs would have the same name (:func:`_refuse_shared_names`), before any is built.
     """
-    jobs, meta = [], []
+    plan = []
     for entry in entries:
         for point in sweep.points or (None,):
             thresholds = sweep.thresholds if point is None or point.threshold is None else (point.threshold,)
             for t in thresholds:
                 for k in range(sweep.repeats):
                     name = _job_name(entry.name, t, k, sweep, point)
-                    betas = sweep.base.betas if k == 0 else ()
-                    cfg = _job_config(
-                        sweep,
-                        entry,
-                        entry.representatives,
-                        threshold=t,
-                        seed=sweep.base.seed + k,
-                        betas=betas,
-                        name=name,
-                        point=point,
-                    )
-                    jobs.append(make_job(cfg, graph=entry.graph, name=name))
                     desc = {"job": name, "graph": entry.name, "threshold": t, "repeat": k, "stage": "main"}
                     if point is not None:
                         desc["point"] = point.as_dict()
-                    meta.append(desc)
+                    plan.append((entry, point, desc))
+    _refuse_shared_names([desc for _, _, desc in plan], sweep)
+    jobs, meta = [], []
+    bar = tqdm(
+        total=len(plan),
+        unit="job",
+        desc="planning",
+        disable=not progress or len(plan) < 500,
+        file=sys.stderr,
+        dynamic_ncols=True,
+    )
+    for entry, point, desc in plan:
+        k = desc["repeat"]
+        cfg = _job_config(
+            sweep,
+            entry,
+            entry.representatives,
+            threshold=desc["threshold"],
+            seed=sweep.base.seed + k,
+            betas=sweep.base.betas if k == 0 else (),
+            name=desc["job"],
+            point=point,
+        )
+        jobs.append(make_job(cfg, graph=entry.graph, name=desc["job"]))
+        meta.append(desc)
+        bar.update(1)
+    bar.close()
     return jobs, meta
+
+
+def _describe(desc: dict, sweep: Sweep) -> str:
+    """A main-stage job in words: its graph, point, threshold and repeat where they vary."""
+    parts = [f"graph {desc['graph']}" + (" (top stage)" if desc.get("stage") == "top" else "")]
+    if "point" in desc:
+        parts.append(f"grid point {point_label(desc['point'])}")
+    elif len(sweep.thresholds) > 1 and desc.get("stage") != "top":
+        parts.append(f"threshold {desc['threshold']!r}")
+    if sweep.repeats > 1 and desc.get("stage") != "top":
+        parts.append(f"repeat {desc['repeat']}")
+    return " ".join(parts)
+
+
+def _refuse_shared_names(descs: list[dict], sweep: Sweep) -> None:
+    """Refuse two jobs of one name: the file keeps one group per name, so one of them would
+    be shown with the other's numbers. Point names are injective on the values
+    (:func:`~antisync.sweeps.points.point_suffix`); this is the guard for anything else (a
+    graph named ``g_top`` beside the top-stage job of a graph ``g``, say)."""
+    seen: dict[str, dict] = {}
+    for desc in descs:
+        other = seen.setdefault(desc["job"], desc)
+        if other is not desc:
+            raise ConfigError(
+                f"{_describe(other, sweep)} and {_describe(desc, sweep)} would both be job "
+                f"{desc['job']!r} (one would show the other's numbers): give the graphs other "
+                "name: keys, or use other grid values"
+            )
+
+
+def _refuse_renamed_jobs(path: Path, stored: dict, meta: list[dict]) -> None:
+    """Refuse to resume a file whose jobs this version names otherwise (or that holds two
+    points under one name), before anything is computed.
+
+    Its stored jobs (``stored["jobs"]``) and the sweep's (``meta``) are matched by (graph,
+    point, threshold, repeat); a different name means the file was written by an antisync
+    that named grid values with six significant digits (``1e+06`` for seed 1000001): its
+    groups would not be found (computed again, the old ones kept beside them) or, where two
+    points shared a name, one point holds the other's numbers.
+    """
+
+    def where(desc: dict) -> str:
+        point = json.dumps(desc.get("point"), sort_keys=True, default=str)
+        return json.dumps([desc["graph"], point, float(desc["threshold"]), desc["repeat"]])
+
+    old = [d for d in stored.get("jobs", []) if d.get("stage") == "main"]
+    names: dict[str, dict] = {}
+    for d in old:
+        first = names.setdefault(d["job"], d)
+        if first is not d:
+            raise StoreError(
+                f"{path} holds grid points {point_label(first.get('point') or {})} and "
+                f"{point_label(d.get('point') or {})} under one job {d['job']!r} (written by an "
+                "antisync that named values with 6 digits); one shows the other's numbers: run "
+                "the sweep again with --overwrite"
+            )
+    ours = {where(d): d["job"] for d in meta}
+    for d in old:
+        new = ours.get(where(d))
+        if new is not None and new != d["job"]:
+            raise StoreError(
+                f"{path} names the job of {point_label(d.get('point') or {})} {d['job']!r}, this "
+                f"antisync {new!r} (job names now tell apart values such as 0.1 and 0.1000001): "
+                "finish it with the antisync that started it, or start again with --overwrite"
+            )
 
 
 def top_jobs(sweep: Sweep, entries: list[GraphEntry], records: list[dict]) -> tuple[list, list[dict]]:
@@ -143,13 +233,16 @@ def run_sweep(
 
     store = ResultStore(output or sweep.output)
     entries = family_graphs(sweep)
-    check_sweep(sweep, entries)  # every refusal before the output or its journal is touched
+    show = sys.stderr.isatty() if progress is None else bool(progress)
+    # every refusal before the output or its journal is touched; its jobs are the main stage's
+    planned = check_sweep(sweep, entries, progress=show)
     with store.lock(read_only_ok=resume) as writable:
         store.prepare(resume=resume, overwrite=overwrite)
         try:
             return _run_sweep_locked(
                 sweep,
                 entries,
+                planned,
                 store,
                 writable,
                 resume=resume,
@@ -168,6 +261,7 @@ def run_sweep(
 def _run_sweep_locked(
     sweep: Sweep,
     entries: list[GraphEntry],
+    planned: tuple[list, list[dict]],
     store,
     writable: bool,
     *,
@@ -178,11 +272,8 @@ def _run_sweep_locked(
     chunk_realizations,
     checkpoint_seconds,
 ) -> Path:
-    """The body of :func:`run_sweep`, with ``store`` locked and prepared."""
-    import sys
-
-    from tqdm import tqdm
-
+    """The body of :func:`run_sweep`, with ``store`` locked and prepared; ``planned``: the
+    main stage's jobs of every graph (:func:`check_sweep`)."""
     from antisync.runner import run_jobs
     from antisync.screening import ScreenResult, screen_graph
     from antisync.stopping import already_stopped
@@ -196,6 +287,8 @@ def _run_sweep_locked(
         store.load_states([], key)  # a file or journal of another sweep is an error, now
     # while an --overwrite replaces the file, the sweep's own checkpoints are in store.current
     stored = read_sweep_meta(store.current) if resume and store.current.exists() else None
+    if stored is not None:
+        _refuse_renamed_jobs(path, stored, planned[1])
     if resume and stored is not None and stored.get("complete") and store.file_complete():
         # every stage finished with this key: the file stays exactly as it is
         if writable:
@@ -271,7 +364,9 @@ def _run_sweep_locked(
         raise ConfigError(f"sweep {sweep.name}: every graph was excluded by the screening")
 
     # -- 2. main stage ---------------------------------------------------------------------
-    jobs, jobs_meta = main_jobs(sweep, kept)
+    kept_names = {e.name for e in kept}  # the planned jobs of the graphs the screening kept
+    jobs = [j for j, m in zip(*planned, strict=True) if m["graph"] in kept_names]
+    jobs_meta = [m for m in planned[1] if m["graph"] in kept_names]
     saved = _symmetry(sweep, kept, jobs)
     say(
         f"symmetry: {saved['directed_edges']} directed edges in {saved['representatives']} orbits; "
@@ -339,8 +434,11 @@ def _top_job(sweep: Sweep, entry: GraphEntry, edge):
     return make_job(replace(cfg, keep_pairs=0), graph=entry.graph, name=name)
 
 
-def check_sweep(sweep: Sweep, entries: list[GraphEntry], backend: str | None = None) -> None:
-    """Refuse, before anything is written, every job the sweep could run.
+def check_sweep(
+    sweep: Sweep, entries: list[GraphEntry], backend: str | None = None, *, progress: bool = False
+) -> tuple[list, list[dict]]:
+    """Refuse, before anything is written, every job the sweep could run; returns the main
+    stage's jobs of every graph and their descriptions (:func:`main_jobs`, ``progress`` its bar).
 
     The main stage's jobs of every graph (screening may exclude some, never add one) and, for
     the top stage, each graph's job on its first representative edge with the top stage's
@@ -358,11 +456,15 @@ def check_sweep(sweep: Sweep, entries: list[GraphEntry], backend: str | None = N
     if backend is None:
         backend, _ = resolve_backend(sweep.base.backend)
     _check_backend(sweep, entries, backend)
-    jobs, _ = main_jobs(sweep, entries)
+    main, meta = main_jobs(sweep, entries, progress=progress)
+    jobs = list(main)
     if sweep.top.graphs > 0:
         jobs += [_top_job(sweep, entry, entry.representatives[0]) for entry in entries]
+        top = [{"job": f"{e.name}_top", "graph": e.name, "stage": "top"} for e in entries]
+        _refuse_shared_names(meta + top, sweep)
     for job in with_nnc(jobs):
         check_job(job, backend)
+    return main, meta
 
 
 def _check_backend(sweep: Sweep, entries: list[GraphEntry], backend: str) -> None:
