@@ -22,7 +22,7 @@ from pathlib import Path
 
 from antisync.errors import StoreError
 from antisync.store.journal import foreign_entry
-from antisync.store.outputs import journal_around
+from antisync.store.outputs import check_file_path
 from antisync.store.provenance import command_line, now
 
 try:  # POSIX; elsewhere runs are not locked (see OutputLock.hold)
@@ -70,24 +70,7 @@ class OutputLock:
         unfinished work), and a ``.partial`` journal or ``.lock`` file that is not antisync's.
         """
         p = self.path
-        if p.is_symlink():
-            raise StoreError(
-                f"output {p} is a symbolic link (to {os.readlink(p)}); antisync replaces its output "
-                "file and would replace the link, not its target: give the target's path or another --out"
-            )
-        if p.is_dir():
-            raise StoreError(f"output {p} is a directory; give a file path ending in .h5")
-        if p.exists() and not p.is_file():
-            raise StoreError(
-                f"output {p} is not a regular file (a device, FIFO or socket); "
-                "give --out a file path ending in .h5"
-            )
-        inside = journal_around(p)
-        if inside is not None:
-            raise StoreError(
-                f"output {p} lies inside {inside}, where antisync keeps an unfinished run's work (writing "
-                "there would make that run unresumable); give --out a path outside it"
-            )
+        check_file_path(p, "output", ".h5")
         ancestor = p.parent
         while not os.path.lexists(ancestor) and ancestor != ancestor.parent:
             ancestor = ancestor.parent

@@ -32,6 +32,7 @@ from antisync.errors import StoreError
 
 __all__ = [
     "JOURNAL_SUFFIX",
+    "check_file_path",
     "check_output_path",
     "config_inputs",
     "image_problem",
@@ -123,6 +124,29 @@ def image_problem(path: str | Path) -> str | None:
     return f"not a {suffix or 'suffixed'} image antisync writes"
 
 
+def check_file_path(path: Path, option: str, suffix: str, error: type[Exception] = StoreError) -> None:
+    """The checks every output path of antisync passes (an HDF5 result file's too, see
+    :meth:`antisync.store.lock.OutputLock.check_target`): not a symbolic link (the atomic rename
+    would replace the link, not its target), not a folder, device, FIFO or socket, and not
+    inside a ``*.partial`` journal folder (another run's unfinished work); one-line ``error``
+    naming ``option`` otherwise."""
+    if path.is_symlink():
+        raise error(
+            f"{option} {path} is a symbolic link (to {os.readlink(path)}); antisync replaces its output "
+            "file and would replace the link, not its target: give the target's path or another file"
+        )
+    if path.is_dir():
+        raise error(f"{option} {path} is a folder; give a file name ending in {suffix}")
+    if path.exists() and not path.is_file():
+        raise error(f"{option} {path} is not a regular file (a device, FIFO or socket); give another file")
+    journal = journal_around(path)
+    if journal is not None:
+        raise error(
+            f"{option} {path} lies inside {journal}, where antisync keeps an unfinished run's work; a "
+            "file written there makes that run unresumable: give a path outside it"
+        )
+
+
 def check_output_path(
     path: str | Path,
     *,
@@ -169,15 +193,7 @@ def check_output_path(
         raise error(f"{option} {str(path)!r} names no file; give a file name ending in {suffixes[0]}")
     if path.suffix.lower() not in suffixes:
         raise error(f"{option} {path}: {hint}")
-    if path.is_symlink():
-        raise error(
-            f"{option} {path} is a symbolic link (to {os.readlink(path)}); antisync replaces its output "
-            "file and would replace the link, not its target: give the target's path or another file"
-        )
-    if path.is_dir():
-        raise error(f"{option} {path} is a folder; give a file name ending in {suffixes[0]}")
-    if path.exists() and not path.is_file():
-        raise error(f"{option} {path} is not a regular file (a device, FIFO or socket); give another file")
+    check_file_path(path, option, suffixes[0], error)
     if not path.parent.is_dir():
         what = "is not a folder" if path.parent.exists() else "does not exist"
         raise error(f"{option} {path}: the folder {path.parent} {what}")
@@ -192,12 +208,6 @@ def check_output_path(
                     f"{option} {path} is {what} ({source}), an input of this run: give another file "
                     "(it is left as it is)"
                 )
-    journal = journal_around(path)
-    if journal is not None:
-        raise error(
-            f"{option} {path} lies inside {journal}, where antisync keeps an unfinished run's work; a "
-            "file written there makes that run unresumable: give a path outside it"
-        )
     if path.exists():
         if not overwrite:
             raise error(f"{path} exists; pass --overwrite to replace it (it is left as it is)")
