@@ -179,10 +179,10 @@ def summarize(path: str | Path) -> dict:
 def _summarize(path: Path) -> dict:
     from antisync.errors import StoreError
     from antisync.records import flag_signs
-    from antisync.report.describe import model_line, stored_config, stored_name
+    from antisync.report.describe import model_line, stored_config
     from antisync.store import is_sweep_file, read_views, root_attrs, stop_record
     from antisync.sum_rule import views_sums
-    from antisync.summary import named_views, r_star_rows, view_records
+    from antisync.summary import r_star_rows, view_records
     from antisync.sweeps import sweep_summary
 
     root = root_attrs(path)
@@ -201,8 +201,6 @@ def _summarize(path: Path) -> dict:
             **model,
             **{k: s[k] for k in _SWEEP_KEYS},
         }
-    # each job called by the config's name:, as the summary table and the report's figures call it
-    views = named_views(views, stored_name(root["config_yaml"]))
     recs = view_records(views)
     import yaml
 

@@ -597,8 +597,14 @@ def simple_graph(graph: nx.Graph, where: str, weight: str = "weight") -> nx.Grap
 
 
 def _usable_weight(w) -> bool:
-    """A positive finite real number (not a bool, not a string of one)."""
-    return not isinstance(w, bool) and isinstance(w, numbers.Real) and w > 0 and math.isfinite(w)
+    """A positive finite real number (not a bool, not a string of one, not an integer too
+    large for a float)."""
+    if isinstance(w, bool) or not isinstance(w, numbers.Real):
+        return False
+    try:
+        return w > 0 and math.isfinite(w)
+    except OverflowError:  # math.isfinite of an int beyond float's range
+        return False
 
 
 def graph_spec(graph: nx.Graph, where: str = "graph") -> dict:

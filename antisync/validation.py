@@ -78,9 +78,13 @@ _EXACT = 2**53
 def show(value) -> str:
     """``repr(value)``, shortened: a 400-digit integer is ``1000...000 (401 digits)``."""
     if isinstance(value, numbers.Integral) and not isinstance(value, bool):
-        digits = str(abs(int(value)))
+        sign = "-" if value < 0 else ""
+        try:
+            digits = str(abs(int(value)))
+        except ValueError:  # beyond Python's limit on int -> str (4300 digits)
+            about = int(abs(int(value)).bit_length() * math.log10(2)) + 1
+            return f"{sign}an integer of about {about} digits"
         if len(digits) > 24:
-            sign = "-" if value < 0 else ""
             return f"{sign}{digits[:4]}...{digits[-3:]} ({len(digits)} digits)"
     text = repr(value)
     return text if len(text) <= 80 else text[:60] + "..." + text[-10:]

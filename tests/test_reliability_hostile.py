@@ -413,3 +413,17 @@ def test_a_run_output_inside_another_runs_journal_folder_is_refused(tmp_path):
     res = runner.invoke(app, ["run", str(cfg), "--out", str(journal / "y.h5")])
     assert_one_line(res, "x.h5.partial, where antisync keeps an unfinished run's work")
     assert list(journal.iterdir()) == []
+
+
+def test_an_integer_weight_beyond_floats_range_is_one_line():
+    """A weight of 10**400 (an int no float holds; hypothesis found it) is refused as a weight
+    that is not a positive finite number, not an OverflowError."""
+    from antisync.errors import AntisyncError
+    from antisync.measures import for_graph
+
+    for weight in (10**400, 10**5000):  # 5,000 digits: beyond what str() of an int allows
+        g = nx.path_graph(3)
+        g.edges[0, 1]["weight"] = weight
+        with pytest.raises(AntisyncError, match="weights must be positive finite numbers") as err:
+            for_graph(g, which=["xi2"])
+        assert "\n" not in str(err.value)
