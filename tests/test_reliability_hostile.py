@@ -318,10 +318,14 @@ def test_the_summary_calls_a_generated_graph_by_the_configs_name(tmp_path):
     )
     out = tmp_path / "ws.h5"
     assert invoke("run", cfg, "--out", out, "-q").exit_code == 0
-    for fmt in ("table", "csv"):
-        res = invoke("summary", out, "--format", fmt)
-        assert res.exit_code == 0, res.output
-        assert "ws24" in res.stdout and "connected_watts_strogatz_graph" not in res.stdout, res.stdout
+    res = invoke("summary", out)
+    assert res.exit_code == 0, res.output
+    assert "ws24" in res.stdout and "connected_watts_strogatz_graph" not in res.stdout, res.stdout
+    # CSV and JSON, read by programs, keep the job's name (its HDF5 group's) and agree
+    csv_rows = invoke("summary", out, "--format", "csv").stdout.splitlines()[1:]
+    json_recs = json.loads(invoke("summary", out, "--format", "json").stdout)["records"]
+    assert {row.split(",")[0] for row in csv_rows} == {r["graph"] for r in json_recs}
+    assert {r["graph"] for r in json_recs} == {"connected_watts_strogatz_graph"}
     res = invoke("report", out, "--out", tmp_path / "figs", "-q")
     assert res.exit_code == 0, res.output
     names = {p.name for p in (tmp_path / "figs").iterdir()}

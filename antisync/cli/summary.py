@@ -74,9 +74,12 @@ def summary(
                 if line:
                     typer.echo(line)
     else:
-        # decoded once for the records and the sum rule; each job called by the config's
-        # name:, as the report's figures call it
-        views = named_views(read_views(results), stored_name(root_attrs(results)["config_yaml"]))
+        # decoded once for the records and the sum rule. The table, read by people, calls each
+        # job by the config's name: as the report's figures do; CSV and JSON, read by programs,
+        # keep the job's name (its HDF5 group's), as antisync.summarize does
+        views = read_views(results)
+        if format == "table":
+            views = named_views(views, stored_name(root_attrs(results)["config_yaml"]))
         recs = listed(view_records(views))
         typer.echo(format_records(recs, format))
         if format == "table":
