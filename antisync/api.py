@@ -23,7 +23,7 @@ arrays count as the Python numbers and lists they hold.
 
 A networkx graph object is a graph spec too (``{"graph": G}``, ``graph=G``, an item of a
 sweep's ``sweep.graphs``): it is read as :func:`antisync.measures.for_graph` reads it and
-written into the config as ``{kind: inline, links: [...]}`` (:func:`antisync.graphs.graph_spec`),
+written into the config as ``{kind: inline, links: [...]}`` (:func:`antisync.physics.graphs.graph_spec`),
 so the result file holds the graph and ``resume``, ``antisync summary`` and ``antisync report``
 need no object.
 
@@ -38,12 +38,22 @@ from __future__ import annotations
 import os
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
-from functools import cache
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from antisync.plan.sources import (
+    file_path,
+    flag,
+    override_values,
+    plain,
+    resolve_config,
+    sections,
+    shown,
+    sweep_graphs,
+)
+
 if TYPE_CHECKING:
-    from antisync.config import Config
+    from antisync.plan.config import Config
 
 __all__ = ["Result", "load", "run", "summarize", "sweep"]
 
@@ -73,7 +83,7 @@ class Result:
         One record per (graph, directed edge, beta): ``F_mean``, ``lambda_km``, ``tau0_mean``
         with their standard errors, status counts (``n``, ``n_excluded``, ``n_not_synced``),
         ``complete``, ``sign_resolved`` and ``sign_per_link``
-        (:func:`antisync.records.flag_signs`), ``r_star`` and ``r_star_damaged``
+        (:func:`antisync.stats.records.flag_signs`), ``r_star`` and ``r_star_damaged``
         (``sync.criterion: relative``, else None) and, when computed, ``lambda_xi2``,
         ``lambda_rw``, ``lambda_linear``, ``lambda_km_nnc``; ``antisync summary FILE --format
         json`` prints the same.
@@ -88,10 +98,10 @@ class Result:
         For a run or sweep with a stopping rule (docs/stopping.md): its looks, ``budget``,
         ``stopped_at``, ``stopped_early`` and the last look's counts and open links.
     model : str or None
-        Which model ran, in one line (:func:`antisync.report.describe.model_line`).
+        Which model ran, in one line (:func:`antisync.plan.describe.model_line`).
     r_star : list of dict
         ``sync.criterion: relative``: per graph, the r* of the undamaged network and its range
-        over the damaged variants (:func:`antisync.summary.r_star_rows`); empty for another
+        over the damaged variants (:func:`antisync.stats.summary.r_star_rows`); empty for another
         criterion and for a file written before r* was stored.
     """
 
@@ -154,13 +164,13 @@ def summarize(path: str | Path) -> dict:
     a run's or sweep's stopping rule did (:func:`antisync.store.stop_record`; ``null`` without
     one), and
     ``sum_rule``, per node whose out-links were all measured with normalized coupling, the sum
-    of their Lambda with its interval (:func:`antisync.sum_rule.node_sums`), ``model``, which
-    model ran in one line (:func:`antisync.report.describe.model_line`), and ``r_star``, per
+    of their Lambda with its interval (:func:`antisync.stats.sum_rule.node_sums`), ``model``, which
+    model ran in one line (:func:`antisync.plan.describe.model_line`), and ``r_star``, per
     graph run with ``sync.criterion: relative`` the r* of the undamaged network and its range
-    over the damaged variants (:func:`antisync.summary.r_star_rows`; empty for a file written
+    over the damaged variants (:func:`antisync.stats.summary.r_star_rows`; empty for a file written
     before r* was stored). The records carry ``sign_resolved`` (at false discovery rate 0.05
-    over the file's links) and ``sign_per_link`` (:func:`antisync.records.flag_signs`); the CLI
-    orders them with ``--sort`` (:func:`antisync.records.sort_records`).
+    over the file's links) and ``sign_per_link`` (:func:`antisync.stats.records.flag_signs`); the CLI
+    orders them with ``--sort`` (:func:`antisync.stats.records.sort_records`).
 
     Raises
     ------
@@ -178,11 +188,11 @@ def summarize(path: str | Path) -> dict:
 
 def _summarize(path: Path) -> dict:
     from antisync.errors import StoreError
-    from antisync.records import flag_signs
-    from antisync.report.describe import model_line, stored_config
+    from antisync.plan.describe import model_line, stored_config
+    from antisync.stats.records import flag_signs
+    from antisync.stats.sum_rule import views_sums
+    from antisync.stats.summary import r_star_rows, view_records
     from antisync.store import is_sweep_file, read_views, root_attrs, stop_record
-    from antisync.sum_rule import views_sums
-    from antisync.summary import r_star_rows, view_records
     from antisync.sweeps import sweep_summary
 
     root = root_attrs(path)
@@ -253,7 +263,7 @@ def run(
         (``{"graph": {"kind": "lollipop", "nodes": 6, "path": 3}}``, or ``{"graph": G}`` with
         a networkx graph ``G``: its ``weight`` attributes, default 1; records and figures are
         named by the config's ``name``, default ``graph``) or a
-        :class:`antisync.config.Config`.
+        :class:`antisync.plan.config.Config`.
     output : path, optional
         The HDF5 file (default: the config's ``output``, ``results/<name>.h5``).
     resume, overwrite : bool
@@ -263,7 +273,7 @@ def run(
     progress : bool
         Show a progress bar on stderr.
     executor : optional
-        A :class:`antisync.executors.dask.DaskExecutor` (or any object with ``run``,
+        A :class:`antisync.execution.executors.dask.DaskExecutor` (or any object with ``run``,
         ``describe`` and ``close``); it stays open. Default: a local executor.
     log : callable, optional
         Receives one-line progress messages (``log=print`` prints what the CLI prints).
@@ -292,17 +302,17 @@ def run(
     >>> res.records[0]["F_mean"] > 1                                 # doctest: +SKIP
     True
     """
-    from antisync.config import Config
     from antisync.errors import ConfigError
-    from antisync.runner import run_config
+    from antisync.execution.runner import run_config
+    from antisync.plan.config import Config
 
     if not isinstance(config, str | os.PathLike | Mapping | Config):
         raise ConfigError(
             f"antisync.run: config must be a YAML file path, a mapping of config keys or an "
-            f"antisync.config.Config, got {_shown(config)}"
+            f"antisync.plan.config.Config, got {shown(config)}"
         )
     opts = _options("antisync.run", resume, overwrite, progress, executor, log)
-    cfg = _config(config, overrides, output)
+    cfg = resolve_config(config, overrides, output)
     path = run_config(cfg, **opts)
     return load(path)
 
@@ -327,7 +337,7 @@ def sweep(
     family) is replaced whole, as its keys depend on its ``family``. The graph specs of
     ``sweep: {family: graphs, graphs: [...]}`` may be networkx graph objects, named
     ``graph1``, ``graph2``, ... by their place in the list (a spec of
-    :func:`antisync.graphs.graph_spec` with a ``name`` key names one).
+    :func:`antisync.physics.graphs.graph_spec` with a ``name`` key names one).
     """
     from antisync.errors import ConfigError
     from antisync.sweeps import Sweep, load_sweep, load_sweep_text, run_sweep
@@ -335,47 +345,20 @@ def sweep(
     if not isinstance(config, str | os.PathLike | Mapping):
         raise ConfigError(
             f"antisync.sweep: config must be a YAML file path or a mapping with a sweep: section "
-            f"(see configs/atlas6.yaml), got {_shown(config)}"
+            f"(see configs/atlas6.yaml), got {shown(config)}"
         )
     opts = _options("antisync.sweep", resume, overwrite, progress, executor, log)
-    overrides = {k: _sweep_graphs(v) if k == "sweep" else v for k, v in overrides.items()}
-    values = _values(overrides, output, _sections(Sweep))
+    overrides = {k: sweep_graphs(v) if k == "sweep" else v for k, v in overrides.items()}
+    values = override_values(overrides, output, sections(Sweep))
     if isinstance(config, Mapping):
         import yaml
 
-        raw = _plain({k: _sweep_graphs(v) if k == "sweep" else v for k, v in config.items()}, "config")
+        raw = plain({k: sweep_graphs(v) if k == "sweep" else v for k, v in config.items()}, "config")
         sw = load_sweep_text(yaml.safe_dump(raw), values=values)
     else:
-        sw = load_sweep(_file_path("config", config, ConfigError), values=values)
+        sw = load_sweep(file_path("config", config, ConfigError), values=values)
     path = run_sweep(sw, **opts)
     return load(path)
-
-
-@cache
-def _sections(*extra: type) -> frozenset[str]:
-    """The config keys that are sections: a mapping of their own options, merged key by key.
-
-    Read from the schema itself, so that a new section cannot be forgotten here: every field
-    of :class:`~antisync.config.Config` (and of ``extra``, e.g. the sweep's
-    :class:`~antisync.sweeps.Sweep`) whose type is a dataclass, written as in a config file
-    (``lambda_`` is ``lambda``). A field holding a whole config (a sweep's ``base``) is not a
-    section. ``graph`` (a plain dict) is not a section: its ``kind`` decides its keys, so it is
-    replaced whole.
-    """
-    from dataclasses import fields, is_dataclass
-    from typing import get_type_hints
-
-    from antisync.config import Config
-
-    classes = (Config, *extra)
-    names = set()
-    for cls in classes:
-        hints = get_type_hints(cls)
-        for f in fields(cls):
-            kind = hints[f.name]
-            if isinstance(kind, type) and is_dataclass(kind) and kind not in classes:
-                names.add("lambda" if f.name == "lambda_" else f.name)
-    return frozenset(names)
 
 
 def _options(where: str, resume, overwrite, progress, executor, log) -> dict:
@@ -383,7 +366,7 @@ def _options(where: str, resume, overwrite, progress, executor, log) -> dict:
     from antisync.errors import ConfigError
 
     opts = {
-        name: _flag(f"{where}: {name}", value)
+        name: flag(f"{where}: {name}", value)
         for name, value in (("resume", resume), ("overwrite", overwrite), ("progress", progress))
     }
     if opts["resume"] and opts["overwrite"]:
@@ -397,191 +380,17 @@ def _options(where: str, resume, overwrite, progress, executor, log) -> dict:
         if not usable:
             raise ConfigError(
                 f"{where}: executor must be None (a local executor) or an executor object such as "
-                f"antisync.executors.dask.DaskExecutor (with run, describe and close), got "
-                f"{_shown(executor)}"
+                f"antisync.execution.executors.dask.DaskExecutor (with run, describe and close), got "
+                f"{shown(executor)}"
             )
     if log is not None and not callable(log):
         raise ConfigError(
-            f"{where}: log must be None or a callable taking one string (e.g. print), got {_shown(log)}"
+            f"{where}: log must be None or a callable taking one string (e.g. print), got {shown(log)}"
         )
     return {**opts, "executor": executor, "log": log}
-
-
-def _flag(name: str, value) -> bool:
-    """``value`` as a bool: True, False or a numpy bool; anything else is a :class:`ConfigError`."""
-    import numpy as np
-
-    from antisync.errors import ConfigError
-
-    if isinstance(value, bool | np.bool_):
-        return bool(value)
-    raise ConfigError(f"{name} must be True or False, got {_shown(value)}")
-
-
-def _file_path(name: str, value, error: type[Exception]) -> Path:
-    """``value`` (a str or an ``os.PathLike``) as a :class:`Path`, or ``error`` naming ``name``."""
-    try:
-        text = os.fspath(value) if isinstance(value, os.PathLike) else value
-    except Exception:  # noqa: BLE001 -- a PathLike whose __fspath__ fails is no path
-        text = None
-    if not isinstance(text, str) or not text:
-        raise error(f"{name} must be a file path (a non-empty str or pathlib.Path), got {_shown(value)}")
-    if "\0" in text:  # the operating system cannot name such a file: pathlib would raise ValueError
-        raise error(f"{name} must be a file path, got {_shown(text)}, which holds a NUL character")
-    if any(ord(c) < 32 or ord(c) == 127 for c in text):
-        # a line break or tab in a name is nearly always a line read without .strip(), and no
-        # one-line message could show the name
-        raise error(f"{name} {_shown(text)} holds a control character (a line break, a tab); strip it")
-    try:
-        encoded = os.fsencode(text)
-    except UnicodeEncodeError:  # a lone surrogate such as "\ud800": no file system can store it
-        raise error(f"{name} {_shown(text)} is not a file name this system can store") from None
-    # checked here, before a folder on the way is made: the OS would refuse the name later
-    longest = max((len(os.fsencode(part)) for part in Path(text).parts), default=0)
-    if len(encoded) > _PATH_MAX or longest > _NAME_MAX:
-        raise error(
-            f"{name} {_shown(text, 40)} is too long for a file path ({len(encoded)} bytes, a "
-            f"name of {longest}; at most {_PATH_MAX} and {_NAME_MAX})"
-        )
-    return Path(text)
-
-
-#: the longest file name and path (bytes) nearly every file system takes (Linux ext4, macOS APFS)
-_NAME_MAX = 255
-_PATH_MAX = 4095
 
 
 def _result_path(path) -> Path:
     from antisync.errors import StoreError
 
-    return _file_path("path", path, StoreError)
-
-
-def _shown(value, limit: int = 80) -> str:
-    """``value`` for a one-line message: its repr on one line, shortened, followed by its type
-    unless it is None, a bool, an int, a float or a str (``array([1, 2]) (ndarray)``)."""
-    try:
-        text = repr(value)
-    except Exception:  # noqa: BLE001 -- a huge int (Python refuses > 4300 digits) or a broken __repr__
-        text = f"a {type(value).__name__} that cannot be printed"
-        if isinstance(value, int):
-            text = f"an integer of {value.bit_length()} bits"
-        return text
-    text = " ".join(text.split())
-    if len(text) > limit:
-        text = text[: limit - 3] + "..."
-    if value is None or type(value) in (bool, int, float, str):
-        return text
-    return f"{text} ({type(value).__name__})"
-
-
-def _plain(value, key: str, _depth: int = 0):
-    """``value`` as plain YAML data (None, bool, int, float, str, list, dict with str keys).
-
-    numpy scalars become the Python numbers they hold (``np.int64(100)`` is ``100``), numpy
-    arrays and tuples lists, paths (``os.PathLike``) strings. Anything else (bytes, sets,
-    objects, cycles) is a :class:`ConfigError` naming ``key``: it could not be stored in the
-    result file's YAML (yaml would raise a RepresenterError after the run had begun).
-    """
-    import numpy as np
-
-    from antisync.errors import ConfigError
-
-    if _depth > 64:  # also ends a list that holds itself
-        raise ConfigError(f"{key} is nested more than 64 levels deep (or holds itself); give plain YAML data")
-    if value is None or type(value) in (bool, int, float):
-        return value
-    if isinstance(value, np.ndarray):
-        value = value.tolist()
-    elif isinstance(value, np.generic):
-        value = value.item()
-    if isinstance(value, str):
-        try:
-            value.encode("utf-8")
-        except UnicodeEncodeError:  # a lone surrogate: no YAML file or HDF5 attribute can hold it
-            raise ConfigError(f"{key} must be text that UTF-8 can encode, got {_shown(value)}") from None
-    # subclasses (np.float64, an IntEnum, np.str_) as the plain type yaml.safe_dump knows
-    for plain in (bool, int, float, str):
-        if isinstance(value, plain):
-            return plain(value)
-    if isinstance(value, os.PathLike):
-        return _plain(os.fspath(value), key, _depth + 1)
-    if isinstance(value, list | tuple):
-        return [_plain(v, f"{key}[{i}]", _depth + 1) for i, v in enumerate(value)]
-    if isinstance(value, Mapping):
-        out = {}
-        for k, v in value.items():
-            k = _plain(k, key, _depth + 1) if isinstance(k, np.str_) else k
-            if not isinstance(k, str):
-                raise ConfigError(f"{key} must have string keys (names of config keys), got key {_shown(k)}")
-            out[k] = _plain(v, f"{key}.{k}", _depth + 1)
-        return out
-    raise ConfigError(
-        f"{key} must be plain YAML data (a number, string, true/false, None, list or mapping), "
-        f"got {_shown(value)}"
-    )
-
-
-def _values(overrides: Mapping, output, sections: frozenset[str]) -> dict:
-    """Keyword overrides -> dotted config keys: a mapping given to a section is merged into it
-    key by key; any other value (``None`` too) replaces the key's value."""
-    from antisync.errors import ConfigError
-
-    values: dict[str, Any] = {}
-    for key, value in overrides.items():
-        key = "lambda" if key == "lambda_" else key
-        value = _plain(value, key)
-        if key in sections and isinstance(value, dict):
-            for sub, v in value.items():
-                values[f"{key}.{sub}"] = v
-        else:
-            values[key] = value
-    if output is not None:
-        values["output"] = str(_file_path("output", output, ConfigError))
-    return values
-
-
-def _config(config, overrides: Mapping, output) -> Config:
-    """The validated :class:`Config` of :func:`run`'s ``config`` with ``overrides`` and
-    ``output`` applied."""
-    from antisync.config import Config, apply_values, config_from_mapping, load_config
-    from antisync.errors import ConfigError
-
-    overrides = {k: _graph_object(v) if k == "graph" else v for k, v in overrides.items()}
-    values = _values(overrides, output, _sections())
-    if isinstance(config, Config):
-        raw = _plain(config.to_dict(), "config")
-    elif isinstance(config, Mapping):
-        # a copy: the caller's mapping is left as it is
-        raw = _plain({k: _graph_object(v) if k == "graph" else v for k, v in config.items()}, "config")
-    else:
-        return load_config(_file_path("config", config, ConfigError), values=values)
-    apply_values(raw, values)  # as load_config applies them to a file's mapping
-    return config_from_mapping(raw)
-
-
-def _graph_object(value, where: str = "graph"):
-    """A networkx graph object as its config graph spec (:func:`antisync.graphs.graph_spec`,
-    a one-line :class:`~antisync.graphs.GraphError` naming ``where`` if it cannot be one);
-    anything else as it is."""
-    import sys
-
-    nx = sys.modules.get("networkx")  # a graph object exists only once networkx is imported
-    if nx is None or not isinstance(value, nx.Graph):
-        return value
-    from antisync.graphs import graph_spec
-
-    return graph_spec(value, where)
-
-
-def _sweep_graphs(section):
-    """A sweep's ``sweep:`` section with the networkx graph objects of its ``graphs`` list as
-    graph specs, named ``graph1``, ``graph2``, ... by their place in the list."""
-    graphs = section.get("graphs") if isinstance(section, Mapping) else None
-    if not isinstance(graphs, list | tuple):
-        return section
-    items = []
-    for k, item in enumerate(graphs):
-        spec = _graph_object(item, f"sweep.graphs[{k}]")
-        items.append({"name": f"graph{k + 1}", **spec} if spec is not item else item)
-    return {**section, "graphs": items}
+    return file_path("path", path, StoreError)

@@ -1,6 +1,6 @@
 """The choices antisync accepts, each declared once as a ``Literal`` type.
 
-Config fields (:mod:`antisync.config`) and CLI options (:mod:`antisync.cli`) are annotated with
+Config fields (:mod:`antisync.plan.config`) and CLI options (:mod:`antisync.cli`) are annotated with
 these types; the tuples of valid values that the validators and ``click`` check against are
 derived from them with :func:`typing.get_args`, so a new choice is added in one place.
 
@@ -40,27 +40,27 @@ __all__ = [
 ]
 
 Backend = Literal["cpu", "cuda", "auto"]
-"""Where chunks are integrated; ``auto`` is CUDA when a GPU is usable (:mod:`antisync.backends`)."""
+"""Where chunks are integrated; ``auto`` is CUDA when a GPU is usable (:mod:`antisync.kernels.backends`)."""
 Executor = Literal["local", "dask"]
 """Who runs the chunks: this process or a Dask cluster."""
 Integrator = Literal["euler", "rk4"]
 Crossing = Literal["auto", "grid", "interpolated"]
-"""How tau is read off the step grid (see :class:`antisync.config.Dynamics`)."""
+"""How tau is read off the step grid (see :class:`antisync.plan.config.Dynamics`)."""
 LambdaMethod = Literal[
     "finite-difference", "central-difference", "pathwise", "hybrid", "adjoint", "adjoint-hybrid", "orbit"
 ]
-"""Estimator of Lambda^KM (see :class:`antisync.config.LambdaSpec`)."""
+"""Estimator of Lambda^KM (see :class:`antisync.plan.config.LambdaSpec`)."""
 Measure = Literal["km", "linear", "xi2", "rw", "km_nnc"]
 """km: Lambda^KM from the run (Eq. 6); linear, xi2, rw: the measures of Secs. 2.3 and 3.3
 (Eqs. 14, 16, 25); km_nnc: the same run with raw coupling (Sec. 3.4, Eqs. 20-22)."""
 LinearMethod = Literal["exact", "euler", "derivative"]
-"""How Lambda^(linear) is computed (see :class:`antisync.config.LinearSpec`)."""
+"""How Lambda^(linear) is computed (see :class:`antisync.plan.config.LinearSpec`)."""
 Precision = Literal["float64", "float32"]
 """Arithmetic of the integrated state (float32 on backend cuda only)."""
 StopRule = Literal["never", "signs-resolved"]
-"""When a run may end before its ``realizations`` (see :class:`antisync.config.Stop`)."""
+"""When a run may end before its ``realizations`` (see :class:`antisync.plan.config.Stop`)."""
 Coupling = Literal["normalized", "raw"]
-"""``W = S^-1 Omega`` (Eq. 1) or ``W = Omega`` (Eq. 20), see :mod:`antisync.coupling`."""
+"""``W = S^-1 Omega`` (Eq. 1) or ``W = Omega`` (Eq. 20), see :mod:`antisync.physics.coupling`."""
 RemovalBy = Literal["speedup", "psync"]
 """What colours a line in :func:`antisync.report.removal.removal_figure`: ``F_1 - 1`` (the mean
 ``tau0 / tau - 1`` without the line, > 0: faster) or ``d P_sync`` (> 0: more starts lock)."""

@@ -1,6 +1,6 @@
 """Validators of config values: each refuses a bad value with a one-line :class:`ConfigError`.
 
-Shared by :mod:`antisync.config`, :mod:`antisync.model`, :mod:`antisync.graphs` and
+Shared by :mod:`antisync.plan.config`, :mod:`antisync.plan.model`, :mod:`antisync.physics.graphs` and
 :mod:`antisync.sweeps`. Every message names the key at fault (``dynamics.dt must be a positive
 number, got 0``), so the CLI can print it as it is.
 

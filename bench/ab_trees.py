@@ -36,8 +36,8 @@ NETWORKS = {
 CHILD = """
 import sys, time
 import numpy as np
-from antisync.config import load_config_text
-from antisync.jobs import make_job
+from antisync.plan.config import load_config_text
+from antisync.plan.jobs import make_job
 from antisync.kernels import cpu
 text, m, integ = sys.argv[1], int(sys.argv[2]), sys.argv[3]
 job = make_job(load_config_text(text + "betas: [0.5]\\n"))

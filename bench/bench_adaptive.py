@@ -10,7 +10,7 @@ method on the same realizations ``0 .. M-1`` with the package's initial phases
 ``phase(seed, k, node)``:
 
 - the package's finite difference with RK4 and the cubic Hermite crossing (the lane kernel that
-  ``antisync run`` uses, timed through :func:`antisync.compute.compute_chunk` as
+  ``antisync run`` uses, timed through :func:`antisync.execution.compute.compute_chunk` as
   ``bench/bench_kernels.py`` does) at ``dt = 0.04`` (the baseline) and larger steps
   (``--rk4-dts``), for a comparison at equal accuracy;
 - Dormand-Prince 5(4) (the pair of scipy's ``RK45`` and Hairer's ``DOPRI5``) with Hairer's PI
@@ -48,11 +48,11 @@ from numba import njit, prange
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-from antisync import estimators  # noqa: E402
-from antisync.compute import compute_chunk, lambda_values, simulate_job  # noqa: E402
-from antisync.config import load_config_text  # noqa: E402
-from antisync.jobs import Chunk, make_job  # noqa: E402
-from antisync.phases import initial_phases, phase  # noqa: E402
+from antisync.execution.compute import compute_chunk, lambda_values, simulate_job  # noqa: E402
+from antisync.physics.phases import initial_phases, phase  # noqa: E402
+from antisync.plan.config import load_config_text  # noqa: E402
+from antisync.plan.jobs import Chunk, make_job  # noqa: E402
+from antisync.stats import estimators  # noqa: E402
 from antisync.status import ALREADY_SYNCED, NOT_SYNCED, SYNCED  # noqa: E402
 
 TARGET_SE = 0.005
@@ -366,7 +366,7 @@ class Outcome:
         self.tau = tau
 
     def lambda_values(self):
-        """``(values, code)`` as :func:`antisync.compute.lambda_values` forms them."""
+        """``(values, code)`` as :func:`antisync.execution.compute.lambda_values` forms them."""
         ok = (self.status0[:, None] == SYNCED) & (self.status == SYNCED)
         code = np.where(ok, SYNCED, np.maximum(self.status0[:, None], self.status)).astype(np.int8)
         values = np.where(ok, (self.tau0[:, None] / np.where(ok, self.tau, 1.0) - 1.0) / DBETA, 0.0)
@@ -448,7 +448,8 @@ class Problem:
     def rk4_outcome(self, job, threads: int):
         """Per-realization results of the package's RK4 lanes (the timed kernel, run again):
         ``(Outcome, (values, code), steps per realization, trajectories per realization)`` with
-        ``tau = (steps - 1 + frac) dt`` and the Lambda values of :func:`antisync.compute.lambda_values`."""
+        ``tau = (steps - 1 + frac) dt`` and the Lambda values of
+        :func:`antisync.execution.compute.lambda_values`."""
         sim = simulate_job(job, 0, self.m, threads=threads)
         values, code, _, _ = lambda_values(job, sim, 0, self.m, threads)
         dt = job.config.dynamics.dt

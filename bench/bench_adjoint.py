@@ -34,9 +34,9 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 import numpy as np  # noqa: E402
 
-from antisync.compute import lambda_values, simulate_job  # noqa: E402
-from antisync.config import load_config_text  # noqa: E402
-from antisync.jobs import make_job  # noqa: E402
+from antisync.execution.compute import lambda_values, simulate_job  # noqa: E402
+from antisync.plan.config import load_config_text  # noqa: E402
+from antisync.plan.jobs import make_job  # noqa: E402
 
 GRAPHS = {
     "karate": "{kind: networkx, generator: karate_club_graph}",

@@ -17,9 +17,9 @@ from pathlib import Path
 
 import numpy as np
 
-from antisync.config import load_config
-from antisync.jobs import make_job
 from antisync.kernels import cpu
+from antisync.plan.config import load_config
+from antisync.plan.jobs import make_job
 
 CONFIG = Path(__file__).resolve().parents[1] / "configs" / "ieee14_grid.yaml"
 

@@ -35,11 +35,11 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from antisync.compute import compute_chunk  # noqa: E402
-from antisync.config import load_config  # noqa: E402
-from antisync.executors.dask import DaskExecutor  # noqa: E402
-from antisync.executors.local import LocalExecutor  # noqa: E402
-from antisync.jobs import Chunk, make_job  # noqa: E402
+from antisync.execution.compute import compute_chunk  # noqa: E402
+from antisync.execution.executors.dask import DaskExecutor  # noqa: E402
+from antisync.execution.executors.local import LocalExecutor  # noqa: E402
+from antisync.plan.config import load_config  # noqa: E402
+from antisync.plan.jobs import Chunk, make_job  # noqa: E402
 
 
 def _warm(job) -> float:

@@ -22,9 +22,9 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-from antisync.compute import lambda_values, simulate_job  # noqa: E402
-from antisync.config import load_config_text  # noqa: E402
-from antisync.jobs import make_job  # noqa: E402
+from antisync.execution.compute import lambda_values, simulate_job  # noqa: E402
+from antisync.plan.config import load_config_text  # noqa: E402
+from antisync.plan.jobs import make_job  # noqa: E402
 
 GRAPHS = {
     "lollipop_6_3": nx.lollipop_graph(3, 3),

@@ -36,11 +36,11 @@ from numba import njit, prange
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-from antisync import estimators  # noqa: E402
-from antisync.compute import compute_chunk  # noqa: E402
-from antisync.config import load_config_text  # noqa: E402
-from antisync.jobs import Chunk, make_job  # noqa: E402
-from antisync.phases import phase  # noqa: E402
+from antisync.execution.compute import compute_chunk  # noqa: E402
+from antisync.physics.phases import phase  # noqa: E402
+from antisync.plan.config import load_config_text  # noqa: E402
+from antisync.plan.jobs import Chunk, make_job  # noqa: E402
+from antisync.stats import estimators  # noqa: E402
 
 TARGET_SE = 0.005
 
@@ -159,7 +159,7 @@ def run_antisync(method, integrator, dt, m, precision="float64"):
 
 def _trajectory_steps(job, m, method, integrator, dt):
     """Steps of every trajectory integrated (recomputed cheaply from a small sample's ratio)."""
-    from antisync.compute import simulate_job
+    from antisync.execution.compute import simulate_job
 
     sim = simulate_job(job, 0, min(m, 300))
     scale = m / min(m, 300)

@@ -11,8 +11,8 @@ import time
 import networkx as nx
 import numpy as np
 
-from antisync.graphs import all_directed_edges, edge_label, lollipop, omega_matrix
 from antisync.measures import lambda_linear, lambda_rw, lambda_xi2_all
+from antisync.physics.graphs import all_directed_edges, edge_label, lollipop, omega_matrix
 
 
 def atlas_timing(repeats: int = 5) -> tuple[int, int, float]:

@@ -32,9 +32,9 @@ import time
 
 import numpy as np
 
-from antisync.config import load_config_text
-from antisync.jobs import make_job
 from antisync.kernels import cpu, model_steps
+from antisync.plan.config import load_config_text
+from antisync.plan.jobs import make_job
 
 NETWORKS = {
     "lollipop N=6": "graph: {kind: lollipop, nodes: 6, path: 3}\nedges: ['2->1', '3->4', '5->6']\n",

@@ -19,9 +19,9 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-from antisync.compute import lambda_values, simulate_job  # noqa: E402
-from antisync.config import load_config_text  # noqa: E402
-from antisync.jobs import make_job  # noqa: E402
+from antisync.execution.compute import lambda_values, simulate_job  # noqa: E402
+from antisync.plan.config import load_config_text  # noqa: E402
+from antisync.plan.jobs import make_job  # noqa: E402
 
 
 def measure(graph: str, edge: str, method: str, m: int) -> tuple[np.ndarray, float, int]:

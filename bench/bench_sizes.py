@@ -35,10 +35,10 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from antisync import graphs  # noqa: E402
-from antisync.coupling import coupling_matrix, to_csr  # noqa: E402
 from antisync.kernels.cpu import simulate  # noqa: E402
-from antisync.phases import phase  # noqa: E402
+from antisync.physics import graphs  # noqa: E402
+from antisync.physics.coupling import coupling_matrix, to_csr  # noqa: E402
+from antisync.physics.phases import phase  # noqa: E402
 
 DT = 0.01
 THRESHOLD = 0.99

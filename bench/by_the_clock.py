@@ -65,9 +65,9 @@ def add_exact_measures(path: Path, config: str, sets: list[str]) -> None:
     measures are functions of the graph, computed here as the run would have computed them."""
     import h5py
 
-    from antisync.config import load_config
-    from antisync.jobs import make_job
     from antisync.measures.pipeline import compute_measures
+    from antisync.plan.config import load_config
+    from antisync.plan.jobs import make_job
     from antisync.store.layout import write_measures
 
     cfg = load_config(config, [*sets, "measures=[km, xi2, rw]"])

@@ -39,7 +39,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-from antisync import estimators  # noqa: E402
+from antisync.stats import estimators  # noqa: E402
 
 Z95 = estimators.Z95
 LOLLIPOP = "{kind: lollipop, nodes: 6, path: 3}"

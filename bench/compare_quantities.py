@@ -4,7 +4,7 @@ Reads two result files of the same config and seed: one run with ``lambda.method
 finite-difference`` (the forward secant of Eq. 17 and the forward Lambda^tau) and one with a
 derivative estimator (``adjoint-hybrid``: the derivative d<F>/dbeta and Lambda^tau from
 d tau0/d beta). Each quantity's signs are called as ``antisync summary`` calls them (false
-discovery rate 0.05 over the file's links, :func:`antisync.multiplicity.fdr_signs`); the script
+discovery rate 0.05 over the file's links, :func:`antisync.stats.multiplicity.fdr_signs`); the script
 prints how many links each calls antifragile and fragile and how many change their call
 between quantities.
 
@@ -18,7 +18,7 @@ from __future__ import annotations
 import argparse
 
 from antisync.api import summarize
-from antisync.multiplicity import fdr_signs
+from antisync.stats.multiplicity import fdr_signs
 
 
 def calls(records: list[dict], key: str) -> dict[str, int]:

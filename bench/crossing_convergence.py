@@ -16,9 +16,9 @@ from pathlib import Path
 
 import numpy as np
 
-from antisync.compute import simulate_job
-from antisync.config import load_config
-from antisync.jobs import make_job
+from antisync.execution.compute import simulate_job
+from antisync.plan.config import load_config
+from antisync.plan.jobs import make_job
 from antisync.status import Status
 
 CONFIG = Path(__file__).resolve().parents[1] / "configs" / "ieee14_grid.yaml"

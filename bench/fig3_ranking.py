@@ -10,7 +10,7 @@
 - for consecutive ranks, the score difference and its se from the paired blocks (every graph
   of a sweep draws the same initial phases per realization, so the difference is more precise
   than the two se together), and whether the order is resolved at ``--z``;
-- where each of the paper's Table 1 graphs (atlas indices as in ``antisync.paper.TABLE1_ATLAS``)
+- where each of the paper's Table 1 graphs (atlas indices as in ``antisync.paper.make.TABLE1_ATLAS``)
   lands, and whether the paper's order 1..7 holds pair by pair.
 """
 
@@ -24,8 +24,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 import numpy as np  # noqa: E402
 
-from antisync.estimators import LAMBDA_FIELDS  # noqa: E402
-from antisync.paper import TABLE1_ATLAS  # noqa: E402
+from antisync.paper.make import TABLE1_ATLAS  # noqa: E402
+from antisync.stats.estimators import LAMBDA_FIELDS  # noqa: E402
 from antisync.store import read_meta, read_views  # noqa: E402
 from antisync.sweeps.analysis import ranking, summarize  # noqa: E402
 

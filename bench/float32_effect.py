@@ -45,10 +45,10 @@ def main(argv=None) -> int:
     p.add_argument("--on", choices=("cuda", "cpu"), default="cuda")
     args = p.parse_args(argv)
 
-    from antisync.backends import cuda_usable
-    from antisync.config import load_config_text
-    from antisync.jobs import make_job
     from antisync.kernels import cuda as gpu
+    from antisync.kernels.backends import cuda_usable
+    from antisync.plan.config import load_config_text
+    from antisync.plan.jobs import make_job
 
     if args.on == "cuda":
         ok, why = cuda_usable()

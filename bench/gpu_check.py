@@ -32,7 +32,7 @@ import numpy as np
 
 
 def _fail_no_gpu(tiny: bool) -> None:
-    from antisync.backends import cuda_usable
+    from antisync.kernels.backends import cuda_usable
 
     ok, why = cuda_usable()
     if not ok:
@@ -58,8 +58,8 @@ def _device_name() -> str:
 
 
 def _job(edges, betas, dt, t_max):
-    from antisync.config import load_config_text
-    from antisync.jobs import make_job
+    from antisync.plan.config import load_config_text
+    from antisync.plan.jobs import make_job
 
     text = (
         "graph: {kind: lollipop, nodes: 6, path: 3}\n"

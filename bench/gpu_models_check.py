@@ -49,7 +49,7 @@ IEEE39_LINES = "['1->2', '2->1', '1->39', '39->1', '2->3', '3->2', '2->25', '25-
 def _cases(tiny: bool):
     from cudasim_model_checks import BASE, MODELS  # the simulator tests' three models
 
-    from antisync.config import load_config, load_config_text
+    from antisync.plan.config import load_config, load_config_text
 
     for name, text in MODELS.items():
         yield f"lollipop {name}", load_config_text(BASE + text)
@@ -88,7 +88,7 @@ def main(argv=None) -> int:
     p.add_argument("--first", type=int, default=10**6, help="first realization (not the tests')")
     args = p.parse_args(argv)
 
-    from antisync.backends import cuda_usable
+    from antisync.kernels.backends import cuda_usable
 
     ok, why = cuda_usable()
     if not ok:
@@ -99,8 +99,8 @@ def main(argv=None) -> int:
         print("gpu_models_check: under the simulator pass --tiny", file=sys.stderr)
         return 2
 
-    from antisync.compute import simulate_job
-    from antisync.jobs import make_job
+    from antisync.execution.compute import simulate_job
+    from antisync.plan.jobs import make_job
 
     m = 2 if args.tiny else args.realizations
     threads = os.cpu_count() or 1

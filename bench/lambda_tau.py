@@ -16,8 +16,8 @@ is ``central-difference``; the forward secant's only estimator is the finite dif
 
 ``coverage``: one pool of per-realization ``(slope, tau0)`` (cached as
 ``bench/.cache/<name>_tau.npz``), runs of ``n`` drawn from it with replacement, each reduced by
-the package's own block records and :func:`antisync.estimators.summarize_lambda_tau` (the
-interval ``antisync summary`` reports, :func:`antisync.estimators.lambda_tau_interval`, ``R +- t
+the package's own block records and :func:`antisync.stats.estimators.summarize_lambda_tau` (the
+interval ``antisync summary`` reports, :func:`antisync.stats.estimators.lambda_tau_interval`, ``R +- t
 se``, beside the normal quantile's ``R +- 1.96 se``); coverage of the pool's ratio per link::
 
     python bench/lambda_tau.py coverage lollipop --method central-difference --realizations 400000
@@ -38,10 +38,10 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 import numpy as np  # noqa: E402
 
-from antisync import estimators  # noqa: E402
-from antisync.compute import lambda_values, simulate_job  # noqa: E402
-from antisync.config import load_config_text  # noqa: E402
-from antisync.jobs import make_job  # noqa: E402
+from antisync.execution.compute import lambda_values, simulate_job  # noqa: E402
+from antisync.plan.config import load_config_text  # noqa: E402
+from antisync.plan.jobs import make_job  # noqa: E402
+from antisync.stats import estimators  # noqa: E402
 from antisync.status import SYNCED  # noqa: E402
 
 GRAPHS = {

@@ -14,12 +14,12 @@ import time
 os.environ.setdefault("NUMBA_NUM_THREADS", "1")  # before numba is imported
 import numpy as np  # noqa: E402
 
-from antisync import compute  # noqa: E402
-from antisync.config import load_config  # noqa: E402
-from antisync.jobs import make_job  # noqa: E402
+from antisync.execution import compute  # noqa: E402
 from antisync.kernels import cpu  # noqa: E402
 from antisync.kernels.adjoint import link_derivatives  # noqa: E402
 from antisync.kernels.model_adjoint import simulate_model_adjoint  # noqa: E402
+from antisync.plan.config import load_config  # noqa: E402
+from antisync.plan.jobs import make_job  # noqa: E402
 
 ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
 ap.add_argument("config", nargs="?", default="configs/ieee14_grid.yaml")

@@ -10,7 +10,7 @@ libdevice; no driver, no GPU), and checks two properties the backend relies on:
 
 - the float32 Euler step does its arithmetic in single precision (no promotion to double);
 - the block- and Lambda-record reductions contain no fused multiply-add, so their sums round
-  exactly as the CPU's :func:`antisync.estimators.block_records` and
+  exactly as the CPU's :func:`antisync.stats.estimators.block_records` and
   ``lambda_block_records`` (the GPU integrator itself *is* contracted; docs/cuda.md says what
   that means).
 

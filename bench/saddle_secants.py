@@ -21,9 +21,9 @@ import time
 
 import numpy as np
 
-from antisync.compute import simulate_job
-from antisync.config import load_config_text
-from antisync.jobs import make_job
+from antisync.execution.compute import simulate_job
+from antisync.plan.config import load_config_text
+from antisync.plan.jobs import make_job
 from antisync.status import SYNCED
 
 GRAPHS = {
@@ -68,7 +68,7 @@ def per_realization(job, first: int, count: int):
 def scan(job, realization: int, edge: int, betas: np.ndarray) -> np.ndarray:
     """tau(beta) of one realization with one link damaged by each of ``betas`` (RK4, Hermite
     crossing): the shape of tau near a singular damage beta_s."""
-    from antisync import coupling
+    from antisync.physics import coupling
 
     a, b = (job.nodes.index(v) for v in job.edges[edge])
     weights = coupling.variant_weights(job.omega, job.csr, [(a, b, float(x)) for x in betas])

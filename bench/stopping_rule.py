@@ -3,8 +3,8 @@ it resolves a sign wrongly, on runs drawn from a calibration pool (bench/calibra
 
 Each simulated run draws ``budget`` realizations from the pool with replacement (the truth is
 the pool's mean) and looks at ``first_look``, twice as many, ..., ``budget`` as the runner does
-(:attr:`antisync.config.Config.stop_looks`), computing every link's interval at the look level
-of :func:`antisync.stopping.look_level` with the summary's own functions. It reports, per
+(:attr:`antisync.plan.config.Config.stop_looks`), computing every link's interval at the look level
+of :func:`antisync.execution.stopping.look_level` with the summary's own functions. It reports, per
 rule, the realizations spent (mean and quartiles, against the budget), the links whose sign is
 resolved in the file it ends with (the records' 95% intervals at the realizations spent), and
 the *false signs*: a resolved sign opposite to the pool mean's
@@ -36,9 +36,9 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from calibrate_errors import LOLLIPOP, pool  # noqa: E402
 
-from antisync import estimators  # noqa: E402
-from antisync.stopping import look_level  # noqa: E402
-from antisync.summary import JobView, lambda_intervals  # noqa: E402
+from antisync.execution.stopping import look_level  # noqa: E402
+from antisync.stats import estimators  # noqa: E402
+from antisync.stats.summary import JobView, lambda_intervals  # noqa: E402
 
 
 def looks(first: int, budget: int, block: int) -> list[int]:
@@ -54,7 +54,7 @@ def looks(first: int, budget: int, block: int) -> list[int]:
 def signs(run: np.ndarray, block: int, dbeta: float, level: float, look: bool = False) -> np.ndarray:
     """+1 / -1 / 0 per link: the sign its interval at ``level`` resolves, as the records say
     (``look=False``) or as a look of the rule counts it (``look=True``: an interval resting on
-    few tail values does not count), both from :func:`antisync.summary.lambda_intervals`."""
+    few tail values does not count), both from :func:`antisync.stats.summary.lambda_intervals`."""
     rec, tail = estimators.lambda_block_records(
         run, np.zeros(run.shape, np.int8), np.zeros(run.shape, bool), block
     )

@@ -9,7 +9,7 @@ sys.path.insert(0, str(Path(__file__).parent))
 @pytest.fixture(scope="session")
 def paper_values():
     """The paper's printed numbers, shipped inside the package (nothing outside the repo is read)."""
-    from antisync.reference import paper_values
+    from antisync.paper.reference import paper_values
 
     return paper_values()
 

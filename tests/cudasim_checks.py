@@ -21,11 +21,11 @@ if __name__ == "__main__":
 
 import numpy as np
 
-from antisync import estimators
-from antisync.config import load_config_text
-from antisync.jobs import make_job
 from antisync.kernels import cpu
 from antisync.kernels import cuda as gpu
+from antisync.plan.config import load_config_text
+from antisync.plan.jobs import make_job
+from antisync.stats import estimators
 
 LOLLIPOP = """
 graph: {kind: lollipop, nodes: 6, path: 3}
@@ -109,13 +109,13 @@ def check_reductions(flips: bool = False) -> None:
     """simulate_reduced equals the host's reductions of the CPU outcomes, exactly.
 
     Block records, tail counts, 2D histograms and the finite-difference Lambda records
-    (:func:`antisync.compute.lambda_values` + ``lambda_block_records``). Blocks of 6 over
+    (:func:`antisync.execution.compute.lambda_values` + ``lambda_block_records``). Blocks of 6 over
     23 realizations (a short last block) and device batches of 12 realizations, so block
     offsets, batching and accumulation across batches are exercised. With ``flips``, a
     damage of 0.5 and t_max = 2 make realizations lose (16) and gain (2) synchronization,
     counted as n_lost and n_gained.
     """
-    from antisync.compute import _fd_variants, _sync_flips, lambda_values
+    from antisync.execution.compute import _fd_variants, _sync_flips, lambda_values
 
     extra = ["lambda.dbeta=0.5", "dynamics.t_max=2.0"] if flips else []
     job = make_job(load_config_text(HOUSE_RAW, ["histogram.bins=16", "histogram.tau_max=3.0", *extra]))
@@ -173,7 +173,7 @@ def _count_device_reductions() -> list:
 def check_runner(tmp: str) -> None:
     """``backend: cuda`` through run_config stores the same summary as ``backend: cpu``."""
     from antisync import store
-    from antisync.runner import run_config
+    from antisync.execution.runner import run_config
 
     text = HOUSE_RAW + "edges: ['0->1', '2->4']\nrealizations: 30\nblock_size: 10\n"
     calls = _count_device_reductions()
@@ -197,7 +197,7 @@ def check_runner_derivatives(tmp: str) -> None:
     Lambda pass runs on the CPU lanes (no chunk is reduced on the device), and the stored
     summary is the ``backend: cpu`` run's."""
     from antisync import store
-    from antisync.runner import run_config
+    from antisync.execution.runner import run_config
 
     text = HOUSE_RAW + "edges: ['0->1', '2->4']\nrealizations: 20\nblock_size: 10\nkeep_pairs: 0\n"
     calls = _count_device_reductions()

@@ -16,9 +16,9 @@ if __name__ == "__main__":
 
 import numpy as np
 
-from antisync.compute import simulate_job
-from antisync.config import load_config_text
-from antisync.jobs import make_job
+from antisync.execution.compute import simulate_job
+from antisync.plan.config import load_config_text
+from antisync.plan.jobs import make_job
 
 BASE = """
 graph: {kind: lollipop, nodes: 6, path: 3}

@@ -50,7 +50,7 @@ class CrashAfter:
     is written), ``KeyboardInterrupt`` for Ctrl-C (the runner checkpoints first)."""
 
     def __init__(self, n: int, exc: type = RuntimeError):
-        from antisync.executors.local import LocalExecutor
+        from antisync.execution.executors.local import LocalExecutor
 
         self.inner = LocalExecutor("cpu", None)
         self.left = n

@@ -13,12 +13,12 @@ import numpy as np
 import pytest
 
 import antisync
-from antisync import coupling, graphs
-from antisync.compute import check_backend, host_part
-from antisync.config import load_config_text
 from antisync.errors import ConfigError
+from antisync.execution.compute import check_backend, host_part
 from antisync.kernels.adjoint import link_derivatives, simulate_adjoint
 from antisync.kernels.cpu import simulate, simulate_pathwise
+from antisync.physics import coupling, graphs
+from antisync.plan.config import load_config_text
 from antisync.status import SYNCED
 
 EULER = dict(dt=0.002, threshold=0.99, max_steps=50_000)
@@ -196,8 +196,8 @@ def test_adjoint_hybrid_secants_in_one_call_are_the_single_secants():
     """The flagged pairs, scattered over realizations and links, run in one call that
     integrates only them (the lane driver's ``todo``); each must be the secant of that
     (realization, link) pair on its own."""
-    from antisync.compute import lambda_values
-    from antisync.jobs import make_job
+    from antisync.execution.compute import lambda_values
+    from antisync.plan.jobs import make_job
 
     job = make_job(
         load_config_text("""

@@ -45,7 +45,7 @@ def test_import_changes_nothing_global():
 
 
 def test_overrides_merge_into_sections_and_are_validated(tmp_path):
-    from antisync.api import _config
+    from antisync.plan.sources import resolve_config as _config
 
     base = {"graph": {"kind": "lollipop", "nodes": 6, "path": 3}, "dynamics": {"t_max": 50.0}}
     cfg = _config(
@@ -94,7 +94,7 @@ def test_numba_cache_is_keyed_by_source_for_antisync_only(tmp_path):
     code = (
         f"import sys; sys.path.insert(0, {str(tmp_path)!r})\n"
         "from antisync._numba_cache import cache_dir\n"
-        "from antisync.phases import initial_phases\n"
+        "from antisync.physics.phases import initial_phases\n"
         "import user_mod; user_mod.f(1)\n"
         "initial_phases(3, 0, 2, 4)\n"
         "print(cache_dir())\n"

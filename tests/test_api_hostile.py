@@ -26,11 +26,12 @@ from hypothesis import strategies as st
 from typer.testing import CliRunner
 
 import antisync
-from antisync.api import _config, _sections
 from antisync.cli.app import app
-from antisync.config import Config
 from antisync.errors import AntisyncError, ConfigError, StoreError
-from antisync.graphs import GraphError
+from antisync.physics.graphs import GraphError
+from antisync.plan.config import Config
+from antisync.plan.sources import resolve_config as _config
+from antisync.plan.sources import sections as _sections
 
 REPO = Path(__file__).resolve().parent.parent
 # a tiny run: 4 nodes, one link, no beta grid, 8 realizations of a short trajectory
@@ -80,7 +81,7 @@ def empty_folder():
 def test_sections_are_read_from_the_schema():
     """The API's sections are the schema's: config.py's table of sections, and a sweep's
     screen and top; a new section added to Config cannot be forgotten by the API."""
-    from antisync.config import _SECTIONS as CONFIG_SECTIONS
+    from antisync.plan.config import _SECTIONS as CONFIG_SECTIONS
     from antisync.sweeps import Sweep
 
     assert _sections() == set(CONFIG_SECTIONS)
@@ -185,7 +186,7 @@ def test_numpy_scalars_and_arrays_are_the_numbers_they_hold(tmp_path, monkeypatc
 
 
 def test_an_executor_object_and_a_log_callable_are_taken(tmp_path):
-    from antisync.executors.local import LocalExecutor
+    from antisync.execution.executors.local import LocalExecutor
 
     said: list[str] = []
     ex = LocalExecutor("cpu", None)
@@ -205,7 +206,7 @@ class NotAnExecutor:
 
 
 def _bad_calls():
-    from antisync.executors.local import LocalExecutor
+    from antisync.execution.executors.local import LocalExecutor
 
     run, sweep = antisync.run, antisync.sweep
     cases = [

@@ -1,4 +1,5 @@
-"""Architecture: the import graph of ``antisync`` has no cycles, and only the store touches HDF5.
+"""Architecture: the package is laid out by the flow of data, its import graph runs one way
+(no module imports a later stage, no cycles), and only the store touches HDF5.
 
 Every module under ``antisync/`` is parsed with :mod:`ast` (nothing is imported). Every
 ``import`` that can run counts, at any level: module level, inside functions, under
@@ -18,6 +19,36 @@ ROOT = Path(__file__).resolve().parent.parent
 PACKAGE = ROOT / "antisync"
 #: the only package whose modules may import h5py (bench/ and tests/ may too)
 HDF5_OWNER = "antisync.store"
+#: the stages in the order data flows through them: a module may import its own stage and
+#: the stages before it, never one after it ("ground" is the package root's shared files)
+STAGES = (
+    "ground",
+    "physics",
+    "stats",
+    "kernels",
+    "plan",
+    "measures",
+    "store",
+    "execution",
+    "sweeps",
+    "grids",
+    "report",
+    "paper",
+    "api",
+    "cli",
+)
+#: the modules at the package root: plumbing, the shared vocabulary, and the library's face
+ROOT_MODULES = {
+    "antisync",
+    "antisync.__main__",
+    "antisync._numba_cache",
+    "antisync._version",
+    "antisync.api",
+    "antisync.errors",
+    "antisync.status",
+    "antisync.types",
+    "antisync.validation",
+}
 
 
 def _modules() -> dict[str, Path]:
@@ -123,9 +154,44 @@ def find_cycle(graph: dict[str, set[str]]) -> list[str] | None:
 
 def test_import_graph_has_no_cycles():
     graph = import_graph()
-    assert len(graph) > 20 and "antisync.runner" in graph["antisync.cli.run"]  # the walk works
+    assert len(graph) > 20 and "antisync.execution.runner" in graph["antisync.cli.run"]  # the walk works
     cycle = find_cycle(graph)
     assert cycle is None, "import cycle: " + " -> ".join(cycle)
+
+
+def stage(module: str) -> str:
+    """The stage ``module`` belongs to: its folder, ``api``/``cli`` for the face, else ground."""
+    parts = module.split(".")
+    if len(parts) > 1 and parts[1] in STAGES:
+        return parts[1]
+    return "cli" if module == "antisync.__main__" else "ground"
+
+
+def test_the_root_holds_only_the_face_and_the_ground():
+    modules = _modules()
+    at_root = {m for m in modules if m.count(".") <= 1 and not (PACKAGE / m.split(".")[-1]).is_dir()}
+    assert at_root == ROOT_MODULES, (
+        f"modules at the root that belong in a stage: {sorted(at_root - ROOT_MODULES)}"
+    )
+    folders = {p.name for p in PACKAGE.iterdir() if (p / "__init__.py").is_file()}
+    assert folders == set(STAGES) - {"ground", "api"}, sorted(folders)
+
+
+def test_no_module_imports_a_later_stage():
+    graph = import_graph()
+    late = [
+        f"{m} ({stage(m)}) imports {t} ({stage(t)})"
+        for m in sorted(graph)
+        for t in sorted(graph[m])
+        if STAGES.index(stage(t)) > STAGES.index(stage(m))
+    ]
+    assert not late, "imports that run against the flow: " + "; ".join(late)
+
+
+def test_the_stage_check_sees_a_late_import():
+    assert stage("antisync.physics.graphs") == "physics" and stage("antisync.errors") == "ground"
+    assert stage("antisync.api") == "api" and stage("antisync.cli.run") == "cli"
+    assert STAGES.index(stage("antisync.store.state")) < STAGES.index(stage("antisync.execution.compute"))
 
 
 def test_only_the_store_imports_h5py():
@@ -141,7 +207,7 @@ def test_only_the_store_imports_h5py():
 def test_summaries_are_pure():
     """summary.py and the sweep analysis turn decoded jobs into records: no file, no store."""
     graph = import_graph()
-    for name in ("antisync.summary", "antisync.sweeps.analysis"):
+    for name in ("antisync.stats.summary", "antisync.sweeps.analysis"):
         assert name in graph, name
         reach, todo = set(), [name]
         while todo:

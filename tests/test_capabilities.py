@@ -1,4 +1,4 @@
-"""The table of what runs where (antisync/capabilities.py) and its copy in docs/models.md."""
+"""The table of what runs where (antisync/execution/capabilities.py) and its copy in docs/models.md."""
 
 from __future__ import annotations
 
@@ -6,9 +6,9 @@ from pathlib import Path
 
 import pytest
 
-from antisync.capabilities import cell, table
-from antisync.compute import host_part
-from antisync.config import load_config_text
+from antisync.execution.capabilities import cell, table
+from antisync.execution.compute import host_part
+from antisync.plan.config import load_config_text
 
 DOCS = Path(__file__).resolve().parent.parent / "docs" / "models.md"
 
@@ -17,7 +17,7 @@ def test_the_docs_show_the_current_table():
     text = DOCS.read_text()
     begin, end = "<!-- capabilities:begin -->\n", "<!-- capabilities:end -->"
     copy = text[text.index(begin) + len(begin) : text.index(end)]
-    assert copy == table(), "docs/models.md is stale: paste `python -m antisync.capabilities` there"
+    assert copy == table(), "docs/models.md is stale: paste `python -m antisync.execution.capabilities` there"
 
 
 @pytest.mark.parametrize(

@@ -84,14 +84,14 @@ def test_gpu_check_tiny_runs_under_simulator():
 
 
 def _gpu_here() -> bool:
-    from antisync.backends import cuda_usable
+    from antisync.kernels.backends import cuda_usable
 
     return cuda_usable()[0]
 
 
 def _lollipop_job(**dyn):
-    from antisync.config import load_config_text
-    from antisync.jobs import make_job
+    from antisync.plan.config import load_config_text
+    from antisync.plan.jobs import make_job
 
     extra = "".join(f", {k}: {v}" for k, v in dyn.items())
     return make_job(
@@ -144,8 +144,8 @@ FLOAT32 = (
 
 def test_float32_runs_on_the_cpu_lanes(tmp_path):
     from antisync import store
-    from antisync.config import load_config_text
-    from antisync.runner import run_config
+    from antisync.execution.runner import run_config
+    from antisync.plan.config import load_config_text
 
     out = tmp_path / "r.h5"
     run_config(load_config_text(FLOAT32), output=out, progress=False)
@@ -162,9 +162,9 @@ def test_float32_runs_on_the_cpu_lanes(tmp_path):
     ],
 )
 def test_float32_on_cpu_refuses_what_its_lanes_do_not_run(tmp_path, override, message):
-    from antisync.config import load_config_text
     from antisync.errors import ConfigError
-    from antisync.runner import run_config
+    from antisync.execution.runner import run_config
+    from antisync.plan.config import load_config_text
 
     out = tmp_path / "r.h5"
     with pytest.raises(ConfigError, match=message):
@@ -181,9 +181,9 @@ def test_float32_on_cpu_refuses_what_its_lanes_do_not_run(tmp_path, override, me
     ],
 )
 def test_cuda_refuses_what_only_the_cpu_implements(setting, key):
-    from antisync.compute import check_backend
-    from antisync.config import load_config_text
     from antisync.errors import ConfigError
+    from antisync.execution.compute import check_backend
+    from antisync.plan.config import load_config_text
 
     cfg = load_config_text(f"graph: {{kind: lollipop, nodes: 6, path: 3}}\n{setting}\n")
     check_backend(cfg, "cpu")
@@ -192,8 +192,8 @@ def test_cuda_refuses_what_only_the_cpu_implements(setting, key):
 
 
 def test_precision_key_is_validated():
-    from antisync.config import load_config_text
     from antisync.errors import ConfigError
+    from antisync.plan.config import load_config_text
 
     text = "graph: {kind: lollipop, nodes: 6, path: 3}\n"
     assert load_config_text(text).dynamics.precision == "float64"
@@ -223,12 +223,12 @@ def test_kernels_compile_for_a_real_gpu():
 def test_a_numpy_that_numba_cuda_cannot_compile_with_is_named_in_one_line():
     """numba-cuda 0.30.4 with numpy 2.5 (no ``np.row_stack``) failed deep inside the first
     launch on a real GPU (bench/RESULTS.md); compiler_problem names both versions instead."""
-    from antisync.backends import compiler_problem
+    from antisync.kernels.backends import compiler_problem
 
     assert compiler_problem() is None  # this environment compiles
     code = (
         "import numpy; del numpy.row_stack\n"
-        "from antisync.backends import compiler_problem\n"
+        "from antisync.kernels.backends import compiler_problem\n"
         "print(compiler_problem())\n"
     )
     env = {k: v for k, v in os.environ.items() if not k.startswith("NUMBA_")}

@@ -22,11 +22,11 @@ pytest.importorskip("distributed")
 from helpers import local_cluster_client  # noqa: E402
 
 from antisync.cli.app import app  # noqa: E402
-from antisync.config import load_config  # noqa: E402
 from antisync.errors import AntisyncError  # noqa: E402
-from antisync.executors.dask import DaskExecutor  # noqa: E402
-from antisync.executors.local import LocalExecutor  # noqa: E402
-from antisync.runner import run_config  # noqa: E402
+from antisync.execution.executors.dask import DaskExecutor  # noqa: E402
+from antisync.execution.executors.local import LocalExecutor  # noqa: E402
+from antisync.execution.runner import run_config  # noqa: E402
+from antisync.plan.config import load_config  # noqa: E402
 
 TINY = """\
 name: tiny
@@ -227,9 +227,9 @@ def test_cli_scheduler_same_summary_as_local(client, config_path, reference, tmp
 
 
 def test_both_executors_satisfy_the_executor_protocol():
-    from antisync.executors import Executor
-    from antisync.executors.dask import DaskExecutor
-    from antisync.executors.local import LocalExecutor
+    from antisync.execution.executors import Executor
+    from antisync.execution.executors.dask import DaskExecutor
+    from antisync.execution.executors.local import LocalExecutor
 
     assert isinstance(LocalExecutor("cpu", 1), Executor)
     for name in ("run", "describe", "close"):
@@ -242,7 +242,7 @@ def test_stopping_rule_on_the_cluster_stops_where_the_local_run_does(client, tmp
     """``stop: signs-resolved`` through the Dask executor (chunks finish out of order; each
     look waits for its prefix): the same looks and the same file as the local executor's, for
     a run that stops at its first look and one that spends its budget (3->4 stays open)."""
-    from antisync.config import load_config_text
+    from antisync.plan.config import load_config_text
     from antisync.store import records, stop_record
 
     text = TINY.replace("realizations: 400", "realizations: 3200").replace("betas: [0.5]", "betas: []")
@@ -342,7 +342,7 @@ def test_a_closing_worker_drops_only_the_heartbeat_its_close_cut_short():
 
     from distributed.core import Status
 
-    from antisync.executors.dask import _SHUTDOWN_RACE, _quiet_close_plugin
+    from antisync.execution.executors.dask import _SHUTDOWN_RACE, _quiet_close_plugin
 
     logger = logging.getLogger("distributed")
     handler = logging.StreamHandler()  # as distributed configures in a worker process

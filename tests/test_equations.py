@@ -46,7 +46,7 @@ def test_every_citation_is_in_the_table():
     table = _table()
     files = [
         p
-        for folder in ("antisync", "antisync", "docs", "configs", "bench", "tests")
+        for folder in ("antisync", "docs", "configs", "bench", "tests")
         for p in (REPO / folder).rglob("*")
         if p.suffix in (".py", ".md", ".yaml") and "__pycache__" not in p.parts
     ]

@@ -5,8 +5,8 @@ import math
 import numpy as np
 import pytest
 
-from antisync import estimators
 from antisync.kernels.cpu import SimResult
+from antisync.stats import estimators
 from antisync.status import Status
 
 

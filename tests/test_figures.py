@@ -27,8 +27,8 @@ from antisync.report.figures import (  # noqa: E402
 )
 from antisync.report.links import link_figures, link_signs, plot_resolved_map  # noqa: E402
 from antisync.report.measures import measure_figures  # noqa: E402
+from antisync.stats.summary import job_records  # noqa: E402
 from antisync.store import read_views  # noqa: E402
-from antisync.summary import job_records  # noqa: E402
 
 runner = CliRunner()
 

@@ -18,9 +18,16 @@ from typer.testing import CliRunner
 import antisync
 from antisync._version import __version__
 from antisync.cli.app import app
-from antisync.config import load_config
 from antisync.errors import AntisyncError
-from antisync.graphs import GraphError, build_graph, from_edgelist, graph_spec, node_order, omega_matrix
+from antisync.physics.graphs import (
+    GraphError,
+    build_graph,
+    from_edgelist,
+    graph_spec,
+    node_order,
+    omega_matrix,
+)
+from antisync.plan.config import load_config
 
 runner = CliRunner()
 REPO = Path(__file__).resolve().parent.parent

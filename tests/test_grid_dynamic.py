@@ -1,4 +1,4 @@
-"""Dynamic line removal (antisync/removal.py, docs/power_grids.md): paired on the same starts as
+"""Dynamic line removal (antisync/grids/removal.py, docs/power_grids.md): paired on the same starts as
 the ordinary run, exact intervals, the Braess example in the dynamic indicator, bad input."""
 
 from __future__ import annotations
@@ -13,9 +13,9 @@ from scipy.stats import binomtest
 from typer.testing import CliRunner
 
 from antisync.cli.app import app
-from antisync.config import config_from_mapping
-from antisync.grid import GridError
-from antisync.removal import clopper_pearson, line_removal, mcnemar_exact, parse_lines, write_table
+from antisync.grids.grid import GridError
+from antisync.grids.removal import clopper_pearson, line_removal, mcnemar_exact, parse_lines, write_table
+from antisync.plan.config import config_from_mapping
 from antisync.status import SYNCED
 
 runner = CliRunner()
@@ -84,9 +84,9 @@ def test_intact_tau_is_the_ordinary_runs_tau0_and_removal_is_the_grid_without_th
     """The intact grid of a removal table is the job machinery's undamaged run of the same
     config and seed, realization by realization; removing a line (beta = 1) is integrating the
     grid without it, and beta -> 1 approaches it."""
-    from antisync.compute import simulate_job
-    from antisync.estimators import crossing_times
-    from antisync.jobs import make_job
+    from antisync.execution.compute import simulate_job
+    from antisync.plan.jobs import make_job
+    from antisync.stats.estimators import crossing_times
 
     cfg = ring_config()
     table = line_removal(cfg, lines=[(0, 3), (1, 2)])
@@ -289,7 +289,7 @@ def client():
 def test_removal_on_a_dask_cluster_equals_the_local_table(client):
     """Tasks of realizations x groups of lines on two worker processes (the intact grid in one
     group only) give the local table, array for array and row for row."""
-    from antisync import removal
+    from antisync.grids import removal
 
     cfg = ring_config(realizations=removal.CHUNK + 8)  # two chunks of realizations
     here = line_removal(cfg)
@@ -331,7 +331,7 @@ class _StopAfter:
 
 
 def test_an_interrupted_removal_resumes_from_its_journal_and_redoes_nothing(tmp_path):
-    from antisync import removal
+    from antisync.grids import removal
 
     cfg = ring_config(realizations=removal.CHUNK + 8)  # two tasks: 256 and 8 realizations
     whole = line_removal(cfg)
@@ -354,8 +354,8 @@ def test_an_interrupted_removal_resumes_from_its_journal_and_redoes_nothing(tmp_
 
 
 def test_cli_resume_finishes_and_removes_the_journal(tmp_path):
-    from antisync.config import load_config
-    from antisync.removal import journal_folder
+    from antisync.grids.removal import journal_folder
+    from antisync.plan.config import load_config
 
     cfg = _grid_files(tmp_path)
     out = tmp_path / "r.json"
@@ -379,7 +379,7 @@ def test_cli_resume_finishes_and_removes_the_journal(tmp_path):
 def test_parts_split_by_lines_merge_into_the_one_run_table():
     """Two parts with disjoint lines (as on two machines) merge into the table of one run over
     all the lines: the same rows, and the calls made again over the union."""
-    from antisync.removal import table_document
+    from antisync.grids.removal import table_document
     from antisync.report.removal import merge_docs
 
     cfg = ring_config(realizations=24)

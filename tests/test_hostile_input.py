@@ -21,10 +21,10 @@ from hypothesis import strategies as st
 from typer.testing import CliRunner
 
 from antisync.cli.app import app
-from antisync.config import load_config_text
 from antisync.errors import AntisyncError
-from antisync.graphs import build_graph, from_edgelist
-from antisync.jobs import make_job
+from antisync.physics.graphs import build_graph, from_edgelist
+from antisync.plan.config import load_config_text
+from antisync.plan.jobs import make_job
 
 runner = CliRunner()
 REPO = Path(__file__).resolve().parent.parent

@@ -22,11 +22,11 @@ from hypothesis import strategies as st
 from typer.testing import CliRunner
 
 from antisync.cli.app import app
-from antisync.compute import FLOAT32_MARGIN, check_float32_threshold
-from antisync.config import load_config_text
 from antisync.errors import AntisyncError, ConfigError
-from antisync.graphs import build_graph, omega_matrix
-from antisync.model import Model, drawn_frequencies, node_frequencies, read_frequency_file
+from antisync.execution.compute import FLOAT32_MARGIN, check_float32_threshold
+from antisync.physics.graphs import build_graph, omega_matrix
+from antisync.plan.config import load_config_text
+from antisync.plan.model import Model, drawn_frequencies, node_frequencies, read_frequency_file
 from antisync.validation import MAX_INPUT_BYTES, parse_integer, parse_number
 
 runner = CliRunner()
@@ -518,8 +518,8 @@ def test_drawn_frequencies_keep_their_spread_whatever_the_mean(dist, mean):
 
 
 def test_a_run_with_a_large_mean_frequency_is_the_small_mean_run():
-    from antisync.compute import simulate_job
-    from antisync.jobs import make_job
+    from antisync.execution.compute import simulate_job
+    from antisync.plan.jobs import make_job
 
     base = G + "betas: [0.5]\ndynamics: {t_max: 60, dt: 0.01}\nrealizations: 30\nmodel: {frequencies: "
     sims = [

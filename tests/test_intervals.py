@@ -13,7 +13,7 @@ import math
 import numpy as np
 import pytest
 
-from antisync import estimators
+from antisync.stats import estimators
 
 DBETA = 0.01
 CAP = 3.0 / DBETA

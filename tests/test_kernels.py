@@ -4,9 +4,9 @@ import numpy as np
 import pytest
 from naive import sync_steps, two_oscillator_tau
 
-from antisync import coupling, graphs
 from antisync.kernels.cpu import simulate
-from antisync.phases import initial_phases
+from antisync.physics import coupling, graphs
+from antisync.physics.phases import initial_phases
 from antisync.status import Status
 
 

@@ -4,11 +4,11 @@ the hybrid's secants, orbit differences, and agreement between methods on the pa
 import numpy as np
 import pytest
 
-from antisync import coupling, graphs
-from antisync.config import load_config_text
-from antisync.jobs import make_job
+from antisync.execution.runner import run_config
 from antisync.kernels.cpu import simulate, simulate_pathwise
-from antisync.runner import run_config
+from antisync.physics import coupling, graphs
+from antisync.plan.config import load_config_text
+from antisync.plan.jobs import make_job
 from antisync.store import records
 
 DT = 0.002
@@ -78,7 +78,7 @@ seed: 5
 def test_hybrid_uses_central_secants_of_interpolated_times_where_flagged():
     """Flagged values (near a saddle passage) are central secants: a forward one would carry
     the one-sided bias that makes the sum rule fail (issue 28)."""
-    from antisync.compute import lambda_values
+    from antisync.execution.compute import lambda_values
 
     hybrid = _job("hybrid")
     values, code, flagged, base = lambda_values(hybrid, None, 0, 400)
@@ -149,7 +149,7 @@ seed: 5
 def test_orbit_of_a_single_link_is_the_central_difference():
     """On lollipop(6, 3) the orbit of 2->1 is {2->1}: the estimate is the plain central difference
     of that link, realization by realization; the orbit of 5->6 is {5->6, 6->5}."""
-    from antisync.compute import lambda_values
+    from antisync.execution.compute import lambda_values
 
     job = _orbit_job("{kind: lollipop, nodes: 6, path: 3}", '["2->1", "5->6"]')
     assert job.orbit_sizes.tolist() == [1, 2]
@@ -174,7 +174,7 @@ def test_orbit_of_an_arc_transitive_graph_closed_forms():
     """K5: every directed link is in one orbit. Normalized coupling: damaging them all leaves W
     unchanged, so Lambda = 0 on every link. Raw coupling: it scales W by 1 - beta, so
     tau(beta) = tau0 / (1 - beta) up to the Euler error and Lambda = -1 / 20 on every link."""
-    from antisync.compute import lambda_values
+    from antisync.execution.compute import lambda_values
 
     norm = _orbit_job("{kind: networkx, generator: complete_graph, args: {n: 5}}", '["0->1", "3->2"]')
     assert norm.orbit_sizes.tolist() == [20, 20]
@@ -199,7 +199,7 @@ def test_orbit_directions_of_one_node_cancel():
     all out-links of a is zero (normalized rows sum to 1), so Lambda(fig. 2 link) =
     -Lambda(a -> bridge) / (N - 3). The two orbit estimates use different damage directions
     and agree realization by realization up to O(dbeta^2)."""
-    from antisync.compute import lambda_values
+    from antisync.execution.compute import lambda_values
 
     job = _orbit_job("{kind: lollipop, nodes: 7, path: 1}", '["6->7", "7->2"]', m=300)
     assert job.orbit_sizes.tolist() == [20, 5]

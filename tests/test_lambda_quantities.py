@@ -13,9 +13,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from antisync.compute import lambda_values, simulate_job
-from antisync.config import load_config_text
-from antisync.jobs import make_job
+from antisync.execution.compute import lambda_values, simulate_job
+from antisync.plan.config import load_config_text
+from antisync.plan.jobs import make_job
 from antisync.status import SYNCED
 
 LOLLIPOP = "{kind: lollipop, nodes: 6, path: 3}"
@@ -132,7 +132,7 @@ def _run(
     extra: str = "",
     dynamics: str = "{integrator: rk4, dt: 0.04, crossing: interpolated}",
 ):
-    from antisync.runner import run_config
+    from antisync.execution.runner import run_config
 
     cfg = load_config_text(f"""
 graph: {LOLLIPOP}
@@ -178,7 +178,7 @@ def test_the_summary_table_says_how_signs_were_called_and_the_sum_rule(tmp_path)
 def test_raw_coupling_has_no_sum_rule(tmp_path):
     """Without the normalization a node's out-links do not compensate each other: no rule."""
     from antisync.api import summarize
-    from antisync.runner import run_config
+    from antisync.execution.runner import run_config
 
     raw = load_config_text(f"graph: {LOLLIPOP}\nbetas: []\nrealizations: 200\ndynamics: {{coupling: raw}}\n")
     assert summarize(run_config(raw, output=tmp_path / "raw.h5"))["sum_rule"] == []
@@ -190,8 +190,8 @@ def test_a_hybrid_file_from_before_central_secants_says_so(tmp_path):
     import h5py
 
     from antisync.api import summarize
-    from antisync.estimators import MIXED_QUANTITY
-    from antisync.runner import run_config
+    from antisync.execution.runner import run_config
+    from antisync.stats.estimators import MIXED_QUANTITY
 
     cfg = load_config_text(
         f"graph: {LOLLIPOP}\nedges: ['2->1']\nbetas: []\nrealizations: 200\n"
@@ -239,7 +239,7 @@ def test_lambda_tau_interval_uses_the_batches_degrees_of_freedom():
     0.940 at 20 batches, bench/RESULTS.md); at many batches it is the normal interval."""
     from scipy.stats import t as student
 
-    from antisync.estimators import Z95, Estimate, lambda_tau_interval
+    from antisync.stats.estimators import Z95, Estimate, lambda_tau_interval
 
     low, high = lambda_tau_interval(Estimate(0.3, 0.01, float("nan"), 0.01, 2000, 20))
     q = student.ppf(0.975, 19)
@@ -254,7 +254,7 @@ def test_lambda_tau_obeys_the_sum_rule_with_forward_secants(tmp_path):
     """Unlike <F>'s forward secant, Lambda^tau's forward secant keeps node 2's sum within its
     interval (measured +0.0023 +- 0.0031 at 400,000 realizations, bench/RESULTS.md)."""
     from antisync.api import summarize
-    from antisync.runner import run_config
+    from antisync.execution.runner import run_config
 
     cfg = load_config_text(f"""
 graph: {LOLLIPOP}
@@ -276,7 +276,7 @@ def test_a_format_3_file_reads_and_resumes_without_lambda_tau(tmp_path):
     import h5py
 
     from antisync.api import summarize
-    from antisync.runner import run_config
+    from antisync.execution.runner import run_config
 
     text = f"graph: {LOLLIPOP}\nedges: ['2->1']\nbetas: []\nrealizations: 400\nblock_size: 100\n"
     text += "dynamics: {integrator: rk4, dt: 0.04}\n"
@@ -296,7 +296,7 @@ def test_a_format_3_file_reads_and_resumes_without_lambda_tau(tmp_path):
 def _sum_rule_view(nodes: int, offset_in_se: float):
     """A job whose every node has two out-links; node 1's sum sits ``offset_in_se`` standard
     errors from 0, the others' at 0 (per-block sums alternate around their mean)."""
-    from antisync.summary import JobView
+    from antisync.stats.summary import JobView
 
     nb, delta = 50, 0.1
     se = delta * np.sqrt(nb / (nb - 1)) / np.sqrt(nb)
@@ -319,7 +319,7 @@ def _sum_rule_view(nodes: int, offset_in_se: float):
 def test_the_sum_rule_decides_over_all_the_nodes_it_checks():
     """A sum 2.3 standard errors from 0 is resolved when it is the only node checked (95%) but
     not among five (Bonferroni, 99%): checking many nodes finds no broken rule by chance."""
-    from antisync.sum_rule import node_sums
+    from antisync.stats.sum_rule import node_sums
 
     (alone,) = node_sums(_sum_rule_view(1, 2.3))
     assert alone["resolved"] and alone["low"] > 0

@@ -18,11 +18,11 @@ from typer.testing import CliRunner
 import antisync
 from antisync.cli.app import app
 from antisync.errors import AntisyncError
-from antisync.graphs import GraphError, build_graph
-from antisync.records import flag_signs, primary_measure, sort_records
+from antisync.physics.graphs import GraphError, build_graph
 from antisync.report.links import compare, is_large
+from antisync.stats.records import flag_signs, primary_measure, sort_records
+from antisync.stats.summary import sign_resolved
 from antisync.store import read_views
-from antisync.summary import sign_resolved
 
 runner = CliRunner()
 
@@ -248,8 +248,8 @@ def test_ieee118_topology_is_the_case_files():
     parallel circuits) on buses 1..118, connected; the config damages all 358 directed links."""
     import networkx as nx
 
-    from antisync.config import load_config
-    from antisync.jobs import make_job
+    from antisync.plan.config import load_config
+    from antisync.plan.jobs import make_job
 
     configs = Path(__file__).resolve().parents[1] / "configs"
     job = make_job(load_config(configs / "ieee118.yaml"))

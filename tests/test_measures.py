@@ -12,8 +12,6 @@ import numpy as np
 import pytest
 import scipy.linalg
 
-from antisync.coupling import coupling_derivative, coupling_matrix, damaged_omega, laplacian
-from antisync.graphs import all_directed_edges, lollipop, omega_matrix
 from antisync.measures import (
     LinearResult,
     f_rw,
@@ -29,6 +27,8 @@ from antisync.measures import (
     xi2,
 )
 from antisync.measures import linear as linear_mod
+from antisync.physics.coupling import coupling_derivative, coupling_matrix, damaged_omega, laplacian
+from antisync.physics.graphs import all_directed_edges, lollipop, omega_matrix
 
 # --- helpers -------------------------------------------------------------------------------
 

@@ -13,16 +13,17 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
-from antisync import graphs
 from antisync.cli.app import app
-from antisync.config import LINEAR_METHODS, load_config_text
 from antisync.errors import ConfigError, MeasureError
-from antisync.jobs import make_job
+from antisync.execution.runner import run_config
 from antisync.measures import lambda_linear, lambda_rw, lambda_xi2_all
 from antisync.measures import linear as linear_mod
-from antisync.measures.pipeline import RECORD_KEYS, compute_measures, nnc_job, with_nnc
-from antisync.phases import initial_phases
-from antisync.runner import run_config
+from antisync.measures.pipeline import compute_measures, nnc_job, with_nnc
+from antisync.physics import graphs
+from antisync.physics.phases import initial_phases
+from antisync.plan.config import LINEAR_METHODS, load_config_text
+from antisync.plan.jobs import make_job
+from antisync.stats.summary import RECORD_KEYS
 
 runner = CliRunner()
 
@@ -95,7 +96,7 @@ def test_km_nnc_is_joined_from_the_raw_coupling_twin(run):
     assert all(twin[e][k] is None for e in twin for k in RECORD_KEYS)
     # raw coupling, same seed: realization k's tau0 is the raw-coupled Kuramoto time from the
     # same initial phases (checked against a direct integration)
-    from antisync.compute import simulate_job
+    from antisync.execution.compute import simulate_job
 
     cfg = load_config_text(CONFIG)
     sim = simulate_job(nnc_job(make_job(cfg)), 0, 25)
@@ -210,7 +211,7 @@ def test_measures_on_a_disconnected_graph_fail_before_anything_is_written(tmp_pa
     job = make_job(cfg, graph=two, name="two_triangles")
     with pytest.raises(MeasureError, match=r"^graph two_triangles: measure rw: .*disconnected"):
         compute_measures(job)
-    from antisync.runner import run_jobs
+    from antisync.execution.runner import run_jobs
 
     with pytest.raises(MeasureError):
         run_jobs([job], cfg, progress=False)
@@ -257,7 +258,7 @@ def test_linear_exact_and_euler_agree_with_common_phases():
 
 
 def test_measures_are_computed_once_and_survive_checkpoints_and_resume(tmp_path, monkeypatch):
-    import antisync.runner as runner_mod
+    import antisync.execution.runner as runner_mod
     from antisync.store import records
 
     calls = []

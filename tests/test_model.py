@@ -4,8 +4,8 @@ import networkx as nx
 import numpy as np
 import pytest
 
-from antisync import coupling, graphs
-from antisync.phases import initial_phases, phase
+from antisync.physics import coupling, graphs
+from antisync.physics.phases import initial_phases, phase
 
 
 def test_lollipop_has_the_papers_labels(paper_values):

@@ -7,12 +7,12 @@ import numpy as np
 import pytest
 from test_models import LOLLIPOP, dense_w, job_of
 
-from antisync import coupling
-from antisync.compute import lambda_values
+from antisync.execution.compute import lambda_values
 from antisync.kernels import cpu
 from antisync.kernels.adjoint import link_derivatives
 from antisync.kernels.model_adjoint import simulate_model_adjoint
-from antisync.locked import locked_state
+from antisync.physics import coupling
+from antisync.physics.locked import locked_state
 from antisync.status import Status
 
 LAG = "model: {frequencies: [0.15, -0.1, 0.05, 0.12, -0.2, -0.02], phase_lag: 0.3}\n"

@@ -11,11 +11,11 @@ import numpy as np
 import pytest
 from test_models import LOLLIPOP, _one_line, dense_w, job_of, tau_of
 
-from antisync.compute import simulate_job
-from antisync.config import load_config
-from antisync.jobs import make_job
-from antisync.locked import locked_state
-from antisync.phases import initial_phases
+from antisync.execution.compute import simulate_job
+from antisync.physics.locked import locked_state
+from antisync.physics.phases import initial_phases
+from antisync.plan.config import load_config
+from antisync.plan.jobs import make_job
 from antisync.status import Status
 
 GRID = Path(__file__).resolve().parents[1] / "configs" / "ieee14_grid.yaml"
@@ -217,9 +217,9 @@ def test_central_difference_runs_every_model_with_each_variants_own_target():
     """``lambda.method: central-difference`` on a model: each +-dbeta row carries its own
     relative target (r* of its weights), and the per-realization values are the central secant
     ``tau0 (1/tau(+h) - 1/tau(-h)) / (2 h)`` of trajectories integrated one by one."""
-    from antisync import coupling as cp
-    from antisync.compute import lambda_values
+    from antisync.execution.compute import lambda_values
     from antisync.kernels import cpu
+    from antisync.physics import coupling as cp
 
     job = job_of(
         LOLLIPOP + "edges: ['2->1', '4->3']\nbetas: []\nlambda: {method: central-difference, dbeta: 0.02}\n"
@@ -274,7 +274,7 @@ def test_orbit_runs_a_model_that_keeps_the_symmetry_and_refuses_one_that_breaks_
         "graph: {kind: networkx, generator: complete_graph, args: {n: 5}}\nedges: ['0->1']\nbetas: []\n"
         "lambda: {method: orbit}\nmodel: {frequencies: {distribution: normal, sd: 0.1}, phase_lag: 0.2}\n"
     )
-    from antisync.compute import lambda_values
+    from antisync.execution.compute import lambda_values
 
     values, code, _, _ = lambda_values(job, None, 0, 20)
     # K5's one orbit is every link: damaging all by beta leaves the normalized W unchanged

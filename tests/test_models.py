@@ -11,15 +11,15 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
-from antisync import coupling, graphs
 from antisync.cli.app import app
-from antisync.compute import simulate_job
-from antisync.config import load_config_text
 from antisync.errors import ConfigError
-from antisync.jobs import make_job
+from antisync.execution.compute import simulate_job
 from antisync.kernels import cpu, model_steps
-from antisync.locked import locked_state
-from antisync.phases import initial_phases
+from antisync.physics import coupling, graphs
+from antisync.physics.locked import locked_state
+from antisync.physics.phases import initial_phases
+from antisync.plan.config import load_config_text
+from antisync.plan.jobs import make_job
 from antisync.status import Status
 
 LOLLIPOP = "graph: {kind: lollipop, nodes: 6, path: 3}\n"
@@ -412,7 +412,7 @@ def test_bad_model_input_is_one_line(tmp_path, extra, message, files):
 
 
 def test_generalized_models_run_in_float64_only():
-    from antisync.compute import check_backend
+    from antisync.execution.compute import check_backend
 
     cfg = load_config_text(SMALL + "model: {phase_lag: 0.1}\ndynamics: {precision: float32}\n")
     with pytest.raises(ConfigError, match="float64 only"):
@@ -436,7 +436,7 @@ def test_frequency_file_is_read_relative_to_the_config(tmp_path):
     (tmp_path / "sub" / "p.txt").write_text("# P_i\n0.1\n-0.1\n0.05\n0\n0\n-0.05\n")
     cfg = tmp_path / "c.yaml"
     cfg.write_text(SMALL + "model: {frequencies: {file: sub/p.txt}}\n")
-    from antisync.config import load_config
+    from antisync.plan.config import load_config
 
     job = make_job(load_config(cfg))
     np.testing.assert_allclose(job.model.freqs, [0.1, -0.1, 0.05, 0, 0, -0.05])
@@ -451,7 +451,7 @@ def test_frequency_file_is_read_relative_to_the_config(tmp_path):
 def test_power_grid_example_config():
     """configs/ieee14_grid.yaml: bus i is node i, injections from the file in bus order, and
     its first realizations frequency-lock."""
-    from antisync.config import load_config
+    from antisync.plan.config import load_config
 
     root = Path(__file__).resolve().parents[1]
     job = make_job(load_config(root / "configs" / "ieee14_grid.yaml"))
@@ -547,7 +547,7 @@ LANE_MODELS = {
 
 
 def _model_sim(job, count, **kw):
-    from antisync.compute import _model_params
+    from antisync.execution.compute import _model_params
 
     ks = np.arange(count, dtype=np.uint64)
     params = _model_params(job, ks, job.model.targets)

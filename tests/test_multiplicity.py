@@ -1,4 +1,4 @@
-"""Sign calls over many links: the false discovery rate (antisync.multiplicity, issue 28)."""
+"""Sign calls over many links: the false discovery rate (antisync.stats.multiplicity, issue 28)."""
 
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from antisync.multiplicity import fdr_signs, p_value
+from antisync.stats.multiplicity import fdr_signs, p_value
 
 Z = 1.959963984540054
 

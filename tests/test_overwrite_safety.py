@@ -28,8 +28,8 @@ from test_store_safety import (
     wait_for_chunks,
 )
 
-from antisync.config import load_config
-from antisync.runner import run_config
+from antisync.execution.runner import run_config
+from antisync.plan.config import load_config
 from antisync.store import ResultStore
 
 REPO = Path(__file__).resolve().parents[1]

@@ -7,8 +7,8 @@ import json
 
 import pytest
 
-from antisync.config import load_config_text
-from antisync.runner import run_config
+from antisync.execution.runner import run_config
+from antisync.plan.config import load_config_text
 from antisync.store import records
 
 Z = 4.0  # standard errors
@@ -89,8 +89,8 @@ def test_table1_graphs_are_the_ones_the_text_names():
     subgraph joined to a path of two nodes."""
     import networkx as nx
 
-    from antisync.graphs import lollipop
-    from antisync.paper import TABLE1_ATLAS
+    from antisync.paper.make import TABLE1_ATLAS
+    from antisync.physics.graphs import lollipop
 
     g = {k: nx.graph_atlas(i) for k, (i, _) in TABLE1_ATLAS.items()}
     barbell_minus = nx.barbell_graph(3, 0)
@@ -106,7 +106,7 @@ def test_table1_graphs_are_the_ones_the_text_names():
 def test_table1_row(tmp_path, paper_values, graph):
     """Table 1 (1e9 realizations for <tau0> and <F_0.5>, 1e7 for Lambda) on the most
     antifragile link, from 20,000 realizations."""
-    from antisync.paper import TABLE1_ATLAS
+    from antisync.paper.make import TABLE1_ATLAS
 
     index, edge = TABLE1_ATLAS[graph]
     row = _table1_row(paper_values, graph)

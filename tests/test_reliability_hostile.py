@@ -28,11 +28,11 @@ from helpers import assert_one_line
 from typer.testing import CliRunner
 
 from antisync.cli.app import app
-from antisync.graphs import GraphError, build_graph, omega_matrix
+from antisync.physics.graphs import GraphError, build_graph, omega_matrix
 from antisync.report.links import link_figures, plot_sorted, plot_top_intervals
+from antisync.stats.sum_rule import node_sums, sum_rule_note
+from antisync.stats.summary import JobView
 from antisync.store.result_store import ResultStore
-from antisync.sum_rule import node_sums, sum_rule_note
-from antisync.summary import JobView
 
 matplotlib.use("Agg")
 
@@ -227,7 +227,7 @@ def _sum_view(offset: float, nb: int = 50) -> JobView:
 
 
 def test_a_rounding_level_sum_is_consistent_with_the_rule():
-    from antisync.sum_rule import ROUNDING_ULPS
+    from antisync.stats.sum_rule import ROUNDING_ULPS
 
     (row,) = node_sums(_sum_view(0.0))
     assert row["high"] < 0 and abs(row["sum"]) < 1e-15  # resolved from 0 by its interval alone
@@ -269,7 +269,7 @@ def test_a_mean_outside_its_interval_is_marked_and_explained(plot):
     import matplotlib.pyplot as plt
 
     from antisync.report.links import OUTSIDE_LABEL
-    from antisync.summary import OUTSIDE_WHY
+    from antisync.stats.summary import OUTSIDE_WHY
 
     fig, ax = plt.subplots()
     plot(_records(), "lambda_km", ax, **({"k": 10} if plot is plot_top_intervals else {}))
@@ -287,7 +287,7 @@ def test_a_mean_outside_its_interval_is_marked_and_explained(plot):
 
 def test_the_top_links_figure_of_a_large_graph_carries_the_mark():
     """Through :func:`link_figures`, what ``antisync report`` draws for a graph of many links."""
-    from antisync.summary import OUTSIDE_WHY
+    from antisync.stats.summary import OUTSIDE_WHY
 
     g = nx.path_graph(31)
     recs = _records()
@@ -366,7 +366,7 @@ def test_a_writer_with_its_own_journal_is_refused_naming_the_holder(tmp_path):
 def test_the_link_table_marks_a_mean_outside_its_interval(monkeypatch):
     """The Markdown table that replaces Fig. 1a's labels on a graph of many links."""
     from antisync.report import figures
-    from antisync.summary import OUTSIDE_WHY
+    from antisync.stats.summary import OUTSIDE_WHY
 
     monkeypatch.setattr(figures, "_lambdas", lambda view: ("lambda_km", _records()))
     lines = figures.link_table(None)

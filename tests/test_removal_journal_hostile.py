@@ -17,10 +17,10 @@ from helpers import HANG_GUARD_S, assert_one_line
 from test_grid_dynamic import ring_config
 from typer.testing import CliRunner
 
-from antisync import removal
 from antisync.cli.app import app
-from antisync.grid import GridError
-from antisync.removal import RemovalJournal, journal_folder, line_removal, table_document
+from antisync.grids import removal
+from antisync.grids.grid import GridError
+from antisync.grids.removal import RemovalJournal, journal_folder, line_removal, table_document
 from antisync.report.removal import merge_docs, removal_doc
 
 ROOT = Path(__file__).resolve().parent.parent

@@ -19,19 +19,19 @@ from typer.testing import CliRunner
 
 import antisync
 from antisync.cli.app import app
-from antisync.config import load_config
 from antisync.errors import StoreError
-from antisync.estimators import Z95
-from antisync.graphs import build_graph
-from antisync.jobs import make_job
+from antisync.physics.graphs import build_graph
+from antisync.plan.config import load_config
+from antisync.plan.jobs import make_job
 from antisync.report.intervals import interval_segments, record_intervals
 from antisync.report.links import plot_vs
 from antisync.report.measures import missing_note
 from antisync.report.tables import format_records
+from antisync.stats.estimators import Z95
+from antisync.stats.summary import WARNING_KINDS, warning_kind
 from antisync.store import read_views
 from antisync.store.layout import read_states
 from antisync.store.state import JobState
-from antisync.summary import WARNING_KINDS, warning_kind
 
 runner = CliRunner()
 

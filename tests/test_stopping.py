@@ -17,11 +17,11 @@ import pytest
 from helpers import HANG_GUARD_S, datasets
 
 from antisync.api import summarize
-from antisync.config import load_config_text
 from antisync.errors import ConfigError
-from antisync.executors.local import LocalExecutor
-from antisync.runner import Interrupted, run_config
-from antisync.stopping import look_level, stop_note
+from antisync.execution.executors.local import LocalExecutor
+from antisync.execution.runner import Interrupted, run_config
+from antisync.execution.stopping import look_level, stop_note
+from antisync.plan.config import load_config_text
 from antisync.store import records, stop_record
 
 # 2->1 (Lambda ~ +0.27) resolves after a few hundred realizations, 5->6 (~ +0.13, heavy
@@ -252,8 +252,8 @@ def test_a_damaged_stop_record_is_one_line(tmp_path, stopped):
 def test_a_look_counts_no_sign_that_rests_on_a_few_tail_values(tmp_path):
     """``lambda_intervals``' thin flag is exactly the summary's heavy-tail warning, and a look
     leaves those links open: the lollipop's heavy-tailed links at 2,000 RK4 realizations."""
+    from antisync.stats.summary import lambda_intervals
     from antisync.store import read_views
-    from antisync.summary import lambda_intervals
 
     text = BASE.replace('edges: ["2->1", "5->6", "1->2"]', "edges: all")
     cfg = _config(text, "realizations=2000", "dynamics.integrator=rk4", "dynamics.dt=0.04", "seed=1")

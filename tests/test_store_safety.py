@@ -22,14 +22,14 @@ import pytest
 from helpers import HANG_GUARD_S, comparable
 from typer.testing import CliRunner
 
-from antisync import graphs
 from antisync.cli.app import app
-from antisync.compute import compute_chunk
-from antisync.config import load_config
 from antisync.errors import StoreError
-from antisync.executors.local import LocalExecutor
-from antisync.jobs import Chunk, make_job
-from antisync.runner import Interrupted, run_config, run_jobs
+from antisync.execution.compute import compute_chunk
+from antisync.execution.executors.local import LocalExecutor
+from antisync.execution.runner import Interrupted, run_config, run_jobs
+from antisync.physics import graphs
+from antisync.plan.config import load_config
+from antisync.plan.jobs import Chunk, make_job
 from antisync.store import FORMAT_VERSION, ResultStore, chunk_tag, graph_digest, open_results, records
 
 REPO = Path(__file__).resolve().parent.parent
@@ -640,7 +640,7 @@ def test_dask_sweep_with_a_top_stage(tmp_path, sweep_reference):
     stage used to fail with 'NoneType' object has no attribute 'nthreads'). The numbers are the
     local executor's."""
     pytest.importorskip("distributed")
-    from antisync.executors.dask import DaskExecutor
+    from antisync.execution.executors.dask import DaskExecutor
     from antisync.sweeps import run_sweep, sweep_summary
 
     sw, _, ref = sweep_reference

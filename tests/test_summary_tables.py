@@ -16,11 +16,11 @@ from typer.testing import CliRunner
 
 import antisync
 from antisync.cli.app import app
-from antisync.config import load_config_text
-from antisync.records import flag_signs
-from antisync.report.describe import model_line, stored_config
+from antisync.execution.runner import run_config
+from antisync.plan.config import load_config_text
+from antisync.plan.describe import model_line, stored_config
 from antisync.report.tables import asymmetric, fmt_interval, format_records, sync_warnings
-from antisync.runner import run_config
+from antisync.stats.records import flag_signs
 
 LOLLIPOP = "graph: {kind: lollipop, nodes: 6, path: 3}\nrealizations: 200\nseed: 3\n"
 RELATIVE = (

@@ -290,7 +290,7 @@ def test_grid_sweep_on_dask_gives_the_local_numbers(grid_reference, tmp_path):
     pytest.importorskip("distributed")
     from helpers import local_cluster_client
 
-    from antisync.executors.dask import DaskExecutor
+    from antisync.execution.executors.dask import DaskExecutor
 
     cfg, _, ref = grid_reference
     out = tmp_path / "grid.h5"

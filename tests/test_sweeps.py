@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 from helpers import CrashAfter, comparable
 
-from antisync import graphs
 from antisync.errors import ConfigError
+from antisync.physics import graphs
 from antisync.sweeps import (
     edge_orbits,
     expand_records,
@@ -80,7 +80,7 @@ def test_schema_errors_name_the_key(text, message):
 
 
 def test_run_config_loader_points_sweeps_to_antisync_sweep():
-    from antisync.config import load_config_text
+    from antisync.plan.config import load_config_text
 
     with pytest.raises(ConfigError, match="antisync sweep"):
         load_config_text("sweep: {family: atlas, nodes: 6}")
@@ -100,8 +100,8 @@ def test_shipped_configs_are_valid(name):
     family (a sweep's), as `antisync validate` does."""
     import yaml
 
-    from antisync.config import load_config
-    from antisync.jobs import make_job
+    from antisync.plan.config import load_config
+    from antisync.plan.jobs import make_job
 
     path = REPO / "configs" / f"{name}.yaml"
     if "sweep" in yaml.safe_load(path.read_text()):
@@ -242,7 +242,7 @@ def _which(g: nx.Graph) -> str | None:
 def test_screening_excludes_the_rings_and_keeps_slow_graphs():
     """The three non-synchronizing 6-node graphs and the slowest synchronizing ones (G96 has a
     4-cycle whose degenerate twisted state gives the longest transients of the atlas)."""
-    from antisync.screening import screen_graph
+    from antisync.sweeps.screening import screen_graph
 
     candidates = [
         g for g in range(53, 209) if nx.is_connected(graphs.atlas(g)) and _which(graphs.atlas(g)) is not None
@@ -259,10 +259,10 @@ def test_screening_excludes_the_rings_and_keeps_slow_graphs():
 
 
 def test_screening_steps_equal_the_kernel_steps():
-    from antisync.compute import simulate_job
-    from antisync.config import load_config_text
-    from antisync.jobs import make_job
-    from antisync.screening import screen_realizations
+    from antisync.execution.compute import simulate_job
+    from antisync.plan.config import load_config_text
+    from antisync.plan.jobs import make_job
+    from antisync.sweeps.screening import screen_realizations
 
     cfg = load_config_text('graph: {kind: atlas, index: 127}\nedges: ["0->2"]\nbetas: []\nseed: 5')
     job = make_job(cfg)
@@ -275,8 +275,8 @@ def test_screening_steps_equal_the_kernel_steps():
 
 
 def test_stability_classification_of_twisted_and_synchronized_states():
-    from antisync.coupling import coupling_matrix
-    from antisync.screening import classify_state
+    from antisync.physics.coupling import coupling_matrix
+    from antisync.sweeps.screening import classify_state
 
     w = coupling_matrix(graphs.omega_matrix(graphs.from_networkx("cycle_graph", {"n": 6})))
     twisted = 2 * np.pi * np.arange(6) / 6
@@ -290,7 +290,7 @@ def test_stability_classification_of_twisted_and_synchronized_states():
 @pytest.mark.slow
 def test_screening_of_the_whole_atlas_excludes_exactly_three():
     sw = load_sweep_text("sweep: {family: atlas, nodes: 6}")
-    from antisync.screening import screen_graph
+    from antisync.sweeps.screening import screen_graph
 
     excluded = []
     for entry in family_graphs(sw, symmetry=False):
@@ -365,7 +365,7 @@ def test_fanned_out_records_match_direct_xi2(tiny_reference):
 def test_interrupted_sweep_resumes_to_the_same_file(tiny_reference, tmp_path, crash_after, exc, stage):
     """Killed right after screening, in the main stage (3 graphs x 6 chunks of 20) or in the top
     stage, or interrupted with Ctrl-C, then resumed: the same numbers as uninterrupted."""
-    from antisync.runner import Interrupted
+    from antisync.execution.runner import Interrupted
 
     sw, _, ref = tiny_reference
     path = tmp_path / "tiny.h5"
@@ -401,7 +401,7 @@ def test_resume_refuses_another_sweep(tiny_reference, tmp_path):
 
 
 def test_screening_is_resumed_not_redone(tiny_reference, tmp_path, monkeypatch):
-    import antisync.screening as screening
+    import antisync.sweeps.screening as screening
 
     sw, _, ref = tiny_reference
     path = tmp_path / "tiny.h5"
@@ -532,7 +532,7 @@ def test_fit_gamma_recovers_a_line():
 
 
 def test_paper_plan_fits_the_budget_and_readme_tolerates_missing_steps(tmp_path):
-    from antisync.paper import STEPS, _readme, plan
+    from antisync.paper.make import STEPS, _readme, plan
 
     assert sum(s.cpu_seconds() for s in STEPS) / 2 < 0.6 * 3600  # 2 cores, margin for slower CPUs
     assert "total" in plan(0.5)
@@ -544,7 +544,7 @@ def test_paper_plan_fits_the_budget_and_readme_tolerates_missing_steps(tmp_path)
 def test_make_paper_step_reruns_as_a_no_op_and_keeps_its_time(tmp_path):
     """One real step of ``antisync paper`` at 100 realizations: the README shows it with its
     minutes; a rerun finds the step finished, computes nothing and keeps the first time."""
-    from antisync.paper import make_paper
+    from antisync.paper.make import make_paper
 
     out, logs = tmp_path / "paper", []
     readme = make_paper(out, scale=0.01, only=("lollipop6",), progress=False, log=logs.append)
@@ -566,7 +566,7 @@ def test_paper_precision_commands_are_valid_configs():
     from typer.testing import CliRunner
 
     from antisync.cli.app import app
-    from antisync.paper import PAPER_PRECISION
+    from antisync.paper.make import PAPER_PRECISION
 
     commands = [c for c in PAPER_PRECISION.replace("\\\n", " ").splitlines() if c.startswith("antisync ")]
     assert len(commands) == 6

@@ -17,9 +17,9 @@ import pytest
 from scipy.stats import chi2
 
 import antisync
-from antisync import estimators
 from antisync.errors import StoreError
 from antisync.report.figures import conditioning_note
+from antisync.stats import estimators
 from antisync.status import NOT_SYNCED, SYNCED
 from antisync.store import read_views
 

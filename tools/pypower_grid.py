@@ -15,7 +15,7 @@ above (checked by ``tools/pypower_grid.py --check``); the 14-bus files predate i
 The conversion: a line's capacity ``K`` is one number for every line (the literature's
 dimensionless swing-equation grids, Rohden et al., Phys. Rev. Lett. 109, 064101 (2012)), not
 derived from the branch reactances; choose it from the critical coupling, which ``antisync``'s
-locked-state solver finds (``antisync.locked.locked_state``, docs/models.md).
+locked-state solver finds (``antisync.physics.locked.locked_state``, docs/models.md).
 """
 
 from __future__ import annotations

@@ -177,7 +177,7 @@ def dask_executor(cfg, *, workers: int | None, scheduler: str | None, quiet: boo
         yield None
         return
     try:
-        from antisync.executors.dask import DaskExecutor
+        from antisync.execution.executors.dask import DaskExecutor
     except ImportError as exc:
         raise AntisyncError(
             f"the dask executor is not available here ({exc}); "
@@ -196,7 +196,7 @@ def writing(output: str):
     resume; an OSError (a full disk, a file size limit, a folder turned read-only) is one line
     naming the output."""
     from antisync.errors import AntisyncError
-    from antisync.runner import Interrupted
+    from antisync.execution.runner import Interrupted
 
     try:
         yield

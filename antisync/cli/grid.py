@@ -80,9 +80,8 @@ def grid(
     import dataclasses
 
     from antisync.cli.common import typed_values
-    from antisync.config import load_config
-    from antisync.grid import GridError, format_table, grid_from_config, static_table
-    from antisync.removal import (
+    from antisync.grids.grid import GridError, format_table, grid_from_config, static_table
+    from antisync.grids.removal import (
         check_beta,
         check_output,
         journal_folder,
@@ -92,6 +91,7 @@ def grid(
         remove_journal,
         write_table,
     )
+    from antisync.plan.config import load_config
     from antisync.report.removal import check_figure, check_finished_table, removal_figure
     from antisync.store.lock import writer_lock
     from antisync.store.outputs import config_inputs

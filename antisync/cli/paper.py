@@ -34,7 +34,7 @@ def paper(
     Finished steps are kept and interrupted ones resumed, so rerunning is cheap.
     """
     from antisync.errors import AntisyncError
-    from antisync.paper import STEPS, make_paper, plan
+    from antisync.paper.make import STEPS, make_paper, plan
 
     if not scale > 0:
         raise AntisyncError(f"--scale must be positive, got {scale}")

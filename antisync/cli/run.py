@@ -46,9 +46,9 @@ def run(
     debug: DebugOpt = False,
 ) -> None:
     """Run the experiment of CONFIG and write tau0/tau(beta) statistics, Lambda and histograms to HDF5."""
-    from antisync.config import load_config
     from antisync.errors import AntisyncError
-    from antisync.runner import run_config
+    from antisync.execution.runner import run_config
+    from antisync.plan.config import load_config
 
     if resume and overwrite:
         raise AntisyncError("--resume and --overwrite exclude each other: choose one")

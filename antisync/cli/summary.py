@@ -7,7 +7,7 @@ from typing import Annotated, Literal
 import typer
 
 from antisync.cli.common import DebugOpt, ResultArg, one_of, user_errors
-from antisync.records import SortKey
+from antisync.stats.records import SortKey
 
 Format = Literal["table", "json", "csv"]
 
@@ -47,13 +47,13 @@ def summary(
     import json
 
     from antisync.api import summarize
-    from antisync.records import flag_signs, sign_rule_note, sort_records
-    from antisync.report.describe import stored_name
+    from antisync.execution.stopping import stop_note
+    from antisync.plan.describe import stored_name
     from antisync.report.tables import format_records, format_sweep
-    from antisync.stopping import stop_note
+    from antisync.stats.records import flag_signs, sign_rule_note, sort_records
+    from antisync.stats.sum_rule import sum_rule_note, views_sums
+    from antisync.stats.summary import named_views, view_records
     from antisync.store import is_sweep_file, read_views, root_attrs, stop_record
-    from antisync.sum_rule import sum_rule_note, views_sums
-    from antisync.summary import named_views, view_records
     from antisync.sweeps import sweep_summary
 
     def listed(recs: list[dict]) -> list[dict]:
@@ -100,9 +100,9 @@ def summary(
 def _model_note(path, records: list[dict], views) -> str | None:
     """The table's ``model: ...; sync: ...`` line (with r* for ``sync.criterion: relative``);
     None for a file without a Kuramoto run (its exact measures depend on no model)."""
-    from antisync.report.describe import model_line, relative_criterion, stored_config
+    from antisync.plan.describe import model_line, relative_criterion, stored_config
+    from antisync.stats.summary import r_star_rows
     from antisync.store import read_views, root_attrs
-    from antisync.summary import r_star_rows
 
     if not any(r.get("realizations") for r in records):
         return None

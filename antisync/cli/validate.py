@@ -10,8 +10,8 @@ from antisync.cli.common import ConfigArg, DebugOpt, SetOpt, user_errors
 @user_errors
 def validate(config: ConfigArg, set_: SetOpt = None, debug: DebugOpt = False) -> None:
     """Check CONFIG: keys, values, graph, edges. Prints the resolved config on success."""
-    from antisync.config import load_config
-    from antisync.jobs import make_job
+    from antisync.plan.config import load_config
+    from antisync.plan.jobs import make_job
 
     if _is_sweep(config):
         from antisync.sweeps import family_graphs, load_sweep
@@ -58,9 +58,9 @@ def preflight(cfg, jobs) -> str:
     the backend implements (cuda: options and node counts), for the backend the config asks
     for. Whether this machine has a GPU is a note, not an error: a config for the cluster is
     valid on a laptop. Returns the backend checked."""
-    from antisync.backends import resolve_backend
-    from antisync.compute import check_backend, check_job
     from antisync.errors import AntisyncError
+    from antisync.execution.compute import check_backend, check_job
+    from antisync.kernels.backends import resolve_backend
     from antisync.measures.pipeline import with_nnc
 
     backend = cfg.backend
@@ -78,8 +78,8 @@ def _is_sweep(path) -> bool:
     """Whether the YAML file has a top-level ``sweep:`` key (errors are left to the loaders)."""
     import yaml
 
-    from antisync.config import read_config_text
     from antisync.errors import AntisyncError
+    from antisync.plan.config import read_config_text
 
     try:
         # the config reader: a FIFO, a device or a huge file is refused, never read

@@ -6,7 +6,7 @@ integrates the undamaged trajectory and one backward pass of the *discrete* inte
 adjoint gives ``g_p = d tau0 / d w_p`` for every entry ``p = (i, j)`` of ``W`` at once, ``O(N +
 nnz)`` work per step whatever the number of links; ``d tau0 / d beta_e`` is then the contraction
 of ``g`` with the one nonzero row of ``dW/dbeta_e``
-(:func:`antisync.coupling.coupling_derivative_row`, see :func:`link_derivatives`). The result is
+(:func:`antisync.physics.coupling.coupling_derivative_row`, see :func:`link_derivatives`). The result is
 the derivative of the same function of the weights that the pathwise tangents differentiate
 (the interpolated crossing time of the same discrete trajectory), so both give the same values
 to rounding (docs/equations.md, "The adjoint of the Euler step", Eqs. A1-A4).
@@ -43,7 +43,6 @@ import numpy as np
 from numba import njit, prange
 
 from antisync import _numba_cache  # noqa: F401 -- before any cache=True function (see there)
-from antisync.coupling import CouplingCSR, coupling_derivative_row
 from antisync.kernels.core import (
     RENORM_EVERY,
     TAYLOR_MAX_ANGLE,
@@ -55,7 +54,8 @@ from antisync.kernels.core import (
     vstore,
 )
 from antisync.kernels.cpu import PathwiseResult, _realization_ids, _row_sum_bound, _Threads
-from antisync.phases import phase
+from antisync.physics.coupling import CouplingCSR, coupling_derivative_row
+from antisync.physics.phases import phase
 from antisync.status import ALREADY_SYNCED, NOT_SYNCED, SYNCED
 from antisync.types import Coupling, Integrator
 
@@ -100,7 +100,7 @@ def link_derivatives(
 ) -> LinkDerivatives:
     """:class:`LinkDerivatives` of the directed links ``edges`` (0-based ``(a, b)`` pairs).
 
-    Each row is :func:`antisync.coupling.coupling_derivative_row` restricted to the pattern of
+    Each row is :func:`antisync.physics.coupling.coupling_derivative_row` restricted to the pattern of
     row ``a`` of ``csr`` (it is zero off the pattern: damage rescales existing links only).
     """
     indptr = np.zeros(len(edges) + 1, dtype=np.int64)

@@ -565,7 +565,7 @@ def make_kernels(jit, dtype=np.float64) -> Kernels:
         ``u <- u + dt (J u + df/dbeta)``, with ``(J u)_i = sum_j w_ij cos(theta_j - theta_i)
         (u_j - u_i)`` and, for damage on ``a -> b``, ``df_a/dbeta = rho omega_a + mu
         sin(theta_b - theta_a)`` (``dw_aj/dbeta = rho w_aj + mu [j = b]``; see
-        :func:`antisync.coupling.coupling_derivative`). Afterwards
+        :func:`antisync.physics.coupling.coupling_derivative`). Afterwards
         ``dr2[e] = d|sum_j e^{i theta_j}|^2 / dbeta_e``.
         """
         n, lanes = c.shape

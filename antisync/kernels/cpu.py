@@ -55,7 +55,7 @@ from antisync.kernels.core import (
     renorm_interval,
 )
 from antisync.kernels.model_steps import ModelParams, per_node
-from antisync.phases import phase
+from antisync.physics.phases import phase
 from antisync.status import ALREADY_SYNCED, NOT_SYNCED, SYNCED
 from antisync.types import Integrator
 
@@ -1176,9 +1176,9 @@ def simulate(
     Parameters
     ----------
     seed, first, count : int
-        Realization ``k`` starts from :func:`antisync.phases.phase` ``(seed, k, node)``.
+        Realization ``k`` starts from :func:`antisync.physics.phases.phase` ``(seed, k, node)``.
     indptr, indices, base_weights : arrays
-        CSR form of ``W(Omega)`` (see :class:`antisync.coupling.CouplingCSR`).
+        CSR form of ``W(Omega)`` (see :class:`antisync.physics.coupling.CouplingCSR`).
     variant_weights : array, shape (V, nnz)
         CSR weights of each damaged ``W(Omega*)`` on the same pattern.
     dt, threshold, max_steps
@@ -1294,7 +1294,7 @@ def simulate_pathwise(
 
     Damage on edge ``e = a -> b`` changes row ``a`` of ``W`` as
     ``dw_aj/dbeta = rho[e] w_aj + mu[e] [j = b]`` (see
-    :func:`antisync.coupling.tangent_coefficients`).
+    :func:`antisync.physics.coupling.tangent_coefficients`).
     """
     ks = _realization_ids(first, count, realizations)
     n = indptr.size - 1

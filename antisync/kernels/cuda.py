@@ -1,7 +1,7 @@
 """CUDA backend: grid-stride kernels around the shared step functions, plus device reductions.
 
 Layers (as in stumpy's ``gpu_stump``): the step/sync functions of
-:mod:`antisync.kernels.core` and the phase hash of :mod:`antisync.phases`, compiled with
+:mod:`antisync.kernels.core` and the phase hash of :mod:`antisync.physics.phases`, compiled with
 ``cuda.jit(device=True)``, integrate one trajectory; private kernels run one trajectory per
 thread; host wrappers move arrays with ``to_device`` / ``copy_to_host``; :func:`simulate` and
 :func:`simulate_reduced` are the public, validated entry points.
@@ -23,7 +23,7 @@ the step at which ``r`` crosses the threshold only when ``r^2`` lands within tha
 the target (a rare one-step flip, ``|delta tau| = dt``) or, rarer still, when a trajectory
 passing near a saddle state amplifies the difference (docs/cuda.md). The device reductions
 avoid contraction (``libdevice.dmul_rn``) so, given the same steps, block and Lambda records
-equal :func:`antisync.estimators.block_records` and ``lambda_block_records`` exactly.
+equal :func:`antisync.stats.estimators.block_records` and ``lambda_block_records`` exactly.
 
 The module imports without numba-cuda, a GPU or the simulator; only calling it then raises
 :class:`~antisync.errors.AntisyncError`.
@@ -39,7 +39,11 @@ from typing import NamedTuple
 import numpy as np
 
 from antisync.errors import AntisyncError
-from antisync.estimators import (
+from antisync.kernels.core import WORK_ROWS, make_kernels, make_model_kernels
+from antisync.kernels.cpu import SimResult, model_inputs
+from antisync.kernels.model_steps import per_node
+from antisync.physics.phases import make_phase
+from antisync.stats.estimators import (
     BLOCK_FIELDS,
     LAMBDA_FIELDS,
     LAMBDA_TAIL_BINS,
@@ -47,10 +51,6 @@ from antisync.estimators import (
     TAIL_EDGES,
     TAU0_FIELDS,
 )
-from antisync.kernels.core import WORK_ROWS, make_kernels, make_model_kernels
-from antisync.kernels.cpu import SimResult, model_inputs
-from antisync.kernels.model_steps import per_node
-from antisync.phases import make_phase
 from antisync.status import ALREADY_SYNCED, NOT_SYNCED, SYNCED
 from antisync.types import PRECISIONS, Precision
 
@@ -83,7 +83,7 @@ def _simulated() -> bool:
 
 
 def _require_cuda() -> None:
-    from antisync.backends import cuda_usable
+    from antisync.kernels.backends import cuda_usable
 
     ok, why = cuda_usable()
     if not ok:
@@ -457,9 +457,9 @@ def simulate(
     Parameters
     ----------
     seed, first, count : int
-        Realization ``k`` starts from :func:`antisync.phases.phase` ``(seed, k, node)``.
+        Realization ``k`` starts from :func:`antisync.physics.phases.phase` ``(seed, k, node)``.
     indptr, indices, base_weights : arrays
-        CSR form of ``W(Omega)`` (see :class:`antisync.coupling.CouplingCSR`); at most
+        CSR form of ``W(Omega)`` (see :class:`antisync.physics.coupling.CouplingCSR`); at most
         :data:`MAX_NODES` nodes.
     variant_weights : array, shape (V, nnz)
         CSR weights of each damaged ``W(Omega*)`` on the same pattern.
@@ -509,11 +509,11 @@ class Reduced(NamedTuple):
     Attributes
     ----------
     rec, rec0, tail
-        As returned by :func:`antisync.estimators.block_records`.
+        As returned by :func:`antisync.stats.estimators.block_records`.
     hist
-        As returned by :func:`antisync.estimators.histogram2d`.
+        As returned by :func:`antisync.stats.estimators.histogram2d`.
     lam_rec, lam_tail
-        As returned by :func:`antisync.estimators.lambda_block_records` for the
+        As returned by :func:`antisync.stats.estimators.lambda_block_records` for the
         finite-difference Lambda^KM of each edge (no edges: shapes ``(n_blocks, 0, 6)``, ``(0, B)``).
     """
 
@@ -549,10 +549,10 @@ def simulate_reduced(
     """Integrate and reduce on the device: only block records and histograms come back.
 
     Equivalent to ``sim = simulate(...)`` followed by
-    :func:`antisync.estimators.block_records` ``(sim, dt, block)``,
-    :func:`antisync.estimators.histogram2d` ``(sim, hist_variants, dt, bins, tau_max)`` and
-    :func:`antisync.estimators.lambda_block_records` of the finite differences
-    ``(tau0/tau(dbeta) - 1)/dbeta`` (as :func:`antisync.compute.lambda_values` computes
+    :func:`antisync.stats.estimators.block_records` ``(sim, dt, block)``,
+    :func:`antisync.stats.estimators.histogram2d` ``(sim, hist_variants, dt, bins, tau_max)`` and
+    :func:`antisync.stats.estimators.lambda_block_records` of the finite differences
+    ``(tau0/tau(dbeta) - 1)/dbeta`` (as :func:`antisync.execution.compute.lambda_values` computes
     them), with identical results, but per-realization outcomes never leave the GPU.
     Realizations are processed in batches of whole blocks of about ``batch_pairs``
     trajectories, so device memory stays bounded whatever ``count`` is.
@@ -564,7 +564,7 @@ def simulate_reduced(
     block : int
         Block size ``B`` of the statistics records.
     hist_variants, bins, tau_max
-        As in :func:`antisync.estimators.histogram2d`.
+        As in :func:`antisync.stats.estimators.histogram2d`.
     lambda_variants : int array (E,), optional
         The variant damaging edge ``e`` by ``dbeta``, for each edge whose Lambda^KM records
         are wanted.

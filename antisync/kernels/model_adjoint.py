@@ -59,7 +59,7 @@ from antisync.kernels.core import (
     make_model_kernels,
 )
 from antisync.kernels.cpu import PathwiseResult, _realization_ids, _Threads
-from antisync.phases import phase
+from antisync.physics.phases import phase
 from antisync.status import NOT_SYNCED, SYNCED
 
 __all__ = ["simulate_model_adjoint"]

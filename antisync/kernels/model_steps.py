@@ -30,12 +30,12 @@ from antisync.kernels.core import (
     vsqrt,
     vstore,
 )
-from antisync.phases import make_uniform
+from antisync.physics.phases import make_uniform
 
 __all__ = ["ModelParams", "draw_frequencies", "lag_terms"]
 
-#: Counter streams of :func:`antisync.phases.make_uniform` used by the natural frequencies (the
-#: initial phases are the separate hash :func:`antisync.phases.phase`).
+#: Counter streams of :func:`antisync.physics.phases.make_uniform` used by the natural frequencies (the
+#: initial phases are the separate hash :func:`antisync.physics.phases.phase`).
 STREAM_FREQ_A = 1
 STREAM_FREQ_B = 2
 
@@ -50,7 +50,7 @@ _taylor = _K.taylor_rotation
 
 
 class ModelParams(NamedTuple):
-    """The model's constants for a kernel (see :class:`antisync.model.Model`).
+    """The model's constants for a kernel (see :class:`antisync.plan.model.Model`).
 
     ``freqs`` has one row (the same frequencies for every realization) or one row per
     realization of the batch, mean already removed; ``inertia`` and ``damping`` one number or

@@ -13,7 +13,7 @@ Equation numbers count the numbered equations of the paper's LaTeX source in ord
 Eq. 20: the raw-coupling model, Eq. 23: ``tau_j(0)``).
 
 All functions take the dense weight matrix ``Omega`` and 0-based node indices; damage on
-``a -> b`` follows :mod:`antisync.coupling`.
+``a -> b`` follows :mod:`antisync.physics.coupling`.
 """
 
 from antisync.measures.graph import for_graph

@@ -8,12 +8,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from antisync.coupling import COUPLINGS
 from antisync.errors import MeasureError
+from antisync.physics.coupling import COUPLINGS
 
 
 def check_coupling(coupling: str) -> None:
-    """Raise :class:`MeasureError` unless ``coupling`` is in :data:`antisync.coupling.COUPLINGS`."""
+    """Raise :class:`MeasureError` unless ``coupling`` is in :data:`antisync.physics.coupling.COUPLINGS`."""
     if coupling not in COUPLINGS:
         raise MeasureError(f"coupling must be one of {COUPLINGS}, got {coupling!r}")
 

@@ -52,7 +52,7 @@ def for_graph(
     Raises
     ------
     antisync.errors.ConfigError
-        An argument of the wrong type or value (:class:`~antisync.graphs.GraphError` for the
+        An argument of the wrong type or value (:class:`~antisync.physics.graphs.GraphError` for the
         graph), with a one-line message naming it.
     antisync.errors.MeasureError
         A graph whose measures are not finite numbers (weights spanning too many decades).
@@ -64,10 +64,10 @@ def for_graph(
     >>> next(r for r in rows if r["edge"] == "2->1")["lambda_xi2"]  # doctest: +ELLIPSIS
     0.3625...
     """
-    from antisync import graphs
     from antisync.errors import ConfigError, MeasureError
     from antisync.measures.randomwalk import lambda_rw_all
     from antisync.measures.spectral import lambda_xi2_all
+    from antisync.physics import graphs
 
     which = _which(which)
     if not isinstance(coupling, str) or coupling not in _COUPLINGS:
@@ -134,9 +134,9 @@ def _graph(graph) -> nx.Graph:
     has a positive finite float ``weight`` (parallel edges of a multigraph added up)."""
     import networkx as nx
 
-    from antisync import graphs
-    from antisync.config import check_graph
     from antisync.errors import ConfigError
+    from antisync.physics import graphs
+    from antisync.plan.config import check_graph
 
     if isinstance(graph, Mapping):
         spec = _spec(graph)

@@ -27,8 +27,8 @@ import scipy.linalg
 from numba import njit
 from scipy.optimize import brentq
 
-from antisync.coupling import Coupling, coupling_derivative, damaged_omega, laplacian
 from antisync.measures._validate import as_omega, check_coupling, check_edge
+from antisync.physics.coupling import Coupling, coupling_derivative, damaged_omega, laplacian
 
 __all__ = [
     "LinearResult",

@@ -1,7 +1,7 @@
 """The response measures inside a run: what ``measures: [km, linear, xi2, rw, km_nnc]`` does.
 
 - :func:`compute_measures`: ``Lambda^(xi2)``, ``Lambda^(RW)`` and ``Lambda^(linear)`` for every
-  damaged edge of a :class:`~antisync.jobs.Job`, once per job (the runner stores them with
+  damaged edge of a :class:`~antisync.plan.jobs.Job`, once per job (the runner stores them with
   the job's statistics; checkpoints rewrite them, never recompute them).
 - :func:`nnc_job` / :func:`with_nnc`: ``km_nnc`` runs the same experiment a second time with
   raw coupling (Sec. 3.4, Eqs. 20-22), same seed and so the same initial phases, as a second
@@ -28,15 +28,12 @@ from dataclasses import replace
 import numpy as np
 
 from antisync.errors import ConfigError, MeasureError
-from antisync.jobs import Job, make_job
+from antisync.plan.jobs import Job, make_job
 
 __all__ = [
     "COMPUTED",
     "NNC_SUFFIX",
-    "RECORD_KEYS",
     "compute_measures",
-    "join_nnc",
-    "measure_fields",
     "nnc_job",
     "wants_measures",
     "with_nnc",
@@ -45,18 +42,6 @@ __all__ = [
 #: Measures computed by :func:`compute_measures` (``km`` and ``km_nnc`` are Kuramoto runs).
 COMPUTED = ("linear", "xi2", "rw")
 NNC_SUFFIX = "_nnc"
-#: Summary keys added to every record, ``None`` where not computed.
-RECORD_KEYS = (
-    "lambda_linear",
-    "lambda_linear_se",
-    "lambda_linear_n",
-    "lambda_linear_n_excluded",
-    "lambda_xi2",
-    "lambda_rw",
-    "lambda_km_nnc",
-    "lambda_km_nnc_se",
-)
-_INT_KEYS = {"lambda_linear_n", "lambda_linear_n_excluded", "lambda_linear_n_already_synced"}
 
 
 def wants_measures(job: Job) -> bool:
@@ -70,7 +55,7 @@ def compute_measures(job: Job, config=None) -> dict[str, np.ndarray]:
     Parameters
     ----------
     job : Job
-        A job from :func:`~antisync.jobs.make_job`; ``job.edges`` fixes the order.
+        A job from :func:`~antisync.plan.jobs.make_job`; ``job.edges`` fixes the order.
     config : Config, optional
         Which measures and how; default ``job.config``.
 
@@ -91,7 +76,7 @@ def compute_measures(job: Job, config=None) -> dict[str, np.ndarray]:
     from antisync.measures.linear import lambda_linear, tau_linear_euler, tau_linear_exact
     from antisync.measures.randomwalk import lambda_rw_all
     from antisync.measures.spectral import lambda_xi2_all
-    from antisync.phases import initial_phases
+    from antisync.physics.phases import initial_phases
 
     cfg = config or job.config
     wanted = set(cfg.measures)
@@ -191,38 +176,3 @@ def with_nnc(jobs: list[Job]) -> list[Job]:
             out.append(nnc_job(job))
             names.add(twin_name)
     return out
-
-
-# --- summary records --------------------------------------------------------------------------
-
-
-def measure_fields(measures: dict | None, e: int) -> dict:
-    """The :data:`RECORD_KEYS` of edge ``e``; ``None`` for what was not computed."""
-    rec = dict.fromkeys(RECORD_KEYS)
-    for key in RECORD_KEYS:
-        if measures is not None and key in measures:
-            x = measures[key][e]
-            if key in _INT_KEYS:
-                rec[key] = int(x)
-            else:
-                rec[key] = float(x) + 0.0 if np.isfinite(x) else None  # no -0.0
-    return rec
-
-
-def join_nnc(views, records: list[dict]) -> list[dict]:
-    """Fill ``lambda_km_nnc`` (``_se``) of each normalized job's records from its twin's.
-
-    ``views`` are :class:`~antisync.summary.JobView` s whose ``attrs`` may carry
-    ``nnc_of``; ``records`` are their records, changed in place and returned.
-    """
-    twins = {str(v.attrs["nnc_of"]): v.graph for v in views if v.attrs and v.attrs.get("nnc_of")}
-    if not twins:
-        return records
-    by_graph: dict[str, dict[str, tuple]] = {}
-    for r in records:
-        by_graph.setdefault(r["graph"], {}).setdefault(r["edge"], (r["lambda_km"], r["lambda_km_se"]))
-    for r in records:
-        twin = twins.get(r["graph"])
-        if twin is not None and r["edge"] in by_graph.get(twin, {}):
-            r["lambda_km_nnc"], r["lambda_km_nnc_se"] = by_graph[twin][r["edge"]]
-    return records

@@ -13,8 +13,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from antisync.coupling import coupling_derivative, coupling_matrix, damaged_omega
 from antisync.measures._validate import as_omega, check_edge
+from antisync.physics.coupling import coupling_derivative, coupling_matrix, damaged_omega
 
 __all__ = ["f_rw", "lambda_rw", "lambda_rw_all", "stationary_and_fundamental", "tau_rw"]
 

@@ -16,7 +16,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from antisync.coupling import (
+from antisync.measures._validate import as_omega, check_coupling, check_edge
+from antisync.physics.coupling import (
     Coupling,
     coupling_derivative,
     coupling_derivative_row,
@@ -24,7 +25,6 @@ from antisync.coupling import (
     laplacian,
     symmetrized_laplacian,
 )
-from antisync.measures._validate import as_omega, check_coupling, check_edge
 
 __all__ = ["f_xi2", "lambda_xi2", "lambda_xi2_all", "xi2"]
 

@@ -32,7 +32,6 @@ from pathlib import Path
 
 import numpy as np
 
-from antisync.records import primary_measure
 from antisync.report.labels import spread_labels
 from antisync.report.links import (
     NAMES,
@@ -45,7 +44,8 @@ from antisync.report.links import (
     top_links,
 )
 from antisync.report.measures import LABELS, measure_figures
-from antisync.summary import OUTSIDE_WHY, JobView, graph_names, job_records, named_views
+from antisync.stats.records import primary_measure
+from antisync.stats.summary import OUTSIDE_WHY, JobView, graph_names, job_records, named_views
 
 __all__ = [
     "HIST_QUANTILE",
@@ -608,7 +608,7 @@ def write_file_report(
 ) -> list[Path]:
     """:func:`write_report` of the result file ``path`` (not a sweep's), its files named after
     the ``name:`` of the config it stores."""
-    from antisync.report.describe import stored_name
+    from antisync.plan.describe import stored_name
     from antisync.store import read_views, root_attrs
 
     name = stored_name(root_attrs(Path(path))["config_yaml"])

@@ -20,8 +20,8 @@ import math
 
 import numpy as np
 
-from antisync.estimators import Z95
 from antisync.report.intervals import draw_intervals, record_intervals
+from antisync.stats.estimators import Z95
 from antisync.sweeps.points import point_label
 
 __all__ = ["TOP_LINKS", "grid_curves", "grid_table", "plot_grid", "write_grid_report"]
@@ -39,10 +39,10 @@ def _link_values(records: list[dict]) -> dict[tuple, dict]:
     orbit representatives, repeats combined.
 
     One repeat: the record's own interval and its ``sign_resolved`` (false discovery rate over
-    the file's links, :func:`antisync.records.flag_signs`). Several: their mean, the normal
+    the file's links, :func:`antisync.stats.records.flag_signs`). Several: their mean, the normal
     interval of the combined standard error, and the sign that interval resolves.
     """
-    from antisync.records import flag_signs
+    from antisync.stats.records import flag_signs
 
     per: dict[tuple, dict[int, dict]] = {}
     for r in flag_signs(records):

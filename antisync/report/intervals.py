@@ -1,6 +1,6 @@
 """Intervals drawn as intervals: a segment from the interval's low end to its high end.
 
-The tail model's interval of Lambda^KM (:func:`antisync.estimators.lambda_ci`) is not centred
+The tail model's interval of Lambda^KM (:func:`antisync.stats.estimators.lambda_ci`) is not centred
 on the estimate, and may not even contain it (a heavy tail pulls the mean outside the
 interval the tail model gives). Error bars as ``estimate - low`` and ``high - estimate`` would
 then be negative lengths (matplotlib refuses them) or, clipped, draw an interval that is not
@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from antisync.estimators import Z95
+from antisync.stats.estimators import Z95
 
 __all__ = ["draw_intervals", "interval_segments", "record_intervals"]
 

@@ -21,7 +21,7 @@ the config's name, :func:`antisync.report.figures.job_stems`):
   the links whose Kuramoto sign is resolved (:func:`antisync.report.measures.plot_pair`).
 
 A file run without ``km`` has no Lambda^KM: (a) and (b) use the first exact measure it holds
-(``lambda_xi2``, else ``lambda_rw``, see :func:`antisync.records.primary_measure`), whose sign
+(``lambda_xi2``, else ``lambda_rw``, see :func:`antisync.stats.records.primary_measure`), whose sign
 is exact (zero within :data:`~antisync.report.measures.SIGN_ATOL` is neutral), and (c) plots
 Lambda^(RW) against Lambda^(xi2).
 """
@@ -30,7 +30,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from antisync.records import absence_reason, primary_measure
 from antisync.report.intervals import draw_intervals, record_intervals
 from antisync.report.measures import (
     COLORS,
@@ -45,7 +44,8 @@ from antisync.report.measures import (
     plot_pair,
     spearman,
 )
-from antisync.summary import OUTSIDE_WHY, JobView
+from antisync.stats.records import absence_reason, primary_measure
+from antisync.stats.summary import OUTSIDE_WHY, JobView
 
 __all__ = [
     "LARGE_LINKS",
@@ -107,7 +107,7 @@ def outside_interval(values, low, high) -> np.ndarray:
 def mark_outside(ax, x, y, outside: np.ndarray, *, below: float = 36, width: int = 70) -> None:
     """Ring the points ``(x, y)`` where ``outside`` with :data:`OUTSIDE_MARKER`, give the ring a
     legend entry and write under the axes why such a point lies outside its bar, in the
-    summary's words (:data:`antisync.summary.OUTSIDE_WHY`), so that no figure shows a point
+    summary's words (:data:`antisync.stats.summary.OUTSIDE_WHY`), so that no figure shows a point
     outside its interval unexplained. Nothing when no point is outside."""
     import textwrap
 
@@ -438,7 +438,7 @@ def link_figures(view: JobView, recs: list[dict], *, k: int = 10):
     """Yield ``(figure, suffix)`` for (a), (b) and (c) of ``view`` (its records ``recs``,
     one per directed link); (c) only when two measures were computed. When no record has a
     measure (nothing synchronized, say), only (a), saying why
-    (:func:`antisync.records.absence_reason`)."""
+    (:func:`antisync.stats.records.absence_reason`)."""
     plt = _plt()
     key = primary_measure(recs)
     if key is None:

@@ -24,10 +24,10 @@ from collections.abc import Iterator
 
 import numpy as np
 
-from antisync.records import absence_reason
 from antisync.report.intervals import draw_intervals, record_intervals
 from antisync.report.labels import spread_labels
-from antisync.summary import JobView, view_records
+from antisync.stats.records import absence_reason
+from antisync.stats.summary import JobView, view_records
 
 __all__ = [
     "PAIRS",
@@ -116,7 +116,7 @@ def _symmetric_limits(values: np.ndarray, low: np.ndarray, high: np.ndarray) -> 
 def missing_note(recs: list[dict], keys) -> str:
     """What a panel of ``keys`` shows when no record has them all: for each key no record
     has, why (not asked for, or Lambda^KM undefined because nothing synchronized, see
-    :func:`antisync.records.absence_reason`), wrapped to fit a panel."""
+    :func:`antisync.stats.records.absence_reason`), wrapped to fit a panel."""
     notes = []
     for key in keys:
         if np.isfinite(_column(recs, key)).any():
@@ -132,10 +132,10 @@ def missing_note(recs: list[dict], keys) -> str:
 
 def link_signs(recs: list[dict], key: str) -> np.ndarray:
     """Sign of each record's ``key``: for Lambda^KM the call at false discovery rate 0.05 over
-    ``recs``' links (:func:`antisync.multiplicity.fdr_signs`, as ``antisync summary``'s
+    ``recs``' links (:func:`antisync.stats.multiplicity.fdr_signs`, as ``antisync summary``'s
     ``sign_resolved``), the exact sign for an exact measure (0 within ``SIGN_ATOL``, or missing)."""
     if key == "lambda_km":
-        from antisync.multiplicity import fdr_signs
+        from antisync.stats.multiplicity import fdr_signs
 
         return np.array([s or 0 for s in fdr_signs(recs)], dtype=int)
     x = _column(recs, key)

@@ -1,10 +1,10 @@
-"""The report of a dynamic line removal (:mod:`antisync.removal`, docs/power_grids.md): the grid
+"""The report of a dynamic line removal (:mod:`antisync.grids.removal`, docs/power_grids.md): the grid
 drawn with each line coloured by its response, troublemaker and Braess lines marked
 (:func:`removal_figure`), and the removal response beside the static indicators of the locked
 state and Lambda, with rank correlations (:func:`side_by_side_report`).
 
 A removal table is read once by :func:`removal_doc`, from a
-:class:`~antisync.removal.RemovalTable`, the JSON file :func:`antisync.removal.write_table`
+:class:`~antisync.grids.removal.RemovalTable`, the JSON file :func:`antisync.grids.removal.write_table`
 writes, or that file's parsed mapping; everything else here takes the plain mapping it returns.
 A line is *resolved* as the table resolves it: at false discovery rate 0.05 over the lines
 (``sync_called`` for ``P_sync``, ``tau_called`` for tau). matplotlib is imported only when a
@@ -20,8 +20,8 @@ from pathlib import Path
 import networkx as nx
 import numpy as np
 
-from antisync.grid import GridError
-from antisync.removal import check_new_file, key_changes, replace_atomically, work_config
+from antisync.grids.grid import GridError
+from antisync.grids.removal import check_new_file, key_changes, replace_atomically, work_config
 from antisync.store.outputs import image_problem
 from antisync.types import REMOVAL_BY, RemovalBy
 
@@ -55,12 +55,12 @@ def _num(x) -> float:
 
 
 def removal_doc(source) -> dict:
-    """A removal table as the plain mapping of :func:`antisync.removal.write_table`'s JSON.
+    """A removal table as the plain mapping of :func:`antisync.grids.removal.write_table`'s JSON.
 
     Parameters
     ----------
     source : RemovalTable, str, Path or dict
-        A table from :func:`antisync.removal.line_removal`, its JSON file, or that file parsed.
+        A table from :func:`antisync.grids.removal.line_removal`, its JSON file, or that file parsed.
 
     Returns
     -------
@@ -70,7 +70,7 @@ def removal_doc(source) -> dict:
 
     Raises
     ------
-    antisync.grid.GridError
+    antisync.grids.grid.GridError
         A file that cannot be read or is not a removal table, or a table that lacks a key the
         report reads or holds a value of the wrong kind there (:func:`_check_doc`): one line
         naming the file and the key.
@@ -81,7 +81,7 @@ def removal_doc(source) -> dict:
 def _read_doc(source, where: str | None) -> dict:
     """:func:`removal_doc`, its refusals starting with ``where`` (``"part 2"`` in
     :func:`merge_docs`; a file's refusals name the file too)."""
-    from antisync.removal import FORMAT, RemovalTable, table_document
+    from antisync.grids.removal import FORMAT, RemovalTable, table_document
 
     if isinstance(source, RemovalTable):
         return table_document(source)
@@ -131,7 +131,7 @@ def _is_line(x) -> bool:
 
 
 #: The keys a removal table's ``summary`` and rows must have for the report and
-#: :func:`merge_docs` to read them, with what each must hold (as :func:`antisync.removal.
+#: :func:`merge_docs` to read them, with what each must hold (as :func:`antisync.grids.removal.
 #: table_document` writes them; ``nan`` as ``None``).
 _SUMMARY_KEYS = {
     "name": (lambda x: isinstance(x, str), "a string"),
@@ -213,7 +213,7 @@ def _check_doc(doc: dict, where: str) -> dict:
 
 def resolved(doc: dict) -> dict[str, set]:
     """The table's calls by label: ``troublemakers`` (``P_sync`` lost, resolved), ``braess``
-    (``P_sync`` gained or ``d_tau < 0``, resolved: :meth:`~antisync.removal.RemovalTable.
+    (``P_sync`` gained or ``d_tau < 0``, resolved: :meth:`~antisync.grids.removal.RemovalTable.
     braess_lines`), ``faster`` and ``slower`` (``d_tau`` resolved, by its sign)."""
     rows = doc["rows"]
     if "sync_called" in doc and "tau_called" in doc:
@@ -231,9 +231,9 @@ def resolved(doc: dict) -> dict[str, set]:
 
 def _calls(rows: list[dict]) -> tuple[set, set]:
     """Labels of the rows whose ``P_sync`` change and whose ``d_tau`` are resolved, at false
-    discovery rate ``FDR_LEVEL`` over ``rows`` (as :class:`antisync.removal.RemovalTable`)."""
-    from antisync.multiplicity import benjamini_hochberg
-    from antisync.removal import tau_p_value
+    discovery rate ``FDR_LEVEL`` over ``rows`` (as :class:`antisync.grids.removal.RemovalTable`)."""
+    from antisync.grids.removal import tau_p_value
+    from antisync.stats.multiplicity import benjamini_hochberg
 
     calls = benjamini_hochberg([r["p_value"] for r in rows])
     sync = {r["label"] for r, c in zip(rows, calls, strict=True) if c}
@@ -274,11 +274,11 @@ def merge_docs(sources) -> dict:
 
     Raises
     ------
-    antisync.grid.GridError
+    antisync.grids.grid.GridError
         No part, a part that is not a removal table, parts of different runs, or a line in two
         parts: one line.
     """
-    from antisync.removal import RemovalTable
+    from antisync.grids.removal import RemovalTable
 
     if isinstance(sources, str | Path | dict | RemovalTable):
         raise GridError("merge_docs takes a list of parts (removal tables, their JSON files or mappings)")
@@ -339,7 +339,7 @@ def merge_docs(sources) -> dict:
 def check_finished_table(out: Path, cfg, asked: dict, beta: float) -> None:
     """Refuse (one line naming what differs) a ``--resume`` whose finished table ``out`` holds
     another run than the one asked for: its stored config (seed, realizations, model ...),
-    lines (``asked``: :func:`antisync.removal.planned_lines`), beta or islanding rows."""
+    lines (``asked``: :func:`antisync.grids.removal.planned_lines`), beta or islanding rows."""
     doc = removal_doc(out)
     rows = [r for r in doc.get("rows") or [] if isinstance(r, dict)]
     stored = {}
@@ -383,7 +383,7 @@ def _few(names: list[str], most: int = 3) -> str:
 
 def check_figure(path, overwrite: bool = False, protect=()) -> Path:
     """The figure's ``path``, checked before any work by antisync's one output policy
-    (:func:`antisync.removal.check_new_file`): a ``.png``, ``.pdf`` or ``.svg`` file in an
+    (:func:`antisync.grids.removal.check_new_file`): a ``.png``, ``.pdf`` or ``.svg`` file in an
     existing folder, and an existing file replaced only with ``overwrite`` and only when it is
     an image of that kind (by its first bytes), never one of ``protect`` (the run's inputs);
     else a one-line GridError."""
@@ -401,17 +401,17 @@ def check_figure(path, overwrite: bool = False, protect=()) -> Path:
 
 def _network(config) -> tuple[nx.Graph, dict]:
     """The grid as a weighted graph and each node's inertia, from a config (path, mapping,
-    Config) or a :class:`~antisync.grid.Grid`."""
-    from antisync.grid import Grid
+    Config) or a :class:`~antisync.grids.grid.Grid`."""
+    from antisync.grids.grid import Grid
 
     if isinstance(config, Grid):
         labels, omega = list(config.labels), config.omega
         inertia = np.broadcast_to(np.asarray(config.inertia, dtype=float), (len(labels),))
     else:
-        from antisync import graphs
         from antisync.errors import AntisyncError
-        from antisync.model import node_parameters
-        from antisync.removal import resolve_config
+        from antisync.grids.removal import resolve_config
+        from antisync.physics import graphs
+        from antisync.plan.model import node_parameters
 
         cfg = resolve_config(config, {})
         try:
@@ -623,7 +623,7 @@ def lambda_by_line(records) -> dict:
 
 def side_by_side(doc: dict, static, lam: dict | None = None) -> list[dict]:
     """One dict per line of the removal table, with the static indicators of the same change
-    (``static``: a :class:`~antisync.grid.LineTable` of :func:`antisync.grid.static_table`) and
+    (``static``: a :class:`~antisync.grids.grid.LineTable` of :func:`antisync.grids.grid.static_table`) and
     ``Lambda_line`` (:func:`lambda_by_line`; ``nan`` without): ``label``, ``lost``, ``gained``,
     ``dp``, ``dp_ci``, ``p``, ``dtau``, ``dtau_se``, ``f1`` (``F_1 - 1``), ``lam``, ``lam_se``,
     ``dm`` (d margin), ``dl2`` (d lambda2), ``dload`` (d max load). Ranked from the largest net
@@ -708,7 +708,7 @@ def side_by_side_report(
     """The removal table beside the static indicators and Lambda as markdown, then the rank
     correlations, the sign agreement of ``d tau`` and ``Lambda_line`` where both are resolved,
     and the dynamic Braess lines against the static candidates (docs/power_grids.md)."""
-    from antisync.multiplicity import benjamini_hochberg
+    from antisync.stats.multiplicity import benjamini_hochberg
 
     rows = side_by_side(doc, static, lam)
     marks = resolved(doc)

@@ -25,10 +25,10 @@ from pathlib import Path
 
 import numpy as np
 
-from antisync.estimators import Z95
 from antisync.report.figures import CMAP, _norm, _plt, hist_limit, plot_histogram
 from antisync.report.intervals import draw_intervals
 from antisync.report.tables import fmt_pm, format_table1
+from antisync.stats.estimators import Z95
 from antisync.sweeps.analysis import edge_lambdas, ranking, trend_in_n
 from antisync.sweeps.results import sweep_summary
 

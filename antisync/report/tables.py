@@ -7,7 +7,7 @@ import io
 import json
 import math
 
-from antisync.summary import warning_kind
+from antisync.stats.summary import warning_kind
 
 __all__ = [
     "ASYMMETRY",
@@ -122,10 +122,10 @@ def format_records(records: list[dict], fmt: str = "table") -> str:
 
 
 def link_rows(records: list[dict]) -> list[dict]:
-    """One record per link (:func:`antisync.multiplicity.link_key`), the first of its betas,
+    """One record per link (:func:`antisync.stats.multiplicity.link_key`), the first of its betas,
     in the order of ``records``; ``n_excluded`` and ``n_not_synced`` are left out (None) of a
     link with beta rows, where they count a damaged network, not Lambda's realizations."""
-    from antisync.multiplicity import link_key
+    from antisync.stats.multiplicity import link_key
 
     first: dict[tuple, dict] = {}
     for r in records:
@@ -199,7 +199,7 @@ def _aligned(columns: list[tuple], records: list[dict]) -> list[str]:
 
 def lambda_warnings(records: list[dict], most: int = 5) -> list[str]:
     """``warning: Lambda_KM of <edge>: <why>`` lines, one per kind of warning
-    (:func:`antisync.summary.warning_kind`): a kind that several links share is one line that
+    (:func:`antisync.stats.summary.warning_kind`): a kind that several links share is one line that
     counts them, names the first ``most`` and, where their texts differ (the numbers of each
     link), quotes the first as an example."""
     kinds: dict[str, dict[tuple, str]] = {}

@@ -29,9 +29,8 @@ from pathlib import Path
 
 import numpy as np
 
-from antisync.compute import ChunkResult
-from antisync.jobs import Chunk, Job
-from antisync.store.state import JobState
+from antisync.plan.jobs import Chunk, Job
+from antisync.store.state import ChunkResult, JobState
 
 __all__ = [
     "REPLACEMENT_FILE",

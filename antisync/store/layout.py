@@ -43,7 +43,7 @@ Layout (one file per run or sweep)::
 Nothing else in antisync opens an HDF5 file: runs are written through
 :class:`~antisync.store.result_store.ResultStore` (:func:`write_results`,
 :func:`read_states`), and readers get decoded jobs (:func:`read_views`, one
-:class:`~antisync.summary.JobView` per job group), summary records (:func:`records`) or a
+:class:`~antisync.stats.summary.JobView` per job group), summary records (:func:`records`) or a
 sweep's metadata (:func:`read_meta`). ``h5py`` is imported only when a file is opened.
 """
 
@@ -54,16 +54,16 @@ from pathlib import Path
 
 import numpy as np
 
-from antisync import estimators
 from antisync._version import __version__
 from antisync.errors import StoreError
-from antisync.jobs import Job
 from antisync.measures.pipeline import COMPUTED
-from antisync.model import unsynced_hint
+from antisync.plan.jobs import Job
+from antisync.plan.model import unsynced_hint
+from antisync.stats import estimators
+from antisync.stats.summary import JobView, job_records, view_records
 from antisync.store.journal import digest_graph, graph_digest, jsonable
 from antisync.store.provenance import now
 from antisync.store.state import JobState
-from antisync.summary import JobView, job_records, view_records
 
 __all__ = [
     "FORMAT",
@@ -356,7 +356,7 @@ def _write_state(g, st: JobState) -> None:
 
 def _r_star(job: Job) -> np.ndarray | None:
     """``job``'s r* per trajectory kind (undamaged, then each variant) with ``sync.criterion:
-    relative`` (:class:`antisync.model.ModelSetup`), else None."""
+    relative`` (:class:`antisync.plan.model.ModelSetup`), else None."""
     if job.model is None or job.model.r_star is None:
         return None
     return np.asarray(job.model.r_star, dtype=np.float64)
@@ -404,7 +404,7 @@ def _read_state(path: Path, g, st: JobState) -> None:
 
 
 def state_view(st: JobState) -> JobView:
-    """A run's job in memory as a :class:`~antisync.summary.JobView` (what a checkpoint's
+    """A run's job in memory as a :class:`~antisync.stats.summary.JobView` (what a checkpoint's
     summary and the stopping rule read)."""
     job = st.job
     return JobView(
@@ -656,7 +656,7 @@ def _shape_problem(view: JobView) -> str | None:
 
 
 def records(path: str | Path) -> list[dict]:
-    """Summary records of every job in a result file (see :func:`antisync.summary.job_records`,
+    """Summary records of every job in a result file (see :func:`antisync.stats.summary.job_records`,
     which also covers a job run without ``km``); each run's
     ``lambda_km_nnc`` comes from its raw-coupling twin."""
     return view_records(read_views(path))

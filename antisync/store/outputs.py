@@ -56,7 +56,7 @@ def config_inputs(config, config_path: str | Path | None = None) -> list[tuple[P
     Parameters
     ----------
     config : Config or dict
-        A validated :class:`~antisync.config.Config` or its ``to_dict()`` (as stored in a
+        A validated :class:`~antisync.plan.config.Config` or its ``to_dict()`` (as stored in a
         removal table), with its paths resolved.
     config_path : path, optional
         The config file, when there is one.

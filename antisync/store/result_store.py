@@ -22,9 +22,8 @@ import os
 import shutil
 from pathlib import Path
 
-from antisync.compute import ChunkResult
 from antisync.errors import StoreError
-from antisync.jobs import Job
+from antisync.plan.jobs import Job
 from antisync.store import journal as _journal
 from antisync.store.journal import REPLACEMENT_FILE, REPLACES_FILE
 from antisync.store.layout import (
@@ -36,7 +35,7 @@ from antisync.store.layout import (
     write_results,
 )
 from antisync.store.lock import OutputLock
-from antisync.store.state import JobState
+from antisync.store.state import ChunkResult, JobState
 
 __all__ = ["ResultStore"]
 

@@ -7,16 +7,43 @@ it, never twice.
 
 from __future__ import annotations
 
-from dataclasses import replace
+from dataclasses import dataclass, replace
 
 import numpy as np
 
-from antisync import estimators
-from antisync.compute import ChunkResult
 from antisync.errors import StoreError
-from antisync.jobs import Chunk, Job
+from antisync.plan.jobs import Chunk, Job
+from antisync.stats import estimators
 
-__all__ = ["JobState"]
+__all__ = ["ChunkResult", "JobState"]
+
+
+@dataclass
+class ChunkResult:
+    """Partial statistics of one chunk; every field merges by addition or by block position.
+
+    Attributes
+    ----------
+    rec, rec0 : block records (see :func:`antisync.stats.estimators.block_records`)
+    tail : int64 (V, TAIL_BINS)
+    hist : int64 (len(job.hist_variants), bins, bins)
+    lam_rec, lam_tail : Lambda block records and signed Lambda tail counts per edge
+    kept : dict of arrays or None
+        Per-realization steps and status for realizations below ``keep_pairs``.
+    """
+
+    chunk: Chunk
+    rec: np.ndarray
+    rec0: np.ndarray
+    tail: np.ndarray
+    hist: np.ndarray
+    lam_rec: np.ndarray
+    lam_tail: np.ndarray
+    kept: dict | None
+    first: int
+    count: int
+    seconds: float
+    backend: str
 
 
 class JobState:

@@ -16,7 +16,7 @@ Families (``sweep.family``):
 - ``atlas``: ``nodes`` (2..7; an int, a list, or ``"a..b"``): every connected graph of
   :func:`networkx.graph_atlas_g` with that many nodes, named ``G<index>`` (112 for six nodes).
 - ``lollipop``: ``nodes`` and ``path`` (same forms): lollipops ``lollipop_<N>_<L>`` with the
-  paper's labels (:func:`antisync.graphs.lollipop`).
+  paper's labels (:func:`antisync.physics.graphs.lollipop`).
 - ``graphs``: ``graphs``: a list of graph specs as in a run config (``{kind: atlas, index: 105}``,
   ...), each with an optional ``name``.
 
@@ -27,12 +27,12 @@ graph of a family; one job per (graph, grid point, repeat).
 
 What a sweep does (:func:`run_sweep`):
 
-1. **Screening** (:mod:`antisync.screening`): every graph is integrated from
+1. **Screening** (:mod:`antisync.sweeps.screening`): every graph is integrated from
    ``screen.realizations`` random starts; a graph with realizations that converge to a stable
    non-synchronized state (a twisted state) is excluded, with the reason and the fraction.
 2. **Symmetry**: directed edges mapped onto each other by a graph automorphism have the same
    Lambda; one representative per orbit is integrated
-   (:func:`~antisync.graphs.edge_orbits`) and its records are fanned out to the whole
+   (:func:`~antisync.physics.graphs.edge_orbits`) and its records are fanned out to the whole
    orbit when the file is summarized (:func:`sweep_summary`).
 3. **Main stage**: one job per (kept graph, threshold, repeat). Repeat 0 carries ``betas``;
    later repeats estimate Lambda only. With a ``stop:`` section (docs/stopping.md) the
@@ -63,7 +63,7 @@ Whether a file is a sweep's and its ``/sweep`` metadata are the store's
 (:func:`antisync.store.is_sweep_file`, :func:`antisync.store.read_meta`).
 """
 
-from antisync.graphs import edge_orbits
+from antisync.physics.graphs import edge_orbits
 from antisync.sweeps.analysis import edge_lambdas, expand_records, ranking, trend_in_n
 from antisync.sweeps.families import FAMILIES, GraphEntry, family_graphs, fig2_edge
 from antisync.sweeps.results import sweep_summary

@@ -54,7 +54,7 @@ def summarize(meta: dict, views: list) -> dict:
     -------
     dict
         ``records``: main-stage records fanned out to every selected directed edge of every
-        kept graph (keys of :func:`antisync.summary.job_records` plus ``job``,
+        kept graph (keys of :func:`antisync.stats.summary.job_records` plus ``job``,
         ``threshold``, ``repeat``, ``representative``, ``orbit_size``, and in a grid sweep
         ``grid``, the point's ``{key: value}``, and ``point``, its label
         ``model.phase_lag=0.1, ...``);
@@ -64,7 +64,7 @@ def summarize(meta: dict, views: list) -> dict:
         ``complete``: whether every stage finished; ``grid``: the grid's axes
         (``[{keys, values, zip}, ...]``, ``None`` without a grid).
     """
-    from antisync.summary import view_records  # here: it loads numba, a config needs none
+    from antisync.stats.summary import view_records  # here: it loads numba, a config needs none
 
     _refuse_shared_jobs(meta["jobs"])
     by_job: dict[str, list] = {}

@@ -6,7 +6,7 @@
 - ``graphs``: a list of graph specs as in a run config.
 
 :func:`family_graphs` builds them, selects their edges (``all``, ``fig2`` or a list) and
-groups the edges into automorphism orbits (:func:`~antisync.graphs.edge_orbits`): one
+groups the edges into automorphism orbits (:func:`~antisync.physics.graphs.edge_orbits`): one
 representative per orbit is integrated.
 """
 
@@ -16,11 +16,11 @@ from dataclasses import dataclass
 
 import networkx as nx
 
-from antisync import graphs as graphs_mod
-from antisync.config import graph_name
 from antisync.errors import ConfigError
-from antisync.graphs import edge_orbits
-from antisync.jobs import check_step
+from antisync.physics import graphs as graphs_mod
+from antisync.physics.graphs import edge_orbits
+from antisync.plan.config import graph_name
+from antisync.plan.jobs import check_step
 
 __all__ = ["FAMILIES", "GraphEntry", "family_graphs", "family_specs", "fig2_edge"]
 
@@ -48,7 +48,7 @@ def family_specs(family: dict) -> list[tuple[str, dict]]:
             raise ConfigError("sweep.nodes and sweep.path give no lollipop with nodes - path >= 2")
         return out
     out, seen = [], set()
-    from antisync.config import check_graph
+    from antisync.plan.config import check_graph
 
     for k, spec in enumerate(family["graphs"]):
         spec = dict(spec)

@@ -9,7 +9,7 @@ A sweep's *points* are the runs of one graph that differ in a few config keys::
 ``grid`` is the cartesian product of its lists (the first key varies slowest); ``zip`` pairs its
 lists element by element (equal lengths) and counts as one more axis of the product. Each
 point's config is the sweep's run keys with the point's values set at their dotted keys and
-validated like a run config (:func:`antisync.config.config_from_mapping`), so a value that a
+validated like a run config (:func:`antisync.plan.config.config_from_mapping`), so a value that a
 run would refuse is refused here, naming the key and the point.
 
 :func:`sweep_axes` validates the section, :func:`grid_points` expands it, :func:`point_suffix`
@@ -30,8 +30,8 @@ import re
 from dataclasses import dataclass
 from pathlib import Path
 
-from antisync.config import Config, apply_values, config_from_mapping, yaml_load
 from antisync.errors import ConfigError
+from antisync.plan.config import Config, apply_values, config_from_mapping, yaml_load
 from antisync.validation import show, suggest
 
 __all__ = [
@@ -99,7 +99,7 @@ class Axis:
 @dataclass(frozen=True)
 class GridPoint:
     """One point of a sweep's grid: ``values`` (``((key, value), ...)``, in the axes' order),
-    ``index`` (its position on each axis) and the validated :class:`~antisync.config.Config`
+    ``index`` (its position on each axis) and the validated :class:`~antisync.plan.config.Config`
     of its jobs (the sweep's first graph; the stages put in each graph)."""
 
     values: tuple

@@ -17,14 +17,14 @@ from typing import Literal
 
 import yaml
 
-from antisync.config import (
+from antisync.errors import ConfigError
+from antisync.plan.config import (
     Config,
     config_from_mapping,
     parse_mapping,
     read_config_text,
     resolve_graph_path,
 )
-from antisync.errors import ConfigError
 from antisync.sweeps.families import FAMILIES, family_specs
 from antisync.sweeps.points import (
     THRESHOLD_KEYS,
@@ -52,7 +52,7 @@ _SWEEP_KEYS = {"sweep", "thresholds", "repeats", "screen", "top"}
 
 @dataclass(frozen=True)
 class Screen:
-    """Synchronization screening before any realization is spent (see :mod:`antisync.screening`).
+    """Synchronization screening before any realization is spent (see :mod:`antisync.sweeps.screening`).
 
     ``exclude_fraction``: a graph is excluded when more than this fraction of its screening
     realizations end in a stable non-synchronized state (0: any such realization excludes it).
@@ -198,7 +198,7 @@ def load_sweep(
 ) -> Sweep:
     """Read and validate a sweep config file; errors name the file and the key.
 
-    ``overrides`` and ``values`` are those of :func:`antisync.config.load_config`; ``grid``
+    ``overrides`` and ``values`` are those of :func:`antisync.plan.config.load_config`; ``grid``
     and ``zip_`` are ``KEY=V1,V2,...`` items of the CLI's ``--grid`` / ``--zip``, which set
     ``sweep.grid.KEY`` / ``sweep.zip.KEY`` (a run config with ``graph:`` and no ``sweep:``
     becomes a grid sweep of that graph). An option replaces the config's list of its key, as

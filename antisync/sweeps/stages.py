@@ -17,10 +17,10 @@ from pathlib import Path
 
 from tqdm import tqdm
 
-from antisync import graphs as graphs_mod
-from antisync.config import Config
 from antisync.errors import ConfigError, StoreError
-from antisync.jobs import make_job
+from antisync.physics import graphs as graphs_mod
+from antisync.plan.config import Config
+from antisync.plan.jobs import make_job
 from antisync.sweeps.analysis import ranking
 from antisync.sweeps.families import GraphEntry, family_graphs
 from antisync.sweeps.points import GridPoint, number_name, point_label, point_suffix
@@ -222,7 +222,7 @@ def run_sweep(
 ) -> Path:
     """Screen, run the main stage and the top stage of ``sweep`` into one HDF5 file.
 
-    Parameters are those of :func:`antisync.runner.run_jobs`. Returns the file's path.
+    Parameters are those of :func:`antisync.execution.runner.run_jobs`. Returns the file's path.
 
     The output is locked once for the whole sweep, before ``overwrite`` deletes anything (the
     ``run_jobs`` call of each stage takes the same lock again). A given ``executor`` is used
@@ -274,11 +274,11 @@ def _run_sweep_locked(
 ) -> Path:
     """The body of :func:`run_sweep`, with ``store`` locked and prepared; ``planned``: the
     main stage's jobs of every graph (:func:`check_sweep`)."""
-    from antisync.runner import run_jobs
-    from antisync.screening import ScreenResult, screen_graph
-    from antisync.stopping import already_stopped
+    from antisync.execution.runner import run_jobs
+    from antisync.execution.stopping import already_stopped
     from antisync.store import read_sweep_meta, write_sweep_meta
     from antisync.sweeps.results import sweep_summary
+    from antisync.sweeps.screening import ScreenResult, screen_graph
 
     say = log or (lambda msg: None)
     path = store.path
@@ -443,14 +443,14 @@ def check_sweep(
     The main stage's jobs of every graph (screening may exclude some, never add one) and, for
     the top stage, each graph's job on its first representative edge with the top stage's
     betas and realizations (the stage's options; its edge is chosen by the ranking later) go
-    through the same checks :func:`antisync.runner.run_jobs` makes
-    (:func:`~antisync.compute.check_job`), so a bad option, edge, frequency list or step
+    through the same checks :func:`antisync.execution.runner.run_jobs` makes
+    (:func:`~antisync.execution.compute.check_job`), so a bad option, edge, frequency list or step
     fails the command before the output or its journal exists, not after the screening.
     ``backend``: the one to check for (default: the config's, resolved on this machine;
     ``antisync validate`` passes the configured one, so a cuda sweep validates on a laptop).
     """
-    from antisync.backends import resolve_backend
-    from antisync.compute import check_job
+    from antisync.execution.compute import check_job
+    from antisync.kernels.backends import resolve_backend
     from antisync.measures.pipeline import with_nnc
 
     if backend is None:
@@ -469,9 +469,9 @@ def check_sweep(
 
 def _check_backend(sweep: Sweep, entries: list[GraphEntry], backend: str) -> None:
     """Refuse, before anything is written, what the sweep's backend cannot run: its options
-    (:func:`~antisync.compute.check_backend`) and, on cuda, a graph with more nodes than
+    (:func:`~antisync.execution.compute.check_backend`) and, on cuda, a graph with more nodes than
     the kernels hold (the stages' ``run_jobs`` would refuse it only after the screening)."""
-    from antisync.compute import check_backend
+    from antisync.execution.compute import check_backend
 
     check_backend(sweep.base, backend)
     if backend == "cuda":

@@ -25,7 +25,7 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
-from antisync.reference import config_path, paper_table1
+from antisync.paper.reference import config_path, paper_table1
 
 __all__ = ["CAPTIONS", "STEPS", "Step", "make_paper", "plan"]
 
@@ -244,11 +244,11 @@ def make_paper(
     only : tuple of str
         Run only these steps (the README still lists every step that has a file).
     """
-    from antisync.config import load_config
     from antisync.errors import ConfigError
+    from antisync.execution.runner import run_config
+    from antisync.plan.config import load_config
     from antisync.report.figures import write_file_report
     from antisync.report.sweep import write_sweep_report
-    from antisync.runner import run_config
     from antisync.sweeps import load_sweep, run_sweep
 
     out = Path(out)

@@ -33,7 +33,7 @@ from antisync import (
     coupling,
 )
 from antisync.kernels.core import RENORM_EVERY, make_kernels
-from antisync.phases import phase
+from antisync.physics.phases import phase
 from antisync.status import ALREADY_SYNCED, NOT_SYNCED, SYNCED
 
 __all__ = ["STATIONARY", "ScreenResult", "classify_state", "jacobian", "screen_graph", "screen_realizations"]
@@ -276,7 +276,7 @@ def screen_graph(
     omega : ndarray (N, N)
         Weights of the undamaged network.
     seed, realizations : int
-        Realization ``k`` starts from :func:`antisync.phases.phase` ``(seed, k, node)``,
+        Realization ``k`` starts from :func:`antisync.physics.phases.phase` ``(seed, k, node)``,
         the same phases the main run uses, ``k = 0 .. realizations - 1``.
     t_max, dt, threshold
         Integration limit, Euler step and order-parameter threshold ``r``.

@@ -8,7 +8,7 @@ them from here, so an installed wheel or a bare clone has them too.
 
 Example
 -------
->>> from antisync.reference import paper_values
+>>> from antisync.paper.reference import paper_values
 >>> paper_values()["lollipop_6_3"]["mean_F_beta_0.5"]["2->1"]
 1.181
 """

@@ -14,10 +14,10 @@ from dataclasses import dataclass, replace
 import networkx as nx
 import numpy as np
 
-from antisync import coupling, graphs
-from antisync.config import Config, graph_name
 from antisync.errors import ConfigError
-from antisync.model import DTARGET_STEP, ModelSetup, model_setup
+from antisync.physics import coupling, graphs
+from antisync.plan.config import Config, graph_name
+from antisync.plan.model import DTARGET_STEP, ModelSetup, model_setup
 
 __all__ = ["Chunk", "Job", "make_job"]
 
@@ -66,7 +66,8 @@ class Job:
         ``E + e``): the hybrids' central secants.
     orbit_weights : ndarray (2 E, nnz) or None
         ``lambda.method: orbit``: each edge's automorphism orbit damaged by ``+dbeta`` (row
-        ``2 e``) and ``-dbeta`` (row ``2 e + 1``), see :func:`~antisync.coupling.orbit_variant_weights`;
+        ``2 e``) and ``-dbeta`` (row ``2 e + 1``), see
+        :func:`~antisync.physics.coupling.orbit_variant_weights`;
         ``central-difference``: the same with every edge its own orbit.
     orbit_sizes : ndarray (E,) or None
         Number of directed links in each edge's orbit.
@@ -238,7 +239,7 @@ def make_job(config: Config, graph: nx.Graph | None = None, name: str | None = N
 def _model_fields(
     config, edges, edge_idx, variant_edge, variant_beta, omega, csr, vw, secant, orbit
 ) -> ModelSetup:
-    """The job's :class:`~antisync.model.ModelSetup`, with the targets of the damaged networks
+    """The job's :class:`~antisync.plan.model.ModelSetup`, with the targets of the damaged networks
     its estimator integrates besides the variants: central differences' rows (``orbit``,
     ``central-difference``), the hybrids' secants, and for the adjoint with the relative
     criterion ``d target / d beta_e`` (a central difference of the target at ``+-DTARGET_STEP``)."""
@@ -323,7 +324,7 @@ def check_step(omega: np.ndarray, config: Config) -> None:
 
 @functools.lru_cache(maxsize=64)
 def _all_orbits(nodes: tuple, omega_rows: tuple) -> dict:
-    """:func:`~antisync.graphs.edge_orbits` of the weighted graph, cached: the repeats and
+    """:func:`~antisync.physics.graphs.edge_orbits` of the weighted graph, cached: the repeats and
     thresholds of a sweep build the same graph many times (1 s for a 20-node lollipop)."""
     g = nx.Graph()
     g.add_nodes_from(nodes)

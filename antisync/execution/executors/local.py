@@ -4,14 +4,14 @@ from __future__ import annotations
 
 from collections.abc import Iterable, Iterator
 
-from antisync.compute import ChunkResult, compute_chunk
-from antisync.jobs import Chunk, Job
+from antisync.execution.compute import ChunkResult, compute_chunk
+from antisync.plan.jobs import Chunk, Job
 
 __all__ = ["LocalExecutor"]
 
 
 class LocalExecutor:
-    """Runs :func:`~antisync.compute.compute_chunk` in-process (numba ``prange`` threads)."""
+    """Runs :func:`~antisync.execution.compute.compute_chunk` in-process (numba ``prange`` threads)."""
 
     name = "local"
 

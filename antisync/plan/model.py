@@ -19,7 +19,7 @@ model it means the initial frequencies are zero in that frame.
 
 ``sync:`` chooses when a trajectory counts as synchronized: ``order-parameter`` (``r >=
 threshold``, the paper's), ``relative`` (``r >= fraction r*`` with ``r*`` the order parameter
-of the stable phase-locked state of the weights in use, :mod:`antisync.locked`) or ``frequency``
+of the stable phase-locked state of the weights in use, :mod:`antisync.physics.locked`) or ``frequency``
 (every ``|theta_i' - mean_j theta_j'| < tolerance``).
 """
 
@@ -62,7 +62,7 @@ _FREQ_KEYS = {"normal": {"distribution", "sd", "mean"}, "uniform": {"distributio
 #: and small enough that every draw (at most ~8.6 sd from the mean), sum and mean of the
 #: frequencies of a graph stays finite in float64 (``sd: 1e308`` overflowed to inf and NaN).
 MAX_FREQUENCY = 1e100
-#: ``antisync.config.MAX_STEPS`` (not imported: config imports this module).
+#: ``antisync.plan.config.MAX_STEPS`` (not imported: config imports this module).
 MAX_STEPS_HINT = 2**40
 
 
@@ -414,9 +414,9 @@ class ModelSetup:
         ``relative``: the order parameter of each one's stable locked state.
     orbit_targets, orbit_r_star : ndarray (2 E,) or None
         The same for the ``+dbeta``/``-dbeta`` rows of ``central-difference`` and ``orbit``
-        (:attr:`antisync.jobs.Job.orbit_weights`), when the method has them.
+        (:attr:`antisync.plan.jobs.Job.orbit_weights`), when the method has them.
     secant_targets : ndarray (2 E,) or None
-        The hybrids' central secants' rows (:attr:`antisync.jobs.Job.secant_weights`).
+        The hybrids' central secants' rows (:attr:`antisync.plan.jobs.Job.secant_weights`).
     dtarget : ndarray (E,) or None
         ``d target / d beta_e`` at 0 for the adjoint with the relative criterion (``r*`` moves
         with the damage), by a central difference of ``r*`` at ``+-DTARGET_STEP``.
@@ -475,7 +475,7 @@ def model_setup(
         criterion = CRIT_ORDER
         targets = np.full(n_kinds, (config.dynamics.threshold * n) ** 2)
     else:
-        from antisync.locked import locked_state
+        from antisync.physics.locked import locked_state
 
         criterion = CRIT_ORDER
         p = np.zeros(n) if freqs is None else freqs
@@ -537,10 +537,10 @@ def _check_second_order_step(config, indptr, indices, weights, mass, gamma) -> N
     Linearized at the in-phase state, ``m u'' + gamma u' = -L u`` (``L`` the coupling's
     Laplacian) has, for each eigenvalue ``xi`` of ``L``, the rates ``lambda`` with ``m lambda^2
     + gamma lambda + xi = 0`` (per-node ``m_i``, ``gamma_i``: the eigenvalues of
-    :func:`antisync.locked.linearization`'s matrix). An explicit step multiplies such a mode by
+    :func:`antisync.physics.locked.linearization`'s matrix). An explicit step multiplies such a mode by
     ``R(dt lambda)`` (Euler ``1 + z``, RK4 its 4th-order polynomial); ``|R| > 1`` makes synchrony
     repel (the damping mode ``-gamma/m`` of a small inertia, or weakly damped oscillations under
-    Euler). The first-order model's check is :func:`antisync.jobs.check_step`.
+    Euler). The first-order model's check is :func:`antisync.plan.jobs.check_step`.
 
     The comparison is NaN-safe: a growth that overflows (``inertia: 1e-110`` puts ``dt
     lambda`` near 1e107, whose 4th power is inf and the polynomial NaN) is refused, not passed.
@@ -548,7 +548,7 @@ def _check_second_order_step(config, indptr, indices, weights, mass, gamma) -> N
     ``-1e-16`` gave a rate ``+1e-16 / gamma`` and a false "amplifies a mode by 1 per step".
     The message gives the largest stable ``dt`` (found by bisection on the same test).
     """
-    from antisync.locked import linearization
+    from antisync.physics.locked import linearization
 
     dyn = config.dynamics
     n = indptr.size - 1

@@ -4,7 +4,7 @@ how fast, when one line is removed or weakened (docs/power_grids.md)?
 For every line ``i-j`` both directions are weakened, ``Omega_ij, Omega_ji -> (1 - beta)
 Omega_ij`` (``beta = 1`` removes the line), and the damaged grid is integrated from the **same**
 initial conditions as the intact one: realization ``k`` starts from the counter-based phases
-``theta_i(0) = 2 pi u(seed, k, i)`` of :mod:`antisync.phases` (``theta_i'(0) = 0``), whatever
+``theta_i(0) = 2 pi u(seed, k, i)`` of :mod:`antisync.physics.phases` (``theta_i'(0) = 0``), whatever
 line, chunk or thread. The integration is the compiled model driver
 :func:`antisync.kernels.cpu.simulate_model` (the intact grid as the base network, one
 variant per line on the same CSR pattern, a removed line's weights 0), so an intact run's
@@ -31,12 +31,12 @@ Rankings (:class:`RemovalTable`): **troublemaker lines** (removal costs the most
 largest ``lost - gained``) and **dynamic Braess lines** (removal or weakening raises ``P_sync``
 or speeds synchronization, ``d_tau < 0``). A change is *resolved* when the Benjamini-Hochberg
 procedure at false discovery rate 0.05 over the table's lines calls it (McNemar's exact
-p-values for ``P_sync``, normal ones of ``d_tau / se`` for tau; :mod:`antisync.multiplicity`,
+p-values for ``P_sync``, normal ones of ``d_tau / se`` for tau; :mod:`antisync.stats.multiplicity`,
 as the sign calls of ``antisync summary``): a per-line 5% test would call about one line in
 twenty of an unaffected grid.
 
 A bridge (a line whose removal islands the grid) at ``beta = 1`` is refused with a one-line
-:class:`~antisync.grid.GridError`; ``islanding=True`` integrates it anyway and marks the row
+:class:`~antisync.grids.grid.GridError`; ``islanding=True`` integrates it anyway and marks the row
 ``islanding`` (the islands cannot share one frequency unless each is balanced, so with the
 frequency criterion such a row normally loses every realization).
 """
@@ -56,8 +56,9 @@ from pathlib import Path
 
 import numpy as np
 
-from antisync.grid import Grid, GridError, Rows
-from antisync.multiplicity import FDR_LEVEL, benjamini_hochberg
+from antisync.grids.grid import Grid, GridError, Rows
+from antisync.plan import sources
+from antisync.stats.multiplicity import FDR_LEVEL, benjamini_hochberg
 from antisync.status import ALREADY_SYNCED, SYNCED
 from antisync.store.outputs import check_output_path, config_inputs, json_format_problem
 
@@ -373,7 +374,7 @@ def _pm(x: float, se: float, digits: int = 3) -> str:
 
 
 def _grid_mapping(grid: Grid) -> dict:
-    """A config mapping of a :class:`~antisync.grid.Grid` (its lines inline, injections,
+    """A config mapping of a :class:`~antisync.grids.grid.Grid` (its lines inline, injections,
     inertia and damping per node), with the dynamics of configs/ieee118_grid.yaml (rk4, dt
     0.01, t_max 400, frequency locking to 1e-3), which overrides may change."""
     n = len(grid.labels)
@@ -404,16 +405,15 @@ def _grid_mapping(grid: Grid) -> dict:
 
 
 def resolve_config(source, overrides: Mapping):
-    """The :class:`~antisync.config.Config` of a grid (a :class:`~antisync.grid.Grid`, as
+    """The :class:`~antisync.plan.config.Config` of a grid (a :class:`~antisync.grids.grid.Grid`, as
     :func:`line_removal` integrates it), a YAML path, a mapping or a Config, with ``overrides``
     (config keys); a value that is not valid is a one-line GridError."""
-    from antisync.api import _config
     from antisync.errors import ConfigError
 
     if isinstance(source, Grid):
         source = _grid_mapping(source)
     try:
-        return _config(source, dict(overrides), None)
+        return sources.resolve_config(source, dict(overrides), None)
     except ConfigError as exc:
         raise GridError(str(exc)) from None
 
@@ -421,8 +421,8 @@ def resolve_config(source, overrides: Mapping):
 def parse_lines(text: str | None, labels) -> list[tuple] | None:
     """``--lines`` as pairs of the grid's labels (None: every line): ``"4-5,2-3"`` (a dash
     inside a label is read when one split gives two labels) or a YAML list of pairs
-    ``[[a-b, c], ["x,y", -2]]`` that can name any label (:func:`antisync.grid.parse_line_labels`)."""
-    from antisync.grid import parse_line_labels
+    ``[[a-b, c], ["x,y", -2]]`` that can name any label (:func:`antisync.grids.grid.parse_line_labels`)."""
+    from antisync.grids.grid import parse_line_labels
 
     return parse_line_labels(text, labels)
 
@@ -431,7 +431,7 @@ def _pick_lines(omega: np.ndarray, labels: list, lines, beta: float, islanding: 
     """0-based ``(a, b)`` of the lines to change, the bridges among them, the skipped ones: a
     bridge asked for by name is refused unless ``islanding``; with every line asked for, the
     bridges are left out and listed."""
-    from antisync.grid import _lines_of, grid_bridges, split_bridges
+    from antisync.grids.grid import _lines_of, grid_bridges, split_bridges
 
     if isinstance(lines, str):
         lines = parse_lines(lines, labels)
@@ -466,11 +466,11 @@ def work_config(config) -> dict:
 
 def planned_lines(cfg, lines, beta: float, islanding: bool) -> dict:
     """The lines a removal run of ``cfg`` would change, ``{(u, v) as strings: islanding}``,
-    found as :func:`antisync.removal.line_removal` finds them (its refusals, one line each:
+    found as :func:`antisync.grids.removal.line_removal` finds them (its refusals, one line each:
     a line not in the grid, a bridge, a per-node value that does not fit the graph)."""
-    from antisync import graphs
     from antisync.errors import AntisyncError
-    from antisync.model import node_frequencies, node_parameters
+    from antisync.physics import graphs
+    from antisync.plan.model import node_frequencies, node_parameters
 
     try:
         g = graphs.build_graph(cfg.graph, seed=cfg.seed)
@@ -516,7 +516,7 @@ def line_removal(
     ----------
     grid_or_config : path, mapping, Config or Grid
         A config with a ``model:`` (``configs/ieee39_grid.yaml``), the same keys as a mapping,
-        an :class:`antisync.config.Config`, or a :class:`antisync.grid.Grid` (integrated with
+        an :class:`antisync.plan.config.Config`, or a :class:`antisync.grids.grid.Grid` (integrated with
         rk4, ``dt = 0.01``, ``t_max = 400`` and frequency locking to 1e-3 unless ``overrides``
         say otherwise).
     lines : list of (u, v), str or None
@@ -559,14 +559,14 @@ def line_removal(
 
     Raises
     ------
-    antisync.grid.GridError
+    antisync.grids.grid.GridError
         A line not in the grid, a bridge at ``beta = 1``, ``beta`` outside ``(0, 1]``, a config
         value that is not valid (per-node files of the wrong length included), a ``client`` that
         is not an open ``distributed.Client``, or a ``journal`` of other work: one line.
     """
-    from antisync import coupling, graphs
-    from antisync.jobs import check_step
-    from antisync.model import model_setup
+    from antisync.physics import coupling, graphs
+    from antisync.plan.jobs import check_step
+    from antisync.plan.model import model_setup
 
     t_start = time.perf_counter()
     _check_client(client)
@@ -760,9 +760,9 @@ def _groups(client, m: int) -> int:
 def _removal_task(ks, variants, intact: bool, fixed: dict, threads):
     """Integrate realizations ``ks`` of the intact grid (if ``intact``) and of ``variants``:
     ``(status0, tau0, status, tau)``, times in the model's units (NaN where not SYNCED)."""
-    from antisync.compute import model_params
-    from antisync.estimators import crossing_times
+    from antisync.execution.compute import model_params
     from antisync.kernels.cpu import simulate_model
+    from antisync.stats.estimators import crossing_times
 
     params = model_params(
         fixed["setup"], fixed["model"], fixed["seed"], ks, fixed["n_nodes"], fixed["targets"]

@@ -11,14 +11,14 @@ import time
 from collections.abc import Callable
 from pathlib import Path
 
-from antisync import stopping
-from antisync.backends import resolve_backend
-from antisync.compute import check_job, host_part
-from antisync.config import Config
 from antisync.errors import StoreError
-from antisync.executors import Executor
-from antisync.jobs import Chunk, Job, make_job
+from antisync.execution import stopping
+from antisync.execution.compute import check_job, host_part
+from antisync.execution.executors import Executor
+from antisync.kernels.backends import resolve_backend
 from antisync.measures.pipeline import COMPUTED, compute_measures, wants_measures, with_nnc
+from antisync.plan.config import Config
+from antisync.plan.jobs import Chunk, Job, make_job
 from antisync.store import JobState, ResultStore, chunk_tag, command_line, git_revision
 
 __all__ = ["Interrupted", "run_config", "run_jobs"]
@@ -87,8 +87,8 @@ def run_jobs(
     temporary files), so the same command can simply be run again.
 
     With a stopping rule (``config.stop``, docs/stopping.md) the realizations are integrated
-    look by look (:attr:`~antisync.config.Config.stop_looks`); the run ends at the first look
-    where :func:`antisync.stopping.take_look` finds every sign known, and the file then holds
+    look by look (:attr:`~antisync.plan.config.Config.stop_looks`); the run ends at the first look
+    where :func:`antisync.execution.stopping.take_look` finds every sign known, and the file then holds
     exactly a plain run of that many realizations.
     """
     say = log or (lambda msg: None)
@@ -124,7 +124,7 @@ def run_jobs(
             )
         own_executor = executor is None
         if own_executor:
-            from antisync.executors.local import LocalExecutor
+            from antisync.execution.executors.local import LocalExecutor
 
             executor = LocalExecutor(backend, config.threads)
         try:

@@ -6,14 +6,14 @@ from __future__ import annotations
 
 import functools
 import time
-from dataclasses import dataclass
 
 import numpy as np
 
-from antisync import estimators
 from antisync.errors import ConfigError
-from antisync.jobs import Chunk, Job
+from antisync.plan.jobs import Chunk, Job
+from antisync.stats import estimators
 from antisync.status import NOT_SYNCED, SYNCED
+from antisync.store.state import ChunkResult
 
 __all__ = [
     "ChunkResult",
@@ -24,34 +24,6 @@ __all__ = [
     "lambda_values",
     "simulate_job",
 ]
-
-
-@dataclass
-class ChunkResult:
-    """Partial statistics of one chunk; every field merges by addition or by block position.
-
-    Attributes
-    ----------
-    rec, rec0 : block records (see :func:`antisync.estimators.block_records`)
-    tail : int64 (V, TAIL_BINS)
-    hist : int64 (len(job.hist_variants), bins, bins)
-    lam_rec, lam_tail : Lambda block records and signed Lambda tail counts per edge
-    kept : dict of arrays or None
-        Per-realization steps and status for realizations below ``keep_pairs``.
-    """
-
-    chunk: Chunk
-    rec: np.ndarray
-    rec0: np.ndarray
-    tail: np.ndarray
-    hist: np.ndarray
-    lam_rec: np.ndarray
-    lam_tail: np.ndarray
-    kept: dict | None
-    first: int
-    count: int
-    seconds: float
-    backend: str
 
 
 def _kernel(backend: str):
@@ -223,7 +195,7 @@ def simulate_job(
     (only the items marked by ``todo``, see :func:`antisync.kernels.cpu.simulate`).
 
     A generalized model's ``variant_weights`` other than the job's own variants or
-    :attr:`~antisync.jobs.Job.orbit_weights` need their ``variant_targets`` (the criterion's
+    :attr:`~antisync.plan.jobs.Job.orbit_weights` need their ``variant_targets`` (the criterion's
     target of each row: the relative criterion's moves with the weights)."""
     dyn = job.config.dynamics
     check_backend(job.config, backend)
@@ -260,11 +232,11 @@ def simulate_job(
 
 def model_params(setup, model, seed: int, ks: np.ndarray, n: int, targets: np.ndarray):
     """The model kernels' :class:`~antisync.kernels.model_steps.ModelParams` for realizations
-    ``ks`` of ``n`` nodes (``setup``: :class:`~antisync.model.ModelSetup`; ``model``: the config's
+    ``ks`` of ``n`` nodes (``setup``: :class:`~antisync.plan.model.ModelSetup`; ``model``: the config's
     model section): fixed frequencies (one row), drawn ones (a row per realization, in the
     rotating frame of docs/models.md, the distribution's mean never added) or none."""
     from antisync.kernels.model_steps import ModelParams
-    from antisync.model import drawn_frequencies
+    from antisync.plan.model import drawn_frequencies
 
     if model.drawn:
         freqs = drawn_frequencies(model, seed, ks, n)
@@ -328,7 +300,7 @@ def lambda_values(
     """Per-realization Lambda^KM estimates for every edge of ``job`` by ``lambda.method``.
 
     Returns ``(values, code, flagged, base)`` with ``values``/``code``/``flagged`` of shape
-    ``(count, E)`` (see :func:`antisync.estimators.lambda_block_records`) and ``base`` the
+    ``(count, E)`` (see :func:`antisync.stats.estimators.lambda_block_records`) and ``base`` the
     undamaged outcome when the pathwise, adjoint or orbit pass produced it (else None). With
     ``with_tau``, also ``slope`` and ``tau0`` ``(count, E)``: the same estimator's slope of
     ``tau(beta)`` at 0 (time per unit beta: the forward secant ``(tau(dbeta) - tau0)/dbeta``,

@@ -1,9 +1,9 @@
 """Executors: where a run's chunks are computed. Every one satisfies :class:`Executor`.
 
-- :class:`~antisync.executors.local.LocalExecutor`: in this process (numba threads);
-- :class:`~antisync.executors.dask.DaskExecutor`: on a Dask cluster (docs/dask.md).
+- :class:`~antisync.execution.executors.local.LocalExecutor`: in this process (numba threads);
+- :class:`~antisync.execution.executors.dask.DaskExecutor`: on a Dask cluster (docs/dask.md).
 
-Whoever creates an executor closes it: :func:`antisync.runner.run_jobs` closes only the local
+Whoever creates an executor closes it: :func:`antisync.execution.runner.run_jobs` closes only the local
 executor it makes itself, and an executor handed to it (a sweep hands one to every stage)
 stays open.
 """
@@ -14,8 +14,8 @@ from collections.abc import Iterable, Iterator
 from typing import TYPE_CHECKING, Protocol, runtime_checkable
 
 if TYPE_CHECKING:
-    from antisync.compute import ChunkResult
-    from antisync.jobs import Chunk, Job
+    from antisync.execution.compute import ChunkResult
+    from antisync.plan.jobs import Chunk, Job
 
 __all__ = ["Executor"]
 

@@ -19,18 +19,20 @@ from statistics import NormalDist
 
 import numpy as np
 
-from antisync import estimators
-from antisync.measures.pipeline import join_nnc, measure_fields
+from antisync.stats import estimators
 
 __all__ = [
     "CI_LEVEL",
     "OUTSIDE_WHY",
+    "RECORD_KEYS",
     "WARNING_KINDS",
     "JobView",
     "is_kuramoto",
+    "join_nnc",
     "job_records",
     "graph_names",
     "lambda_intervals",
+    "measure_fields",
     "named_views",
     "r_star_rows",
     "sign_resolved",
@@ -72,7 +74,7 @@ class JobView:
     nodes: list | None = None
     attrs: dict | None = None
     measures: dict | None = None  # Lambda^(linear, xi2, RW) arrays, see measures.pipeline
-    unsynced_hint: str | None = None  # why nothing may lock (antisync.model.unsynced_hint)
+    unsynced_hint: str | None = None  # why nothing may lock (antisync.plan.model.unsynced_hint)
     # sync.criterion relative: r* of the undamaged network, then of each variant, (1 + V,);
     # None for another criterion and for a file written before it was stored
     r_star: np.ndarray | None = None
@@ -459,3 +461,51 @@ def named_views(views: list[JobView], name: str | None) -> list[JobView]:
 def view_records(views: list[JobView]) -> list[dict]:
     """Records of ``views``, with each run's ``lambda_km_nnc`` taken from its raw-coupling twin."""
     return join_nnc(views, [r for view in views for r in job_records(view)])
+
+
+# --- the exact measures' fields of a record ------------------------------------------------
+
+#: Summary keys added to every record, ``None`` where not computed.
+RECORD_KEYS = (
+    "lambda_linear",
+    "lambda_linear_se",
+    "lambda_linear_n",
+    "lambda_linear_n_excluded",
+    "lambda_xi2",
+    "lambda_rw",
+    "lambda_km_nnc",
+    "lambda_km_nnc_se",
+)
+_INT_KEYS = {"lambda_linear_n", "lambda_linear_n_excluded", "lambda_linear_n_already_synced"}
+
+
+def measure_fields(measures: dict | None, e: int) -> dict:
+    """The :data:`RECORD_KEYS` of edge ``e``; ``None`` for what was not computed."""
+    rec = dict.fromkeys(RECORD_KEYS)
+    for key in RECORD_KEYS:
+        if measures is not None and key in measures:
+            x = measures[key][e]
+            if key in _INT_KEYS:
+                rec[key] = int(x)
+            else:
+                rec[key] = float(x) + 0.0 if np.isfinite(x) else None  # no -0.0
+    return rec
+
+
+def join_nnc(views, records: list[dict]) -> list[dict]:
+    """Fill ``lambda_km_nnc`` (``_se``) of each normalized job's records from its twin's.
+
+    ``views`` are :class:`~antisync.stats.summary.JobView` s whose ``attrs`` may carry
+    ``nnc_of``; ``records`` are their records, changed in place and returned.
+    """
+    twins = {str(v.attrs["nnc_of"]): v.graph for v in views if v.attrs and v.attrs.get("nnc_of")}
+    if not twins:
+        return records
+    by_graph: dict[str, dict[str, tuple]] = {}
+    for r in records:
+        by_graph.setdefault(r["graph"], {}).setdefault(r["edge"], (r["lambda_km"], r["lambda_km_se"]))
+    for r in records:
+        twin = twins.get(r["graph"])
+        if twin is not None and r["edge"] in by_graph.get(twin, {}):
+            r["lambda_km_nnc"], r["lambda_km_nnc_se"] = by_graph[twin][r["edge"]]
+    return records

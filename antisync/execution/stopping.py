@@ -1,7 +1,7 @@
 """The stopping rule (``stop:``, docs/stopping.md): spend realizations until every sign is known.
 
 A run with ``stop.when: signs-resolved`` treats ``realizations`` as a budget. The runner
-integrates the realizations up to each of :attr:`~antisync.config.Config.stop_looks` in turn
+integrates the realizations up to each of :attr:`~antisync.plan.config.Config.stop_looks` in turn
 (``first_look``, twice as many, four times ..., the budget) and, after each, calls
 :func:`take_look`: every link's Lambda^KM interval from the realizations so far, at the level
 :func:`look_level`. The run ends at the first look where each link is
@@ -20,7 +20,7 @@ level ``1 - 0.05 / looks``.
 
 Example
 -------
->>> from antisync.config import load_config_text
+>>> from antisync.plan.config import load_config_text
 >>> cfg = load_config_text('''
 ... graph: {kind: lollipop, nodes: 6, path: 3}
 ... realizations: 64000
@@ -38,8 +38,8 @@ from __future__ import annotations
 from collections.abc import Mapping
 from dataclasses import dataclass
 
+from antisync.stats.summary import CI_LEVEL, lambda_intervals
 from antisync.store import JobState, state_view
-from antisync.summary import CI_LEVEL, lambda_intervals
 
 __all__ = ["Look", "already_stopped", "look_level", "stop_note", "take_look"]
 

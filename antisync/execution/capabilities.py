@@ -2,11 +2,11 @@
 
 The table is not written by hand: :func:`cell` builds a lollipop config with the cell's values
 and asks the checks that a real run goes through (the config's own validation,
-:meth:`antisync.config.Config`'s model checks, and :func:`antisync.compute.check_backend`)
+:meth:`antisync.plan.config.Config`'s model checks, and :func:`antisync.execution.compute.check_backend`)
 whether it runs; a refused cell carries the one-line message a user would get. So the table
 cannot disagree with the code. A cell that runs on backend cuda but does part of its work on
-the CPU says so (:func:`antisync.compute.host_part`, also printed by the run).
-``python -m antisync.capabilities`` prints the table as markdown; docs/models.md shows it
+the CPU says so (:func:`antisync.execution.compute.host_part`, also printed by the run).
+``python -m antisync.execution.capabilities`` prints the table as markdown; docs/models.md shows it
 (tests/test_capabilities.py checks that the copy there is current).
 
 The two model rows are the identical first-order oscillators of the paper and a generalized
@@ -36,8 +36,8 @@ _GRAPH = "graph: {kind: lollipop, nodes: 6, path: 3}\nedges: ['2->1']\nbetas: []
 def cell(model: str, method: str, integrator: str, backend: str, precision: str) -> tuple[bool, str | None]:
     """``(runs, why)``: whether the cell runs, and the one-line message that refuses it, or
     for a cell that runs what of it runs on the CPU all the same (else None)."""
-    from antisync.compute import check_backend, host_part
-    from antisync.config import load_config_text
+    from antisync.execution.compute import check_backend, host_part
+    from antisync.plan.config import load_config_text
 
     text = (
         _GRAPH

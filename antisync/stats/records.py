@@ -1,6 +1,6 @@
 """How to list the records of a graph with hundreds of links: :func:`sort_records` and
 :func:`flag_signs` order and flag them (``antisync summary --sort``, the large-graph report).
-Pure: no file. The records themselves come from :func:`antisync.summary.job_records`.
+Pure: no file. The records themselves come from :func:`antisync.stats.summary.job_records`.
 """
 
 from __future__ import annotations
@@ -9,7 +9,7 @@ import math
 from typing import Literal, get_args
 
 from antisync.errors import AntisyncError
-from antisync.summary import sign_resolved
+from antisync.stats.summary import sign_resolved
 
 __all__ = [
     "MEASURE_KEYS",
@@ -144,11 +144,11 @@ def _why_no_km(rec: dict) -> str:
 def flag_signs(records: list[dict]) -> list[dict]:
     """Copies of ``records``, each with ``sign_resolved``: ``+1`` (antifragile), ``-1``
     (fragile) or ``0`` (unresolved) by the Benjamini-Hochberg procedure at false discovery rate
-    0.05 over the records' distinct links (:func:`antisync.multiplicity.fdr_signs`: a run over
+    0.05 over the records' distinct links (:func:`antisync.stats.multiplicity.fdr_signs`: a run over
     many links calls few null links by chance), and ``sign_per_link``, the call of the record's
-    own 95% interval alone (:func:`antisync.summary.sign_resolved`); both ``None`` where no
+    own 95% interval alone (:func:`antisync.stats.summary.sign_resolved`); both ``None`` where no
     Lambda^KM was estimated (a file run without ``km``)."""
-    from antisync.multiplicity import fdr_signs
+    from antisync.stats.multiplicity import fdr_signs
 
     out = []
     for r, sign in zip(records, fdr_signs(records), strict=True):
@@ -160,7 +160,7 @@ def flag_signs(records: list[dict]) -> list[dict]:
 def sign_rule_note(records: list[dict]) -> str | None:
     """One line saying how ``sign_resolved`` was decided and how many links each rule calls
     (None without Lambda^KM)."""
-    from antisync.multiplicity import FDR_LEVEL, link_key
+    from antisync.stats.multiplicity import FDR_LEVEL, link_key
 
     links = {link_key(r): r for r in records if r.get("sign_resolved") is not None}
     if not links:

@@ -1,7 +1,7 @@
 """Dask executor: the chunks of the local executor, computed on the workers of a Dask cluster.
 
-Workers only compute: each task is :func:`~antisync.compute.compute_chunk` on one chunk and
-returns its :class:`~antisync.compute.ChunkResult` to the client, where the runner journals
+Workers only compute: each task is :func:`~antisync.execution.compute.compute_chunk` on one chunk and
+returns its :class:`~antisync.execution.compute.ChunkResult` to the client, where the runner journals
 and merges it by block position like any other. Which worker ran a chunk, in which order, and
 how often a chunk was retried therefore cannot change the numbers.
 
@@ -21,9 +21,9 @@ import time
 import uuid
 from collections.abc import Callable, Iterable, Iterator
 
-from antisync.compute import ChunkResult, compute_chunk
 from antisync.errors import AntisyncError
-from antisync.jobs import Chunk, Job
+from antisync.execution.compute import ChunkResult, compute_chunk
+from antisync.plan.jobs import Chunk, Job
 
 __all__ = ["CONNECT_TIMEOUT", "DASHBOARD_ADDRESS", "TASKS_PER_THREAD", "DaskExecutor", "quiet_shutdown"]
 
@@ -72,7 +72,7 @@ class DaskExecutor:
         A connected client; the executor does not close it (unless it was made by
         :meth:`from_options`).
     backend : {"cpu", "cuda"}
-        Backend of :func:`~antisync.compute.compute_chunk` on the workers.
+        Backend of :func:`~antisync.execution.compute.compute_chunk` on the workers.
     threads : int, optional
         Numba threads per task. Default 1: Dask already runs one task per worker thread, and
         a worker per core with one numba thread each uses every core without oversubscribing
@@ -86,8 +86,8 @@ class DaskExecutor:
 
     Notes
     -----
-    The :class:`~antisync.jobs.Job` is scattered to the workers once per job
-    (``broadcast=True``); tasks carry only their :class:`~antisync.jobs.Chunk`. A worker
+    The :class:`~antisync.plan.jobs.Job` is scattered to the workers once per job
+    (``broadcast=True``); tasks carry only their :class:`~antisync.plan.jobs.Chunk`. A worker
     that dies mid-chunk makes the scheduler run the chunk again elsewhere; its first result is
     the only one yielded (finished chunks are tracked by job and block), so nothing is lost or
     counted twice.
@@ -148,7 +148,7 @@ class DaskExecutor:
         (``DASK_SCHEDULER_ADDRESS``) if there is one, else a ``LocalCluster`` with one
         single-threaded worker per core.
         """
-        from antisync.backends import resolve_backend
+        from antisync.kernels.backends import resolve_backend
 
         say = log or (lambda msg: None)
         if workers is not None and scheduler is not None:

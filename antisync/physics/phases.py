@@ -56,7 +56,7 @@ phase = make_phase(lambda f: njit(f, inline="always"))
 def make_uniform(jit):
     """Compile ``uniform(seed, k, node, stream)``: a number in ``[0, 1)`` (53 random bits) keyed
     by ``(seed, k, node)`` like :func:`phase` and by a ``stream >= 1`` (natural frequencies use
-    streams 1 and 2, :mod:`antisync.model`). The stream is mixed in after the seed with its own
+    streams 1 and 2, :mod:`antisync.plan.model`). The stream is mixed in after the seed with its own
     offset, so no stream reproduces the phases' numbers."""
     mix = jit(_mix)
 

@@ -10,11 +10,11 @@ from collections.abc import Mapping
 from pathlib import Path
 
 from antisync.errors import ConfigError
-from antisync.model import Model, Sync
+from antisync.plan.model import Model, Sync
 
 __all__ = ["model_line", "model_text", "r_star_text", "relative_criterion", "stored_config", "sync_text"]
 
-#: ``dynamics.threshold`` of a config that does not give one (antisync.config.Dynamics)
+#: ``dynamics.threshold`` of a config that does not give one (antisync.plan.config.Dynamics)
 _THRESHOLD = 0.99
 
 
@@ -38,7 +38,7 @@ def model_line(cfg, r_star: list[dict] | None = None) -> str | None:
     stores), e.g. ``model: identical first-order Kuramoto (the paper's Eq. 2); sync: r >= 0.99``;
     None when ``cfg`` holds no valid ``model``/``sync`` sections.
 
-    With ``sync.criterion: relative`` and ``r_star`` given (:func:`antisync.summary.r_star_rows`
+    With ``sync.criterion: relative`` and ``r_star`` given (:func:`antisync.stats.summary.r_star_rows`
     of the file's jobs), the line ends with :func:`r_star_text`.
     """
     parts = _sections(cfg)
@@ -101,7 +101,7 @@ def sync_text(sync: Sync, threshold: float) -> str:
 
 
 def r_star_text(rows: list[dict]) -> str:
-    """What ``rows`` (:func:`antisync.summary.r_star_rows`) say about r*: the undamaged
+    """What ``rows`` (:func:`antisync.stats.summary.r_star_rows`) say about r*: the undamaged
     network's and the range over its damaged variants (over graphs, for several), or that the
     file does not store it."""
     if not rows:

@@ -27,7 +27,7 @@ from typing import Any, Literal
 import yaml
 
 from antisync.errors import ConfigError
-from antisync.model import Model, Sync
+from antisync.plan.model import Model, Sync
 from antisync.types import (
     BACKENDS,
     COUPLINGS,

@@ -3,7 +3,7 @@ phase-locked operating state (docs/power_grids.md).
 
 The model is antisync's generalized one (docs/models.md),
 ``m_i theta_i'' + gamma_i theta_i' = P_i + sum_j w_ij sin(theta_j - theta_i - alpha)``, its
-phase-locked state connected to synchrony found by :func:`antisync.locked.locked_state`
+phase-locked state connected to synchrony found by :func:`antisync.physics.locked.locked_state`
 (Newton continuation from ``P = 0``). For one network ``W`` the static indicators of that state
 ``phi`` are (:class:`GridState`):
 
@@ -18,7 +18,7 @@ phase-locked state connected to synchrony found by :func:`antisync.locked.locked
   Timme's Braess's paradox is this: adding a line, or raising the capacity of one, can reroute
   flow onto a line that is already near ``|sin| = 1`` and so destroy the locked state;
 - ``margin = -max Re(lambda)`` over the eigenvalues of the linearization
-  (:func:`antisync.locked.linearization`, per-node inertia and damping included: load buses
+  (:func:`antisync.physics.locked.linearization`, per-node inertia and damping included: load buses
   with ``m_i = 0`` stay first order as in the structure-preserving model of Nishikawa and
   Motter, New J. Phys. 17, 015012 (2015)) other than the zero of the global rotation: the
   slowest decay rate of a small perturbation, the linear stability measure whose Braess
@@ -62,12 +62,12 @@ import networkx as nx
 import numpy as np
 import yaml
 
-from antisync import graphs
-from antisync.config import Config, load_config, yaml_load
-from antisync.coupling import coupling_matrix
 from antisync.errors import AntisyncError
-from antisync.locked import jacobian, locked_state
-from antisync.model import node_frequencies, node_parameters, read_frequency_file
+from antisync.physics import graphs
+from antisync.physics.coupling import coupling_matrix
+from antisync.physics.locked import jacobian, locked_state
+from antisync.plan.config import Config, load_config, yaml_load
+from antisync.plan.model import node_frequencies, node_parameters, read_frequency_file
 
 __all__ = [
     "Grid",
@@ -99,7 +99,7 @@ class GridError(AntisyncError, ValueError):
 class GridState:
     """The static indicators of one network's locked state (module docstring).
 
-    ``exists`` is False when :func:`~antisync.locked.locked_state` finds no locked state
+    ``exists`` is False when :func:`~antisync.physics.locked.locked_state` finds no locked state
     connected to synchrony; then every number is ``nan`` and ``stable`` is False.
     """
 
@@ -395,7 +395,7 @@ def line_indicators(
     coupling : "raw" or "normalized"
         ``W = coupling_matrix(Omega)`` before and after the change.
     lag, inertia, damping
-        ``alpha``, ``m`` and ``gamma`` as in :func:`antisync.locked.locked_state` (numbers or
+        ``alpha``, ``m`` and ``gamma`` as in :func:`antisync.physics.locked.locked_state` (numbers or
         per-node arrays; ``m_i = 0`` nodes are first order).
     beta : float
         ``Omega_ij, Omega_ji -> (1 - beta) Omega_ij``: 1 removes the line (the default), 0.5
@@ -468,7 +468,7 @@ def line_indicators(
 
 @dataclass(frozen=True)
 class Grid:
-    """A power grid ready for :func:`line_indicators`: ``omega`` in :func:`antisync.graphs.
+    """A power grid ready for :func:`line_indicators`: ``omega`` in :func:`antisync.physics.graphs.
     node_order` (bus ``i`` is row ``labels.index(i)``; for buses 1..N, row ``i - 1``), ``p``
     with its mean removed, ``inertia`` and ``damping`` (numbers or per-node arrays), the
     coupling and the phase lag ``alpha`` (``model.phase_lag``)."""
@@ -505,7 +505,7 @@ def load_grid(
     coupling: str = "raw",
     name: str | None = None,
 ) -> Grid:
-    """Read a grid from an edge list (``u v capacity``, :func:`antisync.graphs.from_edgelist`)
+    """Read a grid from an edge list (``u v capacity``, :func:`antisync.physics.graphs.from_edgelist`)
     and a file of injections (one per node in node order); ``inertia``/``damping``: a number
     or a file like the injections. ``scale`` multiplies every capacity. The injections' mean
     is removed (the line losses of a case, docs/models.md)."""
@@ -526,7 +526,7 @@ def load_grid(
 
 def grid_from_config(config: Config) -> Grid:
     """The :class:`Grid` of a validated config, read as ``antisync run`` reads it: its graph
-    (any kind, ``graph.header``/``delimiter`` honoured; :func:`antisync.graphs.build_graph`),
+    (any kind, ``graph.header``/``delimiter`` honoured; :func:`antisync.physics.graphs.build_graph`),
     ``model.frequencies`` (the injections, a list or ``{file: PATH}``; none: all 0), inertia,
     damping and ``phase_lag``, and ``dynamics.coupling``.
 
@@ -562,7 +562,7 @@ def grid_from_config(config: Config) -> Grid:
 
 def load_grid_config(path, overrides: list[str] | None = None) -> Grid:
     """A :class:`Grid` from an antisync config such as ``configs/ieee14_grid.yaml``, read and
-    validated by :func:`antisync.config.load_config` exactly as ``antisync run`` reads it
+    validated by :func:`antisync.plan.config.load_config` exactly as ``antisync run`` reads it
     (``overrides``: ``key=value`` strings, the CLI's ``--set``), then :func:`grid_from_config`.
 
     Raises

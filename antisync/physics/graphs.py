@@ -886,7 +886,7 @@ def edge_orbits(g: nx.Graph, edges: list | None = None) -> dict:
     ----------
     g : networkx.Graph
     edges : list of (u, v), optional
-        The directed edges to group (default: all, in :func:`~antisync.graphs.all_directed_edges`
+        The directed edges to group (default: all, in :func:`~antisync.physics.graphs.all_directed_edges`
         order). The representative of an orbit is its first edge in this order.
 
     Returns

@@ -16,7 +16,7 @@ says that the links' values are not derivatives, whatever their intervals say.
 
 The interval is the batch-means one of the per-block sum of the links' block means (blocks hold
 the same realizations for every link of a job, so the links' correlation is kept), at the
-records' level. Pure: a :class:`antisync.summary.JobView` in, rows out.
+records' level. Pure: a :class:`antisync.stats.summary.JobView` in, rows out.
 
 Floating point cannot add the links' values to an exact 0: an estimator that obeys the rule
 per realization (the adjoint) leaves sums of the order of the rounding of its terms, and with
@@ -57,7 +57,7 @@ def node_sums(view, coupling: str = "normalized", level: float = SUM_RULE_LEVEL)
 
     Parameters
     ----------
-    view : antisync.summary.JobView
+    view : antisync.stats.summary.JobView
         One decoded job with Lambda block records (``lam_rec``).
     coupling : {"normalized", "raw"}
         The job's coupling: the rule holds for normalized coupling only, so ``raw`` gives [].
