@@ -139,9 +139,9 @@ def plain(value, key: str, _depth: int = 0):
         except UnicodeEncodeError:  # a lone surrogate: no YAML file or HDF5 attribute can hold it
             raise ConfigError(f"{key} must be text that UTF-8 can encode, got {shown(value)}") from None
     # subclasses (np.float64, an IntEnum, np.str_) as the plain type yaml.safe_dump knows
-    for plain in (bool, int, float, str):
-        if isinstance(value, plain):
-            return plain(value)
+    for kind in (bool, int, float, str):
+        if isinstance(value, kind):
+            return kind(value)
     if isinstance(value, os.PathLike):
         return plain(os.fspath(value), key, _depth + 1)
     if isinstance(value, list | tuple):
