@@ -12,7 +12,7 @@ Per line ``i-j``: the removal's ``d P_sync`` (McNemar's exact p), ``d tau`` on t
 synchronize both times and the mean ratio ``F_1 = tau0 / tau`` (``> 1``: faster after the
 removal); ``Lambda_line = Lambda_{i->j} + Lambda_{j->i}`` (the first-order response of ``F`` to
 damaging both directions, ``> 0``: antifragile), and the static ``d margin``, ``d lambda2``,
-``d max load`` of the locked state (antisync/grids/grid.py). Spearman's rank correlations between
+``d max load`` of the locked state (antisync/grids/static.py). Spearman's rank correlations between
 them, and the share of lines whose signs agree, where both are resolved from zero. The table and
 the figure are the package's (antisync/report/removal.py: ``side_by_side_report``,
 ``removal_figure``); ``antisync grid CONFIG --removal --figure X.png`` draws the same figure.
@@ -53,7 +53,8 @@ def main(argv=None) -> int:
     sys.path.insert(0, str(ROOT))
     import antisync
     from antisync.errors import AntisyncError
-    from antisync.grids.grid import load_grid_config, static_table
+    from antisync.grids.load import load_grid_config
+    from antisync.grids.static import static_table
     from antisync.report.removal import (
         lambda_by_line,
         merge_docs,

@@ -1,4 +1,4 @@
-"""Static indicators of every line of the shipped power grids (antisync/grids/grid.py,
+"""Static indicators of every line of the shipped power grids (antisync/grids/static.py,
 docs/power_grids.md): what removing (or weakening) one line does to the locked state.
 
 ``python bench/grid_static.py`` prints, as markdown, for configs/ieee14_grid.yaml (K = 2.5 per
@@ -35,7 +35,8 @@ def main(argv=None) -> int:
     for var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
         os.environ[var] = str(args.blas_threads)  # before numpy is imported
     sys.path.insert(0, str(ROOT))
-    from antisync.grids.grid import format_table, load_grid_config, static_table
+    from antisync.grids.load import load_grid_config
+    from antisync.grids.static import format_table, static_table
 
     for cfg, top in (("ieee14_grid.yaml", None), ("ieee118_grid.yaml", args.top)):
         grid = load_grid_config(ROOT / "configs" / cfg)

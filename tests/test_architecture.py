@@ -233,3 +233,47 @@ def test_the_walk_counts_local_imports_and_skips_type_checking(tmp_path):
 def test_the_cycle_finder_finds_cycles():
     assert find_cycle({"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": set()}) == ["a", "b", "c", "a"]
     assert find_cycle({"a": {"b"}, "b": set()}) is None
+
+
+def _top_names(path: Path) -> set[str]:
+    """The names a module defines at its top level (defs, classes, assignments, imports)."""
+    names = set()
+    for node in ast.parse(path.read_text(encoding="utf-8")).body:
+        nodes = [node]
+        if isinstance(node, ast.If | ast.Try):  # `try: import x` and `if ...:` at the top level
+            nodes = [n for block in (node.body, node.orelse) for n in block]
+            nodes += [n for h in getattr(node, "handlers", []) for n in h.body]
+        for n in nodes:
+            if isinstance(n, ast.FunctionDef | ast.AsyncFunctionDef | ast.ClassDef):
+                names.add(n.name)
+            elif isinstance(n, ast.Assign):
+                names |= {t.id for t in n.targets if isinstance(t, ast.Name)}
+            elif isinstance(n, ast.AnnAssign) and isinstance(n.target, ast.Name):
+                names.add(n.target.id)
+            elif isinstance(n, ast.Import | ast.ImportFrom):
+                names |= {(a.asname or a.name).split(".")[0] for a in n.names}
+    return names
+
+
+def test_every_name_imported_from_antisync_exists():
+    """``from antisync.x import name`` (at any level, in functions too): ``antisync.x.name`` is a
+    module, or ``antisync.x`` defines ``name``. A file move that missed an import is caught here,
+    before a user's command reaches the function that holds it."""
+    modules = _modules()
+    missing = []
+    for name, path in modules.items():
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            if (
+                not isinstance(node, ast.ImportFrom)
+                or node.level
+                or not (node.module or "").startswith("antisync")
+            ):
+                continue
+            if node.module not in modules:
+                missing.append(f"{name}: no module {node.module}")
+                continue
+            defined = _top_names(modules[node.module])
+            for alias in node.names:
+                if f"{node.module}.{alias.name}" not in modules and alias.name not in defined:
+                    missing.append(f"{name}: {node.module} has no {alias.name}")
+    assert not missing, "; ".join(missing)

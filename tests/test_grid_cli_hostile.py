@@ -3,7 +3,8 @@
 
 - one config reader: the static table reads its config through :func:`antisync.plan.config.load_config`
   (the same refusals and messages as `antisync run`; ``--set``, ``model.phase_lag``,
-  ``graph.header``/``delimiter`` honoured; the numbers those of :func:`antisync.grids.grid.line_indicators`);
+  ``graph.header``/``delimiter`` honoured; the numbers those of
+  :func:`antisync.grids.static.line_indicators`);
 - the same option validators as `run` (``--threads``, ``--top``, ``--out ''``);
 - one output-path policy (:mod:`antisync.store.outputs`): ``--overwrite`` replaces only a removal table
   or an image of its kind, never the config, a file it reads, a link, or a file inside a journal;
@@ -25,8 +26,10 @@ from helpers import assert_one_line
 from typer.testing import CliRunner
 
 from antisync.cli.app import app
-from antisync.grids.grid import GridError, format_table, line_indicators, load_grid, load_grid_config
-from antisync.grids.removal import parse_lines
+from antisync.grids.errors import GridError
+from antisync.grids.lines import parse_lines
+from antisync.grids.load import load_grid, load_grid_config
+from antisync.grids.static import format_table, line_indicators
 
 runner = CliRunner()
 

@@ -13,9 +13,12 @@ from scipy.stats import binomtest
 from typer.testing import CliRunner
 
 from antisync.cli.app import app
-from antisync.grids.grid import GridError
-from antisync.grids.removal import clopper_pearson, line_removal, mcnemar_exact, parse_lines, write_table
+from antisync.grids.errors import GridError
+from antisync.grids.lines import parse_lines
+from antisync.grids.removal import line_removal
+from antisync.grids.removal_file import write_table
 from antisync.plan.config import config_from_mapping
+from antisync.stats.exact import clopper_pearson, mcnemar_exact
 from antisync.status import SYNCED
 
 runner = CliRunner()
@@ -354,7 +357,7 @@ def test_an_interrupted_removal_resumes_from_its_journal_and_redoes_nothing(tmp_
 
 
 def test_cli_resume_finishes_and_removes_the_journal(tmp_path):
-    from antisync.grids.removal import journal_folder
+    from antisync.grids.removal_journal import journal_folder
     from antisync.plan.config import load_config
 
     cfg = _grid_files(tmp_path)
@@ -379,7 +382,7 @@ def test_cli_resume_finishes_and_removes_the_journal(tmp_path):
 def test_parts_split_by_lines_merge_into_the_one_run_table():
     """Two parts with disjoint lines (as on two machines) merge into the table of one run over
     all the lines: the same rows, and the calls made again over the union."""
-    from antisync.grids.removal import table_document
+    from antisync.grids.removal_file import table_document
     from antisync.report.removal import merge_docs
 
     cfg = ring_config(realizations=24)

@@ -1,4 +1,4 @@
-"""Static indicators of power-grid lines (antisync/grids/grid.py, docs/power_grids.md): a Braess
+"""Static indicators of power-grid lines (antisync/grids/static.py, docs/power_grids.md): a Braess
 example checked against the dynamics, closed forms at P = 0, bridges, and the IEEE 14 grid."""
 
 from __future__ import annotations
@@ -11,7 +11,9 @@ import pytest
 from scipy.integrate import solve_ivp
 
 from antisync.errors import AntisyncError
-from antisync.grids.grid import GridError, grid_state, line_indicators, load_grid_config, static_table
+from antisync.grids.errors import GridError
+from antisync.grids.load import load_grid_config
+from antisync.grids.static import grid_state, line_indicators, static_table
 from antisync.physics.locked import locked_state
 
 ROOT = Path(__file__).resolve().parent.parent

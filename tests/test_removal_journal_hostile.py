@@ -19,8 +19,10 @@ from typer.testing import CliRunner
 
 from antisync.cli.app import app
 from antisync.grids import removal
-from antisync.grids.grid import GridError
-from antisync.grids.removal import RemovalJournal, journal_folder, line_removal, table_document
+from antisync.grids.errors import GridError
+from antisync.grids.removal import line_removal
+from antisync.grids.removal_file import table_document
+from antisync.grids.removal_journal import RemovalJournal, journal_folder
 from antisync.report.removal import merge_docs, removal_doc
 
 ROOT = Path(__file__).resolve().parent.parent

@@ -80,17 +80,14 @@ def grid(
     import dataclasses
 
     from antisync.cli.common import typed_values
-    from antisync.grids.grid import GridError, format_table, grid_from_config, static_table
-    from antisync.grids.removal import (
-        check_beta,
-        check_output,
-        journal_folder,
-        line_removal,
-        parse_lines,
-        planned_lines,
-        remove_journal,
-        write_table,
-    )
+    from antisync.grids.errors import GridError
+    from antisync.grids.lines import parse_lines
+    from antisync.grids.load import grid_from_config
+    from antisync.grids.removal import line_removal
+    from antisync.grids.removal_config import check_beta, planned_lines
+    from antisync.grids.removal_file import check_output, write_table
+    from antisync.grids.removal_journal import journal_folder, remove_journal
+    from antisync.grids.static import format_table, static_table
     from antisync.plan.config import load_config
     from antisync.report.removal import check_figure, check_finished_table, removal_figure
     from antisync.store.lock import writer_lock

@@ -6,15 +6,19 @@ This is the only place that ties computation to files and progress bars; the CLI
 
 from __future__ import annotations
 
+import json
 import sys
 import time
 from collections.abc import Callable
 from pathlib import Path
 
+from tqdm import tqdm
+
 from antisync.errors import StoreError
 from antisync.execution import stopping
 from antisync.execution.compute import check_job, host_part
 from antisync.execution.executors import Executor
+from antisync.execution.executors.local import LocalExecutor
 from antisync.kernels.backends import resolve_backend
 from antisync.measures.pipeline import COMPUTED, compute_measures, wants_measures, with_nnc
 from antisync.plan.config import Config
@@ -124,8 +128,6 @@ def run_jobs(
             )
         own_executor = executor is None
         if own_executor:
-            from antisync.execution.executors.local import LocalExecutor
-
             executor = LocalExecutor(backend, config.threads)
         try:
             _execute(
@@ -210,8 +212,6 @@ def _execute(
         )
         + (f" ({done_already:,} already done)" if done_already else "")
     )
-    from tqdm import tqdm
-
     show = sys.stderr.isatty() if progress is None else progress
     bar = tqdm(
         total=sum(job.realizations * cost[job.name] for job in jobs),
@@ -317,6 +317,4 @@ def _chunk_size(job: Job, backend: str, requested: int | None) -> int | None:
 
 
 def _json(obj) -> str:
-    import json
-
     return json.dumps(obj)

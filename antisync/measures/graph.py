@@ -9,10 +9,15 @@ from __future__ import annotations
 import math
 import os
 from collections.abc import Mapping
-from typing import TYPE_CHECKING
 
-if TYPE_CHECKING:
-    import networkx as nx
+import networkx as nx
+import numpy as np
+
+from antisync.errors import ConfigError, MeasureError
+from antisync.measures.randomwalk import lambda_rw_all
+from antisync.measures.spectral import lambda_xi2_all
+from antisync.physics import graphs
+from antisync.plan.config import check_graph
 
 __all__ = ["for_graph"]
 
@@ -64,11 +69,6 @@ def for_graph(
     >>> next(r for r in rows if r["edge"] == "2->1")["lambda_xi2"]  # doctest: +ELLIPSIS
     0.3625...
     """
-    from antisync.errors import ConfigError, MeasureError
-    from antisync.measures.randomwalk import lambda_rw_all
-    from antisync.measures.spectral import lambda_xi2_all
-    from antisync.physics import graphs
-
     which = _which(which)
     if not isinstance(coupling, str) or coupling not in _COUPLINGS:
         raise ConfigError(f"measures: coupling must be normalized or raw, got {_shown(coupling)}")
@@ -100,8 +100,6 @@ def for_graph(
 
 
 def _which(which) -> tuple[str, ...]:
-    from antisync.errors import ConfigError
-
     names = (which,) if isinstance(which, str) else which
     if not isinstance(names, list | tuple | set | frozenset) or not names:
         raise ConfigError(
@@ -117,8 +115,6 @@ def _which(which) -> tuple[str, ...]:
 
 
 def _edges(edges) -> str | list[str]:
-    from antisync.errors import ConfigError
-
     if isinstance(edges, str) and edges == "all":
         return "all"
     if not isinstance(edges, list | tuple) or not edges or not all(isinstance(e, str) for e in edges):
@@ -132,12 +128,6 @@ def _edges(edges) -> str | list[str]:
 def _graph(graph) -> nx.Graph:
     """``graph`` as a connected, simple, undirected :class:`networkx.Graph` whose every edge
     has a positive finite float ``weight`` (parallel edges of a multigraph added up)."""
-    import networkx as nx
-
-    from antisync.errors import ConfigError
-    from antisync.physics import graphs
-    from antisync.plan.config import check_graph
-
     if isinstance(graph, Mapping):
         spec = _spec(graph)
         check_graph(spec)
@@ -157,10 +147,6 @@ def _graph(graph) -> nx.Graph:
 def _spec(value, depth: int = 0):
     """A config graph spec as plain data: numpy scalars as the Python numbers they hold
     (``np.int64(6)`` is ``6``), paths as strings; the rest is checked by the graph builders."""
-    import numpy as np
-
-    from antisync.errors import ConfigError
-
     if depth > 16:
         return value  # a spec nested this deep is refused by the builders, not recursed into
     if isinstance(value, np.generic):

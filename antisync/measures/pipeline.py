@@ -28,6 +28,10 @@ from dataclasses import replace
 import numpy as np
 
 from antisync.errors import ConfigError, MeasureError
+from antisync.measures.linear import lambda_linear, tau_linear_euler, tau_linear_exact
+from antisync.measures.randomwalk import lambda_rw_all
+from antisync.measures.spectral import lambda_xi2_all
+from antisync.physics.phases import initial_phases
 from antisync.plan.jobs import Job, make_job
 
 __all__ = [
@@ -73,11 +77,6 @@ def compute_measures(job: Job, config=None) -> dict[str, np.ndarray]:
         One line naming the graph, the measure (and edge) and the reason, e.g. a
         disconnected graph.
     """
-    from antisync.measures.linear import lambda_linear, tau_linear_euler, tau_linear_exact
-    from antisync.measures.randomwalk import lambda_rw_all
-    from antisync.measures.spectral import lambda_xi2_all
-    from antisync.physics.phases import initial_phases
-
     cfg = config or job.config
     wanted = set(cfg.measures)
     index = {v: i for i, v in enumerate(job.nodes)}

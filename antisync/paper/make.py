@@ -25,7 +25,20 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
+import numpy as np
+
+from antisync._version import __version__
+from antisync.errors import AntisyncError, ConfigError
+from antisync.execution.runner import run_config
 from antisync.paper.reference import config_path, paper_table1
+from antisync.plan.config import load_config
+from antisync.report.figures import _plt, write_file_report
+from antisync.report.measures import plot_fig7e
+from antisync.report.sweep import write_sweep_report
+from antisync.store import git_revision, is_complete, is_sweep_file, records
+from antisync.sweeps import load_sweep, run_sweep
+from antisync.sweeps.analysis import edge_lambdas, ranking
+from antisync.sweeps.results import sweep_summary
 
 __all__ = ["CAPTIONS", "STEPS", "Step", "make_paper", "plan"]
 
@@ -244,13 +257,6 @@ def make_paper(
     only : tuple of str
         Run only these steps (the README still lists every step that has a file).
     """
-    from antisync.errors import ConfigError
-    from antisync.execution.runner import run_config
-    from antisync.plan.config import load_config
-    from antisync.report.figures import write_file_report
-    from antisync.report.sweep import write_sweep_report
-    from antisync.sweeps import load_sweep, run_sweep
-
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     # the shipped configs (package data), not the checkout's layout: works from a wheel too
@@ -296,9 +302,6 @@ def make_paper(
 
 def _finished(h5: Path) -> bool:
     """Whether a step's file is complete (a sweep: every stage), so rerunning it only reports."""
-    from antisync.errors import AntisyncError
-    from antisync.store import is_complete
-
     try:
         return is_complete(h5)
     except AntisyncError:  # missing or unreadable: the step runs (and reports the problem)
@@ -308,10 +311,6 @@ def _finished(h5: Path) -> bool:
 def _extra_figures(out: Path) -> dict:
     """Fig. 7e: Lambda^KM against Lambda^KM-NNC on the lollipop of Fig. 1, each with its 95%
     interval (:func:`antisync.report.measures.plot_fig7e`)."""
-    from antisync.report.figures import _plt
-    from antisync.report.measures import plot_fig7e
-    from antisync.store import records
-
     plt = _plt()
     made = {}
     a, b = out / "lollipop6.h5", out / "lollipop6_raw.h5"
@@ -347,9 +346,6 @@ def _paper_graphs(path: Path) -> list[str]:
     the main stage. When our max Lambda differs from the paper's by more than 4 standard
     errors, the link of ours nearest to the paper's value is named.
     """
-    from antisync.sweeps.analysis import edge_lambdas, ranking
-    from antisync.sweeps.results import sweep_summary
-
     if not path.exists():
         return []
     s = sweep_summary(path)
@@ -405,11 +401,6 @@ def _paper_graphs(path: Path) -> list[str]:
 
 def _se_stats(path: Path) -> str:
     """Typical standard errors of a result file (median and 90th percentile over edges)."""
-    import numpy as np
-
-    from antisync.store import is_sweep_file, records
-    from antisync.sweeps.results import sweep_summary
-
     recs = sweep_summary(path)["records"] if is_sweep_file(path) else records(path)
     lam = np.array([r["lambda_km_se"] for r in recs if r.get("lambda_km_se") is not None])
     f = np.array([r["F_se"] for r in recs if r.get("F_se") is not None])
@@ -430,9 +421,6 @@ def _img(out: Path, rel: str, width: int = 700) -> list[str]:
 
 
 def _readme(out: Path, scale: float, timings: dict, extra: dict) -> str:
-    from antisync._version import __version__
-    from antisync.store import git_revision
-
     lines = [
         "# The paper's figures and tables, at reduced realizations",
         "",
@@ -465,8 +453,6 @@ def _readme(out: Path, scale: float, timings: dict, extra: dict) -> str:
     body += ["Histograms at beta = 0.5, every link (paper: (c) 2->1, (d) 5->6, (e) 6->4, (f) 2->3):", ""]
     body += _img(out, "lollipop6/*_histograms.png", 900)
     if (out / "lollipop6.h5").exists():
-        from antisync.store import records
-
         recs = {(r["edge"], r["beta"]): r for r in records(out / "lollipop6.h5")}
         body += ["| edge | <F_0.5> ours | paper |", "|:---|---:|---:|"]
         for e, paper in (("2->1", 1.181), ("5->6", 1.056), ("2->3", 0.836)):

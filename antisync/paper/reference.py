@@ -18,14 +18,16 @@ from __future__ import annotations
 import functools
 from importlib import resources
 
+import yaml
+
+from antisync.errors import ConfigError
+
 __all__ = ["config_path", "paper_table1", "paper_values"]
 
 
 @functools.cache
 def paper_values() -> dict:
     """The parsed ``paper_values.yaml``: Sec. 3.1's lollipop, Table 1, the 6-node atlas counts."""
-    import yaml
-
     text = resources.files("antisync").joinpath("data/paper_values.yaml").read_text()
     return yaml.safe_load(text)
 
@@ -41,8 +43,6 @@ def config_path(name: str):
     Returns a path-like :class:`importlib.resources.abc.Traversable`; ``str()`` of it is a file
     path for an installed package or a checkout.
     """
-    from antisync.errors import ConfigError
-
     folder = resources.files("antisync").joinpath("data/configs")
     path = folder.joinpath(f"{name}.yaml")
     if not path.is_file():

@@ -13,13 +13,16 @@ its links written out), so that a result file holds the graph itself.
 from __future__ import annotations
 
 import csv
+import inspect
 import math
 import numbers
 import re
+import xml.etree.ElementTree as ET
 from pathlib import Path
 
 import networkx as nx
 import numpy as np
+from networkx.algorithms.isomorphism import GraphMatcher, categorical_node_match
 
 from antisync.errors import AntisyncError, ConfigError
 from antisync.validation import (
@@ -140,8 +143,6 @@ def from_networkx(
         Keep the generator's edge attribute ``weight`` (an edge without one weighs 1), e.g. the
         co-occurrence counts of ``les_miserables_graph``. Default: every weight is 1.
     """
-    import inspect
-
     func = getattr(nx, generator, None)
     if func is None or not callable(func) or not generator.endswith(("graph", "_tree")):
         raise GraphError(
@@ -440,8 +441,6 @@ def from_graphml(path: str | Path, weight: str | None = None) -> nx.Graph:
     add up. A directed graph, XML that is not well formed or not GraphML is refused with one
     line.
     """
-    import xml.etree.ElementTree as ET
-
     path = Path(path)
     data = read_input_bytes(path, "GraphML file", GraphError)
     try:
@@ -862,8 +861,6 @@ def _edge_invariant(g: nx.Graph, e: tuple) -> tuple:
 
 def _maps_onto(g: nx.Graph, e: tuple, f: tuple) -> bool:
     """Is there an automorphism of ``g`` with ``e[0] -> f[0]`` and ``e[1] -> f[1]``?"""
-    from networkx.algorithms.isomorphism import GraphMatcher, categorical_node_match
-
     g1, g2 = nx.Graph(g), nx.Graph(g)
     nx.set_node_attributes(g1, 0, "pin")
     nx.set_node_attributes(g2, 0, "pin")

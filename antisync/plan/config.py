@@ -18,6 +18,7 @@ Example
 
 from __future__ import annotations
 
+import hashlib
 import math
 import re
 from dataclasses import asdict, dataclass, field, replace
@@ -674,8 +675,6 @@ def _file_digest(path: str) -> str:
     """SHA-256 of a file's bytes (``""`` when it cannot be read: reading it later says why;
     a FIFO or ``/dev/zero`` is refused by :func:`antisync.validation.read_input_bytes`, not
     waited on or hashed forever)."""
-    import hashlib
-
     try:
         return hashlib.sha256(read_input_bytes(path, "file")).hexdigest()
     except ConfigError:

@@ -33,6 +33,7 @@ from typing import Literal, get_args
 import numpy as np
 
 from antisync.errors import ConfigError
+from antisync.physics.locked import linearization, locked_state
 from antisync.validation import choice, fraction, number_text, parse_number, positive, read_input_text, show
 
 __all__ = [
@@ -387,6 +388,7 @@ def drawn_frequencies(model: Model, seed: int, ks: np.ndarray, n: int) -> np.nda
     ``theta_i' = 0`` in the rotating frame (module docstring). So the numbers are those of
     ``mean: 0`` bit for bit, whatever the mean.
     """
+    # lazy: the kernels load numba (~0.2 s), and `import antisync.api` reads configs through here
     from antisync.kernels.model_steps import draw_frequencies
 
     freqs = draw_frequencies({**model.frequencies, "mean": 0.0}, seed, ks, n)
@@ -456,6 +458,7 @@ def model_setup(
         A frequency list or file of the wrong length, or (``relative``) a network without a
         stable phase-locked state.
     """
+    # lazy: the kernels load numba (~0.2 s), and `import antisync.api` reads configs through here
     from antisync.kernels.core import CRIT_FREQUENCY, CRIT_ORDER
 
     model, sync = config.model, config.sync
@@ -475,8 +478,6 @@ def model_setup(
         criterion = CRIT_ORDER
         targets = np.full(n_kinds, (config.dynamics.threshold * n) ** 2)
     else:
-        from antisync.physics.locked import locked_state
-
         criterion = CRIT_ORDER
         p = np.zeros(n) if freqs is None else freqs
         rows = np.repeat(np.arange(n), np.diff(indptr))
@@ -548,8 +549,6 @@ def _check_second_order_step(config, indptr, indices, weights, mass, gamma) -> N
     ``-1e-16`` gave a rate ``+1e-16 / gamma`` and a false "amplifies a mode by 1 per step".
     The message gives the largest stable ``dt`` (found by bisection on the same test).
     """
-    from antisync.physics.locked import linearization
-
     dyn = config.dynamics
     n = indptr.size - 1
     w = np.zeros((n, n))

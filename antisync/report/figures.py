@@ -30,8 +30,13 @@ import re
 import textwrap
 from pathlib import Path
 
+import networkx as nx
 import numpy as np
+from matplotlib import patheffects
+from matplotlib.colors import LogNorm, TwoSlopeNorm
+from matplotlib.lines import Line2D
 
+from antisync.plan.describe import stored_name
 from antisync.report.labels import spread_labels
 from antisync.report.links import (
     NAMES,
@@ -44,8 +49,10 @@ from antisync.report.links import (
     top_links,
 )
 from antisync.report.measures import LABELS, measure_figures
+from antisync.report.tables import fmt_interval
 from antisync.stats.records import primary_measure
 from antisync.stats.summary import OUTSIDE_WHY, JobView, graph_names, job_records, named_views
+from antisync.store import read_views, root_attrs
 
 __all__ = [
     "HIST_QUANTILE",
@@ -74,6 +81,7 @@ DIAGONAL = {"color": "k", "ls": "--", "lw": 1.1, "zorder": 3}
 
 
 def _plt():
+    # lazy: pyplot only after matplotlib.use("Agg"), so that no display is needed
     import matplotlib
 
     matplotlib.use("Agg")
@@ -83,8 +91,6 @@ def _plt():
 
 
 def _norm(values):
-    from matplotlib.colors import TwoSlopeNorm
-
     vals = np.array([v for v in values if v is not None and np.isfinite(v)])
     top = float(np.max(np.abs(vals))) if vals.size else 1.0
     top = top or 1.0
@@ -129,9 +135,6 @@ def _arc_middle(pa, pb, rad: float) -> np.ndarray:
 def plot_graph(view: JobView, ax) -> None:
     """Fig. 1a: arrows a->b coloured by Lambda^KM(a->b), solid where the sign is resolved,
     grey and dashed where it is not; each value on its arrow up to :data:`LABEL_LINKS` links."""
-    import networkx as nx
-    from matplotlib.lines import Line2D
-
     plt = _plt()
     key, recs = _lambdas(view)
     lam = {r["edge"]: r.get(key) for r in recs}
@@ -200,8 +203,6 @@ def plot_graph(view: JobView, ax) -> None:
 def link_table(view: JobView) -> list[str]:
     """Markdown lines: every link of ``view`` sorted by Lambda, with its 95% interval and the
     sign call (the table that replaces the arrows' labels on a graph of many links)."""
-    from antisync.report.tables import fmt_interval
-
     key, recs = _lambdas(view)
     signs = link_signs(recs, key)
     rows = sorted(zip(recs, signs, strict=True), key=lambda rs: -(rs[0].get(key) or -math.inf))
@@ -335,9 +336,6 @@ def plot_histogram(
     ``norm``: the colour scale (shared by the panels of one figure). Returns the image, or
     None when no pair synchronized both times.
     """
-    from matplotlib import patheffects
-    from matplotlib.colors import LogNorm
-
     plt = _plt()
     v = int(view.hist_variants[k])
     edge = view.edges[int(view.variant_edge[v])]
@@ -405,8 +403,6 @@ def plot_histograms(view: JobView, ks: list[int]):
     """Every histogram ``ks`` of ``view`` in one figure: a row per link and a column per beta
     when there are several betas, else a grid of up to four columns; shared axes fitted to the
     data (:func:`hist_limit`), one colour scale, one line tau(beta) = tau0 per panel."""
-    from matplotlib.colors import LogNorm
-
     plt = _plt()
     edges = list(dict.fromkeys(int(view.variant_edge[view.hist_variants[k]]) for k in ks))
     betas = sorted({float(view.variant_beta[view.hist_variants[k]]) for k in ks})
@@ -608,8 +604,5 @@ def write_file_report(
 ) -> list[Path]:
     """:func:`write_report` of the result file ``path`` (not a sweep's), its files named after
     the ``name:`` of the config it stores."""
-    from antisync.plan.describe import stored_name
-    from antisync.store import read_views, root_attrs
-
     name = stored_name(root_attrs(Path(path))["config_yaml"])
     return write_report(read_views(path), folder, pdf=pdf, top=top, name=name)

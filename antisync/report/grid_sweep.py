@@ -19,9 +19,12 @@ import itertools
 import math
 
 import numpy as np
+from matplotlib.lines import Line2D
 
+from antisync.report.figures import _plt
 from antisync.report.intervals import draw_intervals, record_intervals
 from antisync.stats.estimators import Z95
+from antisync.stats.records import flag_signs
 from antisync.sweeps.points import point_label
 
 __all__ = ["TOP_LINKS", "grid_curves", "grid_table", "plot_grid", "write_grid_report"]
@@ -42,8 +45,6 @@ def _link_values(records: list[dict]) -> dict[tuple, dict]:
     the file's links, :func:`antisync.stats.records.flag_signs`). Several: their mean, the normal
     interval of the combined standard error, and the sign that interval resolves.
     """
-    from antisync.stats.records import flag_signs
-
     per: dict[tuple, dict[int, dict]] = {}
     for r in flag_signs(records):
         if r["edge"] != r.get("representative", r["edge"]) or r.get("lambda_km") is None:
@@ -170,10 +171,6 @@ def _link_name(curve: dict, several_graphs: bool) -> str:
 def plot_grid(curves: dict):
     """Lambda^KM of the drawn links against the first grid key, one panel per combination of
     the others (:func:`grid_curves`); returns the figure."""
-    from matplotlib.lines import Line2D
-
-    from antisync.report.figures import _plt
-
     plt = _plt()
     panels = curves["panels"]
     ncols = min(len(panels), 3)

@@ -28,7 +28,12 @@ Lambda^(RW) against Lambda^(xi2).
 
 from __future__ import annotations
 
+import textwrap
+
+import networkx as nx
 import numpy as np
+from matplotlib.lines import Line2D
+from matplotlib.ticker import MaxNLocator
 
 from antisync.report.intervals import draw_intervals, record_intervals
 from antisync.report.measures import (
@@ -81,6 +86,7 @@ KAMADA_KAWAI_NODES = 150
 
 
 def _plt():
+    # lazy: pyplot only after matplotlib.use("Agg"), so that no display is needed
     import matplotlib
 
     matplotlib.use("Agg")
@@ -109,8 +115,6 @@ def mark_outside(ax, x, y, outside: np.ndarray, *, below: float = 36, width: int
     legend entry and write under the axes why such a point lies outside its bar, in the
     summary's words (:data:`antisync.stats.summary.OUTSIDE_WHY`), so that no figure shows a point
     outside its interval unexplained. Nothing when no point is outside."""
-    import textwrap
-
     outside = np.asarray(outside, dtype=bool)
     if not outside.any():
         return
@@ -196,8 +200,6 @@ def plot_sorted(recs: list[dict], key: str, ax, *, graph: str = "") -> None:
 
 
 def _layout(und):
-    import networkx as nx
-
     if und.number_of_nodes() <= KAMADA_KAWAI_NODES:
         return nx.kamada_kawai_layout(und)
     return nx.spring_layout(und, seed=1, iterations=100)
@@ -227,8 +229,6 @@ UNRESOLVED = {"color": "#8c8c8c", "style": "--"}
 def _backbone(view: JobView, ax):
     """The network thin and grey on ``ax`` (every line once): ``(graph, positions, node
     size)`` for the arrows drawn over it."""
-    import networkx as nx
-
     und = nx.Graph()
     und.add_nodes_from(str(n) for n in view.nodes)
     for a, b in zip(*np.nonzero(view.omega), strict=True):
@@ -247,8 +247,6 @@ def _backbone(view: JobView, ax):
 def draw_link(ax, pos, node_size, label: str, rad: float = 0.15, **style) -> tuple[str, str]:
     """Draw the directed link ``label`` ("a->b") as a curved arrow (``rad``: its bend) with
     networkx's ``style`` keywords; returns its ends. The arrow's gid is ``link a->b``."""
-    import networkx as nx
-
     a, b = label.split("->")
     arrows = nx.draw_networkx_edges(
         nx.DiGraph([(a, b)]),
@@ -267,8 +265,6 @@ def draw_link(ax, pos, node_size, label: str, rad: float = 0.15, **style) -> tup
 def _name_nodes(ax, und, pos, touched: set) -> None:
     """Every name up to :data:`LABEL_NODES` nodes; beyond, the ends of the drawn links and the
     ten best connected (all 77 names of Les Miserables overlap)."""
-    import networkx as nx
-
     named = (
         set(und.nodes)
         if und.number_of_nodes() <= LABEL_NODES
@@ -317,8 +313,6 @@ def plot_resolved_map(view: JobView, recs: list[dict], key: str, ax, *, most: in
     """(d) the network with every link whose sign is resolved as an arrow, red (antifragile) or
     blue (fragile), its width proportional to ``|value|``; unresolved links are only the grey
     backbone. Beyond ``most`` resolved links, the ``most`` of largest ``|value|``."""
-    from matplotlib.lines import Line2D
-
     drawn, resolved = map_links(recs, key, most)
     und, pos, node_size = _backbone(view, ax)
     top = max((abs(r[key]) for r in drawn), default=1.0) or 1.0
@@ -357,8 +351,6 @@ def plot_top_intervals(recs: list[dict], key: str, ax, *, k: int = 10) -> None:
     """(b), right: the links of :func:`strongest` with their 95% intervals, most antifragile
     at the top; filled where the sign is resolved, hollow and grey where it is not; a side with
     no link says so."""
-    from matplotlib.ticker import MaxNLocator
-
     pos_links, neg_links = strongest(recs, key, k)
     rows = pos_links + neg_links
     y = np.concatenate([np.arange(len(pos_links)), len(pos_links) + 0.8 + np.arange(len(neg_links))])
@@ -442,8 +434,6 @@ def link_figures(view: JobView, recs: list[dict], *, k: int = 10):
     plt = _plt()
     key = primary_measure(recs)
     if key is None:
-        import textwrap
-
         fig, ax = plt.subplots(figsize=(9, 5))
         why = textwrap.fill(absence_reason(recs, None), 90)
         ax.text(0.5, 0.5, why, ha="center", va="center", fontsize=9, transform=ax.transAxes)

@@ -26,6 +26,7 @@ import numpy as np
 
 from antisync.report.intervals import draw_intervals, record_intervals
 from antisync.report.labels import spread_labels
+from antisync.stats.multiplicity import fdr_signs
 from antisync.stats.records import absence_reason
 from antisync.stats.summary import JobView, view_records
 
@@ -71,6 +72,7 @@ SIGN_ATOL = 1e-12
 
 
 def _plt():
+    # lazy: pyplot only after matplotlib.use("Agg"), so that no display is needed
     import matplotlib
 
     matplotlib.use("Agg")
@@ -135,8 +137,6 @@ def link_signs(recs: list[dict], key: str) -> np.ndarray:
     ``recs``' links (:func:`antisync.stats.multiplicity.fdr_signs`, as ``antisync summary``'s
     ``sign_resolved``), the exact sign for an exact measure (0 within ``SIGN_ATOL``, or missing)."""
     if key == "lambda_km":
-        from antisync.stats.multiplicity import fdr_signs
-
         return np.array([s or 0 for s in fdr_signs(recs)], dtype=int)
     x = _column(recs, key)
     return np.where(np.isfinite(x) & (np.abs(x) > SIGN_ATOL), np.sign(np.nan_to_num(x)), 0).astype(int)
@@ -145,6 +145,7 @@ def link_signs(recs: list[dict], key: str) -> np.ndarray:
 def spearman(x, y) -> float:
     """Spearman rank correlation of the pairs where both are finite (NaN for fewer than 3
     pairs or a constant side)."""
+    # lazy: scipy.stats takes ~0.5 s to import; only a comparison of two measures needs it
     from scipy.stats import spearmanr
 
     x, y = np.asarray(x, dtype=float), np.asarray(y, dtype=float)

@@ -4,8 +4,9 @@ drawn with each line coloured by its response, troublemaker and Braess lines mar
 state and Lambda, with rank correlations (:func:`side_by_side_report`).
 
 A removal table is read once by :func:`removal_doc`, from a
-:class:`~antisync.grids.removal.RemovalTable`, the JSON file :func:`antisync.grids.removal.write_table`
-writes, or that file's parsed mapping; everything else here takes the plain mapping it returns.
+:class:`~antisync.grids.removal_table.RemovalTable`, the JSON file
+:func:`antisync.grids.removal_file.write_table` writes, or that file's parsed mapping;
+everything else here takes the plain mapping it returns.
 A line is *resolved* as the table resolves it: at false discovery rate 0.05 over the lines
 (``sync_called`` for ``P_sync``, ``tau_called`` for tau). matplotlib is imported only when a
 figure is drawn, with the Agg backend.
@@ -20,8 +21,13 @@ from pathlib import Path
 import networkx as nx
 import numpy as np
 
-from antisync.grids.grid import GridError
-from antisync.grids.removal import check_new_file, key_changes, replace_atomically, work_config
+from antisync.grids.errors import GridError
+from antisync.grids.load import Grid
+from antisync.grids.removal_config import resolve_config, work_config
+from antisync.grids.removal_file import FORMAT, check_new_file, replace_atomically, table_document
+from antisync.grids.removal_journal import key_changes
+from antisync.grids.removal_table import RemovalTable
+from antisync.stats.exact import tau_p_value
 from antisync.store.outputs import image_problem
 from antisync.types import REMOVAL_BY, RemovalBy
 
@@ -55,7 +61,7 @@ def _num(x) -> float:
 
 
 def removal_doc(source) -> dict:
-    """A removal table as the plain mapping of :func:`antisync.grids.removal.write_table`'s JSON.
+    """A removal table as the plain mapping of :func:`antisync.grids.removal_file.write_table`'s JSON.
 
     Parameters
     ----------
@@ -70,7 +76,7 @@ def removal_doc(source) -> dict:
 
     Raises
     ------
-    antisync.grids.grid.GridError
+    antisync.grids.errors.GridError
         A file that cannot be read or is not a removal table, or a table that lacks a key the
         report reads or holds a value of the wrong kind there (:func:`_check_doc`): one line
         naming the file and the key.
@@ -81,8 +87,6 @@ def removal_doc(source) -> dict:
 def _read_doc(source, where: str | None) -> dict:
     """:func:`removal_doc`, its refusals starting with ``where`` (``"part 2"`` in
     :func:`merge_docs`; a file's refusals name the file too)."""
-    from antisync.grids.removal import FORMAT, RemovalTable, table_document
-
     if isinstance(source, RemovalTable):
         return table_document(source)
     if isinstance(source, str | Path):
@@ -131,8 +135,8 @@ def _is_line(x) -> bool:
 
 
 #: The keys a removal table's ``summary`` and rows must have for the report and
-#: :func:`merge_docs` to read them, with what each must hold (as :func:`antisync.grids.removal.
-#: table_document` writes them; ``nan`` as ``None``).
+#: :func:`merge_docs` to read them, with what each must hold (as
+#: :func:`antisync.grids.removal_file.table_document` writes them; ``nan`` as ``None``).
 _SUMMARY_KEYS = {
     "name": (lambda x: isinstance(x, str), "a string"),
     "beta": (_is_number, "a number"),
@@ -213,8 +217,8 @@ def _check_doc(doc: dict, where: str) -> dict:
 
 def resolved(doc: dict) -> dict[str, set]:
     """The table's calls by label: ``troublemakers`` (``P_sync`` lost, resolved), ``braess``
-    (``P_sync`` gained or ``d_tau < 0``, resolved: :meth:`~antisync.grids.removal.RemovalTable.
-    braess_lines`), ``faster`` and ``slower`` (``d_tau`` resolved, by its sign)."""
+    (``P_sync`` gained or ``d_tau < 0``, resolved: :meth:`~antisync.grids.removal_table.
+    RemovalTable.braess_lines`), ``faster`` and ``slower`` (``d_tau`` resolved, by its sign)."""
     rows = doc["rows"]
     if "sync_called" in doc and "tau_called" in doc:
         sync, tau = set(doc["sync_called"]), set(doc["tau_called"])
@@ -231,8 +235,7 @@ def resolved(doc: dict) -> dict[str, set]:
 
 def _calls(rows: list[dict]) -> tuple[set, set]:
     """Labels of the rows whose ``P_sync`` change and whose ``d_tau`` are resolved, at false
-    discovery rate ``FDR_LEVEL`` over ``rows`` (as :class:`antisync.grids.removal.RemovalTable`)."""
-    from antisync.grids.removal import tau_p_value
+    discovery rate ``FDR_LEVEL`` over ``rows`` (as :class:`antisync.grids.removal_table.RemovalTable`)."""
     from antisync.stats.multiplicity import benjamini_hochberg
 
     calls = benjamini_hochberg([r["p_value"] for r in rows])
@@ -274,12 +277,10 @@ def merge_docs(sources) -> dict:
 
     Raises
     ------
-    antisync.grids.grid.GridError
+    antisync.grids.errors.GridError
         No part, a part that is not a removal table, parts of different runs, or a line in two
         parts: one line.
     """
-    from antisync.grids.removal import RemovalTable
-
     if isinstance(sources, str | Path | dict | RemovalTable):
         raise GridError("merge_docs takes a list of parts (removal tables, their JSON files or mappings)")
     try:
@@ -339,7 +340,7 @@ def merge_docs(sources) -> dict:
 def check_finished_table(out: Path, cfg, asked: dict, beta: float) -> None:
     """Refuse (one line naming what differs) a ``--resume`` whose finished table ``out`` holds
     another run than the one asked for: its stored config (seed, realizations, model ...),
-    lines (``asked``: :func:`antisync.grids.removal.planned_lines`), beta or islanding rows."""
+    lines (``asked``: :func:`antisync.grids.removal_config.planned_lines`), beta or islanding rows."""
     doc = removal_doc(out)
     rows = [r for r in doc.get("rows") or [] if isinstance(r, dict)]
     stored = {}
@@ -383,7 +384,7 @@ def _few(names: list[str], most: int = 3) -> str:
 
 def check_figure(path, overwrite: bool = False, protect=()) -> Path:
     """The figure's ``path``, checked before any work by antisync's one output policy
-    (:func:`antisync.grids.removal.check_new_file`): a ``.png``, ``.pdf`` or ``.svg`` file in an
+    (:func:`antisync.grids.removal_file.check_new_file`): a ``.png``, ``.pdf`` or ``.svg`` file in an
     existing folder, and an existing file replaced only with ``overwrite`` and only when it is
     an image of that kind (by its first bytes), never one of ``protect`` (the run's inputs);
     else a one-line GridError."""
@@ -401,15 +402,12 @@ def check_figure(path, overwrite: bool = False, protect=()) -> Path:
 
 def _network(config) -> tuple[nx.Graph, dict]:
     """The grid as a weighted graph and each node's inertia, from a config (path, mapping,
-    Config) or a :class:`~antisync.grids.grid.Grid`."""
-    from antisync.grids.grid import Grid
-
+    Config) or a :class:`~antisync.grids.load.Grid`."""
     if isinstance(config, Grid):
         labels, omega = list(config.labels), config.omega
         inertia = np.broadcast_to(np.asarray(config.inertia, dtype=float), (len(labels),))
     else:
         from antisync.errors import AntisyncError
-        from antisync.grids.removal import resolve_config
         from antisync.physics import graphs
         from antisync.plan.model import node_parameters
 
@@ -623,7 +621,8 @@ def lambda_by_line(records) -> dict:
 
 def side_by_side(doc: dict, static, lam: dict | None = None) -> list[dict]:
     """One dict per line of the removal table, with the static indicators of the same change
-    (``static``: a :class:`~antisync.grids.grid.LineTable` of :func:`antisync.grids.grid.static_table`) and
+    (``static``: a :class:`~antisync.grids.static.LineTable` of
+    :func:`antisync.grids.static.static_table`) and
     ``Lambda_line`` (:func:`lambda_by_line`; ``nan`` without): ``label``, ``lost``, ``gained``,
     ``dp``, ``dp_ci``, ``p``, ``dtau``, ``dtau_se``, ``f1`` (``F_1 - 1``), ``lam``, ``lam_se``,
     ``dm`` (d margin), ``dl2`` (d lambda2), ``dload`` (d max load). Ranked from the largest net

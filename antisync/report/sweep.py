@@ -23,12 +23,17 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
+import networkx as nx
 import numpy as np
+from matplotlib.collections import LineCollection
+from matplotlib.colors import Normalize
 
 from antisync.report.figures import CMAP, _norm, _plt, hist_limit, plot_histogram
+from antisync.report.grid_sweep import write_grid_report
 from antisync.report.intervals import draw_intervals
 from antisync.report.tables import fmt_pm, format_table1
 from antisync.stats.estimators import Z95
+from antisync.store import read_views
 from antisync.sweeps.analysis import edge_lambdas, ranking, trend_in_n
 from antisync.sweeps.results import sweep_summary
 
@@ -51,8 +56,6 @@ def _graph_meta(summary: dict) -> dict[str, dict]:
 
 
 def _layout(gm: dict) -> dict:
-    import networkx as nx
-
     g = nx.Graph()
     g.add_nodes_from(str(v) for v in gm["nodes"])
     g.add_edges_from((str(u), str(v)) for u, v in gm["undirected_edges"])
@@ -113,6 +116,7 @@ def lambda_xi2_records(summary: dict, graphs: set | None = None) -> dict[tuple, 
 
     Raises ``ImportError`` when :func:`antisync.measures.spectral.lambda_xi2` is absent.
     """
+    # lazy: plot_fig6 skips Fig. 6b on the ImportError this may raise
     from antisync.measures.spectral import lambda_xi2
 
     coupling = summary["meta"].get("coupling", "normalized")
@@ -166,8 +170,6 @@ def _draw_halves(
     mark: tuple | None = None,
 ) -> None:
     """Each link u-v as two halves: the half at u coloured by Lambda(u->v), the other by Lambda(v->u)."""
-    from matplotlib.collections import LineCollection
-
     pos = _layout(gm)
     segs, colors = [], []
     for u, v in gm["undirected_edges"]:
@@ -349,8 +351,6 @@ def plot_fig2(summary: dict):
     Returns ``(fig_a or None, fig_b, rows_b)``; ``rows_b`` holds N, mean, sd over repeats and se.
     """
     plt = _plt()
-    from matplotlib.colors import Normalize
-
     gms = _graph_meta(summary)
     size = {g: int(m["spec"]["nodes"]) for g, m in gms.items() if m["spec"].get("kind") == "lollipop"}
     t = summary["ranking_threshold"]
@@ -637,8 +637,6 @@ def plot_fig5(summary: dict):
 # ---- the report ----------------------------------------------------------------------------
 def write_sweep_report(path: str | Path, folder: str | Path, *, pdf: bool = False) -> list[Path]:
     """Write every figure and table that ``path`` supports into ``folder``; return the paths."""
-    from antisync.store import read_views
-
     plt = _plt()
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
@@ -665,8 +663,6 @@ def write_sweep_report(path: str | Path, folder: str | Path, *, pdf: bool = Fals
     kept = sorted({r["graph"] for r in summary["records"]})
     grid = summary.get("grid")
     if grid:  # one Lambda per grid point: the family's figures would mix the points
-        from antisync.report.grid_sweep import write_grid_report
-
         write_grid_report(summary, save, text, notes)
     elif family == "lollipop":
         fig_a, fig_b, rows_b = plot_fig2(summary)

@@ -7,6 +7,7 @@ import io
 import json
 import math
 
+from antisync.stats.multiplicity import link_key
 from antisync.stats.summary import warning_kind
 
 __all__ = [
@@ -125,8 +126,6 @@ def link_rows(records: list[dict]) -> list[dict]:
     """One record per link (:func:`antisync.stats.multiplicity.link_key`), the first of its betas,
     in the order of ``records``; ``n_excluded`` and ``n_not_synced`` are left out (None) of a
     link with beta rows, where they count a damaged network, not Lambda's realizations."""
-    from antisync.stats.multiplicity import link_key
-
     first: dict[tuple, dict] = {}
     for r in records:
         first.setdefault(link_key(r), r)
@@ -376,8 +375,6 @@ def format_sweep(summary: dict, fmt: str = "table") -> str:
 
 def fmt_pm(value, se, digits: int = 2) -> tuple[str, str]:
     """``(value, se)`` as strings rounded to ``digits`` significant digits of the error."""
-    import math
-
     if value is None:
         return "-", "-"
     if se is None or not math.isfinite(se) or se <= 0:

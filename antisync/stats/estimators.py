@@ -277,6 +277,7 @@ def lambda_tau_interval(est: Estimate, level: float = 0.95) -> tuple[float, floa
     comes from the batches' spread (a normal quantile covered 0.925-0.955 per link, 0.940 over
     all, at 20 batches of the lollipop; bench/RESULTS.md, "Lambda^tau: time to precision and
     coverage")."""
+    # lazy: scipy.stats takes ~0.5 s to import, and `antisync --help` loads this module
     from scipy.stats import t as student
 
     if est.n_batches < 2 or not math.isfinite(est.se):
@@ -298,6 +299,7 @@ def sync_response(rec_e: np.ndarray, dbeta: float, level: float = 0.95) -> dict 
     Returns ``{"value", "low", "high", "lost", "gained", "n"}``, or None where the records
     predate the counts (format 1-2 files, NaN) or hold no realization.
     """
+    # lazy: scipy.stats takes ~0.5 s to import, and `antisync --help` loads this module
     from scipy.stats import chi2
 
     lost, gained = float(rec_e[:, 6].sum()), float(rec_e[:, 7].sum())
@@ -506,6 +508,7 @@ def _bin_lower(t: int) -> float:
 def _tail_index(counts: np.ndarray, t: int) -> float:
     """Maximum-likelihood Pareto index of the binned ``counts`` (one sign, ``TAIL_BINS``) at
     and above bin ``t``, whose threshold is ``u = TAIL_EDGES[t - 1]``."""
+    # lazy: scipy.optimize takes ~0.3 s to import; only the tail fit needs it
     from scipy.optimize import minimize_scalar
 
     u = _bin_lower(t)

@@ -9,6 +9,7 @@ import math
 from typing import Literal, get_args
 
 from antisync.errors import AntisyncError
+from antisync.stats.multiplicity import FDR_LEVEL, fdr_signs, link_key
 from antisync.stats.summary import sign_resolved
 
 __all__ = [
@@ -148,8 +149,6 @@ def flag_signs(records: list[dict]) -> list[dict]:
     many links calls few null links by chance), and ``sign_per_link``, the call of the record's
     own 95% interval alone (:func:`antisync.stats.summary.sign_resolved`); both ``None`` where no
     Lambda^KM was estimated (a file run without ``km``)."""
-    from antisync.stats.multiplicity import fdr_signs
-
     out = []
     for r, sign in zip(records, fdr_signs(records), strict=True):
         own = sign_resolved(r) if r.get("lambda_km") is not None else None
@@ -160,8 +159,6 @@ def flag_signs(records: list[dict]) -> list[dict]:
 def sign_rule_note(records: list[dict]) -> str | None:
     """One line saying how ``sign_resolved`` was decided and how many links each rule calls
     (None without Lambda^KM)."""
-    from antisync.stats.multiplicity import FDR_LEVEL, link_key
-
     links = {link_key(r): r for r in records if r.get("sign_resolved") is not None}
     if not links:
         return None

@@ -9,7 +9,9 @@ redoing or double-counting a block.
 
 Each chunk file carries a tag, a digest of the run's key, its job's name and the graph actually
 built (:func:`chunk_tag`): a chunk left by another run (another seed, or a graph generator that
-built another graph) is never merged. The folder also holds ``simulation_key.json`` (the run's
+built another graph) is never merged. Chunk files are written and read by :func:`save_arrays` and
+:func:`load_arrays`, tagged array files that a grid's line removal keeps its finished tasks in
+too (:mod:`antisync.grids.removal_journal`). The folder also holds ``simulation_key.json`` (the run's
 key) and, for a sweep, ``screen/<graph>.json`` (each graph's screening, see
 :func:`save_screen`). A run started with ``--overwrite`` over an existing result file leaves that
 file in place until its successor is complete: the folder then also holds ``replaces`` (the
@@ -24,8 +26,9 @@ import glob
 import hashlib
 import json
 import os
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator, Mapping
 from pathlib import Path
+from typing import Any, TypeVar
 
 import numpy as np
 
@@ -43,12 +46,17 @@ __all__ = [
     "graph_digest",
     "is_empty",
     "jsonable",
+    "load_arrays",
     "load_screens",
+    "save_arrays",
     "save_chunk",
     "save_screen",
     "start",
     "stored_key",
+    "write_atomically",
 ]
+
+T = TypeVar("T")
 
 KEY_FILE = "simulation_key.json"
 SCREEN_FOLDER = "screen"
@@ -105,7 +113,7 @@ def jsonable(v):
 def start(folder: Path, config_key: dict) -> None:
     """Create the journal ``folder`` and record the run's key in it."""
     folder.mkdir(parents=True, exist_ok=True)
-    _atomic_write_bytes(folder / KEY_FILE, json.dumps(config_key).encode())
+    write_atomically(folder / KEY_FILE, json.dumps(config_key).encode())
 
 
 def stored_key(folder: Path) -> dict | None:
@@ -135,22 +143,10 @@ def save_chunk(folder: Path, name: str, res: ChunkResult, tag: str = "") -> None
         "meta": np.array([res.chunk.first_block, res.chunk.n_blocks, res.first, res.count]),
         "seconds": np.array([res.seconds]),
         "backend": np.array([res.backend]),
-        "tag": np.array(tag),
     }
     if res.kept is not None:
         arrays.update({f"kept_{k}": v for k, v in res.kept.items()})
-    target = folder / f"{name}__{res.chunk.first_block:09d}.npz"
-    tmp = target.with_suffix(".tmp")
-    try:
-        with open(tmp, "wb") as fh:
-            np.savez(fh, **arrays)
-            fh.flush()
-            os.fsync(fh.fileno())
-        os.replace(tmp, target)
-    except BaseException:
-        with contextlib.suppress(OSError):
-            tmp.unlink()
-        raise
+    save_arrays(folder / f"{name}__{res.chunk.first_block:09d}.npz", arrays, tag)
 
 
 def chunks(folder: Path, st: JobState, tag: str) -> Iterator[ChunkResult]:
@@ -181,30 +177,28 @@ def drop_chunks(folder: Path) -> None:
 
 def _load_chunk(p: Path, tag: str) -> ChunkResult | None:
     """The chunk saved in ``p``, or None if it is damaged or its tag is not ``tag``."""
-    try:
-        with np.load(p, allow_pickle=False) as z:
-            if str(z["tag"][()]) != tag:
-                return None
-            first_block, n_blocks, first, count = (int(x) for x in z["meta"])
-            kept = None
-            if "kept_status0" in z:
-                kept = {k: z[f"kept_{k}"] for k in ("status0", "steps0", "status", "steps", "lambda")}
-            return ChunkResult(
-                Chunk(first_block, n_blocks),
-                z["rec"],
-                z["rec0"],
-                z["tail"],
-                z["hist"],
-                z["lam_rec"],
-                z["lam_tail"],
-                kept,
-                first,
-                count,
-                float(z["seconds"][0]),
-                str(z["backend"][0]),
-            )
-    except Exception:  # any damage (a zip cut off, EOF, a bad header, a missing array, a
-        return None  # pickle refused) means the same: those blocks are computed again
+
+    def read(z) -> ChunkResult:
+        first_block, n_blocks, first, count = (int(x) for x in z["meta"])
+        kept = None
+        if "kept_status0" in z:
+            kept = {k: z[f"kept_{k}"] for k in ("status0", "steps0", "status", "steps", "lambda")}
+        return ChunkResult(
+            Chunk(first_block, n_blocks),
+            z["rec"],
+            z["rec0"],
+            z["tail"],
+            z["hist"],
+            z["lam_rec"],
+            z["lam_tail"],
+            kept,
+            first,
+            count,
+            float(z["seconds"][0]),
+            str(z["backend"][0]),
+        )
+
+    return load_arrays(p, tag, read)
 
 
 def _chunk_fits(st: JobState, res: ChunkResult) -> bool:
@@ -228,6 +222,50 @@ def _chunk_fits(st: JobState, res: ChunkResult) -> bool:
             if got.shape[1:] != arr.shape[1:] or res.first + got.shape[0] > arr.shape[0]:
                 return False
     return all(a.shape == shape for a, shape in shapes)
+
+
+# ---- tagged array files ----------------------------------------------------------------------
+# The one crash-safe file of finished work: a run's chunks above and a grid removal's tasks
+# (antisync.grids.removal_journal) are both written and read by these two functions.
+def save_arrays(path: Path, arrays: Mapping[str, np.ndarray], tag: str) -> None:
+    """Write ``arrays`` and ``tag`` (array ``"tag"``) to the ``.npz`` file ``path`` at once.
+
+    The file is written under a temporary name in the same folder, flushed to disk and renamed
+    over ``path``: a reader (or a process killed at any moment) sees the whole file or none,
+    and a failed write leaves no temporary file behind.
+    """
+    tmp = path.with_suffix(".tmp")
+    try:
+        with open(tmp, "wb") as fh:
+            np.savez(fh, **arrays, tag=np.array(tag))
+            fh.flush()
+            os.fsync(fh.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        with contextlib.suppress(OSError):
+            tmp.unlink()
+        raise
+
+
+def load_arrays(path: Path, tag: str, read: Callable[[Any], T]) -> T | None:
+    """``read(z)`` of the ``.npz`` file ``path`` (``z``: its arrays by name) when the file carries
+    ``tag``; None when it carries another tag or none, or is damaged in any way (cut off, empty,
+    not an ``.npz``, a missing array, a pickle refused, or ``read`` failing on it): its work is
+    then simply done again."""
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            if str(z["tag"][()]) != tag:
+                return None
+            return read(z)
+    except Exception:  # any damage (a zip cut off, EOF, a bad header, a missing array, a
+        return None  # pickle refused) means the same: that work is computed again
+
+
+def write_atomically(path: Path, data: bytes) -> None:
+    """Write ``data`` to ``path`` through a temporary file and a rename (whole or absent)."""
+    tmp = path.with_suffix(path.suffix + ".tmp")
+    tmp.write_bytes(data)
+    os.replace(tmp, path)
 
 
 # ---- a sweep's screening ---------------------------------------------------------------------
@@ -278,9 +316,3 @@ def is_empty(folder: Path) -> bool:
     if any(folder.glob("*.npz")) or (folder / REPLACEMENT_FILE).exists():
         return False
     return not any((folder / SCREEN_FOLDER).glob("*.json"))
-
-
-def _atomic_write_bytes(path: Path, data: bytes) -> None:
-    tmp = path.with_suffix(path.suffix + ".tmp")
-    tmp.write_bytes(data)
-    os.replace(tmp, path)

@@ -105,6 +105,7 @@ SWEEP_FORMAT_VERSION = 2
 # ---- opening ---------------------------------------------------------------------------------
 def open_results(path: str | Path):
     """Open an antisync HDF5 file for reading, with a clear :class:`StoreError` otherwise."""
+    # lazy: h5py only where a file is opened; execution.compute and `validate` load the store
     import h5py
 
     path = Path(path)
@@ -146,6 +147,7 @@ def result_file_problem(path: Path) -> str | None:
 
     ``--overwrite`` replaces only antisync result files (a run's or a sweep's).
     """
+    # lazy: h5py only where a file is opened; execution.compute and `validate` load the store
     import h5py
 
     what = None
@@ -222,6 +224,7 @@ def write_results(path: Path, states: dict[str, JobState], provenance: dict, ext
     given, is called as ``extra(h5file, states)`` before the file is closed, to add groups
     (a sweep's metadata, :func:`write_sweep_meta`) that must survive every checkpoint.
     """
+    # lazy: h5py only where a file is opened; execution.compute and `validate` load the store
     import h5py
 
     with h5py.File(path, "w") as f:

@@ -16,6 +16,7 @@ import math
 import numpy as np
 
 from antisync.errors import StoreError
+from antisync.sweeps.points import point_label
 
 __all__ = ["edge_lambdas", "expand_records", "ranking", "summarize", "trend_in_n"]
 
@@ -64,7 +65,8 @@ def summarize(meta: dict, views: list) -> dict:
         ``complete``: whether every stage finished; ``grid``: the grid's axes
         (``[{keys, values, zip}, ...]``, ``None`` without a grid).
     """
-    from antisync.stats.summary import view_records  # here: it loads numba, a config needs none
+    # lazy: loads numba, which reading a sweep config (`import antisync.sweeps`) does not need
+    from antisync.stats.summary import view_records
 
     _refuse_shared_jobs(meta["jobs"])
     by_job: dict[str, list] = {}
@@ -130,8 +132,6 @@ def _refuse_shared_jobs(jobs_meta: list[dict]) -> None:
     """Refuse a file whose metadata lists two jobs of one name (written before grid values
     were named in full: seeds 1000001 and 1000002 both ``1e+06``): its one group holds one
     point's numbers, and both points would show them."""
-    from antisync.sweeps.points import point_label
-
     seen: dict[str, dict] = {}
     for jm in jobs_meta:
         first = seen.setdefault(jm["job"], jm)
@@ -146,8 +146,6 @@ def _refuse_shared_jobs(jobs_meta: list[dict]) -> None:
 
 def _point_fields(job_meta: dict) -> dict:
     """A grid job's ``grid`` (``{key: value}``) and ``point`` (its label); ``{}`` otherwise."""
-    from antisync.sweeps.points import point_label
-
     point = job_meta.get("point")
     return {"grid": point, "point": point_label(point)} if point is not None else {}
 

@@ -19,7 +19,7 @@ import networkx as nx
 from antisync.errors import ConfigError
 from antisync.physics import graphs as graphs_mod
 from antisync.physics.graphs import edge_orbits
-from antisync.plan.config import graph_name
+from antisync.plan.config import check_graph, graph_name
 from antisync.plan.jobs import check_step
 
 __all__ = ["FAMILIES", "GraphEntry", "family_graphs", "family_specs", "fig2_edge"]
@@ -48,8 +48,6 @@ def family_specs(family: dict) -> list[tuple[str, dict]]:
             raise ConfigError("sweep.nodes and sweep.path give no lollipop with nodes - path >= 2")
         return out
     out, seen = [], set()
-    from antisync.plan.config import check_graph
-
     for k, spec in enumerate(family["graphs"]):
         spec = dict(spec)
         name = spec.pop("name", None)

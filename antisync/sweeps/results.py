@@ -26,7 +26,8 @@ def sweep_summary(path: str | Path, views=None) -> dict:
     dict
         See :func:`antisync.sweeps.analysis.summarize`.
     """
-    from antisync.store import read_meta, read_views  # here: the store loads numba
+    # lazy: loads numba, which reading a sweep config (`import antisync.sweeps`) does not need
+    from antisync.store import read_meta, read_views
 
     meta = read_meta(path)
     views = views if views is not None else read_views(path)

@@ -22,17 +22,16 @@ a stable non-synchronized state; rare slow transients near saddles do not exclud
 from __future__ import annotations
 
 import math
+import time
 from dataclasses import asdict, dataclass
 
 import numba
 import numpy as np
 from numba import njit, prange
 
-from antisync import (
-    _numba_cache,  # noqa: F401 -- before any cache=True function (see there)
-    coupling,
-)
+from antisync import _numba_cache  # noqa: F401 -- before any cache=True function (see there)
 from antisync.kernels.core import RENORM_EVERY, make_kernels
+from antisync.physics import coupling
 from antisync.physics.phases import phase
 from antisync.status import ALREADY_SYNCED, NOT_SYNCED, SYNCED
 
@@ -293,8 +292,6 @@ def screen_graph(
     -------
     ScreenResult
     """
-    import time
-
     start = time.perf_counter()
     w = coupling.coupling_matrix(omega, coupling_kind)
     status, steps, vmax, theta = screen_realizations(

@@ -18,12 +18,14 @@ from pathlib import Path
 from tqdm import tqdm
 
 from antisync.errors import ConfigError, StoreError
+from antisync.kernels.backends import resolve_backend
 from antisync.physics import graphs as graphs_mod
 from antisync.plan.config import Config
 from antisync.plan.jobs import make_job
 from antisync.sweeps.analysis import ranking
 from antisync.sweeps.families import GraphEntry, family_graphs
 from antisync.sweeps.points import GridPoint, number_name, point_label, point_suffix
+from antisync.sweeps.results import sweep_summary
 from antisync.sweeps.schema import Sweep
 
 __all__ = ["check_sweep", "main_jobs", "run_sweep", "top_jobs"]
@@ -229,6 +231,7 @@ def run_sweep(
     by every stage and left open. ``resume`` on a complete sweep file leaves it untouched.
     A failure before anything was finished removes what the sweep created.
     """
+    # lazy: loads numba, which reading a sweep config (`import antisync.sweeps`) does not need
     from antisync.store import ResultStore
 
     store = ResultStore(output or sweep.output)
@@ -274,10 +277,10 @@ def _run_sweep_locked(
 ) -> Path:
     """The body of :func:`run_sweep`, with ``store`` locked and prepared; ``planned``: the
     main stage's jobs of every graph (:func:`check_sweep`)."""
+    # lazy: loads numba, which reading a sweep config (`import antisync.sweeps`) does not need
     from antisync.execution.runner import run_jobs
     from antisync.execution.stopping import already_stopped
     from antisync.store import read_sweep_meta, write_sweep_meta
-    from antisync.sweeps.results import sweep_summary
     from antisync.sweeps.screening import ScreenResult, screen_graph
 
     say = log or (lambda msg: None)
@@ -449,8 +452,8 @@ def check_sweep(
     ``backend``: the one to check for (default: the config's, resolved on this machine;
     ``antisync validate`` passes the configured one, so a cuda sweep validates on a laptop).
     """
+    # lazy: loads numba, which reading a sweep config (`import antisync.sweeps`) does not need
     from antisync.execution.compute import check_job
-    from antisync.kernels.backends import resolve_backend
     from antisync.measures.pipeline import with_nnc
 
     if backend is None:
@@ -471,10 +474,12 @@ def _check_backend(sweep: Sweep, entries: list[GraphEntry], backend: str) -> Non
     """Refuse, before anything is written, what the sweep's backend cannot run: its options
     (:func:`~antisync.execution.compute.check_backend`) and, on cuda, a graph with more nodes than
     the kernels hold (the stages' ``run_jobs`` would refuse it only after the screening)."""
+    # lazy: loads numba, which reading a sweep config (`import antisync.sweeps`) does not need
     from antisync.execution.compute import check_backend
 
     check_backend(sweep.base, backend)
     if backend == "cuda":
+        # lazy: numba-cuda, only for a cuda sweep
         from antisync.kernels.cuda import MAX_NODES
 
         for e in entries:
@@ -508,6 +513,7 @@ def _symmetry(sweep: Sweep, kept: list[GraphEntry], jobs) -> dict:
 
 
 def _meta(sweep, entries, screens, excluded, jobs_meta, saved) -> dict:
+    # lazy: loads numba, which reading a sweep config (`import antisync.sweeps`) does not need
     from antisync.store import SWEEP_FORMAT, SWEEP_FORMAT_VERSION
 
     graphs = []

@@ -3,6 +3,9 @@
 - :class:`~antisync.execution.executors.local.LocalExecutor`: in this process (numba threads);
 - :class:`~antisync.execution.executors.dask.DaskExecutor`: on a Dask cluster (docs/dask.md).
 
+Work that is not a run's chunks (a grid's line removal) maps its own pure function over its
+tasks with :func:`antisync.execution.executors.tasks.map_tasks`, here or on a client.
+
 Whoever creates an executor closes it: :func:`antisync.execution.runner.run_jobs` closes only the local
 executor it makes itself, and an executor handed to it (a sweep hands one to every stage)
 stays open.

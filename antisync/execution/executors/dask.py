@@ -8,6 +8,10 @@ how often a chunk was retried therefore cannot change the numbers.
 :class:`DaskExecutor` takes a ``distributed.Client`` and builds no cluster;
 :meth:`DaskExecutor.from_options` is the one place that does, for the command line
 (``--workers N`` starts a ``LocalCluster``, ``--scheduler ADDRESS`` connects to a running one).
+
+Other work (a grid's line removal) submits its own pure function through :func:`map_on_client`
+(usually by way of :func:`antisync.execution.executors.tasks.map_tasks`), on a client its caller
+owns and checks with :func:`check_client`: this module is the one that talks to the cluster.
 """
 
 from __future__ import annotations
@@ -20,12 +24,23 @@ import threading
 import time
 import uuid
 from collections.abc import Callable, Iterable, Iterator
+from typing import Any
 
 from antisync.errors import AntisyncError
 from antisync.execution.compute import ChunkResult, compute_chunk
 from antisync.plan.jobs import Chunk, Job
 
-__all__ = ["CONNECT_TIMEOUT", "DASHBOARD_ADDRESS", "TASKS_PER_THREAD", "DaskExecutor", "quiet_shutdown"]
+__all__ = [
+    "CONNECT_TIMEOUT",
+    "DASHBOARD_ADDRESS",
+    "TASKS_PER_THREAD",
+    "DaskExecutor",
+    "TaskLostError",
+    "check_client",
+    "client_threads",
+    "map_on_client",
+    "quiet_shutdown",
+]
 
 #: Tasks kept in flight per worker thread: enough that a worker never waits for the client
 #: between chunks, few enough that a 1e9-realization job is not millions of futures at once.
@@ -346,6 +361,66 @@ class DaskExecutor:
     def _workers_threads(self) -> tuple[int, int]:
         nthreads = self.client.nthreads()
         return len(nthreads), sum(nthreads.values())
+
+
+# ---- any pure function over tasks, on a client the caller owns ---------------------------------
+class TaskLostError(AntisyncError):
+    """The cluster lost a task of :func:`map_on_client` (its workers died, or it was cancelled);
+    ``cause``: the ``KilledWorker`` or ``CancelledError`` it ended with."""
+
+    def __init__(self, cause: BaseException):
+        super().__init__(f"the Dask cluster lost a task ({type(cause).__name__}: {cause})")
+        self.cause = cause
+
+
+def check_client(client, *, hint: str, error: type[Exception] = AntisyncError) -> None:
+    """Refuse, before any work, a ``client`` that is not an open ``distributed.Client``.
+
+    The caller owns the cluster (a function handed a client never builds or closes one), so a
+    scheduler address is not opened here: the one-line ``error`` ends with ``hint`` (how to
+    open one). None (no cluster) passes.
+    """
+    if client is None:
+        return
+    # distributed is imported only when a client is given: importing it costs about a second
+    from distributed import Client
+
+    if not isinstance(client, Client):
+        got = f"{type(client).__name__} {client!r:.80}"
+        raise error(f"client must be a distributed.Client, got {got}; {hint}")
+    if client.status not in ("running", "connecting", "newly-created"):
+        raise error(f"client is a distributed.Client that is {client.status}: pass an open one")
+
+
+def client_threads(client) -> int:
+    """The worker threads of ``client``'s cluster now (0 while no worker has joined)."""
+    return sum(client.nthreads().values())
+
+
+def map_on_client(client, fn: Callable[..., Any], calls: Iterable[tuple]) -> Iterator[tuple[int, Any]]:
+    """``fn(*calls[i])`` of every call on ``client``'s workers: ``(i, result)`` as they finish.
+
+    Every call is submitted at once (``pure=False``: each runs, even with equal arguments); on
+    any exit, what has not finished is cancelled, and the client stays open (its caller owns
+    it). A task that the cluster loses (``KilledWorker``, ``CancelledError``) is a
+    :class:`TaskLostError`: the results yielded before it stay valid, so a caller that saved
+    them can resume.
+    """
+    from concurrent.futures import CancelledError
+
+    from distributed import as_completed
+    from distributed.scheduler import KilledWorker
+
+    futures = {client.submit(fn, *call, pure=False): i for i, call in enumerate(calls)}
+    try:
+        for fut in as_completed(list(futures), loop=client.loop):
+            try:
+                result = fut.result()
+            except (KilledWorker, CancelledError) as exc:
+                raise TaskLostError(exc) from None
+            yield futures[fut], result
+    finally:
+        client.cancel(list(futures))
 
 
 @contextlib.contextmanager

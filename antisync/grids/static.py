@@ -52,36 +52,27 @@ Pure numpy/scipy/networkx: nothing here compiles.
 
 from __future__ import annotations
 
-import json
 import math
 import time
 from dataclasses import asdict, dataclass, field
-from pathlib import Path
 
-import networkx as nx
 import numpy as np
-import yaml
 
-from antisync.errors import AntisyncError
-from antisync.physics import graphs
+from antisync.grids.errors import GridError
+from antisync.grids.lines import Rows, grid_bridges, lines_of, split_bridges
+from antisync.grids.load import Grid
 from antisync.physics.coupling import coupling_matrix
 from antisync.physics.locked import jacobian, locked_state
-from antisync.plan.config import Config, load_config, yaml_load
-from antisync.plan.model import node_frequencies, node_parameters, read_frequency_file
 
 __all__ = [
-    "Grid",
-    "GridError",
+    "BRAESS_TOL",
+    "RANK_KEYS",
     "GridState",
     "LineIndicators",
     "LineTable",
     "format_table",
-    "grid_from_config",
     "grid_state",
     "line_indicators",
-    "load_grid",
-    "load_grid_config",
-    "parse_line_labels",
     "static_table",
 ]
 
@@ -89,10 +80,6 @@ __all__ = [
 RANK_KEYS = ("d_margin", "d_lambda2", "d_max_load", "d_max_flow", "d_r")
 #: Default tolerance of :meth:`LineTable.braess_lines`: an indicator must improve by more.
 BRAESS_TOL = 1e-9
-
-
-class GridError(AntisyncError, ValueError):
-    """A grid or line request that cannot be evaluated: the message names the line or file."""
 
 
 @dataclass(frozen=True)
@@ -157,19 +144,6 @@ class LineIndicators:
         d = asdict(self)
         d["label"] = self.label
         return d
-
-
-class Rows:
-    """A table of per-line rows (``self.rows``) read as a sequence of them."""
-
-    def __len__(self) -> int:
-        return len(self.rows)
-
-    def __iter__(self):
-        return iter(self.rows)
-
-    def __getitem__(self, k):
-        return self.rows[k]
 
 
 @dataclass(frozen=True)
@@ -320,56 +294,6 @@ def grid_state(omega, p, *, coupling: str = "raw", lag: float = 0.0, inertia=0.0
     return _state_of(coupling_matrix(omega, coupling), p, lag, inertia, damping)
 
 
-def _lines_of(omega: np.ndarray, labels: list, lines) -> list[tuple[int, int]]:
-    n = omega.shape[0]
-    if lines is None:
-        i, j = np.nonzero(np.triu(omega > 0))
-        return list(zip(i.tolist(), j.tolist(), strict=True))
-    index = {lab: k for k, lab in enumerate(labels)}
-    out, seen = [], set()
-    for line in lines:
-        try:
-            u, v = line
-        except (TypeError, ValueError):
-            raise GridError(f"a line is a pair of nodes (u, v), got {line!r}") from None
-        if u not in index or v not in index:
-            raise GridError(f"line {u}-{v}: no such node (nodes: {labels[0]}..{labels[n - 1]})")
-        a, b = sorted((index[u], index[v]))
-        if omega[a, b] <= 0:
-            raise GridError(f"line {u}-{v} is not a line of the grid")
-        if (a, b) in seen:
-            raise GridError(f"line {u}-{v} is listed twice")
-        seen.add((a, b))
-        out.append((a, b))
-    return out
-
-
-def grid_bridges(omega: np.ndarray) -> set:
-    """The bridges ``(a, b)``, ``a < b``, of the grid whose lines are ``omega > 0``: the lines
-    whose removal islands it. A grid that is not connected is refused (one line)."""
-    g = nx.Graph()
-    g.add_nodes_from(range(omega.shape[0]))
-    g.add_edges_from(zip(*np.nonzero(np.triu(omega > 0)), strict=True))
-    if not nx.is_connected(g):
-        raise GridError("the grid is not connected: it has no common locked state")
-    return {tuple(sorted(e)) for e in nx.bridges(g)}
-
-
-def split_bridges(omega, labels, todo, bridges, *, refuse: bool, hint: str) -> tuple[list, list]:
-    """``(todo without the bridges, the bridges left out as label pairs)``; with ``refuse``, a
-    bridge in ``todo`` is a one-line :class:`GridError` instead, ending with ``hint`` (how to
-    ask for it anyway)."""
-    hit = [e for e in todo if e in bridges]
-    if hit and refuse:
-        a, b = hit[0]
-        more = f" (and {len(hit) - 1} other bridge(s))" if len(hit) > 1 else ""
-        raise GridError(
-            f"line {labels[a]}-{labels[b]} is a bridge: removing it islands the grid{more}; "
-            f"weaken it (beta < 1) or {hint}"
-        )
-    return [e for e in todo if e not in bridges], [(labels[a], labels[b]) for a, b in hit]
-
-
 def line_indicators(
     omega,
     p,
@@ -430,7 +354,7 @@ def line_indicators(
         raise GridError(f"beta must be a number <= 1, got {beta!r}") from None
     if not (math.isfinite(beta) and beta <= 1.0):
         raise GridError(f"beta must be a finite number <= 1 (1 removes the line), got {beta}")
-    todo = _lines_of(omega, labels, lines)
+    todo = lines_of(omega, labels, lines)
     skipped = []
     if beta == 1.0:
         todo, skipped = split_bridges(
@@ -463,121 +387,6 @@ def line_indicators(
     return LineTable(base, tuple(rows), beta, tuple(skipped), time.perf_counter() - t0, tuple(labels))
 
 
-# --- grids from files -------------------------------------------------------------------------
-
-
-@dataclass(frozen=True)
-class Grid:
-    """A power grid ready for :func:`line_indicators`: ``omega`` in :func:`antisync.physics.graphs.
-    node_order` (bus ``i`` is row ``labels.index(i)``; for buses 1..N, row ``i - 1``), ``p``
-    with its mean removed, ``inertia`` and ``damping`` (numbers or per-node arrays), the
-    coupling and the phase lag ``alpha`` (``model.phase_lag``)."""
-
-    name: str
-    labels: list
-    omega: np.ndarray
-    p: np.ndarray
-    inertia: object = 0.0
-    damping: object = 1.0
-    coupling: str = "raw"
-    lag: float = 0.0
-
-
-def _vector(path: Path, n: int, what: str) -> np.ndarray:
-    """A per-node file read as a config's ``{file: PATH}`` is (one number per line, every
-    number finite: a ``nan`` is refused naming its line)."""
-    try:
-        v = read_frequency_file(path, what)
-    except AntisyncError as exc:
-        raise GridError(str(exc)) from None
-    if v.shape != (n,):
-        raise GridError(f"{path}: expected {n} {what} (one per line, one line per node), got {v.size}")
-    return v
-
-
-def load_grid(
-    edges,
-    power,
-    inertia=0.0,
-    damping=1.0,
-    *,
-    scale: float = 1.0,
-    coupling: str = "raw",
-    name: str | None = None,
-) -> Grid:
-    """Read a grid from an edge list (``u v capacity``, :func:`antisync.physics.graphs.from_edgelist`)
-    and a file of injections (one per node in node order); ``inertia``/``damping``: a number
-    or a file like the injections. ``scale`` multiplies every capacity. The injections' mean
-    is removed (the line losses of a case, docs/models.md)."""
-    edges = Path(edges)
-    try:
-        g = graphs.from_edgelist(edges)
-    except AntisyncError as exc:
-        raise GridError(str(exc)) from None
-    labels = graphs.node_order(g)
-    omega = graphs.omega_matrix(g) * float(scale)
-    n = len(labels)
-    p = _vector(Path(power), n, "injections")
-    per_node = []
-    for what, v in (("inertia", inertia), ("damping", damping)):
-        per_node.append(_vector(Path(v), n, what) if isinstance(v, str | Path) else v)
-    return Grid(name or edges.stem, labels, omega, p - p.mean(), per_node[0], per_node[1], coupling)
-
-
-def grid_from_config(config: Config) -> Grid:
-    """The :class:`Grid` of a validated config, read as ``antisync run`` reads it: its graph
-    (any kind, ``graph.header``/``delimiter`` honoured; :func:`antisync.physics.graphs.build_graph`),
-    ``model.frequencies`` (the injections, a list or ``{file: PATH}``; none: all 0), inertia,
-    damping and ``phase_lag``, and ``dynamics.coupling``.
-
-    Raises
-    ------
-    GridError
-        A graph or per-node value that cannot be read, or frequencies drawn per realization
-        (the static indicators need one operating point): one line.
-    """
-    model = config.model
-    if model.drawn:
-        raise GridError(
-            f"model.frequencies {model.frequencies} are drawn per realization; the static indicators "
-            "need the grid's injections: give model.frequencies as a list or {file: PATH} (or use --removal)"
-        )
-    try:
-        g = graphs.build_graph(config.graph, seed=config.seed)
-        labels = graphs.node_order(g)
-        omega = graphs.omega_matrix(g)
-        n = len(labels)
-        p = node_frequencies(model, n)
-        mass, gamma = node_parameters(model, n)
-    except AntisyncError as exc:
-        raise GridError(str(exc)) from None
-    p = np.zeros(n) if p is None else np.asarray(p, dtype=np.float64)
-    # one number stays one number (as the model kernels see it); per-node values as arrays
-    inertia = model.inertia if isinstance(model.inertia, float) else mass
-    damping = model.damping if isinstance(model.damping, float) else gamma
-    return Grid(
-        config.name, labels, omega, p - p.mean(), inertia, damping, config.dynamics.coupling, model.phase_lag
-    )
-
-
-def load_grid_config(path, overrides: list[str] | None = None) -> Grid:
-    """A :class:`Grid` from an antisync config such as ``configs/ieee14_grid.yaml``, read and
-    validated by :func:`antisync.plan.config.load_config` exactly as ``antisync run`` reads it
-    (``overrides``: ``key=value`` strings, the CLI's ``--set``), then :func:`grid_from_config`.
-
-    Raises
-    ------
-    GridError
-        The config's one-line error (an unknown key, a value out of range, a file that cannot
-        be read), as ``antisync run`` words it.
-    """
-    try:
-        config = load_config(path, list(overrides or []))
-    except AntisyncError as exc:
-        raise GridError(str(exc)) from None
-    return grid_from_config(config)
-
-
 def static_table(
     grid: Grid,
     *,
@@ -602,112 +411,6 @@ def static_table(
         skip_bridges=skip_bridges,
         bridge_hint=bridge_hint,
     )
-
-
-# --- naming lines ------------------------------------------------------------------------------
-
-#: How --lines names lines, for the messages (docs/power_grids.md).
-LINES_SYNTAX = (
-    'write --lines "4-5,2-3", or as a YAML list of pairs for any label: --lines \'[[a-b, c], ["x,y", -2]]\''
-)
-
-
-def parse_line_labels(text: str | None, labels) -> list[tuple] | None:
-    """The lines named by ``text`` (``--lines``) as pairs of the grid's ``labels`` (None: every
-    line).
-
-    Two forms (docs/power_grids.md):
-
-    - ``"4-5,2-3"``: lines separated by ``,``, each ``u-v``. A label may hold a dash (``a-b-c``,
-      the negative integer ``-1``: ``-1--2``): the split is accepted when exactly one dash splits
-      the item into two labels of the grid; two such readings are refused, naming both.
-    - a YAML (or JSON) list of pairs, ``[[a-b, c], ["x,y", 2], [-1, -2]]``, which can name any
-      label (one holding ``,``, or any other character, quoted): an item is the label with that
-      typed value (the integer ``2``), else the one label whose string form it is.
-
-    Raises
-    ------
-    GridError
-        An item that names no line, or names one ambiguously: one line saying which and why.
-    """
-    if text is None:
-        return None
-    text = str(text)
-    labels = list(labels)
-    if text.lstrip().startswith("["):
-        return _yaml_lines(text, labels)
-    by_name: dict[str, list] = {}
-    for lab in labels:
-        by_name.setdefault(str(lab), []).append(lab)
-    return [_dash_line(item.strip(), by_name, labels) for item in text.split(",")]
-
-
-def _nodes_hint(labels: list) -> str:
-    return f"nodes: {labels[0]}..{labels[-1]}" if labels else "the grid has no node"
-
-
-def _dash_line(item: str, by_name: dict, labels: list) -> tuple:
-    """``u-v`` split at the one dash that leaves two labels of the grid."""
-    readings = []
-    for i, ch in enumerate(item):
-        if ch == "-":
-            u, v = item[:i].strip(), item[i + 1 :].strip()
-            if u in by_name and v in by_name:
-                readings.append((u, v))
-    if not readings:
-        raise GridError(
-            f"line {item!r} is not u-v with two nodes of the grid ({_nodes_hint(labels)}); {LINES_SYNTAX}"
-        )
-    if len(readings) > 1:
-        forms = " or ".join("'" + json.dumps([[by_name[u][0], by_name[v][0]]]) + "'" for u, v in readings[:2])
-        raise GridError(
-            f"line {item!r} reads two ways, {' and '.join(f'{u} to {v}' for u, v in readings[:2])} "
-            f"(labels holding '-'): name the one you mean as a YAML list, --lines {forms}"
-        )
-    u, v = readings[0]
-    for name in (u, v):
-        if len(by_name[name]) > 1:
-            kinds = ", ".join(repr(x) for x in by_name[name])
-            raise GridError(
-                f"node {name!r} of line {item!r} is two labels of the grid ({kinds}); name it by its typed "
-                "value in a YAML list, --lines '[[1, \"1\"]]'"
-            )
-    return by_name[u][0], by_name[v][0]
-
-
-def _yaml_lines(text: str, labels: list) -> list[tuple]:
-    """``--lines '[[u, v], ...]'``: each item the label of that typed value, else the one
-    label of that string form."""
-    try:
-        items = yaml_load(text)
-    except yaml.YAMLError:
-        raise GridError(f"--lines {text!r} is not a YAML list of pairs; {LINES_SYNTAX}") from None
-    if not isinstance(items, list) or not items:
-        raise GridError(f"--lines {text!r} names no line; {LINES_SYNTAX}")
-    out = []
-    for pair in items:
-        if not isinstance(pair, list) or len(pair) != 2:
-            raise GridError(f"--lines item {pair!r} is not a pair [u, v]; {LINES_SYNTAX}")
-        out.append(tuple(_label(x, pair, labels) for x in pair))
-    return out
-
-
-def _label(x, pair: list, labels: list):
-    if isinstance(x, list | dict) or x is None:
-        raise GridError(f"--lines item {pair!r}: {x!r} is not a node label")
-    typed = [lab for lab in labels if type(lab) is type(x) and lab == x]
-    if typed:
-        return typed[0]
-    named = [lab for lab in labels if str(lab) == str(x)]
-    if len(named) == 1:
-        return named[0]
-    if named:
-        kinds = ", ".join(repr(v) for v in named)
-        raise GridError(
-            f"--lines item {pair!r}: {x!r} could be any of the labels {kinds}; write the label's typed "
-            'value (2, or "2" quoted for the string)'
-        )
-    raise GridError(f"--lines item {pair!r}: no node {x!r} in the grid ({_nodes_hint(labels)})")
 
 
 def _num(x: float, width: int = 9, digits: int = 4) -> str:

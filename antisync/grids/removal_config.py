@@ -1,0 +1,103 @@
+"""What a dynamic line removal computes: its config (a grid, a YAML file, a mapping or a Config
+resolved with overrides), ``beta``, the lines it changes, and the part of its config that
+names the work rather than where it runs (:func:`work_config`).
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Mapping
+
+import numpy as np
+
+from antisync.errors import AntisyncError, ConfigError
+from antisync.grids.errors import GridError
+from antisync.grids.lines import pick_lines
+from antisync.grids.load import Grid
+from antisync.grids.removal_file import plain
+from antisync.physics import graphs
+from antisync.plan import sources
+from antisync.plan.model import node_frequencies, node_parameters
+
+__all__ = ["WHERE_KEYS", "check_beta", "planned_lines", "resolve_config", "work_config"]
+
+
+def _grid_mapping(grid: Grid) -> dict:
+    """A config mapping of a :class:`~antisync.grids.load.Grid` (its lines inline, injections,
+    inertia and damping per node), with the dynamics of configs/ieee118_grid.yaml (rk4, dt
+    0.01, t_max 400, frequency locking to 1e-3), which overrides may change."""
+    n = len(grid.labels)
+    rows, cols = np.nonzero(np.triu(grid.omega > 0))
+    links = [
+        [grid.labels[i], grid.labels[j], float(grid.omega[i, j])] for i, j in zip(rows, cols, strict=True)
+    ]
+
+    def node_values(v):
+        a = np.asarray(v, dtype=np.float64)
+        return float(a) if a.ndim == 0 else [float(x) for x in np.broadcast_to(a, (n,))]
+
+    inertia = node_values(grid.inertia)
+    model = {"frequencies": [float(x) for x in grid.p], "inertia": inertia}
+    if grid.lag:
+        model["phase_lag"] = float(grid.lag)
+    if isinstance(inertia, list) and not any(inertia):
+        model["inertia"] = 0.0
+    elif not (isinstance(inertia, float) and inertia == 0):
+        model["damping"] = node_values(grid.damping)
+    return {
+        "name": grid.name,
+        "graph": {"kind": "inline", "links": links, "nodes": list(grid.labels)},
+        "model": model,
+        "sync": {"criterion": "frequency", "tolerance": 1e-3},
+        "dynamics": {"coupling": grid.coupling, "integrator": "rk4", "dt": 0.01, "t_max": 400.0},
+    }
+
+
+def resolve_config(source, overrides: Mapping):
+    """The :class:`~antisync.plan.config.Config` of a grid (a :class:`~antisync.grids.load.Grid`,
+    as :func:`antisync.grids.removal.line_removal` integrates it), a YAML path, a mapping or a
+    Config, with ``overrides`` (config keys); a value that is not valid is a one-line GridError."""
+    if isinstance(source, Grid):
+        source = _grid_mapping(source)
+    try:
+        return sources.resolve_config(source, dict(overrides), None)
+    except ConfigError as exc:
+        raise GridError(str(exc)) from None
+
+
+#: Config keys that say where the work runs, not what it computes (a finished table is the
+#: same run whatever they were).
+WHERE_KEYS = ("threads", "executor", "backend")
+
+
+def work_config(config) -> dict:
+    """A removal run's config as plain JSON data without :data:`WHERE_KEYS`: what a journal's
+    key and a finished table's check compare (the same run, wherever it runs)."""
+    d = json.loads(json.dumps(plain(config if isinstance(config, dict) else {}), default=str))
+    return {k: v for k, v in d.items() if k not in WHERE_KEYS}
+
+
+def planned_lines(cfg, lines, beta: float, islanding: bool) -> dict:
+    """The lines a removal run of ``cfg`` would change, ``{(u, v) as strings: islanding}``,
+    found as :func:`antisync.grids.removal.line_removal` finds them (its refusals, one line each:
+    a line not in the grid, a bridge, a per-node value that does not fit the graph)."""
+    try:
+        g = graphs.build_graph(cfg.graph, seed=cfg.seed)
+        labels = graphs.node_order(g)
+        node_frequencies(cfg.model, len(labels))
+        node_parameters(cfg.model, len(labels))
+    except AntisyncError as exc:
+        raise GridError(str(exc)) from None
+    todo, bridges, _ = pick_lines(graphs.omega_matrix(g), labels, lines, beta, islanding)
+    return {(str(labels[a]), str(labels[b])): (a, b) in bridges for a, b in todo}
+
+
+def check_beta(beta) -> float:
+    """``beta`` as a float in ``(0, 1]`` (1 removes the line), else a one-line GridError."""
+    try:
+        b = float(beta)
+    except (TypeError, ValueError):
+        raise GridError(f"beta must be a number in (0, 1] (1 removes the line), got {beta!r}") from None
+    if not (0.0 < b <= 1.0):
+        raise GridError(f"beta must be a number in (0, 1] (1 removes the line), got {beta!r}")
+    return b

@@ -1,0 +1,156 @@
+"""The file of a dynamic line removal: a :class:`~antisync.grids.removal_table.RemovalTable` as
+JSON (:func:`table_document`, :func:`write_table`), antisync's output policy for it and for the
+removal's figure (:func:`check_output`, :func:`check_new_file`), and the atomic replacement
+every one of them is written by.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+from antisync._version import __version__
+from antisync.grids.errors import GridError
+from antisync.grids.removal_table import RemovalTable
+from antisync.stats.multiplicity import FDR_LEVEL
+from antisync.store.outputs import check_output_path, config_inputs, json_format_problem
+from antisync.store.provenance import git_revision, now
+
+__all__ = [
+    "FORMAT",
+    "FORMAT_VERSION",
+    "check_new_file",
+    "check_output",
+    "plain",
+    "replace_atomically",
+    "table_document",
+    "write_table",
+]
+
+#: The ``format`` of a JSON file written by :func:`write_table`.
+FORMAT = "antisync-line-removal"
+FORMAT_VERSION = 1
+
+
+def check_output(path: str | Path, overwrite: bool = False, protect=()) -> Path:
+    """The JSON output ``path``, checked before any work (:func:`check_new_file`): an existing
+    file is replaced (``overwrite``) only when it is a removal table; ``protect``: the run's
+    inputs (:func:`antisync.store.outputs.config_inputs`), never replaced."""
+    return check_new_file(
+        path,
+        overwrite,
+        "--out",
+        (".json",),
+        "the removal table is written as JSON; name it *.json",
+        replaceable=lambda p: json_format_problem(p, FORMAT),
+        kind=f"an antisync removal table (JSON of format {FORMAT!r})",
+        protect=protect,
+    )
+
+
+def check_new_file(
+    path: str | Path,
+    overwrite: bool,
+    option: str,
+    suffixes: tuple[str, ...],
+    hint: str,
+    *,
+    replaceable,
+    kind: str,
+    protect=(),
+) -> Path:
+    """An output ``path`` checked before any work by antisync's one output policy
+    (:func:`antisync.store.outputs.check_output_path`): its suffix one of ``suffixes`` (else
+    ``hint``), its folder existing, no link, no input of the run (``protect``), nothing inside
+    a journal folder, and an existing file replaced only with ``overwrite`` and only when
+    ``replaceable`` accepts it (``kind``); one-line GridErrors that name ``option``."""
+    return check_output_path(
+        path,
+        option=option,
+        suffixes=suffixes,
+        hint=hint,
+        overwrite=overwrite,
+        replaceable=replaceable,
+        kind=kind,
+        protect=protect,
+        error=GridError,
+    )
+
+
+def plain(x):
+    """``x`` as plain JSON data: mapping keys as strings, tuples as lists, numpy integers as
+    ints, and a float that is not finite as ``None``."""
+    if isinstance(x, dict):
+        return {str(k): plain(v) for k, v in x.items()}
+    if isinstance(x, list | tuple):
+        return [plain(v) for v in x]
+    if isinstance(x, np.integer):
+        return int(x)
+    if isinstance(x, float | np.floating):
+        return None if not math.isfinite(x) else float(x)
+    return x
+
+
+def table_document(table: RemovalTable, command: str = "") -> dict:
+    """``table`` as the plain mapping :func:`write_table` writes (the summary, every row, the
+    troublemaker and Braess lists, the resolved calls, the resolved config and provenance;
+    ``nan`` as ``None``)."""
+    sync, tau = table.sync_called(), table.tau_called()
+    doc = {
+        "format": FORMAT,
+        "format_version": FORMAT_VERSION,
+        "version": __version__,
+        "git_revision": git_revision(),
+        "command": command,
+        "written": now(),
+        "summary": table.summary(),
+        "troublemakers": [r.label for r in table.troublemakers(None)],
+        "braess_lines": [r.label for r in table.braess_lines()],
+        # the resolved changes (Benjamini-Hochberg, false discovery rate FDR_LEVEL over the lines)
+        "fdr_level": FDR_LEVEL,
+        "sync_called": [r.label for r in table.rows if r.line in sync],
+        "tau_called": [r.label for r in table.rows if r.line in tau],
+        "rows": table.to_dicts(),
+        "config": table.config,
+    }
+    return plain(doc)
+
+
+def write_table(table: RemovalTable, path: str | Path, overwrite: bool = False, command: str = "") -> Path:
+    """Write ``table`` as JSON (:func:`table_document`) atomically (:func:`replace_atomically`),
+    so an existing result is never half-written. ``nan`` is written as ``null``. An existing
+    ``path`` is replaced (``overwrite``) only when it is a removal table, and never when it is a
+    file the table's config reads (:func:`check_output`)."""
+    path = check_output(path, overwrite, protect=config_inputs(table.config))
+    text = json.dumps(table_document(table, command), indent=1, default=str)
+
+    def write(tmp: Path) -> None:
+        with open(tmp, "w", encoding="utf-8") as fh:
+            fh.write(text + "\n")
+            fh.flush()
+            os.fsync(fh.fileno())
+
+    return replace_atomically(path, write)
+
+
+def replace_atomically(path: Path, write) -> Path:
+    """Call ``write(tmp)`` on a temporary file in ``path``'s folder, then rename it over
+    ``path``: a reader sees the old file or the whole new one, never half of it; on an error the
+    temporary file is removed and ``path`` is left as it was."""
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=f".tmp{path.suffix}", dir=path.parent)
+    os.close(fd)
+    try:
+        write(Path(tmp))
+        mask = os.umask(0)
+        os.umask(mask)
+        os.chmod(tmp, 0o666 & ~mask)  # mkstemp's 0600, as an ordinary new file would be
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+    return path
