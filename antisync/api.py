@@ -39,8 +39,14 @@ import os
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
+import yaml
+
+from antisync.errors import AntisyncError, ConfigError, StoreError
+from antisync.execution.runner import run_config
+from antisync.plan.config import Config
+from antisync.plan.describe import model_line
 from antisync.plan.sources import (
     file_path,
     flag,
@@ -51,9 +57,11 @@ from antisync.plan.sources import (
     shown,
     sweep_graphs,
 )
-
-if TYPE_CHECKING:
-    from antisync.plan.config import Config
+from antisync.stats.records import flag_signs
+from antisync.stats.sum_rule import views_sums
+from antisync.stats.summary import r_star_rows, view_records
+from antisync.store import is_sweep_file, read_views, root_attrs, stop_record, stored_config
+from antisync.sweeps import Sweep, load_sweep, load_sweep_text, run_sweep, sweep_summary
 
 __all__ = ["Result", "load", "run", "summarize", "sweep"]
 
@@ -120,8 +128,6 @@ class Result:
         try:
             import pandas as pd
         except ImportError:
-            from antisync.errors import AntisyncError
-
             raise AntisyncError(
                 "Result.to_pandas needs pandas (pip install pandas); "
                 "Result.records holds the same data as dicts"
@@ -177,8 +183,6 @@ def summarize(path: str | Path) -> dict:
     antisync.errors.StoreError
         As :func:`load`.
     """
-    from antisync.errors import StoreError
-
     path = _result_path(path)
     try:
         return _summarize(path)
@@ -187,17 +191,10 @@ def summarize(path: str | Path) -> dict:
 
 
 def _summarize(path: Path) -> dict:
-    from antisync.errors import StoreError
-    from antisync.plan.describe import model_line, stored_config
-    from antisync.stats.records import flag_signs
-    from antisync.stats.sum_rule import views_sums
-    from antisync.stats.summary import r_star_rows, view_records
-    from antisync.store import is_sweep_file, read_views, root_attrs, stop_record
-    from antisync.sweeps import sweep_summary
-
     root = root_attrs(path)
     views = read_views(path)  # decoded once: the records and the sum rule read the same jobs
-    model = {"model": model_line(stored_config(root["config_yaml"])), "r_star": r_star_rows(views)}
+    cfg = stored_config(path)  # a config_yaml that is not a mapping: a StoreError, as everywhere
+    model = {"model": model_line(cfg), "r_star": r_star_rows(views)}
     if is_sweep_file(path):
         s = sweep_summary(path)
         return {
@@ -212,13 +209,7 @@ def _summarize(path: Path) -> dict:
             **{k: s[k] for k in _SWEEP_KEYS},
         }
     recs = view_records(views)
-    import yaml
-
-    try:
-        cfg = yaml.safe_load(root["config_yaml"] or "{}") or {}
-    except yaml.YAMLError:
-        raise StoreError(f"{path} is damaged: its root attribute config_yaml is not YAML") from None
-    dynamics = cfg.get("dynamics") if isinstance(cfg, dict) else None
+    dynamics = cfg.get("dynamics")
     threshold = dynamics.get("threshold") if isinstance(dynamics, dict) else None
     thresholds = [threshold] if threshold is not None else []
     return {
@@ -302,10 +293,6 @@ def run(
     >>> res.records[0]["F_mean"] > 1                                 # doctest: +SKIP
     True
     """
-    from antisync.errors import ConfigError
-    from antisync.execution.runner import run_config
-    from antisync.plan.config import Config
-
     if not isinstance(config, str | os.PathLike | Mapping | Config):
         raise ConfigError(
             f"antisync.run: config must be a YAML file path, a mapping of config keys or an "
@@ -339,9 +326,6 @@ def sweep(
     ``graph1``, ``graph2``, ... by their place in the list (a spec of
     :func:`antisync.physics.graphs.graph_spec` with a ``name`` key names one).
     """
-    from antisync.errors import ConfigError
-    from antisync.sweeps import Sweep, load_sweep, load_sweep_text, run_sweep
-
     if not isinstance(config, str | os.PathLike | Mapping):
         raise ConfigError(
             f"antisync.sweep: config must be a YAML file path or a mapping with a sweep: section "
@@ -351,8 +335,6 @@ def sweep(
     overrides = {k: sweep_graphs(v) if k == "sweep" else v for k, v in overrides.items()}
     values = override_values(overrides, output, sections(Sweep))
     if isinstance(config, Mapping):
-        import yaml
-
         raw = plain({k: sweep_graphs(v) if k == "sweep" else v for k, v in config.items()}, "config")
         sw = load_sweep_text(yaml.safe_dump(raw), values=values)
     else:
@@ -363,7 +345,6 @@ def sweep(
 
 def _options(where: str, resume, overwrite, progress, executor, log) -> dict:
     """The keyword arguments of :func:`run` and :func:`sweep` that are not config keys, checked."""
-    from antisync.errors import ConfigError
 
     opts = {
         name: flag(f"{where}: {name}", value)
@@ -391,6 +372,5 @@ def _options(where: str, resume, overwrite, progress, executor, log) -> dict:
 
 
 def _result_path(path) -> Path:
-    from antisync.errors import StoreError
 
     return file_path("path", path, StoreError)

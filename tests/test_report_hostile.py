@@ -307,3 +307,27 @@ def test_warnings_of_one_kind_are_one_line(files):
                 if r["lambda_km_warning"]
             }
         )
+
+
+@pytest.mark.parametrize("damage", ["graph: [unclosed", "- a list, not a config\n", "42\n"])
+def test_a_damaged_stored_config_is_one_line_everywhere(tmp_path, damage):
+    """One decoder of a result file's config (antisync.store.stored_config), one policy: a
+    ``config_yaml`` that is not a mapping of config keys makes the file damaged, for the
+    summary, the report and the API alike (one line, exit 2; before, the summary left its
+    model line out and the API refused)."""
+    import h5py
+
+    out = tmp_path / "exact.h5"
+    res = antisync.run(
+        {"graph": {"kind": "lollipop", "nodes": 5, "path": 2}, "measures": ["xi2", "rw"]}, output=out
+    )
+    assert res.records
+    with h5py.File(out, "r+") as f:
+        f.attrs["config_yaml"] = damage
+    for args in (["summary", str(out)], ["report", str(out), "--out", str(tmp_path / "fig")]):
+        got = runner.invoke(app, args)
+        assert got.exit_code == 2, (args, got.output)
+        assert "is damaged: its root attribute config_yaml is not" in got.output
+        assert len(got.output.strip().splitlines()) == 1 and "Traceback" not in got.output
+    with pytest.raises(StoreError, match="config_yaml is not"):
+        antisync.summarize(out)

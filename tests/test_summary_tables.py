@@ -18,9 +18,10 @@ import antisync
 from antisync.cli.app import app
 from antisync.execution.runner import run_config
 from antisync.plan.config import load_config_text
-from antisync.plan.describe import model_line, stored_config
+from antisync.plan.describe import model_line
 from antisync.report.tables import asymmetric, fmt_interval, format_records, sync_warnings
 from antisync.stats.records import flag_signs
+from antisync.store.layout import decode_config
 
 LOLLIPOP = "graph: {kind: lollipop, nodes: 6, path: 3}\nrealizations: 200\nseed: 3\n"
 RELATIVE = (
@@ -187,7 +188,7 @@ def test_swing_equation_and_frequency_locking_line(tmp_path):
         + "sync: {criterion: frequency}\n",
         source=tmp_path / "c.yaml",
     )
-    assert model_line(stored_config(cfg.to_yaml())) == (
+    assert model_line(decode_config(cfg.to_yaml(), "test")) == (
         "model: swing equation (inertia 1, damping 1), natural frequencies from ieee14_power.txt; "
         "sync: frequency locking, tolerance 0.001"
     )

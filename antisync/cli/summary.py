@@ -53,7 +53,7 @@ def summary(
     from antisync.stats.records import flag_signs, sign_rule_note, sort_records
     from antisync.stats.sum_rule import sum_rule_note, views_sums
     from antisync.stats.summary import named_views, view_records
-    from antisync.store import is_sweep_file, read_views, root_attrs, stop_record
+    from antisync.store import is_sweep_file, read_views, stop_record, stored_config
     from antisync.sweeps import sweep_summary
 
     def listed(recs: list[dict]) -> list[dict]:
@@ -79,7 +79,7 @@ def summary(
         # keep the job's name (its HDF5 group's), as antisync.summarize does
         views = read_views(results)
         if format == "table":
-            views = named_views(views, stored_name(root_attrs(results)["config_yaml"]))
+            views = named_views(views, stored_name(stored_config(results)))
         recs = listed(view_records(views))
         typer.echo(format_records(recs, format))
         if format == "table":
@@ -100,12 +100,12 @@ def summary(
 def _model_note(path, records: list[dict], views) -> str | None:
     """The table's ``model: ...; sync: ...`` line (with r* for ``sync.criterion: relative``);
     None for a file without a Kuramoto run (its exact measures depend on no model)."""
-    from antisync.plan.describe import model_line, relative_criterion, stored_config
+    from antisync.plan.describe import model_line, relative_criterion
     from antisync.stats.summary import r_star_rows
-    from antisync.store import read_views, root_attrs
+    from antisync.store import read_views, stored_config
 
     if not any(r.get("realizations") for r in records):
         return None
-    cfg = stored_config(root_attrs(path)["config_yaml"])
+    cfg = stored_config(path)
     rows = r_star_rows(views if views is not None else read_views(path)) if relative_criterion(cfg) else None
     return model_line(cfg, rows)

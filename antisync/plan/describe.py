@@ -1,6 +1,7 @@
 """Which model ran, in one line: the summary's ``model: ...; sync: ...`` (docs/models.md).
 
-Read from the config a result file stores (its root attribute ``config_yaml``), so a summary
+Read from the config a result file stores (its root attribute ``config_yaml``, decoded by
+:func:`antisync.store.stored_config`), so a summary
 says what produced its numbers without the config file at hand. Pure: a mapping in, text out.
 """
 
@@ -12,7 +13,7 @@ from pathlib import Path
 from antisync.errors import ConfigError
 from antisync.plan.model import Model, Sync
 
-__all__ = ["model_line", "model_text", "r_star_text", "relative_criterion", "stored_config", "sync_text"]
+__all__ = ["model_line", "model_text", "r_star_text", "relative_criterion", "stored_name", "sync_text"]
 
 #: ``dynamics.threshold`` of a config that does not give one (antisync.plan.config.Dynamics)
 _THRESHOLD = 0.99
@@ -51,22 +52,10 @@ def model_line(cfg, r_star: list[dict] | None = None) -> str | None:
     return line
 
 
-def stored_config(text: str) -> dict | None:
-    """The config mapping of a result file's ``config_yaml`` (None when it is not a YAML
-    mapping: the line is then left out, the file's numbers still summarized)."""
-    import yaml
-
-    try:
-        cfg = yaml.safe_load(text or "{}")
-    except yaml.YAMLError:
-        return None
-    return cfg if isinstance(cfg, dict) else None
-
-
-def stored_name(text: str) -> str | None:
-    """The ``name:`` of a result file's ``config_yaml`` (None when it has none, or the text is
-    not a YAML mapping): what the summary and the report call its job."""
-    name = (stored_config(text) or {}).get("name")
+def stored_name(cfg: Mapping) -> str | None:
+    """The ``name:`` of a stored config mapping (None when it has none): what the summary and
+    the report call its job. The mapping comes from :func:`antisync.store.stored_config`."""
+    name = cfg.get("name")
     return name if isinstance(name, str) and name else None
 
 

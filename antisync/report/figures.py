@@ -52,7 +52,7 @@ from antisync.report.measures import LABELS, measure_figures
 from antisync.report.tables import fmt_interval
 from antisync.stats.records import primary_measure
 from antisync.stats.summary import OUTSIDE_WHY, JobView, graph_names, job_records, named_views
-from antisync.store import read_views, root_attrs
+from antisync.store import read_views, stored_config
 
 __all__ = [
     "HIST_QUANTILE",
@@ -604,5 +604,5 @@ def write_file_report(
 ) -> list[Path]:
     """:func:`write_report` of the result file ``path`` (not a sweep's), its files named after
     the ``name:`` of the config it stores."""
-    name = stored_name(root_attrs(Path(path))["config_yaml"])
+    name = stored_name(stored_config(Path(path)))
     return write_report(read_views(path), folder, pdf=pdf, top=top, name=name)

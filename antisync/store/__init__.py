@@ -38,6 +38,7 @@ from antisync.store.layout import (
     root_attrs,
     state_view,
     stop_record,
+    stored_config,
     write_sweep_meta,
 )
 from antisync.store.provenance import command_line, git_revision
@@ -65,5 +66,6 @@ __all__ = [
     "root_attrs",
     "state_view",
     "stop_record",
+    "stored_config",
     "write_sweep_meta",
 ]

@@ -53,6 +53,7 @@ import json
 from pathlib import Path
 
 import numpy as np
+import yaml
 
 from antisync._version import __version__
 from antisync.errors import StoreError
@@ -170,6 +171,36 @@ def root_attrs(path: Path) -> dict:
         out = {k: str(f.attrs.get(k, "")) for k in keys}
         out["complete"] = bool(f.attrs.get("complete", False))
     return out
+
+
+def stored_config(path: Path) -> dict:
+    """The config a result file stores (root attribute ``config_yaml``) as a mapping: what every
+    reader (the summary's model line, the report's names, :func:`antisync.summarize`) decodes,
+    here, with one policy (:func:`decode_config`)."""
+    return decode_config(root_attrs(path)["config_yaml"], path)
+
+
+def decode_config(text: str, where) -> dict:
+    """``text`` (a result file's ``config_yaml``) as a mapping; ``{}`` when it is empty (a file
+    written without one).
+
+    Raises
+    ------
+    StoreError
+        ``where`` is damaged: the text is not YAML, or not a mapping of config keys.
+    """
+    try:
+        cfg = yaml.safe_load(text or "{}")
+    except yaml.YAMLError:
+        raise StoreError(f"{where} is damaged: its root attribute config_yaml is not YAML") from None
+    if cfg is None:
+        return {}
+    if not isinstance(cfg, dict):
+        raise StoreError(
+            f"{where} is damaged: its root attribute config_yaml is not a mapping of config keys "
+            f"(a {type(cfg).__name__})"
+        )
+    return cfg
 
 
 def stop_record(path: Path) -> dict | None:
