@@ -10,6 +10,7 @@ import typer
 from typer.core import TyperGroup
 
 from antisync._version import __version__
+from antisync.cli.capabilities import capabilities
 from antisync.cli.common import fail, flush_stdout
 from antisync.cli.grid import grid
 from antisync.cli.paper import paper
@@ -107,6 +108,7 @@ app.command()(report)
 app.command()(validate)
 app.command()(paper)
 app.command()(grid)
+app.command()(capabilities)
 
 
 def main() -> None:
