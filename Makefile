@@ -6,7 +6,7 @@ STAMP  := $(VENV)/.installed-stamp
 CONFIG ?= configs/lollipop6.yaml
 RESULT ?= results/lollipop6.h5
 
-.PHONY: help install run test test-slow test-cuda bench lint format clean paper fig1-paper-precision fig3-two-hours
+.PHONY: help install run test test-slow test-cuda bench lint format docs clean paper fig1-paper-precision fig3-two-hours
 
 help:
 	@echo "make run        set up .venv, run $(CONFIG), write $(RESULT) and figures"
@@ -21,13 +21,14 @@ help:
 	@echo "make fig3-two-hours"
 	@echo "                Fig. 3's ranking and Table 1 from 1.5M realizations of every six-node"
 	@echo "                graph (RK4; ~2 hours on 2 cores) into results/fig3_two_hours/"
+	@echo "make docs       the documentation site with the API reference, strict, into site/"
 	@echo "make lint       ruff check and ruff format --check (part of make test)"
 	@echo "make format     ruff format (rewrites files)"
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
-	$(BIN)/python -m pip install --quiet -e ".[dev]"
+	$(BIN)/python -m pip install --quiet -e ".[dev,docs]"
 	@touch $(STAMP)
 
 install: $(STAMP)
@@ -38,14 +39,18 @@ run: $(STAMP)
 	$(BIN)/antisync summary $(RESULT)
 	$(BIN)/antisync report $(RESULT)
 
-# lint and format checks first (seconds), then the suite; pytest's exit 5 (no tests) fails too
+# lint and format checks first (seconds), then the suite on every core (pytest-xdist; a file's
+# tests stay on one worker, so each worker compiles the kernels its files need once, and the
+# on-disk cache shares them); pytest's exit 5 (no tests) fails too
+PYTEST := $(BIN)/python -m pytest -n auto --dist loadfile
+
 test: $(STAMP)
 	$(BIN)/ruff check antisync tests bench tools
 	$(BIN)/ruff format --check antisync tests bench tools
-	$(BIN)/python -m pytest
+	$(PYTEST)
 
 test-slow: $(STAMP)
-	$(BIN)/python -m pytest -m slow
+	$(PYTEST) -m slow
 
 # the CUDA backend under the numba simulator (part of `make test` too); on a GPU machine
 # also run: $(BIN)/python bench/gpu_check.py
@@ -61,6 +66,10 @@ bench: $(STAMP)
 	$(BIN)/python bench/bench_adaptive.py --realizations 5000
 	$(BIN)/python bench/bench_dask.py
 
+# every warning is an error (mkdocs.yml: strict); the API pages come from the docstrings
+docs: $(STAMP)
+	$(BIN)/mkdocs build --strict --site-dir site
+
 lint: $(STAMP)
 	$(BIN)/ruff check antisync tests bench tools
 	$(BIN)/ruff format --check antisync tests bench tools
@@ -69,7 +78,7 @@ format: $(STAMP)
 	$(BIN)/ruff format antisync tests bench tools
 
 clean:
-	rm -rf $(VENV) .pytest_cache .ruff_cache build *.egg-info
+	rm -rf $(VENV) .pytest_cache .ruff_cache build site *.egg-info
 	find . -name __pycache__ -type d -prune -exec rm -rf {} +
 
 paper: $(STAMP)

@@ -14,7 +14,7 @@ import time
 os.environ.setdefault("NUMBA_NUM_THREADS", "1")  # before numba is imported
 import numpy as np  # noqa: E402
 
-from antisync.execution import compute  # noqa: E402
+from antisync.execution import dispatch  # noqa: E402
 from antisync.kernels import cpu  # noqa: E402
 from antisync.kernels.adjoint import link_derivatives  # noqa: E402
 from antisync.kernels.model_adjoint import simulate_model_adjoint  # noqa: E402
@@ -29,7 +29,7 @@ job = make_job(load_config(a.config))
 dyn = job.config.dynamics
 m = a.realizations
 ks = np.arange(m, dtype=np.uint64)
-params = compute._model_params(job, ks, job.model.targets[:1])
+params = dispatch.job_model_params(job, ks, job.model.targets[:1])
 edge_a, edge_b, _, _ = job.tangent
 edges = list(zip(edge_a.tolist(), edge_b.tolist(), strict=True))
 deriv = link_derivatives(job.omega, job.csr, edges, dyn.coupling)

@@ -115,7 +115,8 @@ def check_reductions(flips: bool = False) -> None:
     damage of 0.5 and t_max = 2 make realizations lose (16) and gain (2) synchronization,
     counted as n_lost and n_gained.
     """
-    from antisync.execution.compute import _fd_variants, _sync_flips, lambda_values
+    from antisync.execution.compute import lambda_values
+    from antisync.execution.dispatch import fd_variants, sync_flips
 
     extra = ["lambda.dbeta=0.5", "dynamics.t_max=2.0"] if flips else []
     job = make_job(load_config_text(HOUSE_RAW, ["histogram.bins=16", "histogram.tau_max=3.0", *extra]))
@@ -128,7 +129,7 @@ def check_reductions(flips: bool = False) -> None:
     hist = estimators.histogram2d(ref, hv, kw["dt"], 16, 3.0)
     values, code, flagged, _, slope, tau0 = lambda_values(job, ref, first, count, with_tau=True)
     lam_rec, lam_tail = estimators.lambda_block_records(
-        values, code, flagged, block, _sync_flips(job, ref), slope, tau0
+        values, code, flagged, block, sync_flips(job, ref), slope, tau0
     )
     if flips:
         assert lam_rec[..., 6].sum() == 16 and lam_rec[..., 7].sum() == 2, lam_rec[..., 6:].sum(axis=(0, 1))
@@ -139,7 +140,7 @@ def check_reductions(flips: bool = False) -> None:
         hist_variants=hv,
         bins=16,
         tau_max=3.0,
-        lambda_variants=_fd_variants(job),
+        lambda_variants=fd_variants(job),
         dbeta=job.dbeta,
         batch_pairs=12 * 25,
     )

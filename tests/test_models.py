@@ -547,10 +547,10 @@ LANE_MODELS = {
 
 
 def _model_sim(job, count, **kw):
-    from antisync.execution.compute import _model_params
+    from antisync.execution.dispatch import job_model_params
 
     ks = np.arange(count, dtype=np.uint64)
-    params = _model_params(job, ks, job.model.targets)
+    params = job_model_params(job, ks, job.model.targets)
     dyn = job.config.dynamics
     return cpu.simulate_model(
         job.config.seed,

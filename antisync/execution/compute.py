@@ -12,9 +12,6 @@ import numpy as np
 
 from antisync.errors import ConfigError
 from antisync.execution import dispatch
-
-# the dispatch table's helpers that tests and benchmarks reach through this module
-from antisync.execution.dispatch import _fd_variants, _model_params, _sync_flips, model_params  # noqa: F401
 from antisync.plan.jobs import Chunk, Job
 from antisync.stats import estimators
 from antisync.store.state import ChunkResult
@@ -26,7 +23,6 @@ __all__ = [
     "check_job",
     "compute_chunk",
     "lambda_values",
-    "model_params",
     "simulate_job",
 ]
 

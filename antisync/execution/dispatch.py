@@ -46,10 +46,13 @@ __all__ = [
     "LambdaPass",
     "Refusal",
     "Row",
+    "fd_variants",
+    "job_model_params",
     "key_of",
     "lambda_pass",
     "lookup",
     "model_params",
+    "sync_flips",
 ]
 
 #: the model kinds: Eq. 2's identical first-order oscillators, and a generalized model (a
@@ -94,7 +97,7 @@ def model_params(setup, model, seed: int, ks: np.ndarray, n: int, targets: np.nd
     )
 
 
-def _model_params(job, ks: np.ndarray, targets: np.ndarray):
+def job_model_params(job, ks: np.ndarray, targets: np.ndarray):
     """:func:`model_params` of ``job``."""
     return model_params(job.model, job.config.model, job.config.seed, ks, len(job.nodes), targets)
 
@@ -156,7 +159,7 @@ def _model(simulate_model, job, first, count, variant_weights, realizations, tod
     else:
         raise ValueError("other weights for a generalized model need their variant_targets")
     ks = cpu._realization_ids(first, count, realizations)
-    params = _model_params(job, ks, targets)
+    params = job_model_params(job, ks, targets)
     dyn = job.config.dynamics
     return simulate_model(
         job.config.seed,
@@ -214,7 +217,7 @@ def _reduce_on_device(job, chunk, first: int, count: int, start: float) -> Chunk
         hist_variants=job.hist_variants,
         bins=hcfg.bins,
         tau_max=hcfg.tau_max,
-        lambda_variants=_fd_variants(job),
+        lambda_variants=fd_variants(job),
         dbeta=job.dbeta,
         precision=dyn.precision,
     )
@@ -337,16 +340,16 @@ def _lanes(job) -> Driver:
 # -- the Lambda passes ------------------------------------------------------------------------
 
 
-def _fd_variants(job) -> np.ndarray:
+def fd_variants(job) -> np.ndarray:
     """The variant at ``dbeta`` of every edge: the finite difference of Lambda^KM."""
     return np.array([job.variant(e, job.dbeta) for e in range(len(job.edges))], dtype=np.int64)
 
 
-def _sync_flips(job, sim) -> np.ndarray:
+def sync_flips(job, sim) -> np.ndarray:
     """Per (realization, edge) of a finite difference: ``-1`` where tau0 synchronized and
     tau(dbeta) did not, ``+1`` for the reverse, else 0 (the synchronized fraction's response)."""
     s0 = sim.status0[:, None]
-    s = sim.status[:, _fd_variants(job)]
+    s = sim.status[:, fd_variants(job)]
     lost = (s0 == SYNCED) & (s == NOT_SYNCED)
     gained = (s0 == NOT_SYNCED) & (s == SYNCED)
     return (gained.astype(np.int8) - lost.astype(np.int8)).astype(np.int8)
@@ -356,7 +359,7 @@ def _forward_secants(job, sim, first: int, count: int, threads: int | None):
     """``finite-difference``: the paper's forward secant ``(tau0 / tau(dbeta) - 1) / dbeta`` of
     every edge, from the chunk's integrated variants (no trajectory of its own)."""
     dyn = job.config.dynamics
-    v = _fd_variants(job)
+    v = fd_variants(job)
     t0, t = estimators.crossing_times(sim, dyn.interpolate)
     t = t[:, v]
     ok = (sim.status0[:, None] == SYNCED) & (sim.status[:, v] == SYNCED)
@@ -448,7 +451,7 @@ def _model_adjoint_pass(job, first: int, count: int, threads: int | None):
 
     dyn = job.config.dynamics
     setup = job.model
-    params = _model_params(job, _realization_ids(first, count, None), setup.targets[:1])
+    params = job_model_params(job, _realization_ids(first, count, None), setup.targets[:1])
     edge_a, edge_b, _, _ = job.tangent
     edges = list(zip(edge_a.tolist(), edge_b.tolist(), strict=True))
     return simulate_model_adjoint(
@@ -556,7 +559,7 @@ def _derivative_values(derivative: Callable, secants: bool = False) -> Callable:
     return functools.partial(_derivatives, derivative=derivative, secants=secants)
 
 
-_FD = {"integrates": False, "sync_response": _sync_flips}
+_FD = {"integrates": False, "sync_response": sync_flips}
 
 #: (model kind, lambda.method) -> the pass computing its values, one row per estimator that
 #: runs for the model kind (the forward tangents are written for the identical oscillators'

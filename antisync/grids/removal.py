@@ -55,7 +55,7 @@ from pathlib import Path
 import numpy as np
 
 from antisync.errors import AntisyncError
-from antisync.execution.compute import model_params
+from antisync.execution.dispatch import model_params
 from antisync.execution.executors.dask import TaskLostError, check_client, client_threads
 from antisync.execution.executors.tasks import map_tasks
 from antisync.grids.errors import GridError
