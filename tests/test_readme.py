@@ -25,8 +25,19 @@ README = REPO / "README.md"
 
 
 def _blocks(lang: str) -> list[str]:
-    text = README.read_text(encoding="utf-8")
-    return re.findall(rf"^```{lang}\n(.*?)^```", text, flags=re.S | re.M)
+    """The README's fenced blocks whose opening fence names ``lang`` ("" for a bare fence)."""
+    blocks, current, inside = [], [], None
+    for line in README.read_text(encoding="utf-8").splitlines():
+        if line.startswith("```"):
+            if inside is None:
+                inside, current = line[3:].strip(), []
+            else:
+                if inside == lang:
+                    blocks.append("\n".join(current) + "\n")
+                inside = None
+        elif inside is not None:
+            current.append(line)
+    return blocks
 
 
 def _commands(block: str) -> list[list[str]]:
