@@ -39,7 +39,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from bench_sizes import csr, graphs_to_bench  # noqa: E402
 
 from antisync.kernels.adjoint import _euler_vjp_vec, _rk4_vjp_vec, _transpose  # noqa: E402
-from antisync.kernels.cpu import _K  # noqa: E402
+from antisync.kernels.precision import K64 as _K  # noqa: E402
 
 LANES = 16
 DT_EULER = 0.01

@@ -55,7 +55,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from bench_sizes import csr, graphs_to_bench  # noqa: E402
 
 from antisync.kernels.core import VEC, f64vec, vsplat, vstore  # noqa: E402
-from antisync.kernels.cpu import _K, _step_vec  # noqa: E402 (the fused step of c's precision)
+from antisync.kernels.precision import K64 as _K  # noqa: E402
+from antisync.kernels.precision import step_vec as _step_vec  # noqa: E402 (the fused step of c's precision)
 
 LANES = 32
 DT = 0.01

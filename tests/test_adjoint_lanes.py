@@ -14,7 +14,7 @@ from test_adjoint import EULER, RK4, _network
 
 from antisync.kernels.adjoint import LANES, link_derivatives, simulate_adjoint
 from antisync.kernels.core import TAYLOR_MAX_ANGLE
-from antisync.kernels.cpu import _row_sum_bound
+from antisync.kernels.shared import row_sum_bound as _row_sum_bound
 from antisync.status import ALREADY_SYNCED, NOT_SYNCED, SYNCED
 
 

@@ -53,7 +53,17 @@ from antisync.kernels.core import (
     vsqrt,
     vstore,
 )
-from antisync.kernels.cpu import PathwiseResult, _realization_ids, _row_sum_bound, _Threads
+from antisync.kernels.lanes import integrate_lanes
+from antisync.kernels.shared import (
+    NO_TANGENTS,
+    Graph,
+    Outputs,
+    PathwiseResult,
+    Threads,
+    realization_ids,
+    row_sum_bound,
+)
+from antisync.kernels.shared import Run as LaneRun
 from antisync.physics.coupling import CouplingCSR, coupling_derivative_row
 from antisync.physics.phases import phase
 from antisync.status import ALREADY_SYNCED, NOT_SYNCED, SYNCED
@@ -1163,7 +1173,7 @@ def _adjoint_lanes_batch(ks, indptr, indices, w, tr, deriv, run, status0, steps0
 def _adjoint_batch(ks, indptr, indices, w, deriv, run, n_groups, status0, steps0, frac0, dtau):
     """Realizations ``ks`` split into ``n_groups`` ranges, one per parallel task; each task
     integrates its realizations one at a time with per-task buffers."""
-    # every field as a local before the prange (see antisync.kernels.cpu._integrate_lanes)
+    # every field as a local before the prange (see antisync.kernels.lanes.integrate_lanes)
     d_ptr = deriv.indptr
     d_pos = deriv.position
     d_val = deriv.value
@@ -1230,17 +1240,14 @@ def _lane_order(ks, indptr, indices, w, run: _Run) -> np.ndarray:
     m = ks.size
     if m <= LANES:
         return np.arange(m)
-    from antisync.kernels.cpu import _NO_TANGENTS, _Graph, _integrate_lanes, _Outputs
-    from antisync.kernels.cpu import _Run as _LaneRun
-
-    graph = _Graph(indptr, indices, w, np.empty((0, w.size)), np.zeros(0, dtype=np.bool_))
-    dt = PREDICT_DT / max(_row_sum_bound(indptr, w, []), 1e-300)
+    graph = Graph(indptr, indices, w, np.empty((0, w.size)), np.zeros(0, dtype=np.bool_))
+    dt = PREDICT_DT / max(row_sum_bound(indptr, w, []), 1e-300)
     if dt > run.dt:
         steps = int(np.ceil(run.max_steps * run.dt / dt))
-        lane_run = _LaneRun(run.seed, dt, run.r2_target, steps, False, True, LANES)
+        lane_run = LaneRun(run.seed, dt, run.r2_target, steps, False, True, LANES)
     else:
-        lane_run = _LaneRun(run.seed, run.dt, run.r2_target, run.max_steps, not run.rk4, run.rk4, LANES)
-    out = _Outputs(
+        lane_run = LaneRun(run.seed, run.dt, run.r2_target, run.max_steps, not run.rk4, run.rk4, LANES)
+    out = Outputs(
         np.empty(m, dtype=np.int8),
         np.empty(m, dtype=np.int64),
         np.empty(m),
@@ -1250,7 +1257,7 @@ def _lane_order(ks, indptr, indices, w, run: _Run) -> np.ndarray:
         np.empty((m, 0)),
     )
     threads = numba.get_num_threads()
-    _integrate_lanes(ks, graph, lane_run, None, out, _NO_TANGENTS, threads)
+    integrate_lanes(ks, graph, lane_run, None, out, NO_TANGENTS, threads)
     by_steps = np.argsort(out.steps0, kind="stable")
     n_groups = (m + LANES - 1) // LANES
     groups = [by_steps[g * LANES : (g + 1) * LANES] for g in range(n_groups)]
@@ -1315,7 +1322,7 @@ def simulate_adjoint(
     every = checkpoint_every
     if isinstance(every, bool) or not isinstance(every, int | np.integer) or every < 1:
         raise ValueError(f"checkpoint_every must be a positive integer, got {checkpoint_every!r}")
-    ks = _realization_ids(first, count, realizations)
+    ks = realization_ids(first, count, realizations)
     n = indptr.size - 1
     m = ks.size
     deriv = LinkDerivatives(
@@ -1338,9 +1345,9 @@ def simulate_adjoint(
     indptr = np.ascontiguousarray(indptr, dtype=np.int64)
     indices = np.ascontiguousarray(indices, dtype=np.int64)
     base_weights = np.ascontiguousarray(base_weights, dtype=np.float64)
-    taylor = float(dt) * _row_sum_bound(indptr, base_weights, []) <= TAYLOR_MAX_ANGLE
+    taylor = float(dt) * row_sum_bound(indptr, base_weights, []) <= TAYLOR_MAX_ANGLE
     if lanes and (taylor or integrator == "rk4"):
-        with _Threads(threads):
+        with Threads(threads):
             order = _lane_order(ks, indptr, indices, base_weights, run)
             out = (np.empty_like(status0), np.empty_like(steps0), np.empty_like(frac0), np.empty_like(dtau))
             tr = _transpose(indptr, indices)
@@ -1348,7 +1355,7 @@ def simulate_adjoint(
         for target, got in zip((status0, steps0, frac0, dtau), out, strict=True):
             target[order] = got
         return PathwiseResult(status0, steps0, frac0, dtau)
-    with _Threads(threads) as groups:
+    with Threads(threads) as groups:
         _adjoint_batch(
             ks,
             np.ascontiguousarray(indptr, dtype=np.int64),

@@ -58,7 +58,7 @@ from antisync.kernels.core import (
     make_kernels,
     make_model_kernels,
 )
-from antisync.kernels.cpu import PathwiseResult, _realization_ids, _Threads
+from antisync.kernels.shared import PathwiseResult, Threads, realization_ids
 from antisync.physics.phases import phase
 from antisync.status import NOT_SYNCED, SYNCED
 
@@ -911,7 +911,7 @@ def simulate_model_adjoint(
 
     if integrator not in ("euler", "rk4"):
         raise ValueError(f"integrator must be 'euler' or 'rk4', got {integrator!r}")
-    ks = _realization_ids(first, count, realizations)
+    ks = realization_ids(first, count, realizations)
     m = ks.size
     n = indptr.size - 1
     w = np.ascontiguousarray(weights, dtype=np.float64)
@@ -921,7 +921,7 @@ def simulate_model_adjoint(
     frac0 = np.empty(m)
     grad = np.zeros((m, w.size))
     coef_t = np.zeros(m)
-    with _Threads(threads):
+    with Threads(threads):
         _adjoint_items(
             ks,
             np.uint64(seed),

@@ -1,7 +1,7 @@
 """The generalized models' terms on the lanes (natural frequencies, phase lag, inertia;
 docs/models.md): their constants and their step functions on the ``[node, lane]`` layout.
 
-The lane driver :func:`antisync.kernels.cpu._integrate_lanes` runs the identical first-order
+The lane driver :func:`antisync.kernels.lanes.integrate_lanes` runs the identical first-order
 oscillators and these models alike; with a model it calls the functions here, which perform per
 lane exactly the operations of :func:`antisync.kernels.core.make_model_kernels`' one-trajectory
 functions in the same order, on machine vectors of ``VEC`` lanes (two vectors at a time; the

@@ -1,0 +1,240 @@
+"""What the backends share: the drivers' argument groups, their results and the host-side checks.
+
+The CPU drivers (:mod:`.cpu`, the lane driver of :mod:`.lanes`), the CUDA twins (:mod:`.cuda`)
+and the adjoints (:mod:`.adjoint`, :mod:`.model_adjoint`) all import from here, never from one
+another's private names (as stumpy's backends import only its ``core.py``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import NamedTuple
+
+import numba
+import numpy as np
+
+from antisync.kernels.core import CRIT_FREQUENCY, CRIT_ORDER, RENORM_EVERY, VEC
+
+__all__ = [
+    "NO_TANGENTS",
+    "Graph",
+    "Model",
+    "Outputs",
+    "PathwiseResult",
+    "Run",
+    "SimResult",
+    "Tangents",
+    "Threads",
+    "model_inputs",
+    "realization_ids",
+    "rotation_angle_bound",
+    "row_sum_bound",
+]
+
+
+class Graph(NamedTuple):
+    """The drivers' network: ``W`` in CSR form and the CSR weights of every damage variant."""
+
+    indptr: np.ndarray
+    """int64 (N + 1,)"""
+    indices: np.ndarray
+    """int64 (nnz,)"""
+    base_w: np.ndarray
+    """float64 (nnz,): the undamaged ``W``."""
+    var_w: np.ndarray
+    """float64 (V, nnz): each damaged ``W(Omega*)``."""
+    var_is_base: np.ndarray
+    """bool (V,): variant ``v`` leaves ``W`` unchanged (its result is copied from tau0)."""
+    todo: np.ndarray = np.ones((0, 0), dtype=np.bool_)
+    """bool (m, V + 1): the lane driver integrates only the marked (realization, network)
+    items, column 0 the undamaged network; shape (0, 0): every item."""
+
+
+class Run(NamedTuple):
+    """The constants of one batch."""
+
+    seed: np.uint64
+    dt: float
+    r2_target: float
+    """``(threshold N)^2``: ``R = |sum_j e^{i theta_j}|^2`` at the threshold."""
+    max_steps: int
+    taylor: bool
+    """Every rotation angle is within the Taylor polynomials' range (lane driver)."""
+    rk4: bool
+    """RK4 with Hermite crossing instead of Euler (lane driver)."""
+    lanes: int
+    """Trajectories stepped together per thread (lane driver)."""
+    renorm: int = RENORM_EVERY
+    """Euler steps between projections of the state back to the unit circle."""
+    block: int = 2 * VEC
+    """Lanes the vector kernels step together (two machine vectors of the state's precision):
+    the lane arrays are a multiple of it wide."""
+
+
+class Outputs(NamedTuple):
+    """Arrays the lane driver fills, one row per realization."""
+
+    status0: np.ndarray
+    """int8 (m,)"""
+    steps0: np.ndarray
+    """int64 (m,)"""
+    frac0: np.ndarray
+    """float64 (m,)"""
+    status: np.ndarray
+    """int8 (m, V)"""
+    steps: np.ndarray
+    """int64 (m, V)"""
+    frac: np.ndarray
+    """float64 (m, V)"""
+    dtau: np.ndarray
+    """float64 (m, E): d tau0 / d beta_e (E = 0 without tangents)."""
+
+
+class Tangents(NamedTuple):
+    """The damaged edges whose forward sensitivities ride along (all empty: none).
+
+    Damage on edge ``e = a -> b`` changes row ``a`` of ``W`` as ``dw_aj/dbeta = rho[e] w_aj +
+    mu[e] [j = b]``.
+    """
+
+    edge_a: np.ndarray
+    """int64 (E,)"""
+    edge_b: np.ndarray
+    """int64 (E,)"""
+    rho: np.ndarray
+    """float64 (E,)"""
+    mu: np.ndarray
+    """float64 (E,)"""
+
+
+NO_TANGENTS = Tangents(np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64), np.zeros(0), np.zeros(0))
+
+
+class Model(NamedTuple):
+    """A generalized model's constants for the lane driver
+    (:class:`~antisync.kernels.model_steps.ModelParams` as arrays); the driver takes ``None`` for
+    the identical first-order oscillators."""
+
+    freqs: np.ndarray
+    """float64 (1 or m, N): natural frequencies, one row for all realizations or one each."""
+    cos_lag: float
+    sin_lag: float
+    mass: np.ndarray
+    """float64 (N,): inertia m_i (0: a first-order node)."""
+    gamma: np.ndarray
+    """float64 (N,): damping."""
+    criterion: int
+    """CRIT_ORDER or CRIT_FREQUENCY."""
+    targets: np.ndarray
+    """float64 (V + 1,): the criterion's target of the undamaged network, then of each variant."""
+
+
+@dataclass(frozen=True)
+class SimResult:
+    """Per-realization outcome of a batch (integration steps; ``tau = steps * dt``).
+
+    Attributes
+    ----------
+    status0, steps0 : arrays, shape (m,)
+        :class:`~antisync.status.Status` code and steps of the undamaged network.
+    status, steps : arrays, shape (m, V)
+        The same for each damage variant ``v``.
+    frac0, frac : arrays or None
+        Where inside the crossing step the threshold is met, ``x`` in ``(0, 1]``, from a
+        straight line through ``R = |sum_j e^{i theta_j}|^2`` at the two grid points: the
+        interpolated crossing time is ``(steps - 1 + x) dt`` (None from the plain driver).
+    """
+
+    status0: np.ndarray
+    steps0: np.ndarray
+    status: np.ndarray
+    steps: np.ndarray
+    frac0: np.ndarray | None = None
+    frac: np.ndarray | None = None
+
+
+@dataclass(frozen=True)
+class PathwiseResult:
+    """Undamaged trajectories with their sensitivities.
+
+    Attributes
+    ----------
+    status0, steps0, frac0 : arrays, shape (m,)
+        As in :class:`SimResult`; the interpolated ``tau0 = (steps0 - 1 + frac0) dt``.
+    dtau : array, shape (m, E)
+        ``d tau0 / d beta_e`` at ``beta = 0`` for damage on edge ``e`` (0 unless SYNCED).
+    """
+
+    status0: np.ndarray
+    steps0: np.ndarray
+    frac0: np.ndarray
+    dtau: np.ndarray
+
+
+def rotation_angle_bound(dt: float, indptr, base_w, var_w) -> float:
+    """The largest rotation angle an Euler step can take, ``dt max_i sum_j |w_ij|`` over the base
+    weights and every variant's (the lane kernels need it within
+    :data:`~antisync.kernels.core.TAYLOR_MAX_ANGLE`)."""
+    return float(dt) * row_sum_bound(indptr, base_w, var_w)
+
+
+def row_sum_bound(indptr, base_w, var_w) -> float:
+    """Largest sum_j |w_ij| over rows of the base and every variant (bounds |omega_i|)."""
+    rows = np.repeat(np.arange(indptr.size - 1), np.diff(indptr))
+    best = 0.0
+    for w in (base_w, *var_w):
+        best = max(best, float(np.bincount(rows, np.abs(w), minlength=indptr.size - 1).max()))
+    return best
+
+
+def realization_ids(first: int, count: int, realizations) -> np.ndarray:
+    """The realization indices of a batch (uint64): ``realizations`` as given, else ``first ..
+    first+count-1``."""
+    if realizations is not None:
+        ks = np.asarray(realizations, dtype=np.uint64)
+        if ks.ndim != 1:
+            raise ValueError("realizations must be a 1-D array of realization indices")
+        return ks
+    if first < 0 or count < 0:
+        raise ValueError("first and count must be non-negative")
+    return np.arange(first, first + count, dtype=np.uint64)
+
+
+class Threads:
+    """Temporarily set numba's thread count (results never depend on it)."""
+
+    def __init__(self, threads):
+        self.threads = threads
+
+    def __enter__(self):
+        self.previous = numba.get_num_threads()
+        if self.threads is not None:
+            numba.set_num_threads(max(1, min(int(self.threads), numba.config.NUMBA_NUM_THREADS)))
+        return 4 * numba.get_num_threads()
+
+    def __exit__(self, *exc):
+        numba.set_num_threads(self.previous)
+
+
+def model_inputs(first, count, realizations, indptr, base_weights, variant_weights, params, integrator):
+    """A model run's arguments checked and in the kernels' types, for the CPU and CUDA drivers:
+    ``(ks, base_weights, var_w, var_is_base, freqs, targets)``; ``ValueError`` names what is
+    wrong (the integrator, the criterion code, the shapes of ``freqs`` and ``targets``)."""
+    if integrator not in ("euler", "rk4"):
+        raise ValueError(f"integrator must be 'euler' or 'rk4', got {integrator!r}")
+    if params.criterion not in (CRIT_ORDER, CRIT_FREQUENCY):
+        raise ValueError(f"unknown criterion code {params.criterion}")
+    ks = realization_ids(first, count, realizations)
+    m = ks.size
+    n = indptr.size - 1
+    base = np.ascontiguousarray(base_weights, dtype=np.float64)
+    var_w = np.ascontiguousarray(variant_weights, dtype=np.float64).reshape(-1, base.size)
+    n_var = var_w.shape[0]
+    var_is_base = np.array([np.array_equal(w, base) for w in var_w], dtype=np.bool_)
+    freqs = np.ascontiguousarray(params.freqs, dtype=np.float64)
+    if freqs.ndim != 2 or freqs.shape[1] != n or freqs.shape[0] not in (1, m):
+        raise ValueError(f"freqs must have shape (1, {n}) or ({m}, {n}), got {freqs.shape}")
+    targets = np.ascontiguousarray(params.targets, dtype=np.float64)
+    if targets.shape != (n_var + 1,):
+        raise ValueError(f"targets must have shape ({n_var + 1},), got {targets.shape}")
+    return ks, base, var_w, var_is_base, freqs, targets
