@@ -30,6 +30,13 @@ from typing import NamedTuple
 import numpy as np
 
 from antisync.errors import ConfigError
+from antisync.kernels import cpu
+from antisync.kernels.adjoint import link_derivatives, simulate_adjoint
+from antisync.kernels.core import TAYLOR_MAX_ANGLE
+from antisync.kernels.model_adjoint import simulate_model_adjoint
+from antisync.kernels.model_steps import ModelParams
+from antisync.kernels.shared import realization_ids, rotation_angle_bound
+from antisync.plan.model import drawn_frequencies
 from antisync.stats import estimators
 from antisync.status import NOT_SYNCED, SYNCED
 from antisync.store.state import ChunkResult
@@ -85,8 +92,6 @@ def model_params(setup, model, seed: int, ks: np.ndarray, n: int, targets: np.nd
     ``ks`` of ``n`` nodes (``setup``: :class:`~antisync.plan.model.ModelSetup`; ``model``: the config's
     model section): fixed frequencies (one row), drawn ones (a row per realization, in the
     rotating frame of docs/models.md, the distribution's mean never added) or none."""
-    from antisync.kernels.model_steps import ModelParams
-    from antisync.plan.model import drawn_frequencies
 
     if model.drawn:
         freqs = drawn_frequencies(model, seed, ks, n)
@@ -131,13 +136,13 @@ def _identical(simulate, job, first, count, variant_weights, realizations, todo,
 
 def _identical_lanes(job, first, count, threads, variant_weights, realizations, todo, variant_targets):
     """:func:`antisync.kernels.cpu.simulate` (float64 Euler or RK4, float32 Euler)."""
-    from antisync.kernels.cpu import simulate
 
-    return _identical(simulate, job, first, count, variant_weights, realizations, todo, threads=threads)
+    return _identical(cpu.simulate, job, first, count, variant_weights, realizations, todo, threads=threads)
 
 
 def _identical_cuda(job, first, count, threads, variant_weights, realizations, todo, variant_targets):
     """:func:`antisync.kernels.cuda.simulate` (Euler, grid crossings, float64 or float32)."""
+    # lazy: numba-cuda is optional; the CUDA kernels load only for a cuda row
     from antisync.kernels.cuda import simulate
 
     return _identical(simulate, job, first, count, variant_weights, realizations, todo)
@@ -145,7 +150,6 @@ def _identical_cuda(job, first, count, threads, variant_weights, realizations, t
 
 def _model(simulate_model, job, first, count, variant_weights, realizations, todo, variant_targets):
     """A generalized model (docs/models.md) by ``simulate_model`` (a backend's)."""
-    from antisync.kernels import cpu
 
     setup = job.model
     targets = setup.targets
@@ -158,7 +162,7 @@ def _model(simulate_model, job, first, count, variant_weights, realizations, tod
         targets = np.concatenate([setup.targets[:1], variant_targets])
     else:
         raise ValueError("other weights for a generalized model need their variant_targets")
-    ks = cpu._realization_ids(first, count, realizations)
+    ks = realization_ids(first, count, realizations)
     params = job_model_params(job, ks, targets)
     dyn = job.config.dynamics
     return simulate_model(
@@ -180,9 +184,8 @@ def _model(simulate_model, job, first, count, variant_weights, realizations, tod
 
 def _model_lanes(job, first, count, threads, variant_weights, realizations, todo, variant_targets):
     """:func:`antisync.kernels.cpu.simulate_model` (Euler or RK4, float64)."""
-    from antisync.kernels.cpu import simulate_model
 
-    simulate = functools.partial(simulate_model, threads=threads)
+    simulate = functools.partial(cpu.simulate_model, threads=threads)
     return _model(simulate, job, first, count, variant_weights, realizations, todo, variant_targets)
 
 
@@ -190,6 +193,7 @@ def _model_cuda(job, first, count, threads, variant_weights, realizations, todo,
     """:func:`antisync.kernels.cuda.simulate_model` (Euler or RK4, float64; every item)."""
     if todo is not None:
         raise ValueError("the CUDA model kernel integrates every item (no todo)")
+    # lazy: numba-cuda is optional; the CUDA kernels load only for a cuda row
     from antisync.kernels.cuda import simulate_model
 
     return _model(simulate_model, job, first, count, variant_weights, realizations, todo, variant_targets)
@@ -198,6 +202,7 @@ def _model_cuda(job, first, count, threads, variant_weights, realizations, todo,
 def _reduce_on_device(job, chunk, first: int, count: int, start: float) -> ChunkResult:
     """A finite-difference chunk reduced on the GPU: only block records and histograms come back
     (:func:`antisync.kernels.cuda.simulate_reduced`, records identical to the host's)."""
+    # lazy: numba-cuda is optional; the CUDA kernels load only for a cuda row
     from antisync.kernels.cuda import simulate_reduced
 
     dyn = job.config.dynamics
@@ -243,8 +248,6 @@ def _rotation_angles(job) -> None:
     dyn = job.config.dynamics
     if dyn.precision != "float32":
         return
-    from antisync.kernels.core import TAYLOR_MAX_ANGLE
-    from antisync.kernels.cpu import rotation_angle_bound
 
     bound = rotation_angle_bound(dyn.dt, job.csr.indptr, job.csr.weights, job.variant_weights)
     if bound > TAYLOR_MAX_ANGLE:
@@ -257,6 +260,7 @@ def _rotation_angles(job) -> None:
 
 def _cuda_nodes(job) -> None:
     """The CUDA kernels keep a trajectory's state in fixed-size per-thread arrays of ``MAX_NODES``."""
+    # lazy: numba-cuda is optional; the CUDA kernels load only for a cuda row
     from antisync.kernels.cuda import MAX_NODES
 
     if len(job.nodes) > MAX_NODES:
@@ -280,7 +284,7 @@ class Driver:
         The model kind (:data:`MODEL_KINDS`) and the backend.
     simulate : callable
         ``simulate(job, first, count, threads, variant_weights, realizations, todo,
-        variant_targets)`` -> :class:`~antisync.kernels.cpu.SimResult`: tau0 and the variants
+        variant_targets)`` -> :class:`~antisync.kernels.shared.SimResult`: tau0 and the variants
         (``None`` arguments: the job's own), see :func:`antisync.execution.compute.simulate_job`.
     check_job : callable
         ``check_job(job)``: what depends on the graph rather than on the cell (raises
@@ -395,11 +399,10 @@ def _orbit_differences(job, sim, first: int, count: int, threads: int | None):
 def _tangent_pass(job, first: int, count: int, threads: int | None):
     """``d tau0 / d beta_e`` of every edge by forward tangents along the undamaged trajectories
     (:func:`antisync.kernels.cpu.simulate_pathwise`)."""
-    from antisync.kernels.cpu import simulate_pathwise
 
     dyn = job.config.dynamics
     edge_a, edge_b, rho, mu = job.tangent
-    return simulate_pathwise(
+    return cpu.simulate_pathwise(
         job.config.seed,
         first,
         count,
@@ -420,7 +423,6 @@ def _tangent_pass(job, first: int, count: int, threads: int | None):
 def _adjoint_pass(job, first: int, count: int, threads: int | None):
     """``d tau0 / d beta_e`` of every edge by one adjoint pass per trajectory
     (:func:`antisync.kernels.adjoint.simulate_adjoint`)."""
-    from antisync.kernels.adjoint import link_derivatives, simulate_adjoint
 
     dyn = job.config.dynamics
     edge_a, edge_b, _, _ = job.tangent
@@ -445,13 +447,10 @@ def _adjoint_pass(job, first: int, count: int, threads: int | None):
 def _model_adjoint_pass(job, first: int, count: int, threads: int | None):
     """``d tau0 / d beta_e`` of a generalized model by the adjoint of its step and of its
     dense-output crossing (:mod:`antisync.kernels.model_adjoint`)."""
-    from antisync.kernels.adjoint import link_derivatives
-    from antisync.kernels.cpu import _realization_ids
-    from antisync.kernels.model_adjoint import simulate_model_adjoint
 
     dyn = job.config.dynamics
     setup = job.model
-    params = job_model_params(job, _realization_ids(first, count, None), setup.targets[:1])
+    params = job_model_params(job, realization_ids(first, count, None), setup.targets[:1])
     edge_a, edge_b, _, _ = job.tangent
     edges = list(zip(edge_a.tolist(), edge_b.tolist(), strict=True))
     return simulate_model_adjoint(

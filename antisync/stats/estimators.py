@@ -134,7 +134,7 @@ def block_records(sim, dt: float, block: int, interpolate: bool = False):
 
     Parameters
     ----------
-    sim : :class:`antisync.kernels.cpu.SimResult`
+    sim : :class:`antisync.kernels.shared.SimResult`
         Per-realization outcomes; its length need not be a multiple of ``block`` (the last
         block of a run may be short).
     dt : float
