@@ -12,6 +12,7 @@ import numpy as np
 
 from antisync.errors import ConfigError
 from antisync.execution import dispatch
+from antisync.kernels.shared import SimResult
 from antisync.plan.jobs import Chunk, Job
 from antisync.stats import estimators
 from antisync.store.state import ChunkResult
@@ -194,8 +195,6 @@ def compute_chunk(job: Job, chunk: Chunk, backend: str = "cpu", threads: int | N
         sim = row.driver.simulate(job, first, count, threads, None, None, None, None)
     values, code, flagged, base, slope, tau0 = estimator.values(job, sim, first, count, threads)
     if sim is None:
-        from antisync.kernels.cpu import SimResult
-
         empty = np.empty((count, 0))
         sim = SimResult(
             base.status0, base.steps0, empty.astype(np.int8), empty.astype(np.int64), base.frac0, empty

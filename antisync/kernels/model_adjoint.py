@@ -58,6 +58,7 @@ from antisync.kernels.core import (
     make_kernels,
     make_model_kernels,
 )
+from antisync.kernels.model_steps import per_node
 from antisync.kernels.shared import PathwiseResult, Threads, realization_ids
 from antisync.physics.phases import phase
 from antisync.status import NOT_SYNCED, SYNCED
@@ -907,8 +908,6 @@ def simulate_model_adjoint(
         ``status0``, ``steps0``, ``frac0`` as the model driver's (bit for bit) and ``dtau``
         ``(m, E)``, 0 where the trajectory did not synchronize.
     """
-    from antisync.kernels.model_steps import per_node
-
     if integrator not in ("euler", "rk4"):
         raise ValueError(f"integrator must be 'euler' or 'rk4', got {integrator!r}")
     ks = realization_ids(first, count, realizations)

@@ -21,13 +21,17 @@ from pathlib import Path
 import networkx as nx
 import numpy as np
 
+from antisync.errors import AntisyncError
 from antisync.grids.errors import GridError
 from antisync.grids.load import Grid
 from antisync.grids.removal_config import resolve_config, work_config
 from antisync.grids.removal_file import FORMAT, check_new_file, replace_atomically, table_document
 from antisync.grids.removal_journal import key_changes
 from antisync.grids.removal_table import RemovalTable
+from antisync.physics import graphs
+from antisync.plan.model import node_parameters
 from antisync.stats.exact import tau_p_value
+from antisync.stats.multiplicity import benjamini_hochberg
 from antisync.store.outputs import image_problem
 from antisync.types import REMOVAL_BY, RemovalBy
 
@@ -236,8 +240,6 @@ def resolved(doc: dict) -> dict[str, set]:
 def _calls(rows: list[dict]) -> tuple[set, set]:
     """Labels of the rows whose ``P_sync`` change and whose ``d_tau`` are resolved, at false
     discovery rate ``FDR_LEVEL`` over ``rows`` (as :class:`antisync.grids.removal_table.RemovalTable`)."""
-    from antisync.stats.multiplicity import benjamini_hochberg
-
     calls = benjamini_hochberg([r["p_value"] for r in rows])
     sync = {r["label"] for r, c in zip(rows, calls, strict=True) if c}
     calls = benjamini_hochberg([tau_p_value(r["d_tau"], r["d_tau_se"]) for r in rows])
@@ -407,10 +409,6 @@ def _network(config) -> tuple[nx.Graph, dict]:
         labels, omega = list(config.labels), config.omega
         inertia = np.broadcast_to(np.asarray(config.inertia, dtype=float), (len(labels),))
     else:
-        from antisync.errors import AntisyncError
-        from antisync.physics import graphs
-        from antisync.plan.model import node_parameters
-
         cfg = resolve_config(config, {})
         try:
             g = graphs.build_graph(cfg.graph, seed=cfg.seed)
@@ -707,8 +705,6 @@ def side_by_side_report(
     """The removal table beside the static indicators and Lambda as markdown, then the rank
     correlations, the sign agreement of ``d tau`` and ``Lambda_line`` where both are resolved,
     and the dynamic Braess lines against the static candidates (docs/power_grids.md)."""
-    from antisync.stats.multiplicity import benjamini_hochberg
-
     rows = side_by_side(doc, static, lam)
     marks = resolved(doc)
     s = doc["summary"]
