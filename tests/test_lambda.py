@@ -77,7 +77,7 @@ seed: 5
 
 def test_hybrid_uses_central_secants_of_interpolated_times_where_flagged():
     """Flagged values (near a saddle passage) are central secants: a forward one would carry
-    the one-sided bias that makes the sum rule fail (issue 28)."""
+    the one-sided bias that makes the sum rule fail."""
     from antisync.execution.compute import lambda_values
 
     hybrid = _job("hybrid")

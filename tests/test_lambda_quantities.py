@@ -1,4 +1,4 @@
-"""What each Lambda^KM estimator estimates, near saddle passages (issue 28).
+"""What each Lambda^KM estimator estimates, near saddle passages.
 
 Two quantities share the name Lambda^KM: the paper's forward secant (<F(dbeta)> - 1)/dbeta of
 Eq. 17 at a stated dbeta, and the derivative d<F>/dbeta at 0. Near saddle passages tau(beta)

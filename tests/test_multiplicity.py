@@ -1,4 +1,4 @@
-"""Sign calls over many links: the false discovery rate (antisync.stats.multiplicity, issue 28)."""
+"""Sign calls over many links: the false discovery rate (antisync.stats.multiplicity)."""
 
 from __future__ import annotations
 
