@@ -60,7 +60,8 @@ from antisync.plan.sources import (
 from antisync.stats.records import flag_signs
 from antisync.stats.sum_rule import views_sums
 from antisync.stats.summary import r_star_rows, view_records
-from antisync.store import is_sweep_file, read_views, root_attrs, stop_record, stored_config
+from antisync.store import is_sweep_file, read_views, root_attrs, stop_record
+from antisync.store.layout import decode_config
 from antisync.sweeps import Sweep, load_sweep, load_sweep_text, run_sweep, sweep_summary
 
 __all__ = ["Result", "load", "run", "summarize", "sweep"]
@@ -193,7 +194,7 @@ def summarize(path: str | Path) -> dict:
 def _summarize(path: Path) -> dict:
     root = root_attrs(path)
     views = read_views(path)  # decoded once: the records and the sum rule read the same jobs
-    cfg = stored_config(path)  # a config_yaml that is not a mapping: a StoreError, as everywhere
+    cfg = decode_config(root["config_yaml"], path)  # the store's one decoder, one policy
     model = {"model": model_line(cfg), "r_star": r_star_rows(views)}
     if is_sweep_file(path):
         s = sweep_summary(path)
