@@ -20,6 +20,8 @@ __all__ = [
     "CROSSINGS",
     "EXECUTORS",
     "INTEGRATORS",
+    "RODAS4_ATOL",
+    "RODAS4_RTOL",
     "LAMBDA_METHODS",
     "LINEAR_METHODS",
     "MEASURES",
@@ -43,7 +45,10 @@ Backend = Literal["cpu", "cuda", "auto"]
 """Where chunks are integrated; ``auto`` is CUDA when a GPU is usable (:mod:`antisync.kernels.backends`)."""
 Executor = Literal["local", "dask"]
 """Who runs the chunks: this process or a Dask cluster."""
-Integrator = Literal["euler", "rk4"]
+Integrator = Literal["euler", "rk4", "rodas4"]
+"""The time step: explicit Euler or classical RK4 at ``dynamics.dt``, or Rodas4 (L-stable
+Rosenbrock, adaptive steps under ``dynamics.rtol``/``atol``) for stiff models
+(:mod:`antisync.kernels.implicit`)."""
 Crossing = Literal["auto", "grid", "interpolated"]
 """How tau is read off the step grid (see :class:`antisync.plan.config.Dynamics`)."""
 LambdaMethod = Literal[
@@ -68,6 +73,10 @@ RemovalBy = Literal["speedup", "psync"]
 BACKENDS: tuple[Backend, ...] = get_args(Backend)
 EXECUTORS: tuple[Executor, ...] = get_args(Executor)
 INTEGRATORS: tuple[Integrator, ...] = get_args(Integrator)
+#: rodas4's default tolerances, ``dynamics.rtol`` and ``dynamics.atol`` (docs/models.md gives
+#: the measurements that chose them)
+RODAS4_RTOL = 1e-6
+RODAS4_ATOL = 1e-6
 CROSSINGS: tuple[Crossing, ...] = get_args(Crossing)
 STOP_RULES: tuple[StopRule, ...] = get_args(StopRule)
 LAMBDA_METHODS: tuple[LambdaMethod, ...] = get_args(LambdaMethod)

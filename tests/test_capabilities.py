@@ -60,7 +60,7 @@ def test_every_cell_is_a_row_or_a_refusal():
     assert len(TABLE) == len(MODELS) * 7 * 2 * 2 * 2
     for key, row in TABLE.items():
         if isinstance(row, Row):
-            assert row.driver is DRIVERS[key.model, key.backend]
+            assert row.driver is DRIVERS[key.model, key.integrator, key.backend]
             assert row.lambda_pass is PASSES[key.model, key.method]
         else:
             assert row and "\n" not in row

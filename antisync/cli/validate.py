@@ -11,7 +11,7 @@ from antisync.cli.common import ConfigArg, DebugOpt, SetOpt, user_errors
 def validate(config: ConfigArg, set_: SetOpt = None, debug: DebugOpt = False) -> None:
     """Check CONFIG: keys, values, graph, edges. Prints the resolved config on success."""
     from antisync.plan.config import load_config
-    from antisync.plan.jobs import make_job
+    from antisync.plan.jobs import make_job, stiffness_note
 
     if _is_sweep(config):
         from antisync.sweeps import family_graphs, load_sweep
@@ -43,6 +43,9 @@ def validate(config: ConfigArg, set_: SetOpt = None, debug: DebugOpt = False) ->
     typer.echo(
         f"# ok: graph {job.name} with {len(job.nodes)} nodes, {len(job.edges)} directed edge(s), {run}"
     )
+    note = stiffness_note(job)
+    if note is not None:
+        typer.echo(f"# note: {note}")
 
 
 def _budget(cfg) -> str:

@@ -30,7 +30,7 @@ from typing import NamedTuple
 import numpy as np
 
 from antisync.errors import ConfigError
-from antisync.kernels import cpu
+from antisync.kernels import cpu, implicit
 from antisync.kernels.adjoint import link_derivatives, simulate_adjoint
 from antisync.kernels.core import TAYLOR_MAX_ANGLE
 from antisync.kernels.model_adjoint import simulate_model_adjoint
@@ -59,6 +59,7 @@ __all__ = [
     "lambda_pass",
     "lookup",
     "model_params",
+    "model_simulator",
     "sync_flips",
 ]
 
@@ -176,16 +177,28 @@ def _model(simulate_model, job, first, count, variant_weights, realizations, tod
         params,
         dt=dyn.dt,
         max_steps=dyn.max_steps,
-        integrator=dyn.integrator,
         realizations=ks,
         **({} if todo is None else {"todo": todo}),
     )
 
 
-def _model_lanes(job, first, count, threads, variant_weights, realizations, todo, variant_targets):
-    """:func:`antisync.kernels.cpu.simulate_model` (Euler or RK4, float64)."""
+def model_simulator(dynamics) -> Callable:
+    """The CPU model driver of ``dynamics.integrator`` (a config's
+    :class:`~antisync.plan.config.Dynamics`) with its settings bound: the lanes of
+    :func:`antisync.kernels.cpu.simulate_model` (Euler, RK4) or
+    :func:`antisync.kernels.implicit.simulate_model` (Rodas4 at ``dynamics.rtol``/``atol``)."""
+    rtol, atol = dynamics.tolerances
+    return {
+        "euler": functools.partial(cpu.simulate_model, integrator="euler"),
+        "rk4": functools.partial(cpu.simulate_model, integrator="rk4"),
+        "rodas4": functools.partial(implicit.simulate_model, rtol=rtol, atol=atol),
+    }[dynamics.integrator]
 
-    simulate = functools.partial(cpu.simulate_model, threads=threads)
+
+def _model_lanes(job, first, count, threads, variant_weights, realizations, todo, variant_targets):
+    """:func:`model_simulator`'s driver (Euler or RK4 lanes, Rodas4; float64)."""
+
+    simulate = functools.partial(model_simulator(job.config.dynamics), threads=threads)
     return _model(simulate, job, first, count, variant_weights, realizations, todo, variant_targets)
 
 
@@ -196,7 +209,8 @@ def _model_cuda(job, first, count, threads, variant_weights, realizations, todo,
     # lazy: numba-cuda is optional; the CUDA kernels load only for a cuda row
     from antisync.kernels.cuda import simulate_model
 
-    return _model(simulate_model, job, first, count, variant_weights, realizations, todo, variant_targets)
+    simulate = functools.partial(simulate_model, integrator=job.config.dynamics.integrator)
+    return _model(simulate, job, first, count, variant_weights, realizations, todo, variant_targets)
 
 
 def _reduce_on_device(job, chunk, first: int, count: int, start: float) -> ChunkResult:
@@ -274,6 +288,10 @@ def _no_check(job) -> None:
     """Nothing of the graph limits the driver."""
 
 
+#: the fixed-step integrators (Euler, RK4); the CPU model driver also runs ``rodas4``
+_EXPLICIT = ("euler", "rk4")
+
+
 @dataclass(frozen=True)
 class Driver:
     """How one model kind's trajectories are integrated on one backend.
@@ -300,6 +318,8 @@ class Driver:
         The ``lambda.method`` whose Lambda ``reduce`` computes.
     no_interpolation : str or None
         Why ``dynamics.crossing interpolated`` does not run here (None: it does).
+    integrators : tuple of str
+        The ``dynamics.integrator`` values it integrates.
     """
 
     model: str
@@ -310,11 +330,12 @@ class Driver:
     reduce: Callable | None = None
     reduces: str | None = None
     no_interpolation: str | None = None
+    integrators: tuple[str, ...] = _EXPLICIT
 
 
-#: (model kind, backend) -> the driver integrating it there
-DRIVERS: dict[tuple[str, str], Driver] = {
-    (d.model, d.backend): d
+#: (model kind, integrator, backend) -> the driver integrating it there
+DRIVERS: dict[tuple[str, str, str], Driver] = {
+    (d.model, integrator, d.backend): d
     for d in (
         Driver("identical", "cpu", _identical_lanes, check_job=_rotation_angles),
         Driver(
@@ -330,15 +351,16 @@ DRIVERS: dict[tuple[str, str], Driver] = {
                 "return grid crossing times); use --backend cpu or crossing grid"
             ),
         ),
-        Driver("model", "cpu", _model_lanes),
+        Driver("model", "cpu", _model_lanes, integrators=(*_EXPLICIT, "rodas4")),
         Driver("model", "cuda", _model_cuda, check_job=_cuda_nodes, device=True),
     )
+    for integrator in d.integrators
 }
 
 
 def _lanes(job) -> Driver:
-    """The CPU lanes' driver of ``job``'s model kind: where every Lambda pass integrates."""
-    return DRIVERS["identical" if job.model is None else "model", "cpu"]
+    """The CPU driver of ``job``'s model kind and integrator: where every Lambda pass integrates."""
+    return DRIVERS["identical" if job.model is None else "model", job.config.dynamics.integrator, "cpu"]
 
 
 # -- the Lambda passes ------------------------------------------------------------------------
@@ -621,6 +643,7 @@ class Refusal:
 
 
 _TANGENTS = ("pathwise", "hybrid")
+_IMPLICIT = ("rodas4",)
 _FLOAT64 = ("float64",)
 
 #: the checks in the order a run meets them (the config's on load, then the backend's), so a
@@ -674,7 +697,35 @@ REFUSALS: tuple[Refusal, ...] = (
         "integrator euler",
         model=("identical",),
         backend=("cuda",),
-        integrator=_but(INTEGRATORS, "euler"),
+        integrator=("rk4",),
+    ),
+    # the implicit step: for stiff models, forward only, on the CPU
+    Refusal(
+        "backend",
+        "dynamics.integrator rodas4 integrates the model:/sync: sections (stiff networks such as "
+        "power grids, docs/models.md); the identical oscillators with normalized coupling are not "
+        "stiff (their Laplacian's eigenvalues are at most 2): use euler or rk4",
+        model=("identical",),
+        integrator=_IMPLICIT,
+    ),
+    Refusal(
+        "backend",
+        "lambda.method {method} differentiates the integrator's discrete steps backwards; rodas4's "
+        "steps are chosen adaptively from the state (accepted or rejected by its error estimate), "
+        "so tau is not a smooth function of the weights through them and no discrete adjoint is "
+        "written: use finite-difference or central-difference with rodas4, or {method} with rk4",
+        model=("model",),
+        method=("adjoint", "adjoint-hybrid"),
+        integrator=_IMPLICIT,
+    ),
+    Refusal(
+        "backend",
+        "dynamics.integrator rodas4 runs on the cpu backend only: each trajectory factors a sparse "
+        "matrix with its fill-in, which the CUDA kernels' fixed per-thread arrays do not hold; use "
+        "--backend cpu",
+        model=("model",),
+        backend=("cuda",),
+        integrator=_IMPLICIT,
     ),
 )
 
@@ -709,7 +760,7 @@ def _cell(key: Key) -> Row | str:
     for refusal in REFUSALS:
         if refusal.refuses(key):
             return refusal.why(key)
-    driver = DRIVERS.get((key.model, key.backend))
+    driver = DRIVERS.get((key.model, key.integrator, key.backend))
     lambda_pass = PASSES.get((key.model, key.method))
     if driver is None or lambda_pass is None:
         raise RuntimeError(f"{key} has no driver or Lambda pass and no refusal says why")

@@ -22,7 +22,7 @@ from antisync.execution.executors.local import LocalExecutor
 from antisync.kernels.backends import resolve_backend
 from antisync.measures.pipeline import COMPUTED, compute_measures, wants_measures, with_nnc
 from antisync.plan.config import Config
-from antisync.plan.jobs import Chunk, Job, make_job
+from antisync.plan.jobs import Chunk, Job, make_job, stiffness_note
 from antisync.store import JobState, ResultStore, chunk_tag, command_line, git_revision
 
 __all__ = ["Interrupted", "run_config", "run_jobs"]
@@ -101,6 +101,10 @@ def run_jobs(
     backend, note = resolve_backend(config.backend)
     for job in jobs:  # the options and the graph: refused before any file or folder exists
         check_job(job, backend)
+    for job in jobs:
+        stiff = stiffness_note(job)
+        if stiff is not None:
+            say(f"note: {job.name}: {stiff}")
     host = host_part(config, backend)
     note = note if host is None else f"{note} ({host})"
     key = config.simulation_key() if key is None else key

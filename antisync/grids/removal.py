@@ -5,8 +5,9 @@ For every line ``i-j`` both directions are weakened, ``Omega_ij, Omega_ji -> (1 
 Omega_ij`` (``beta = 1`` removes the line), and the damaged grid is integrated from the **same**
 initial conditions as the intact one: realization ``k`` starts from the counter-based phases
 ``theta_i(0) = 2 pi u(seed, k, i)`` of :mod:`antisync.physics.phases` (``theta_i'(0) = 0``), whatever
-line, chunk or thread. The integration is the compiled model driver
-:func:`antisync.kernels.cpu.simulate_model` (the intact grid as the base network, one
+line, chunk or thread. The integration is the config's compiled CPU model driver
+(:func:`antisync.execution.dispatch.model_simulator`: the RK4 or Euler lanes, or Rodas4 for a
+stiff grid; the intact grid as the base network, one
 variant per line on the same CSR pattern, a removed line's weights 0), so an intact run's
 ``tau0`` is the ordinary ``antisync run``'s ``tau0`` of the same seed, realization by
 realization (tested).
@@ -55,7 +56,7 @@ from pathlib import Path
 import numpy as np
 
 from antisync.errors import AntisyncError
-from antisync.execution.dispatch import model_params
+from antisync.execution.dispatch import model_params, model_simulator
 from antisync.execution.executors.dask import TaskLostError, check_client, client_threads
 from antisync.execution.executors.tasks import map_tasks
 from antisync.grids.errors import GridError
@@ -63,7 +64,6 @@ from antisync.grids.lines import pick_lines
 from antisync.grids.removal_config import check_beta, resolve_config, work_config
 from antisync.grids.removal_journal import RemovalJournal, remove_journal, work_digest
 from antisync.grids.removal_table import RemovalTable, line_rows
-from antisync.kernels.cpu import simulate_model
 from antisync.physics import coupling, graphs
 from antisync.plan.jobs import check_step
 from antisync.plan.model import model_setup
@@ -209,7 +209,7 @@ def line_removal(
         n_nodes=len(labels),
         dt=dyn.dt,
         max_steps=dyn.max_steps,
-        integrator=dyn.integrator,
+        dynamics=dyn,
         interpolate=dyn.interpolate,
     )
     tasks = _plan(m, variants, base=csr.weights, groups=1 if client is None else _groups(client, m))
@@ -306,7 +306,7 @@ def _removal_task(ks, variants, intact: bool, fixed: dict, threads):
     if not intact:
         todo = np.ones((ks.size, variants.shape[0] + 1), dtype=np.bool_)
         todo[:, 0] = False
-    sim = simulate_model(
+    sim = model_simulator(fixed["dynamics"])(
         fixed["seed"],
         0,
         0,
@@ -317,7 +317,6 @@ def _removal_task(ks, variants, intact: bool, fixed: dict, threads):
         params,
         dt=fixed["dt"],
         max_steps=fixed["max_steps"],
-        integrator=fixed["integrator"],
         threads=threads,
         realizations=ks,
         todo=todo,

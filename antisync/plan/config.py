@@ -39,6 +39,8 @@ from antisync.types import (
     LINEAR_METHODS,
     MEASURES,
     PRECISIONS,
+    RODAS4_ATOL,
+    RODAS4_RTOL,
     STOP_RULES,
     Backend,
     Coupling,
@@ -130,14 +132,33 @@ class Dynamics:
     """Arithmetic of the integrated state: ``float64`` (every backend) or ``float32`` (backend
     cuda; on the cpu backend the Euler finite difference with every rotation angle within the
     Taylor range; docs/cuda.md says how much it moves tau and Lambda)."""
+    rtol: float | None = None
+    """Relative tolerance of ``rodas4``'s step control (default 1e-6; None: the default)."""
+    atol: float | None = None
+    """Absolute tolerance of ``rodas4``'s step control, radians and rad/s (default 1e-6)."""
 
     def __post_init__(self):
         choice("dynamics.coupling", self.coupling, COUPLINGS)
         choice("dynamics.integrator", self.integrator, INTEGRATORS)
         choice("dynamics.crossing", self.crossing, CROSSINGS)
         choice("dynamics.precision", self.precision, PRECISIONS)
-        if self.integrator == "rk4" and self.crossing == "grid":
-            raise ConfigError("dynamics.crossing grid is too coarse for rk4 steps; use interpolated")
+        if self.integrator != "euler" and self.crossing == "grid":
+            raise ConfigError(
+                f"dynamics.crossing grid is too coarse for {self.integrator} steps; use interpolated"
+            )
+        for key in ("rtol", "atol"):
+            value = getattr(self, key)
+            if value is None:
+                continue
+            if self.integrator != "rodas4":
+                raise ConfigError(
+                    f"dynamics.{key} sets the step control of integrator rodas4; {self.integrator} "
+                    f"takes fixed steps of dynamics.dt (remove {key} or use integrator rodas4)"
+                )
+            value = positive(f"dynamics.{key}", value)
+            if value >= 1.0:
+                raise ConfigError(f"dynamics.{key} must be below 1 (a tolerance), got {value:g}")
+            object.__setattr__(self, key, value)
         object.__setattr__(self, "dt", positive("dynamics.dt", self.dt))
         object.__setattr__(self, "t_max", positive("dynamics.t_max", self.t_max))
         object.__setattr__(self, "threshold", fraction("dynamics.threshold", self.threshold))
@@ -152,7 +173,15 @@ class Dynamics:
 
     @property
     def interpolate(self) -> bool:
-        return self.crossing == "interpolated" or (self.crossing == "auto" and self.integrator == "rk4")
+        return self.crossing == "interpolated" or (self.crossing == "auto" and self.integrator != "euler")
+
+    @property
+    def tolerances(self) -> tuple[float, float]:
+        """``(rtol, atol)`` of ``rodas4``'s step control, the defaults where not set."""
+        return (
+            RODAS4_RTOL if self.rtol is None else self.rtol,
+            RODAS4_ATOL if self.atol is None else self.atol,
+        )
 
     @property
     def max_steps(self) -> int:

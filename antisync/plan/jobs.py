@@ -16,10 +16,11 @@ import numpy as np
 
 from antisync.errors import ConfigError
 from antisync.physics import coupling, graphs
+from antisync.physics.locked import linearization
 from antisync.plan.config import Config, graph_name
-from antisync.plan.model import DTARGET_STEP, ModelSetup, model_setup
+from antisync.plan.model import DTARGET_STEP, STABLE_STEP, ModelSetup, model_setup
 
-__all__ = ["Chunk", "Job", "make_job"]
+__all__ = ["Chunk", "Job", "make_job", "stiffness_note"]
 
 ADJOINT_MIN_CHUNK = 512
 """Fewest realizations per chunk for ``lambda.method: adjoint`` (and ``adjoint-hybrid``): enough
@@ -295,11 +296,6 @@ def _job_name(config: Config) -> str:
     return graph_name(config.graph)
 
 
-#: The real stability interval of each integrator's step for y' = -xi y: Euler is stable for
-#: dt * xi < 2, classical RK4 for dt * xi < 2.785 (the negative real axis of its region).
-STABLE_STEP = {"euler": 2.0, "rk4": 2.785}
-
-
 def check_step(omega: np.ndarray, config: Config) -> None:
     """Refuse a ``dynamics.dt`` at which the synchronized state is unstable for the integrator.
 
@@ -312,6 +308,8 @@ def check_step(omega: np.ndarray, config: Config) -> None:
     sym, _ = coupling.symmetrized_laplacian(omega, dyn.coupling)
     if not np.isfinite(sym).all():
         raise ConfigError("the graph's weights overflow the coupling matrix; rescale them")
+    if dyn.integrator not in STABLE_STEP:
+        return  # rodas4: L-stable, any step
     xi_max = float(np.linalg.eigvalsh(sym)[-1])
     limit = STABLE_STEP[dyn.integrator] / xi_max
     if dyn.dt >= limit:
@@ -320,6 +318,46 @@ def check_step(omega: np.ndarray, config: Config) -> None:
             f"synchronized state unstable unless dt < {limit:.3g} ({STABLE_STEP[dyn.integrator]:g} / "
             f"xi_max, xi_max = {xi_max:.4g} the largest Laplacian eigenvalue); the paper uses 0.001"
         )
+
+
+#: the stiffness ratio (fastest over slowest decay rate near synchrony) from which a
+#: stability-bound explicit step is worth a note, and the largest network the note is computed
+#: for (a dense eigenvalue problem of the linearization)
+STIFF_RATIO = 1e4
+STIFF_NOTE_MAX_NODES = 1500
+
+
+def stiffness_note(job: Job) -> str | None:
+    """A one-line note when ``job``'s explicit step is bound by stability rather than by its
+    dynamics: a generalized model (docs/models.md) whose linearization at the in-phase state has
+    decay rates spanning more than :data:`STIFF_RATIO`, at a ``dynamics.dt`` within a tenth of
+    the explicit step's stability limit; None otherwise (or for more than
+    :data:`STIFF_NOTE_MAX_NODES` nodes). ``antisync validate`` and ``antisync run`` print it."""
+    dyn = job.config.dynamics
+    if job.model is None or not job.kuramoto or dyn.integrator not in STABLE_STEP:
+        return None
+    n = len(job.nodes)
+    if n > STIFF_NOTE_MAX_NODES:
+        return None
+    rows = np.repeat(np.arange(n), np.diff(job.csr.indptr))
+    w = np.zeros((n, n))
+    w[rows, job.csr.indices] = job.csr.weights
+    lap = np.diag(w.sum(axis=1)) - w
+    rates = -np.linalg.eigvals(linearization(-lap, job.model.inertia, job.model.damping)).real
+    scale = float(np.abs(rates).max()) if rates.size else 0.0
+    rates = rates[rates > 1e-9 * scale]  # the rotation's zero mode neither grows nor decays
+    if rates.size < 2:
+        return None
+    fast, slow = float(rates.max()), float(rates.min())
+    limit = STABLE_STEP[dyn.integrator] / fast
+    if fast / slow < STIFF_RATIO or dyn.dt < 0.1 * limit:
+        return None
+    return (
+        f"dynamics.dt {dyn.dt:g} is bound by stability, not by the dynamics: near synchrony the "
+        f"fastest mode decays at {fast:.4g}/s (an explicit {dyn.integrator} step needs dt < "
+        f"{limit:.3g}), the slowest at {slow:.3g}/s; integrator rodas4 takes steps the dynamics "
+        f"allow (docs/models.md, stiff networks)"
+    )
 
 
 @functools.lru_cache(maxsize=64)

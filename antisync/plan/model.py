@@ -464,7 +464,7 @@ def model_setup(
     model, sync = config.model, config.sync
     n = indptr.size - 1
     mass, gamma = node_parameters(model, n)
-    if (mass > 0).any():
+    if (mass > 0).any() and config.dynamics.integrator in STABLE_STEP:
         _check_second_order_step(config, indptr, indices, weights[0], mass, gamma)
     fixed = node_frequencies(model, n)
     freqs = None if fixed is None else fixed - fixed.mean()
@@ -530,6 +530,12 @@ def unsynced_hint(config) -> str | None:
             "its r* below the threshold: try sync.criterion relative or frequency)"
         )
     return "the natural frequencies may be too spread for the coupling (no locked state)"
+
+
+#: The real stability interval of each explicit step for y' = -xi y: Euler is stable for
+#: dt * xi < 2, classical RK4 for dt * xi < 2.785 (the negative real axis of its region);
+#: ``rodas4`` is L-stable (no limit, absent here).
+STABLE_STEP = {"euler": 2.0, "rk4": 2.785}
 
 
 def _check_second_order_step(config, indptr, indices, weights, mass, gamma) -> None:

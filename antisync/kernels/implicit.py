@@ -1,0 +1,836 @@
+"""The generalized models on a stiff network: Rodas4, an L-stable Rosenbrock method with adaptive
+steps, one trajectory per thread.
+
+A power grid is stiff: its Jacobian's eigenvalues span ``-4,576`` to ``-0.071`` per second on
+IEEE 300, so an explicit step is bound by the fastest mode while the synchronization time is set
+by the slowest. ``dynamics.integrator: rodas4`` integrates the models of
+:func:`antisync.kernels.core.make_model_kernels` (natural frequencies, phase lag, inertia,
+per-node inertia beside first-order buses) with Hairer and Wanner's RODAS (*Solving Ordinary
+Differential Equations II*, Sec. IV.7; the coefficients of their ``rodas.f``, the set named
+RODAS4 in OrdinaryDiffEq.jl): six stages, order 4 with an embedded order-3 error estimate,
+L-stable and stiffly accurate. Each step solves six linear systems with one matrix
+``(h gamma)^-1 I - J``; the step size follows the error estimate under ``dynamics.rtol`` and
+``dynamics.atol`` (the weighted RMS norm of Hairer and Wanner). Each trajectory has its own
+step sizes: no trajectory waits for another.
+
+**The linear algebra.** The state is ``theta`` (every node) and ``nu = theta'`` (the nodes with
+inertia). Eliminating ``nu`` leaves an ``N x N`` system per stage,
+
+    (D + L(theta)) x = b,   D_i = g (m_i g + gamma_i),   g = 1 / (h gamma),
+
+with ``L`` the Laplacian of the weights ``w_ij cos(theta_j - theta_i - alpha)`` on the coupling's
+sparsity pattern (``m_i = 0`` at a first-order node; ``gamma_i = 1`` in a model without
+inertia). Every trajectory of a job shares that pattern, so :func:`factor_plan` orders it once
+(minimum degree) and does the symbolic factorization once: the fill-in, and the numeric LU as
+a flat list of operations, which each step replays on the trajectory's values (no pivoting; a
+pivot that is not resolved rejects the step with a quarter of the step size). No dense matrix
+is formed.
+
+**Where the criterion is met** is found exactly as for RK4 (the same functions of
+:func:`~antisync.kernels.core.make_model_kernels`): each tested quantity's cubic Hermite
+interpolant over the accepted step from its values and rates at both ends, scanned and
+bisected; the statuses are the same. The crossing time ``tau`` is stored on the grid of
+``dynamics.dt`` as the explicit drivers store theirs, ``tau = (steps - 1 + frac) dt`` with
+``frac`` in ``(0, 1]``: ``dt`` is the first step and the unit of the stored times, and ``t_max
+= max_steps dt``.
+"""
+
+from __future__ import annotations
+
+import functools
+import heapq
+import math
+from typing import NamedTuple
+
+import numba
+import numpy as np
+from numba import njit, prange
+
+from antisync import _numba_cache  # noqa: F401 -- before any cache=True function (see there)
+from antisync.kernels import model_steps as ms
+from antisync.kernels.core import CRIT_FREQUENCY, DEV_PREV_ROW, DEV_ROW, WORK_ROWS
+from antisync.kernels.lanes import record, share_base
+from antisync.kernels.model_steps import ModelParams, per_node
+from antisync.kernels.precision import K64
+from antisync.kernels.shared import Graph, Model, Outputs, SimResult, Threads, model_inputs
+from antisync.physics.phases import phase
+from antisync.status import ALREADY_SYNCED, NOT_SYNCED, SYNCED
+from antisync.types import RODAS4_ATOL, RODAS4_RTOL
+
+__all__ = [
+    "DEFAULT_ATOL",
+    "DEFAULT_RTOL",
+    "FactorPlan",
+    "RODAS4",
+    "StepStats",
+    "factor_plan",
+    "simulate_model",
+]
+
+#: The default tolerances of ``dynamics.rtol`` / ``dynamics.atol``.
+DEFAULT_RTOL = RODAS4_RTOL
+DEFAULT_ATOL = RODAS4_ATOL
+
+_rhs = ms.MK.rhs
+_measure = ms.MK.measure
+_deviations = ms.MK.deviations
+_frequency_crossing = ms.MK.frequency_crossing
+_order_crossing = ms.MK.order_crossing
+_rotation = K64.rotation
+_order2 = K64.order2
+
+
+class _Rodas4(NamedTuple):
+    """RODAS (order 4(3)) in the form with ``u_i = h k_i`` (Hairer and Wanner, IV.7 (7.25)):
+    ``(I / (h gamma) - J) u_i = f(y0 + sum_j a_ij u_j) + sum_j c_ij u_j / h``; the stage-5
+    input plus ``u5`` is the stage-6 input, that plus ``u6`` the new state, ``u6`` the error."""
+
+    gamma: float
+    a: tuple
+    c: tuple
+
+
+RODAS4 = _Rodas4(
+    0.25,
+    (
+        (1.544,),
+        (0.9466785280815826, 0.2557011698983284),
+        (3.314825187068521, 2.896124015972201, 0.9986419139977817),
+        (1.221224509226641, 6.019134481288629, 12.53708332932087, -0.6878860361058950),
+    ),
+    (
+        (-5.6688,),
+        (-2.430093356833875, -0.2063599157091915),
+        (-0.1073529058151375, -9.594562251023355, -20.47028614809616),
+        (7.496443313967647, -10.24680431464352, -33.99990352819905, 11.70890893206160),
+        (8.083246795921522, -7.981132988064893, -31.52159432874371, 16.31930543123136, -6.058818238834054),
+    ),
+)
+"""The coefficients of Hairer's ``rodas.f`` (``METH = 1``)."""
+
+_GAMMA = RODAS4.gamma
+
+#: step-size controller (PI, Gustafsson): ``h_new = h clip(SAFETY err^-BETA1 err_prev^BETA2,
+#: SHRINK, GROW)`` after an accepted step, ``h clip(SAFETY err^(-1/4), SHRINK, 1)`` after a
+#: rejected one
+_SAFETY = 0.9
+_SHRINK = 0.2
+_GROW = 6.0
+#: the PI controller's exponents (0.7 and 0.4 over the error estimate's order plus one)
+_BETA1 = 0.7 / 4
+_BETA2 = 0.4 / 4
+#: a step size below this fraction of ``t_max`` is a failure (reported, never a silent status)
+_H_FLOOR = 1e-13
+#: a crossing is located on the cubic interpolant of a step where the straight line between
+#: the step's ends puts it within this fraction of its time; else the step is redone at
+#: ``_REFINE`` of its size (the interpolant is only as good as the step is short)
+_CROSSING_RTOL = 1e-5
+_REFINE = 0.25
+#: within ``_BAND`` tolerances of the frequency band (or for ``R``, of the headroom above its
+#: target), a step moves each tested quantity by at most ``_NEAR`` of the tolerance: a dip into
+#: the band between two steps is then one the cubic interpolant of its ends sees
+_BAND = 10.0
+_NEAR = 0.5
+#: rejected steps in a row after which the trajectory is reported as failed
+_MAX_REJECTS = 60
+
+#: the coefficients as arrays: stage ``s`` (0-based) reads ``_A[s, :s]`` and ``_C[s, :s]``
+_A = np.zeros((6, 5))
+_C = np.zeros((6, 5))
+for _s, _row in enumerate(RODAS4.a, start=1):
+    _A[_s, : len(_row)] = _row
+for _s, _row in enumerate(RODAS4.c, start=1):
+    _C[_s, : len(_row)] = _row
+
+
+class FactorPlan(NamedTuple):
+    """The sparse LU of ``D + L`` on the coupling's pattern, planned once per job.
+
+    ``perm[k]`` is the node eliminated ``k``-th (``inv[perm[k]] = k``); the filled matrix is
+    stored by rows in elimination order (``ptr``, ``col``; ``diag[k]`` its diagonal's position);
+    ``entry[q]`` is where the network's CSR entry ``q`` lands. The numeric factorization is, for
+    each pivot ``k`` in order: the pivot replaced by its reciprocal, the column below it
+    (``val[div_pos[div_ptr[k]:div_ptr[k+1]]]``) scaled by it, then ``val[upd_ij] -= val[upd_ik] *
+    val[upd_kj]`` over ``upd_ptr[k]:upd_ptr[k+1]``.
+    """
+
+    perm: np.ndarray
+    inv: np.ndarray
+    ptr: np.ndarray
+    col: np.ndarray
+    diag: np.ndarray
+    entry: np.ndarray
+    div_ptr: np.ndarray
+    div_pos: np.ndarray
+    upd_ptr: np.ndarray
+    upd_ij: np.ndarray
+    upd_ik: np.ndarray
+    upd_kj: np.ndarray
+
+
+def _minimum_degree(n: int, neighbours: list[set]) -> list[int]:
+    """A minimum-degree elimination order of the graph ``neighbours`` (ties: the lowest node),
+    eliminating on the graph itself (each eliminated node's neighbours become a clique)."""
+    adj = [set(a) for a in neighbours]
+    heap = [(len(a), i) for i, a in enumerate(adj)]
+    heapq.heapify(heap)
+    done = np.zeros(n, dtype=bool)
+    order = []
+    while heap:
+        deg, k = heapq.heappop(heap)
+        if done[k] or deg != len(adj[k]):
+            continue  # stale entry
+        done[k] = True
+        order.append(k)
+        nbrs = adj[k]
+        for u in nbrs:
+            adj[u].discard(k)
+            adj[u] |= nbrs - {u}
+            heapq.heappush(heap, (len(adj[u]), u))
+        adj[k] = set()
+    return order
+
+
+def factor_plan(indptr: np.ndarray, indices: np.ndarray) -> FactorPlan:
+    """Order the pattern of ``W + W^T`` (CSR ``indptr``, ``indices``) by minimum degree and plan
+    its LU: the fill-in and the flat list of numeric operations (:class:`FactorPlan`)."""
+    indptr = np.asarray(indptr, dtype=np.int64)
+    indices = np.asarray(indices, dtype=np.int64)
+    n = indptr.size - 1
+    neighbours = [set() for _ in range(n)]
+    for i in range(n):
+        for j in indices[indptr[i] : indptr[i + 1]]:
+            if j != i:
+                neighbours[i].add(int(j))
+                neighbours[int(j)].add(i)
+    perm = _minimum_degree(n, neighbours)
+    inv = np.empty(n, dtype=np.int64)
+    inv[np.asarray(perm, dtype=np.int64)] = np.arange(n)
+    # symbolic elimination in the new numbering: the filled pattern and each pivot's clique
+    adj = [{int(inv[j]) for j in neighbours[perm[k]]} for k in range(n)]
+    rows = [{k} for k in range(n)]
+    cliques = []
+    for k in range(n):
+        later = sorted(j for j in adj[k] if j > k)
+        cliques.append(later)
+        for i in later:
+            rows[i].add(k)
+            rows[k].add(i)
+            adj[i] |= set(later) - {i}
+    ptr = np.zeros(n + 1, dtype=np.int64)
+    cols = [sorted(r) for r in rows]
+    for k in range(n):
+        ptr[k + 1] = ptr[k] + len(cols[k])
+    col = np.fromiter((j for r in cols for j in r), dtype=np.int64, count=int(ptr[-1]))
+    pos = {}
+    for k in range(n):
+        for q in range(ptr[k], ptr[k + 1]):
+            pos[k, int(col[q])] = q
+    diag = np.array([pos[k, k] for k in range(n)], dtype=np.int64)
+    entry = np.empty(indices.size, dtype=np.int64)
+    for i in range(n):
+        for q in range(indptr[i], indptr[i + 1]):
+            entry[q] = pos[int(inv[i]), int(inv[indices[q]])]
+    div_ptr = np.zeros(n + 1, dtype=np.int64)
+    upd_ptr = np.zeros(n + 1, dtype=np.int64)
+    div_pos, upd_ij, upd_ik, upd_kj = [], [], [], []
+    for k in range(n):
+        for i in cliques[k]:
+            div_pos.append(pos[i, k])
+        for i in cliques[k]:
+            for j in cliques[k]:
+                upd_ij.append(pos[i, j])
+                upd_ik.append(pos[i, k])
+                upd_kj.append(pos[k, j])
+        div_ptr[k + 1] = len(div_pos)
+        upd_ptr[k + 1] = len(upd_ij)
+    as_index = lambda x: np.asarray(x, dtype=np.int64)  # noqa: E731
+    return FactorPlan(
+        np.asarray(perm, dtype=np.int64),
+        inv,
+        ptr,
+        col,
+        diag,
+        entry,
+        div_ptr,
+        as_index(div_pos),
+        upd_ptr,
+        as_index(upd_ij),
+        as_index(upd_ik),
+        as_index(upd_kj),
+    )
+
+
+@functools.lru_cache(maxsize=16)
+def _plan_of_pattern(indptr: bytes, indices: bytes) -> FactorPlan:
+    """:func:`factor_plan` once per pattern in a process (every chunk of a job shares it)."""
+    return factor_plan(np.frombuffer(indptr, dtype=np.int64), np.frombuffer(indices, dtype=np.int64))
+
+
+class StepStats(NamedTuple):
+    """Per item of a run (``(m,)`` for tau0, ``(m, V)`` for the variants): accepted and rejected
+    steps (``-1``: not integrated, or copied from tau0)."""
+
+    accepted0: np.ndarray
+    rejected0: np.ndarray
+    accepted: np.ndarray
+    rejected: np.ndarray
+
+
+@njit(cache=True, inline="always")
+def _assemble(val, c, s, indptr, indices, w, cl, sl, dd, fp_entry, fp_diag, fp_inv):
+    """``val`` = the filled matrix ``D + L(theta)`` (``dd``: the diagonal ``D``; fill entries 0)."""
+    val[:] = 0.0
+    n = c.shape[0]
+    for i in range(n):
+        di = dd[i]
+        for q in range(indptr[i], indptr[i + 1]):
+            j = indices[q]
+            # w_ij cos(theta_j - theta_i - alpha)
+            a = w[q] * (cl * (c[j] * c[i] + s[j] * s[i]) + sl * (s[j] * c[i] - c[j] * s[i]))
+            val[fp_entry[q]] -= a
+            di += a
+        val[fp_diag[fp_inv[i]]] += di
+
+
+@njit(cache=True, inline="always")
+def _factor(val, fp_diag, div_ptr, div_pos, upd_ptr, upd_ij, upd_ik, upd_kj, scale):
+    """The numeric LU in place, each pivot stored as its reciprocal; False where a pivot is
+    below ``1e-12 scale`` (not resolved)."""
+    n = fp_diag.shape[0]
+    for k in range(n):
+        piv = val[fp_diag[k]]
+        if not abs(piv) > 1e-12 * scale:
+            return False
+        inv_piv = 1.0 / piv
+        val[fp_diag[k]] = inv_piv
+        for e in range(div_ptr[k], div_ptr[k + 1]):
+            val[div_pos[e]] *= inv_piv
+        for e in range(upd_ptr[k], upd_ptr[k + 1]):
+            val[upd_ij[e]] -= val[upd_ik[e]] * val[upd_kj[e]]
+    return True
+
+
+@njit(cache=True, inline="always")
+def _solve(val, ptr, col, fp_diag, fp_perm, b, x, xp):
+    """``x`` (node order) from the factors and ``b`` (node order), through ``xp`` (elimination
+    order); ``x`` may be ``b``."""
+    n = fp_diag.shape[0]
+    for k in range(n):
+        xp[k] = b[fp_perm[k]]
+    for k in range(n):
+        acc = xp[k]
+        for q in range(ptr[k], fp_diag[k]):
+            acc -= val[q] * xp[col[q]]
+        xp[k] = acc
+    for k in range(n - 1, -1, -1):
+        acc = xp[k]
+        for q in range(fp_diag[k] + 1, ptr[k + 1]):
+            acc -= val[q] * xp[col[q]]
+        xp[k] = acc * val[fp_diag[k]]
+    for k in range(n):
+        x[fp_perm[k]] = xp[k]
+
+
+@njit(cache=True, inline="always")
+def _near_step(work, n, second, target):
+    """The longest step once every frequency deviation is within ``_BAND`` times the tolerance:
+    ``_NEAR`` of the tolerance over the fastest deviation's rate (inf while one is farther)."""
+    rows = 2 if second else 1
+    fastest = 0.0
+    for k in range(rows):
+        for i in range(n):
+            if abs(work[DEV_ROW + 2 * k, i]) > _BAND * target:
+                return np.inf
+            fastest = max(fastest, abs(work[DEV_ROW + 2 * k + 1, i]))
+    return _NEAR * target / fastest if fastest > 0.0 else np.inf
+
+
+@njit(cache=True, inline="always")
+def _eval(th_state, nu_state, c, s, p, indptr, indices, w, cl, sl, mass, gamma, second, f_th, f_nu):
+    """``(f_th, f_nu)`` = the model's rates at ``(theta, nu)`` (``c``, ``s`` filled on the way)."""
+    n = th_state.shape[0]
+    for i in range(n):
+        c[i] = math.cos(th_state[i])
+        s[i] = math.sin(th_state[i])
+    _rhs(c, s, nu_state, p, indptr, indices, w, cl, sl, mass, gamma, second, f_th, f_nu)
+
+
+@njit(cache=True)
+def rodas4_sync(
+    th0,
+    nu0,
+    p,
+    indptr,
+    indices,
+    w,
+    cl,
+    sl,
+    mass,
+    gamma,
+    criterion,
+    target,
+    t_max,
+    h0,
+    rtol,
+    atol,
+    fp_perm,
+    fp_inv,
+    fp_ptr,
+    fp_col,
+    fp_diag,
+    fp_entry,
+    div_ptr,
+    div_pos,
+    upd_ptr,
+    upd_ij,
+    upd_ik,
+    upd_kj,
+    fixed=False,
+):
+    """One trajectory from ``(th0, nu0)`` until the criterion holds or ``t_max``: ``(status,
+    tau, accepted, rejected, failed)`` (``failed``: the step size fell below ``1e-13 t_max`` or
+    kept being rejected, ``tau`` the time reached). ``fixed``: every step ``h0``, accepted
+    whatever its error estimate, the crossing on the step's cubic interpolant (the order
+    tests)."""
+    n = th0.shape[0]
+    second = False
+    for i in range(n):
+        second |= mass[i] > 0.0
+    gamma_eff = np.empty(n)
+    for i in range(n):
+        gamma_eff[i] = gamma[i] if second else 1.0
+    freq = criterion == CRIT_FREQUENCY
+    # u_1..u_6 for theta and nu, row by stage
+    u_th = np.zeros((6, n))
+    u_nu = np.zeros((6, n))
+    y_th = th0.copy()
+    y_nu = nu0.copy()
+    cy = np.empty(n)  # cos, sin of y_th
+    sy = np.empty(n)
+    d_th = np.empty(n)  # a stage's input: y_th + d_th, z_nu
+    z_nu = np.empty(n)
+    f_th = np.empty(n)  # rates at the stage input
+    f_nu = np.zeros(n)
+    f0_th = np.empty(n)  # rates at the step's start
+    f0_nu = np.zeros(n)
+    r_th = np.empty(n)
+    b = np.empty(n)
+    x = np.empty(n)
+    xp = np.empty(n)
+    c = np.empty(n)
+    s = np.empty(n)
+    dd = np.empty(n)
+    # the state at the step's start, to redo a step whose crossing is not resolved
+    p_th = np.empty(n)
+    p_nu = np.empty(n)
+    p_cy = np.empty(n)
+    p_sy = np.empty(n)
+    p_f_th = np.empty(n)
+    p_f_nu = np.zeros(n)
+    val = np.empty(fp_col.shape[0])
+    work = np.empty((WORK_ROWS, n))
+
+    _eval(y_th, y_nu, cy, sy, p, indptr, indices, w, cl, sl, mass, gamma, second, f0_th, f0_nu)
+    dr2, dev = _measure(cy, sy, f0_th, f0_nu, mass, gamma, second)
+    r2 = _order2(cy, sy)
+    if freq:
+        if dev < target:
+            return ALREADY_SYNCED, 0.0, 0, 0, False
+        _deviations(cy, sy, f0_th, f0_nu, indptr, indices, w, cl, sl, mass, gamma, second, work)
+    elif r2 >= target:
+        return ALREADY_SYNCED, 0.0, 0, 0, False
+    # the network's scale for the pivot test: the largest row sum of |w|
+    scale = 0.0
+    for i in range(n):
+        row = 0.0
+        for q in range(indptr[i], indptr[i + 1]):
+            row += abs(w[q])
+        scale = max(scale, row)
+    scale = max(scale, 1e-300)
+
+    t = 0.0
+    h = min(h0, t_max)
+    h_cap = t_max  # the step size cap up to ``cap_until``, the end of an unresolved crossing's step
+    cap_until = 0.0
+    refined = 0
+    err_prev = 1.0
+    accepted = 0
+    rejected = 0
+    rejects_in_row = 0
+    while t < t_max:
+        if h < _H_FLOOR * t_max or rejects_in_row > _MAX_REJECTS:
+            return NOT_SYNCED, t, accepted, rejected, True
+        last = False
+        if t + h >= t_max:
+            h = t_max - t
+            last = True
+        g = 1.0 / (h * _GAMMA)
+        inv_h = 1.0 / h
+        for i in range(n):
+            dd[i] = g * (mass[i] * g + gamma_eff[i]) if second else g
+        # the matrix at the step's start
+        _assemble(val, cy, sy, indptr, indices, w, cl, sl, dd, fp_entry, fp_diag, fp_inv)
+        if not _factor(val, fp_diag, div_ptr, div_pos, upd_ptr, upd_ij, upd_ik, upd_kj, scale * (g + 1.0)):
+            h *= 0.25
+            rejected += 1
+            rejects_in_row += 1
+            continue
+        for stage in range(6):
+            if stage == 0:
+                for i in range(n):
+                    f_th[i] = f0_th[i]
+                    f_nu[i] = f0_nu[i]
+            else:
+                if stage < 5:
+                    for i in range(n):
+                        dt_i = 0.0
+                        dn_i = y_nu[i]
+                        for j in range(stage):
+                            dt_i += _A[stage, j] * u_th[j, i]
+                            dn_i += _A[stage, j] * u_nu[j, i]
+                        d_th[i] = dt_i
+                        z_nu[i] = dn_i
+                else:
+                    # stage 6: the stage-5 input plus u5
+                    for i in range(n):
+                        d_th[i] += u_th[4, i]
+                        z_nu[i] += u_nu[4, i]
+                # cos, sin of y_th + d_th by rotating those of y_th (Taylor for small angles)
+                for i in range(n):
+                    ca, sa = _rotation(d_th[i])
+                    c[i] = cy[i] * ca - sy[i] * sa
+                    s[i] = sy[i] * ca + cy[i] * sa
+                _rhs(c, s, z_nu, p, indptr, indices, w, cl, sl, mass, gamma, second, f_th, f_nu)
+            for i in range(n):
+                rt = f_th[i]
+                rn = f_nu[i]
+                for j in range(stage):
+                    cj = _C[stage, j] * inv_h
+                    rt += cj * u_th[j, i]
+                    rn += cj * u_nu[j, i]
+                r_th[i] = rt
+                b[i] = mass[i] * rn + (mass[i] * g + gamma_eff[i]) * rt if second else rt
+            _solve(val, fp_ptr, fp_col, fp_diag, fp_perm, b, x, xp)
+            for i in range(n):
+                u_th[stage, i] = x[i]
+                u_nu[stage, i] = g * x[i] - r_th[i] if (second and mass[i] > 0.0) else 0.0
+        # the new state is the stage-6 input plus u6; u6 is the error estimate
+        err = 0.0
+        count = 0
+        for i in range(n):
+            yn = y_th[i] + d_th[i] + u_th[5, i]
+            e = u_th[5, i] / (atol + rtol * max(abs(y_th[i]), abs(yn)))
+            err += e * e
+            count += 1
+            if second and mass[i] > 0.0:
+                yn = z_nu[i] + u_nu[5, i]
+                e = u_nu[5, i] / (atol + rtol * max(abs(y_nu[i]), abs(yn)))
+                err += e * e
+                count += 1
+        err = math.sqrt(err / count)
+        if fixed:
+            err = 0.0 if err == err else err
+        if not err <= 1.0:
+            # rejected (a NaN too): shrink, never grow after a rejection
+            fac = _SAFETY * err**-0.25 if err == err else _SHRINK
+            h *= max(_SHRINK, min(1.0, fac))
+            rejected += 1
+            rejects_in_row += 1
+            continue
+        rejects_in_row = 0
+        accepted += 1
+        for i in range(n):
+            p_th[i] = y_th[i]
+            p_nu[i] = y_nu[i]
+            p_cy[i] = cy[i]
+            p_sy[i] = sy[i]
+            p_f_th[i] = f0_th[i]
+            p_f_nu[i] = f0_nu[i]
+            y_th[i] += d_th[i] + u_th[5, i]
+            y_nu[i] = z_nu[i] + u_nu[5, i] if (second and mass[i] > 0.0) else 0.0
+        t_prev = t
+        t = t_max if last else t + h
+        # the criterion on the accepted step (rates at the new state: the next step's stage 1)
+        r2_prev = r2
+        dr2_prev = dr2
+        if freq:
+            for k in range(4):
+                for i in range(n):
+                    work[DEV_PREV_ROW + k, i] = work[DEV_ROW + k, i]
+        _eval(y_th, y_nu, cy, sy, p, indptr, indices, w, cl, sl, mass, gamma, second, f0_th, f0_nu)
+        if freq:
+            _deviations(cy, sy, f0_th, f0_nu, indptr, indices, w, cl, sl, mass, gamma, second, work)
+            xc = _frequency_crossing(work, n, second, t - t_prev, True, target)
+        else:
+            r2 = _order2(cy, sy)
+            dr2, dev = _measure(cy, sy, f0_th, f0_nu, mass, gamma, second)
+            xc = _order_crossing(r2_prev, dr2_prev, r2, dr2, t - t_prev, True, target)
+        if xc >= 0.0:
+            # the cubic interpolant is trusted where the straight line agrees with it to
+            # _CROSSING_RTOL of the time; else the step is redone shorter, up to the crossing
+            if freq:
+                xl = _frequency_crossing(work, n, second, t - t_prev, False, target)
+            else:
+                xl = _order_crossing(r2_prev, dr2_prev, r2, dr2, t - t_prev, False, target)
+            tau = t_prev + xc * (t - t_prev)
+            if (
+                xl >= 0.0 and abs(xc - xl) * (t - t_prev) <= _CROSSING_RTOL * tau
+            ) or t - t_prev <= _H_FLOOR * 1e3 * t_max:
+                return SYNCED, tau, accepted, rejected, False
+            for i in range(n):
+                y_th[i] = p_th[i]
+                y_nu[i] = p_nu[i]
+                cy[i] = p_cy[i]
+                sy[i] = p_sy[i]
+                f0_th[i] = p_f_th[i]
+                f0_nu[i] = p_f_nu[i]
+            if freq:
+                for k in range(4):
+                    for i in range(n):
+                        work[DEV_ROW + k, i] = work[DEV_PREV_ROW + k, i]
+            r2 = r2_prev
+            dr2 = dr2_prev
+            h_cap = _REFINE * (t - t_prev)
+            cap_until = t
+            h = h_cap
+            t = t_prev
+            accepted -= 1
+            refined += 1
+            continue
+        # a PI controller (Gustafsson): the error now and one step back
+        err = max(err, 1e-10)
+        fac = _SAFETY * err**-_BETA1 * err_prev**_BETA2
+        err_prev = err
+        if t >= cap_until:
+            h_cap = t_max  # past the step whose crossing was not resolved
+        if not fixed:
+            h = min(h * max(_SHRINK, min(_GROW, fac)), h_cap)
+            # near the criterion, a step may move a tested quantity by at most _NEAR of the
+            # band it must cross, so that the cubic interpolant sees a short dip into it
+            if freq:
+                h = min(h, _near_step(work, n, second, target))
+            elif dr2 != 0.0:
+                h = min(h, _NEAR * max(target - r2, n * n - target) / abs(dr2))
+    return NOT_SYNCED, t_max, accepted, rejected, False
+
+
+@njit(parallel=True, cache=True)
+def _integrate_items(
+    ks, seed, graph, model, fp, dt, t_max, rtol, atol, max_steps, out, acc0, rej0, acc, rej, failed
+):
+    """Every (realization, network) item one trajectory per thread iteration (the layout of
+    :func:`antisync.kernels.cpu._integrate_items`), each with its own step sizes."""
+    indptr = graph.indptr
+    indices = graph.indices
+    base_w = graph.base_w
+    var_w = graph.var_w
+    var_is_base = graph.var_is_base
+    todo = graph.todo
+    freqs = model.freqs
+    cl = model.cos_lag
+    sl = model.sin_lag
+    inertia = model.mass
+    damping = model.gamma
+    criterion = model.criterion
+    targets = model.targets
+    status0 = out.status0
+    steps0 = out.steps0
+    frac0 = out.frac0
+    status = out.status
+    steps = out.steps
+    frac = out.frac
+    fp_perm = fp.perm
+    fp_inv = fp.inv
+    fp_ptr = fp.ptr
+    fp_col = fp.col
+    fp_diag = fp.diag
+    fp_entry = fp.entry
+    div_ptr = fp.div_ptr
+    div_pos = fp.div_pos
+    upd_ptr = fp.upd_ptr
+    upd_ij = fp.upd_ij
+    upd_ik = fp.upd_ik
+    upd_kj = fp.upd_kj
+    m = ks.shape[0]
+    n = indptr.shape[0] - 1
+    n_var = var_w.shape[0]
+    per = n_var + 1
+    for item in prange(m * per):
+        r = item // per
+        v = item % per - 1
+        if v >= 0 and var_is_base[v]:
+            continue  # copied from the undamaged result below
+        if todo.shape[0] > 0 and not todo[r, v + 1]:
+            continue  # not asked for: left at -1 / NaN
+        th = np.empty(n)
+        nu = np.zeros(n)
+        for i in range(n):
+            th[i] = phase(seed, ks[r], i)
+        p = freqs[r] if freqs.shape[0] > 1 else freqs[0]
+        w = base_w if v < 0 else var_w[v]
+        st, tau, n_acc, n_rej, bad = rodas4_sync(
+            th,
+            nu,
+            p,
+            indptr,
+            indices,
+            w,
+            cl,
+            sl,
+            inertia,
+            damping,
+            criterion,
+            targets[v + 1],
+            t_max,
+            dt,
+            rtol,
+            atol,
+            fp_perm,
+            fp_inv,
+            fp_ptr,
+            fp_col,
+            fp_diag,
+            fp_entry,
+            div_ptr,
+            div_pos,
+            upd_ptr,
+            upd_ij,
+            upd_ik,
+            upd_kj,
+        )
+        k, x = _on_the_grid(st, tau, dt, max_steps)
+        record(status0, steps0, frac0, status, steps, frac, r, v, st, k, x)
+        if v < 0:
+            acc0[r] = n_acc
+            rej0[r] = n_rej
+        else:
+            acc[r, v] = n_acc
+            rej[r, v] = n_rej
+        if bad:
+            failed[r, v + 1] = True
+    for r in prange(m):
+        share_base(var_is_base, r, status0, steps0, frac0, status, steps, frac)
+
+
+@njit(cache=True)
+def _on_the_grid(st, tau, dt, max_steps):
+    """``(steps, frac)`` with ``tau = (steps - 1 + frac) dt``, ``frac`` in ``(0, 1]``, as the
+    explicit drivers store a crossing; ``(0, 0)`` already synchronized, ``(max_steps, 0)`` not."""
+    if st == ALREADY_SYNCED:
+        return 0, 0.0
+    if st != SYNCED:
+        return max_steps, 0.0
+    u = tau / dt
+    k = int(math.ceil(u))
+    if k < 1:
+        k = 1
+    if k > max_steps:
+        return max_steps, 1.0
+    x = u - (k - 1)
+    return k, min(1.0, max(x, 1e-300))
+
+
+def simulate_model(
+    seed: int,
+    first: int,
+    count: int,
+    indptr: np.ndarray,
+    indices: np.ndarray,
+    base_weights: np.ndarray,
+    variant_weights: np.ndarray,
+    params: ModelParams,
+    *,
+    dt: float,
+    max_steps: int,
+    rtol: float = DEFAULT_RTOL,
+    atol: float = DEFAULT_ATOL,
+    threads: int | None = None,
+    realizations: np.ndarray | None = None,
+    todo: np.ndarray | None = None,
+    plan: FactorPlan | None = None,
+    stats: bool = False,
+) -> SimResult | tuple[SimResult, StepStats]:
+    """Integrate realizations ``first .. first+count-1`` of a generalized model by Rodas4 for
+    the base network and every variant: the arguments of
+    :func:`antisync.kernels.cpu.simulate_model` (``dt`` the first step and the unit of the
+    stored times, ``t_max = max_steps dt``) plus the tolerances ``rtol``, ``atol`` and the
+    pattern's :func:`factor_plan` (made once per pattern in a process when None).
+
+    Returns a :class:`~antisync.kernels.shared.SimResult` (``tau = (steps - 1 + frac) dt``),
+    and with ``stats`` also the :class:`StepStats`. A trajectory whose step size collapses (a
+    pivot or an error estimate never resolved) raises ``FloatingPointError`` naming it, never a
+    status.
+    """
+    if not (rtol > 0 and atol > 0):
+        raise ValueError(f"rtol and atol must be positive, got {rtol}, {atol}")
+    ks, base_weights, var_w, var_is_base, freqs, targets = model_inputs(
+        first, count, realizations, indptr, base_weights, variant_weights, params, "rk4"
+    )
+    m = ks.size
+    n_var = var_w.shape[0]
+    n = indptr.size - 1
+    if todo is None:
+        todo = np.zeros((0, 0), dtype=np.bool_)
+    else:
+        todo = np.ascontiguousarray(todo, dtype=np.bool_)
+        if todo.shape != (m, n_var + 1):
+            raise ValueError(f"todo must have shape {(m, n_var + 1)}, got {todo.shape}")
+        var_is_base[:] = False
+    if plan is None:
+        plan = _plan_of_pattern(
+            np.ascontiguousarray(indptr, dtype=np.int64).tobytes(),
+            np.ascontiguousarray(indices, dtype=np.int64).tobytes(),
+        )
+    status0 = np.full(m, -1, dtype=np.int8)
+    steps0 = np.full(m, -1, dtype=np.int64)
+    frac0 = np.full(m, np.nan)
+    status = np.full((m, n_var), -1, dtype=np.int8)
+    steps = np.full((m, n_var), -1, dtype=np.int64)
+    frac = np.full((m, n_var), np.nan)
+    graph = Graph(indptr.astype(np.int64), indices.astype(np.int64), base_weights, var_w, var_is_base, todo)
+    model = Model(
+        freqs,
+        float(params.cos_lag),
+        float(params.sin_lag),
+        per_node(params.inertia, n),
+        per_node(params.damping, n),
+        int(params.criterion),
+        targets,
+    )
+    out = Outputs(status0, steps0, frac0, status, steps, frac, np.empty((m, 0)))
+    acc0 = np.full(m, -1, dtype=np.int64)
+    rej0 = np.full(m, -1, dtype=np.int64)
+    acc = np.full((m, n_var), -1, dtype=np.int64)
+    rej = np.full((m, n_var), -1, dtype=np.int64)
+    failed = np.zeros((m, n_var + 1), dtype=np.bool_)
+    t_max = float(dt) * int(max_steps)
+    # one item at a time per thread: a start that never locks runs ~6x the steps of one that does
+    with Threads(threads), numba.parallel_chunksize(1):
+        _integrate_items(
+            ks,
+            np.uint64(seed),
+            graph,
+            model,
+            plan,
+            float(dt),
+            t_max,
+            float(rtol),
+            float(atol),
+            int(max_steps),
+            out,
+            acc0,
+            rej0,
+            acc,
+            rej,
+            failed,
+        )
+    if failed.any():
+        r, v = np.argwhere(failed)[0]
+        which = "the undamaged network" if v == 0 else f"variant {v - 1}"
+        raise FloatingPointError(
+            f"rodas4: the step size collapsed on {int(failed.sum())} trajectories (first: "
+            f"realization {int(ks[r])}, {which}); loosen dynamics.rtol/atol or use integrator rk4"
+        )
+    result = SimResult(status0, steps0, status, steps, frac0, frac)
+    return (result, StepStats(acc0, rej0, acc, rej)) if stats else result
