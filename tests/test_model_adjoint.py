@@ -181,7 +181,7 @@ def test_the_replay_step_is_the_drivers_rk4_step_bit_for_bit(case):
     same states and rates, bit for bit, and the kept stage states are the step's own."""
     from antisync.kernels.core import WORK_ROWS
     from antisync.kernels.model_adjoint import _rhs, _rk4_record, _rk4_step
-    from antisync.kernels.model_steps import per_node
+    from antisync.kernels.shared import per_node
 
     job = job_of(LOLLIPOP + "edges: all\nbetas: []\n" + CASES[case])
     s = job.model

@@ -27,19 +27,19 @@ from antisync import _numba_cache  # noqa: F401 -- before any cache=True functio
 from antisync.kernels import model_steps as ms
 from antisync.kernels.core import TAYLOR_MAX_ANGLE, WORK_ROWS, lanes_per_vector, renorm_interval
 from antisync.kernels.lanes import integrate_lanes, record, share_base
-from antisync.kernels.model_steps import ModelParams, per_node
+from antisync.kernels.model_steps import ModelParams
 from antisync.kernels.precision import sync_steps
 from antisync.kernels.shared import (
     NO_TANGENTS,
     Graph,
-    Model,
     Outputs,
     PathwiseResult,
     Run,
     SimResult,
     Tangents,
     Threads,
-    model_inputs,
+    model_batch,
+    per_node,
     realization_ids,
     rotation_angle_bound,
     row_sum_bound,
@@ -397,48 +397,23 @@ def simulate_model(
     """
     if lanes < 0:
         raise ValueError(f"lanes must be >= 0, got {lanes}")
-    ks, base_weights, var_w, var_is_base, freqs, targets = model_inputs(
-        first, count, realizations, indptr, base_weights, variant_weights, params, integrator
+    if integrator not in ("euler", "rk4"):
+        raise ValueError(f"integrator must be 'euler' or 'rk4', got {integrator!r}")
+    ks, graph, model, out = model_batch(
+        first, count, realizations, indptr, indices, base_weights, variant_weights, params, integrator, todo
     )
-    m = ks.size
-    n_var = var_w.shape[0]
     n = indptr.size - 1
-    if todo is None:
-        todo = np.zeros((0, 0), dtype=np.bool_)
-    else:
-        todo = np.ascontiguousarray(todo, dtype=np.bool_)
-        if todo.shape != (m, n_var + 1):
-            raise ValueError(f"todo must have shape {(m, n_var + 1)}, got {todo.shape}")
-        # a variant equal to the base is integrated, not copied from a base that may not run
-        var_is_base[:] = False
-    status0 = np.full(m, -1, dtype=np.int8)
-    steps0 = np.full(m, -1, dtype=np.int64)
-    frac0 = np.full(m, np.nan)
-    status = np.full((m, n_var), -1, dtype=np.int8)
-    steps = np.full((m, n_var), -1, dtype=np.int64)
-    frac = np.full((m, n_var), np.nan)
-    graph = Graph(indptr.astype(np.int64), indices.astype(np.int64), base_weights, var_w, var_is_base, todo)
-    model = Model(
-        freqs,
-        float(params.cos_lag),
-        float(params.sin_lag),
-        per_node(params.inertia, n),
-        per_node(params.damping, n),
-        int(params.criterion),
-        targets,
-    )
     rk4 = integrator == "rk4"
-    out = Outputs(status0, steps0, frac0, status, steps, frac, np.empty((m, 0)))
     with Threads(threads) as groups:
         if not lanes:
             _integrate_items(ks, np.uint64(seed), graph, model, float(dt), rk4, int(max_steps), out)
         else:
-            if todo.shape[0] > 0:
-                groups, lanes = _scattered_layout(int(todo.sum()), groups, int(lanes))
-            taylor = _taylor_everywhere(dt, indptr, base_weights, var_w, freqs, params, n)
+            if graph.todo.shape[0] > 0:
+                groups, lanes = _scattered_layout(int(graph.todo.sum()), groups, int(lanes))
+            taylor = _taylor_everywhere(dt, indptr, graph.base_w, graph.var_w, model.freqs, params, n)
             run = Run(np.uint64(seed), float(dt), 0.0, int(max_steps), taylor, rk4, int(lanes))
             integrate_lanes(ks, graph, run, model, out, NO_TANGENTS, groups)
-    return SimResult(status0, steps0, status, steps, frac0, frac)
+    return SimResult(out.status0, out.steps0, out.status, out.steps, out.frac0, out.frac)
 
 
 def _scattered_layout(items: int, groups: int, lanes: int) -> tuple[int, int]:

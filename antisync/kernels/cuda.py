@@ -40,8 +40,7 @@ import numpy as np
 
 from antisync.errors import AntisyncError
 from antisync.kernels.core import WORK_ROWS, make_kernels, make_model_kernels
-from antisync.kernels.model_steps import per_node
-from antisync.kernels.shared import SimResult, model_inputs
+from antisync.kernels.shared import SimResult, model_inputs, per_node
 from antisync.physics.phases import make_phase
 from antisync.stats.estimators import (
     BLOCK_FIELDS,

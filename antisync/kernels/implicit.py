@@ -50,9 +50,9 @@ from antisync import _numba_cache  # noqa: F401 -- before any cache=True functio
 from antisync.kernels import model_steps as ms
 from antisync.kernels.core import CRIT_FREQUENCY, DEV_PREV_ROW, DEV_ROW, WORK_ROWS
 from antisync.kernels.lanes import record, share_base
-from antisync.kernels.model_steps import ModelParams, per_node
+from antisync.kernels.model_steps import ModelParams
 from antisync.kernels.precision import K64
-from antisync.kernels.shared import Graph, Model, Outputs, SimResult, Threads, model_inputs
+from antisync.kernels.shared import SimResult, Threads, model_batch
 from antisync.physics.phases import phase
 from antisync.status import ALREADY_SYNCED, NOT_SYNCED, SYNCED
 from antisync.types import RODAS4_ATOL, RODAS4_RTOL
@@ -764,41 +764,16 @@ def simulate_model(
     """
     if not (rtol > 0 and atol > 0):
         raise ValueError(f"rtol and atol must be positive, got {rtol}, {atol}")
-    ks, base_weights, var_w, var_is_base, freqs, targets = model_inputs(
-        first, count, realizations, indptr, base_weights, variant_weights, params, "rk4"
+    ks, graph, model, out = model_batch(
+        first, count, realizations, indptr, indices, base_weights, variant_weights, params, "rodas4", todo
     )
     m = ks.size
-    n_var = var_w.shape[0]
-    n = indptr.size - 1
-    if todo is None:
-        todo = np.zeros((0, 0), dtype=np.bool_)
-    else:
-        todo = np.ascontiguousarray(todo, dtype=np.bool_)
-        if todo.shape != (m, n_var + 1):
-            raise ValueError(f"todo must have shape {(m, n_var + 1)}, got {todo.shape}")
-        var_is_base[:] = False
+    n_var = graph.var_w.shape[0]
     if plan is None:
         plan = _plan_of_pattern(
             np.ascontiguousarray(indptr, dtype=np.int64).tobytes(),
             np.ascontiguousarray(indices, dtype=np.int64).tobytes(),
         )
-    status0 = np.full(m, -1, dtype=np.int8)
-    steps0 = np.full(m, -1, dtype=np.int64)
-    frac0 = np.full(m, np.nan)
-    status = np.full((m, n_var), -1, dtype=np.int8)
-    steps = np.full((m, n_var), -1, dtype=np.int64)
-    frac = np.full((m, n_var), np.nan)
-    graph = Graph(indptr.astype(np.int64), indices.astype(np.int64), base_weights, var_w, var_is_base, todo)
-    model = Model(
-        freqs,
-        float(params.cos_lag),
-        float(params.sin_lag),
-        per_node(params.inertia, n),
-        per_node(params.damping, n),
-        int(params.criterion),
-        targets,
-    )
-    out = Outputs(status0, steps0, frac0, status, steps, frac, np.empty((m, 0)))
     acc0 = np.full(m, -1, dtype=np.int64)
     rej0 = np.full(m, -1, dtype=np.int64)
     acc = np.full((m, n_var), -1, dtype=np.int64)
@@ -832,5 +807,5 @@ def simulate_model(
             f"rodas4: the step size collapsed on {int(failed.sum())} trajectories (first: "
             f"realization {int(ks[r])}, {which}); loosen dynamics.rtol/atol or use integrator rk4"
         )
-    result = SimResult(status0, steps0, status, steps, frac0, frac)
+    result = SimResult(out.status0, out.steps0, out.status, out.steps, out.frac0, out.frac)
     return (result, StepStats(acc0, rej0, acc, rej)) if stats else result

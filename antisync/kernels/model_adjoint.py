@@ -58,8 +58,7 @@ from antisync.kernels.core import (
     make_kernels,
     make_model_kernels,
 )
-from antisync.kernels.model_steps import per_node
-from antisync.kernels.shared import PathwiseResult, Threads, realization_ids
+from antisync.kernels.shared import PathwiseResult, Threads, per_node, realization_ids
 from antisync.physics.phases import phase
 from antisync.status import NOT_SYNCED, SYNCED
 

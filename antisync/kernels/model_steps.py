@@ -68,11 +68,6 @@ class ModelParams(NamedTuple):
     targets: np.ndarray
 
 
-def per_node(value, n: int) -> np.ndarray:
-    """Inertia or damping as the kernels' per-node array (a number is every node's)."""
-    return np.ascontiguousarray(np.broadcast_to(np.asarray(value, dtype=np.float64), (n,)))
-
-
 @njit(inline="always")
 def rates_vec(c, s, nu, p, cl, sl, mass, gamma, second, o, sc, ss, i):
     """``rhs``' node ``i`` for the lane vector at flat offset ``o`` of the state ``(c, s, nu)``

@@ -25,7 +25,9 @@ __all__ = [
     "SimResult",
     "Tangents",
     "Threads",
+    "model_batch",
     "model_inputs",
+    "per_node",
     "realization_ids",
     "rotation_angle_bound",
     "row_sum_bound",
@@ -220,8 +222,8 @@ def model_inputs(first, count, realizations, indptr, base_weights, variant_weigh
     """A model run's arguments checked and in the kernels' types, for the CPU and CUDA drivers:
     ``(ks, base_weights, var_w, var_is_base, freqs, targets)``; ``ValueError`` names what is
     wrong (the integrator, the criterion code, the shapes of ``freqs`` and ``targets``)."""
-    if integrator not in ("euler", "rk4"):
-        raise ValueError(f"integrator must be 'euler' or 'rk4', got {integrator!r}")
+    if integrator not in ("euler", "rk4", "rodas4"):
+        raise ValueError(f"integrator must be 'euler', 'rk4' or 'rodas4', got {integrator!r}")
     if params.criterion not in (CRIT_ORDER, CRIT_FREQUENCY):
         raise ValueError(f"unknown criterion code {params.criterion}")
     ks = realization_ids(first, count, realizations)
@@ -238,3 +240,50 @@ def model_inputs(first, count, realizations, indptr, base_weights, variant_weigh
     if targets.shape != (n_var + 1,):
         raise ValueError(f"targets must have shape ({n_var + 1},), got {targets.shape}")
     return ks, base, var_w, var_is_base, freqs, targets
+
+
+def per_node(value, n: int) -> np.ndarray:
+    """Inertia or damping as the kernels' per-node array (a number is every node's)."""
+    return np.ascontiguousarray(np.broadcast_to(np.asarray(value, dtype=np.float64), (n,)))
+
+
+def model_batch(
+    first, count, realizations, indptr, indices, base_weights, variant_weights, params, integrator, todo
+):
+    """A CPU model run's kernel arguments, checked: ``(ks, graph, model, out)`` with
+    :func:`model_inputs`' checks, ``todo`` (bool ``(m, V + 1)`` or None: every item; given, a
+    variant equal to the base is integrated rather than copied from a base that may not run)
+    and the :class:`Outputs` at ``-1`` / NaN for the items not integrated."""
+    ks, base_weights, var_w, var_is_base, freqs, targets = model_inputs(
+        first, count, realizations, indptr, base_weights, variant_weights, params, integrator
+    )
+    m = ks.size
+    n_var = var_w.shape[0]
+    n = indptr.size - 1
+    if todo is None:
+        todo = np.zeros((0, 0), dtype=np.bool_)
+    else:
+        todo = np.ascontiguousarray(todo, dtype=np.bool_)
+        if todo.shape != (m, n_var + 1):
+            raise ValueError(f"todo must have shape {(m, n_var + 1)}, got {todo.shape}")
+        var_is_base[:] = False
+    graph = Graph(indptr.astype(np.int64), indices.astype(np.int64), base_weights, var_w, var_is_base, todo)
+    model = Model(
+        freqs,
+        float(params.cos_lag),
+        float(params.sin_lag),
+        per_node(params.inertia, n),
+        per_node(params.damping, n),
+        int(params.criterion),
+        targets,
+    )
+    out = Outputs(
+        np.full(m, -1, dtype=np.int8),
+        np.full(m, -1, dtype=np.int64),
+        np.full(m, np.nan),
+        np.full((m, n_var), -1, dtype=np.int8),
+        np.full((m, n_var), -1, dtype=np.int64),
+        np.full((m, n_var), np.nan),
+        np.empty((m, 0)),
+    )
+    return ks, graph, model, out
