@@ -15,6 +15,7 @@ from antisync.cli.app import app
 from antisync.errors import ConfigError
 from antisync.execution.compute import simulate_job
 from antisync.kernels import cpu, model_steps
+from antisync.kernels.shared import model_inputs
 from antisync.physics import coupling, graphs
 from antisync.physics.locked import locked_state
 from antisync.physics.phases import initial_phases
@@ -68,7 +69,7 @@ def test_model_kernel_with_default_parameters_is_the_default_kernel_bit_for_bit(
 @pytest.mark.parametrize(
     "change, message",
     [
-        ({"integrator": "heun"}, "integrator must be 'euler' or 'rk4', got 'heun'"),
+        ({"integrator": "heun"}, "integrator must be 'euler', 'rk4' or 'rodas4', got 'heun'"),
         ({"criterion": 7}, "unknown criterion code 7"),
         ({"freqs": np.zeros((2, 6))}, "freqs must have shape (1, 6) or (3, 6), got (2, 6)"),
         ({"freqs": np.zeros((1, 5))}, "freqs must have shape (1, 6) or (3, 6), got (1, 5)"),
@@ -85,10 +86,10 @@ def test_model_inputs_name_what_is_wrong(change, message):
     params = cpu.ModelParams(fields["freqs"], 1.0, 0.0, 0.0, 1.0, fields["criterion"], fields["targets"])
     args = (0, 3, None, job.csr.indptr, job.csr.weights, job.variant_weights, params)
     with pytest.raises(ValueError) as err:
-        cpu.model_inputs(*args, change.get("integrator", "euler"))
+        model_inputs(*args, change.get("integrator", "euler"))
     assert str(err.value) == message.format(v1=v + 1)
     good = cpu.ModelParams(np.zeros((1, 6)), 1.0, 0.0, 0.0, 1.0, 0, np.ones(v + 1))
-    ks, base, var_w, var_is_base, _, _ = cpu.model_inputs(*args[:-1], good, "rk4")
+    ks, base, var_w, var_is_base, _, _ = model_inputs(*args[:-1], good, "rk4")
     assert ks.tolist() == [0, 1, 2] and var_w.shape == (v, base.size)
     assert var_is_base.tolist() == [bool((w == base).all()) for w in var_w]
 
