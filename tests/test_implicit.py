@@ -29,23 +29,6 @@ from antisync.status import Status
 CONFIGS = Path(__file__).resolve().parent.parent / "configs"
 
 
-def _plan_args(plan):
-    return (
-        plan.perm,
-        plan.inv,
-        plan.ptr,
-        plan.col,
-        plan.diag,
-        plan.entry,
-        plan.div_ptr,
-        plan.div_pos,
-        plan.upd_ptr,
-        plan.upd_ij,
-        plan.upd_ik,
-        plan.upd_kj,
-    )
-
-
 def _csr(w):
     n = w.shape[0]
     rows, cols = np.nonzero(w)
@@ -76,7 +59,7 @@ def test_the_planned_sparse_lu_solves_as_a_dense_solve(lag):
     implicit._assemble(
         val, c, s, indptr, indices, weights, math.cos(lag), math.sin(lag), dd, plan.entry, plan.diag, plan.inv
     )
-    assert implicit._factor(val, plan.diag, *_plan_args(plan)[6:], 1.0)
+    assert implicit._factor(val, plan.diag, *plan[6:], 1.0)
     b = rng.normal(size=n)
     x = np.empty(n)
     implicit._solve(val, plan.ptr, plan.col, plan.diag, plan.perm, b, x, np.empty(n))
@@ -105,7 +88,7 @@ def _one(theta0, w, p, mass, gamma, criterion, target, t_max, h, rtol=1e-6, atol
         h,
         rtol,
         atol,
-        *_plan_args(plan),
+        plan,
         fixed,
     )
 

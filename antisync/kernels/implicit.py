@@ -374,25 +374,16 @@ def rodas4_sync(
     h0,
     rtol,
     atol,
-    fp_perm,
-    fp_inv,
-    fp_ptr,
-    fp_col,
-    fp_diag,
-    fp_entry,
-    div_ptr,
-    div_pos,
-    upd_ptr,
-    upd_ij,
-    upd_ik,
-    upd_kj,
+    plan,
     fixed=False,
 ):
-    """One trajectory from ``(th0, nu0)`` until the criterion holds or ``t_max``: ``(status,
-    tau, accepted, rejected, failed)`` (``failed``: the step size fell below ``1e-13 t_max`` or
-    kept being rejected, ``tau`` the time reached). ``fixed``: every step ``h0``, accepted
-    whatever its error estimate, the crossing on the step's cubic interpolant (the order
-    tests)."""
+    """One trajectory from ``(th0, nu0)`` until the criterion holds or ``t_max``, the LU on
+    ``plan`` (a :class:`FactorPlan`): ``(status, tau, accepted, rejected, failed)``
+    (``failed``: the step size fell below ``1e-13 t_max`` or kept being rejected, ``tau`` the
+    time reached). ``fixed``: every step ``h0``, accepted whatever its error estimate, the
+    crossing on the step's cubic interpolant (the order tests)."""
+    fp_perm, fp_inv, fp_ptr, fp_col, fp_diag, fp_entry = plan[:6]
+    div_ptr, div_pos, upd_ptr, upd_ij, upd_ik, upd_kj = plan[6:]
     n = th0.shape[0]
     second = False
     for i in range(n):
@@ -640,18 +631,6 @@ def _integrate_items(
     status = out.status
     steps = out.steps
     frac = out.frac
-    fp_perm = fp.perm
-    fp_inv = fp.inv
-    fp_ptr = fp.ptr
-    fp_col = fp.col
-    fp_diag = fp.diag
-    fp_entry = fp.entry
-    div_ptr = fp.div_ptr
-    div_pos = fp.div_pos
-    upd_ptr = fp.upd_ptr
-    upd_ij = fp.upd_ij
-    upd_ik = fp.upd_ik
-    upd_kj = fp.upd_kj
     m = ks.shape[0]
     n = indptr.shape[0] - 1
     n_var = var_w.shape[0]
@@ -686,18 +665,7 @@ def _integrate_items(
             dt,
             rtol,
             atol,
-            fp_perm,
-            fp_inv,
-            fp_ptr,
-            fp_col,
-            fp_diag,
-            fp_entry,
-            div_ptr,
-            div_pos,
-            upd_ptr,
-            upd_ij,
-            upd_ik,
-            upd_kj,
+            fp,
         )
         k, x = _on_the_grid(st, tau, dt, max_steps)
         record(status0, steps0, frac0, status, steps, frac, r, v, st, k, x)
