@@ -26,7 +26,7 @@ from numba import njit, prange
 from antisync import _numba_cache  # noqa: F401 -- before any cache=True function (see there)
 from antisync.kernels import model_steps as ms
 from antisync.kernels.core import TAYLOR_MAX_ANGLE, WORK_ROWS, lanes_per_vector, renorm_interval
-from antisync.kernels.lanes import integrate_lanes, record, share_base
+from antisync.kernels.lanes import integrate_lanes, item_of, record, share_base
 from antisync.kernels.model_steps import ModelParams
 from antisync.kernels.precision import sync_steps
 from antisync.kernels.shared import (
@@ -145,12 +145,9 @@ def _integrate_items(ks, seed, graph, model, dt, rk4, max_steps, out):
     n_var = var_w.shape[0]
     per = n_var + 1
     for item in prange(m * per):
-        r = item // per
-        v = item % per - 1
-        if v >= 0 and var_is_base[v]:
-            continue  # copied from the undamaged result below
-        if todo.shape[0] > 0 and not todo[r, v + 1]:
-            continue  # not asked for: left at -1 / NaN
+        r, v, run = item_of(item, per, var_is_base, todo)
+        if not run:
+            continue
         c = np.empty(n)
         s = np.empty(n)
         nu = np.zeros(n)

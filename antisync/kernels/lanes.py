@@ -43,6 +43,7 @@ __all__ = [
     "Lanes",
     "ModelLanes",
     "integrate_lanes",
+    "item_of",
     "make_lane_driver",
     "next_item",
     "record",
@@ -254,6 +255,20 @@ def _lane_initial(c, s, kv, lw, indptr, indices, rk4, q, r2, dr2, u, dr2t):
         dr2t[e, q] = 0.0
         for i in range(u.shape[1]):
             u[e, i, q] = 0.0
+
+
+@njit(inline="always")
+def item_of(item, per, var_is_base, todo):
+    """``(r, v, run)`` of flat item ``item`` of a one-trajectory-per-item driver (``per`` items
+    a realization: the undamaged network ``v = -1``, then each variant): ``run`` is False for a
+    variant equal to the base (copied by :func:`share_base`) or an item ``todo`` leaves out."""
+    r = item // per
+    v = item % per - 1
+    if v >= 0 and var_is_base[v]:
+        return r, v, False
+    if todo.shape[0] > 0 and not todo[r, v + 1]:
+        return r, v, False  # not asked for: left at -1 / NaN
+    return r, v, True
 
 
 @njit(inline="always")
