@@ -22,16 +22,16 @@ from typing import TYPE_CHECKING
 
 from antisync._version import __version__
 
-__all__ = ["Result", "__version__", "load", "measures", "run", "summarize", "sweep"]
+__all__ = ["Result", "__version__", "design", "load", "measures", "run", "summarize", "sweep"]
 
 if TYPE_CHECKING:
     from antisync import measures
-    from antisync.api import Result, load, run, summarize, sweep
+    from antisync.api import Result, design, load, run, summarize, sweep
 
 
 def __getattr__(name: str):
     """Load the API on first use, so ``import antisync`` (and ``antisync --help``) stay fast."""
-    if name in ("Result", "load", "run", "summarize", "sweep"):
+    if name in ("Result", "design", "load", "run", "summarize", "sweep"):
         return getattr(importlib.import_module("antisync.api"), name)
     if name == "measures":
         return importlib.import_module("antisync.measures")

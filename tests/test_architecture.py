@@ -32,6 +32,7 @@ STAGES = (
     "execution",
     "sweeps",
     "grids",
+    "optimize",
     "report",
     "paper",
     "api",

@@ -12,6 +12,7 @@ from typer.core import TyperGroup
 from antisync._version import __version__
 from antisync.cli.capabilities import capabilities
 from antisync.cli.common import fail, flush_stdout
+from antisync.cli.design import design
 from antisync.cli.grid import grid
 from antisync.cli.paper import paper
 from antisync.cli.report import report
@@ -109,6 +110,7 @@ app.command()(validate)
 app.command()(paper)
 app.command()(grid)
 app.command()(capabilities)
+app.command()(design)
 
 
 def main() -> None:

@@ -44,13 +44,18 @@ def report(
     from antisync.errors import AntisyncError
     from antisync.report.figures import write_file_report
     from antisync.store import is_sweep_file
+    from antisync.store.design_file import is_design_file
 
     if top < 1:
         raise AntisyncError(f"--top must be a positive number of links, got {top}")
     folder = out or results.with_suffix("").with_name(results.stem + "_figures")
     if folder.exists() and not folder.is_dir():
         raise AntisyncError(f"report folder {folder} is a file; give --out a folder (new or existing)")
-    if is_sweep_file(results):
+    if is_design_file(results):
+        from antisync.report.design import draw_design
+
+        paths = draw_design(results, folder)
+    elif is_sweep_file(results):
         # a sweep: Fig. 3 ranking, Table 1, Fig. 4, Fig. 2 (lollipops), Fig. 6 (thresholds)
         from antisync.report.sweep import write_sweep_report
 
