@@ -229,3 +229,33 @@ def test_the_shipped_design_configs_load_and_their_graphs_are_feasible(name):
     cfg, spec = load_design_config(Path(__file__).resolve().parent.parent / "configs" / name)
     problem = make_problem(cfg, spec.budget, lower=spec.lower, upper=spec.upper)
     assert problem.budget.contains(problem.start)  # the network's own weights spend the budget
+
+
+def test_a_candidate_link_is_a_variable_absent_at_zero_and_its_derivative_is_right():
+    p = _problem(candidates=["1-6"], candidate_cost=2.0)
+    assert p.labels[-1] == "1-6" and p.candidate.tolist() == [False] * 6 + [True]
+    assert p.start[-1] == 0.0 and p.budget.cost[-1] == 2.0 and p.budget.total == 6.0
+    assert p.budget.contains(p.start)  # the graph itself, candidate absent
+    x = p.budget.uniform()
+    assert x[-1] > 0
+    ks = np.arange(8)
+    s = sample(p, x, 3, ks, cut=None)
+    h = 1e-6
+    up, down = x.copy(), x.copy()
+    up[-1] += h
+    down[-1] -= h
+    fd = (sample(p, up, 3, ks, cut=None).tau - sample(p, down, 3, ks, cut=None).tau) / (2 * h)
+    assert np.max(np.abs(fd - s.grad[:, -1])) < 1e-5 * (np.max(np.abs(fd)) + 1)
+    # at weight 0 the link is in the pattern with a derivative of its own (it can grow back)
+    zero = sample(p, p.start, 3, ks, cut=None)
+    assert np.any(zero.grad[:, -1] != 0)
+
+
+def test_validate_reads_a_design_config_and_run_sends_it_to_design():
+    from pathlib import Path
+
+    config = str(Path(__file__).resolve().parent.parent / "configs" / "karate_design.yaml")
+    ok = CliRunner().invoke(app, ["validate", config])
+    assert ok.exit_code == 0 and "# ok: design of 78 link weight(s) of 34 nodes" in ok.output
+    run = CliRunner().invoke(app, ["run", config])
+    assert run.exit_code == 2 and "antisync design" in run.output

@@ -104,7 +104,13 @@ def test_shipped_configs_are_valid(name):
     from antisync.plan.jobs import make_job
 
     path = REPO / "configs" / f"{name}.yaml"
-    if "sweep" in yaml.safe_load(path.read_text()):
+    raw = yaml.safe_load(path.read_text())
+    if "design" in raw:  # a design config (docs/design.md): its run config and its design section
+        from antisync.optimize.config import load_design_config
+
+        cfg, spec = load_design_config(path)  # the graphs: tests/test_optimize.py
+        assert name.startswith(cfg.name) and spec.output.endswith(f"{cfg.name}_design.h5")
+    elif "sweep" in raw:
         sw = load_sweep(path)
         assert sw.name == name
         assert sw.key() == load_sweep(path).key()

@@ -13,7 +13,29 @@ def validate(config: ConfigArg, set_: SetOpt = None, debug: DebugOpt = False) ->
     from antisync.plan.config import load_config
     from antisync.plan.jobs import make_job, stiffness_note
 
-    if _is_sweep(config):
+    keys = _top_keys(config)
+    if "design" in keys:
+        from antisync.optimize.config import load_design_config
+        from antisync.optimize.ensemble import make_problem
+
+        cfg, spec = load_design_config(config, list(set_ or []))
+        problem = make_problem(
+            cfg,
+            spec.budget,
+            lower=spec.lower,
+            upper=spec.upper,
+            candidates=spec.candidates,
+            candidate_cost=spec.candidate_cost,
+        )
+        typer.echo(cfg.resolved().to_yaml().rstrip())
+        typer.echo(f"design: {spec.to_dict()}")
+        typer.echo(
+            f"# ok: design of {len(problem.links)} link weight(s) of {problem.n_nodes} nodes "
+            f"({int(problem.candidate.sum())} candidate(s)), budget {problem.budget.total:g}, "
+            f"objective {spec.objective}, into {spec.output}"
+        )
+        return
+    if "sweep" in keys:
         from antisync.sweeps import family_graphs, load_sweep
         from antisync.sweeps.stages import check_sweep
 
@@ -77,8 +99,9 @@ def preflight(cfg, jobs) -> str:
     return backend
 
 
-def _is_sweep(path) -> bool:
-    """Whether the YAML file has a top-level ``sweep:`` key (errors are left to the loaders)."""
+def _top_keys(path) -> set:
+    """The YAML file's top-level keys (``sweep:``, ``design:`` choose the loader; errors are
+    left to the loaders)."""
     import yaml
 
     from antisync.errors import AntisyncError
@@ -88,5 +111,5 @@ def _is_sweep(path) -> bool:
         # the config reader: a FIFO, a device or a huge file is refused, never read
         raw = yaml.safe_load(read_config_text(path))
     except (AntisyncError, OSError, yaml.YAMLError):
-        return False
-    return isinstance(raw, dict) and "sweep" in raw
+        return set()
+    return set(raw) if isinstance(raw, dict) else set()

@@ -634,6 +634,11 @@ def _from_mapping(raw: dict, source: Path | None) -> Config:
             "this is a sweep config (it has a 'sweep:' section): run it with "
             "`antisync sweep`, not `antisync run`"
         )
+    if "design" in raw:
+        raise ConfigError(
+            "this is a design config (it has a 'design:' section): run it with "
+            "`antisync design`, not `antisync run`"
+        )
     unknown_keys(raw, _TOP_KEYS, "")
     if "graph" not in raw:
         raise ConfigError("missing key 'graph' (e.g. graph: {kind: lollipop, nodes: 6, path: 3})")
