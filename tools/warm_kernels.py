@@ -32,10 +32,10 @@ GROUPS = {
         {"dynamics": {"dt": 0.01, "t_max": 60}},
         {"dynamics": {"dt": 0.01, "t_max": 60, "precision": "float32"}},
         {"dynamics": {"integrator": "rk4", "dt": 0.04, "t_max": 60}},
-        {"dynamics": {"dt": 0.01, "t_max": 60}, "lambda_": {"method": "adjoint"}},
-        {"dynamics": {"integrator": "rk4", "dt": 0.04, "t_max": 60}, "lambda_": {"method": "adjoint-hybrid"}},
-        {"dynamics": {"dt": 0.01, "t_max": 60}, "lambda_": {"method": "hybrid"}},
-        {"dynamics": {"dt": 0.01, "t_max": 60}, "lambda_": {"method": "orbit"}},
+        {"dynamics": {"dt": 0.01, "t_max": 60}, "lambda": {"method": "adjoint"}},
+        {"dynamics": {"integrator": "rk4", "dt": 0.04, "t_max": 60}, "lambda": {"method": "adjoint-hybrid"}},
+        {"dynamics": {"dt": 0.01, "t_max": 60}, "lambda": {"method": "hybrid"}},
+        {"dynamics": {"dt": 0.01, "t_max": 60}, "lambda": {"method": "orbit"}},
         {"dynamics": {"dt": 0.01, "t_max": 60}, "measures": ["km", "xi2", "rw", "linear"]},
     ],
     "models": [
@@ -49,9 +49,9 @@ GROUPS = {
         {
             "dynamics": {"integrator": "rk4", "dt": 0.02, "t_max": 60},
             "model": FREQS,
-            "lambda_": {"method": "adjoint"},
+            "lambda": {"method": "adjoint"},
         },
-        {"dynamics": {"dt": 0.01, "t_max": 60}, "model": FREQS, "lambda_": {"method": "adjoint"}},
+        {"dynamics": {"dt": 0.01, "t_max": 60}, "model": FREQS, "lambda": {"method": "adjoint"}},
         {
             "dynamics": {"integrator": "rodas4", "dt": 0.01, "t_max": 60},
             "model": {**FREQS, "inertia": 0.5},

@@ -16,17 +16,9 @@ def validate(config: ConfigArg, set_: SetOpt = None, debug: DebugOpt = False) ->
     keys = _top_keys(config)
     if "design" in keys:
         from antisync.optimize.config import load_design_config
-        from antisync.optimize.ensemble import make_problem
 
         cfg, spec = load_design_config(config, list(set_ or []))
-        problem = make_problem(
-            cfg,
-            spec.budget,
-            lower=spec.lower,
-            upper=spec.upper,
-            candidates=spec.candidates,
-            candidate_cost=spec.candidate_cost,
-        )
+        problem = spec.problem(cfg)
         typer.echo(cfg.resolved().to_yaml().rstrip())
         typer.echo(f"design: {spec.to_dict()}")
         typer.echo(

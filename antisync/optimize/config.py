@@ -25,7 +25,7 @@ from pathlib import Path
 
 from antisync.errors import ConfigError
 from antisync.optimize.descent import Settings
-from antisync.optimize.ensemble import check_designable
+from antisync.optimize.ensemble import Problem, check_designable, make_problem
 from antisync.plan.config import Config, config_from_mapping, parse_mapping, read_config_text
 from antisync.validation import choice, parse_integer, parse_number, unknown_keys
 
@@ -53,6 +53,18 @@ class DesignSpec:
     start: str = "lambda2"
     settings: Settings = Settings()
     output: str = ""
+
+    def problem(self, config: Config) -> Problem:
+        """The :class:`~antisync.optimize.ensemble.Problem` of ``config``'s network under this
+        section's budget, bounds and candidates."""
+        return make_problem(
+            config,
+            self.budget,
+            lower=self.lower,
+            upper=self.upper,
+            candidates=self.candidates,
+            candidate_cost=self.candidate_cost,
+        )
 
     def to_dict(self) -> dict:
         out = {f.name: getattr(self, f.name) for f in fields(self) if f.name != "settings"}

@@ -40,6 +40,7 @@ from antisync.optimize.budget import Budget
 from antisync.physics import graphs
 from antisync.physics.coupling import CouplingCSR, to_csr
 from antisync.plan.config import Config
+from antisync.plan.jobs import config_graph
 from antisync.plan.model import model_setup
 from antisync.status import ALREADY_SYNCED, SYNCED
 
@@ -190,12 +191,7 @@ def make_problem(
     """
     check_designable(config)
     if graph is None:
-        try:
-            graph = graphs.build_graph(config.graph, seed=config.seed)
-        except (KeyError, TypeError, ValueError) as exc:
-            if isinstance(exc, graphs.GraphError):
-                raise
-            raise graphs.GraphError(f"graph {config.graph}: {exc}") from None
+        graph = config_graph(config)
     nodes = graphs.node_order(graph)
     index = {v: i for i, v in enumerate(nodes)}
     links, labels, start = [], [], []

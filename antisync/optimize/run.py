@@ -22,7 +22,7 @@ from antisync.errors import StoreError
 from antisync.optimize import spectral
 from antisync.optimize.config import DesignSpec
 from antisync.optimize.descent import State, run_descent, stream_seed, verify
-from antisync.optimize.ensemble import Problem, make_problem, sample
+from antisync.optimize.ensemble import Problem, sample
 from antisync.plan.config import Config
 from antisync.status import SYNCED
 from antisync.store.design_file import check_design_target, read_design, write_design
@@ -84,14 +84,7 @@ def run_design(
 
 def _run(config, spec, path, resume, progress, threads, log) -> Path:
     settings = spec.settings
-    problem = make_problem(
-        config,
-        spec.budget,
-        lower=spec.lower,
-        upper=spec.upper,
-        candidates=spec.candidates,
-        candidate_cost=spec.candidate_cost,
-    )
+    problem = spec.problem(config)
     config_text = config.to_yaml()
     record = {
         "config": config_text,

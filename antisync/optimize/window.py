@@ -276,6 +276,23 @@ def _order(s, c):
 
 
 @njit(cache=True)
+def _stages(th, h, omega, kc, dense, w, indptr, nbr, wv, y, sn, cn, wsn, wcn, k1, k2, k3, k4):
+    """RK4's stages 2-4 of the step from ``th`` (``k1`` given): the states ``y[1..3]``, their
+    sines, cosines and coupling sums, and ``k2``, ``k3``, ``k4``. The forward pass and the
+    backward pass's recomputation call this one function: the same operations, the same bits."""
+    n = th.size
+    for i in range(n):
+        y[1, i] = th[i] + 0.5 * h * k1[i]
+    _rhs(y[1], omega, kc, dense, w, indptr, nbr, wv, sn[1], cn[1], wsn[1], wcn[1], k2)
+    for i in range(n):
+        y[2, i] = th[i] + 0.5 * h * k2[i]
+    _rhs(y[2], omega, kc, dense, w, indptr, nbr, wv, sn[2], cn[2], wsn[2], wcn[2], k3)
+    for i in range(n):
+        y[3, i] = th[i] + h * k3[i]
+    _rhs(y[3], omega, kc, dense, w, indptr, nbr, wv, sn[3], cn[3], wsn[3], wcn[3], k4)
+
+
+@njit(cache=True)
 def _objective(omega, links, x, kc, starts, h, n_steps, want_grad, dense):
     """``(J, grad)`` of the discrete objective, averaged over the rows of ``starts``."""
     n = omega.shape[0]
@@ -327,15 +344,7 @@ def _objective(omega, links, x, kc, starts, h, n_steps, want_grad, dense):
             acc += (0.5 * h if (m == 0 or m == n_steps) else h) * r
             if m == n_steps:
                 break
-            for i in range(n):
-                y[1, i] = th[i] + 0.5 * h * k1[i]
-            _rhs(y[1], omega, kc, dense, w, indptr, nbr, wv, sn[1], cn[1], wsn[1], wcn[1], k2)
-            for i in range(n):
-                y[2, i] = th[i] + 0.5 * h * k2[i]
-            _rhs(y[2], omega, kc, dense, w, indptr, nbr, wv, sn[2], cn[2], wsn[2], wcn[2], k3)
-            for i in range(n):
-                y[3, i] = th[i] + h * k3[i]
-            _rhs(y[3], omega, kc, dense, w, indptr, nbr, wv, sn[3], cn[3], wsn[3], wcn[3], k4)
+            _stages(th, h, omega, kc, dense, w, indptr, nbr, wv, y, sn, cn, wsn, wcn, k1, k2, k3, k4)
             for i in range(n):
                 traj[m + 1, i] = th[i] + h / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i])
         total += 1.0 - acc / t_total
@@ -352,15 +361,7 @@ def _objective(omega, links, x, kc, starts, h, n_steps, want_grad, dense):
                 # adjoint of theta_{m+1} = theta_m + h/6 (k1 + 2 k2 + 2 k3 + k4); lam holds
                 # dJ/d theta_{m+1}. Recompute the stage states of step m (same operations as
                 # the forward pass, so the same bits), then walk the stages backwards.
-                for i in range(n):
-                    y[1, i] = th[i] + 0.5 * h * k1[i]
-                _rhs(y[1], omega, kc, dense, w, indptr, nbr, wv, sn[1], cn[1], wsn[1], wcn[1], k2)
-                for i in range(n):
-                    y[2, i] = th[i] + 0.5 * h * k2[i]
-                _rhs(y[2], omega, kc, dense, w, indptr, nbr, wv, sn[2], cn[2], wsn[2], wcn[2], k3)
-                for i in range(n):
-                    y[3, i] = th[i] + h * k3[i]
-                _rhs(y[3], omega, kc, dense, w, indptr, nbr, wv, sn[3], cn[3], wsn[3], wcn[3], k4)
+                _stages(th, h, omega, kc, dense, w, indptr, nbr, wv, y, sn, cn, wsn, wcn, k1, k2, k3, k4)
                 for i in range(n):
                     ak[3, i] = h / 6.0 * lam[i]
                     ak[2, i] = h / 3.0 * lam[i]

@@ -166,15 +166,21 @@ class Job:
         return [Chunk(b, min(per, self.n_blocks - b)) for b in range(0, self.n_blocks, per)]
 
 
+def config_graph(config: Config) -> nx.Graph:
+    """The graph of ``config.graph`` (seeded by ``config.seed``); any failure to build it is one
+    :class:`~antisync.physics.graphs.GraphError` naming the spec."""
+    try:
+        return graphs.build_graph(config.graph, seed=config.seed)
+    except (KeyError, TypeError, ValueError) as exc:
+        if isinstance(exc, graphs.GraphError):
+            raise
+        raise graphs.GraphError(f"graph {config.graph}: {exc}") from None
+
+
 def make_job(config: Config, graph: nx.Graph | None = None, name: str | None = None) -> Job:
     """Build the graph, resolve edges and betas, and compute all coupling arrays."""
     if graph is None:
-        try:
-            graph = graphs.build_graph(config.graph, seed=config.seed)
-        except (KeyError, TypeError, ValueError) as exc:
-            if isinstance(exc, graphs.GraphError):
-                raise
-            raise graphs.GraphError(f"graph {config.graph}: {exc}") from None
+        graph = config_graph(config)
     nodes = graphs.node_order(graph)
     index = {v: i for i, v in enumerate(nodes)}
     omega = graphs.omega_matrix(graph)
