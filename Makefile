@@ -39,16 +39,14 @@ run: $(STAMP)
 	$(BIN)/antisync summary $(RESULT)
 	$(BIN)/antisync report $(RESULT)
 
-# lint and format checks first (seconds), then every kernel family compiled once into the
-# on-disk cache, the families split over two processes (tools/warm_kernels.py: otherwise both
-# workers compile the same families side by side), then the suite on every core (pytest-xdist;
-# a file's tests stay on one worker); pytest's exit 5 (no tests) fails too
+# lint and format checks first (seconds), then the suite on every core (pytest-xdist; a file's
+# tests stay on one worker, so each worker compiles the kernels its files need once, and the
+# on-disk cache shares them); pytest's exit 5 (no tests) fails too
 PYTEST := $(BIN)/python -m pytest -n auto --dist loadfile
 
 test: $(STAMP)
 	$(BIN)/ruff check antisync tests bench tools
 	$(BIN)/ruff format --check antisync tests bench tools
-	$(BIN)/python tools/warm_kernels.py
 	$(PYTEST)
 
 test-slow: $(STAMP)

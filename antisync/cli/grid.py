@@ -21,6 +21,22 @@ def grid(
         bool,
         typer.Option("--removal", help="Integrate each line's removal on the same starts (dynamic N-1)."),
     ] = False,
+    trip: Annotated[
+        bool,
+        typer.Option(
+            "--trip",
+            help="The engineer's N-1: each line tripped from the operating point (optionally after "
+            "a fault of --t-clear s at its first bus); --cct adds critical clearing times.",
+        ),
+    ] = False,
+    t_clear: Annotated[
+        float | None, typer.Option("--t-clear", help="--trip: the fault's duration before the trip (s).")
+    ] = None,
+    cct: Annotated[
+        bool, typer.Option("--cct", help="--trip: each line's critical clearing time by bisection.")
+    ] = False,
+    cct_max: Annotated[float, typer.Option("--cct-max", help="--cct: the longest fault tried (s).")] = 1.0,
+    t_max: Annotated[float, typer.Option("--t-max", help="--trip: how long after the fault (s).")] = 20.0,
     lines: Annotated[
         str | None,
         typer.Option(
@@ -94,6 +110,12 @@ def grid(
     from antisync.store.outputs import config_inputs
     from antisync.store.provenance import command_line
 
+    if trip:
+        _trip(config, set_, lines, t_clear, cct, cct_max, t_max, threads, out, overwrite, quiet)
+        return
+    for name, value in (("--t-clear", t_clear), ("--cct", cct or None)):
+        if value is not None:
+            raise GridError(f"{name} is for the line trips from the operating point: add --trip")
     beta = check_beta(beta)
     removal_only = {
         "--out": out,
@@ -176,3 +198,54 @@ def grid(
         if figure is not None:
             path = removal_figure(table, cfg, figure, by=by, overwrite=overwrite)
             info(f"wrote {path}", quiet)
+
+
+def _trip(config, set_, lines, t_clear, cct, cct_max, t_max, threads, out, overwrite, quiet) -> None:
+    """``--trip``: the engineer's N-1 table (antisync/grids/trip.py), printed, and as JSON with
+    ``--out`` (written atomically; an existing file only with ``--overwrite``)."""
+    import json
+
+    from antisync.cli.common import typed_values
+    from antisync.grids.errors import GridError
+    from antisync.grids.lines import parse_lines
+    from antisync.grids.load import grid_from_config
+    from antisync.grids.removal_file import check_new_file, replace_atomically
+    from antisync.grids.trip import FORMAT, format_trips, trip_report
+    from antisync.plan.config import load_config
+    from antisync.store.outputs import config_inputs, json_format_problem
+
+    cfg = load_config(config, list(set_ or []), typed_values(threads=threads))
+    if not t_max > 0:
+        raise GridError(f"--t-max must be a positive number of seconds, got {t_max:g}")
+    if cct and not 0 < cct_max < t_max:
+        raise GridError(f"--cct-max must be in (0, --t-max = {t_max:g}) seconds, got {cct_max:g}")
+    g = grid_from_config(cfg)
+    if out is not None:
+        out = check_new_file(
+            out,
+            overwrite,
+            "--out",
+            (".json",),
+            "the trip table is written as JSON; name it *.json",
+            replaceable=lambda p: json_format_problem(p, FORMAT),
+            kind=f"an antisync trip table (JSON of format {FORMAT!r})",
+            protect=config_inputs(cfg, config),
+        )
+    tolerance = cfg.sync.tolerance if cfg.sync.criterion == "frequency" else 1e-3
+    report = trip_report(
+        g,
+        parse_lines(lines, g.labels),
+        t_clear=t_clear,
+        cct=cct,
+        cct_max=cct_max,
+        t_max=t_max,
+        dt=cfg.dynamics.dt,
+        tolerance=tolerance,
+        threads=cfg.threads,
+    )
+    typer.echo(format_trips(report))
+    if out is not None:
+        replace_atomically(
+            out, lambda tmp: tmp.write_text(json.dumps(report, indent=1) + "\n", encoding="utf-8")
+        )
+        info(f"wrote {out}", quiet)

@@ -1,0 +1,399 @@
+"""The engineer's N-1: a line trip from the operating point, with an optional fault before it,
+and each line's critical clearing time (docs/power_grids.md).
+
+The grid runs in its stable locked state ``theta*`` (:func:`antisync.physics.locked.locked_state`
+of the intact grid; ``theta' = 0``: the injections' mean is removed, so the operating point is
+stationary in the frame of the nominal frequency). A grid without a stable operating point is
+refused. For the line ``a-b``:
+
+1. **Fault** (``t_clear > 0``): at ``t = 0`` a bolted three-phase fault at bus ``a``, the
+   line's first end, brings that bus's voltage to zero, so none of its lines carries power:
+   ``K_aj = K_ja = 0`` for every ``j`` while it lasts (the classical fault-on model of
+   transient stability: P. Kundur, *Power System Stability and Control*, McGraw-Hill 1994,
+   Sec. 13.1; P. Sauer and M. Pai, *Power System Dynamics and Stability*, Prentice Hall 1998,
+   Ch. 9). The bus's own injection ``P_a`` still acts on it.
+2. **Trip** at ``t_clear`` (0: the line simply opens): the protection opens ``a-b`` and the
+   fault is gone; the grid runs on without the line until ``t_max``.
+
+The swing equation is the one every antisync grid integrates, ``m_i theta_i'' + D_i theta_i' =
+P_i + sum_j K_ij sin(theta_j - theta_i)`` (a bus with ``m_i = 0`` first order), here by classical
+RK4 at a fixed step from the operating point (:func:`_trajectory`, numba; one line per thread).
+
+Per line (:class:`Trip`): whether the grid **settles** (every frequency deviation
+``|theta_i' - mean theta'|`` below ``tolerance`` from some time on until ``t_max``: frequency
+locking, the criterion of ``sync: {criterion: frequency}``), that **time to settle**, the
+**maximum frequency deviation** ``max_t max_i |theta_i'|`` (from the nominal frequency) and the
+**maximum line angle difference** ``max_t max_(ij) |theta_i - theta_j|`` over the lines in
+service (the first swing), beside whether the post-trip grid has a stable locked state (the
+static indicator). The **critical clearing time** is the longest fault the grid survives,
+found by bisection on ``t_clear`` in ``(0, cct_max]`` to ``cct_tol`` (:func:`critical_clearing`):
+the verdicts are assumed to switch once (settles below, not above), which is what a single
+first swing gives.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass
+
+import numpy as np
+from numba import njit, prange
+
+from antisync import _numba_cache  # noqa: F401 -- before any cache=True function (see there)
+from antisync.grids.errors import GridError
+from antisync.grids.load import Grid
+from antisync.kernels.shared import Threads
+from antisync.physics.locked import locked_state
+
+FORMAT = "antisync-trip"
+"""The ``format`` of a trip table's JSON (``antisync grid CONFIG --trip --out X.json``)."""
+
+__all__ = ["Trip", "critical_clearing", "format_trips", "operating_point", "trip_lines", "trip_report"]
+
+
+@dataclass(frozen=True)
+class Trip:
+    """One line's contingency from the operating point."""
+
+    line: tuple
+    """``(a, b)`` in the grid's bus labels; the fault (if any) is at ``a``."""
+    t_clear: float
+    settles: bool
+    settle_time: float
+    """First time from which every frequency deviation stays below the tolerance (``nan`` if never)."""
+    max_frequency: float
+    """``max_t max_i |theta_i'|`` (rad/s from the nominal frequency)."""
+    max_angle: float
+    """``max_t`` of the largest ``|theta_i - theta_j|`` over the lines in service (rad)."""
+    post_locked: bool
+    """Whether the grid without the line has a stable locked state (static)."""
+
+    def as_dict(self) -> dict:
+        out = asdict(self)
+        out["line"] = [str(v) for v in self.line]
+        return out
+
+
+def operating_point(grid: Grid) -> np.ndarray:
+    """The intact grid's stable locked phases; one-line :class:`GridError` when it has none."""
+    state = locked_state(grid.omega, grid.p, grid.lag, grid.inertia, grid.damping)
+    if state is None or not state.stable:
+        why = (
+            "no locked state"
+            if state is None
+            else f"an unstable one (largest real part {state.max_real:.3g})"
+        )
+        raise GridError(
+            f"{grid.name}: the intact grid has {why}, so there is no operating point to trip a line "
+            "from; lower the injections or raise the capacities (antisync grid CONFIG shows the static state)"
+        )
+    return state.phi.copy()
+
+
+@njit(cache=True)
+def _rates(theta, nu, indptr, indices, k, p, mass, damping, fault, ta, tb, out_th, out_nu):
+    """``theta'`` and ``nu'`` (``nu`` the frequency of a bus with inertia). ``fault``: bus
+    ``ta``'s lines carry nothing; else the line ``ta-tb`` is out."""
+    n = theta.size
+    for i in range(n):
+        acc = p[i]
+        for q in range(indptr[i], indptr[i + 1]):
+            j = indices[q]
+            if fault:
+                if i == ta or j == ta:
+                    continue
+            elif (i == ta and j == tb) or (i == tb and j == ta):
+                continue
+            acc += k[q] * math.sin(theta[j] - theta[i])
+        if mass[i] > 0:
+            out_th[i] = nu[i]
+            out_nu[i] = (acc - damping[i] * nu[i]) / mass[i]
+        else:
+            out_th[i] = acc / damping[i]
+            out_nu[i] = 0.0
+
+
+@njit(cache=True)
+def _step(theta, nu, dt, indptr, indices, k, p, mass, damping, fault, ta, tb, work):
+    """One classical RK4 step in place; ``theta'`` at the step's start left in ``work[0]``."""
+    n = theta.size
+    k1t, k1v, k2t, k2v, k3t, k3v, k4t, k4v, yt, yv = work
+    _rates(theta, nu, indptr, indices, k, p, mass, damping, fault, ta, tb, k1t, k1v)
+    for i in range(n):
+        yt[i] = theta[i] + 0.5 * dt * k1t[i]
+        yv[i] = nu[i] + 0.5 * dt * k1v[i]
+    _rates(yt, yv, indptr, indices, k, p, mass, damping, fault, ta, tb, k2t, k2v)
+    for i in range(n):
+        yt[i] = theta[i] + 0.5 * dt * k2t[i]
+        yv[i] = nu[i] + 0.5 * dt * k2v[i]
+    _rates(yt, yv, indptr, indices, k, p, mass, damping, fault, ta, tb, k3t, k3v)
+    for i in range(n):
+        yt[i] = theta[i] + dt * k3t[i]
+        yv[i] = nu[i] + dt * k3v[i]
+    _rates(yt, yv, indptr, indices, k, p, mass, damping, fault, ta, tb, k4t, k4v)
+    for i in range(n):
+        theta[i] += dt / 6.0 * (k1t[i] + 2.0 * k2t[i] + 2.0 * k3t[i] + k4t[i])
+        nu[i] += dt / 6.0 * (k1v[i] + 2.0 * k2v[i] + 2.0 * k3v[i] + k4v[i])
+
+
+@njit(cache=True)
+def _trajectory(theta0, indptr, indices, k, p, mass, damping, ta, tb, t_clear, n_steps, dt, tol, out):
+    """Integrate one contingency; ``out = [settle_time, max_frequency, max_angle]`` (settle
+    time ``nan`` when the deviations are above ``tol`` at the end). The step that holds
+    ``t_clear`` is split there: its fault-on part and its post-trip part are two RK4 steps."""
+    n = theta0.size
+    theta = theta0.copy()
+    nu = np.zeros(n)
+    work = np.empty((10, n))
+    rate = np.empty(n)
+    dummy = np.empty(n)
+    last_out = -1  # last step at which some deviation was >= tol
+    max_f = 0.0
+    max_a = 0.0
+    for s in range(n_steps + 1):
+        t0 = s * dt
+        fault = t0 < t_clear
+        # the rates at this state, in the configuration that holds from it on
+        _rates(theta, nu, indptr, indices, k, p, mass, damping, fault, ta, tb, rate, dummy)
+        mean = 0.0
+        for i in range(n):
+            mean += rate[i]
+        mean /= n
+        for i in range(n):
+            if abs(rate[i]) > max_f:
+                max_f = abs(rate[i])
+            if abs(rate[i] - mean) >= tol:
+                last_out = s
+            for q in range(indptr[i], indptr[i + 1]):
+                j = indices[q]
+                if j <= i or (i == ta and j == tb) or (i == tb and j == ta):
+                    continue
+                d = abs(theta[i] - theta[j])
+                if d > max_a:
+                    max_a = d
+        if s == n_steps:
+            break
+        if fault and t_clear < t0 + dt:
+            _step(theta, nu, t_clear - t0, indptr, indices, k, p, mass, damping, True, ta, tb, work)
+            _step(theta, nu, t0 + dt - t_clear, indptr, indices, k, p, mass, damping, False, ta, tb, work)
+        else:
+            _step(theta, nu, dt, indptr, indices, k, p, mass, damping, fault, ta, tb, work)
+    out[0] = np.nan if last_out == n_steps else (last_out + 1) * dt
+    out[1] = max_f
+    out[2] = max_a
+
+
+@njit(parallel=True, cache=True)
+def _trajectories(theta0, indptr, indices, k, p, mass, damping, ta, tb, t_clear, n_steps, dt, tol, out):
+    for e in prange(ta.size):
+        _trajectory(
+            theta0, indptr, indices, k, p, mass, damping, ta[e], tb[e], t_clear[e], n_steps, dt, tol, out[e]
+        )
+
+
+def _arrays(grid: Grid):
+    n = len(grid.labels)
+    rows, cols = np.nonzero(grid.omega)
+    indptr = np.zeros(n + 1, dtype=np.int64)
+    np.add.at(indptr, rows + 1, 1)
+    indptr = np.cumsum(indptr)
+    mass = np.broadcast_to(np.asarray(grid.inertia, dtype=np.float64), (n,)).copy()
+    damping = np.broadcast_to(np.asarray(grid.damping, dtype=np.float64), (n,)).copy()
+    return (
+        indptr,
+        cols.astype(np.int64),
+        grid.omega[rows, cols].copy(),
+        np.asarray(grid.p, dtype=np.float64),
+        mass,
+        damping,
+    )
+
+
+def _check(grid: Grid, t_clear, t_max: float, dt: float) -> None:
+    if grid.coupling != "raw" or grid.lag != 0.0:
+        raise GridError("a line trip integrates the swing equation: dynamics.coupling raw and no phase lag")
+    if not (dt > 0 and t_max > dt):
+        raise GridError(f"--t-max ({t_max:g}) must exceed the step dt ({dt:g}), both positive")
+    for t in np.atleast_1d(t_clear):
+        if not (0 <= t < t_max):
+            raise GridError(f"--t-clear must be >= 0 and below --t-max ({t_max:g} s), got {t:g}")
+
+
+def trip_lines(
+    grid: Grid,
+    lines: list[tuple[int, int]],
+    *,
+    t_clear: float | np.ndarray = 0.0,
+    t_max: float = 20.0,
+    dt: float = 0.0025,
+    tolerance: float = 1e-3,
+    theta0: np.ndarray | None = None,
+    threads: int | None = None,
+) -> list[Trip]:
+    """Every line of ``lines`` (0-based ``(a, b)``; the fault at ``a``) tripped from the
+    operating point after a fault of ``t_clear`` seconds (one value, or one per line).
+
+    ``dt`` is the RK4 step (the step that holds the fault's end is split there); ``tolerance``
+    the frequency band of settling (rad/s). Bridges are the caller's to refuse (the islands of a
+    tripped bridge cannot share a frequency unless each is balanced).
+    """
+    _check(grid, t_clear, t_max, dt)
+    if theta0 is None:
+        theta0 = operating_point(grid)
+    indptr, indices, k, p, mass, damping = _arrays(grid)
+    if np.any(mass[damping <= 0] == 0) or np.any(damping < 0):
+        raise GridError("every bus needs damping > 0 where it has no inertia, and damping >= 0")
+    ta = np.array([a for a, _ in lines], dtype=np.int64)
+    tb = np.array([b for _, b in lines], dtype=np.int64)
+    clear = np.ascontiguousarray(np.broadcast_to(np.asarray(t_clear, dtype=np.float64), (len(lines),)))
+    out = np.empty((len(lines), 3))
+    n_steps = int(math.ceil(t_max / dt - 1e-9))
+    with Threads(threads):
+        _trajectories(
+            theta0, indptr, indices, k, p, mass, damping, ta, tb, clear, n_steps, dt, tolerance, out
+        )
+    trips = []
+    for e, (a, b) in enumerate(lines):
+        post = grid.omega.copy()
+        post[a, b] = post[b, a] = 0.0
+        state = locked_state(post, grid.p, grid.lag, grid.inertia, grid.damping)
+        trips.append(
+            Trip(
+                line=(grid.labels[a], grid.labels[b]),
+                t_clear=float(clear[e]),
+                settles=bool(np.isfinite(out[e, 0])),
+                settle_time=float(out[e, 0]),
+                max_frequency=float(out[e, 1]),
+                max_angle=float(out[e, 2]),
+                post_locked=bool(state is not None and state.stable),
+            )
+        )
+    return trips
+
+
+def critical_clearing(
+    grid: Grid,
+    lines: list[tuple[int, int]],
+    *,
+    cct_max: float = 1.0,
+    cct_tol: float = 1e-3,
+    t_max: float = 20.0,
+    dt: float = 0.0025,
+    tolerance: float = 1e-3,
+    threads: int | None = None,
+) -> np.ndarray:
+    """Each line's critical clearing time: the longest fault at its first bus after which the
+    tripped grid still settles, by bisection to ``cct_tol`` seconds on ``(0, cct_max]`` (every
+    line's bisection advances together: one parallel batch per halving). 0 where even an
+    instant trip does not settle; ``cct_max`` (or more) where the longest fault tried does."""
+    if not (0 < cct_tol < cct_max < t_max):
+        raise GridError(f"need 0 < cct_tol ({cct_tol:g}) < cct_max ({cct_max:g}) < t_max ({t_max:g})")
+    theta0 = operating_point(grid)
+    kw = {"t_max": t_max, "dt": dt, "tolerance": tolerance, "theta0": theta0, "threads": threads}
+    ok0 = np.array([t.settles for t in trip_lines(grid, lines, t_clear=0.0, **kw)])
+    lo = np.zeros(len(lines))  # settles at lo
+    hi = np.full(len(lines), cct_max)  # does not settle at hi (unless it settles at cct_max)
+    ok_max = np.array([t.settles for t in trip_lines(grid, lines, t_clear=cct_max, **kw)])
+    active = ok0 & ~ok_max
+    while np.any(active & (hi - lo > cct_tol)):
+        mid = 0.5 * (lo + hi)
+        todo = np.flatnonzero(active & (hi - lo > cct_tol))
+        verdict = trip_lines(grid, [lines[e] for e in todo], t_clear=mid[todo], **kw)
+        for e, t in zip(todo, verdict, strict=True):
+            if t.settles:
+                lo[e] = mid[e]
+            else:
+                hi[e] = mid[e]
+    return np.where(~ok0, 0.0, np.where(ok_max, cct_max, lo))
+
+
+def trip_report(
+    grid: Grid,
+    lines=None,
+    *,
+    t_clear: float | None = None,
+    cct: bool = False,
+    cct_max: float = 1.0,
+    cct_tol: float = 1e-3,
+    t_max: float = 20.0,
+    dt: float = 0.0025,
+    tolerance: float = 1e-3,
+    threads: int | None = None,
+) -> dict:
+    """What ``antisync grid CONFIG --trip`` prints and writes: every line of ``lines`` (label
+    pairs, as :func:`antisync.grids.lines.parse_lines` gives them; ``None``: every line that is
+    not a bridge) tripped from the operating point, after a fault of ``t_clear`` seconds at its
+    first bus in node order (``None``: no fault), with its critical clearing time if ``cct``.
+
+    Every refusal comes before any integration: a line not in the grid, a bridge named in
+    ``lines``, a clearing time that is not in ``(0, t_max)``, a grid without a stable
+    operating point."""
+    from antisync.grids.lines import grid_bridges, lines_of, split_bridges
+
+    if t_clear is not None and not 0 < t_clear < t_max:
+        raise GridError(
+            f"--t-clear must be a fault duration in (0, --t-max = {t_max:g}) seconds, got {t_clear:g}"
+        )
+    todo = lines_of(grid.omega, grid.labels, lines)
+    hint = "leave it out of --lines (without --lines every bridge is skipped)"
+    todo, skipped = split_bridges(
+        grid.omega, grid.labels, todo, grid_bridges(grid.omega), refuse=lines is not None, hint=hint
+    )
+    _check(grid, 0.0 if t_clear is None else t_clear, t_max, dt)
+    theta0 = operating_point(grid)
+    trips = trip_lines(
+        grid,
+        todo,
+        t_clear=0.0 if t_clear is None else t_clear,
+        t_max=t_max,
+        dt=dt,
+        tolerance=tolerance,
+        theta0=theta0,
+        threads=threads,
+    )
+    rows = [t.as_dict() for t in trips]
+    if cct:
+        times = critical_clearing(
+            grid,
+            todo,
+            cct_max=cct_max,
+            cct_tol=cct_tol,
+            t_max=t_max,
+            dt=dt,
+            tolerance=tolerance,
+            threads=threads,
+        )
+        for row, value in zip(rows, times, strict=True):
+            row["cct"] = float(value)
+    return {
+        "format": FORMAT,
+        "grid": grid.name,
+        "fault": "none (the line opens)"
+        if t_clear is None
+        else "bolted three-phase fault at the line's first bus",
+        "t_clear": t_clear,
+        "t_max": t_max,
+        "dt": dt,
+        "tolerance": tolerance,
+        "cct_max": cct_max if cct else None,
+        "cct_tol": cct_tol if cct else None,
+        "bridges_skipped": [list(map(str, b)) for b in skipped],
+        "lines": rows,
+    }
+
+
+def format_trips(report: dict) -> str:
+    """The trip table as Markdown, lines that do not settle first."""
+    cct = report["cct_max"] is not None
+    head = "| line | settles | time to settle (s) | max |freq| (rad/s) | max angle (rad) | post-trip locked |"
+    head += " CCT (s) |" if cct else ""
+    out = [head, "|" + "---|" * (7 if cct else 6)]
+    for r in sorted(report["lines"], key=lambda r: (r["settles"], -r["max_frequency"])):
+        row = (
+            f"| {'-'.join(r['line'])} | {'yes' if r['settles'] else 'NO'} | {r['settle_time']:.3f} | "
+            f"{r['max_frequency']:.4g} | {r['max_angle']:.3f} | {'yes' if r['post_locked'] else 'no'} |"
+        )
+        if cct:
+            row += f" {r['cct']:.4f} |"
+        out.append(row)
+    return "\n".join(out)
