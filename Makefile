@@ -42,7 +42,7 @@ run: $(STAMP)
 # lint and format checks first (seconds), then the suite on every core (pytest-xdist; a file's
 # tests stay on one worker, so each worker compiles the kernels its files need once, and the
 # on-disk cache shares them); pytest's exit 5 (no tests) fails too
-PYTEST := $(BIN)/python -m pytest -n auto --dist loadfile
+PYTEST := $(BIN)/python -m pytest -n auto --dist loadgroup
 
 test: $(STAMP)
 	$(BIN)/ruff check antisync tests bench tools

@@ -26,3 +26,23 @@ block_size: 20
 seed: 3
 dynamics: {dt: 0.002, t_max: 60}
 """
+
+
+#: The files that compile and exercise the model kernels most (`make test` runs them on one
+#: xdist worker, one after another, so each model kernel family compiles once, not on both
+#: workers side by side); every other file is its own group, as with --dist loadfile.
+MODEL_FILES = {
+    "test_models.py",
+    "test_model_crossings.py",
+    "test_hostile_models.py",
+    "test_model_adjoint.py",
+    "test_implicit.py",
+    "test_models_cuda_sim.py",
+}
+
+
+def pytest_collection_modifyitems(config, items):
+    """Group the tests for ``--dist loadgroup`` (see :data:`MODEL_FILES`)."""
+    for item in items:
+        name = item.path.name
+        item.add_marker(pytest.mark.xdist_group("models" if name in MODEL_FILES else name))
