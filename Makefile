@@ -40,8 +40,9 @@ run: $(STAMP)
 	$(BIN)/antisync report $(RESULT)
 
 # lint and format checks first (seconds), then the suite on every core (pytest-xdist; a file's
-# tests stay on one worker, so each worker compiles the kernels its files need once, and the
-# on-disk cache shares them); pytest's exit 5 (no tests) fails too
+# tests stay on one worker, and the files that compile the model kernels most share one worker
+# (tests/conftest.py, MODEL_FILES), so those kernels compile once, not on both workers side by
+# side; the on-disk cache shares them); pytest's exit 5 (no tests) fails too
 PYTEST := $(BIN)/python -m pytest -n auto --dist loadgroup
 
 test: $(STAMP)
