@@ -41,6 +41,12 @@ MODEL_FILES = {
 }
 
 
+def pytest_configure(config):
+    # pytest-xdist registers its marker only when loaded; without it (-p no:xdist) the groups
+    # are plain labels, and --strict-markers must know them
+    config.addinivalue_line("markers", "xdist_group(name): tests that --dist loadgroup keeps on one worker")
+
+
 def pytest_collection_modifyitems(config, items):
     """Group the tests for ``--dist loadgroup`` (see :data:`MODEL_FILES`)."""
     for item in items:

@@ -142,7 +142,7 @@ def test_bad_trip_input_is_one_line_exit_2_and_touches_nothing(tmp_path, args, m
     assert out.read_text() == old
 
 
-def test_cli_trip_writes_its_table(tmp_path):
+def test_cli_trip_writes_its_table_and_figure(tmp_path):
     out = tmp_path / "t.json"
     res = CliRunner().invoke(
         app,
@@ -161,9 +161,12 @@ def test_cli_trip_writes_its_table(tmp_path):
             f"dynamics.dt={DT}",
             "--out",
             str(out),
+            "--figure",
+            str(tmp_path / "t.png"),
         ],
     )
     assert res.exit_code == 0, res.output
+    assert (tmp_path / "t.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     doc = json.loads(out.read_text())
     assert doc["format"] == "antisync-trip" and [r["line"] for r in doc["lines"]] == [["1", "2"], ["2", "3"]]
     assert all(0 <= r["cct"] <= 1.0 for r in doc["lines"])

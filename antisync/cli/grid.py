@@ -68,7 +68,9 @@ def grid(
     figure: Annotated[
         Path | None,
         typer.Option(
-            "--figure", help="Draw the grid, lines coloured by the removal response (.png, .pdf, .svg)."
+            "--figure",
+            help="Draw the grid, lines coloured by the removal response (--removal) or by the "
+            "critical clearing time or frequency swing (--trip) (.png, .pdf, .svg).",
         ),
     ] = None,
     by: Annotated[
@@ -111,7 +113,7 @@ def grid(
     from antisync.store.provenance import command_line
 
     if trip:
-        _trip(config, set_, lines, t_clear, cct, cct_max, t_max, threads, out, overwrite, quiet)
+        _trip(config, set_, lines, t_clear, cct, cct_max, t_max, threads, out, figure, overwrite, quiet)
         return
     for name, value in (("--t-clear", t_clear), ("--cct", cct or None)):
         if value is not None:
@@ -200,9 +202,10 @@ def grid(
             info(f"wrote {path}", quiet)
 
 
-def _trip(config, set_, lines, t_clear, cct, cct_max, t_max, threads, out, overwrite, quiet) -> None:
-    """``--trip``: the engineer's N-1 table (antisync/grids/trip.py), printed, and as JSON with
-    ``--out`` (written atomically; an existing file only with ``--overwrite``)."""
+def _trip(config, set_, lines, t_clear, cct, cct_max, t_max, threads, out, figure, overwrite, quiet) -> None:
+    """``--trip``: the engineer's N-1 table (antisync/grids/trip.py), printed, as JSON with
+    ``--out`` and drawn with ``--figure`` (both written atomically; an existing file only with
+    ``--overwrite``)."""
     import json
 
     from antisync.cli.common import typed_values
@@ -212,6 +215,7 @@ def _trip(config, set_, lines, t_clear, cct, cct_max, t_max, threads, out, overw
     from antisync.grids.removal_file import check_new_file, replace_atomically
     from antisync.grids.trip import FORMAT, format_trips, trip_report
     from antisync.plan.config import load_config
+    from antisync.report.removal import check_figure, trip_figure
     from antisync.store.outputs import config_inputs, json_format_problem
 
     cfg = load_config(config, list(set_ or []), typed_values(threads=threads))
@@ -231,6 +235,8 @@ def _trip(config, set_, lines, t_clear, cct, cct_max, t_max, threads, out, overw
             kind=f"an antisync trip table (JSON of format {FORMAT!r})",
             protect=config_inputs(cfg, config),
         )
+    if figure is not None:
+        check_figure(figure, overwrite, protect=config_inputs(cfg, config))
     tolerance = cfg.sync.tolerance if cfg.sync.criterion == "frequency" else 1e-3
     report = trip_report(
         g,
@@ -249,3 +255,5 @@ def _trip(config, set_, lines, t_clear, cct, cct_max, t_max, threads, out, overw
             out, lambda tmp: tmp.write_text(json.dumps(report, indent=1) + "\n", encoding="utf-8")
         )
         info(f"wrote {out}", quiet)
+    if figure is not None:
+        info(f"wrote {trip_figure(report, g, figure, overwrite=overwrite)}", quiet)

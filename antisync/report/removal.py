@@ -38,6 +38,7 @@ from antisync.types import REMOVAL_BY, RemovalBy
 __all__ = [
     "FIGURE_SUFFIXES",
     "check_figure",
+    "trip_figure",
     "lambda_by_line",
     "merge_docs",
     "check_finished_table",
@@ -582,6 +583,87 @@ def removal_figure(source, config, path, *, by: RemovalBy = "speedup", overwrite
         handles.append(Line2D([], [], ls="", marker="$+n$", ms=14, color="k", label="net starts gained"))
     if any(not math.isfinite(value(r)) for r in rows.values()):
         handles.append(Line2D([], [], color="0.3", lw=4, label="no pair synchronized both times"))
+    ax.legend(
+        handles=handles, loc="upper center", bbox_to_anchor=(0.5, 0.0), ncol=2, fontsize=8, frameon=False
+    )
+    ax.axis("off")
+    fmt = path.suffix.lower().lstrip(".")
+    try:
+        replace_atomically(path, lambda tmp: fig.savefig(tmp, dpi=130, bbox_inches="tight", format=fmt))
+    finally:
+        plt.close(fig)
+    return path
+
+
+def trip_figure(report: dict, grid: Grid, path, *, overwrite: bool = False) -> Path:
+    """Draw the grid with every tripped line coloured by its critical clearing time (with
+    ``--cct``), else by the maximum frequency deviation after its trip; lines after whose trip
+    the grid does not settle dashed black, bridges dotted, generators squares. ``report`` is
+    :func:`antisync.grids.trip.trip_report`'s; ``path`` a ``.png``, ``.pdf`` or ``.svg`` file,
+    written atomically."""
+    path = check_figure(path, overwrite)
+    g, inertia = _network(grid)
+    rows = {frozenset(r["line"]): r for r in report["lines"]}
+    by_label = {frozenset(map(str, e)): e for e in g.edges}
+    cct = report["cct_max"] is not None
+    key = "cct" if cct else "max_frequency"
+
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from matplotlib.lines import Line2D
+
+    small = g.number_of_nodes() <= 60
+    pos = _layout(g)
+    fig, ax = plt.subplots(figsize=(9, 7.5) if small else (11, 9.5))
+    cmap = plt.get_cmap("viridis" if cct else "magma_r")
+    values = [r[key] for r in rows.values()]
+    norm = matplotlib.colors.Normalize(min(values, default=0.0), max(values, default=1.0) or 1.0)
+    tripped = [by_label[k] for k in rows if k in by_label]
+    others = [e for e in g.edges if frozenset(map(str, e)) not in rows]
+    bridges = {frozenset(e) for e in nx.bridges(g)}
+    for drawn, style in (
+        ([e for e in others if frozenset(e) in bridges], {"style": "dotted", "edge_color": "0.55"}),
+        ([e for e in others if frozenset(e) not in bridges], {"edge_color": "0.82"}),
+    ):
+        if drawn:
+            nx.draw_networkx_edges(g, pos, edgelist=drawn, ax=ax, width=1.2, **style)
+    colours = [cmap(norm(rows[frozenset(map(str, e))][key])) for e in tripped]
+    nx.draw_networkx_edges(g, pos, edgelist=tripped, ax=ax, edge_color=colours, width=4)
+    lost = [e for e in tripped if not rows[frozenset(map(str, e))]["settles"]]
+    if lost:
+        nx.draw_networkx_edges(g, pos, edgelist=lost, ax=ax, edge_color="k", width=1.2, style="dashed")
+    gens = [v for v in g.nodes if inertia[v] > 0]
+    loads = [v for v in g.nodes if inertia[v] <= 0]
+    size = (260, 200) if small else (45, 18)
+    if gens:
+        nx.draw_networkx_nodes(
+            g, pos, nodelist=gens, ax=ax, node_color="#f2c14e", node_size=size[0], node_shape="s"
+        )
+    if loads:
+        nx.draw_networkx_nodes(
+            g, pos, nodelist=loads, ax=ax, node_color="white", edgecolors="k", node_size=size[1]
+        )
+    if small:
+        nx.draw_networkx_labels(g, pos, ax=ax, font_size=7)
+    label = (
+        f"critical clearing time (s; bisection to {report['cct_tol']:g} s, at most {report['cct_max']:g})"
+        if cct
+        else "max |theta'| after the trip (rad/s)"
+    )
+    fig.colorbar(matplotlib.cm.ScalarMappable(norm=norm, cmap=cmap), ax=ax, shrink=0.7, label=label)
+    fault = "no fault" if report["t_clear"] is None else f"fault {report['t_clear']:g} s at the first bus"
+    ax.set_title(
+        f"{report['grid']}: each line tripped from the operating point ({fault}); {len(rows)} lines",
+        fontsize=10,
+    )
+    handles = [
+        Line2D([], [], color="k", ls="--", label="does not settle"),
+        Line2D([], [], color="0.55", ls=":", label="bridge (not tripped)"),
+        Line2D([], [], ls="", marker="s", color="#f2c14e", label="generator (inertia > 0)"),
+        Line2D([], [], ls="", marker="o", mfc="white", mec="k", label="first-order bus"),
+    ]
     ax.legend(
         handles=handles, loc="upper center", bbox_to_anchor=(0.5, 0.0), ncol=2, fontsize=8, frameon=False
     )
