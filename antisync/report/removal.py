@@ -448,6 +448,34 @@ def _named_lines(rows: dict, marks: dict, value, small: bool) -> set:
     return called | moved | {r["label"] for r in top}
 
 
+def _draw_buses(g: nx.Graph, pos: dict, ax, inertia: dict, small: bool) -> None:
+    """The buses: generators (inertia > 0) as squares, first-order buses as circles, labels on a
+    small grid."""
+    gens = [v for v in g.nodes if inertia[v] > 0]
+    loads = [v for v in g.nodes if inertia[v] <= 0]
+    size = (260, 200) if small else (45, 18)
+    if gens:
+        nx.draw_networkx_nodes(
+            g, pos, nodelist=gens, ax=ax, node_color="#f2c14e", node_size=size[0], node_shape="s"
+        )
+    if loads:
+        nx.draw_networkx_nodes(
+            g, pos, nodelist=loads, ax=ax, node_color="white", edgecolors="k", node_size=size[1]
+        )
+    if small:
+        nx.draw_networkx_labels(g, pos, ax=ax, font_size=7)
+
+
+def _save(fig, path: Path, plt) -> Path:
+    """Write ``fig`` to ``path`` atomically (its format from the suffix) and close it."""
+    fmt = path.suffix.lower().lstrip(".")
+    try:
+        replace_atomically(path, lambda tmp: fig.savefig(tmp, dpi=130, bbox_inches="tight", format=fmt))
+    finally:
+        plt.close(fig)
+    return path
+
+
 def removal_figure(source, config, path, *, by: RemovalBy = "speedup", overwrite: bool = False) -> Path:
     """Draw the grid with every removed line coloured by its response.
 
@@ -541,19 +569,7 @@ def removal_figure(source, config, path, *, by: RemovalBy = "speedup", overwrite
         if text and r["label"] in named:
             box = None if small else {"fc": "white", "ec": "none", "alpha": 0.7, "pad": 0.5}
             ax.annotate(text, mid, fontsize=7, xytext=(3, 3), textcoords="offset points", bbox=box)
-    gens = [v for v in g.nodes if inertia[v] > 0]
-    loads = [v for v in g.nodes if inertia[v] <= 0]
-    size = (260, 200) if small else (45, 18)
-    if gens:
-        nx.draw_networkx_nodes(
-            g, pos, nodelist=gens, ax=ax, node_color="#f2c14e", node_size=size[0], node_shape="s"
-        )
-    if loads:
-        nx.draw_networkx_nodes(
-            g, pos, nodelist=loads, ax=ax, node_color="white", edgecolors="k", node_size=size[1]
-        )
-    if small:
-        nx.draw_networkx_labels(g, pos, ax=ax, font_size=7)
+    _draw_buses(g, pos, ax, inertia, small)
 
     sm = matplotlib.cm.ScalarMappable(norm=norm, cmap=cmap)
     label = {
@@ -587,12 +603,7 @@ def removal_figure(source, config, path, *, by: RemovalBy = "speedup", overwrite
         handles=handles, loc="upper center", bbox_to_anchor=(0.5, 0.0), ncol=2, fontsize=8, frameon=False
     )
     ax.axis("off")
-    fmt = path.suffix.lower().lstrip(".")
-    try:
-        replace_atomically(path, lambda tmp: fig.savefig(tmp, dpi=130, bbox_inches="tight", format=fmt))
-    finally:
-        plt.close(fig)
-    return path
+    return _save(fig, path, plt)
 
 
 def trip_figure(report: dict, grid: Grid, path, *, overwrite: bool = False) -> Path:
@@ -634,19 +645,7 @@ def trip_figure(report: dict, grid: Grid, path, *, overwrite: bool = False) -> P
     lost = [e for e in tripped if not rows[frozenset(map(str, e))]["settles"]]
     if lost:
         nx.draw_networkx_edges(g, pos, edgelist=lost, ax=ax, edge_color="k", width=1.2, style="dashed")
-    gens = [v for v in g.nodes if inertia[v] > 0]
-    loads = [v for v in g.nodes if inertia[v] <= 0]
-    size = (260, 200) if small else (45, 18)
-    if gens:
-        nx.draw_networkx_nodes(
-            g, pos, nodelist=gens, ax=ax, node_color="#f2c14e", node_size=size[0], node_shape="s"
-        )
-    if loads:
-        nx.draw_networkx_nodes(
-            g, pos, nodelist=loads, ax=ax, node_color="white", edgecolors="k", node_size=size[1]
-        )
-    if small:
-        nx.draw_networkx_labels(g, pos, ax=ax, font_size=7)
+    _draw_buses(g, pos, ax, inertia, small)
     label = (
         f"critical clearing time (s; bisection to {report['cct_tol']:g} s, at most {report['cct_max']:g})"
         if cct
@@ -668,12 +667,7 @@ def trip_figure(report: dict, grid: Grid, path, *, overwrite: bool = False) -> P
         handles=handles, loc="upper center", bbox_to_anchor=(0.5, 0.0), ncol=2, fontsize=8, frameon=False
     )
     ax.axis("off")
-    fmt = path.suffix.lower().lstrip(".")
-    try:
-        replace_atomically(path, lambda tmp: fig.savefig(tmp, dpi=130, bbox_inches="tight", format=fmt))
-    finally:
-        plt.close(fig)
-    return path
+    return _save(fig, path, plt)
 
 
 # --- the table beside the static indicators and Lambda ---------------------------------------
