@@ -41,6 +41,7 @@ from numba import njit, prange
 
 from antisync import _numba_cache  # noqa: F401 -- before any cache=True function (see there)
 from antisync.grids.errors import GridError
+from antisync.grids.lines import grid_bridges, lines_of, split_bridges
 from antisync.grids.load import Grid
 from antisync.kernels.shared import Threads
 from antisync.physics.locked import locked_state
@@ -328,8 +329,6 @@ def trip_report(
     Every refusal comes before any integration: a line not in the grid, a bridge named in
     ``lines``, a clearing time that is not in ``(0, t_max)``, a grid without a stable
     operating point."""
-    from antisync.grids.lines import grid_bridges, lines_of, split_bridges
-
     if t_clear is not None and not 0 < t_clear < t_max:
         raise GridError(
             f"--t-clear must be a fault duration in (0, --t-max = {t_max:g}) seconds, got {t_clear:g}"
