@@ -43,7 +43,8 @@ from antisync import _numba_cache  # noqa: F401 -- before any cache=True functio
 from antisync.grids.errors import GridError
 from antisync.grids.lines import grid_bridges, lines_of, split_bridges
 from antisync.grids.load import Grid
-from antisync.kernels.shared import Threads
+from antisync.kernels.shared import Threads, per_node
+from antisync.physics.coupling import to_csr
 from antisync.physics.locked import locked_state
 
 FORMAT = "antisync-trip"
@@ -193,21 +194,12 @@ def _trajectories(theta0, indptr, indices, k, p, mass, damping, ta, tb, t_clear,
 
 
 def _arrays(grid: Grid):
+    """The grid's CSR coupling (:func:`antisync.physics.coupling.to_csr`), injections, inertia
+    and damping per bus, as the kernel takes them."""
     n = len(grid.labels)
-    rows, cols = np.nonzero(grid.omega)
-    indptr = np.zeros(n + 1, dtype=np.int64)
-    np.add.at(indptr, rows + 1, 1)
-    indptr = np.cumsum(indptr)
-    mass = np.broadcast_to(np.asarray(grid.inertia, dtype=np.float64), (n,)).copy()
-    damping = np.broadcast_to(np.asarray(grid.damping, dtype=np.float64), (n,)).copy()
-    return (
-        indptr,
-        cols.astype(np.int64),
-        grid.omega[rows, cols].copy(),
-        np.asarray(grid.p, dtype=np.float64),
-        mass,
-        damping,
-    )
+    csr = to_csr(grid.omega)
+    p = np.asarray(grid.p, dtype=np.float64)
+    return csr.indptr, csr.indices, csr.weights, p, per_node(grid.inertia, n), per_node(grid.damping, n)
 
 
 def _check(grid: Grid, t_clear, t_max: float, dt: float) -> None:
@@ -282,14 +274,17 @@ def critical_clearing(
     dt: float = 0.0025,
     tolerance: float = 1e-3,
     threads: int | None = None,
+    theta0: np.ndarray | None = None,
 ) -> np.ndarray:
     """Each line's critical clearing time: the longest fault at its first bus after which the
     tripped grid still settles, by bisection to ``cct_tol`` seconds on ``(0, cct_max]`` (every
     line's bisection advances together: one parallel batch per halving). 0 where even an
-    instant trip does not settle; ``cct_max`` (or more) where the longest fault tried does."""
+    instant trip does not settle; ``cct_max`` (or more) where the longest fault tried does.
+    ``theta0``: the operating point when the caller has it (else :func:`operating_point`)."""
     if not (0 < cct_tol < cct_max < t_max):
         raise GridError(f"need 0 < cct_tol ({cct_tol:g}) < cct_max ({cct_max:g}) < t_max ({t_max:g})")
-    theta0 = operating_point(grid)
+    if theta0 is None:
+        theta0 = operating_point(grid)
     kw = {"t_max": t_max, "dt": dt, "tolerance": tolerance, "theta0": theta0, "threads": threads}
     ok0 = np.array([t.settles for t in trip_lines(grid, lines, t_clear=0.0, **kw)])
     lo = np.zeros(len(lines))  # settles at lo
@@ -361,6 +356,7 @@ def trip_report(
             dt=dt,
             tolerance=tolerance,
             threads=threads,
+            theta0=theta0,
         )
         for row, value in zip(rows, times, strict=True):
             row["cct"] = float(value)
