@@ -212,3 +212,40 @@ def test_batch_means_joins_only_a_link_with_ten_tail_values():
         else:
             assert low == min(iv.low, est.mean - estimators.Z95 * est.se)
             assert high == max(iv.high, est.mean + estimators.Z95 * est.se)
+
+
+def test_links_of_different_scales_get_batch_means_not_the_pooled_tail():
+    """A job whose links differ in scale by decades (IEEE 118's swing equation: a few lines
+    ~0.2 in every realization, most ~1e-6) has no tail the links share: the pooled "tail" is
+    the big links' body. Its pooled counts are dropped (estimators.pooled_tail), every link's
+    interval is its batch means and holds its own mean; with the pooled tail, a tiny link's
+    interval was put at the big links' scale, away from zero and from every value it has."""
+    rng = np.random.default_rng(3)
+    n = 40
+    small = rng.normal(1e-7, 1e-6, (n, 30))
+    big = rng.normal(-0.2, 0.05, (n, 2))
+    x = np.column_stack([small, big])
+    rec, tail = estimators.lambda_block_records(x, np.zeros(x.shape, np.int8), np.zeros(x.shape, bool), 10)
+    pooled, links = estimators.pooled_tail(tail)
+    assert links == 32 and not pooled.any()
+    for e in (0, 31):
+        est = estimators.summarize_lambda(rec[:, e, :])["lambda"]
+        low, high, method, iv = estimators.lambda_ci(est, rec[:, e, :], tail[e], pooled, DBETA)
+        assert method == "batch-means" and iv is None and low <= est.mean <= high
+    # the pooled tail, as it was: the tiny link's interval left its values' scale
+    est = estimators.summarize_lambda(rec[:, 0, :])["lambda"]
+    low, high, _, _ = estimators.lambda_ci(est, rec[:, 0, :], tail[0], tail.sum(axis=0), DBETA, links=32)
+    assert max(abs(low), abs(high)) > 1e3 * np.abs(x[:, 0]).max()
+
+
+def test_links_of_one_scale_keep_the_pooled_tail():
+    """The calibrated case is unchanged: links that share the heavy model of `_model` at 2,000
+    realizations (the calibration runs' size) keep their pooled counts. A link can have more
+    than half its values beyond the pooled threshold only when that threshold keeps at least
+    n / 2 values, max(40, 0.001 n L, 3.5 L) >= n / 2: with n = 2,000 only for L >= 286 links."""
+    rng = np.random.default_rng(4)
+    sample, _ = _model(1.5)
+    x = np.column_stack([sample(rng, 2000) * s for s in (0.5, 1.0, 2.0, 1.0, 0.7, 1.3)])
+    _, tail = estimators.lambda_block_records(x, np.zeros(x.shape, np.int8), np.zeros(x.shape, bool), 100)
+    pooled, links = estimators.pooled_tail(tail)
+    assert links == 6 and np.array_equal(pooled, tail.sum(axis=0))

@@ -154,6 +154,7 @@ WARNING_KINDS = {
     "heavy tail, few tail values": re.compile(r"heavy tail: the interval rests on"),
     "heavy tail, no tail model": re.compile(r"heavy tail: top 0\.1% of samples"),
     "format-1 interval": re.compile(r"interval from batch means \(a format-1 file"),
+    "links of different scales": re.compile(r"interval from batch means: the job's links differ"),
     "uncalibrated estimator": re.compile(r"\S+ derivatives have an unbounded tail"),
 }
 
@@ -198,6 +199,12 @@ def _lambda(view: JobView, e: int, pooled: tuple[np.ndarray, int]) -> tuple[dict
         warning = (
             "interval from batch means (a format-1 file has no signed tail counts), which "
             "undercovers heavy tails: rerun with this antisync for the tail model's interval"
+        )
+    elif iv is None and s["n"] >= 2 and pooled[1] and not np.any(pooled[0]):
+        warning = (
+            "interval from batch means: the job's links differ in |Lambda| by decades, so no "
+            "pooled tail model applies (estimators.pooled_tail); batch means undercover a heavy "
+            "tail, so read a sign near zero with care"
         )
     elif iv is None and not math.isnan(share) and share > TAIL_WARN:
         warning = (
