@@ -43,7 +43,7 @@ run: $(STAMP)
 # tests stay on one worker, and the files that compile the model kernels most share one worker
 # (tests/conftest.py, MODEL_FILES), so those kernels compile once, not on both workers side by
 # side; the on-disk cache shares them); pytest's exit 5 (no tests) fails too
-PYTEST := $(BIN)/python -m pytest -n auto --dist loadgroup
+PYTEST := $(BIN)/python -m pytest -n auto --dist loadfile
 
 test: $(STAMP)
 	$(BIN)/ruff check antisync tests bench tools

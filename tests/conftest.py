@@ -28,9 +28,10 @@ dynamics: {dt: 0.002, t_max: 60}
 """
 
 
-#: The files that compile and exercise the model kernels most (`make test` runs them on one
-#: xdist worker, one after another, so each model kernel family compiles once, not on both
-#: workers side by side); every other file is its own group, as with --dist loadfile.
+#: The files that compile and exercise the model kernels most: `make test` (``--dist loadfile``)
+#: sends them to one xdist worker as one unit, one after another, so each model kernel compiles
+#: once and the next file loads it from the on-disk cache, instead of both workers compiling the
+#: same kernel side by side; every other file is its own unit, as plain ``--dist loadfile``.
 MODEL_FILES = {
     "test_models.py",
     "test_model_crossings.py",
@@ -41,14 +42,18 @@ MODEL_FILES = {
 }
 
 
-def pytest_configure(config):
-    # pytest-xdist registers its marker only when loaded; without it (-p no:xdist) the groups
-    # are plain labels, and --strict-markers must know them
-    config.addinivalue_line("markers", "xdist_group(name): tests that --dist loadgroup keeps on one worker")
+def pytest_xdist_make_scheduler(config, log):
+    """``--dist loadfile`` with :data:`MODEL_FILES` as one unit of work. (pytest-xdist's own
+    ``--dist loadgroup`` with ``xdist_group`` markers does this by rewriting each test's node
+    id, which pytest 9 no longer reads: there the groups were silently ignored and the tests of
+    one file ran on both workers.)"""
+    if config.getvalue("dist") != "loadfile":
+        return None
+    from xdist.scheduler import LoadFileScheduling
 
+    class ModelFilesTogether(LoadFileScheduling):
+        def _split_scope(self, nodeid: str) -> str:
+            path = nodeid.split("::", 1)[0]
+            return "models" if Path(path).name in MODEL_FILES else path
 
-def pytest_collection_modifyitems(config, items):
-    """Group the tests for ``--dist loadgroup`` (see :data:`MODEL_FILES`)."""
-    for item in items:
-        name = item.path.name
-        item.add_marker(pytest.mark.xdist_group("models" if name in MODEL_FILES else name))
+    return ModelFilesTogether(config, log)
