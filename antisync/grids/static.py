@@ -62,7 +62,7 @@ from antisync.grids.errors import GridError
 from antisync.grids.lines import Rows, grid_bridges, lines_of, split_bridges
 from antisync.grids.load import Grid
 from antisync.physics.coupling import coupling_matrix
-from antisync.physics.locked import jacobian, locked_state
+from antisync.physics.locked import SPARSE_FROM, jacobian, locked_state, rightmost, vouched_bound
 
 __all__ = [
     "BRAESS_TOL",
@@ -232,26 +232,26 @@ def _state_of(w: np.ndarray, p: np.ndarray, lag, inertia, damping) -> GridState:
     st = locked_state(w, p, lag, inertia, damping)
     if st is None:
         return GridState.missing()
-    mask = w > 0
-    d = st.phi[None, :] - st.phi[:, None]
-    s = np.abs(np.sin(d))
+    rows, cols = np.nonzero(w)  # row-major: the first of equal loads is the dense argmax's
+    s = np.abs(np.sin(st.phi[cols] - st.phi[rows]))
     if np.any(np.asarray(inertia) > 0):
-        ev = np.linalg.eigvals(jacobian(st.phi, w, lag))
-        ev = np.delete(ev, np.argmin(np.abs(ev)))  # the rotation's zero, as locked.py drops it
-        lambda2 = float(-np.max(ev.real)) if ev.size else math.inf
+        # the first-order Jacobian's rightmost eigenvalue but the rotation's zero (sparse on a
+        # large grid, as locked.py's margin)
+        sparse = w.shape[0] >= SPARSE_FROM
+        bound = vouched_bound(st.phi, w, lag) if sparse else None
+        lambda2 = -rightmost(jacobian(st.phi, w, lag, sparse=sparse), missed_below=bound)
     else:
         lambda2 = float(-st.max_real)  # the linearization is the Jacobian itself
-    load = np.where(mask, s, -1.0)
-    i, j = np.unravel_index(int(np.argmax(load)), load.shape)
+    top = int(np.argmax(s)) if s.size else 0
     return GridState(
         True,
         bool(st.stable),
         float(-st.max_real),
-        float((w * s)[mask].max()) if mask.any() else 0.0,
-        float(s[mask].max()) if mask.any() else 0.0,
+        float((w[rows, cols] * s).max()) if s.size else 0.0,
+        float(s.max()) if s.size else 0.0,
         float(st.r),
         lambda2,
-        (int(min(i, j)), int(max(i, j))) if mask.any() else None,
+        (int(min(rows[top], cols[top])), int(max(rows[top], cols[top]))) if s.size else None,
     )
 
 

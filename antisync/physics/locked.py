@@ -25,13 +25,30 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
 
-__all__ = ["LockedState", "jacobian", "linearization", "locked_state", "residual"]
+__all__ = [
+    "LockedState",
+    "jacobian",
+    "linearization",
+    "locked_state",
+    "residual",
+    "rightmost",
+    "vouched_bound",
+]
 
 #: Newton stops when every |F_i| is below this (the residual of an exact state in float64).
 TOL = 1e-13
 #: An eigenvalue counts as stable when its real part is below ``-STABLE_MARGIN``.
 STABLE_MARGIN = 1e-9
+#: From this many nodes on, Newton's steps and the stability margin work on sparse matrices
+#: (a grid of thousands of buses: a dense eigenvalue problem of ``N + generators`` takes tens of
+#: seconds there, per line of a table); below it, the dense ones (exact, and fast at that size).
+SPARSE_FROM = 500
+#: The sparse margin: this many eigenvalues nearest a small positive shift (shift-invert
+#: Arnoldi, ARPACK), the rightmost of those other than the rotation's zero (:func:`rightmost`).
+SPARSE_EIGS = 16
 
 
 @dataclass(frozen=True)
@@ -54,8 +71,11 @@ def residual(phi: np.ndarray, nu: float, w: np.ndarray, p: np.ndarray, lag: floa
     return p - g * nu + (w * np.sin(d)).sum(axis=1)
 
 
-def jacobian(phi: np.ndarray, w: np.ndarray, lag: float) -> np.ndarray:
-    """``dF_i/dphi_k`` of :func:`residual` (the first-order model's Jacobian)."""
+def jacobian(phi: np.ndarray, w: np.ndarray, lag: float, sparse: bool = False):
+    """``dF_i/dphi_k`` of :func:`residual` (the first-order model's Jacobian); a
+    ``scipy.sparse`` matrix with ``sparse``."""
+    if sparse:
+        return _jacobian_sparse(phi, _coo(w), lag)
     g = w * np.cos(phi[None, :] - phi[:, None] - lag)
     return g - np.diag(g.sum(axis=1))
 
@@ -115,6 +135,120 @@ def _max_real(phi, w, lag, inertia, damping) -> float:
     return float(np.max(ev.real)) if ev.size else -np.inf
 
 
+def _coo(w: np.ndarray):
+    """Rows, columns and weights of ``w``'s nonzero entries."""
+    r, c = np.nonzero(w)
+    return r, c, w[r, c]
+
+
+def _residual_sparse(phi, nu, coo, p, lag, g=1.0):
+    r, c, v = coo
+    return p - g * nu + np.bincount(r, v * np.sin(phi[c] - phi[r] - lag), minlength=phi.size)
+
+
+def _jacobian_sparse(phi, coo, lag) -> sp.csr_matrix:
+    """:func:`jacobian` as a sparse matrix."""
+    r, c, v = coo
+    n = phi.size
+    g = v * np.cos(phi[c] - phi[r] - lag)
+    diag = -np.bincount(r, g, minlength=n)
+    at = np.arange(n)
+    rows, cols = np.concatenate([r, at]), np.concatenate([c, at])
+    return sp.csr_matrix((np.concatenate([g, diag]), (rows, cols)), shape=(n, n))
+
+
+def _newton_sparse(phi, nu, coo, p, lag, g=1.0, max_iter=50):
+    """:func:`_newton` with the Jacobian sparse and its LU by SuperLU."""
+    n = phi.size
+    for _ in range(max_iter):
+        f = _residual_sparse(phi, nu, coo, p, lag, g)
+        if np.max(np.abs(f)) < TOL:
+            return phi, nu, True
+        a = _jacobian_sparse(phi, coo, lag).tolil()
+        a[:, 0] = (-np.broadcast_to(g, (n,))).reshape(-1, 1)
+        try:
+            step = spla.splu(a.tocsc()).solve(-f)
+        except RuntimeError:  # singular
+            return phi, nu, False
+        if not np.isfinite(step).all():
+            return phi, nu, False
+        phi = phi.copy()
+        phi[1:] += step[1:]
+        nu = nu + step[0]
+        if np.max(np.abs(step)) > 1e3:
+            return phi, nu, False
+    f = _residual_sparse(phi, nu, coo, p, lag, g)
+    return phi, nu, bool(np.max(np.abs(f)) < 10 * TOL)
+
+
+def _linearization_sparse(jac: sp.csr_matrix, inertia, damping) -> sp.csr_matrix:
+    """:func:`linearization` of a sparse Jacobian, sparse."""
+    n = jac.shape[0]
+    m = np.broadcast_to(np.asarray(inertia, dtype=np.float64), (n,))
+    gamma = np.broadcast_to(np.asarray(damping, dtype=np.float64), (n,))
+    gen = np.flatnonzero(m > 0)
+    if not gen.size:
+        return jac
+    load = m == 0
+    scale = np.where(load, 1.0 / gamma, 0.0)
+    top = sp.diags(scale) @ jac  # the first-order rows
+    k = gen.size
+    pick = sp.csr_matrix((np.ones(k), (gen, np.arange(k))), shape=(n, k))  # u_gen' = v
+    lower = sp.diags(1.0 / m[gen]) @ jac[gen]  # v' = (jac u)/m - gamma/m v
+    return sp.bmat([[top, pick], [lower, sp.diags(-gamma[gen] / m[gen])]], format="csc")
+
+
+def rightmost(a, k: int = SPARSE_EIGS, *, missed_below: float | None = None) -> float:
+    """The largest real part of the eigenvalues of the square matrix ``a`` other than the
+    rotation's zero (the one closest to 0), ``-inf`` for a 1 x 1 matrix.
+
+    Every eigenvalue (dense) below :data:`SPARSE_FROM` rows, or where ``missed_below`` is
+    None. Otherwise the ``k`` nearest a small positive shift by shift-invert Arnoldi (ARPACK),
+    which the caller vouches for with ``missed_below``: every eigenvalue with a larger real part
+    is real and not positive. Then an eigenvalue that was not found is either real and below the
+    found ones (it is farther from the shift) or has a real part below ``missed_below``, so the
+    found rightmost is exact when it is above ``missed_below``; when it is not, every
+    eigenvalue, dense."""
+    n = a.shape[0]
+    if n >= SPARSE_FROM and missed_below is not None:
+        a = sp.csc_matrix(a)
+        scale = float(abs(a).sum(axis=1).max()) or 1.0
+        ev = spla.eigs(
+            a, k=min(k, n - 2), sigma=1e-6 * scale, which="LM", return_eigenvectors=False, tol=1e-12
+        )
+        ev = np.delete(ev, np.argmin(np.abs(ev)))
+        found = float(np.max(ev.real))
+        if found > missed_below:
+            return found
+    ev = np.linalg.eigvals(a.toarray() if sp.issparse(a) else a)
+    ev = np.delete(ev, np.argmin(np.abs(ev)))
+    return float(np.max(ev.real)) if ev.size else -np.inf
+
+
+def vouched_bound(phi: np.ndarray, w: np.ndarray, lag: float, inertia=None, damping=None) -> float | None:
+    """What :func:`rightmost` may take as ``missed_below`` for the Jacobian at ``phi`` (no
+    ``inertia``) or the linearization with ``inertia`` and ``damping``; None where nothing can be
+    vouched for. With no phase lag, ``w`` symmetric and ``cos(phi_j - phi_i) >= 0`` on every
+    line, the Jacobian is a negative weighted Laplacian: symmetric, no eigenvalue above 0, all
+    real (``-inf``: nothing is missed above any bound). Then an eigenvalue ``lambda`` of the
+    linearization, ``lambda^2 m u + lambda D u = J u`` (``m = 0`` at first-order nodes), times
+    ``u*``, gives ``lambda^2 a + lambda b + c = 0`` with ``a = sum m |u|^2``, ``b = sum D |u|^2``
+    and ``c = -u* J u >= 0``: it is real and not positive, or complex with real part ``-b / 2a
+    <= -min(D_i / m_i) / 2`` over the nodes with inertia."""
+    if lag != 0.0 or not np.array_equal(w, w.T):
+        return None
+    r, c = np.nonzero(w)
+    if np.any(np.cos(phi[c] - phi[r]) < 0):
+        return None
+    if inertia is None:
+        return -np.inf
+    n = phi.size
+    m = np.broadcast_to(np.asarray(inertia, dtype=np.float64), (n,))
+    gamma = np.broadcast_to(np.asarray(damping, dtype=np.float64), (n,))
+    gen = m > 0
+    return -float(np.min(gamma[gen] / m[gen])) / 2 if gen.any() else -np.inf
+
+
 def locked_state(
     w: np.ndarray, p: np.ndarray, lag: float = 0.0, inertia=0.0, damping=1.0
 ) -> LockedState | None:
@@ -135,6 +269,10 @@ def locked_state(
         rotates at one frequency ``nu``, so ``gamma_i nu = P_i + coupling_i``: with a uniform
         ``gamma`` the phases are those of the first-order model; per-node ``gamma_i`` weighs
         ``nu`` per node.
+
+    From :data:`SPARSE_FROM` nodes on, Newton's steps are sparse (SuperLU), and so is the
+    margin where :func:`vouched_bound` makes the nearest eigenvalues enough (:func:`rightmost`);
+    else every eigenvalue, dense.
     """
     w = np.asarray(w, dtype=np.float64)
     p = np.asarray(p, dtype=np.float64)
@@ -145,11 +283,22 @@ def locked_state(
     m = np.broadcast_to(np.asarray(inertia, dtype=np.float64), (n,))
     # the weights of nu: 1 for a uniform damping (or none: first order), so nu = gamma Omega
     g = 1.0 if not (m > 0).any() or np.all(gamma == gamma[0]) else gamma / gamma.mean()
+    sparse = n >= SPARSE_FROM
+    if sparse:
+        coo = _coo(w)
+
+        def newton(phi, nu, p_s, lag_s):
+            return _newton_sparse(phi, nu, coo, p_s, lag_s, g)
+    else:
+
+        def newton(phi, nu, p_s, lag_s):
+            return _newton(phi, nu, w, p_s, lag_s, g)
+
     s, ds = 0.0, 0.125
-    phi, nu, ok = _newton(phi, nu, w, 0.0 * p, 0.0, g)
+    phi, nu, ok = newton(phi, nu, 0.0 * p, 0.0)
     while s < 1.0:
         s_next = min(1.0, s + ds)
-        phi_t, nu_t, ok = _newton(phi, nu, w, s_next * p, s_next * lag, g)
+        phi_t, nu_t, ok = newton(phi, nu, s_next * p, s_next * lag)
         if ok:
             phi, nu, s = phi_t, nu_t, s_next
             ds = min(0.25, 2 * ds)
@@ -159,5 +308,10 @@ def locked_state(
                 return None
     phi = phi - phi[0]
     r = float(np.abs(np.exp(1j * phi).mean()))
-    max_real = _max_real(phi, w, lag, inertia, damping)
+    if sparse:
+        bound = vouched_bound(phi, w, lag, inertia, damping)
+        jac = _jacobian_sparse(phi, coo, lag)
+        max_real = rightmost(_linearization_sparse(jac, inertia, damping), missed_below=bound)
+    else:
+        max_real = _max_real(phi, w, lag, inertia, damping)
     return LockedState(phi, float(nu), r, bool(max_real < -STABLE_MARGIN), max_real)
