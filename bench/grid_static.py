@@ -2,7 +2,7 @@
 docs/power_grids.md): what removing (or weakening) one line does to the locked state.
 
 ``python bench/grid_static.py`` prints, as markdown, for configs/ieee14_grid.yaml (K = 2.5 per
-line, inertia 1, damping 1; bus i is node i) and configs/ieee118_grid.yaml (K = 10 per line in
+line, inertia 1, damping 1; bus i is node i) and configs/ieee118_uniform.yaml (K = 10 per line in
 the edge list, inertia 1 at the 54 generator buses and 0 at the load buses, damping 1):
 
 - the intact grid's margin, lambda2, largest load and r*, and the wall time of the table;
@@ -38,7 +38,7 @@ def main(argv=None) -> int:
     from antisync.grids.load import load_grid_config
     from antisync.grids.static import format_table, static_table
 
-    for cfg, top in (("ieee14_grid.yaml", None), ("ieee118_grid.yaml", args.top)):
+    for cfg, top in (("ieee14_grid.yaml", None), ("ieee118_uniform.yaml", args.top)):
         grid = load_grid_config(ROOT / "configs" / cfg)
         table = static_table(grid, beta=args.beta)
         print(f"## {grid.name}: {len(grid.labels)} buses, beta = {args.beta:g}\n")

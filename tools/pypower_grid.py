@@ -1,7 +1,7 @@
 """Regenerate the shipped power-grid files from a PYPOWER case (never needed at run time).
 
     pip install "antisync[grids]"      # PYPOWER, this script's only extra
-    python tools/pypower_grid.py case118 --capacity 10 --out configs --prefix ieee118_grid
+    python tools/pypower_grid.py case118 --capacity 10 --out configs --prefix ieee118_uniform
 
 writes ``<prefix>.edges`` (the case's distinct branches ``from to K``, parallel circuits merged,
 each a line of capacity ``K``, raw coupling), ``<prefix>_power.txt`` (net injections ``P_i = Pg_i
@@ -9,7 +9,7 @@ each a line of capacity ``K``, raw coupling), ``<prefix>_power.txt`` (net inject
 ``<prefix>_inertia.txt`` (the structure-preserving model of Nishikawa and Motter, New J. Phys.
 17, 015012 (2015): inertia 1 at every bus with a generator or synchronous condenser in the
 case, 0 at load buses). Buses must be numbered 1..N (they are node labels: bus i is node i).
-The shipped ``configs/ieee118_grid.*`` files are exactly this script's output with the command
+The shipped ``configs/ieee118_uniform.*`` files are exactly this script's output with the command
 above (checked by ``tools/pypower_grid.py --check``); the 14-bus files predate it.
 
 The conversion: a line's capacity ``K`` is one number for every line (the literature's

@@ -24,7 +24,7 @@ __all__ = ["WHERE_KEYS", "check_beta", "planned_lines", "resolve_config", "work_
 
 def _grid_mapping(grid: Grid) -> dict:
     """A config mapping of a :class:`~antisync.grids.load.Grid` (its lines inline, injections,
-    inertia and damping per node), with the dynamics of configs/ieee118_grid.yaml (rk4, dt
+    inertia and damping per node), with the dynamics of configs/ieee118_uniform.yaml (rk4, dt
     0.01, t_max 400, frequency locking to 1e-3), which overrides may change."""
     n = len(grid.labels)
     rows, cols = np.nonzero(np.triu(grid.omega > 0))
