@@ -16,7 +16,7 @@ from antisync.cli.app import app
 from antisync.grids.errors import GridError
 from antisync.grids.lines import grid_bridges, lines_of
 from antisync.grids.load import load_grid_config
-from antisync.grids.trip import critical_clearing, operating_point, trip_lines
+from antisync.grids.trip import critical_clearing, operating_point, read_contingencies, trip_lines
 
 REPO = Path(__file__).resolve().parent.parent
 IEEE14 = REPO / "configs" / "ieee14_grid.yaml"
@@ -25,10 +25,11 @@ T_MAX = 12.0
 TOL = 1e-3
 
 
-def _reference(grid, line, t_clear, theta0):
+def _reference(grid, line, t_clear, theta0, share=1.0):
     """Radau (rtol 1e-10) on the dense swing equation: the fault (every line at bus a out)
-    until ``t_clear``, then the grid without ``a-b``; the rates at the same grid times as the
-    RK4 kernel's. Returns (settles, max |theta'|)."""
+    until ``t_clear``, then the grid without ``a-b`` (with ``share`` < 1: ``a-b`` at ``1 -
+    share`` of its K); the rates at the same grid times as the RK4 kernel's. Returns (settles,
+    max |theta'|)."""
     a, b = line
     n = len(grid.labels)
     p = grid.p
@@ -37,7 +38,8 @@ def _reference(grid, line, t_clear, theta0):
     fault = grid.omega.copy()
     fault[a, :] = fault[:, a] = 0.0
     post = grid.omega.copy()
-    post[a, b] = post[b, a] = 0.0
+    post[a, b] *= 1.0 - share
+    post[b, a] *= 1.0 - share
 
     def rates(theta, nu, k):
         force = p + np.sum(k * np.sin(theta[None, :] - theta[:, None]), axis=1)
@@ -130,13 +132,25 @@ def test_a_grid_without_an_operating_point_is_refused():
         (["--t-clear", "30", "--t-max", "20"], "--t-clear must be a fault duration"),
         (["--cct", "--cct-max", "25"], "--cct-max"),
         (["--set", "model.frequencies=[40, -40, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0]"], "no operating point"),
+        (["--contingencies", "missing.txt"], "cannot read it"),
+        (["--contingencies", "{dir}/c.txt"], "line 2: expected 'label from to share'"),
+        (["--contingencies", "{dir}/bus.txt"], "1-9 is not a line of the grid"),
+        (["--contingencies", "{dir}/share.txt"], "the share must be a number in (0, 1]"),
+        (["--contingencies", "{dir}/ok.txt", "--lines", "2-3"], "no contingency of the table is on a line"),
+        (["--contingencies", "{dir}/ok.txt"], "--contingencies is for the line trips"),
     ],
 )
 def test_bad_trip_input_is_one_line_exit_2_and_touches_nothing(tmp_path, args, message):
     out = tmp_path / "t.json"
     old = '{"format": "antisync-trip"}'
     out.write_text(old)  # an earlier table, replaceable with --overwrite
-    res = CliRunner().invoke(app, ["grid", str(IEEE14), "--trip", "--out", str(out), "--overwrite", *args])
+    (tmp_path / "c.txt").write_text("# label from to share\nA 1 2\n")
+    (tmp_path / "bus.txt").write_text("A 1 9 1\n")
+    (tmp_path / "share.txt").write_text("A 1 2 0\n")
+    (tmp_path / "ok.txt").write_text("A 1 2 1\n")
+    args = [a.format(dir=tmp_path) for a in args]
+    trip = [] if "--contingencies is for" in message else ["--trip", "--out", str(out), "--overwrite"]
+    res = CliRunner().invoke(app, ["grid", str(IEEE14), *trip, *args])
     assert res.exit_code == 2, res.output
     assert message in res.output and len(res.output.strip().splitlines()) == 1
     assert out.read_text() == old
@@ -172,3 +186,42 @@ def test_cli_trip_writes_its_table_and_figure(tmp_path):
     assert all(0 <= r["cct"] <= 1.0 for r in doc["lines"])
     again = CliRunner().invoke(app, ["grid", str(IEEE14), "--trip", "--out", str(out)])
     assert again.exit_code == 2 and "--overwrite" in again.output
+
+
+def test_a_contingency_table_trips_its_rows_and_a_circuit_keeps_the_rest_of_its_line(ieee14, tmp_path):
+    """The rows of a contingency table (tools/grid_case.py writes the official one of
+    ACTIVSg2000): a row that opens a whole line is that line's trip, bit for bit; one that
+    opens one circuit of several (share 0.5) leaves the line at half its K, as Radau on that
+    grid says; a row opening a whole bridge is skipped and listed, half of it is tripped."""
+    from antisync.grids.trip import trip_report
+
+    grid, lines = ieee14
+    theta0 = operating_point(grid)
+    (tmp_path / "c.txt").write_text(
+        "# label from to share\nA 1 2 1\nB 1 2 0.5  # a circuit\nC 7 8 1\nD 7 8 0.5\n"
+    )
+    table = read_contingencies(tmp_path / "c.txt", grid)
+    assert [(label, share) for label, _, share in table] == [("A", 1.0), ("B", 0.5), ("C", 1.0), ("D", 0.5)]
+    kw = {"t_max": T_MAX, "dt": DT, "tolerance": TOL}
+    report = trip_report(grid, contingencies=table, **kw)
+    assert report["contingencies"] and report["bridges_skipped"] == [["7", "8"]]
+    rows = {r["label"]: r for r in report["lines"]}
+    assert sorted(rows) == ["A", "B", "D"] and rows["B"]["share"] == 0.5
+    (plain,) = trip_lines(grid, [lines[0]], theta0=theta0, **kw)
+    assert plain.line == (1, 2)
+    for key in ("settles", "settle_time", "max_frequency", "max_angle", "post_locked"):
+        assert rows["A"][key] == getattr(plain, key)
+    for label, line in (("B", lines[0]), ("D", (6, 7))):
+        settles, worst = _reference(grid, line, 0.0, theta0, share=0.5)
+        assert rows[label]["settles"] == settles and abs(rows[label]["max_frequency"] - worst) < 1e-4
+    assert rows["B"]["max_frequency"] < rows["A"]["max_frequency"]  # half the line stays
+
+
+def test_the_official_activsg2000_table_reads_as_lines_of_the_grid():
+    """configs/activsg2000_grid_contingencies.txt: the case's 3,190 branch outages, each on a
+    line of the converted grid, 947 of them one circuit of several (share below 1)."""
+    grid = load_grid_config(REPO / "configs" / "activsg2000_grid.yaml")
+    table = read_contingencies(REPO / "configs" / "activsg2000_grid_contingencies.txt", grid)
+    shares = np.array([share for _, _, share in table])
+    assert len(table) == 3190 and len({label for label, _, _ in table}) == 3190
+    assert int((shares < 1).sum()) == 947 and shares.min() > 0

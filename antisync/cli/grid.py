@@ -36,6 +36,15 @@ def grid(
         bool, typer.Option("--cct", help="--trip: each line's critical clearing time by bisection.")
     ] = False,
     cct_max: Annotated[float, typer.Option("--cct-max", help="--cct: the longest fault tried (s).")] = 1.0,
+    contingencies: Annotated[
+        Path | None,
+        typer.Option(
+            "--contingencies",
+            help="--trip: the trips of a contingency table (label from to share per row; "
+            "configs/activsg2000_grid_contingencies.txt is the case's official N-1) instead of "
+            "every line; --lines keeps the rows on the lines it names.",
+        ),
+    ] = None,
     t_max: Annotated[float, typer.Option("--t-max", help="--trip: how long after the fault (s).")] = 20.0,
     lines: Annotated[
         str | None,
@@ -113,9 +122,23 @@ def grid(
     from antisync.store.provenance import command_line
 
     if trip:
-        _trip(config, set_, lines, t_clear, cct, cct_max, t_max, threads, out, figure, overwrite, quiet)
+        _trip(
+            config,
+            set_,
+            lines,
+            contingencies,
+            t_clear,
+            cct,
+            cct_max,
+            t_max,
+            threads,
+            out,
+            figure,
+            overwrite,
+            quiet,
+        )
         return
-    for name, value in (("--t-clear", t_clear), ("--cct", cct or None)):
+    for name, value in (("--t-clear", t_clear), ("--cct", cct or None), ("--contingencies", contingencies)):
         if value is not None:
             raise GridError(f"{name} is for the line trips from the operating point: add --trip")
     beta = check_beta(beta)
@@ -202,7 +225,9 @@ def grid(
             info(f"wrote {path}", quiet)
 
 
-def _trip(config, set_, lines, t_clear, cct, cct_max, t_max, threads, out, figure, overwrite, quiet) -> None:
+def _trip(
+    config, set_, lines, contingencies, t_clear, cct, cct_max, t_max, threads, out, figure, overwrite, quiet
+) -> None:
     """``--trip``: the engineer's N-1 table (antisync/grids/trip.py), printed, as JSON with
     ``--out`` and drawn with ``--figure`` (both written atomically; an existing file only with
     ``--overwrite``)."""
@@ -213,7 +238,7 @@ def _trip(config, set_, lines, t_clear, cct, cct_max, t_max, threads, out, figur
     from antisync.grids.lines import parse_lines
     from antisync.grids.load import grid_from_config
     from antisync.grids.removal_file import check_new_file, replace_atomically
-    from antisync.grids.trip import FORMAT, format_trips, trip_report
+    from antisync.grids.trip import FORMAT, format_trips, read_contingencies, trip_report
     from antisync.plan.config import load_config
     from antisync.report.removal import check_figure, trip_figure
     from antisync.store.outputs import config_inputs, json_format_problem
@@ -224,6 +249,7 @@ def _trip(config, set_, lines, t_clear, cct, cct_max, t_max, threads, out, figur
     if cct and not 0 < cct_max < t_max:
         raise GridError(f"--cct-max must be in (0, --t-max = {t_max:g}) seconds, got {cct_max:g}")
     g = grid_from_config(cfg)
+    table = None if contingencies is None else read_contingencies(contingencies, g)
     if out is not None:
         out = check_new_file(
             out,
@@ -241,6 +267,7 @@ def _trip(config, set_, lines, t_clear, cct, cct_max, t_max, threads, out, figur
     report = trip_report(
         g,
         parse_lines(lines, g.labels),
+        contingencies=table,
         t_clear=t_clear,
         cct=cct,
         cct_max=cct_max,

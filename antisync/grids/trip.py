@@ -13,7 +13,9 @@ refused. For the line ``a-b``:
    Sec. 13.1; P. Sauer and M. Pai, *Power System Dynamics and Stability*, Prentice Hall 1998,
    Ch. 9). The bus's own injection ``P_a`` still acts on it.
 2. **Trip** at ``t_clear`` (0: the line simply opens): the protection opens ``a-b`` and the
-   fault is gone; the grid runs on without the line until ``t_max``.
+   fault is gone; the grid runs on without the line until ``t_max``. A contingency of an
+   official table that opens one circuit of several in parallel (:func:`read_contingencies`)
+   takes that circuit's ``share`` of the line's ``K``: the line stays at ``(1 - share) K``.
 
 The swing equation is the one every antisync grid integrates, ``m_i theta_i'' + D_i theta_i' =
 P_i + sum_j K_ij sin(theta_j - theta_i)`` (a bus with ``m_i = 0`` first order), here by classical
@@ -35,6 +37,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import asdict, dataclass
+from pathlib import Path
 
 import numpy as np
 from numba import njit, prange
@@ -50,7 +53,15 @@ from antisync.physics.locked import locked_state
 FORMAT = "antisync-trip"
 """The ``format`` of a trip table's JSON (``antisync grid CONFIG --trip --out X.json``)."""
 
-__all__ = ["Trip", "critical_clearing", "format_trips", "operating_point", "trip_lines", "trip_report"]
+__all__ = [
+    "Trip",
+    "critical_clearing",
+    "format_trips",
+    "operating_point",
+    "read_contingencies",
+    "trip_lines",
+    "trip_report",
+]
 
 
 @dataclass(frozen=True)
@@ -69,6 +80,10 @@ class Trip:
     """``max_t`` of the largest ``|theta_i - theta_j|`` over the lines in service (rad)."""
     post_locked: bool
     """Whether the grid without the line has a stable locked state (static)."""
+    share: float = 1.0
+    """The share of the line's ``K`` that the trip takes (1: the whole line)."""
+    label: str | None = None
+    """The contingency's label in its table (:func:`read_contingencies`), or None."""
 
     def as_dict(self) -> dict:
         out = asdict(self)
@@ -93,9 +108,9 @@ def operating_point(grid: Grid) -> np.ndarray:
 
 
 @njit(cache=True)
-def _rates(theta, nu, indptr, indices, k, p, mass, damping, fault, ta, tb, out_th, out_nu):
+def _rates(theta, nu, indptr, indices, k, p, mass, damping, fault, ta, tb, keep, out_th, out_nu):
     """``theta'`` and ``nu'`` (``nu`` the frequency of a bus with inertia). ``fault``: bus
-    ``ta``'s lines carry nothing; else the line ``ta-tb`` is out."""
+    ``ta``'s lines carry nothing; else the line ``ta-tb`` carries ``keep`` of its ``K`` (0: out)."""
     n = theta.size
     for i in range(n):
         acc = p[i]
@@ -105,6 +120,8 @@ def _rates(theta, nu, indptr, indices, k, p, mass, damping, fault, ta, tb, out_t
                 if i == ta or j == ta:
                     continue
             elif (i == ta and j == tb) or (i == tb and j == ta):
+                if keep > 0.0:
+                    acc += keep * k[q] * math.sin(theta[j] - theta[i])
                 continue
             acc += k[q] * math.sin(theta[j] - theta[i])
         if mass[i] > 0:
@@ -116,30 +133,30 @@ def _rates(theta, nu, indptr, indices, k, p, mass, damping, fault, ta, tb, out_t
 
 
 @njit(cache=True)
-def _step(theta, nu, dt, indptr, indices, k, p, mass, damping, fault, ta, tb, work):
+def _step(theta, nu, dt, indptr, indices, k, p, mass, damping, fault, ta, tb, keep, work):
     """One classical RK4 step in place; ``theta'`` at the step's start left in ``work[0]``."""
     n = theta.size
     k1t, k1v, k2t, k2v, k3t, k3v, k4t, k4v, yt, yv = work
-    _rates(theta, nu, indptr, indices, k, p, mass, damping, fault, ta, tb, k1t, k1v)
+    _rates(theta, nu, indptr, indices, k, p, mass, damping, fault, ta, tb, keep, k1t, k1v)
     for i in range(n):
         yt[i] = theta[i] + 0.5 * dt * k1t[i]
         yv[i] = nu[i] + 0.5 * dt * k1v[i]
-    _rates(yt, yv, indptr, indices, k, p, mass, damping, fault, ta, tb, k2t, k2v)
+    _rates(yt, yv, indptr, indices, k, p, mass, damping, fault, ta, tb, keep, k2t, k2v)
     for i in range(n):
         yt[i] = theta[i] + 0.5 * dt * k2t[i]
         yv[i] = nu[i] + 0.5 * dt * k2v[i]
-    _rates(yt, yv, indptr, indices, k, p, mass, damping, fault, ta, tb, k3t, k3v)
+    _rates(yt, yv, indptr, indices, k, p, mass, damping, fault, ta, tb, keep, k3t, k3v)
     for i in range(n):
         yt[i] = theta[i] + dt * k3t[i]
         yv[i] = nu[i] + dt * k3v[i]
-    _rates(yt, yv, indptr, indices, k, p, mass, damping, fault, ta, tb, k4t, k4v)
+    _rates(yt, yv, indptr, indices, k, p, mass, damping, fault, ta, tb, keep, k4t, k4v)
     for i in range(n):
         theta[i] += dt / 6.0 * (k1t[i] + 2.0 * k2t[i] + 2.0 * k3t[i] + k4t[i])
         nu[i] += dt / 6.0 * (k1v[i] + 2.0 * k2v[i] + 2.0 * k3v[i] + k4v[i])
 
 
 @njit(cache=True)
-def _trajectory(theta0, indptr, indices, k, p, mass, damping, ta, tb, t_clear, n_steps, dt, tol, out):
+def _trajectory(theta0, indptr, indices, k, p, mass, damping, ta, tb, keep, t_clear, n_steps, dt, tol, out):
     """Integrate one contingency; ``out = [settle_time, max_frequency, max_angle]`` (settle
     time ``nan`` when the deviations are above ``tol`` at the end). The step that holds
     ``t_clear`` is split there: its fault-on part and its post-trip part are two RK4 steps."""
@@ -156,7 +173,7 @@ def _trajectory(theta0, indptr, indices, k, p, mass, damping, ta, tb, t_clear, n
         t0 = s * dt
         fault = t0 < t_clear
         # the rates at this state, in the configuration that holds from it on
-        _rates(theta, nu, indptr, indices, k, p, mass, damping, fault, ta, tb, rate, dummy)
+        _rates(theta, nu, indptr, indices, k, p, mass, damping, fault, ta, tb, keep, rate, dummy)
         mean = 0.0
         for i in range(n):
             mean += rate[i]
@@ -168,7 +185,7 @@ def _trajectory(theta0, indptr, indices, k, p, mass, damping, ta, tb, t_clear, n
                 last_out = s
             for q in range(indptr[i], indptr[i + 1]):
                 j = indices[q]
-                if j <= i or (i == ta and j == tb) or (i == tb and j == ta):
+                if j <= i or (keep == 0.0 and ((i == ta and j == tb) or (i == tb and j == ta))):
                     continue
                 d = abs(theta[i] - theta[j])
                 if d > max_a:
@@ -176,20 +193,36 @@ def _trajectory(theta0, indptr, indices, k, p, mass, damping, ta, tb, t_clear, n
         if s == n_steps:
             break
         if fault and t_clear < t0 + dt:
-            _step(theta, nu, t_clear - t0, indptr, indices, k, p, mass, damping, True, ta, tb, work)
-            _step(theta, nu, t0 + dt - t_clear, indptr, indices, k, p, mass, damping, False, ta, tb, work)
+            _step(theta, nu, t_clear - t0, indptr, indices, k, p, mass, damping, True, ta, tb, keep, work)
+            _step(
+                theta, nu, t0 + dt - t_clear, indptr, indices, k, p, mass, damping, False, ta, tb, keep, work
+            )
         else:
-            _step(theta, nu, dt, indptr, indices, k, p, mass, damping, fault, ta, tb, work)
+            _step(theta, nu, dt, indptr, indices, k, p, mass, damping, fault, ta, tb, keep, work)
     out[0] = np.nan if last_out == n_steps else (last_out + 1) * dt
     out[1] = max_f
     out[2] = max_a
 
 
 @njit(parallel=True, cache=True)
-def _trajectories(theta0, indptr, indices, k, p, mass, damping, ta, tb, t_clear, n_steps, dt, tol, out):
+def _trajectories(theta0, indptr, indices, k, p, mass, damping, ta, tb, keep, t_clear, n_steps, dt, tol, out):
     for e in prange(ta.size):
         _trajectory(
-            theta0, indptr, indices, k, p, mass, damping, ta[e], tb[e], t_clear[e], n_steps, dt, tol, out[e]
+            theta0,
+            indptr,
+            indices,
+            k,
+            p,
+            mass,
+            damping,
+            ta[e],
+            tb[e],
+            keep[e],
+            t_clear[e],
+            n_steps,
+            dt,
+            tol,
+            out[e],
         )
 
 
@@ -222,9 +255,13 @@ def trip_lines(
     tolerance: float = 1e-3,
     theta0: np.ndarray | None = None,
     threads: int | None = None,
+    shares: np.ndarray | None = None,
+    labels: list[str] | None = None,
 ) -> list[Trip]:
     """Every line of ``lines`` (0-based ``(a, b)``; the fault at ``a``) tripped from the
     operating point after a fault of ``t_clear`` seconds (one value, or one per line).
+    ``shares``: the part of each line's ``K`` the trip takes (default 1, the whole line; a
+    contingency table's circuit of several in parallel takes less); ``labels`` name the trips.
 
     ``dt`` is the RK4 step (the step that holds the fault's end is split there); ``tolerance``
     the frequency band of settling (rad/s). Bridges are the caller's to refuse (the islands of a
@@ -239,16 +276,21 @@ def trip_lines(
     ta = np.array([a for a, _ in lines], dtype=np.int64)
     tb = np.array([b for _, b in lines], dtype=np.int64)
     clear = np.ascontiguousarray(np.broadcast_to(np.asarray(t_clear, dtype=np.float64), (len(lines),)))
+    share = np.ones(len(lines)) if shares is None else np.asarray(shares, dtype=np.float64)
+    if share.shape != (len(lines),) or not np.all((share > 0) & (share <= 1)):
+        raise GridError("a trip's share of its line must be in (0, 1], one per line")
+    keep = np.ascontiguousarray(1.0 - share)
     out = np.empty((len(lines), 3))
     n_steps = int(math.ceil(t_max / dt - 1e-9))
     with Threads(threads):
         _trajectories(
-            theta0, indptr, indices, k, p, mass, damping, ta, tb, clear, n_steps, dt, tolerance, out
+            theta0, indptr, indices, k, p, mass, damping, ta, tb, keep, clear, n_steps, dt, tolerance, out
         )
     trips = []
     for e, (a, b) in enumerate(lines):
         post = grid.omega.copy()
-        post[a, b] = post[b, a] = 0.0
+        post[a, b] *= keep[e]
+        post[b, a] *= keep[e]
         state = locked_state(post, grid.p, grid.lag, grid.inertia, grid.damping)
         trips.append(
             Trip(
@@ -259,6 +301,8 @@ def trip_lines(
                 max_frequency=float(out[e, 1]),
                 max_angle=float(out[e, 2]),
                 post_locked=bool(state is not None and state.stable),
+                share=float(share[e]),
+                label=None if labels is None else labels[e],
             )
         )
     return trips
@@ -275,6 +319,7 @@ def critical_clearing(
     tolerance: float = 1e-3,
     threads: int | None = None,
     theta0: np.ndarray | None = None,
+    shares: np.ndarray | None = None,
 ) -> np.ndarray:
     """Each line's critical clearing time: the longest fault at its first bus after which the
     tripped grid still settles, by bisection to ``cct_tol`` seconds on ``(0, cct_max]`` (every
@@ -286,15 +331,16 @@ def critical_clearing(
     if theta0 is None:
         theta0 = operating_point(grid)
     kw = {"t_max": t_max, "dt": dt, "tolerance": tolerance, "theta0": theta0, "threads": threads}
-    ok0 = np.array([t.settles for t in trip_lines(grid, lines, t_clear=0.0, **kw)])
+    share = np.ones(len(lines)) if shares is None else np.asarray(shares, dtype=np.float64)
+    ok0 = np.array([t.settles for t in trip_lines(grid, lines, t_clear=0.0, shares=share, **kw)])
     lo = np.zeros(len(lines))  # settles at lo
     hi = np.full(len(lines), cct_max)  # does not settle at hi (unless it settles at cct_max)
-    ok_max = np.array([t.settles for t in trip_lines(grid, lines, t_clear=cct_max, **kw)])
+    ok_max = np.array([t.settles for t in trip_lines(grid, lines, t_clear=cct_max, shares=share, **kw)])
     active = ok0 & ~ok_max
     while np.any(active & (hi - lo > cct_tol)):
         mid = 0.5 * (lo + hi)
         todo = np.flatnonzero(active & (hi - lo > cct_tol))
-        verdict = trip_lines(grid, [lines[e] for e in todo], t_clear=mid[todo], **kw)
+        verdict = trip_lines(grid, [lines[e] for e in todo], t_clear=mid[todo], shares=share[todo], **kw)
         for e, t in zip(todo, verdict, strict=True):
             if t.settles:
                 lo[e] = mid[e]
@@ -303,10 +349,52 @@ def critical_clearing(
     return np.where(~ok0, 0.0, np.where(ok_max, cct_max, lo))
 
 
+def read_contingencies(path, grid: Grid) -> list[tuple[str, tuple[int, int], float]]:
+    """A grid's contingency table (``<prefix>_contingencies.txt``, written by
+    tools/grid_case.py from an official N-1 table): one row per contingency, ``label from to
+    share`` (``#`` starts a comment), the line by the grid's bus labels and the share of its
+    ``K`` the outage takes, in ``(0, 1]``. Returns ``(label, (a, b), share)`` with 0-based ``a <
+    b``; a file that cannot be read, a malformed row or a line not in the grid is a one-line
+    :class:`GridError` naming the row."""
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as exc:
+        raise GridError(f"--contingencies {path}: cannot read it ({exc.__class__.__name__})") from None
+    labels = grid.labels
+    index = {str(lab): k for k, lab in enumerate(labels)}
+    out, seen = [], set()
+    for number, row in enumerate(text.splitlines(), start=1):
+        fields = row.split("#", 1)[0].split()
+        if not fields:
+            continue
+        where = f"--contingencies {path}, line {number}"
+        if len(fields) != 4:
+            raise GridError(f"{where}: expected 'label from to share', got {row.strip()!r}")
+        label, u, v, share = fields
+        try:
+            share = float(share)
+        except ValueError:
+            share = math.nan
+        if not 0 < share <= 1:
+            raise GridError(f"{where}: the share must be a number in (0, 1], got {fields[3]!r}")
+        a, b = sorted((index.get(u, -1), index.get(v, -1)))
+        if a < 0 or a == b or not grid.omega[a, b] > 0:
+            raise GridError(f"{where}: {u}-{v} is not a line of the grid (buses {labels[0]}..{labels[-1]})")
+        if label in seen:
+            raise GridError(f"{where}: the label {label!r} is used twice")
+        seen.add(label)
+        out.append((label, (a, b), share))
+    if not out:
+        raise GridError(f"--contingencies {path} lists no contingency")
+    return out
+
+
 def trip_report(
     grid: Grid,
     lines=None,
     *,
+    contingencies: list[tuple[str, tuple[int, int], float]] | None = None,
     t_clear: float | None = None,
     cct: bool = False,
     cct_max: float = 1.0,
@@ -320,6 +408,9 @@ def trip_report(
     pairs, as :func:`antisync.grids.lines.parse_lines` gives them; ``None``: every line that is
     not a bridge) tripped from the operating point, after a fault of ``t_clear`` seconds at its
     first bus in node order (``None``: no fault), with its critical clearing time if ``cct``.
+    With ``contingencies`` (:func:`read_contingencies`) the trips are the table's rows instead,
+    ``lines`` (if given) keeping those on the lines it names; a row that opens a bridge whole
+    is skipped and listed.
 
     Every refusal comes before any integration: a line not in the grid, a bridge named in
     ``lines``, a clearing time that is not in ``(0, t_max)``, a grid without a stable
@@ -328,11 +419,27 @@ def trip_report(
         raise GridError(
             f"--t-clear must be a fault duration in (0, --t-max = {t_max:g}) seconds, got {t_clear:g}"
         )
-    todo = lines_of(grid.omega, grid.labels, lines)
-    hint = "leave it out of --lines (without --lines every bridge is skipped)"
-    todo, skipped = split_bridges(
-        grid.omega, grid.labels, todo, grid_bridges(grid.omega), refuse=lines is not None, hint=hint
-    )
+    bridges = grid_bridges(grid.omega)
+    if contingencies is None:
+        todo = lines_of(grid.omega, grid.labels, lines)
+        hint = "leave it out of --lines (without --lines every bridge is skipped)"
+        todo, skipped = split_bridges(
+            grid.omega, grid.labels, todo, bridges, refuse=lines is not None, hint=hint
+        )
+        names, shares = None, None
+    else:
+        rows = contingencies
+        if lines is not None:
+            wanted = set(lines_of(grid.omega, grid.labels, lines))
+            rows = [row for row in rows if row[1] in wanted]
+            if not rows:
+                raise GridError("no contingency of the table is on a line of --lines")
+        whole_bridge = [row for row in rows if row[1] in bridges and row[2] == 1.0]
+        skipped = [(grid.labels[a], grid.labels[b]) for _, (a, b), _ in whole_bridge]
+        rows = [row for row in rows if row not in whole_bridge]
+        names = [label for label, _, _ in rows]
+        todo = [line for _, line, _ in rows]
+        shares = np.array([share for _, _, share in rows])
     _check(grid, 0.0 if t_clear is None else t_clear, t_max, dt)
     theta0 = operating_point(grid)
     trips = trip_lines(
@@ -344,6 +451,8 @@ def trip_report(
         tolerance=tolerance,
         theta0=theta0,
         threads=threads,
+        shares=shares,
+        labels=names,
     )
     rows = [t.as_dict() for t in trips]
     if cct:
@@ -357,6 +466,7 @@ def trip_report(
             tolerance=tolerance,
             threads=threads,
             theta0=theta0,
+            shares=shares,
         )
         for row, value in zip(rows, times, strict=True):
             row["cct"] = float(value)
@@ -372,19 +482,26 @@ def trip_report(
         "tolerance": tolerance,
         "cct_max": cct_max if cct else None,
         "cct_tol": cct_tol if cct else None,
+        "contingencies": contingencies is not None,
         "bridges_skipped": [list(map(str, b)) for b in skipped],
         "lines": rows,
     }
 
 
 def format_trips(report: dict) -> str:
-    """The trip table as Markdown, lines that do not settle first."""
+    """The trip table as Markdown, lines that do not settle first (with a contingency table,
+    each row's label and the share of its line it opens)."""
     cct = report["cct_max"] is not None
-    head = "| line | settles | time to settle (s) | max |freq| (rad/s) | max angle (rad) | post-trip locked |"
+    table = report.get("contingencies", False)
+    head = "| contingency | share " if table else ""
+    head += (
+        "| line | settles | time to settle (s) | max |freq| (rad/s) | max angle (rad) | post-trip locked |"
+    )
     head += " CCT (s) |" if cct else ""
-    out = [head, "|" + "---|" * (7 if cct else 6)]
+    out = [head, "|" + "---|" * (6 + cct + 2 * table)]
     for r in sorted(report["lines"], key=lambda r: (r["settles"], -r["max_frequency"])):
-        row = (
+        row = f"| {r['label']} | {r['share']:.3g} " if table else ""
+        row += (
             f"| {'-'.join(r['line'])} | {'yes' if r['settles'] else 'NO'} | {r['settle_time']:.3f} | "
             f"{r['max_frequency']:.4g} | {r['max_angle']:.3f} | {'yes' if r['post_locked'] else 'no'} |"
         )

@@ -610,14 +610,23 @@ def trip_figure(report: dict, grid: Grid, path, *, overwrite: bool = False) -> P
     """Draw the grid with every tripped line coloured by its critical clearing time (with
     ``--cct``), else by the maximum frequency deviation after its trip; lines after whose trip
     the grid does not settle dashed black, bridges dotted, generators squares. ``report`` is
-    :func:`antisync.grids.trip.trip_report`'s; ``path`` a ``.png``, ``.pdf`` or ``.svg`` file,
-    written atomically."""
+    :func:`antisync.grids.trip.trip_report`'s (a line with several contingencies of a table is
+    drawn by its worst: not settling, else the shortest clearing time or the largest swing);
+    ``path`` a ``.png``, ``.pdf`` or ``.svg`` file, written atomically."""
     path = check_figure(path, overwrite)
     g, inertia = _network(grid)
-    rows = {frozenset(r["line"]): r for r in report["lines"]}
-    by_label = {frozenset(map(str, e)): e for e in g.edges}
     cct = report["cct_max"] is not None
     key = "cct" if cct else "max_frequency"
+
+    def badness(r):
+        return (not r["settles"], -r[key] if cct else r[key])
+
+    rows = {}
+    for r in report["lines"]:
+        line = frozenset(r["line"])
+        if line not in rows or badness(r) > badness(rows[line]):
+            rows[line] = r
+    by_label = {frozenset(map(str, e)): e for e in g.edges}
 
     import matplotlib
 
