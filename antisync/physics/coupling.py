@@ -184,12 +184,24 @@ def variant_weights(
     ndarray, shape (len(damages), nnz)
         Row ``v`` equals ``csr.weights`` except on row ``a`` of damage ``v``.
     """
-    out = np.empty((len(damages), csr.weights.size))
+    _check_coupling(coupling)
+    omega = np.asarray(omega, dtype=np.float64)
     mask = np.zeros(omega.shape, dtype=bool)
     mask[np.repeat(np.arange(csr.n_nodes), np.diff(csr.indptr)), csr.indices] = True
+    base = to_csr(coupling_matrix(omega, coupling), pattern=mask).weights
+    out = np.empty((len(damages), base.size))
     for v, (a, b, beta) in enumerate(damages):
-        w = coupling_matrix(damaged_omega(omega, a, b, beta), coupling)
-        out[v] = to_csr(w, pattern=mask).weights
+        # only row a changes: W*_a = Omega*_a (raw) or Omega*_a / sum(Omega*_a) (normalized),
+        # the same operations on the same row as coupling_matrix of the whole damaged Omega,
+        # without copying an N x N matrix per variant (ACTIVSg2000: 5,334 variants, 263 s)
+        row = damaged_omega(omega[a : a + 1], 0, b, beta)[0]
+        if coupling == "normalized":
+            if row.sum() <= 0:
+                raise ValueError(f"nodes with zero strength cannot be normalized: indices [{a}]")
+            row = row / row.sum()
+        lo, hi = csr.indptr[a], csr.indptr[a + 1]
+        out[v] = base
+        out[v, lo:hi] = row[csr.indices[lo:hi]]
     return out
 
 
