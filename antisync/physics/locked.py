@@ -80,29 +80,32 @@ def jacobian(phi: np.ndarray, w: np.ndarray, lag: float, sparse: bool = False):
     return g - np.diag(g.sum(axis=1))
 
 
-def _newton(phi, nu, w, p, lag, g=1.0, max_iter=50):
-    n = phi.size
+def _newton(phi, nu, f_of, solve, max_iter=50):
+    """Newton's method on the unknowns ``phi_1..phi_{N-1}`` and ``nu`` (``phi_0 = 0``):
+    ``f_of(phi, nu)`` is the residual, ``solve(phi, f)`` the step for it through the Jacobian
+    with column 0 made ``dF/dnu = -g`` (None where that matrix is singular)."""
     for _ in range(max_iter):
-        f = residual(phi, nu, w, p, lag, g)
+        f = f_of(phi, nu)
         if np.max(np.abs(f)) < TOL:
             return phi, nu, True
-        jac = jacobian(phi, w, lag)
-        # unknowns: phi_1..phi_{N-1} and nu (phi_0 = 0): column 0 becomes dF/dnu = -g
-        a = jac.copy()
-        a[:, 0] = -g
-        try:
-            step = np.linalg.solve(a, -f)
-        except np.linalg.LinAlgError:
-            return phi, nu, False
-        if not np.isfinite(step).all():
+        step = solve(phi, f)
+        if step is None or not np.isfinite(step).all():
             return phi, nu, False
         phi = phi.copy()
         phi[1:] += step[1:]
         nu = nu + step[0]
-        if n and np.max(np.abs(step)) > 1e3:
+        if phi.size and np.max(np.abs(step)) > 1e3:
             return phi, nu, False
-    f = residual(phi, nu, w, p, lag, g)
-    return phi, nu, bool(np.max(np.abs(f)) < 10 * TOL)
+    return phi, nu, bool(np.max(np.abs(f_of(phi, nu))) < 10 * TOL)
+
+
+def _dense_step(phi, f, w, lag, g):
+    a = jacobian(phi, w, lag)
+    a[:, 0] = -g
+    try:
+        return np.linalg.solve(a, -f)
+    except np.linalg.LinAlgError:
+        return None
 
 
 def linearization(jac: np.ndarray, inertia, damping) -> np.ndarray:
@@ -157,28 +160,14 @@ def _jacobian_sparse(phi, coo, lag) -> sp.csr_matrix:
     return sp.csr_matrix((np.concatenate([g, diag]), (rows, cols)), shape=(n, n))
 
 
-def _newton_sparse(phi, nu, coo, p, lag, g=1.0, max_iter=50):
-    """:func:`_newton` with the Jacobian sparse and its LU by SuperLU."""
-    n = phi.size
-    for _ in range(max_iter):
-        f = _residual_sparse(phi, nu, coo, p, lag, g)
-        if np.max(np.abs(f)) < TOL:
-            return phi, nu, True
-        a = _jacobian_sparse(phi, coo, lag).tolil()
-        a[:, 0] = (-np.broadcast_to(g, (n,))).reshape(-1, 1)
-        try:
-            step = spla.splu(a.tocsc()).solve(-f)
-        except RuntimeError:  # singular
-            return phi, nu, False
-        if not np.isfinite(step).all():
-            return phi, nu, False
-        phi = phi.copy()
-        phi[1:] += step[1:]
-        nu = nu + step[0]
-        if np.max(np.abs(step)) > 1e3:
-            return phi, nu, False
-    f = _residual_sparse(phi, nu, coo, p, lag, g)
-    return phi, nu, bool(np.max(np.abs(f)) < 10 * TOL)
+def _sparse_step(phi, f, coo, lag, g):
+    """:func:`_dense_step` with the Jacobian sparse and its LU by SuperLU."""
+    a = _jacobian_sparse(phi, coo, lag).tolil()
+    a[:, 0] = (-np.broadcast_to(g, (phi.size,))).reshape(-1, 1)
+    try:
+        return spla.splu(a.tocsc()).solve(-f)
+    except RuntimeError:  # singular
+        return None
 
 
 def _linearization_sparse(jac: sp.csr_matrix, inertia, damping) -> sp.csr_matrix:
@@ -213,8 +202,9 @@ def rightmost(a, k: int = SPARSE_EIGS, *, missed_below: float | None = None) -> 
     if n >= SPARSE_FROM and missed_below is not None:
         a = sp.csc_matrix(a)
         scale = float(abs(a).sum(axis=1).max()) or 1.0
+        start = np.random.default_rng(0).random(n)  # a fixed start vector: reproducible digits
         ev = spla.eigs(
-            a, k=min(k, n - 2), sigma=1e-6 * scale, which="LM", return_eigenvectors=False, tol=1e-12
+            a, k=min(k, n - 2), sigma=1e-6 * scale, which="LM", return_eigenvectors=False, tol=1e-12, v0=start
         )
         ev = np.delete(ev, np.argmin(np.abs(ev)))
         found = float(np.max(ev.real))
@@ -284,15 +274,22 @@ def locked_state(
     # the weights of nu: 1 for a uniform damping (or none: first order), so nu = gamma Omega
     g = 1.0 if not (m > 0).any() or np.all(gamma == gamma[0]) else gamma / gamma.mean()
     sparse = n >= SPARSE_FROM
-    if sparse:
-        coo = _coo(w)
+    coo = _coo(w) if sparse else None
 
-        def newton(phi, nu, p_s, lag_s):
-            return _newton_sparse(phi, nu, coo, p_s, lag_s, g)
-    else:
-
-        def newton(phi, nu, p_s, lag_s):
-            return _newton(phi, nu, w, p_s, lag_s, g)
+    def newton(phi, nu, p_s, lag_s):
+        if sparse:
+            return _newton(
+                phi,
+                nu,
+                lambda ph, v: _residual_sparse(ph, v, coo, p_s, lag_s, g),
+                lambda ph, f: _sparse_step(ph, f, coo, lag_s, g),
+            )
+        return _newton(
+            phi,
+            nu,
+            lambda ph, v: residual(ph, v, w, p_s, lag_s, g),
+            lambda ph, f: _dense_step(ph, f, w, lag_s, g),
+        )
 
     s, ds = 0.0, 0.125
     phi, nu, ok = newton(phi, nu, 0.0 * p, 0.0)
