@@ -260,6 +260,8 @@ def locked_state(
         ``gamma`` the phases are those of the first-order model; per-node ``gamma_i`` weighs
         ``nu`` per node.
 
+    Notes
+    -----
     From :data:`SPARSE_FROM` nodes on, Newton's steps are sparse (SuperLU), and so is the
     margin where :func:`vouched_bound` makes the nearest eigenvalues enough (:func:`rightmost`);
     else every eigenvalue, dense.
