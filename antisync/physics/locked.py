@@ -108,13 +108,13 @@ def _dense_step(phi, f, w, lag, g):
         return None
 
 
-def linearization(jac: np.ndarray, inertia, damping) -> np.ndarray:
+def linearization(jac, inertia, damping):
     """The matrix of ``m_i u_i'' + gamma_i u_i' = (jac u)_i`` as a first-order system.
 
     State: ``u`` of every node, then ``v_i = u_i'`` of the nodes with ``m_i > 0``; a node with
     ``m_i = 0`` is first order, ``u_i' = (jac u)_i / gamma_i``. Without inertia anywhere it is
     ``jac`` (the first-order model, its damping unused). ``inertia`` and ``damping`` are numbers
-    or per-node arrays.
+    or per-node arrays. A ``scipy.sparse`` ``jac`` gives a sparse matrix (CSC).
     """
     n = jac.shape[0]
     m = np.broadcast_to(np.asarray(inertia, dtype=np.float64), (n,))
@@ -122,12 +122,18 @@ def linearization(jac: np.ndarray, inertia, damping) -> np.ndarray:
     gen = np.flatnonzero(m > 0)
     if not gen.size:
         return jac
-    big = np.zeros((n + gen.size, n + gen.size))
+    k = gen.size
+    if sp.issparse(jac):
+        top = sp.diags(np.where(m == 0, 1.0 / gamma, 0.0)) @ jac  # the first-order rows
+        pick = sp.csr_matrix((np.ones(k), (gen, np.arange(k))), shape=(n, k))  # u_gen' = v
+        lower = sp.diags(1.0 / m[gen]) @ jac[gen]  # v' = (jac u)/m - gamma/m v
+        return sp.bmat([[top, pick], [lower, sp.diags(-gamma[gen] / m[gen])]], format="csc")
+    big = np.zeros((n + k, n + k))
     load = np.flatnonzero(m == 0)
     big[load, :n] = jac[load] / gamma[load, None]
-    big[gen, n + np.arange(gen.size)] = 1.0
-    big[n + np.arange(gen.size), :n] = jac[gen] / m[gen, None]
-    big[n + np.arange(gen.size), n + np.arange(gen.size)] = -gamma[gen] / m[gen]
+    big[gen, n + np.arange(k)] = 1.0
+    big[n + np.arange(k), :n] = jac[gen] / m[gen, None]
+    big[n + np.arange(k), n + np.arange(k)] = -gamma[gen] / m[gen]
     return big
 
 
@@ -168,23 +174,6 @@ def _sparse_step(phi, f, coo, lag, g):
         return spla.splu(a.tocsc()).solve(-f)
     except RuntimeError:  # singular
         return None
-
-
-def _linearization_sparse(jac: sp.csr_matrix, inertia, damping) -> sp.csr_matrix:
-    """:func:`linearization` of a sparse Jacobian, sparse."""
-    n = jac.shape[0]
-    m = np.broadcast_to(np.asarray(inertia, dtype=np.float64), (n,))
-    gamma = np.broadcast_to(np.asarray(damping, dtype=np.float64), (n,))
-    gen = np.flatnonzero(m > 0)
-    if not gen.size:
-        return jac
-    load = m == 0
-    scale = np.where(load, 1.0 / gamma, 0.0)
-    top = sp.diags(scale) @ jac  # the first-order rows
-    k = gen.size
-    pick = sp.csr_matrix((np.ones(k), (gen, np.arange(k))), shape=(n, k))  # u_gen' = v
-    lower = sp.diags(1.0 / m[gen]) @ jac[gen]  # v' = (jac u)/m - gamma/m v
-    return sp.bmat([[top, pick], [lower, sp.diags(-gamma[gen] / m[gen])]], format="csc")
 
 
 def rightmost(a, k: int = SPARSE_EIGS, *, missed_below: float | None = None) -> float:
@@ -310,7 +299,7 @@ def locked_state(
     if sparse:
         bound = vouched_bound(phi, w, lag, inertia, damping)
         jac = _jacobian_sparse(phi, coo, lag)
-        max_real = rightmost(_linearization_sparse(jac, inertia, damping), missed_below=bound)
+        max_real = rightmost(linearization(jac, inertia, damping), missed_below=bound)
     else:
         max_real = _max_real(phi, w, lag, inertia, damping)
     return LockedState(phi, float(nu), r, bool(max_real < -STABLE_MARGIN), max_real)
