@@ -237,11 +237,11 @@ def _trip(
     from antisync.grids.errors import GridError
     from antisync.grids.lines import parse_lines
     from antisync.grids.load import grid_from_config
-    from antisync.grids.removal_file import check_new_file, replace_atomically
+    from antisync.grids.removal_file import check_output, replace_atomically
     from antisync.grids.trip import FORMAT, format_trips, read_contingencies, trip_report
     from antisync.plan.config import load_config
     from antisync.report.removal import check_figure, trip_figure
-    from antisync.store.outputs import config_inputs, json_format_problem
+    from antisync.store.outputs import config_inputs
 
     cfg = load_config(config, list(set_ or []), typed_values(threads=threads))
     if not t_max > 0:
@@ -251,16 +251,7 @@ def _trip(
     g = grid_from_config(cfg)
     table = None if contingencies is None else read_contingencies(contingencies, g)
     if out is not None:
-        out = check_new_file(
-            out,
-            overwrite,
-            "--out",
-            (".json",),
-            "the trip table is written as JSON; name it *.json",
-            replaceable=lambda p: json_format_problem(p, FORMAT),
-            kind=f"an antisync trip table (JSON of format {FORMAT!r})",
-            protect=config_inputs(cfg, config),
-        )
+        out = check_output(out, overwrite, protect=config_inputs(cfg, config), table="trip", fmt=FORMAT)
     if figure is not None:
         check_figure(figure, overwrite, protect=config_inputs(cfg, config))
     tolerance = cfg.sync.tolerance if cfg.sync.criterion == "frequency" else 1e-3

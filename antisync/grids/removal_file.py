@@ -37,18 +37,22 @@ FORMAT = "antisync-line-removal"
 FORMAT_VERSION = 1
 
 
-def check_output(path: str | Path, overwrite: bool = False, protect=()) -> Path:
-    """The JSON output ``path``, checked before any work (:func:`check_new_file`): an existing
-    file is replaced (``overwrite``) only when it is a removal table; ``protect``: the run's
-    inputs (:func:`antisync.store.outputs.config_inputs`), never replaced."""
+def check_output(
+    path: str | Path, overwrite: bool = False, protect=(), *, table: str = "removal", fmt: str = FORMAT
+) -> Path:
+    """The JSON output ``path`` of a grid table, checked before any work
+    (:func:`check_new_file`): an existing file is replaced (``overwrite``) only when it is a
+    table of the same kind (``table``, whose JSON ``format`` is ``fmt``: the removal table's by
+    default, the trip table's for ``antisync grid --trip``); ``protect``: the run's inputs
+    (:func:`antisync.store.outputs.config_inputs`), never replaced."""
     return check_new_file(
         path,
         overwrite,
         "--out",
         (".json",),
-        "the removal table is written as JSON; name it *.json",
-        replaceable=lambda p: json_format_problem(p, FORMAT),
-        kind=f"an antisync removal table (JSON of format {FORMAT!r})",
+        f"the {table} table is written as JSON; name it *.json",
+        replaceable=lambda p: json_format_problem(p, fmt),
+        kind=f"an antisync {table} table (JSON of format {fmt!r})",
         protect=protect,
     )
 

@@ -245,6 +245,33 @@ def _check(grid: Grid, t_clear, t_max: float, dt: float) -> None:
             raise GridError(f"--t-clear must be >= 0 and below --t-max ({t_max:g} s), got {t:g}")
 
 
+def _integrate(grid: Grid, lines, t_clear, shares, *, t_max, dt, tolerance, theta0, threads):
+    """The kernel's ``[settle_time, max_frequency, max_angle]`` per line (``nan`` settle time:
+    it does not settle) and the shares as an array; what :func:`trip_lines` reports and all
+    :func:`critical_clearing` needs (no static post-trip state: it does not depend on the
+    fault, and a bisection would recompute it at every halving)."""
+    _check(grid, t_clear, t_max, dt)
+    if theta0 is None:
+        theta0 = operating_point(grid)
+    indptr, indices, k, p, mass, damping = _arrays(grid)
+    if np.any(mass[damping <= 0] == 0) or np.any(damping < 0):
+        raise GridError("every bus needs damping > 0 where it has no inertia, and damping >= 0")
+    ta = np.array([a for a, _ in lines], dtype=np.int64)
+    tb = np.array([b for _, b in lines], dtype=np.int64)
+    clear = np.ascontiguousarray(np.broadcast_to(np.asarray(t_clear, dtype=np.float64), (len(lines),)))
+    share = np.ones(len(lines)) if shares is None else np.asarray(shares, dtype=np.float64)
+    if share.shape != (len(lines),) or not np.all((share > 0) & (share <= 1)):
+        raise GridError("a trip's share of its line must be in (0, 1], one per line")
+    keep = np.ascontiguousarray(1.0 - share)
+    out = np.empty((len(lines), 3))
+    n_steps = int(math.ceil(t_max / dt - 1e-9))
+    with Threads(threads):
+        _trajectories(
+            theta0, indptr, indices, k, p, mass, damping, ta, tb, keep, clear, n_steps, dt, tolerance, out
+        )
+    return out, clear, share
+
+
 def trip_lines(
     grid: Grid,
     lines: list[tuple[int, int]],
@@ -265,33 +292,21 @@ def trip_lines(
 
     ``dt`` is the RK4 step (the step that holds the fault's end is split there); ``tolerance``
     the frequency band of settling (rad/s). Bridges are the caller's to refuse (the islands of a
-    tripped bridge cannot share a frequency unless each is balanced).
+    tripped bridge cannot share a frequency unless each is balanced). The post-trip grid's
+    static state is found once per distinct (line, share).
     """
-    _check(grid, t_clear, t_max, dt)
-    if theta0 is None:
-        theta0 = operating_point(grid)
-    indptr, indices, k, p, mass, damping = _arrays(grid)
-    if np.any(mass[damping <= 0] == 0) or np.any(damping < 0):
-        raise GridError("every bus needs damping > 0 where it has no inertia, and damping >= 0")
-    ta = np.array([a for a, _ in lines], dtype=np.int64)
-    tb = np.array([b for _, b in lines], dtype=np.int64)
-    clear = np.ascontiguousarray(np.broadcast_to(np.asarray(t_clear, dtype=np.float64), (len(lines),)))
-    share = np.ones(len(lines)) if shares is None else np.asarray(shares, dtype=np.float64)
-    if share.shape != (len(lines),) or not np.all((share > 0) & (share <= 1)):
-        raise GridError("a trip's share of its line must be in (0, 1], one per line")
-    keep = np.ascontiguousarray(1.0 - share)
-    out = np.empty((len(lines), 3))
-    n_steps = int(math.ceil(t_max / dt - 1e-9))
-    with Threads(threads):
-        _trajectories(
-            theta0, indptr, indices, k, p, mass, damping, ta, tb, keep, clear, n_steps, dt, tolerance, out
-        )
+    kw = {"t_max": t_max, "dt": dt, "tolerance": tolerance, "theta0": theta0, "threads": threads}
+    out, clear, share = _integrate(grid, lines, t_clear, shares, **kw)
+    post_locked = {}
     trips = []
     for e, (a, b) in enumerate(lines):
-        post = grid.omega.copy()
-        post[a, b] *= keep[e]
-        post[b, a] *= keep[e]
-        state = locked_state(post, grid.p, grid.lag, grid.inertia, grid.damping)
+        key = (a, b, float(share[e]))
+        if key not in post_locked:
+            post = grid.omega.copy()
+            post[a, b] *= 1.0 - share[e]
+            post[b, a] *= 1.0 - share[e]
+            state = locked_state(post, grid.p, grid.lag, grid.inertia, grid.damping)
+            post_locked[key] = bool(state is not None and state.stable)
         trips.append(
             Trip(
                 line=(grid.labels[a], grid.labels[b]),
@@ -300,7 +315,7 @@ def trip_lines(
                 settle_time=float(out[e, 0]),
                 max_frequency=float(out[e, 1]),
                 max_angle=float(out[e, 2]),
-                post_locked=bool(state is not None and state.stable),
+                post_locked=post_locked[key],
                 share=float(share[e]),
                 label=None if labels is None else labels[e],
             )
@@ -331,18 +346,22 @@ def critical_clearing(
     if theta0 is None:
         theta0 = operating_point(grid)
     kw = {"t_max": t_max, "dt": dt, "tolerance": tolerance, "theta0": theta0, "threads": threads}
+
+    def settles(picked, t_clear, share):
+        return np.isfinite(_integrate(grid, [lines[e] for e in picked], t_clear, share, **kw)[0][:, 0])
+
+    every = np.arange(len(lines))
     share = np.ones(len(lines)) if shares is None else np.asarray(shares, dtype=np.float64)
-    ok0 = np.array([t.settles for t in trip_lines(grid, lines, t_clear=0.0, shares=share, **kw)])
+    ok0 = settles(every, 0.0, share)
     lo = np.zeros(len(lines))  # settles at lo
     hi = np.full(len(lines), cct_max)  # does not settle at hi (unless it settles at cct_max)
-    ok_max = np.array([t.settles for t in trip_lines(grid, lines, t_clear=cct_max, shares=share, **kw)])
+    ok_max = settles(every, cct_max, share)
     active = ok0 & ~ok_max
     while np.any(active & (hi - lo > cct_tol)):
         mid = 0.5 * (lo + hi)
         todo = np.flatnonzero(active & (hi - lo > cct_tol))
-        verdict = trip_lines(grid, [lines[e] for e in todo], t_clear=mid[todo], shares=share[todo], **kw)
-        for e, t in zip(todo, verdict, strict=True):
-            if t.settles:
+        for e, ok in zip(todo, settles(todo, mid[todo], share[todo]), strict=True):
+            if ok:
                 lo[e] = mid[e]
             else:
                 hi[e] = mid[e]
