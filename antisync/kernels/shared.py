@@ -243,8 +243,10 @@ def model_inputs(first, count, realizations, indptr, base_weights, variant_weigh
 
 
 def per_node(value, n: int) -> np.ndarray:
-    """Inertia or damping as the kernels' per-node array (a number is every node's)."""
-    return np.ascontiguousarray(np.broadcast_to(np.asarray(value, dtype=np.float64), (n,)))
+    """Inertia or damping as the kernels' per-node array (a number is every node's): always a
+    fresh, writable copy. (``np.broadcast_to`` of a per-node array is a read-only view, and numba
+    compiles every kernel again for a read-only argument: a second lane driver, ~1 min.)"""
+    return np.array(np.broadcast_to(np.asarray(value, dtype=np.float64), (n,)))
 
 
 def model_batch(
