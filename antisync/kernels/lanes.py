@@ -42,6 +42,7 @@ __all__ = [
     "LaneFeatures",
     "Lanes",
     "ModelLanes",
+    "Queue",
     "integrate_lanes",
     "item_of",
     "make_lane_driver",
@@ -158,70 +159,62 @@ def _start_state(seed, k, ci, si, r2_target):
     return order2(ci, si) >= r2_target
 
 
+class Queue(NamedTuple):
+    """What :func:`_load_lane` reads of a thread's work queue (built inside the driver's
+    ``prange`` body at the call, as :class:`Lanes` is; nothing in it is written)."""
+
+    seed: int
+    """The run's seed (:func:`~antisync.physics.phases.phase`)."""
+    ks: np.ndarray
+    """uint64 (m,): the realization ids."""
+    r_hi: int
+    """The end of the thread's realization range."""
+    r2_target: float
+    """``R`` at the threshold: ``(N threshold)^2``."""
+
+
+#: What :func:`_load_lane` did: the queue was empty, a lane was filled, or the item it took was
+#: synchronized at t = 0 (the caller records it and asks again).
+EMPTY, FILLED, MET = 0, 1, 2
+
+
 @njit(inline="always")
-def _load_lane(
-    q,
-    qr,
-    qv,
-    r_hi,
-    seed,
-    ks,
-    base_w,
-    var_w,
-    var_is_base,
-    todo,
-    r2_target,
-    c,
-    s,
-    lw,
-    ci,
-    si,
-    start,
-    lane_r,
-    lane_v,
-    lane_t0,
-    t,
-    status0,
-    steps0,
-    frac0,
-    status,
-    steps,
-    frac,
-):
-    """Put the next queued item that needs integrating into lane ``q``.
+def _load_lane(q, qr, qv, t, net, queue, c, s, lw, ci, si, start, lane_r, lane_v, lane_t0):
+    """Put the next queued item that needs integrating into lane ``q``: ``net`` a
+    :class:`~.shared.Graph`, ``queue`` a :class:`Queue`, the lane arrays one by one.
 
-    The identical model's loader takes its arrays one by one, inlined into the driver's
-    ``prange`` body: as a non-inlined function taking :class:`Lanes` and the other groups (as
-    :func:`_model_load` does), it made the identical model's Euler and RK4 lanes 10-16% slower
-    (bench/bench_kernels.py, lollipop(6,3)): the arrays passed to a call escape, and the step
-    loops lose what the compiler knew about them.
+    The identical model's loader is inlined into the driver's ``prange`` body, so it writes only
+    to arrays passed one by one (writes through a named tuple there are lost; see
+    :class:`Lanes`) and leaves the outputs to the caller: as a non-inlined function taking
+    :class:`Lanes` and the other groups (as :func:`_model_load` does), it made the identical
+    model's Euler and RK4 lanes 10-16% slower (bench/bench_kernels.py, lollipop(6,3)): the
+    arrays passed to a call escape, and the step loops lose what the compiler knew about them.
 
-    Items already synchronized at t = 0 are recorded on the spot. Returns the advanced cursor
-    and 1 if the lane was filled, 0 if the queue is empty.
+    Returns the advanced cursor, what happened (:data:`EMPTY`, :data:`FILLED` or :data:`MET`)
+    and the item ``(r, v)`` taken: an item synchronized at t = 0 is the caller's to record.
     """
     n = c.shape[0]
-    while qr < r_hi:
+    while qr < queue.r_hi:
         r, v = qr, qv
-        qr, qv = next_item(qr, qv, r_hi, var_is_base)
-        if todo.shape[0] > 0 and not todo[r, v + 1]:
+        qr, qv = next_item(qr, qv, queue.r_hi, net.var_is_base)
+        if net.todo.shape[0] > 0 and not net.todo[r, v + 1]:
             continue
         if start[0] != r:
             # the realization's initial state, kept in (ci, si) for its variants that follow
             start[0] = r
-            start[1] = _start_state(seed, ks[r], ci, si, r2_target)
+            start[1] = _start_state(queue.seed, queue.ks[r], ci, si, queue.r2_target)
         if start[1]:
-            record(status0, steps0, frac0, status, steps, frac, r, v, ALREADY_SYNCED, 0, 0.0)
-            continue
+            return qr, qv, MET, r, v
         for i in range(n):
             c[i, q] = ci[i]
             s[i, q] = si[i]
         for p in range(lw.shape[0]):
-            lw[p, q] = base_w[p] if v < 0 else var_w[v, p]
+            lw[p, q] = net.base_w[p] if v < 0 else net.var_w[v, p]
         lane_r[q] = r
         lane_v[q] = v
         lane_t0[q] = t
-        return qr, qv, 1
-    return qr, qv, 0
+        return qr, qv, FILLED, r, v
+    return qr, qv, EMPTY, -1, -1
 
 
 @njit(inline="always")
@@ -282,9 +275,10 @@ def share_base(var_is_base, r, status0, steps0, frac0, status, steps, frac):
 
 
 @njit(cache=True)  # not inlined: numba's inline pass fails on it ("closure with *args")
-def _model_load(q, qr, qv, r_hi, t, seed, ks, graph, model, second, lanes, extra, out):
+def _model_load(q, qr, qv, t, queue, graph, model, second, lanes, extra, out):
     """Put the next queued item that needs integrating into lane ``q`` (the one-trajectory
-    ``sync_steps``' start on the lane's column; ``graph`` a :class:`~.shared.Graph`, ``model`` a
+    ``sync_steps``' start on the lane's column; ``queue`` a :class:`Queue` (its ``r2_target``
+    unused: a model's targets are per variant), ``graph`` a :class:`~.shared.Graph`, ``model`` a
     :class:`~.shared.Model`, ``second`` whether any node has inertia, ``lanes`` the thread's
     :class:`Lanes`, ``extra`` its :class:`ModelLanes`, ``out`` the :class:`~.shared.Outputs`);
     items met at t = 0 are recorded on the spot. Returns the advanced cursor and 1 if the lane
@@ -305,6 +299,7 @@ def _model_load(q, qr, qv, r_hi, t, seed, ks, graph, model, second, lanes, extra
     th = extra.th
     dnu = extra.dnu
     p = extra.p
+    r_hi = queue.r_hi
     n = c.shape[0]
     while qr < r_hi:
         r, v = qr, qv
@@ -313,7 +308,7 @@ def _model_load(q, qr, qv, r_hi, t, seed, ks, graph, model, second, lanes, extra
             continue
         row = r if freqs.shape[0] > 1 else 0
         for i in range(n):
-            theta = phase(seed, ks[r], i)
+            theta = phase(queue.seed, queue.ks[r], i)
             c[i, q] = np.cos(theta)
             s[i, q] = np.sin(theta)
             nu[i, q] = 0.0
@@ -573,47 +568,39 @@ def make_lane_driver(features: LaneFeatures):
                             active -= 1
                         if q >= lanes:
                             continue  # padding of the vector width: never filled
+                        # the groups built at the call, inside the body (see Lanes)
+                        net = Graph(indptr, indices, base_w, var_w, var_is_base, todo)
+                        queue = Queue(seed, ks, r_hi, r2_target)
                         if identical:
-                            qr, qv, filled = _load_lane(
-                                q,
-                                qr,
-                                qv,
-                                r_hi,
-                                seed,
-                                ks,
-                                base_w,
-                                var_w,
-                                var_is_base,
-                                todo,
-                                r2_target,
-                                c,
-                                s,
-                                lw,
-                                ci,
-                                si,
-                                start,
-                                lane_r,
-                                lane_v,
-                                lane_t0,
-                                t,
-                                status0,
-                                steps0,
-                                frac0,
-                                status,
-                                steps,
-                                frac,
-                            )
+                            got = MET
+                            while got == MET:
+                                qr, qv, got, r, v = _load_lane(
+                                    q, qr, qv, t, net, queue, c, s, lw, ci, si, start, lane_r, lane_v, lane_t0
+                                )
+                                if got == MET:
+                                    record(
+                                        status0,
+                                        steps0,
+                                        frac0,
+                                        status,
+                                        steps,
+                                        frac,
+                                        r,
+                                        v,
+                                        ALREADY_SYNCED,
+                                        0,
+                                        0.0,
+                                    )
+                            filled = 1 if got == FILLED else 0
                             if filled:
                                 _lane_initial(c, s, kv, lw, indptr, indices, rk4, q, r2, dr2, u, dr2t)
                         else:
-                            # the groups built at the call, inside the body (see Lanes)
-                            net = Graph(indptr, indices, base_w, var_w, var_is_base, todo)
                             consts = Model(freqs, cl, sl, mass, gamma, criterion, targets)
                             lane = Lanes(c, s, lw, r2, dr2, lane_r, lane_v, lane_t0, lane_target)
                             extra = ModelLanes(nu, th, dnu, lane_p, work)
                             res = Outputs(status0, steps0, frac0, status, steps, frac, dtau)
                             qr, qv, filled = _model_load(
-                                q, qr, qv, r_hi, t, seed, ks, net, consts, second, lane, extra, res
+                                q, qr, qv, t, queue, net, consts, second, lane, extra, res
                             )
                             if filled and rk4:
                                 _model_rk4_start(c, s, nu, th, dnu, kacc, ya, q, 0.5 * dt, second)
