@@ -108,6 +108,23 @@ def job_model_params(job, ks: np.ndarray, targets: np.ndarray):
     return model_params(job.model, job.config.model, job.config.seed, ks, len(job.nodes), targets)
 
 
+def _network(job, first: int, count: int) -> tuple:
+    """The arguments every kernel entry point starts with: ``(seed, first, count, indptr,
+    indices, weights)`` of ``job``'s realizations ``first .. first + count`` on its network."""
+    csr = job.csr
+    return job.config.seed, first, count, csr.indptr, csr.indices, csr.weights
+
+
+def _clock(dyn, *, threshold: bool = True) -> dict:
+    """The step settings of ``dyn`` (a :class:`~antisync.plan.config.Dynamics`) as the kernels'
+    keywords: ``dt``, ``max_steps`` and, for Eq. 2's threshold criterion, ``threshold`` (a
+    generalized model's criterion travels in its targets)."""
+    clock = {"dt": dyn.dt, "max_steps": dyn.max_steps}
+    if threshold:
+        clock["threshold"] = dyn.threshold
+    return clock
+
+
 def _identical(simulate, job, first, count, variant_weights, realizations, todo, **kwargs):
     """Eq. 2's identical oscillators by ``simulate`` (a backend's ``simulate``), ``kwargs`` the
     backend's own (the CPU lanes' ``threads``)."""
@@ -121,16 +138,9 @@ def _identical(simulate, job, first, count, variant_weights, realizations, todo,
     if dyn.integrator != "euler":
         kwargs["integrator"] = dyn.integrator
     return simulate(
-        job.config.seed,
-        first,
-        count,
-        job.csr.indptr,
-        job.csr.indices,
-        job.csr.weights,
+        *_network(job, first, count),
         weights,
-        dt=dyn.dt,
-        threshold=dyn.threshold,
-        max_steps=dyn.max_steps,
+        **_clock(dyn),
         **kwargs,
     )
 
@@ -167,16 +177,10 @@ def _model(simulate_model, job, first, count, variant_weights, realizations, tod
     params = job_model_params(job, ks, targets)
     dyn = job.config.dynamics
     return simulate_model(
-        job.config.seed,
-        0,
-        0,
-        job.csr.indptr,
-        job.csr.indices,
-        job.csr.weights,
+        *_network(job, 0, 0),
         variant_weights,
         params,
-        dt=dyn.dt,
-        max_steps=dyn.max_steps,
+        **_clock(dyn, threshold=False),
         realizations=ks,
         **({} if todo is None else {"todo": todo}),
     )
@@ -222,16 +226,9 @@ def _reduce_on_device(job, chunk, first: int, count: int, start: float) -> Chunk
     dyn = job.config.dynamics
     hcfg = job.config.histogram
     red = simulate_reduced(
-        job.config.seed,
-        first,
-        count,
-        job.csr.indptr,
-        job.csr.indices,
-        job.csr.weights,
+        *_network(job, first, count),
         job.variant_weights,
-        dt=dyn.dt,
-        threshold=dyn.threshold,
-        max_steps=dyn.max_steps,
+        **_clock(dyn),
         block=job.block_size,
         hist_variants=job.hist_variants,
         bins=hcfg.bins,
@@ -425,21 +422,22 @@ def _tangent_pass(job, first: int, count: int, threads: int | None):
     dyn = job.config.dynamics
     edge_a, edge_b, rho, mu = job.tangent
     return cpu.simulate_pathwise(
-        job.config.seed,
-        first,
-        count,
-        job.csr.indptr,
-        job.csr.indices,
-        job.csr.weights,
+        *_network(job, first, count),
         edge_a,
         edge_b,
         rho,
         mu,
-        dt=dyn.dt,
-        threshold=dyn.threshold,
-        max_steps=dyn.max_steps,
+        **_clock(dyn),
         threads=threads,
     )
+
+
+def _job_link_derivatives(job):
+    """:func:`~antisync.kernels.adjoint.link_derivatives` of ``job``'s tangent edges (what the
+    adjoint passes seed their backward sweeps with)."""
+    edge_a, edge_b, _, _ = job.tangent
+    edges = list(zip(edge_a.tolist(), edge_b.tolist(), strict=True))
+    return link_derivatives(job.omega, job.csr, edges, job.config.dynamics.coupling)
 
 
 def _adjoint_pass(job, first: int, count: int, threads: int | None):
@@ -447,21 +445,11 @@ def _adjoint_pass(job, first: int, count: int, threads: int | None):
     (:func:`antisync.kernels.adjoint.simulate_adjoint`)."""
 
     dyn = job.config.dynamics
-    edge_a, edge_b, _, _ = job.tangent
-    edges = list(zip(edge_a.tolist(), edge_b.tolist(), strict=True))
-    deriv = link_derivatives(job.omega, job.csr, edges, dyn.coupling)
     return simulate_adjoint(
-        job.config.seed,
-        first,
-        count,
-        job.csr.indptr,
-        job.csr.indices,
-        job.csr.weights,
-        deriv,
+        *_network(job, first, count),
+        _job_link_derivatives(job),
         integrator=dyn.integrator,
-        dt=dyn.dt,
-        threshold=dyn.threshold,
-        max_steps=dyn.max_steps,
+        **_clock(dyn),
         threads=threads,
     )
 
@@ -473,19 +461,11 @@ def _model_adjoint_pass(job, first: int, count: int, threads: int | None):
     dyn = job.config.dynamics
     setup = job.model
     params = job_model_params(job, realization_ids(first, count, None), setup.targets[:1])
-    edge_a, edge_b, _, _ = job.tangent
-    edges = list(zip(edge_a.tolist(), edge_b.tolist(), strict=True))
     return simulate_model_adjoint(
-        job.config.seed,
-        first,
-        count,
-        job.csr.indptr,
-        job.csr.indices,
-        job.csr.weights,
-        link_derivatives(job.omega, job.csr, edges, dyn.coupling),
+        *_network(job, first, count),
+        _job_link_derivatives(job),
         params,
-        dt=dyn.dt,
-        max_steps=dyn.max_steps,
+        **_clock(dyn, threshold=False),
         integrator=dyn.integrator,
         dtarget=setup.dtarget,
         threads=threads,
