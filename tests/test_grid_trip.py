@@ -225,3 +225,67 @@ def test_the_official_activsg2000_table_reads_as_lines_of_the_grid():
     shares = np.array([share for _, _, share in table])
     assert len(table) == 3190 and len({label for label, _, _ in table}) == 3190
     assert int((shares < 1).sum()) == 947 and shares.min() > 0
+
+
+def test_trips_in_tasks_resume_from_their_journal_and_refuse_other_work(ieee14, tmp_path):
+    """IEEE 14's 19 trips in tasks of 16 (two tasks) with critical clearing times: the journal's
+    rows equal a run without one bit for bit; a run after a task file is lost redoes that task
+    only (the other file is left as it was); a journal of other work is one line."""
+    from antisync.grids.removal_journal import TripJournal
+    from antisync.grids.trip import TRIPS_PER_TASK, trip_report
+
+    grid, lines = ieee14
+    assert len(lines) > TRIPS_PER_TASK  # more than one task
+    kw = {"t_max": 6.0, "dt": DT, "tolerance": TOL, "cct": True, "cct_max": 0.5, "cct_tol": 0.05}
+    plain = _text(trip_report(grid, **kw))
+    folder = tmp_path / "t.json.partial"
+    assert _text(trip_report(grid, journal=folder, **kw)) == plain
+    files = sorted(folder.glob("task_*.npz"))
+    assert [f.name for f in files] == ["task_0_16.npz", f"task_16_{len(lines) - 16}.npz"]
+    kept = files[0].stat().st_mtime_ns
+    files[1].unlink()
+    assert _text(trip_report(grid, journal=folder, **kw)) == plain
+    assert files[0].stat().st_mtime_ns == kept and files[1].exists()
+    # a journal of other work: refused before any integration, its files left as they are
+    with pytest.raises(GridError, match=r"another trip run \(t_max: 6\.0 -> 7\.0\)"):
+        trip_report(grid, journal=folder, **{**kw, "t_max": 7.0})
+    assert sorted(folder.glob("task_*.npz")) == files
+    # a task file tagged for another grid is dropped and its trips integrated again
+    other = TripJournal(tmp_path / "other", {"x": 1})
+    other.save(0, np.zeros((16, 5)))
+    (tmp_path / "other" / "task_0_16.npz").replace(files[0])
+    assert _text(trip_report(grid, journal=folder, **kw)) == plain  # its zeros were not merged
+
+
+def _text(report: dict) -> str:
+    """A report as its JSON text (``nan`` rows compare equal)."""
+    return json.dumps(report, sort_keys=True)
+
+
+def test_cli_trip_on_dask_equals_the_local_run_and_resumes(tmp_path):
+    """``--trip --workers 2`` (a LocalCluster) writes the local run's table; an interrupted run's
+    journal (its first task kept) is finished by ``--resume``, which also leaves a finished
+    table as it is."""
+    from antisync.grids.trip import trip_report
+
+    base = ["grid", str(IEEE14), "--trip", "--t-clear", "0.1", "--t-max", "6", "--set", f"dynamics.dt={DT}"]
+    local, dask = tmp_path / "local.json", tmp_path / "dask.json"
+    res = CliRunner().invoke(app, [*base, "--out", str(local)])
+    assert res.exit_code == 0, res.output
+    res = CliRunner().invoke(app, [*base, "--workers", "2", "--out", str(dask)])
+    assert res.exit_code == 0, res.output
+    assert dask.read_text() == local.read_text()
+    assert not (tmp_path / "dask.json.partial").exists()  # the journal goes with the table
+    # an interrupted run: a journal holding the first task, no table yet
+    grid = load_grid_config(IEEE14)
+    part = tmp_path / "resumed.json.partial"
+    trip_report(grid, t_clear=0.1, t_max=6.0, dt=DT, tolerance=TOL, journal=part)
+    (part / f"task_16_{len(json.loads(local.read_text())['lines']) - 16}.npz").unlink()
+    out = tmp_path / "resumed.json"
+    again = CliRunner().invoke(app, [*base, "--out", str(out)])
+    assert again.exit_code == 2 and "--resume" in again.output and not out.exists()
+    res = CliRunner().invoke(app, [*base, "--out", str(out), "--resume"])
+    assert res.exit_code == 0, res.output
+    assert out.read_text() == local.read_text() and not part.exists()
+    done = CliRunner().invoke(app, [*base, "--out", str(out), "--resume"])
+    assert done.exit_code == 0 and "nothing to resume" in done.output

@@ -65,14 +65,17 @@ def grid(
     ] = None,
     workers: Annotated[
         int | None,
-        typer.Option(help="--removal on a local Dask cluster of this many single-threaded workers."),
+        typer.Option(
+            help="--removal or --trip on a local Dask cluster of this many single-threaded workers."
+        ),
     ] = None,
     scheduler: Annotated[
-        str | None, typer.Option(help="--removal on the Dask cluster at this address (tcp://host:8786).")
+        str | None,
+        typer.Option(help="--removal or --trip on the Dask cluster at this address (tcp://host:8786)."),
     ] = None,
     top: Annotated[int | None, typer.Option(help="Print only the first TOP rows of the ranking.")] = None,
     out: Annotated[
-        Path | None, typer.Option("--out", "-o", help="Write the removal table as JSON (atomically).")
+        Path | None, typer.Option("--out", "-o", help="Write the removal or trip table as JSON (atomically).")
     ] = None,
     figure: Annotated[
         Path | None,
@@ -94,7 +97,8 @@ def grid(
     resume: Annotated[
         bool,
         typer.Option(
-            "--resume", help="Finish an interrupted --removal --out run from its OUT.partial folder."
+            "--resume",
+            help="Finish an interrupted --removal or --trip --out run from its OUT.partial folder.",
         ),
     ] = False,
     set_: SetOpt = None,
@@ -122,21 +126,9 @@ def grid(
     from antisync.store.provenance import command_line
 
     if trip:
-        _trip(
-            config,
-            set_,
-            lines,
-            contingencies,
-            t_clear,
-            cct,
-            cct_max,
-            t_max,
-            threads,
-            out,
-            figure,
-            overwrite,
-            quiet,
-        )
+        where = {"threads": threads, "workers": workers, "scheduler": scheduler}
+        files = {"out": out, "figure": figure, "overwrite": overwrite, "resume": resume}
+        _trip(config, set_, lines, contingencies, t_clear, cct, cct_max, t_max, where, files, quiet)
         return
     for name, value in (("--t-clear", t_clear), ("--cct", cct or None), ("--contingencies", contingencies)):
         if value is not None:
@@ -179,15 +171,8 @@ def grid(
     # one writer at a time, taken before the journal or the output is looked at: a second
     # writer is told who holds it (pid, host, start, command), not to --resume
     with writer_lock(out) if out is not None else contextlib.nullcontext():
-        if journal is not None and journal.is_symlink():
-            raise GridError(f"{journal} is a symbolic link, not a removal journal (a folder); move it away")
-        if journal is not None and journal.exists() and not journal.is_dir():
-            raise GridError(f"{journal} is a file, not a removal journal (a folder); move it away")
-        if journal is not None and journal.exists() and not (resume or overwrite):
-            raise GridError(
-                f"an interrupted removal run left {journal}: pass --resume to finish it (same arguments) "
-                "or --overwrite to start over"
-            )
+        if journal is not None:
+            _check_journal(journal, "removal", resume=resume, overwrite=overwrite)
         if resume and out.exists() and not journal.exists():
             # nothing is written: only the arguments are compared with the table's
             check_finished_table(out, cfg, asked, beta)
@@ -225,12 +210,12 @@ def grid(
             info(f"wrote {path}", quiet)
 
 
-def _trip(
-    config, set_, lines, contingencies, t_clear, cct, cct_max, t_max, threads, out, figure, overwrite, quiet
-) -> None:
+def _trip(config, set_, lines, contingencies, t_clear, cct, cct_max, t_max, where, files, quiet) -> None:
     """``--trip``: the engineer's N-1 table (antisync/grids/trip.py), printed, as JSON with
     ``--out`` and drawn with ``--figure`` (both written atomically; an existing file only with
-    ``--overwrite``)."""
+    ``--overwrite``). ``where``: threads, workers, scheduler (here or on Dask, as a removal);
+    with ``--out`` every finished task is kept in ``OUT.partial`` until the table is written,
+    and ``--resume`` finishes an interrupted run from it."""
     import json
 
     from antisync.cli.common import typed_values
@@ -238,40 +223,91 @@ def _trip(
     from antisync.grids.lines import parse_lines
     from antisync.grids.load import grid_from_config
     from antisync.grids.removal_file import check_output, replace_atomically
+    from antisync.grids.removal_journal import journal_folder, remove_journal
     from antisync.grids.trip import FORMAT, format_trips, read_contingencies, trip_report
     from antisync.plan.config import load_config
     from antisync.report.removal import check_figure, trip_figure
+    from antisync.store.lock import writer_lock
     from antisync.store.outputs import config_inputs
 
-    cfg = load_config(config, list(set_ or []), typed_values(threads=threads))
+    out, figure, overwrite, resume = files["out"], files["figure"], files["overwrite"], files["resume"]
+    cfg = load_config(config, list(set_ or []), typed_values(threads=where["threads"]))
     if not t_max > 0:
         raise GridError(f"--t-max must be a positive number of seconds, got {t_max:g}")
     if cct and not 0 < cct_max < t_max:
         raise GridError(f"--cct-max must be in (0, --t-max = {t_max:g}) seconds, got {cct_max:g}")
+    if resume and overwrite:
+        raise GridError("--resume finishes the interrupted run and --overwrite starts over: give one")
+    if resume and out is None:
+        raise GridError("--resume finishes an interrupted --trip --out X.json run: give its --out")
     g = grid_from_config(cfg)
     table = None if contingencies is None else read_contingencies(contingencies, g)
-    if out is not None:
-        out = check_output(out, overwrite, protect=config_inputs(cfg, config), table="trip", fmt=FORMAT)
-    if figure is not None:
-        check_figure(figure, overwrite, protect=config_inputs(cfg, config))
-    tolerance = cfg.sync.tolerance if cfg.sync.criterion == "frequency" else 1e-3
-    report = trip_report(
-        g,
-        parse_lines(lines, g.labels),
-        contingencies=table,
-        t_clear=t_clear,
-        cct=cct,
-        cct_max=cct_max,
-        t_max=t_max,
-        dt=cfg.dynamics.dt,
-        tolerance=tolerance,
-        threads=cfg.threads,
-    )
-    typer.echo(format_trips(report))
-    if out is not None:
-        replace_atomically(
-            out, lambda tmp: tmp.write_text(json.dumps(report, indent=1) + "\n", encoding="utf-8")
+    journal = None if out is None else journal_folder(out)
+    with writer_lock(out) if out is not None else contextlib.nullcontext():
+        if journal is not None:
+            _check_journal(journal, "trip", resume=resume, overwrite=overwrite)
+            if resume and out.exists() and not journal.exists():
+                info(f"{out} is complete: nothing to resume (it is left as it is)", quiet)
+                return
+            out = check_output(
+                out,
+                overwrite or (resume and journal.exists()),
+                protect=config_inputs(cfg, config),
+                table="trip",
+                fmt=FORMAT,
+            )
+            if overwrite:
+                remove_journal(journal)
+        if figure is not None:
+            check_figure(figure, overwrite, protect=config_inputs(cfg, config))
+        tolerance = cfg.sync.tolerance if cfg.sync.criterion == "frequency" else 1e-3
+        try:
+            with dask_executor(
+                cfg, workers=where["workers"], scheduler=where["scheduler"], quiet=quiet
+            ) as ex:
+                report = trip_report(
+                    g,
+                    parse_lines(lines, g.labels),
+                    contingencies=table,
+                    t_clear=t_clear,
+                    cct=cct,
+                    cct_max=cct_max,
+                    t_max=t_max,
+                    dt=cfg.dynamics.dt,
+                    tolerance=tolerance,
+                    threads=cfg.threads,
+                    client=None if ex is None else ex.client,
+                    journal=journal,
+                    progress=False if quiet else None,
+                )
+        except KeyboardInterrupt:
+            kept = f"finished tasks are in {journal}; the same command with --resume finishes it"
+            typer.echo(
+                f"antisync grid: interrupted; {kept if journal else 'nothing was saved (no --out)'}", err=True
+            )
+            raise typer.Exit(130) from None
+        typer.echo(format_trips(report))
+        if out is not None:
+            replace_atomically(
+                out, lambda tmp: tmp.write_text(json.dumps(report, indent=1) + "\n", encoding="utf-8")
+            )
+            remove_journal(journal)
+            info(f"wrote {out}", quiet)
+        if figure is not None:
+            info(f"wrote {trip_figure(report, g, figure, overwrite=overwrite)}", quiet)
+
+
+def _check_journal(journal: Path, kind: str, *, resume: bool, overwrite: bool) -> None:
+    """Refuse a journal path that is a link or a file, and an interrupted run's journal that
+    neither --resume nor --overwrite addresses (``kind``: removal or trip)."""
+    from antisync.grids.errors import GridError
+
+    if journal.is_symlink():
+        raise GridError(f"{journal} is a symbolic link, not a {kind} journal (a folder); move it away")
+    if journal.exists() and not journal.is_dir():
+        raise GridError(f"{journal} is a file, not a {kind} journal (a folder); move it away")
+    if journal.exists() and not (resume or overwrite):
+        raise GridError(
+            f"an interrupted {kind} run left {journal}: pass --resume to finish it (same arguments) "
+            "or --overwrite to start over"
         )
-        info(f"wrote {out}", quiet)
-    if figure is not None:
-        info(f"wrote {trip_figure(report, g, figure, overwrite=overwrite)}", quiet)

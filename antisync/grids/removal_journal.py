@@ -1,6 +1,7 @@
-"""The journal of a dynamic line removal: every finished task (realizations x a group of lines)
-on disk at once, so that an interrupted :func:`antisync.grids.removal.line_removal` resumes
-where it stopped. Its files are written and read by the store's journal
+"""The journals of a grid's line work: every finished task on disk at once, so that an
+interrupted dynamic line removal (:func:`antisync.grids.removal.line_removal`: realizations x a
+group of lines) or an engineer's N-1 (:func:`antisync.grids.trip.trip_report`: a run of trips)
+resumes where it stopped. Its files are written and read by the store's journal
 (:func:`antisync.store.journal.save_arrays`, :func:`~antisync.store.journal.load_arrays`), as a
 run's chunks are; this module says which work a folder holds and which task files fit it.
 """
@@ -19,7 +20,15 @@ from antisync.grids.errors import GridError
 from antisync.grids.removal_file import plain
 from antisync.store.journal import load_arrays, save_arrays, write_atomically
 
-__all__ = ["RemovalJournal", "journal_folder", "key_changes", "remove_journal", "work_digest"]
+__all__ = [
+    "RemovalJournal",
+    "TaskJournal",
+    "TripJournal",
+    "journal_folder",
+    "key_changes",
+    "remove_journal",
+    "work_digest",
+]
 
 
 def key_changes(old, new, most: int = 4) -> str:
@@ -76,41 +85,41 @@ def work_digest(fixed: dict, variants: np.ndarray) -> str:
     return h.hexdigest()
 
 
-class RemovalJournal:
-    """Finished removal tasks on disk, so that an interrupted
-    :func:`antisync.grids.removal.line_removal` resumes.
-
-    The folder holds ``removal_key.json`` (the work: resolved config, lines, beta, islanding)
-    and one ``task_<first realization>_<first line>_<lines>_<intact>.npz`` per finished task
-    (written to a temporary name, then renamed: a file is whole or absent). A folder whose key
-    is another work's is refused with one line and left as it is.
+class TaskJournal:
+    """Finished tasks of a grid's line work on disk, so that an interrupted run resumes: the
+    folder holds :attr:`KEY_FILE` (the work, as plain JSON) and one ``task_*.npz`` per finished
+    task (written by :func:`antisync.store.journal.save_arrays` to a temporary name, then
+    renamed: a file is whole or absent). A folder whose key is another work's is refused with
+    one line and left as it is.
 
     Every task file carries a tag (:attr:`tag`: a digest of the key and of the work as built,
     :func:`work_digest`), as the run journal's chunks do (:func:`antisync.store.journal.
-    chunk_tag`): on load, a task file that is damaged (cut off, empty, not an ``.npz``), tagged
-    for other work (copied from another run's journal), untagged, or whose arrays do not fit
-    this work (shapes, dtypes, realizations or lines out of range) is deleted and never
-    merged; its work is simply done again.
+    chunk_tag`): a task file that is damaged, tagged for other work, untagged, or whose arrays
+    do not fit the work is deleted on load and never merged; its work is simply done again.
+    :class:`RemovalJournal` (``--removal``) and :class:`TripJournal` (``--trip``) say what a
+    task holds.
 
     Parameters
     ----------
     folder : path
         The journal folder (created when missing).
     key : dict
-        The work, as plain JSON data; compared with the folder's ``removal_key.json``.
+        The work, as plain JSON data; compared with the folder's :attr:`KEY_FILE`.
     work : str
         A digest of the work as built (:func:`work_digest`), part of the tag.
     """
 
-    KEY_FILE = "removal_key.json"
+    KIND = "task"
+    KEY_FILE = "task_key.json"
 
     def __init__(self, folder: str | Path, key: dict, work: str = ""):
         self.folder = Path(folder)
         self.key = json.loads(json.dumps(plain(key), sort_keys=True))
         self.tag = hashlib.sha256(f"{json.dumps(self.key, sort_keys=True)}\n{work}".encode()).hexdigest()
         key_path = self.folder / self.KEY_FILE
+        kind = self.KIND
         if self.folder.exists() and not self.folder.is_dir():
-            raise GridError(f"{self.folder} is a file, not a removal journal (a folder); move it away")
+            raise GridError(f"{self.folder} is a file, not a {kind} journal (a folder); move it away")
         if key_path.exists() or key_path.is_symlink():
             try:
                 theirs = json.loads(key_path.read_text(encoding="utf-8"))
@@ -122,11 +131,11 @@ class RemovalJournal:
             if theirs != self.key:
                 changed = key_changes(theirs, self.key)
                 raise GridError(
-                    f"{self.folder} holds the unfinished work of another removal run ({changed}): pass the "
+                    f"{self.folder} holds the unfinished work of another {kind} run ({changed}): pass the "
                     "same arguments to finish it, or --overwrite to discard it"
                 )
         elif self.folder.exists() and any(self.folder.iterdir()):
-            raise GridError(f"{self.folder} exists and is not a removal journal; move it away")
+            raise GridError(f"{self.folder} exists and is not a {kind} journal; move it away")
         else:
             self.folder.mkdir(parents=True, exist_ok=True)
             write_atomically(key_path, json.dumps(self.key, sort_keys=True).encode())
@@ -134,17 +143,34 @@ class RemovalJournal:
     def tasks(self) -> list[Path]:
         return sorted(self.folder.glob("task_*.npz"))
 
+    def _read_tasks(self, read):
+        """``read(path)`` of every task file, each not None; a file ``read`` refuses (None) is
+        deleted."""
+        for path in self.tasks():
+            task = read(path)
+            if task is None:
+                with contextlib.suppress(OSError):  # a folder of that name: not ours to remove
+                    path.unlink()
+                continue
+            yield task
+
+
+class RemovalJournal(TaskJournal):
+    """The journal of :func:`antisync.grids.removal.line_removal` (:class:`TaskJournal`): the
+    key holds the resolved config, lines, beta and islanding, and a task file
+    ``task_<first realization>_<first line>_<lines>_<intact>.npz`` the outcomes of its
+    realizations x lines (a file whose arrays are out of this work's shapes, realizations or
+    lines is dropped)."""
+
+    KIND = "removal"
+    KEY_FILE = "removal_key.json"
+
     def load(self, status0, tau0, status, tau) -> np.ndarray:
         """Fill the arrays from the saved tasks that carry this journal's :attr:`tag` and fit
         the arrays; delete every other task file. Return which cells were filled (bool
         ``(realizations, 1 + lines)``, column 0 the intact grid)."""
         have = np.zeros((status0.size, 1 + status.shape[1]), dtype=bool)
-        for path in self.tasks():
-            task = self._read(path, status0.size, status.shape[1])
-            if task is None:
-                with contextlib.suppress(OSError):  # a folder of that name: not ours to remove
-                    path.unlink()
-                continue
+        for task in self._read_tasks(lambda path: self._read(path, status0.size, status.shape[1])):
             ks, group, intact, part = task
             if intact:
                 status0[ks], tau0[ks] = part["status0"], part["tau0"]
@@ -200,13 +226,52 @@ class RemovalJournal:
         save_arrays(self.folder / name, arrays, self.tag)
 
 
+class TripJournal(TaskJournal):
+    """The journal of ``antisync grid --trip`` (:func:`antisync.grids.trip.trip_report`;
+    :class:`TaskJournal`): the key holds the grid's config, the trips and the fault, clearing
+    and integration settings; a task file ``task_<first trip>_<trips>.npz`` the result rows
+    (``(trips, width)`` float64) of a run of consecutive trips."""
+
+    KIND = "trip"
+    KEY_FILE = "trip_key.json"
+
+    def load(self, values: np.ndarray) -> np.ndarray:
+        """Fill ``values`` (``(trips, width)``) from the saved tasks that carry this journal's
+        tag and fit it; delete every other task file. Return which rows were filled."""
+        have = np.zeros(values.shape[0], dtype=bool)
+
+        def read(path):
+            task = load_arrays(path, self.tag, lambda f: (f["first"], f["rows"]))
+            if task is None:
+                return None
+            first, rows = task
+            if first.shape != () or first.dtype.kind not in "iu" or rows.dtype.kind != "f":
+                return None
+            first = int(first)
+            if rows.ndim != 2 or rows.shape[1] != values.shape[1] or rows.shape[0] == 0:
+                return None
+            if first < 0 or first + rows.shape[0] > values.shape[0]:
+                return None
+            return first, rows
+
+        for first, rows in self._read_tasks(read):
+            values[first : first + rows.shape[0]] = rows
+            have[first : first + rows.shape[0]] = True
+        return have
+
+    def save(self, first: int, rows: np.ndarray) -> None:
+        """Save the finished rows of trips ``first ..`` at once, tagged :attr:`tag`."""
+        arrays = {"first": np.int64(first), "rows": np.asarray(rows, dtype=np.float64)}
+        save_arrays(self.folder / f"task_{first}_{len(rows)}.npz", arrays, self.tag)
+
+
 def remove_journal(folder: str | Path) -> None:
     """Delete a :class:`RemovalJournal`'s files and its folder (once empty); nothing else (a
     folder named like a task file, or any file not antisync's, stays, and so does the folder)."""
     folder = Path(folder)
     if not folder.is_dir():
         return
-    for path in [*folder.glob("task_*.npz"), folder / RemovalJournal.KEY_FILE]:
+    for path in [*folder.glob("task_*.npz"), folder / RemovalJournal.KEY_FILE, folder / TripJournal.KEY_FILE]:
         with contextlib.suppress(OSError):
             path.unlink()
     with contextlib.suppress(OSError):
@@ -214,7 +279,8 @@ def remove_journal(folder: str | Path) -> None:
 
 
 def journal_folder(out: str | Path) -> Path:
-    """Where ``antisync grid --removal --out X.json`` keeps its journal: ``X.json.partial``."""
+    """Where ``antisync grid --removal`` (or ``--trip``) ``--out X.json`` keeps its journal:
+    ``X.json.partial``."""
     out = Path(out)
     if out.name in ("", ".", ".."):
         raise GridError(f"--out {str(out)!r} names no file; give a file name ending in .json")

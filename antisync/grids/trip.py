@@ -35,17 +35,23 @@ first swing gives.
 
 from __future__ import annotations
 
+import hashlib
 import math
+import sys
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
 import numpy as np
 from numba import njit, prange
+from tqdm import tqdm
 
 from antisync import _numba_cache  # noqa: F401 -- before any cache=True function (see there)
+from antisync.execution.executors.dask import TaskLostError
+from antisync.execution.executors.tasks import map_tasks
 from antisync.grids.errors import GridError
 from antisync.grids.lines import grid_bridges, lines_of, split_bridges
 from antisync.grids.load import Grid
+from antisync.grids.removal_journal import TripJournal
 from antisync.kernels.shared import Threads, per_node
 from antisync.physics.coupling import to_csr
 from antisync.physics.locked import locked_state
@@ -54,6 +60,8 @@ FORMAT = "antisync-trip"
 """The ``format`` of a trip table's JSON (``antisync grid CONFIG --trip --out X.json``)."""
 
 __all__ = [
+    "COLUMNS",
+    "TRIPS_PER_TASK",
     "Trip",
     "critical_clearing",
     "format_trips",
@@ -295,32 +303,83 @@ def trip_lines(
     tripped bridge cannot share a frequency unless each is balanced). The post-trip grid's
     static state is found once per distinct (line, share).
     """
-    kw = {"t_max": t_max, "dt": dt, "tolerance": tolerance, "theta0": theta0, "threads": threads}
-    out, clear, share = _integrate(grid, lines, t_clear, shares, **kw)
-    post_locked = {}
-    trips = []
+    settings = {"t_max": t_max, "dt": dt, "tolerance": tolerance, "theta0": theta0, "threads": threads}
+    clear = np.broadcast_to(np.asarray(t_clear, dtype=np.float64), (len(lines),))
+    share = np.ones(len(lines)) if shares is None else np.asarray(shares, dtype=np.float64)
+    rows = _trip_task(grid, lines, clear, share, None, settings)
+    return _trips(grid, lines, clear, share, labels, rows)
+
+
+#: Trips per task: the unit of the progress bar, of the journal (``--out``'s ``.partial``
+#: folder) and of a Dask task.
+TRIPS_PER_TASK = 16
+
+#: The columns of a task's rows (:func:`_trip_task`).
+COLUMNS = ("settle_time", "max_frequency", "max_angle", "post_locked", "cct")
+
+
+def _post_locked(grid: Grid, a: int, b: int, share: float) -> bool:
+    """Whether the grid with ``share`` of line ``a-b``'s ``K`` taken has a stable locked state."""
+    post = grid.omega.copy()
+    post[a, b] *= 1.0 - share
+    post[b, a] *= 1.0 - share
+    state = locked_state(post, grid.p, grid.lag, grid.inertia, grid.damping)
+    return bool(state is not None and state.stable)
+
+
+def _trip_task(grid: Grid, lines, t_clear, shares, cct: dict | None, settings: dict) -> np.ndarray:
+    """The rows (:data:`COLUMNS`) of consecutive trips: the kernel's integration, the post-trip
+    static state (once per distinct line and share) and, with ``cct`` (``cct_max``,
+    ``cct_tol``), the critical clearing times (``nan`` without). A pure function of its
+    arguments: a task here or on a Dask worker."""
+    out, _, share = _integrate(grid, lines, t_clear, shares, **settings)
+    rows = np.full((len(lines), len(COLUMNS)), np.nan)
+    rows[:, :3] = out
+    post = {}
     for e, (a, b) in enumerate(lines):
         key = (a, b, float(share[e]))
-        if key not in post_locked:
-            post = grid.omega.copy()
-            post[a, b] *= 1.0 - share[e]
-            post[b, a] *= 1.0 - share[e]
-            state = locked_state(post, grid.p, grid.lag, grid.inertia, grid.damping)
-            post_locked[key] = bool(state is not None and state.stable)
-        trips.append(
-            Trip(
-                line=(grid.labels[a], grid.labels[b]),
-                t_clear=float(clear[e]),
-                settles=bool(np.isfinite(out[e, 0])),
-                settle_time=float(out[e, 0]),
-                max_frequency=float(out[e, 1]),
-                max_angle=float(out[e, 2]),
-                post_locked=post_locked[key],
-                share=float(share[e]),
-                label=None if labels is None else labels[e],
-            )
+        if key not in post:
+            post[key] = _post_locked(grid, a, b, share[e])
+        rows[e, 3] = post[key]
+    if cct is not None:
+        rows[:, 4] = critical_clearing(grid, lines, **cct, **settings, shares=share)
+    return rows
+
+
+def _trips(grid: Grid, lines, clear, share, labels, rows) -> list[Trip]:
+    """The :class:`Trip` of each row of :func:`_trip_task`."""
+    return [
+        Trip(
+            line=(grid.labels[a], grid.labels[b]),
+            t_clear=float(clear[e]),
+            settles=bool(np.isfinite(rows[e, 0])),
+            settle_time=float(rows[e, 0]),
+            max_frequency=float(rows[e, 1]),
+            max_angle=float(rows[e, 2]),
+            post_locked=bool(rows[e, 3]),
+            share=float(share[e]),
+            label=None if labels is None else labels[e],
         )
-    return trips
+        for e, (a, b) in enumerate(lines)
+    ]
+
+
+def _grid_digest(grid: Grid) -> str:
+    """SHA-256 of what a trip integrates: the grid's couplings, injections, inertia and damping
+    (a journal's task files are for this grid as built, not only for its config's name)."""
+    h = hashlib.sha256()
+    n = len(grid.labels)
+    for name, value in (
+        ("omega", grid.omega),
+        ("p", grid.p),
+        ("inertia", per_node(grid.inertia, n)),
+        ("damping", per_node(grid.damping, n)),
+    ):
+        value = np.ascontiguousarray(value, dtype=np.float64)
+        h.update(f"{name}{value.shape}".encode())
+        h.update(value.tobytes())
+    h.update(f"{grid.coupling} {grid.lag!r}".encode())
+    return h.hexdigest()
 
 
 def critical_clearing(
@@ -422,6 +481,9 @@ def trip_report(
     dt: float = 0.0025,
     tolerance: float = 1e-3,
     threads: int | None = None,
+    client=None,
+    journal: str | Path | None = None,
+    progress: bool | None = False,
 ) -> dict:
     """What ``antisync grid CONFIG --trip`` prints and writes: every line of ``lines`` (label
     pairs, as :func:`antisync.grids.lines.parse_lines` gives them; ``None``: every line that is
@@ -431,9 +493,18 @@ def trip_report(
     ``lines`` (if given) keeping those on the lines it names; a row that opens a bridge whole
     is skipped and listed.
 
+    The trips run in tasks of :data:`TRIPS_PER_TASK` (:func:`_trip_task`, each with its own
+    critical clearing bisection): here on ``threads`` numba threads, or on the Dask cluster of
+    ``client`` (an open ``distributed.Client``; one numba thread per task unless ``threads``
+    says otherwise) through :func:`antisync.execution.executors.tasks.map_tasks`, with the same
+    rows either way. ``journal`` (a folder: :class:`~antisync.grids.removal_journal.TripJournal`)
+    keeps every finished task at once, and a call with the same arguments and journal reads
+    them back and runs only the rest. ``progress``: a bar of the trips done and the time left
+    on stderr (None: when stderr is a terminal).
+
     Every refusal comes before any integration: a line not in the grid, a bridge named in
     ``lines``, a clearing time that is not in ``(0, t_max)``, a grid without a stable
-    operating point."""
+    operating point, a journal of other work."""
     if t_clear is not None and not 0 < t_clear < t_max:
         raise GridError(
             f"--t-clear must be a fault duration in (0, --t-max = {t_max:g}) seconds, got {t_clear:g}"
@@ -459,35 +530,69 @@ def trip_report(
         names = [label for label, _, _ in rows]
         todo = [line for _, line, _ in rows]
         shares = np.array([share for _, _, share in rows])
-    _check(grid, 0.0 if t_clear is None else t_clear, t_max, dt)
+    clear = 0.0 if t_clear is None else t_clear
+    _check(grid, clear, t_max, dt)
     theta0 = operating_point(grid)
-    trips = trip_lines(
-        grid,
-        todo,
-        t_clear=0.0 if t_clear is None else t_clear,
-        t_max=t_max,
-        dt=dt,
-        tolerance=tolerance,
-        theta0=theta0,
-        threads=threads,
-        shares=shares,
-        labels=names,
+    if shares is None:
+        shares = np.ones(len(todo))
+    # on Dask one numba thread per task: the cluster already runs a task per worker thread
+    settings = {"t_max": t_max, "dt": dt, "tolerance": tolerance, "theta0": theta0}
+    settings["threads"] = threads if client is None else threads or 1
+    spec = {"cct_max": cct_max, "cct_tol": cct_tol} if cct else None
+    values = np.full((len(todo), len(COLUMNS)), np.nan)
+    book = None
+    if journal is not None:
+        key = {
+            "grid": grid.name,
+            "trips": [
+                [name, str(grid.labels[a]), str(grid.labels[b]), float(sh)]
+                for name, (a, b), sh in zip(names or [None] * len(todo), todo, shares, strict=True)
+            ],
+            "t_clear": t_clear,
+            "cct": spec,
+            "t_max": t_max,
+            "dt": dt,
+            "tolerance": tolerance,
+        }
+        book = TripJournal(journal, key, work=_grid_digest(grid))
+    have = np.zeros(len(todo), dtype=bool) if book is None else book.load(values)
+    tasks = [
+        (lo, min(lo + TRIPS_PER_TASK, len(todo)))
+        for lo in range(0, len(todo), TRIPS_PER_TASK)
+        if not have[lo : min(lo + TRIPS_PER_TASK, len(todo))].all()
+    ]
+    calls = ((grid, todo[lo:hi], clear, shares[lo:hi], spec, settings) for lo, hi in tasks)
+    show = sys.stderr.isatty() if progress is None else progress
+    bar = tqdm(
+        total=len(todo),
+        initial=int(have.sum()),
+        unit="trip",
+        desc="trips",
+        delay=1.0,
+        disable=not show,
+        file=sys.stderr,
+        dynamic_ncols=True,
     )
+    try:
+        for i, rows in map_tasks(_trip_task, calls, client=client):
+            lo, hi = tasks[i]
+            values[lo:hi] = rows
+            if book is not None:
+                book.save(lo, rows)
+            bar.update(int((~have[lo:hi]).sum()))
+            have[lo:hi] = True
+    except TaskLostError as exc:
+        lost = f"{type(exc.cause).__name__}: {exc.cause}"
+        raise GridError(
+            f"the Dask cluster lost a trip task ({lost}); with --out, the finished tasks are kept: "
+            "run the same command with --resume"
+        ) from None
+    finally:
+        bar.close()
+    trips = _trips(grid, todo, np.full(len(todo), float(clear)), shares, names, values)
     rows = [t.as_dict() for t in trips]
     if cct:
-        times = critical_clearing(
-            grid,
-            todo,
-            cct_max=cct_max,
-            cct_tol=cct_tol,
-            t_max=t_max,
-            dt=dt,
-            tolerance=tolerance,
-            threads=threads,
-            theta0=theta0,
-            shares=shares,
-        )
-        for row, value in zip(rows, times, strict=True):
+        for row, value in zip(rows, values[:, 4], strict=True):
             row["cct"] = float(value)
     return {
         "format": FORMAT,
