@@ -289,3 +289,12 @@ def test_cli_trip_on_dask_equals_the_local_run_and_resumes(tmp_path):
     assert out.read_text() == local.read_text() and not part.exists()
     done = CliRunner().invoke(app, [*base, "--out", str(out), "--resume"])
     assert done.exit_code == 0 and "nothing to resume" in done.output
+    # --resume on a finished table of other arguments: one line, the table left as it is
+    kept = out.read_text()
+    for other, says in (
+        (["--t-max", "7"], "t_max: 6.0 -> 7.0"),
+        (["--lines", "1-2"], "trips: 19 in the table, 1"),
+    ):
+        res = CliRunner().invoke(app, [*base, *other, "--out", str(out), "--resume"])
+        assert res.exit_code == 2 and says in res.output and len(res.output.strip().splitlines()) == 1
+        assert out.read_text() == kept

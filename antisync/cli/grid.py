@@ -224,7 +224,15 @@ def _trip(config, set_, lines, contingencies, t_clear, cct, cct_max, t_max, wher
     from antisync.grids.load import grid_from_config
     from antisync.grids.removal_file import check_output, replace_atomically
     from antisync.grids.removal_journal import journal_folder, remove_journal
-    from antisync.grids.trip import FORMAT, format_trips, read_contingencies, trip_report
+    from antisync.grids.trip import (
+        CCT_TOL,
+        FORMAT,
+        check_finished_trips,
+        format_trips,
+        plan_trips,
+        read_contingencies,
+        trip_report,
+    )
     from antisync.plan.config import load_config
     from antisync.report.removal import check_figure, trip_figure
     from antisync.store.lock import writer_lock
@@ -242,11 +250,16 @@ def _trip(config, set_, lines, contingencies, t_clear, cct, cct_max, t_max, wher
         raise GridError("--resume finishes an interrupted --trip --out X.json run: give its --out")
     g = grid_from_config(cfg)
     table = None if contingencies is None else read_contingencies(contingencies, g)
+    tolerance = cfg.sync.tolerance if cfg.sync.criterion == "frequency" else 1e-3
     journal = None if out is None else journal_folder(out)
     with writer_lock(out) if out is not None else contextlib.nullcontext():
         if journal is not None:
             _check_journal(journal, "trip", resume=resume, overwrite=overwrite)
             if resume and out.exists() and not journal.exists():
+                # nothing is written: only the arguments are compared with the table's
+                settings = {"t_clear": t_clear, "t_max": t_max, "dt": cfg.dynamics.dt, "tolerance": tolerance}
+                settings.update(cct_max=cct_max if cct else None, cct_tol=CCT_TOL if cct else None)
+                check_finished_trips(out, g, plan_trips(g, parse_lines(lines, g.labels), table), settings)
                 info(f"{out} is complete: nothing to resume (it is left as it is)", quiet)
                 return
             out = check_output(
@@ -260,7 +273,6 @@ def _trip(config, set_, lines, contingencies, t_clear, cct, cct_max, t_max, wher
                 remove_journal(journal)
         if figure is not None:
             check_figure(figure, overwrite, protect=config_inputs(cfg, config))
-        tolerance = cfg.sync.tolerance if cfg.sync.criterion == "frequency" else 1e-3
         try:
             with dask_executor(
                 cfg, workers=where["workers"], scheduler=where["scheduler"], quiet=quiet

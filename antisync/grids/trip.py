@@ -36,6 +36,7 @@ first swing gives.
 from __future__ import annotations
 
 import hashlib
+import json
 import math
 import sys
 from dataclasses import asdict, dataclass
@@ -51,7 +52,7 @@ from antisync.execution.executors.tasks import map_tasks
 from antisync.grids.errors import GridError
 from antisync.grids.lines import grid_bridges, lines_of, split_bridges
 from antisync.grids.load import Grid
-from antisync.grids.removal_journal import TripJournal
+from antisync.grids.removal_journal import TripJournal, key_changes
 from antisync.kernels.shared import Threads, per_node
 from antisync.physics.coupling import to_csr
 from antisync.physics.locked import locked_state
@@ -60,12 +61,15 @@ FORMAT = "antisync-trip"
 """The ``format`` of a trip table's JSON (``antisync grid CONFIG --trip --out X.json``)."""
 
 __all__ = [
+    "CCT_TOL",
     "COLUMNS",
     "TRIPS_PER_TASK",
     "Trip",
+    "check_finished_trips",
     "critical_clearing",
     "format_trips",
     "operating_point",
+    "plan_trips",
     "read_contingencies",
     "trip_lines",
     "trip_report",
@@ -310,6 +314,9 @@ def trip_lines(
     return _trips(grid, lines, clear, share, labels, rows)
 
 
+#: The critical clearing time's bisection tolerance (s), unless a caller gives another.
+CCT_TOL = 1e-3
+
 #: Trips per task: the unit of the progress bar, of the journal (``--out``'s ``.partial``
 #: folder) and of a Dask task.
 TRIPS_PER_TASK = 16
@@ -387,7 +394,7 @@ def critical_clearing(
     lines: list[tuple[int, int]],
     *,
     cct_max: float = 1.0,
-    cct_tol: float = 1e-3,
+    cct_tol: float = CCT_TOL,
     t_max: float = 20.0,
     dt: float = 0.0025,
     tolerance: float = 1e-3,
@@ -468,6 +475,64 @@ def read_contingencies(path, grid: Grid) -> list[tuple[str, tuple[int, int], flo
     return out
 
 
+def plan_trips(grid: Grid, lines=None, contingencies=None):
+    """The trips :func:`trip_report` runs: ``(lines, labels, shares, skipped)`` with 0-based
+    line pairs, the contingency labels (None without a table), each trip's share of its line
+    and the bridges skipped (label pairs). Refuses a line not in the grid, a bridge named in
+    ``lines`` and a table none of whose rows is on ``lines``."""
+    bridges = grid_bridges(grid.omega)
+    if contingencies is None:
+        todo = lines_of(grid.omega, grid.labels, lines)
+        hint = "leave it out of --lines (without --lines every bridge is skipped)"
+        todo, skipped = split_bridges(
+            grid.omega, grid.labels, todo, bridges, refuse=lines is not None, hint=hint
+        )
+        names, shares = None, np.ones(len(todo))
+    else:
+        rows = contingencies
+        if lines is not None:
+            wanted = set(lines_of(grid.omega, grid.labels, lines))
+            rows = [row for row in rows if row[1] in wanted]
+            if not rows:
+                raise GridError("no contingency of the table is on a line of --lines")
+        whole_bridge = [row for row in rows if row[1] in bridges and row[2] == 1.0]
+        skipped = [(grid.labels[a], grid.labels[b]) for _, (a, b), _ in whole_bridge]
+        rows = [row for row in rows if row not in whole_bridge]
+        names = [label for label, _, _ in rows]
+        todo = [line for _, line, _ in rows]
+        shares = np.array([share for _, _, share in rows])
+    return todo, names, shares, skipped
+
+
+def check_finished_trips(path, grid: Grid, plan, settings: dict) -> None:
+    """Refuse (one line naming what differs) a ``--resume`` whose finished trip table ``path``
+    holds other work than ``plan`` (:func:`plan_trips`) with ``settings`` (the report's
+    ``t_clear``, ``t_max``, ``dt``, ``tolerance``, ``cct_max``, ``cct_tol``)."""
+    try:
+        doc = json.loads(Path(path).read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, ValueError) as exc:
+        raise GridError(f"--resume: {path} cannot be read as a trip table ({type(exc).__name__})") from None
+    if not isinstance(doc, dict) or doc.get("format") != FORMAT or not isinstance(doc.get("lines"), list):
+        raise GridError(f"--resume: {path} is not a trip table (format {FORMAT!r})")
+    todo, names, shares, _ = plan
+    asked = [
+        [None if names is None else names[e], [str(grid.labels[a]), str(grid.labels[b])], float(shares[e])]
+        for e, (a, b) in enumerate(todo)
+    ]
+    rows = [r if isinstance(r, dict) else {} for r in doc["lines"]]
+    stored = [[r.get("label"), r.get("line"), r.get("share")] for r in rows]
+    theirs = {k: doc.get(k) for k in ("grid", *settings)}
+    changes = key_changes(theirs, {"grid": grid.name, **settings})
+    changes = [] if changes == "no key differs" else [changes]
+    if stored != asked:
+        changes.append(f"trips: {len(stored)} in the table, {len(asked)} asked, not the same")
+    if changes:
+        raise GridError(
+            f"--resume: {path} is the finished table of another trip run ({'; '.join(changes)}): give "
+            "the arguments it was run with, --overwrite to replace it, or another --out (it is left as it is)"
+        )
+
+
 def trip_report(
     grid: Grid,
     lines=None,
@@ -476,7 +541,7 @@ def trip_report(
     t_clear: float | None = None,
     cct: bool = False,
     cct_max: float = 1.0,
-    cct_tol: float = 1e-3,
+    cct_tol: float = CCT_TOL,
     t_max: float = 20.0,
     dt: float = 0.0025,
     tolerance: float = 1e-3,
@@ -509,32 +574,10 @@ def trip_report(
         raise GridError(
             f"--t-clear must be a fault duration in (0, --t-max = {t_max:g}) seconds, got {t_clear:g}"
         )
-    bridges = grid_bridges(grid.omega)
-    if contingencies is None:
-        todo = lines_of(grid.omega, grid.labels, lines)
-        hint = "leave it out of --lines (without --lines every bridge is skipped)"
-        todo, skipped = split_bridges(
-            grid.omega, grid.labels, todo, bridges, refuse=lines is not None, hint=hint
-        )
-        names, shares = None, None
-    else:
-        rows = contingencies
-        if lines is not None:
-            wanted = set(lines_of(grid.omega, grid.labels, lines))
-            rows = [row for row in rows if row[1] in wanted]
-            if not rows:
-                raise GridError("no contingency of the table is on a line of --lines")
-        whole_bridge = [row for row in rows if row[1] in bridges and row[2] == 1.0]
-        skipped = [(grid.labels[a], grid.labels[b]) for _, (a, b), _ in whole_bridge]
-        rows = [row for row in rows if row not in whole_bridge]
-        names = [label for label, _, _ in rows]
-        todo = [line for _, line, _ in rows]
-        shares = np.array([share for _, _, share in rows])
+    todo, names, shares, skipped = plan_trips(grid, lines, contingencies)
     clear = 0.0 if t_clear is None else t_clear
     _check(grid, clear, t_max, dt)
     theta0 = operating_point(grid)
-    if shares is None:
-        shares = np.ones(len(todo))
     # on Dask one numba thread per task: the cluster already runs a task per worker thread
     settings = {"t_max": t_max, "dt": dt, "tolerance": tolerance, "theta0": theta0}
     settings["threads"] = threads if client is None else threads or 1
