@@ -366,10 +366,9 @@ class LaneFeatures(NamedTuple):
     :class:`~.shared.Model`, stepped by :mod:`.model_steps`. Off: the identical oscillators'
     steps of :mod:`.core` (machine vectors, Taylor rotations, tangents)."""
     rk4: bool = False
-    """Classical RK4 (the run's ``rk4``); off: Euler."""
-    tangent: bool = False
-    """Forward tangents along the undamaged trajectories (the pathwise estimator; identical
-    model, Euler)."""
+    """Classical RK4 (the run's ``rk4``); off: Euler, whose driver holds the Euler steps with
+    and without forward tangents (the tangents as a feature of their own made the pathwise
+    lanes 30% slower: bench/RESULTS.md)."""
 
 
 @functools.cache
@@ -379,11 +378,11 @@ def make_lane_driver(features: LaneFeatures):
     The features are constants of the closure: numba prunes every branch on them before
     typing, so the identical model's driver holds none of a model's code and compiles to the
     operations it always had, in the same order, and a model's driver none of the identical
-    model's vector steps; an Euler driver holds no RK4 step and no tangents, and so on. One
+    model's vector steps; an Euler driver holds no RK4 step, and so on. One
     source, one driver per feature set (cached on disk like any ``cache=True`` function, keyed
-    by the constants): a run compiles only the step it takes (the identical model's float64
-    Euler driver in 28 s instead of 82 s for the driver of every step, float32 Euler 19 s
-    instead of 40 s; the three float64 drivers together 93 s).
+    by the constants): a run compiles only the steps of its integrator (fresh cache, one session:
+    the identical model's float64 Euler driver in 49 s and its RK4 driver in 36 s, instead of
+    82 s for the driver of both).
 
     Two rules keep numba's parallel pass right here, both learnt the hard way: every name is
     bound on both sides of a branch on a feature (a lane array bound in a pruned branch only
@@ -394,7 +393,6 @@ def make_lane_driver(features: LaneFeatures):
     """
     identical = not features.model
     rk4 = features.rk4
-    tangent = features.tangent
 
     @njit(parallel=True, cache=True)
     def drive(ks, graph, run, model, out, tangents, n_groups):
@@ -429,6 +427,7 @@ def make_lane_driver(features: LaneFeatures):
         nnz = base_w.shape[0]
         n_var = var_w.shape[0]
         n_edges = edge_a.shape[0]
+        tangent = n_edges > 0
         # every name is bound on both sides of a branch on `identical` (numba prunes the branch
         # before typing; a name bound on one side only confused its parallel pass)
         if identical:
@@ -621,8 +620,8 @@ def make_lane_driver(features: LaneFeatures):
                 dr2, dr2_prev = dr2_prev, dr2
                 if identical:
                     dr2t, dr2t_prev = dr2t_prev, dr2t
-                    # rk4 and tangent first: the features, so numba compiles only their step
-                    # (fused implies neither)
+                    # rk4 first: a feature, so numba compiles only its step (fused implies
+                    # neither rk4 nor tangent)
                     if rk4:
                         rk4_vec(c, s, kv, yc, ys, ybc, ybs, lw, base_w, shared, indptr, indices, dt, r2, dr2)
                     elif tangent:
@@ -771,6 +770,6 @@ def integrate_lanes(ks, graph, run, model, out, tangents, n_groups) -> None:
     other criteria (:mod:`antisync.kernels.model_steps`); ``None`` is the identical first-order
     model. Each runs the driver of its :class:`LaneFeatures` (:func:`make_lane_driver`).
     """
-    features = LaneFeatures(model=model is not None, rk4=bool(run.rk4), tangent=tangents.edge_a.shape[0] > 0)
+    features = LaneFeatures(model=model is not None, rk4=bool(run.rk4))
     drive = make_lane_driver(features)
     drive(ks, graph, run, model, out, tangents, n_groups)
