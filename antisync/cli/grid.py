@@ -196,10 +196,7 @@ def grid(
                     restart=overwrite,
                 )
         except KeyboardInterrupt:
-            kept = f"finished tasks are in {journal}; the same command with --resume finishes it"
-            kept = kept if journal else "nothing was saved (no --out)"
-            typer.echo(f"antisync grid: interrupted; {kept}", err=True)
-            raise typer.Exit(130) from None
+            _interrupted(journal)
         typer.echo(table.to_markdown(top=top))
         if out is not None:
             path = write_table(table, out, overwrite=overwrite or resume, command=command_line())
@@ -293,11 +290,7 @@ def _trip(config, set_, lines, contingencies, t_clear, cct, cct_max, t_max, wher
                     progress=False if quiet else None,
                 )
         except KeyboardInterrupt:
-            kept = f"finished tasks are in {journal}; the same command with --resume finishes it"
-            typer.echo(
-                f"antisync grid: interrupted; {kept if journal else 'nothing was saved (no --out)'}", err=True
-            )
-            raise typer.Exit(130) from None
+            _interrupted(journal)
         typer.echo(format_trips(report))
         if out is not None:
             replace_atomically(
@@ -307,6 +300,13 @@ def _trip(config, set_, lines, contingencies, t_clear, cct, cct_max, t_max, wher
             info(f"wrote {out}", quiet)
         if figure is not None:
             info(f"wrote {trip_figure(report, g, figure, overwrite=overwrite)}", quiet)
+
+
+def _interrupted(journal: Path | None) -> None:
+    """Ctrl-C during --removal or --trip: say what was kept and exit 130."""
+    kept = f"finished tasks are in {journal}; the same command with --resume finishes it"
+    typer.echo(f"antisync grid: interrupted; {kept if journal else 'nothing was saved (no --out)'}", err=True)
+    raise typer.Exit(130) from None
 
 
 def _check_journal(journal: Path, kind: str, *, resume: bool, overwrite: bool) -> None:
