@@ -167,11 +167,20 @@ def _jacobian_sparse(phi, coo, lag) -> sp.csr_matrix:
 
 
 def _sparse_step(phi, f, coo, lag, g):
-    """:func:`_dense_step` with the Jacobian sparse and its LU by SuperLU."""
-    a = _jacobian_sparse(phi, coo, lag).tolil()
-    a[:, 0] = (-np.broadcast_to(g, (phi.size,))).reshape(-1, 1)
+    """:func:`_dense_step` with the Jacobian sparse and its LU by SuperLU: the Jacobian's first
+    column replaced by ``-g`` (the unknown ``nu`` in place of ``phi_0``), built as such."""
+    r, c, v = coo
+    n = phi.size
+    w = v * np.cos(phi[c] - phi[r] - lag)
+    diag = -np.bincount(r, w, minlength=n)
+    at = np.arange(1, n)
+    keep = c != 0
+    rows = np.concatenate([r[keep], at, np.arange(n)])
+    cols = np.concatenate([c[keep], at, np.zeros(n, dtype=at.dtype)])
+    vals = np.concatenate([w[keep], diag[1:], -np.broadcast_to(g, (n,))])
+    a = sp.csc_matrix((vals, (rows, cols)), shape=(n, n))
     try:
-        return spla.splu(a.tocsc()).solve(-f)
+        return spla.splu(a).solve(-f)
     except RuntimeError:  # singular
         return None
 
