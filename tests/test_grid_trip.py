@@ -25,7 +25,7 @@ T_MAX = 12.0
 TOL = 1e-3
 
 
-def _reference(grid, line, t_clear, theta0, share=1.0):
+def _reference(grid, line, t_clear, theta0, share=1.0, settle=False):
     """Radau (rtol 1e-10) on the dense swing equation: the fault (every line at bus a out)
     until ``t_clear``, then the grid without ``a-b`` (with ``share`` < 1: ``a-b`` at ``1 -
     share`` of its K); the rates at the same grid times as the RK4 kernel's. Returns (settles,
@@ -65,7 +65,15 @@ def _reference(grid, line, t_clear, theta0, share=1.0):
             if np.max(np.abs(dth - dth.mean())) >= TOL:
                 last_out = int(round(t / DT))
         y0 = sol.y[:, -1]
+    if settle:
+        return (last_out + 1) * DT
     return last_out < len(times) - 1, worst
+
+
+def _reference_settle(grid, line, t_clear, theta0):
+    """Radau's time to settle on the grid of DT (the first grid time after the last one with a
+    deviation at or above the band)."""
+    return _reference(grid, line, t_clear, theta0, settle=True)
 
 
 @pytest.fixture(scope="module")
@@ -76,29 +84,43 @@ def ieee14():
     return grid, [line for line in lines if line not in bridges]
 
 
-def test_a_trip_after_a_fault_is_radau_s_integration(ieee14):
+#: the integrators of a trip: RK4 at the step DT, Rodas4 under tight tolerances from it
+METHODS = {"rk4": {}, "rodas4": {"integrator": "rodas4", "rtol": 1e-8, "atol": 1e-8}}
+
+
+@pytest.mark.parametrize("method", list(METHODS))
+def test_a_trip_after_a_fault_is_radau_s_integration(ieee14, method):
     """Settling verdicts identical and the maximum frequency deviation within 1e-4 of Radau's,
-    for a short and a long fault on lines of IEEE 14 (some settle, some do not)."""
+    for a short and a long fault on lines of IEEE 14 (some settle, some do not), by RK4 and by
+    Rodas4 (whose maximum is over its steps' interpolants, Radau's over the grid of DT: the
+    peaks between grid times are far below 1e-4 higher at DT)."""
     grid, lines = ieee14
     theta0 = operating_point(grid)
     picked = lines[::4]
     verdicts = []
     for t_clear in (0.1, 0.6):
-        trips = trip_lines(grid, picked, t_clear=t_clear, t_max=T_MAX, dt=DT, tolerance=TOL, theta0=theta0)
+        trips = trip_lines(
+            grid, picked, t_clear=t_clear, t_max=T_MAX, dt=DT, tolerance=TOL, theta0=theta0, **METHODS[method]
+        )
         for line, trip in zip(picked, trips, strict=True):
             settles, worst = _reference(grid, line, t_clear, theta0)
             assert trip.settles == settles, (line, t_clear)
             assert abs(trip.max_frequency - worst) < 1e-4, (line, t_clear, trip.max_frequency, worst)
+            if settles:
+                assert abs(trip.settle_time - _reference_settle(grid, line, t_clear, theta0)) <= 2 * DT
             verdicts.append(settles)
     assert any(verdicts) and not all(verdicts)  # both verdicts are compared
 
 
-def test_the_critical_clearing_time_is_an_independent_bisection_s(ieee14):
+@pytest.mark.parametrize("method", list(METHODS))
+def test_the_critical_clearing_time_is_an_independent_bisection_s(ieee14, method):
     grid, lines = ieee14
     theta0 = operating_point(grid)
     line = lines[0]
     tol = 1e-2
-    (cct,) = critical_clearing(grid, [line], cct_max=1.5, cct_tol=tol, t_max=T_MAX, dt=DT, tolerance=TOL)
+    (cct,) = critical_clearing(
+        grid, [line], cct_max=1.5, cct_tol=tol, t_max=T_MAX, dt=DT, tolerance=TOL, **METHODS[method]
+    )
     lo, hi = 0.0, 1.5
     assert _reference(grid, line, 1e-9, theta0)[0]
     while hi - lo > tol:
@@ -184,8 +206,37 @@ def test_cli_trip_writes_its_table_and_figure(tmp_path):
     doc = json.loads(out.read_text())
     assert doc["format"] == "antisync-trip" and [r["line"] for r in doc["lines"]] == [["1", "2"], ["2", "3"]]
     assert all(0 <= r["cct"] <= 1.0 for r in doc["lines"])
+    assert doc["integrator"] == "rk4" and doc["rtol"] is None
     again = CliRunner().invoke(app, ["grid", str(IEEE14), "--trip", "--out", str(out)])
     assert again.exit_code == 2 and "--overwrite" in again.output
+
+
+def test_cli_trip_of_a_rodas4_config_is_rodas4_s_and_says_so(ieee14, tmp_path):
+    """A config whose integrator is rodas4 (the stiff grids') trips by Rodas4 under its rtol and
+    atol, the table records them, and the rows are :func:`trip_lines`' with the same settings;
+    --resume of the finished table under RK4 names the integrator that differs."""
+    grid, _ = ieee14
+    out = tmp_path / "t.json"
+    sets = [
+        "--set",
+        "dynamics.integrator=rodas4",
+        "--set",
+        "dynamics.rtol=1e-7",
+        "--set",
+        "dynamics.atol=1e-7",
+    ]
+    args = ["grid", str(IEEE14), "--trip", "--lines", "1-2,2-3", "--t-clear", "0.2", "--t-max", "10"]
+    res = CliRunner().invoke(app, [*args, *sets, "--set", f"dynamics.dt={DT}", "--out", str(out)])
+    assert res.exit_code == 0, res.output
+    doc = json.loads(out.read_text())
+    assert (doc["integrator"], doc["rtol"], doc["atol"]) == ("rodas4", 1e-7, 1e-7)
+    index = {str(v): i for i, v in enumerate(grid.labels)}
+    lines = [(index["1"], index["2"]), (index["2"], index["3"])]
+    kw = dict(t_clear=0.2, t_max=10.0, dt=DT, tolerance=TOL, integrator="rodas4", rtol=1e-7, atol=1e-7)
+    for row, trip in zip(doc["lines"], trip_lines(grid, lines, **kw), strict=True):
+        assert row["max_frequency"] == trip.max_frequency and row["settles"] == trip.settles
+    again = CliRunner().invoke(app, [*args, "--set", f"dynamics.dt={DT}", "--out", str(out), "--resume"])
+    assert again.exit_code == 2 and "integrator" in again.output, again.output
 
 
 def test_a_contingency_table_trips_its_rows_and_a_circuit_keeps_the_rest_of_its_line(ieee14, tmp_path):

@@ -226,6 +226,7 @@ def _trip(config, set_, lines, contingencies, t_clear, cct, cct_max, t_max, wher
         FORMAT,
         check_finished_trips,
         format_trips,
+        integration_record,
         plan_trips,
         read_contingencies,
         trip_report,
@@ -248,6 +249,14 @@ def _trip(config, set_, lines, contingencies, t_clear, cct, cct_max, t_max, wher
     g = grid_from_config(cfg)
     table = None if contingencies is None else read_contingencies(contingencies, g)
     tolerance = cfg.sync.tolerance if cfg.sync.criterion == "frequency" else 1e-3
+    # the config's rodas4 (a stiff grid's) with its tolerances; any other integrator: RK4 at dt
+    dyn = cfg.dynamics
+    rtol, atol = dyn.tolerances
+    integration = {
+        "integrator": "rodas4" if dyn.integrator == "rodas4" else "rk4",
+        "rtol": rtol,
+        "atol": atol,
+    }
     journal = None if out is None else journal_folder(out)
     with writer_lock(out) if out is not None else contextlib.nullcontext():
         if journal is not None:
@@ -255,6 +264,7 @@ def _trip(config, set_, lines, contingencies, t_clear, cct, cct_max, t_max, wher
             if resume and out.exists() and not journal.exists():
                 # nothing is written: only the arguments are compared with the table's
                 settings = {"t_clear": t_clear, "t_max": t_max, "dt": cfg.dynamics.dt, "tolerance": tolerance}
+                settings.update(integration_record(*integration.values()))
                 settings.update(cct_max=cct_max if cct else None, cct_tol=CCT_TOL if cct else None)
                 check_finished_trips(out, g, plan_trips(g, parse_lines(lines, g.labels), table), settings)
                 info(f"{out} is complete: nothing to resume (it is left as it is)", quiet)
@@ -284,6 +294,7 @@ def _trip(config, set_, lines, contingencies, t_clear, cct, cct_max, t_max, wher
                     t_max=t_max,
                     dt=cfg.dynamics.dt,
                     tolerance=tolerance,
+                    **integration,
                     threads=cfg.threads,
                     client=None if ex is None else ex.client,
                     journal=journal,

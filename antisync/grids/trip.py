@@ -42,6 +42,7 @@ import sys
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
+import numba
 import numpy as np
 from numba import njit, prange
 from tqdm import tqdm
@@ -53,9 +54,11 @@ from antisync.grids.errors import GridError
 from antisync.grids.lines import grid_bridges, lines_of, split_bridges
 from antisync.grids.load import Grid
 from antisync.grids.removal_journal import TripJournal, key_changes
+from antisync.kernels.implicit import plan_of_pattern, rodas4_trip
 from antisync.kernels.shared import Threads, per_node
 from antisync.physics.coupling import to_csr
 from antisync.physics.locked import locked_state
+from antisync.types import RODAS4_ATOL, RODAS4_RTOL
 
 FORMAT = "antisync-trip"
 """The ``format`` of a trip table's JSON (``antisync grid CONFIG --trip --out X.json``)."""
@@ -68,6 +71,7 @@ __all__ = [
     "check_finished_trips",
     "critical_clearing",
     "format_trips",
+    "integration_record",
     "operating_point",
     "plan_trips",
     "read_contingencies",
@@ -238,6 +242,29 @@ def _trajectories(theta0, indptr, indices, k, p, mass, damping, ta, tb, keep, t_
         )
 
 
+@njit(parallel=True, cache=True)
+def _rodas4_trajectories(theta0, grid, k, ta, tb, keep, t_clear, t_max, h0, tols, plan, out):
+    """:func:`_trajectories` by Rodas4 (:func:`antisync.kernels.implicit.rodas4_trip`): per line
+    the fault's weights (bus ``ta``'s lines at 0) and the post-trip weights (``ta-tb`` at
+    ``keep`` of its ``K``); ``out[e, 3]`` is 1 where the step size collapsed."""
+    indptr = grid[1]
+    indices = grid[2]
+    n = indptr.shape[0] - 1
+    for e in prange(ta.size):
+        a = ta[e]
+        b = tb[e]
+        w_fault = k.copy()
+        w_post = k.copy()
+        for i in range(n):
+            for q in range(indptr[i], indptr[i + 1]):
+                j = indices[q]
+                if i == a or j == a:
+                    w_fault[q] = 0.0
+                if (i == a and j == b) or (i == b and j == a):
+                    w_post[q] = keep[e] * k[q]
+        rodas4_trip(theta0, grid, w_fault, w_post, t_clear[e], t_max, h0, tols, plan, (a, b, keep[e]), out[e])
+
+
 def _arrays(grid: Grid):
     """The grid's CSR coupling (:func:`antisync.physics.coupling.to_csr`), injections, inertia
     and damping per bus, as the kernel takes them."""
@@ -257,11 +284,26 @@ def _check(grid: Grid, t_clear, t_max: float, dt: float) -> None:
             raise GridError(f"--t-clear must be >= 0 and below --t-max ({t_max:g} s), got {t:g}")
 
 
-def _integrate(grid: Grid, lines, t_clear, shares, *, t_max, dt, tolerance, theta0, threads):
+def _integrate(
+    grid: Grid,
+    lines,
+    t_clear,
+    shares,
+    *,
+    t_max,
+    dt,
+    tolerance,
+    theta0,
+    threads,
+    integrator="rk4",
+    rtol=RODAS4_RTOL,
+    atol=RODAS4_ATOL,
+):
     """The kernel's ``[settle_time, max_frequency, max_angle]`` per line (``nan`` settle time:
     it does not settle) and the shares as an array; what :func:`trip_lines` reports and all
     :func:`critical_clearing` needs (no static post-trip state: it does not depend on the
-    fault, and a bisection would recompute it at every halving)."""
+    fault, and a bisection would recompute it at every halving). ``integrator``: ``rk4`` at the
+    fixed step ``dt``, or ``rodas4`` under ``rtol``, ``atol`` from the first step ``dt``."""
     _check(grid, t_clear, t_max, dt)
     if theta0 is None:
         theta0 = operating_point(grid)
@@ -275,6 +317,34 @@ def _integrate(grid: Grid, lines, t_clear, shares, *, t_max, dt, tolerance, thet
     if share.shape != (len(lines),) or not np.all((share > 0) & (share <= 1)):
         raise GridError("a trip's share of its line must be in (0, 1], one per line")
     keep = np.ascontiguousarray(1.0 - share)
+    if integrator == "rodas4":
+        out = np.empty((len(lines), 4))
+        plan = plan_of_pattern(indptr, indices)
+        # one line at a time per thread: a trip that does not settle takes many more steps
+        with Threads(threads), numba.parallel_chunksize(1):
+            _rodas4_trajectories(
+                theta0,
+                (p, indptr, indices, mass, damping),
+                k,
+                ta,
+                tb,
+                keep,
+                clear,
+                float(t_max),
+                float(dt),
+                (float(tolerance), float(rtol), float(atol)),
+                plan,
+                out,
+            )
+        if out[:, 3].any():
+            a, b = lines[int(np.flatnonzero(out[:, 3])[0])]
+            raise GridError(
+                f"rodas4: the step size collapsed on {int(out[:, 3].sum())} trips (first: line "
+                f"{grid.labels[a]}-{grid.labels[b]}); tighten dynamics.rtol/atol or use integrator rk4"
+            )
+        return out[:, :3], clear, share
+    if integrator != "rk4":
+        raise GridError(f"a line trip integrates by rk4 or rodas4, not {integrator}")
     out = np.empty((len(lines), 3))
     n_steps = int(math.ceil(t_max / dt - 1e-9))
     with Threads(threads):
@@ -296,18 +366,24 @@ def trip_lines(
     threads: int | None = None,
     shares: np.ndarray | None = None,
     labels: list[str] | None = None,
+    integrator: str = "rk4",
+    rtol: float = RODAS4_RTOL,
+    atol: float = RODAS4_ATOL,
 ) -> list[Trip]:
     """Every line of ``lines`` (0-based ``(a, b)``; the fault at ``a``) tripped from the
     operating point after a fault of ``t_clear`` seconds (one value, or one per line).
     ``shares``: the part of each line's ``K`` the trip takes (default 1, the whole line; a
     contingency table's circuit of several in parallel takes less); ``labels`` name the trips.
 
-    ``dt`` is the RK4 step (the step that holds the fault's end is split there); ``tolerance``
+    ``dt`` is the RK4 step (the step that holds the fault's end is split there), or with
+    ``integrator="rodas4"`` the first step of Rodas4 under ``rtol`` and ``atol``
+    (:func:`antisync.kernels.implicit.rodas4_trip`: the stiff grids' integrator); ``tolerance``
     the frequency band of settling (rad/s). Bridges are the caller's to refuse (the islands of a
     tripped bridge cannot share a frequency unless each is balanced). The post-trip grid's
     static state is found once per distinct (line, share).
     """
     settings = {"t_max": t_max, "dt": dt, "tolerance": tolerance, "theta0": theta0, "threads": threads}
+    settings.update(integrator=integrator, rtol=rtol, atol=atol)
     clear = np.broadcast_to(np.asarray(t_clear, dtype=np.float64), (len(lines),))
     share = np.ones(len(lines)) if shares is None else np.asarray(shares, dtype=np.float64)
     rows = _trip_task(grid, lines, clear, share, None, settings)
@@ -401,17 +477,22 @@ def critical_clearing(
     threads: int | None = None,
     theta0: np.ndarray | None = None,
     shares: np.ndarray | None = None,
+    integrator: str = "rk4",
+    rtol: float = RODAS4_RTOL,
+    atol: float = RODAS4_ATOL,
 ) -> np.ndarray:
     """Each line's critical clearing time: the longest fault at its first bus after which the
     tripped grid still settles, by bisection to ``cct_tol`` seconds on ``(0, cct_max]`` (every
     line's bisection advances together: one parallel batch per halving). 0 where even an
     instant trip does not settle; ``cct_max`` (or more) where the longest fault tried does.
-    ``theta0``: the operating point when the caller has it (else :func:`operating_point`)."""
+    ``theta0``: the operating point when the caller has it (else :func:`operating_point`);
+    ``integrator``, ``rtol``, ``atol`` as in :func:`trip_lines`."""
     if not (0 < cct_tol < cct_max < t_max):
         raise GridError(f"need 0 < cct_tol ({cct_tol:g}) < cct_max ({cct_max:g}) < t_max ({t_max:g})")
     if theta0 is None:
         theta0 = operating_point(grid)
     kw = {"t_max": t_max, "dt": dt, "tolerance": tolerance, "theta0": theta0, "threads": threads}
+    kw.update(integrator=integrator, rtol=rtol, atol=atol)
 
     def settles(picked, t_clear, share):
         return np.isfinite(_integrate(grid, [lines[e] for e in picked], t_clear, share, **kw)[0][:, 0])
@@ -504,10 +585,18 @@ def plan_trips(grid: Grid, lines=None, contingencies=None):
     return todo, names, shares, skipped
 
 
+def integration_record(integrator: str, rtol: float, atol: float) -> dict:
+    """The integrator of a trip table as its file and journal record it (``rtol``, ``atol``:
+    None for RK4, whose step is ``dt``)."""
+    rodas4 = integrator == "rodas4"
+    return {"integrator": integrator, "rtol": rtol if rodas4 else None, "atol": atol if rodas4 else None}
+
+
 def check_finished_trips(path, grid: Grid, plan, settings: dict) -> None:
     """Refuse (one line naming what differs) a ``--resume`` whose finished trip table ``path``
     holds other work than ``plan`` (:func:`plan_trips`) with ``settings`` (the report's
-    ``t_clear``, ``t_max``, ``dt``, ``tolerance``, ``cct_max``, ``cct_tol``)."""
+    ``t_clear``, ``t_max``, ``dt``, ``tolerance``, ``integrator``, ``rtol``, ``atol``, ``cct_max``,
+    ``cct_tol``)."""
     try:
         doc = json.loads(Path(path).read_text(encoding="utf-8"))
     except (OSError, UnicodeDecodeError, ValueError) as exc:
@@ -545,6 +634,9 @@ def trip_report(
     t_max: float = 20.0,
     dt: float = 0.0025,
     tolerance: float = 1e-3,
+    integrator: str = "rk4",
+    rtol: float = RODAS4_RTOL,
+    atol: float = RODAS4_ATOL,
     threads: int | None = None,
     client=None,
     journal: str | Path | None = None,
@@ -553,7 +645,8 @@ def trip_report(
     """What ``antisync grid CONFIG --trip`` prints and writes: every line of ``lines`` (label
     pairs, as :func:`antisync.grids.lines.parse_lines` gives them; ``None``: every line that is
     not a bridge) tripped from the operating point, after a fault of ``t_clear`` seconds at its
-    first bus in node order (``None``: no fault), with its critical clearing time if ``cct``.
+    first bus in node order (``None``: no fault), with its critical clearing time if ``cct``,
+    each integrated by ``integrator`` (:func:`trip_lines`).
     With ``contingencies`` (:func:`read_contingencies`) the trips are the table's rows instead,
     ``lines`` (if given) keeping those on the lines it names; a row that opens a bridge whole
     is skipped and listed.
@@ -579,7 +672,8 @@ def trip_report(
     _check(grid, clear, t_max, dt)
     theta0 = operating_point(grid)
     # on Dask one numba thread per task: the cluster already runs a task per worker thread
-    settings = {"t_max": t_max, "dt": dt, "tolerance": tolerance, "theta0": theta0}
+    method = {"integrator": integrator, "rtol": rtol, "atol": atol} if integrator == "rodas4" else {}
+    settings = {"t_max": t_max, "dt": dt, "tolerance": tolerance, "theta0": theta0, **method}
     settings["threads"] = threads if client is None else threads or 1
     spec = {"cct_max": cct_max, "cct_tol": cct_tol} if cct else None
     values = np.full((len(todo), len(COLUMNS)), np.nan)
@@ -596,6 +690,7 @@ def trip_report(
             "t_max": t_max,
             "dt": dt,
             "tolerance": tolerance,
+            **integration_record(integrator, rtol, atol),
         }
         book = TripJournal(journal, key, work=_grid_digest(grid))
     have = np.zeros(len(todo), dtype=bool) if book is None else book.load(values)
@@ -647,6 +742,7 @@ def trip_report(
         "t_max": t_max,
         "dt": dt,
         "tolerance": tolerance,
+        **integration_record(integrator, rtol, atol),
         "cct_max": cct_max if cct else None,
         "cct_tol": cct_tol if cct else None,
         "contingencies": contingencies is not None,

@@ -883,6 +883,7 @@ class ModelKernels(NamedTuple):
     deviations: Callable
     order_crossing: Callable
     frequency_crossing: Callable
+    hermite_range: Callable
 
 
 def make_model_kernels(jit, base: Kernels) -> ModelKernels:
@@ -1280,4 +1281,5 @@ def make_model_kernels(jit, base: Kernels) -> ModelKernels:
         deviations=deviations,
         order_crossing=order_crossing,
         frequency_crossing=frequency_crossing,
+        hermite_range=hermite_range,
     )

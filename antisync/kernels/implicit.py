@@ -64,6 +64,8 @@ __all__ = [
     "RODAS4",
     "StepStats",
     "factor_plan",
+    "plan_of_pattern",
+    "rodas4_trip",
     "simulate_model",
 ]
 
@@ -75,6 +77,7 @@ _rhs = ms.MK.rhs
 _measure = ms.MK.measure
 _deviations = ms.MK.deviations
 _frequency_crossing = ms.MK.frequency_crossing
+_hermite_range = ms.MK.hermite_range
 _order_crossing = ms.MK.order_crossing
 _rotation = K64.rotation
 _order2 = K64.order2
@@ -261,9 +264,17 @@ def factor_plan(indptr: np.ndarray, indices: np.ndarray) -> FactorPlan:
     )
 
 
+def plan_of_pattern(indptr: np.ndarray, indices: np.ndarray) -> FactorPlan:
+    """:func:`factor_plan` once per pattern in a process (every chunk of a job, every halving
+    of a critical clearing time's bisection shares it)."""
+    return _plan_of_pattern(
+        np.ascontiguousarray(indptr, dtype=np.int64).tobytes(),
+        np.ascontiguousarray(indices, dtype=np.int64).tobytes(),
+    )
+
+
 @functools.lru_cache(maxsize=16)
 def _plan_of_pattern(indptr: bytes, indices: bytes) -> FactorPlan:
-    """:func:`factor_plan` once per pattern in a process (every chunk of a job shares it)."""
     return factor_plan(np.frombuffer(indptr, dtype=np.int64), np.frombuffer(indices, dtype=np.int64))
 
 
@@ -354,6 +365,106 @@ def _eval(th_state, nu_state, c, s, p, indptr, indices, w, cl, sl, mass, gamma, 
         c[i] = math.cos(th_state[i])
         s[i] = math.sin(th_state[i])
     _rhs(c, s, nu_state, p, indptr, indices, w, cl, sl, mass, gamma, second, f_th, f_nu)
+
+
+@njit(cache=True, inline="always")
+def _scratch(n, plan):
+    """The arrays of :func:`_attempt`: ``u_th``, ``u_nu`` (the stages, row by stage), ``d_th``,
+    ``z_nu`` (a stage's input ``y_th + d_th``, ``z_nu``), ``f_th``, ``f_nu`` (the rates there),
+    ``r_th``, ``b``, ``x``, ``xp``, ``c``, ``s``, ``dd`` and the factors ``val``."""
+    return (
+        np.zeros((6, n)),
+        np.zeros((6, n)),
+        np.empty(n),
+        np.empty(n),
+        np.empty(n),
+        np.zeros(n),
+        np.empty(n),
+        np.empty(n),
+        np.empty(n),
+        np.empty(n),
+        np.empty(n),
+        np.empty(n),
+        np.empty(n),
+        np.empty(plan.col.shape[0]),
+    )
+
+
+@njit(cache=True, inline="always")
+def _attempt(y_th, y_nu, cy, sy, f0_th, f0_nu, h, net, plan, scratch, scale, rtol, atol):
+    """One attempted Rodas4 step of size ``h`` from ``(y_th, y_nu)`` (``cy``, ``sy``: the cosines
+    and sines of ``y_th``; ``f0_th``, ``f0_nu``: the rates there) on the model ``net`` (``p,
+    indptr, indices, w, cl, sl, mass, gamma, gamma_eff, second``), the LU on ``plan``. Leaves the
+    stages in ``scratch`` (``u_th, u_nu, d_th, z_nu, ...``: the new state is ``y_th + d_th +
+    u_th[5]``, ``z_nu + u_nu[5]``) and returns the weighted RMS error estimate, or -1 where a
+    pivot is not resolved."""
+    p, indptr, indices, w, cl, sl, mass, gamma, gamma_eff, second = net
+    fp_perm, fp_inv, fp_ptr, fp_col, fp_diag, fp_entry = plan[:6]
+    div_ptr, div_pos, upd_ptr, upd_ij, upd_ik, upd_kj = plan[6:]
+    u_th, u_nu, d_th, z_nu, f_th, f_nu, r_th, b, x, xp, c, s, dd, val = scratch
+    n = y_th.shape[0]
+    g = 1.0 / (h * _GAMMA)
+    inv_h = 1.0 / h
+    for i in range(n):
+        dd[i] = g * (mass[i] * g + gamma_eff[i]) if second else g
+    # the matrix at the step's start
+    _assemble(val, cy, sy, indptr, indices, w, cl, sl, dd, fp_entry, fp_diag, fp_inv)
+    if not _factor(val, fp_diag, div_ptr, div_pos, upd_ptr, upd_ij, upd_ik, upd_kj, scale * (g + 1.0)):
+        return -1.0
+    for stage in range(6):
+        if stage == 0:
+            for i in range(n):
+                f_th[i] = f0_th[i]
+                f_nu[i] = f0_nu[i]
+        else:
+            if stage < 5:
+                for i in range(n):
+                    dt_i = 0.0
+                    dn_i = y_nu[i]
+                    for j in range(stage):
+                        dt_i += _A[stage, j] * u_th[j, i]
+                        dn_i += _A[stage, j] * u_nu[j, i]
+                    d_th[i] = dt_i
+                    z_nu[i] = dn_i
+            else:
+                # stage 6: the stage-5 input plus u5
+                for i in range(n):
+                    d_th[i] += u_th[4, i]
+                    z_nu[i] += u_nu[4, i]
+            # cos, sin of y_th + d_th by rotating those of y_th (Taylor for small angles)
+            for i in range(n):
+                ca, sa = _rotation(d_th[i])
+                c[i] = cy[i] * ca - sy[i] * sa
+                s[i] = sy[i] * ca + cy[i] * sa
+            _rhs(c, s, z_nu, p, indptr, indices, w, cl, sl, mass, gamma, second, f_th, f_nu)
+        for i in range(n):
+            rt = f_th[i]
+            rn = f_nu[i]
+            for j in range(stage):
+                cj = _C[stage, j] * inv_h
+                rt += cj * u_th[j, i]
+                rn += cj * u_nu[j, i]
+            r_th[i] = rt
+            b[i] = mass[i] * rn + (mass[i] * g + gamma_eff[i]) * rt if second else rt
+        _solve(val, fp_ptr, fp_col, fp_diag, fp_perm, b, x, xp)
+        for i in range(n):
+            u_th[stage, i] = x[i]
+            u_nu[stage, i] = g * x[i] - r_th[i] if (second and mass[i] > 0.0) else 0.0
+    # the new state is the stage-6 input plus u6; u6 is the error estimate
+    err = 0.0
+    count = 0
+    for i in range(n):
+        yn = y_th[i] + d_th[i] + u_th[5, i]
+        e = u_th[5, i] / (atol + rtol * max(abs(y_th[i]), abs(yn)))
+        err += e * e
+        count += 1
+        if second and mass[i] > 0.0:
+            yn = z_nu[i] + u_nu[5, i]
+            e = u_nu[5, i] / (atol + rtol * max(abs(y_nu[i]), abs(yn)))
+            err += e * e
+            count += 1
+    err = math.sqrt(err / count)
+    return err
 
 
 @njit(cache=True)
@@ -606,6 +717,193 @@ def rodas4_sync(
     return NOT_SYNCED, t_max, accepted, rejected, False
 
 
+@njit(cache=True, inline="always")
+def _speed_rates(cy, sy, f_th, f_nu, indptr, indices, w, mass, gamma, acc, work):
+    """``acc`` = the rates of the speeds ``theta_i'`` (``nu_i'`` with inertia, else ``sum_j w_ij
+    cos(theta_j - theta_i) (theta_j' - theta_i') / gamma_i``; no phase lag), and rows
+    ``DEV_ROW``, ``DEV_ROW + 1`` of ``work`` the speeds' deviations from their mean and those
+    deviations' rates (the frequency band of :func:`rodas4_trip`); the largest ``|deviation|``."""
+    n = cy.shape[0]
+    m0 = 0.0
+    m1 = 0.0
+    for i in range(n):
+        if mass[i] > 0.0:
+            acc[i] = f_nu[i]
+        else:
+            kd = 0.0
+            for q in range(indptr[i], indptr[i + 1]):
+                j = indices[q]
+                kd += w[q] * (cy[j] * cy[i] + sy[j] * sy[i]) * (f_th[j] - f_th[i])
+            acc[i] = kd / gamma[i]
+        m0 += f_th[i]
+        m1 += acc[i]
+    largest = 0.0
+    for i in range(n):
+        work[DEV_ROW, i] = f_th[i] - m0 / n
+        work[DEV_ROW + 1, i] = acc[i] - m1 / n
+        largest = max(largest, abs(work[DEV_ROW, i]))
+    return largest
+
+
+@njit(cache=True)
+def rodas4_trip(th0, grid, w_fault, w_post, t_clear, t_max, h0, tols, plan, line, out):
+    """A contingency from the state ``th0`` at rest: the swing equation (no phase lag) on the
+    weights ``w_fault`` until ``t_clear`` (none when 0), then on ``w_post`` until ``t_max``,
+    by Rodas4 with adaptive steps; the step that would pass ``t_clear`` ends there and the next
+    starts afresh at ``h0``. ``grid``: ``(p, indptr, indices, mass, gamma)``; ``tols``: the
+    frequency band, ``rtol`` and ``atol``; ``line``: ``(a, b, keep)``, the tripped line, left
+    out of the angle differences when ``keep`` is 0.
+
+    ``out`` = ``[settle_time, max_frequency, max_angle, failed]``, the quantities of
+    :func:`antisync.grids.trip.trip_lines` on the integrator's dense output (each accepted
+    step's cubic Hermite interpolant of every speed and every line's angle difference from
+    their values and rates at both ends): the largest ``|theta_i'|`` and ``|theta_i -
+    theta_j|`` over the interpolants (a continuous maximum, where RK4 samples its grid), and
+    the time from which every speed stays within the band of the mean (``nan`` if it is out at
+    ``t_max``), located on the interpolants when the band is entered. ``failed`` (1): the step
+    size collapsed (the other values are those reached)."""
+    p, indptr, indices, mass, gamma = grid
+    tol, rtol, atol = tols
+    ta, tb, keep = line
+    n = th0.shape[0]
+    second = False
+    for i in range(n):
+        second |= mass[i] > 0.0
+    gamma_eff = np.empty(n)
+    for i in range(n):
+        gamma_eff[i] = gamma[i] if second else 1.0
+    scratch = _scratch(n, plan)
+    u_th, u_nu, d_th, z_nu = scratch[:4]
+    y_th = th0.copy()
+    y_nu = np.zeros(n)
+    cy = np.empty(n)
+    sy = np.empty(n)
+    f0_th = np.empty(n)
+    f0_nu = np.zeros(n)
+    acc = np.empty(n)
+    p_th = np.empty(n)  # the state, speeds and their rates at the accepted step's start
+    p_f = np.empty(n)
+    p_acc = np.empty(n)
+    work = np.empty((WORK_ROWS, n))
+    fault = t_clear > 0.0
+    w = w_fault if fault else w_post
+    net = (p, indptr, indices, w, 1.0, 0.0, mass, gamma, gamma_eff, second)
+    _eval(y_th, y_nu, cy, sy, p, indptr, indices, w, 1.0, 0.0, mass, gamma, second, f0_th, f0_nu)
+    settle = (
+        0.0
+        if _speed_rates(cy, sy, f0_th, f0_nu, indptr, indices, w, mass, gamma, acc, work) < tol
+        else np.nan
+    )
+    max_f = 0.0
+    max_a = 0.0
+    for i in range(n):
+        max_f = max(max_f, abs(f0_th[i]))
+        for q in range(indptr[i], indptr[i + 1]):
+            j = indices[q]
+            if j > i and not (keep == 0.0 and ((i == ta and j == tb) or (i == tb and j == ta))):
+                max_a = max(max_a, abs(y_th[i] - y_th[j]))
+    scale = 0.0
+    for i in range(n):
+        row = 0.0
+        for q in range(indptr[i], indptr[i + 1]):
+            row += abs(w_post[q])
+        scale = max(scale, row)
+    scale = max(scale, 1e-300)
+    t = 0.0
+    end = t_clear if fault else t_max  # the end of the current configuration
+    h = min(h0, end)
+    err_prev = 1.0
+    rejects_in_row = 0
+    failed = 0.0
+    while t < t_max:
+        if h < _H_FLOOR * t_max or rejects_in_row > _MAX_REJECTS:
+            failed = 1.0
+            break
+        last = False
+        if t + h >= end:
+            h = end - t
+            last = True
+        err = _attempt(y_th, y_nu, cy, sy, f0_th, f0_nu, h, net, plan, scratch, scale, rtol, atol)
+        if err < 0.0:  # a pivot not resolved
+            h *= 0.25
+            rejects_in_row += 1
+            continue
+        if not err <= 1.0:  # rejected (a NaN too)
+            h *= max(_SHRINK, min(1.0, _SAFETY * err**-0.25 if err == err else _SHRINK))
+            rejects_in_row += 1
+            continue
+        rejects_in_row = 0
+        for i in range(n):
+            p_th[i] = y_th[i]
+            p_f[i] = f0_th[i]
+            p_acc[i] = acc[i]
+            y_th[i] += d_th[i] + u_th[5, i]
+            y_nu[i] = z_nu[i] + u_nu[5, i] if (second and mass[i] > 0.0) else 0.0
+        t_prev = t
+        t = end if last else t + h
+        step = t - t_prev
+        for k in range(2):
+            for i in range(n):
+                work[DEV_PREV_ROW + k, i] = work[DEV_ROW + k, i]
+        _eval(y_th, y_nu, cy, sy, p, indptr, indices, w, 1.0, 0.0, mass, gamma, second, f0_th, f0_nu)
+        largest = _speed_rates(cy, sy, f0_th, f0_nu, indptr, indices, w, mass, gamma, acc, work)
+        # the first swing on the step's interpolants
+        for i in range(n):
+            lo, hi = _hermite_range(p_f[i], step * p_acc[i], f0_th[i], step * acc[i])
+            max_f = max(max_f, -lo, hi)
+            for q in range(indptr[i], indptr[i + 1]):
+                j = indices[q]
+                if j > i and not (keep == 0.0 and ((i == ta and j == tb) or (i == tb and j == ta))):
+                    lo, hi = _hermite_range(
+                        p_th[i] - p_th[j],
+                        step * (p_f[i] - p_f[j]),
+                        y_th[i] - y_th[j],
+                        step * (f0_th[i] - f0_th[j]),
+                    )
+                    max_a = max(max_a, -lo, hi)
+        # the band: entered inside this step, left, or an excursion between in-band ends
+        if largest >= tol:
+            settle = np.nan
+        elif settle != settle:
+            x = _frequency_crossing(work, n, False, step, True, tol)
+            settle = t_prev + (x if x >= 0.0 else 1.0) * step
+        else:
+            for i in range(n):
+                lo, hi = _hermite_range(
+                    work[DEV_PREV_ROW, i],
+                    step * work[DEV_PREV_ROW + 1, i],
+                    work[DEV_ROW, i],
+                    step * work[DEV_ROW + 1, i],
+                )
+                if hi >= tol or lo <= -tol:
+                    settle = t
+                    break
+        # a PI controller (Gustafsson), and within the band's reach at most half of it per step
+        err = max(err, 1e-10)
+        fac = _SAFETY * err**-_BETA1 * err_prev**_BETA2
+        err_prev = err
+        h = h * max(_SHRINK, min(_GROW, fac))
+        if last and t < t_max:
+            # the fault clears: the grid without the line from this state on
+            w = w_post
+            net = (p, indptr, indices, w, 1.0, 0.0, mass, gamma, gamma_eff, second)
+            end = t_max
+            _eval(y_th, y_nu, cy, sy, p, indptr, indices, w, 1.0, 0.0, mass, gamma, second, f0_th, f0_nu)
+            if _speed_rates(cy, sy, f0_th, f0_nu, indptr, indices, w, mass, gamma, acc, work) >= tol:
+                settle = np.nan
+            elif settle != settle:
+                settle = t
+            for i in range(n):
+                max_f = max(max_f, abs(f0_th[i]))
+            h = h0
+            err_prev = 1.0
+        h = min(h, _near_step(work, n, False, tol))
+    out[0] = settle
+    out[1] = max_f
+    out[2] = max_a
+    out[3] = failed
+
+
 @njit(parallel=True, cache=True)
 def _integrate_items(
     ks, seed, graph, model, fp, dt, t_max, rtol, atol, max_steps, out, acc0, rej0, acc, rej, failed
@@ -735,10 +1033,7 @@ def simulate_model(
     m = ks.size
     n_var = graph.var_w.shape[0]
     if plan is None:
-        plan = _plan_of_pattern(
-            np.ascontiguousarray(indptr, dtype=np.int64).tobytes(),
-            np.ascontiguousarray(indices, dtype=np.int64).tobytes(),
-        )
+        plan = plan_of_pattern(indptr, indices)
     acc0 = np.full(m, -1, dtype=np.int64)
     rej0 = np.full(m, -1, dtype=np.int64)
     acc = np.full((m, n_var), -1, dtype=np.int64)
