@@ -18,8 +18,12 @@ refused. For the line ``a-b``:
    takes that circuit's ``share`` of the line's ``K``: the line stays at ``(1 - share) K``.
 
 The swing equation is the one every antisync grid integrates, ``m_i theta_i'' + D_i theta_i' =
-P_i + sum_j K_ij sin(theta_j - theta_i)`` (a bus with ``m_i = 0`` first order), here by classical
-RK4 at a fixed step from the operating point (:func:`_trajectory`, numba; one line per thread).
+P_i + sum_j K_ij sin(theta_j - theta_i)`` (a bus with ``m_i = 0`` first order), here from the
+operating point by classical RK4 at a fixed step (:func:`_trajectory`, numba; one line per
+thread), or on a stiff grid by Rodas4 with adaptive steps
+(:func:`antisync.kernels.implicit.rodas4_trip`; ``integrator="rodas4"``, what ``antisync grid
+--trip`` uses for a config whose integrator is ``rodas4``), which follows the first swing with
+short steps and the settled grid with long ones.
 
 Per line (:class:`Trip`): whether the grid **settles** (every frequency deviation
 ``|theta_i' - mean theta'|`` below ``tolerance`` from some time on until ``t_max``: frequency

@@ -400,7 +400,8 @@ def client_threads(client) -> int:
 def map_on_client(client, fn: Callable[..., Any], calls: Iterable[tuple]) -> Iterator[tuple[int, Any]]:
     """``fn(*calls[i])`` of every call on ``client``'s workers: ``(i, result)`` as they finish.
 
-    Every call is submitted at once (``pure=False``: each runs, even with equal arguments); on
+    Every call is submitted at once (``pure=False``: each runs, even with equal arguments), an
+    argument that every call shares (the same object) sent to the workers once; on
     any exit, what has not finished is cancelled, and the client stays open (its caller owns
     it). A task that the cluster loses (``KilledWorker``, ``CancelledError``) is a
     :class:`TaskLostError`: the results yielded before it stay valid, so a caller that saved
@@ -411,7 +412,20 @@ def map_on_client(client, fn: Callable[..., Any], calls: Iterable[tuple]) -> Ite
     from distributed import as_completed
     from distributed.scheduler import KilledWorker
 
-    futures = {client.submit(fn, *call, pure=False): i for i, call in enumerate(calls)}
+    calls = list(calls)
+    # an argument every call shares (a grid: a dense coupling matrix of N^2 doubles) goes to
+    # the workers once, not in each task's message
+    shared = {id(a): a for a in calls[0]} if len(calls) > 1 else {}
+    for call in calls[1:]:
+        shared = {id(a): a for a in call if id(a) in shared}
+    sent = {
+        k: client.scatter(a, broadcast=True, hash=False)
+        for k, a in shared.items()
+        if a is not None and not isinstance(a, bool | int | float | str)
+    }
+    futures = {
+        client.submit(fn, *(sent.get(id(a), a) for a in call), pure=False): i for i, call in enumerate(calls)
+    }
     try:
         for fut in as_completed(list(futures), loop=client.loop):
             try:
