@@ -255,6 +255,20 @@ def test_removal_figure_is_drawn_from_a_table_or_its_json(tmp_path):
     assert names == ["other.json", "psync.png", "speedup.png", "t.json"]
 
 
+def test_report_draws_a_removal_table_from_its_json(tmp_path):
+    """``antisync report R.json`` of a removal table: the grid by speedup and by d P_sync from
+    the config the table keeps, and index.md with the ranked rows."""
+    table = line_removal(ring_config(4), lines="0-3,0-1")
+    saved = write_table(table, tmp_path / "r.json")
+    res = CliRunner().invoke(app, ["report", str(saved), "--out", str(tmp_path / "rep")])
+    assert res.exit_code == 0, res.output
+    name = table.name
+    for stem in (f"{name}_removal", f"{name}_removal_psync"):
+        assert (tmp_path / "rep" / f"{stem}.png").read_bytes().startswith(PNG)
+    index = (tmp_path / "rep" / "index.md").read_text()
+    assert "| 0-3 |" in index and "| 0-1 |" in index and f"{table.n} realizations" in index
+
+
 def test_cli_figure_is_written_and_never_overwritten_without_overwrite(tmp_path):
     cfg = _grid_files(tmp_path)
     fig = tmp_path / "g.png"

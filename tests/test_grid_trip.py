@@ -211,6 +211,35 @@ def test_cli_trip_writes_its_table_and_figure(tmp_path):
     assert again.exit_code == 2 and "--overwrite" in again.output
 
 
+def test_report_draws_a_trip_table_from_its_file_alone(tmp_path):
+    """``antisync report T.json`` of a trip table: its figure from the network the table keeps
+    (no config) and index.md with the table; a JSON file of another kind, and a trip table
+    without its network, are one line and exit 2 with nothing written."""
+    out = tmp_path / "t.json"
+    args = ["grid", str(IEEE14), "--trip", "--lines", "1-2,2-3,4-5", "--t-clear", "0.1", "--cct"]
+    res = CliRunner().invoke(app, [*args, "--t-max", "10", "--set", f"dynamics.dt={DT}", "--out", str(out)])
+    assert res.exit_code == 0, res.output
+    folder = tmp_path / "report"
+    res = CliRunner().invoke(app, ["report", str(out), "--out", str(folder)])
+    assert res.exit_code == 0, res.output
+    name = json.loads(out.read_text())["grid"]
+    assert (folder / f"{name}_trips.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    index = (folder / "index.md").read_text()
+    assert "| 4-5 | yes |" in index and "| 2-3 | NO |" in index and "CCT (s)" in index
+    other = tmp_path / "other.json"
+    other.write_text('{"format": "something-else"}')
+    doc = json.loads(out.read_text())
+    del doc["network"]
+    old = tmp_path / "old.json"
+    old.write_text(json.dumps(doc))
+    for path, words in ((other, "not a table antisync report draws"), (old, "no 'network'")):
+        res = CliRunner().invoke(app, ["report", str(path), "--out", str(tmp_path / "x")])
+        assert res.exit_code == 2 and words in res.output and len(res.output.strip().splitlines()) == 1, (
+            res.output
+        )
+    assert not (tmp_path / "x").exists()
+
+
 def test_cli_trip_of_a_rodas4_config_is_rodas4_s_and_says_so(ieee14, tmp_path):
     """A config whose integrator is rodas4 (the stiff grids') trips by Rodas4 under its rtol and
     atol, the table records them, and the rows are :func:`trip_lines`' with the same settings;

@@ -1,4 +1,5 @@
-"""`antisync report RESULTS.h5`: the paper's figures from a result file."""
+"""`antisync report FILE`: the paper's figures from a result file, a sweep's and a design's, and
+the figures of `antisync grid`'s JSON tables (a line removal, the engineer's N-1)."""
 
 from __future__ import annotations
 
@@ -7,12 +8,21 @@ from typing import Annotated
 
 import typer
 
-from antisync.cli.common import DebugOpt, QuietOpt, ResultArg, info, user_errors
+from antisync.cli.common import DebugOpt, QuietOpt, info, user_errors
+
+ReportArg = Annotated[
+    Path,
+    typer.Argument(
+        help="HDF5 result file (antisync run, sweep, design) or JSON table (antisync grid "
+        "--removal/--trip --out).",
+        show_default=False,
+    ),
+]
 
 
 @user_errors
 def report(
-    results: ResultArg,
+    results: ReportArg,
     out: Annotated[
         Path | None, typer.Option("--out", "-o", help="Folder for figures (default: next to the file).")
     ] = None,
@@ -40,9 +50,14 @@ def report(
 
     For a sweep file: the Fig. 3 ranking, Table 1 (Markdown, CSV, LaTeX), Fig. 4 histograms,
     Fig. 2 for lollipop sweeps and Fig. 6 for threshold sweeps, with an index.md.
+
+    For a JSON table of `antisync grid`: a line removal's grid coloured by each line's speedup
+    and by its change of P_sync, or the engineer's N-1 coloured by critical clearing time (or
+    frequency swing), with the table in index.md.
     """
     from antisync.errors import AntisyncError
     from antisync.report.figures import write_file_report
+    from antisync.report.grid_tables import table_kind, write_table_report
     from antisync.store import is_sweep_file
     from antisync.store.design_file import is_design_file
 
@@ -51,7 +66,9 @@ def report(
     folder = out or results.with_suffix("").with_name(results.stem + "_figures")
     if folder.exists() and not folder.is_dir():
         raise AntisyncError(f"report folder {folder} is a file; give --out a folder (new or existing)")
-    if is_design_file(results):
+    if table_kind(results) is not None:
+        paths = write_table_report(results, folder, pdf=pdf)
+    elif is_design_file(results):
         from antisync.report.design import draw_design
 
         paths = draw_design(results, folder)

@@ -76,6 +76,7 @@ __all__ = [
     "critical_clearing",
     "format_trips",
     "integration_record",
+    "network_record",
     "operating_point",
     "plan_trips",
     "read_contingencies",
@@ -752,6 +753,22 @@ def trip_report(
         "contingencies": contingencies is not None,
         "bridges_skipped": [list(map(str, b)) for b in skipped],
         "lines": rows,
+        "network": network_record(grid),
+    }
+
+
+def network_record(grid: Grid) -> dict:
+    """What a trip table keeps of its grid for its figure (``antisync report``): the buses'
+    labels, every line as ``[u, v, K]`` and each bus's inertia."""
+    n = len(grid.labels)
+    rows, cols = np.nonzero(np.triu(grid.omega > 0))
+    return {
+        "nodes": [str(v) for v in grid.labels],
+        "links": [
+            [str(grid.labels[i]), str(grid.labels[j]), float(grid.omega[i, j])]
+            for i, j in zip(rows, cols, strict=True)
+        ],
+        "inertia": [float(m) for m in per_node(grid.inertia, n)],
     }
 
 

@@ -424,6 +424,14 @@ def _network(config) -> tuple[nx.Graph, dict]:
     return g, {v: float(m) for v, m in zip(labels, inertia, strict=True)}
 
 
+def _recorded_network(net: dict) -> tuple[nx.Graph, dict]:
+    """:func:`_network` of a trip table's ``network`` (:func:`antisync.grids.trip.network_record`)."""
+    g = nx.Graph()
+    g.add_nodes_from(net["nodes"])
+    g.add_weighted_edges_from((u, v, w) for u, v, w in net["links"])
+    return g, dict(zip(net["nodes"], net["inertia"], strict=True))
+
+
 def _layout(g: nx.Graph) -> dict:
     if g.number_of_nodes() <= KAMADA_KAWAI_MAX:
         return nx.kamada_kawai_layout(g, weight=None)
@@ -606,15 +614,16 @@ def removal_figure(source, config, path, *, by: RemovalBy = "speedup", overwrite
     return _save(fig, path, plt)
 
 
-def trip_figure(report: dict, grid: Grid, path, *, overwrite: bool = False) -> Path:
+def trip_figure(report: dict, grid: Grid | None, path, *, overwrite: bool = False) -> Path:
     """Draw the grid with every tripped line coloured by its critical clearing time (with
     ``--cct``), else by the maximum frequency deviation after its trip; lines after whose trip
     the grid does not settle dashed black, bridges dotted, generators squares. ``report`` is
     :func:`antisync.grids.trip.trip_report`'s (a line with several contingencies of a table is
     drawn by its worst: not settling, else the shortest clearing time or the largest swing);
-    ``path`` a ``.png``, ``.pdf`` or ``.svg`` file, written atomically."""
+    ``grid`` the grid it ran on (None: the network the table keeps); ``path`` a ``.png``,
+    ``.pdf`` or ``.svg`` file, written atomically."""
     path = check_figure(path, overwrite)
-    g, inertia = _network(grid)
+    g, inertia = _network(grid) if grid is not None else _recorded_network(report["network"])
     cct = report["cct_max"] is not None
     key = "cct" if cct else "max_frequency"
 
