@@ -264,7 +264,7 @@ def _trip(config, set_, lines, contingencies, t_clear, cct, cct_max, t_max, wher
             if resume and out.exists() and not journal.exists():
                 # nothing is written: only the arguments are compared with the table's
                 settings = {"t_clear": t_clear, "t_max": t_max, "dt": cfg.dynamics.dt, "tolerance": tolerance}
-                settings.update(integration_record(*integration.values()))
+                settings.update(integration_record(**integration))
                 settings.update(cct_max=cct_max if cct else None, cct_tol=CCT_TOL if cct else None)
                 check_finished_trips(out, g, plan_trips(g, parse_lines(lines, g.labels), table), settings)
                 info(f"{out} is complete: nothing to resume (it is left as it is)", quiet)

@@ -66,8 +66,9 @@ def report(
     folder = out or results.with_suffix("").with_name(results.stem + "_figures")
     if folder.exists() and not folder.is_dir():
         raise AntisyncError(f"report folder {folder} is a file; give --out a folder (new or existing)")
-    if table_kind(results) is not None:
-        paths = write_table_report(results, folder, pdf=pdf)
+    kind = table_kind(results)  # None: an HDF5 file
+    if kind is not None:
+        paths = write_table_report(results, folder, pdf=pdf, kind=kind)
     elif is_design_file(results):
         from antisync.report.design import draw_design
 

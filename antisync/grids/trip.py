@@ -677,8 +677,8 @@ def trip_report(
     _check(grid, clear, t_max, dt)
     theta0 = operating_point(grid)
     # on Dask one numba thread per task: the cluster already runs a task per worker thread
-    method = {"integrator": integrator, "rtol": rtol, "atol": atol} if integrator == "rodas4" else {}
-    settings = {"t_max": t_max, "dt": dt, "tolerance": tolerance, "theta0": theta0, **method}
+    settings = {"t_max": t_max, "dt": dt, "tolerance": tolerance, "theta0": theta0}
+    settings.update(integrator=integrator, rtol=rtol, atol=atol)
     settings["threads"] = threads if client is None else threads or 1
     spec = {"cct_max": cct_max, "cct_tol": cct_tol} if cct else None
     values = np.full((len(todo), len(COLUMNS)), np.nan)

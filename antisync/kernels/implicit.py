@@ -368,6 +368,32 @@ def _eval(th_state, nu_state, c, s, p, indptr, indices, w, cl, sl, mass, gamma, 
 
 
 @njit(cache=True, inline="always")
+def _orders(mass, gamma):
+    """``(second, gamma_eff)``: whether any node has inertia, and the damping of each node's
+    ``theta'`` (1 everywhere in a first-order model, whose damping is unused)."""
+    n = mass.shape[0]
+    second = False
+    for i in range(n):
+        second |= mass[i] > 0.0
+    gamma_eff = np.empty(n)
+    for i in range(n):
+        gamma_eff[i] = gamma[i] if second else 1.0
+    return second, gamma_eff
+
+
+@njit(cache=True, inline="always")
+def _row_scale(indptr, w):
+    """The network's scale for the pivot test: the largest row sum of ``|w|``."""
+    scale = 0.0
+    for i in range(indptr.shape[0] - 1):
+        row = 0.0
+        for q in range(indptr[i], indptr[i + 1]):
+            row += abs(w[q])
+        scale = max(scale, row)
+    return max(scale, 1e-300)
+
+
+@njit(cache=True, inline="always")
 def _scratch(n, plan):
     """The arrays of :func:`_attempt`: ``u_th``, ``u_nu`` (the stages, row by stage), ``d_th``,
     ``z_nu`` (a stage's input ``y_th + d_th``, ``z_nu``), ``f_th``, ``f_nu`` (the rates there),
@@ -496,12 +522,7 @@ def rodas4_sync(
     fp_perm, fp_inv, fp_ptr, fp_col, fp_diag, fp_entry = plan[:6]
     div_ptr, div_pos, upd_ptr, upd_ij, upd_ik, upd_kj = plan[6:]
     n = th0.shape[0]
-    second = False
-    for i in range(n):
-        second |= mass[i] > 0.0
-    gamma_eff = np.empty(n)
-    for i in range(n):
-        gamma_eff[i] = gamma[i] if second else 1.0
+    second, gamma_eff = _orders(mass, gamma)
     freq = criterion == CRIT_FREQUENCY
     # u_1..u_6 for theta and nu, row by stage
     u_th = np.zeros((6, n))
@@ -542,14 +563,7 @@ def rodas4_sync(
         _deviations(cy, sy, f0_th, f0_nu, indptr, indices, w, cl, sl, mass, gamma, second, work)
     elif r2 >= target:
         return ALREADY_SYNCED, 0.0, 0, 0, False
-    # the network's scale for the pivot test: the largest row sum of |w|
-    scale = 0.0
-    for i in range(n):
-        row = 0.0
-        for q in range(indptr[i], indptr[i + 1]):
-            row += abs(w[q])
-        scale = max(scale, row)
-    scale = max(scale, 1e-300)
+    scale = _row_scale(indptr, w)
 
     t = 0.0
     h = min(h0, t_max)
@@ -766,12 +780,7 @@ def rodas4_trip(th0, grid, w_fault, w_post, t_clear, t_max, h0, tols, plan, line
     tol, rtol, atol = tols
     ta, tb, keep = line
     n = th0.shape[0]
-    second = False
-    for i in range(n):
-        second |= mass[i] > 0.0
-    gamma_eff = np.empty(n)
-    for i in range(n):
-        gamma_eff[i] = gamma[i] if second else 1.0
+    second, gamma_eff = _orders(mass, gamma)
     scratch = _scratch(n, plan)
     u_th, u_nu, d_th, z_nu = scratch[:4]
     y_th = th0.copy()
@@ -794,21 +803,9 @@ def rodas4_trip(th0, grid, w_fault, w_post, t_clear, t_max, h0, tols, plan, line
         if _speed_rates(cy, sy, f0_th, f0_nu, indptr, indices, w, mass, gamma, acc, work) < tol
         else np.nan
     )
-    max_f = 0.0
+    max_f = 0.0  # over the accepted steps' interpolants, which hold their ends
     max_a = 0.0
-    for i in range(n):
-        max_f = max(max_f, abs(f0_th[i]))
-        for q in range(indptr[i], indptr[i + 1]):
-            j = indices[q]
-            if j > i and not (keep == 0.0 and ((i == ta and j == tb) or (i == tb and j == ta))):
-                max_a = max(max_a, abs(y_th[i] - y_th[j]))
-    scale = 0.0
-    for i in range(n):
-        row = 0.0
-        for q in range(indptr[i], indptr[i + 1]):
-            row += abs(w_post[q])
-        scale = max(scale, row)
-    scale = max(scale, 1e-300)
+    scale = _row_scale(indptr, w_post)
     t = 0.0
     end = t_clear if fault else t_max  # the end of the current configuration
     h = min(h0, end)
@@ -893,8 +890,6 @@ def rodas4_trip(th0, grid, w_fault, w_post, t_clear, t_max, h0, tols, plan, line
                 settle = np.nan
             elif settle != settle:
                 settle = t
-            for i in range(n):
-                max_f = max(max_f, abs(f0_th[i]))
             h = h0
             err_prev = 1.0
         h = min(h, _near_step(work, n, False, tol))

@@ -133,13 +133,15 @@ def _removal_markdown(doc: dict) -> str:
     return "\n".join(out)
 
 
-def write_table_report(path: str | Path, folder: str | Path, *, pdf: bool = False) -> list[Path]:
-    """Draw the JSON table ``path`` (:func:`table_kind`) into ``folder`` (created): its
-    figures (and their PDFs with ``pdf``), replaced where they exist, and ``index.md`` with the
-    table. Returns the files written."""
+def write_table_report(
+    path: str | Path, folder: str | Path, *, pdf: bool = False, kind: str | None = None
+) -> list[Path]:
+    """Draw the JSON table ``path`` into ``folder`` (created): its figures (and their PDFs with
+    ``pdf``), replaced where they exist, and ``index.md`` with the table. ``kind``: the file's
+    :func:`table_kind` when the caller has it. Returns the files written."""
     path = Path(path)
     folder = Path(folder)
-    kind = table_kind(path)
+    kind = kind or table_kind(path)
     if kind is None:
         raise GridError(f"{path} is not a JSON table of antisync grid --removal/--trip --out")
     suffixes = (".png", ".pdf") if pdf else (".png",)
