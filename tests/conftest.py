@@ -41,12 +41,18 @@ MODEL_FILES = {
     "test_models_cuda_sim.py",
 }
 
+#: Tests of other files that join :data:`MODEL_FILES`' unit (node ids up to here): the capability
+#: table's CPU rows of the generalized model compile the model adjoint and the model lane driver
+#: that test_model_adjoint.py and test_hostile_models.py compile too; on the other worker they
+#: compiled them a second time, side by side (35 + 56 s of the model adjoint alone).
+MODEL_TESTS = ("tests/test_capabilities.py::test_every_cpu_row_runs[model-",)
+
 
 def pytest_xdist_make_scheduler(config, log):
-    """``--dist loadfile`` with :data:`MODEL_FILES` as one unit of work. (pytest-xdist's own
-    ``--dist loadgroup`` with ``xdist_group`` markers does this by rewriting each test's node
-    id, which pytest 9 no longer reads: there the groups were silently ignored and the tests of
-    one file ran on both workers.)"""
+    """``--dist loadfile`` with :data:`MODEL_FILES` and :data:`MODEL_TESTS` as one unit of work.
+    (pytest-xdist's own ``--dist loadgroup`` with ``xdist_group`` markers does this by rewriting
+    each test's node id, which pytest 9 no longer reads: there the groups were silently ignored
+    and the tests of one file ran on both workers.)"""
     if config.getvalue("dist") != "loadfile":
         return None
     from xdist.scheduler import LoadFileScheduling
@@ -54,6 +60,8 @@ def pytest_xdist_make_scheduler(config, log):
     class ModelFilesTogether(LoadFileScheduling):
         def _split_scope(self, nodeid: str) -> str:
             path = nodeid.split("::", 1)[0]
-            return "models" if Path(path).name in MODEL_FILES else path
+            if Path(path).name in MODEL_FILES or nodeid.startswith(MODEL_TESTS):
+                return "models"
+            return path
 
     return ModelFilesTogether(config, log)
