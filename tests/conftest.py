@@ -39,6 +39,7 @@ MODEL_FILES = {
     "test_model_adjoint.py",
     "test_implicit.py",
     "test_models_cuda_sim.py",
+    "test_model_start.py",
 }
 
 #: Tests of other files that join :data:`MODEL_FILES`' unit (node ids up to here): the capability

@@ -33,6 +33,9 @@ MODELS = {
     "euler-inertia-frequency": "model: {frequencies: {distribution: uniform, width: 0.1}, inertia: 1.0}\n"
     "sync: {criterion: frequency, tolerance: 0.01}\n"
     "dynamics: {dt: 0.02, t_max: 30, crossing: interpolated}\n",
+    "rk4-inertia-start": "model: {frequencies: [0.1, -0.1, 0.05, 0, 0, -0.05], inertia: 1.0, "
+    "start: {around: locked, width: 1.5}}\nsync: {criterion: frequency, tolerance: 0.01}\n"
+    "dynamics: {integrator: rk4, dt: 0.05, t_max: 30}\n",
 }
 
 

@@ -346,6 +346,22 @@ def test_removal_on_a_dask_cluster_equals_the_local_table(client, integrator):
     assert there.rows == here.rows
 
 
+def test_removal_from_starts_around_the_operating_point_on_dask_equals_the_local_table(client):
+    """The random-start N-1 from perturbations of the operating point (``model.start``): the
+    intact ring starts within 1 rad of its locked state and every start locks; the Dask table
+    equals the local one array for array, and the starts are not the paper's (other times)."""
+    cfg = ring_config(realizations=24)
+    near = {**cfg, "model": {**cfg["model"], "start": {"around": "locked", "width": 1.0}}}
+    here = line_removal(near, lines=[(0, 3), (1, 2)])
+    assert (here.status0 == SYNCED).all()
+    there = line_removal(near, lines=[(0, 3), (1, 2)], client=client)
+    for name in ("status0", "tau0", "status", "tau"):
+        np.testing.assert_array_equal(getattr(there, name), getattr(here, name), err_msg=name)
+    assert there.rows == here.rows
+    uniform = line_removal(cfg, lines=[(0, 3)])
+    assert not np.array_equal(uniform.tau0, here.tau0)
+
+
 def test_cli_removal_with_workers_equals_the_local_run(tmp_path):
     cfg = _grid_files(tmp_path)
     out = {}

@@ -74,6 +74,7 @@ def test_model_kernel_with_default_parameters_is_the_default_kernel_bit_for_bit(
         ({"freqs": np.zeros((2, 6))}, "freqs must have shape (1, 6) or (3, 6), got (2, 6)"),
         ({"freqs": np.zeros((1, 5))}, "freqs must have shape (1, 6) or (3, 6), got (1, 5)"),
         ({"targets": np.zeros(1)}, "targets must have shape ({v1},), got (1,)"),
+        ({"starts": np.zeros((2, 6))}, "starts must have shape (3, 6) or be None, got (2, 6)"),
     ],
 )
 def test_model_inputs_name_what_is_wrong(change, message):
@@ -83,13 +84,16 @@ def test_model_inputs_name_what_is_wrong(change, message):
     v = job.variant_weights.shape[0]
     fields = {"freqs": np.zeros((1, 6)), "criterion": 0, "targets": np.ones(v + 1)}
     fields.update({k: x for k, x in change.items() if k != "integrator"})
-    params = cpu.ModelParams(fields["freqs"], 1.0, 0.0, 0.0, 1.0, fields["criterion"], fields["targets"])
+    params = cpu.ModelParams(
+        fields["freqs"], 1.0, 0.0, 0.0, 1.0, fields["criterion"], fields["targets"], change.get("starts")
+    )
     args = (0, 3, None, job.csr.indptr, job.csr.weights, job.variant_weights, params)
     with pytest.raises(ValueError) as err:
         model_inputs(*args, change.get("integrator", "euler"))
     assert str(err.value) == message.format(v1=v + 1)
     good = cpu.ModelParams(np.zeros((1, 6)), 1.0, 0.0, 0.0, 1.0, 0, np.ones(v + 1))
-    ks, base, var_w, var_is_base, _, _ = model_inputs(*args[:-1], good, "rk4")
+    ks, base, var_w, var_is_base, _, _, starts = model_inputs(*args[:-1], good, "rk4")
+    assert starts.shape == (0, 6)  # the kernels draw the paper's phases
     assert ks.tolist() == [0, 1, 2] and var_w.shape == (v, base.size)
     assert var_is_base.tolist() == [bool((w == base).all()) for w in var_w]
 

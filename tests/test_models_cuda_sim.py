@@ -18,8 +18,9 @@ def _check(name: str, *args: str) -> str:
 
 
 def test_model_kernels_identical_to_cpu():
-    """Euler and RK4, phase lag, inertia, drawn and fixed frequencies, all three criteria."""
-    assert _check("models").count("identical") == 3
+    """Euler and RK4, phase lag, inertia, drawn and fixed frequencies, all three criteria,
+    starts around the locked state (model.start)."""
+    assert _check("models").count("identical") == 4
 
 
 def test_model_run_on_cuda_matches_cpu(tmp_path):

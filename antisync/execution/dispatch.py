@@ -36,7 +36,7 @@ from antisync.kernels.core import TAYLOR_MAX_ANGLE
 from antisync.kernels.model_adjoint import simulate_model_adjoint
 from antisync.kernels.model_steps import ModelParams
 from antisync.kernels.shared import realization_ids, rotation_angle_bound
-from antisync.plan.model import drawn_frequencies
+from antisync.plan.model import drawn_frequencies, start_phases
 from antisync.stats import estimators
 from antisync.status import NOT_SYNCED, SYNCED
 from antisync.store.state import ChunkResult
@@ -92,14 +92,16 @@ def model_params(setup, model, seed: int, ks: np.ndarray, n: int, targets: np.nd
     """The model kernels' :class:`~antisync.kernels.model_steps.ModelParams` for realizations
     ``ks`` of ``n`` nodes (``setup``: :class:`~antisync.plan.model.ModelSetup`; ``model``: the config's
     model section): fixed frequencies (one row), drawn ones (a row per realization, in the
-    rotating frame of docs/models.md, the distribution's mean never added) or none."""
+    rotating frame of docs/models.md, the distribution's mean never added) or none; with
+    ``model.start`` each realization's start around the locked state."""
 
     if model.drawn:
         freqs = drawn_frequencies(model, seed, ks, n)
     else:
         freqs = (np.zeros(n) if setup.freqs is None else setup.freqs)[None, :]
+    starts = None if setup.start is None else start_phases(setup.start, model.start["width"], seed, ks)
     return ModelParams(
-        freqs, setup.cos_lag, setup.sin_lag, setup.inertia, setup.damping, setup.criterion, targets
+        freqs, setup.cos_lag, setup.sin_lag, setup.inertia, setup.damping, setup.criterion, targets, starts
     )
 
 

@@ -174,6 +174,15 @@ class RemovalTable(Rows):
     def to_dicts(self) -> list[dict]:
         return [r.as_dict() for r in self.rows]
 
+    @property
+    def starts(self) -> str:
+        """Where the realizations start, in words: the paper's uniform phases, or within
+        ``model.start.width`` of the intact grid's operating point (docs/models.md)."""
+        start = (self.config.get("model") or {}).get("start")
+        if not start:
+            return "uniform random phases"
+        return f"phases within {start['width']:g} rad of the operating point"
+
     def summary(self) -> dict:
         """The intact grid's numbers and the run's, as plain data."""
         t, se = self.tau0_mean
@@ -182,6 +191,7 @@ class RemovalTable(Rows):
             "beta": self.beta,
             "seed": self.seed,
             "realizations": self.n,
+            "starts": self.starts,
             "synced0": self.synced0,
             "p_sync": self.p_sync,
             "p_sync_ci": list(self.p_sync_ci),
@@ -204,7 +214,8 @@ class RemovalTable(Rows):
         if self.skipped:
             skipped = f"; bridges skipped: {', '.join(f'{u}-{v}' for u, v in self.skipped)}"
         head = (
-            f"{self.name}: beta={self.beta:g}, {self.n} realizations (seed {self.seed}): intact "
+            f"{self.name}: beta={self.beta:g}, {self.n} realizations (seed {self.seed}; "
+            f"{self.starts}): intact "
             f"P_sync = {self.p_sync:.4f} [{lo:.4f}, {hi:.4f}], tau0 = {t:.3f} +- {se:.3f}; "
             f"{len(self.rows)} lines{skipped}; {self.seconds:.1f} s"
         )

@@ -44,7 +44,7 @@ from antisync.kernels.shared import (
     rotation_angle_bound,
     row_sum_bound,
 )
-from antisync.physics.phases import phase
+from antisync.physics.phases import phase, start_phase
 from antisync.types import Integrator
 
 __all__ = [
@@ -128,6 +128,7 @@ def _integrate_items(ks, seed, graph, model, dt, rk4, max_steps, out):
     var_is_base = graph.var_is_base
     todo = graph.todo
     freqs = model.freqs
+    starts = model.starts
     cl = model.cos_lag
     sl = model.sin_lag
     inertia = model.mass
@@ -155,7 +156,7 @@ def _integrate_items(ks, seed, graph, model, dt, rk4, max_steps, out):
         dnu = np.zeros(n)
         work = np.empty((WORK_ROWS, n))
         for i in range(n):
-            theta = phase(seed, ks[r], i)
+            theta = start_phase(starts, seed, ks[r], r, i)
             c[i] = np.cos(theta)
             s[i] = np.sin(theta)
         p = freqs[r] if freqs.shape[0] > 1 else freqs[0]

@@ -700,6 +700,7 @@ def _model_kernel():
         var_w,
         var_is_base,
         freqs,
+        starts,
         cl,
         sl,
         inertia,
@@ -732,7 +733,8 @@ def _model_kernel():
             if v >= 0 and var_is_base[v]:
                 continue  # copied from the undamaged result on the host
             for i in range(n):
-                theta = phase(seed, ks[r], i)
+                # model.start's phases when the batch carries them (physics.phases.start_phase)
+                theta = starts[r, i] if starts.shape[0] > 0 else phase(seed, ks[r], i)
                 c[i] = math.cos(theta)
                 s[i] = math.sin(theta)
                 nu[i] = 0.0
@@ -802,7 +804,7 @@ def simulate_model(
     AntisyncError
         No usable GPU (or simulator), or more than ``MAX_NODES`` nodes.
     """
-    ks, base, var_w, var_is_base, freqs, targets = model_inputs(
+    ks, base, var_w, var_is_base, freqs, targets, starts = model_inputs(
         first, count, realizations, indptr, base_weights, variant_weights, params, integrator
     )
     m = ks.size
@@ -837,6 +839,7 @@ def simulate_model(
                 cuda.to_device(var_w if n_var else np.zeros((0, base.size))),
                 cuda.to_device(var_is_base if n_var else np.zeros(0, np.bool_)),
                 cuda.to_device(freqs),
+                cuda.to_device(starts),
                 float(params.cos_lag),
                 float(params.sin_lag),
                 cuda.to_device(per_node(params.inertia, n)),

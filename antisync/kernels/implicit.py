@@ -53,7 +53,7 @@ from antisync.kernels.lanes import item_of, record, share_base
 from antisync.kernels.model_steps import ModelParams
 from antisync.kernels.precision import K64
 from antisync.kernels.shared import SimResult, Threads, model_batch
-from antisync.physics.phases import phase
+from antisync.physics.phases import start_phase
 from antisync.status import ALREADY_SYNCED, NOT_SYNCED, SYNCED
 from antisync.types import RODAS4_ATOL, RODAS4_RTOL
 
@@ -912,6 +912,7 @@ def _integrate_items(
     var_is_base = graph.var_is_base
     todo = graph.todo
     freqs = model.freqs
+    starts = model.starts
     cl = model.cos_lag
     sl = model.sin_lag
     inertia = model.mass
@@ -935,7 +936,7 @@ def _integrate_items(
         th = np.empty(n)
         nu = np.zeros(n)
         for i in range(n):
-            th[i] = phase(seed, ks[r], i)
+            th[i] = start_phase(starts, seed, ks[r], r, i)
         p = freqs[r] if freqs.shape[0] > 1 else freqs[0]
         w = base_w if v < 0 else var_w[v]
         st, tau, n_acc, n_rej, bad = rodas4_sync(

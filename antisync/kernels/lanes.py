@@ -35,7 +35,7 @@ from antisync.kernels import model_steps as ms
 from antisync.kernels.core import CRIT_FREQUENCY, CRIT_ORDER, DEV_PREV_ROW, DEV_ROW, VEC, WORK_ROWS
 from antisync.kernels.precision import K64, order2, renormalize, rk4_vec, step_lanes, step_vec
 from antisync.kernels.shared import Graph, Model, Outputs
-from antisync.physics.phases import phase
+from antisync.physics.phases import phase, start_phase
 from antisync.status import ALREADY_SYNCED, NOT_SYNCED, SYNCED
 
 __all__ = [
@@ -308,7 +308,7 @@ def _model_load(q, qr, qv, t, queue, graph, model, second, lanes, extra, out):
             continue
         row = r if freqs.shape[0] > 1 else 0
         for i in range(n):
-            theta = phase(queue.seed, queue.ks[r], i)
+            theta = start_phase(model.starts, queue.seed, queue.ks[r], r, i)
             c[i, q] = np.cos(theta)
             s[i, q] = np.sin(theta)
             nu[i, q] = 0.0
@@ -432,6 +432,7 @@ def make_lane_driver(features: LaneFeatures):
         # before typing; a name bound on one side only confused its parallel pass)
         if identical:
             freqs = np.zeros((1, 0))
+            starts = np.zeros((0, 0))
             cl = 1.0
             sl = 0.0
             mass = np.zeros(0)
@@ -445,6 +446,7 @@ def make_lane_driver(features: LaneFeatures):
             wide = fused or rk4
         else:
             freqs = model.freqs
+            starts = model.starts
             cl = model.cos_lag
             sl = model.sin_lag
             mass = model.mass
@@ -602,7 +604,7 @@ def make_lane_driver(features: LaneFeatures):
                             if filled:
                                 _lane_initial(c, s, kv, lw, indptr, indices, rk4, q, r2, dr2, u, dr2t)
                         else:
-                            consts = Model(freqs, cl, sl, mass, gamma, criterion, targets)
+                            consts = Model(freqs, cl, sl, mass, gamma, criterion, targets, starts)
                             lane = Lanes(c, s, lw, r2, dr2, lane_r, lane_v, lane_t0, lane_target)
                             extra = ModelLanes(nu, th, dnu, lane_p, work)
                             res = Outputs(status0, steps0, frac0, status, steps, frac, dtau)

@@ -58,8 +58,8 @@ from antisync.kernels.core import (
     make_kernels,
     make_model_kernels,
 )
-from antisync.kernels.shared import PathwiseResult, Threads, per_node, realization_ids
-from antisync.physics.phases import phase
+from antisync.kernels.shared import PathwiseResult, Threads, batch_starts, per_node, realization_ids
+from antisync.physics.phases import start_phase
 from antisync.status import NOT_SYNCED, SYNCED
 
 __all__ = ["simulate_model_adjoint"]
@@ -815,6 +815,7 @@ def _adjoint_items(
     indices,
     w,
     freqs,
+    starts,
     cl,
     sl,
     mass,
@@ -836,7 +837,7 @@ def _adjoint_items(
     for r in prange(m):
         y0 = np.zeros((3, n))
         for i in range(n):
-            theta = phase(seed, ks[r], i)
+            theta = start_phase(starts, seed, ks[r], r, i)
             y0[0, i] = np.cos(theta)
             y0[1, i] = np.sin(theta)
         p = freqs[r] if freqs.shape[0] > 1 else freqs[0]
@@ -914,6 +915,7 @@ def simulate_model_adjoint(
     n = indptr.size - 1
     w = np.ascontiguousarray(weights, dtype=np.float64)
     freqs = np.ascontiguousarray(params.freqs, dtype=np.float64)
+    starts = batch_starts(params, m, n)
     status0 = np.empty(m, dtype=np.int8)
     steps0 = np.empty(m, dtype=np.int64)
     frac0 = np.empty(m)
@@ -927,6 +929,7 @@ def simulate_model_adjoint(
             indices.astype(np.int64),
             w,
             freqs,
+            starts,
             float(params.cos_lag),
             float(params.sin_lag),
             per_node(params.inertia, n),

@@ -56,7 +56,9 @@ class ModelParams(NamedTuple):
     realization of the batch, mean already removed; ``inertia`` and ``damping`` one number or
     one per node (``damping`` must be 1 where no node has inertia); ``targets[0]`` is the undamaged network's
     and ``targets[1 + v]`` variant ``v``'s: ``R = (r N)^2`` at the order-parameter or relative
-    threshold, or the frequency tolerance.
+    threshold, or the frequency tolerance. ``starts`` holds one row of initial phases per
+    realization of the batch (``model.start``), or is ``None``: the paper's phases, drawn by
+    the kernels (:func:`antisync.physics.phases.phase`).
     """
 
     freqs: np.ndarray
@@ -66,6 +68,7 @@ class ModelParams(NamedTuple):
     damping: float | np.ndarray
     criterion: int
     targets: np.ndarray
+    starts: np.ndarray | None = None
 
 
 @njit(inline="always")

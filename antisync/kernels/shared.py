@@ -25,6 +25,7 @@ __all__ = [
     "SimResult",
     "Tangents",
     "Threads",
+    "batch_starts",
     "model_batch",
     "model_inputs",
     "per_node",
@@ -129,6 +130,9 @@ class Model(NamedTuple):
     """CRIT_ORDER or CRIT_FREQUENCY."""
     targets: np.ndarray
     """float64 (V + 1,): the criterion's target of the undamaged network, then of each variant."""
+    starts: np.ndarray
+    """float64 (m, N): each realization's initial phases (``model.start``), or (0, N): the
+    paper's, drawn in the kernel (:func:`start_phase`)."""
 
 
 @dataclass(frozen=True)
@@ -220,8 +224,9 @@ class Threads:
 
 def model_inputs(first, count, realizations, indptr, base_weights, variant_weights, params, integrator):
     """A model run's arguments checked and in the kernels' types, for the CPU and CUDA drivers:
-    ``(ks, base_weights, var_w, var_is_base, freqs, targets)``; ``ValueError`` names what is
-    wrong (the integrator, the criterion code, the shapes of ``freqs`` and ``targets``)."""
+    ``(ks, base_weights, var_w, var_is_base, freqs, targets, starts)`` (``starts`` ``(0, N)``:
+    the kernels draw the paper's phases); ``ValueError`` names what is wrong (the integrator, the
+    criterion code, the shapes of ``freqs``, ``targets`` and ``starts``)."""
     if integrator not in ("euler", "rk4", "rodas4"):
         raise ValueError(f"integrator must be 'euler', 'rk4' or 'rodas4', got {integrator!r}")
     if params.criterion not in (CRIT_ORDER, CRIT_FREQUENCY):
@@ -239,7 +244,18 @@ def model_inputs(first, count, realizations, indptr, base_weights, variant_weigh
     targets = np.ascontiguousarray(params.targets, dtype=np.float64)
     if targets.shape != (n_var + 1,):
         raise ValueError(f"targets must have shape ({n_var + 1},), got {targets.shape}")
-    return ks, base, var_w, var_is_base, freqs, targets
+    return ks, base, var_w, var_is_base, freqs, targets, batch_starts(params, m, n)
+
+
+def batch_starts(params, m: int, n: int) -> np.ndarray:
+    """``params.starts`` (a :class:`~.model_steps.ModelParams`') for a batch of ``m`` realizations
+    of ``n`` nodes as the kernels take it: ``(m, n)``, or ``(0, n)`` for the paper's phases."""
+    if params.starts is None:
+        return np.zeros((0, n))
+    starts = np.ascontiguousarray(params.starts, dtype=np.float64)
+    if starts.shape != (m, n):
+        raise ValueError(f"starts must have shape ({m}, {n}) or be None, got {starts.shape}")
+    return starts
 
 
 def per_node(value, n: int) -> np.ndarray:
@@ -256,7 +272,7 @@ def model_batch(
     :func:`model_inputs`' checks, ``todo`` (bool ``(m, V + 1)`` or None: every item; given, a
     variant equal to the base is integrated rather than copied from a base that may not run)
     and the :class:`Outputs` at ``-1`` / NaN for the items not integrated."""
-    ks, base_weights, var_w, var_is_base, freqs, targets = model_inputs(
+    ks, base_weights, var_w, var_is_base, freqs, targets, starts = model_inputs(
         first, count, realizations, indptr, base_weights, variant_weights, params, integrator
     )
     m = ks.size
@@ -278,6 +294,7 @@ def model_batch(
         per_node(params.damping, n),
         int(params.criterion),
         targets,
+        starts,
     )
     out = Outputs(
         np.full(m, -1, dtype=np.int8),

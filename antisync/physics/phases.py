@@ -17,7 +17,7 @@ from numba import njit
 
 from antisync import _numba_cache  # noqa: F401 -- before any cache=True function (see there)
 
-__all__ = ["initial_phases", "make_phase", "make_uniform", "phase"]
+__all__ = ["initial_phases", "make_phase", "make_uniform", "phase", "phases_of", "start_phase"]
 
 _GOLDEN = np.uint64(0x9E3779B97F4A7C15)
 _M1 = np.uint64(0xBF58476D1CE4E5B9)
@@ -53,6 +53,16 @@ def make_phase(jit):
 phase = make_phase(lambda f: njit(f, inline="always"))
 
 
+@njit(inline="always")
+def start_phase(starts, seed, k, r, i):
+    """Node ``i``'s initial phase in row ``r`` (realization ``k``) of a model kernel's batch:
+    ``starts[r, i]`` when the batch carries its starts (``model.start``, drawn on the host by
+    :func:`antisync.plan.model.start_phases`), else the paper's :func:`phase`."""
+    if starts.shape[0] > 0:
+        return starts[r, i]
+    return phase(seed, k, i)
+
+
 def make_uniform(jit):
     """Compile ``uniform(seed, k, node, stream)``: a number in ``[0, 1)`` (53 random bits) keyed
     by ``(seed, k, node)`` like :func:`phase` and by a ``stream >= 1`` (natural frequencies use
@@ -75,6 +85,23 @@ def _fill(seed, k0, out):
     for r in range(out.shape[0]):
         for i in range(out.shape[1]):
             out[r, i] = phase(seed, k0 + r, i)
+
+
+@njit(cache=True)
+def _fill_of(seed, ks, out):
+    for r in range(out.shape[0]):
+        for i in range(out.shape[1]):
+            out[r, i] = phase(seed, ks[r], i)
+
+
+def phases_of(seed: int, ks: np.ndarray, n_nodes: int) -> np.ndarray:
+    """Phases of the realizations ``ks`` (uint64 ids, any order), shape ``(len(ks), n_nodes)``."""
+    if seed < 0:
+        raise ValueError("seed must be non-negative")
+    ks = np.ascontiguousarray(ks, dtype=np.uint64)
+    out = np.empty((ks.size, n_nodes))
+    _fill_of(np.uint64(seed), ks, out)
+    return out
 
 
 def initial_phases(seed: int, first: int, count: int, n_nodes: int) -> np.ndarray:

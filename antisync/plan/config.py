@@ -446,6 +446,8 @@ class Config:
         # paper's model read (and --resume) exactly as before these sections existed
         if self.model.is_default and self.model.damping == 1.0:
             d.pop("model")
+        elif self.model.start is None:
+            d["model"].pop("start")  # the uniform start: files written before it existed read the same
         if not self.stop.active:
             d.pop("stop")
         elif isinstance(self.model.frequencies, tuple):

@@ -76,7 +76,10 @@ def model_text(model: Model) -> str:
         kind = "swing equation (" + ", ".join(p for p in params if p) + ")"
     else:
         kind = f"first-order Kuramoto-Sakaguchi ({lag})" if lag else "first-order Kuramoto"
-    return f"{kind}, {_frequencies(model.frequencies)}"
+    start = ""
+    if model.start is not None:
+        start = f", started within {model.start['width']:g} rad of the intact network's locked state"
+    return f"{kind}, {_frequencies(model.frequencies)}{start}"
 
 
 def sync_text(sync: Sync, threshold: float) -> str:

@@ -10,7 +10,16 @@ kernels of :mod:`antisync.kernels.model_steps` (run by the lane driver of :mod:`
 - a phase lag ``alpha`` (Kuramoto-Sakaguchi): coupling ``sin(theta_j - theta_i - alpha)``;
 - inertia ``m`` and damping ``gamma`` (second-order, swing-equation model)
   ``m theta_i'' + gamma theta_i' = P_i + sum_j w_ij sin(theta_j - theta_i - alpha)``,
-  started from the usual random phases with ``theta_i'(0) = 0``.
+  started from the usual random phases with ``theta_i'(0) = 0``;
+- where the trajectories start (``start``): by default the paper's phases, uniform on the
+  circle; ``{around: locked, width: w}`` draws them near the undamaged network's stable
+  phase-locked state ``phi`` (the operating point of a power grid),
+  ``theta_i(0) = phi_i + w (2 u_i - 1)`` with the same counter-based ``u_i`` in ``[0, 1)``
+  (:func:`antisync.physics.phases.phase` ``/ 2 pi``): random perturbations of bounded size
+  around the operating point, as basin-stability studies draw them (Menck, Heitzig, Marwan and
+  Kurths, Nat. Phys. 9, 89 (2013)). ``tau0`` and every ``tau(beta)`` of a realization share
+  the start, so a damaged or removed line is judged from the same perturbed operating point
+  of the intact network.
 
 The mean of the natural frequencies is removed before integrating (``P_i - mean_j P_j``): for
 both models that is a frame rotating at a constant rate, which changes neither ``r(t)`` nor
@@ -47,6 +56,7 @@ __all__ = [
     "model_setup",
     "node_frequencies",
     "node_parameters",
+    "start_phases",
     "unsynced_hint",
 ]
 
@@ -116,6 +126,32 @@ def _check_frequencies(value):
     )
 
 
+#: The places a start can be drawn around (``model.start.around``): the undamaged network's stable
+#: phase-locked state (:func:`antisync.physics.locked.locked_state`).
+START_AROUND = ("locked",)
+
+
+def _check_start(value):
+    """``None`` (the paper's uniform phases) or ``{"around": "locked", "width": w}`` with ``w``
+    in ``(0, pi]`` (radians)."""
+    if value is None:
+        return None
+    valid = "{around: locked, width: W} with W in (0, pi] radians (null: uniform phases)"
+    if not isinstance(value, dict):
+        raise ConfigError(f"model.start must be {valid}, got {show(value)}")
+    extra = sorted(set(value) - {"around", "width"})
+    if extra:
+        raise ConfigError(f"unknown key 'model.start.{extra[0]}'; valid keys: around, width")
+    if "width" not in value:
+        raise ConfigError(f"model.start needs width: {valid}")
+    choice("model.start.around", value.get("around", "locked"), START_AROUND)
+    in_range = "a number in (0, pi] = (0, 3.14159]"
+    width = parse_number("model.start.width", value["width"], in_range)
+    if not 0 < width <= math.pi:
+        raise ConfigError(f"model.start.width must be {in_range}, got {show(value['width'])}")
+    return {"around": value.get("around", "locked"), "width": width}
+
+
 #: Largest per-node inertia or damping: ``m / gamma`` and ``gamma / m`` stay finite, and a
 #: stability check on ``dt gamma / m`` cannot overflow to a pass.
 MAX_NODE_PARAMETER = 1e100
@@ -165,15 +201,28 @@ class Model:
         ``i`` first order, ``gamma_i theta_i' = P_i + ...`` (load buses beside generators).
     damping : float, tuple of float, dict
         ``gamma > 0``, one value or per node like ``inertia`` (unused when every ``m_i`` is 0).
+    start : None or dict
+        ``None``: the paper's phases, uniform on the circle; ``{"around": "locked", "width":
+        w}``: ``theta_i(0) = phi_i + w (2 u_i - 1)`` around the undamaged network's stable
+        phase-locked state ``phi`` (module docstring), ``w`` in ``(0, pi]``; needs fixed
+        frequencies (drawn ones move the locked state with every realization).
     """
 
     frequencies: None | tuple | dict = None
     phase_lag: float = 0.0
     inertia: float | tuple | dict = 0.0
     damping: float | tuple | dict = 1.0
+    start: None | dict = None
 
     def __post_init__(self):
         object.__setattr__(self, "frequencies", _check_frequencies(self.frequencies))
+        object.__setattr__(self, "start", _check_start(self.start))
+        if self.start is not None and self.drawn:
+            raise ConfigError(
+                "model.start around the locked state needs fixed model.frequencies (values or a "
+                "file): frequencies drawn per realization move the locked state with every "
+                "realization; fix them, or drop model.start"
+            )
         lag_range = "a number in (-pi/2, pi/2) = (-1.5708, 1.5708)"
         lag = parse_number("model.phase_lag", self.phase_lag, lag_range)
         if not -math.pi / 2 < lag < math.pi / 2:
@@ -196,8 +245,9 @@ class Model:
 
     @property
     def is_default(self) -> bool:
-        """The paper's identical first-order model (runs on the default kernels)."""
-        return self.frequencies is None and self.phase_lag == 0 and self.inertia == 0
+        """The paper's identical first-order model from uniform phases (runs on the default
+        kernels)."""
+        return self.frequencies is None and self.phase_lag == 0 and self.inertia == 0 and self.start is None
 
     @property
     def drawn(self) -> bool:
@@ -422,6 +472,9 @@ class ModelSetup:
     dtarget : ndarray (E,) or None
         ``d target / d beta_e`` at 0 for the adjoint with the relative criterion (``r*`` moves
         with the damage), by a central difference of ``r*`` at ``+-DTARGET_STEP``.
+    start : ndarray (N,) or None
+        ``model.start``'s centre: the undamaged network's stable locked state ``phi`` (``None``:
+        uniform phases).
     """
 
     freqs: np.ndarray | None
@@ -436,6 +489,7 @@ class ModelSetup:
     orbit_r_star: np.ndarray | None = None
     secant_targets: np.ndarray | None = None
     dtarget: np.ndarray | None = None
+    start: np.ndarray | None = None
 
 
 #: The damage step of :attr:`ModelSetup.dtarget`'s central difference: the relative target
@@ -455,8 +509,8 @@ def model_setup(
     Raises
     ------
     ConfigError
-        A frequency list or file of the wrong length, or (``relative``) a network without a
-        stable phase-locked state.
+        A frequency list or file of the wrong length, or (``relative``, or ``model.start``
+        around the locked state) a network without a stable phase-locked state.
     """
     # lazy: the kernels load numba (~0.2 s), and `import antisync.api` reads configs through here
     from antisync.kernels.core import CRIT_FREQUENCY, CRIT_ORDER
@@ -470,6 +524,19 @@ def model_setup(
     freqs = None if fixed is None else fixed - fixed.mean()
     lag = float(model.phase_lag)
     n_kinds = len(weights)
+    p = np.zeros(n) if freqs is None else freqs
+    rows = np.repeat(np.arange(n), np.diff(indptr))
+    cache: dict = {}
+
+    def locked(w_csr):
+        """The locked state of the CSR weights ``w_csr`` (each network solved once)."""
+        key = np.asarray(w_csr).tobytes()
+        if key not in cache:
+            w = np.zeros((n, n))
+            w[rows, indices] = w_csr
+            cache[key] = locked_state(w, p, lag, mass, gamma)
+        return cache[key]
+
     r_star = None
     if sync.criterion == "frequency":
         criterion = CRIT_FREQUENCY
@@ -479,32 +546,26 @@ def model_setup(
         targets = np.full(n_kinds, (config.dynamics.threshold * n) ** 2)
     else:
         criterion = CRIT_ORDER
-        p = np.zeros(n) if freqs is None else freqs
-        rows = np.repeat(np.arange(n), np.diff(indptr))
         r_star = np.empty(n_kinds)
-        cache: dict = {}
         for v, w_csr in enumerate(weights):
-            key = np.asarray(w_csr).tobytes()
-            if key not in cache:
-                w = np.zeros((n, n))
-                w[rows, indices] = w_csr
-                cache[key] = locked_state(w, p, lag, mass, gamma)
-            state = cache[key]
+            state = locked(w_csr)
             if state is None or not state.stable:
                 what = "the undamaged network" if v == 0 else f"variant {labels[v - 1]}"
-                why = (
-                    "no phase-locked state connected to synchrony"
-                    if state is None
-                    else f"its locked state is unstable (largest eigenvalue real part {state.max_real:.3g})"
-                )
-                spread = float(np.max(np.abs(p))) if p.size else 0.0
                 raise ConfigError(
-                    f"sync.criterion relative: {what} has {why}; the natural frequencies "
-                    f"(max |P_i - mean| = {spread:.3g}) may be too spread for the coupling: use "
+                    f"sync.criterion relative: {what} has {_no_state(state, p)}: use "
                     "sync.criterion frequency or order-parameter, or smaller frequencies"
                 )
             r_star[v] = state.r
         targets = (sync.fraction * r_star * n) ** 2
+    start = None
+    if model.start is not None:
+        state = locked(weights[0])
+        if state is None or not state.stable:
+            raise ConfigError(
+                f"model.start around the locked state: the undamaged network has {_no_state(state, p)}; "
+                "drop model.start (uniform phases), or use smaller frequencies"
+            )
+        start = state.phi
     cut = n_kinds - extra_rows
     setup = ModelSetup(
         freqs=freqs,
@@ -515,8 +576,34 @@ def model_setup(
         criterion=criterion,
         targets=targets[:cut],
         r_star=None if r_star is None else r_star[:cut],
+        start=start,
     )
     return setup, targets[cut:], None if r_star is None else r_star[cut:]
+
+
+def _no_state(state, p: np.ndarray) -> str:
+    """Why ``state`` (a :class:`~antisync.physics.locked.LockedState` or None) is no stable locked
+    state, for a message, with the frequencies' spread that may be the cause."""
+    why = (
+        "no phase-locked state connected to synchrony"
+        if state is None
+        else f"an unstable locked state (largest eigenvalue real part {state.max_real:.3g})"
+    )
+    spread = float(np.max(np.abs(p))) if p.size else 0.0
+    return (
+        f"{why}; the natural frequencies (max |P_i - mean| = {spread:.3g}) may be too spread for the coupling"
+    )
+
+
+def start_phases(center: np.ndarray, width: float, seed: int, ks: np.ndarray) -> np.ndarray:
+    """``model.start``'s phases of realizations ``ks``, shape ``(len(ks), N)``:
+    ``theta_i = center_i + width (2 u_i - 1)`` with ``u_i = phase(seed, k, i) / 2 pi`` (the
+    paper's phases rescaled; module docstring)."""
+    # lazy: the kernels load numba (~0.2 s), and `import antisync.api` reads configs through here
+    from antisync.physics.phases import phases_of
+
+    u = phases_of(seed, np.asarray(ks, dtype=np.uint64), center.size) * (1.0 / np.pi) - 1.0
+    return center[None, :] + width * u
 
 
 def unsynced_hint(config) -> str | None:
