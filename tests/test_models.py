@@ -297,9 +297,9 @@ def test_rk4_matches_solve_ivp(name, size):
     crossing) equal solve_ivp's event times (DOP853, rtol 1e-11, steps of at most 0.01 so that
     its event search sees short dips) within the integrator's error, ~1e-9: every criterion is
     located on RK4's dense output (cubic Hermite of R, or of every frequency deviation with its
-    rate), 4th order in state and crossing. Realizations 0-11 here, 0-99 (0-39) in test-slow."""
+    rate), 4th order in state and crossing. Realizations 0-7 here, 0-99 (0-39) in test-slow."""
     text, _, tol = MODELS[name]
-    count = 12 if size == FEW else (100 if name == "freq-lag-order" else 40)
+    count = 8 if size == FEW else (100 if name == "freq-lag-order" else 40)
     job = job_of(
         LOLLIPOP + f"edges: ['2->1']\nbetas: [0.5]\n{text}",
         ["dynamics.integrator=rk4", "dynamics.dt=0.005", "dynamics.t_max=60"],
@@ -316,7 +316,7 @@ def test_rk4_matches_solve_ivp(name, size):
             if status == Status.SYNCED:
                 worst = max(worst, abs(got_tau - tau))
     assert worst < tol, worst
-    assert (sim.status0 == Status.SYNCED).mean() > 0.9
+    assert (sim.status0 != Status.SYNCED).sum() <= 1  # the comparisons are of synchronized times
 
 
 @pytest.mark.parametrize("name", ["freq-lag-order", "inertia-relative"])
