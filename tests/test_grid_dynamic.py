@@ -394,7 +394,11 @@ class _StopAfter:
 def test_an_interrupted_removal_resumes_from_its_journal_and_redoes_nothing(tmp_path):
     from antisync.grids import removal
 
-    cfg = ring_config(realizations=removal.CHUNK + 8)  # two tasks: 256 and 8 realizations
+    cfg = ring_config(realizations=removal.CHUNK + 8)  # two chunks: 256 and 8 realizations
+    # x two groups of the ring's seven lines: four tasks, the intact grid in each chunk's first
+    tasks = removal._plan(cfg["realizations"], np.zeros((7, 1)), np.ones(1), -(-7 // removal.LINES_PER_TASK))
+    assert len(tasks) == 4
+    first_ks, first_group, first_intact = tasks[0]
     whole = line_removal(cfg)
     journal = tmp_path / "t.json.partial"
     with pytest.raises(KeyboardInterrupt):
@@ -407,8 +411,9 @@ def test_an_interrupted_removal_resumes_from_its_journal_and_redoes_nothing(tmp_
     assert sorted(p.name for p in journal.iterdir()) == before
     seen = []
     resumed = line_removal(cfg, journal=journal, log=seen.append)
-    assert seen[0].startswith(f"resumed: {removal.CHUNK * 8} trajectories")
-    assert len(seen) == 2  # only the missing task ran
+    assert seen[0].startswith(f"resumed: {first_ks.size * (first_group.size + first_intact)} trajectories")
+    assert len(seen) == len(tasks)  # only the three missing tasks ran
+    assert seen[-1].endswith("~0 s left") and "7/7 lines done" in seen[-1]
     for name in ("status0", "tau0", "status", "tau"):
         np.testing.assert_array_equal(getattr(resumed, name), getattr(whole, name), err_msg=name)
     assert resumed.rows == whole.rows

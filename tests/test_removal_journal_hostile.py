@@ -32,8 +32,10 @@ runner = CliRunner()
 
 @pytest.fixture
 def small_chunks(monkeypatch):
-    """Tasks of 4 realizations: a run of 12 realizations is 3 tasks, each saved on its own."""
+    """Tasks of 4 realizations and every line: a run of 12 realizations is 3 tasks, each saved
+    on its own."""
     monkeypatch.setattr(removal, "CHUNK", 4)
+    monkeypatch.setattr(removal, "LINES_PER_TASK", 1000)
 
 
 def _config(seed: int = 11) -> dict:

@@ -74,6 +74,10 @@ __all__ = ["CHUNK", "CLIENT_HINT", "TASKS_PER_WORKER", "line_removal"]
 
 #: Realizations integrated per call of the compiled driver (progress and memory).
 CHUNK = 256
+#: Lines per task of a run on this machine (with ``client=None``): the unit of the progress
+#: lines and of the journal, so that an interrupted run of a large grid keeps all but a few
+#: lines' worth of work (on ACTIVSg2000 a task of 4 lines x 100 starts is ~5 minutes).
+LINES_PER_TASK = 4
 #: Tasks per Dask worker thread that :func:`line_removal` aims for (lines are grouped so that a
 #: few realizations x many lines still spread over the cluster).
 TASKS_PER_WORKER = 4
@@ -212,8 +216,10 @@ def line_removal(
         dynamics=dyn,
         interpolate=dyn.interpolate,
     )
-    tasks = _plan(m, variants, base=csr.weights, groups=1 if client is None else _groups(client, m))
+    groups = -(-len(todo) // LINES_PER_TASK) if client is None else _groups(client, m)
+    tasks = _plan(m, variants, base=csr.weights, groups=groups)
     done = 0
+    have = np.zeros((m, 1 + len(todo)), dtype=bool)  # the trajectories held: intact, then each line
     book = None
     if journal is not None:
         key = {
@@ -232,6 +238,8 @@ def line_removal(
     # on Dask one numba thread per task: the cluster already runs a task per worker thread
     task_threads = threads if client is None else threads or 1
     calls = (_task_call(task, variants, fixed, task_threads) for task in tasks)
+    grids = len(todo) + 1
+    done_before = done
     try:
         for i, part in map_tasks(_removal_task, calls, client=client):
             ks, group, intact = tasks[i]
@@ -241,11 +249,17 @@ def line_removal(
             status[span, group], tau[span, group] = part[2], part[3]
             if book is not None:
                 book.save(ks, group, intact, part)
+            have[span, 0] |= intact
+            have[span, 1 + group] = True
             done += ks.size * (group.size + intact)
             if log is not None:
                 took = time.perf_counter() - t_start
-                grids = len(todo) + 1
-                log(f"{done}/{m * grids} trajectories ({m} realizations x {grids} grids), {took:.1f} s")
+                left = (m * grids - done) * took / max(done - done_before, 1)
+                log(
+                    f"{done}/{m * grids} trajectories ({m} realizations x {grids} grids), "
+                    f"{int(have[:, 1:].all(axis=0).sum())}/{len(todo)} lines done, "
+                    f"{took:.1f} s, ~{left:.0f} s left"
+                )
     except TaskLostError as exc:
         lost = f"{type(exc.cause).__name__}: {exc.cause}"
         raise GridError(
