@@ -208,6 +208,7 @@ def test_bad_design_input_is_one_line_exit_2_and_touches_nothing(tmp_path, chang
         ({"sync": {"criterion": "relative"}}, "sync.criterion relative"),
         ({"dynamics": {"integrator": "rodas4"}, "model": {"inertia": 1.0}}, "euler or rk4"),
         ({"backend": "cuda"}, "runs on the CPU"),
+        ({"model": {"start": {"around": "locked", "width": 0.5}}}, "cannot use model.start"),
         ({}, None),
     ],
 )

@@ -171,6 +171,12 @@ def check_designable(config: Config) -> None:
             "a design cannot use sync.criterion relative (its target r* moves with every weight "
             "and has no derivative here): use order-parameter or frequency"
         )
+    if config.model.start is not None:
+        raise ConfigError(
+            "a design cannot use model.start (its starts lie around the locked state of the "
+            "weights being designed, which moves with every step and has no derivative here): "
+            "drop model.start (uniform phases)"
+        )
 
 
 def make_problem(
