@@ -104,7 +104,8 @@ def _removal_markdown(doc: dict) -> str:
     lo, hi = s["p_sync_ci"]
     tau0 = math.nan if s["tau0_mean"] is None else s["tau0_mean"]
     out = [
-        f"{s['name']}: beta = {s['beta']:g}, {s['realizations']} realizations (seed {s['seed']}): intact "
+        f"{s['name']}: beta = {s['beta']:g}, {s['realizations']} realizations (seed {s['seed']}"
+        f"{'; ' + s['starts'] if 'starts' in s else ''}): intact "
         f"P_sync = {s['p_sync']:.4f} [{lo:.4f}, {hi:.4f}], tau0 = {tau0:.3f}; {s['lines']} lines. "
         "T: troublemaker (P_sync lost), B: Braess line, slower: tau rises (resolved at false "
         f"discovery rate {doc.get('fdr_level', 0.05):g} over the lines).",

@@ -484,6 +484,13 @@ def _save(fig, path: Path, plt) -> Path:
     return path
 
 
+def _where(summary: dict) -> str:
+    """`` (phases within 1 rad of the operating point)`` for a table of such starts (tables of
+    uniform starts, and those written before the summary said, have nothing added)."""
+    starts = summary.get("starts", "")
+    return f" ({starts})" if starts.startswith("phases within") else ""
+
+
 def removal_figure(source, config, path, *, by: RemovalBy = "speedup", overwrite: bool = False) -> Path:
     """Draw the grid with every removed line coloured by its response.
 
@@ -589,7 +596,7 @@ def removal_figure(source, config, path, *, by: RemovalBy = "speedup", overwrite
     change = "removal" if s["beta"] == 1 else f"weakening by beta = {s['beta']:g}"
     ax.set_title(
         f"{s['name']}: dynamic N-1, each line's {change}\n"
-        f"{s['realizations']} paired starts, intact P_sync = {s['p_sync']:.3f}; {len(rows)} lines",
+        f"{s['realizations']} paired starts{_where(s)}, intact P_sync = {s['p_sync']:.3f}; {len(rows)} lines",
         fontsize=10,
     )
     handles = [
