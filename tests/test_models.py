@@ -316,7 +316,9 @@ def test_rk4_matches_solve_ivp(name, size):
             if status == Status.SYNCED:
                 worst = max(worst, abs(got_tau - tau))
     assert worst < tol, worst
-    assert (sim.status0 != Status.SYNCED).sum() <= 1  # the comparisons are of synchronized times
+    # the comparisons are of synchronized times: fewer than 10% of the starts unsynchronized (the
+    # guard of 12, 40 and 100 realizations), at most one of the 8 of make test
+    assert (sim.status0 != Status.SYNCED).sum() < max(2, 0.1 * count)
 
 
 @pytest.mark.parametrize("name", ["freq-lag-order", "inertia-relative"])
