@@ -81,14 +81,7 @@ def make_uniform(jit):
 
 
 @njit(cache=True)
-def _fill(seed, k0, out):
-    for r in range(out.shape[0]):
-        for i in range(out.shape[1]):
-            out[r, i] = phase(seed, k0 + r, i)
-
-
-@njit(cache=True)
-def _fill_of(seed, ks, out):
+def _fill(seed, ks, out):
     for r in range(out.shape[0]):
         for i in range(out.shape[1]):
             out[r, i] = phase(seed, ks[r], i)
@@ -100,7 +93,7 @@ def phases_of(seed: int, ks: np.ndarray, n_nodes: int) -> np.ndarray:
         raise ValueError("seed must be non-negative")
     ks = np.ascontiguousarray(ks, dtype=np.uint64)
     out = np.empty((ks.size, n_nodes))
-    _fill_of(np.uint64(seed), ks, out)
+    _fill(np.uint64(seed), ks, out)
     return out
 
 
@@ -108,6 +101,4 @@ def initial_phases(seed: int, first: int, count: int, n_nodes: int) -> np.ndarra
     """Phases of realizations ``first .. first + count - 1``, shape ``(count, n_nodes)``."""
     if seed < 0 or first < 0:
         raise ValueError("seed and realization indices must be non-negative")
-    out = np.empty((count, n_nodes))
-    _fill(seed, first, out)
-    return out
+    return phases_of(seed, np.arange(first, first + count, dtype=np.uint64), n_nodes)
