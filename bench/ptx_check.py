@@ -173,6 +173,13 @@ def main(argv=None) -> int:
     sig = (i8[::1], i64[::1], i8[:, ::1], i64[:, ::1], i64[::1], f64, i64[:, :, ::1])
     ops = _ops(cuda.compile_ptx(hist_kernel.py_func, sig, cc=cc)[0])
     print(f"  histogram: ok ({sum(v for k, v in ops.items() if k.startswith('atom'))} atomics)")
+    # the generalized models' kernel: its groups of arrays travel as tuples
+    graph = t.Tuple((i64[::1], i64[::1], f64[::1], f64[:, ::1], t.boolean[::1]))
+    model = t.Tuple((f64[:, ::1], f64[:, ::1], f64, f64, f64[::1], f64[::1], i64, f64[::1]))
+    out = t.Tuple((i8[::1], i64[::1], f64[::1], i8[:, ::1], i64[:, ::1], f64[:, ::1]))
+    sig = (u64, u64[::1], graph, model, f64, t.boolean, i64, out)
+    ops = _ops(cuda.compile_ptx(kc._model_kernel().py_func, sig, cc=cc)[0])
+    print(f"  model kernel: ok ({sum(ops.values())} instructions)")
     for f in failed:
         print("FAILED:", f)
     return 1 if failed else 0

@@ -278,3 +278,63 @@ def test_every_name_imported_from_antisync_exists():
                 if f"{node.module}.{alias.name}" not in modules and alias.name not in defined:
                     missing.append(f"{name}: {node.module} has no {alias.name}")
     assert not missing, "; ".join(missing)
+
+
+#: the most arguments a function takes (arrays that travel together go as one group)
+MAX_ARGUMENTS = 15
+
+
+def _argument_counts():
+    """``(qualified name, arguments counted)`` of every function in the package: a helper's
+    every argument; a public module-level function's positional ones only (its keyword-only
+    options are its documented face, as ``scipy.integrate.solve_ivp``'s are); a command of
+    ``cli/`` not at all (Typer makes each option an argument)."""
+    for name, path in _modules().items():
+        if name.startswith("antisync.cli"):
+            continue
+        tree = ast.parse(path.read_text(encoding="utf-8"))
+        public = {n for n in tree.body if isinstance(n, ast.FunctionDef) and not n.name.startswith("_")}
+        for node in ast.walk(tree):
+            if not isinstance(node, ast.FunctionDef):
+                continue
+            a = node.args
+            count = len(a.posonlyargs) + len(a.args) + (a.vararg is not None)
+            if node not in public:
+                count += len(a.kwonlyargs) + (a.kwarg is not None)
+            yield f"{name}.{node.name}", count
+
+
+def test_no_function_takes_more_than_fifteen_arguments():
+    """The arrays a kernel needs travel as a few named groups (the equations' constants, a
+    batch's outputs), not as long positional lists."""
+    long = [f"{name} ({count})" for name, count in _argument_counts() if count > MAX_ARGUMENTS]
+    assert not long, "more than 15 arguments: " + ", ".join(long)
+
+
+def _is_parallel(func: ast.FunctionDef) -> bool:
+    """``func`` is compiled with ``parallel=True`` (``@njit(parallel=True, ...)``)."""
+    return any(
+        isinstance(d, ast.Call)
+        and any(k.arg == "parallel" and getattr(k.value, "value", None) is True for k in d.keywords)
+        for d in func.decorator_list
+    )
+
+
+def test_no_parallel_kernel_unpacks_a_tuple_of_arrays():
+    """A ``prange`` loop loses its writes to arrays bound by unpacking a tuple (``a, b = out``
+    before the loop: numba 0.68 compiled it, ran it, and left ``a`` and ``b`` untouched; the
+    same arrays bound as ``a = out[0]`` or ``a = out.a`` are written). A parallel kernel binds
+    its groups' fields one by one; this check refuses ``names = variable`` in one."""
+    found = []
+    for name, path in _modules().items():
+        for func in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            if not (isinstance(func, ast.FunctionDef) and _is_parallel(func)):
+                continue
+            for node in ast.walk(func):
+                if (
+                    isinstance(node, ast.Assign)
+                    and isinstance(node.targets[0], ast.Tuple)
+                    and isinstance(node.value, ast.Name | ast.Subscript)
+                ):
+                    found.append(f"{name}.{func.name} line {node.lineno}")
+    assert not found, "tuple unpacked in a parallel kernel: " + ", ".join(found)

@@ -71,17 +71,20 @@ def _one(theta0, w, p, mass, gamma, criterion, target, t_max, h, rtol=1e-6, atol
     indptr, indices, weights = _csr(w)
     plan = implicit.factor_plan(indptr, indices)
     n = w.shape[0]
-    return implicit.rodas4_sync(
-        np.asarray(theta0, dtype=float),
-        np.zeros(n),
+    eq = (
         np.asarray(p, dtype=float),
+        weights,
         indptr,
         indices,
-        weights,
         1.0,
         0.0,
         np.broadcast_to(np.asarray(mass, dtype=float), (n,)).copy(),
         np.broadcast_to(np.asarray(gamma, dtype=float), (n,)).copy(),
+    )
+    return implicit.rodas4_sync(
+        np.asarray(theta0, dtype=float),
+        np.zeros(n),
+        eq,
         criterion,
         target,
         t_max,

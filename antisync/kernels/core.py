@@ -927,16 +927,19 @@ def make_model_kernels(jit, base: Kernels) -> ModelKernels:
     Returns
     -------
     ModelKernels
-        ``rhs(c, s, nu, p, indptr, indices, weights, cl, sl, mass, gamma, second, th, dnu)``
-        fills ``th = theta'`` and, for ``second`` (some ``m_i > 0``), ``dnu = nu'`` (``mass``,
-        ``gamma``: per-node ``m_i``, ``gamma_i``);
+        The equations' constants travel as one tuple, ``eq = (p, weights, indptr, indices, cl,
+        sl, mass, gamma)``: the natural frequencies ``P_i``, ``W`` in CSR form, ``cos alpha``,
+        ``sin alpha`` and the per-node ``m_i``, ``gamma_i`` (the lane kernels'
+        :class:`~antisync.kernels.model_steps.Terms` in the same order, without ``second``).
+        ``rhs(c, s, nu, eq, second, th, dnu)`` fills ``th = theta'`` and, for ``second`` (some
+        ``m_i > 0``), ``dnu = nu'``;
         ``euler_step(c, s, nu, th, dnu, dt, second) -> R`` advances one explicit Euler step
         from the rates in ``th``/``dnu`` (a rotation of ``(c_i, s_i)`` by ``dt theta_i'``);
-        ``rk4_step(c, s, nu, th, dnu, work, p, indptr, indices, weights, cl, sl, mass, gamma,
-        second, dt)`` classical RK4 on ``(c, s, nu)`` (``th``/``dnu`` at the current state on
-        entry), projecting ``(c_i, s_i)`` back to the unit circle after the step;
-        ``sync_steps(c, s, nu, th, dnu, work, p, indptr, indices, weights, cl, sl, mass, gamma,
-        dt, rk4, criterion, target, max_steps) -> (status, steps, frac)``
+        ``rk4_step(c, s, nu, th, dnu, work, eq, second, dt)`` classical RK4 on ``(c, s, nu)``
+        (``th``/``dnu`` at the current state on entry), projecting ``(c_i, s_i)`` back to the
+        unit circle after the step;
+        ``sync_steps(c, s, nu, th, dnu, work, eq, dt, rk4, criterion, target, max_steps) ->
+        (status, steps, frac)``
         integrates until the criterion holds (``target``: ``R`` for :data:`CRIT_ORDER`, the
         tolerance for :data:`CRIT_FREQUENCY`; ``work`` has :data:`WORK_ROWS` rows); ``frac`` in
         ``(0, 1]`` locates the first crossing inside the last step on the dense output.
@@ -945,7 +948,8 @@ def make_model_kernels(jit, base: Kernels) -> ModelKernels:
     renormalize = base.renormalize
     order2 = base.order2
 
-    def rhs(c, s, nu, p, indptr, indices, weights, cl, sl, mass, gamma, second, th, dnu):
+    def rhs(c, s, nu, eq, second, th, dnu):
+        p, weights, indptr, indices, cl, sl, mass, gamma = eq
         n = c.shape[0]
         lagged = sl != 0.0 or cl != 1.0
         for i in range(n):
@@ -990,7 +994,7 @@ def make_model_kernels(jit, base: Kernels) -> ModelKernels:
 
     euler_step = jit(euler_step)
 
-    def rk4_step(c, s, nu, th, dnu, work, p, indptr, indices, weights, cl, sl, mass, gamma, second, dt):
+    def rk4_step(c, s, nu, th, dnu, work, eq, second, dt):
         # work rows: 0-3 dc of the stages, 4-7 ds, 8-11 dnu, 12-14 the stage state (c, s, nu)
         n = c.shape[0]
         for i in range(n):
@@ -1004,22 +1008,7 @@ def make_model_kernels(jit, base: Kernels) -> ModelKernels:
                 work[13, i] = s[i] + h * work[stage + 3, i]
                 work[14, i] = nu[i] + h * work[stage + 7, i]
             # rows cut to n: on CUDA ``work`` is a (WORK_ROWS, MAX_NODES) local array
-            rhs(
-                work[12, :n],
-                work[13, :n],
-                work[14, :n],
-                p,
-                indptr,
-                indices,
-                weights,
-                cl,
-                sl,
-                mass,
-                gamma,
-                second,
-                th,
-                dnu,
-            )
+            rhs(work[12, :n], work[13, :n], work[14, :n], eq, second, th, dnu)
             for i in range(n):
                 work[stage, i] = -work[13, i] * th[i]
                 work[stage + 4, i] = work[12, i] * th[i]
@@ -1066,10 +1055,11 @@ def make_model_kernels(jit, base: Kernels) -> ModelKernels:
 
     measure = jit(measure)
 
-    def deviations(c, s, th, dnu, indptr, indices, weights, cl, sl, mass, gamma, second, work):
+    def deviations(c, s, th, dnu, eq, second, work):
         """Rows ``_DEV.._DEV+3`` of ``work``: ``theta_i' - mean``, its rate, ``g_i - mean``
         (second order) and its rate, from ``d coupling_i / dt = sum_j w_ij cos(theta_j -
         theta_i - alpha) (theta_j' - theta_i')``."""
+        _, weights, indptr, indices, cl, sl, mass, gamma = eq
         n = c.shape[0]
         m0 = 0.0
         m1 = 0.0
@@ -1208,39 +1198,20 @@ def make_model_kernels(jit, base: Kernels) -> ModelKernels:
 
     order_crossing = jit(order_crossing)
 
-    def sync_steps(
-        c,
-        s,
-        nu,
-        th,
-        dnu,
-        work,
-        p,
-        indptr,
-        indices,
-        weights,
-        cl,
-        sl,
-        mass,
-        gamma,
-        dt,
-        rk4,
-        criterion,
-        target,
-        max_steps,
-    ):
+    def sync_steps(c, s, nu, th, dnu, work, eq, dt, rk4, criterion, target, max_steps):
+        mass, gamma = eq[6], eq[7]
         n = c.shape[0]
         second = False
         for i in range(n):
             second |= mass[i] > 0.0
         freq = criterion == CRIT_FREQUENCY
-        rhs(c, s, nu, p, indptr, indices, weights, cl, sl, mass, gamma, second, th, dnu)
+        rhs(c, s, nu, eq, second, th, dnu)
         r2 = order2(c, s)
         dr2, dev = measure(c, s, th, dnu, mass, gamma, second)
         if freq:
             if dev < target:
                 return ALREADY_SYNCED, 0, 0.0
-            deviations(c, s, th, dnu, indptr, indices, weights, cl, sl, mass, gamma, second, work)
+            deviations(c, s, th, dnu, eq, second, work)
         elif r2 >= target:
             return ALREADY_SYNCED, 0, 0.0
         for step in range(1, max_steps + 1):
@@ -1251,17 +1222,15 @@ def make_model_kernels(jit, base: Kernels) -> ModelKernels:
                     for i in range(n):
                         work[_DEV_PREV + k, i] = work[_DEV + k, i]
             if rk4:
-                rk4_step(
-                    c, s, nu, th, dnu, work, p, indptr, indices, weights, cl, sl, mass, gamma, second, dt
-                )
+                rk4_step(c, s, nu, th, dnu, work, eq, second, dt)
                 r2 = order2(c, s)
             else:
                 r2 = euler_step(c, s, nu, th, dnu, dt, second)
                 if step % RENORM_EVERY == 0:
                     renormalize(c, s)
-            rhs(c, s, nu, p, indptr, indices, weights, cl, sl, mass, gamma, second, th, dnu)
+            rhs(c, s, nu, eq, second, th, dnu)
             if freq:
-                deviations(c, s, th, dnu, indptr, indices, weights, cl, sl, mass, gamma, second, work)
+                deviations(c, s, th, dnu, eq, second, work)
                 x = frequency_crossing(work, n, second, dt, rk4, target)
             else:
                 if rk4:

@@ -128,13 +128,13 @@ def _integrate_items(ks, seed, graph, model, dt, rk4, max_steps, out):
     var_is_base = graph.var_is_base
     todo = graph.todo
     freqs = model.freqs
-    starts = model.starts
     cl = model.cos_lag
     sl = model.sin_lag
     inertia = model.mass
     damping = model.gamma
     criterion = model.criterion
     targets = model.targets
+    starts = model.starts
     status0 = out.status0
     steps0 = out.steps0
     frac0 = out.frac0
@@ -161,27 +161,8 @@ def _integrate_items(ks, seed, graph, model, dt, rk4, max_steps, out):
             s[i] = np.sin(theta)
         p = freqs[r] if freqs.shape[0] > 1 else freqs[0]
         w = base_w if v < 0 else var_w[v]
-        st, k, x = _model_sync(
-            c,
-            s,
-            nu,
-            th,
-            dnu,
-            work,
-            p,
-            indptr,
-            indices,
-            w,
-            cl,
-            sl,
-            inertia,
-            damping,
-            dt,
-            rk4,
-            criterion,
-            targets[v + 1],
-            max_steps,
-        )
+        eq = (p, w, indptr, indices, cl, sl, inertia, damping)
+        st, k, x = _model_sync(c, s, nu, th, dnu, work, eq, dt, rk4, criterion, targets[v + 1], max_steps)
         record(status0, steps0, frac0, status, steps, frac, r, v, st, k, x)
     for r in prange(m):
         share_base(var_is_base, r, status0, steps0, frac0, status, steps, frac)

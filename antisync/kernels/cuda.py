@@ -691,32 +691,14 @@ def _model_kernel():
     f64 = numba.float64
 
     @cuda.jit
-    def model_kernel(
-        seed,
-        ks,
-        indptr,
-        indices,
-        base_w,
-        var_w,
-        var_is_base,
-        freqs,
-        starts,
-        cl,
-        sl,
-        inertia,
-        damping,
-        dt,
-        rk4,
-        criterion,
-        targets,
-        max_steps,
-        status0,
-        steps0,
-        frac0,
-        status,
-        steps,
-        frac,
-    ):
+    def model_kernel(seed, ks, graph, model, dt, rk4, max_steps, out):
+        """``graph`` ``(indptr, indices, base_w, var_w, var_is_base)``, ``model`` ``(freqs,
+        starts, cl, sl, inertia, damping, criterion, targets)`` and ``out`` ``(status0, steps0,
+        frac0, status, steps, frac)``: the fields of :class:`~.shared.Graph`,
+        :class:`~.shared.Model` and :class:`~.shared.Outputs`."""
+        indptr, indices, base_w, var_w, var_is_base = graph
+        freqs, starts, cl, sl, inertia, damping, criterion, targets = model
+        status0, steps0, frac0, status, steps, frac = out
         n = indptr.shape[0] - 1
         m = ks.shape[0]
         n_var = var_w.shape[0]
@@ -740,29 +722,9 @@ def _model_kernel():
                 nu[i] = 0.0
                 dnu[i] = 0.0
             row = r if freqs.shape[0] > 1 else 0
-            p = freqs[row]
             w = base_w if v < 0 else var_w[v]
-            st, k, x = sync(
-                c,
-                s,
-                nu,
-                th,
-                dnu,
-                work,
-                p,
-                indptr,
-                indices,
-                w,
-                cl,
-                sl,
-                inertia,
-                damping,
-                dt,
-                rk4,
-                criterion,
-                targets[v + 1],
-                max_steps,
-            )
+            eq = (freqs[row], w, indptr, indices, cl, sl, inertia, damping)
+            st, k, x = sync(c, s, nu, th, dnu, work, eq, dt, rk4, criterion, targets[v + 1], max_steps)
             if v < 0:
                 status0[r] = st
                 steps0[r] = k
@@ -830,26 +792,32 @@ def simulate_model(
         threads = threads_per_block()
         blocks = min(_MAX_GRID, -(-items // threads))
         with _quiet_simulator():
-            _model_kernel()[blocks, threads](
-                np.uint64(seed),
-                cuda.to_device(ks),
+            graph = (
                 cuda.to_device(np.ascontiguousarray(indptr, dtype=np.int64)),
                 cuda.to_device(np.ascontiguousarray(indices, dtype=np.int64)),
                 cuda.to_device(base),
                 cuda.to_device(var_w if n_var else np.zeros((0, base.size))),
                 cuda.to_device(var_is_base if n_var else np.zeros(0, np.bool_)),
+            )
+            model = (
                 cuda.to_device(freqs),
                 cuda.to_device(starts),
                 float(params.cos_lag),
                 float(params.sin_lag),
                 cuda.to_device(per_node(params.inertia, n)),
                 cuda.to_device(per_node(params.damping, n)),
-                float(dt),
-                integrator == "rk4",
                 int(params.criterion),
                 cuda.to_device(targets),
+            )
+            _model_kernel()[blocks, threads](
+                np.uint64(seed),
+                cuda.to_device(ks),
+                graph,
+                model,
+                float(dt),
+                integrator == "rk4",
                 np.int64(max_steps),
-                *dev.values(),
+                tuple(dev.values()),
             )
         out = {k: v.copy_to_host() for k, v in dev.items()}
     for v in np.flatnonzero(var_is_base):

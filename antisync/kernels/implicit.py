@@ -358,13 +358,14 @@ def _near_step(work, n, second, target):
 
 
 @njit(cache=True, inline="always")
-def _eval(th_state, nu_state, c, s, p, indptr, indices, w, cl, sl, mass, gamma, second, f_th, f_nu):
-    """``(f_th, f_nu)`` = the model's rates at ``(theta, nu)`` (``c``, ``s`` filled on the way)."""
+def _eval(th_state, nu_state, c, s, eq, second, f_th, f_nu):
+    """``(f_th, f_nu)`` = the model's rates at ``(theta, nu)`` (``c``, ``s`` filled on the way;
+    ``eq`` the equations' constants of :func:`~antisync.kernels.core.make_model_kernels`)."""
     n = th_state.shape[0]
     for i in range(n):
         c[i] = math.cos(th_state[i])
         s[i] = math.sin(th_state[i])
-    _rhs(c, s, nu_state, p, indptr, indices, w, cl, sl, mass, gamma, second, f_th, f_nu)
+    _rhs(c, s, nu_state, eq, second, f_th, f_nu)
 
 
 @njit(cache=True, inline="always")
@@ -420,11 +421,12 @@ def _scratch(n, plan):
 def _attempt(y_th, y_nu, cy, sy, f0_th, f0_nu, h, net, plan, scratch, scale, rtol, atol):
     """One attempted Rodas4 step of size ``h`` from ``(y_th, y_nu)`` (``cy``, ``sy``: the cosines
     and sines of ``y_th``; ``f0_th``, ``f0_nu``: the rates there) on the model ``net`` (``p,
-    indptr, indices, w, cl, sl, mass, gamma, gamma_eff, second``), the LU on ``plan``. Leaves the
+    w, indptr, indices, cl, sl, mass, gamma, gamma_eff, second``), the LU on ``plan``. Leaves the
     stages in ``scratch`` (``u_th, u_nu, d_th, z_nu, ...``: the new state is ``y_th + d_th +
     u_th[5]``, ``z_nu + u_nu[5]``) and returns the weighted RMS error estimate, or -1 where a
     pivot is not resolved."""
-    p, indptr, indices, w, cl, sl, mass, gamma, gamma_eff, second = net
+    eq = net[:8]
+    p, w, indptr, indices, cl, sl, mass, gamma, gamma_eff, second = net
     fp_perm, fp_inv, fp_ptr, fp_col, fp_diag, fp_entry = plan[:6]
     div_ptr, div_pos, upd_ptr, upd_ij, upd_ik, upd_kj = plan[6:]
     u_th, u_nu, d_th, z_nu, f_th, f_nu, r_th, b, x, xp, c, s, dd, val = scratch
@@ -462,7 +464,7 @@ def _attempt(y_th, y_nu, cy, sy, f0_th, f0_nu, h, net, plan, scratch, scale, rto
                 ca, sa = _rotation(d_th[i])
                 c[i] = cy[i] * ca - sy[i] * sa
                 s[i] = sy[i] * ca + cy[i] * sa
-            _rhs(c, s, z_nu, p, indptr, indices, w, cl, sl, mass, gamma, second, f_th, f_nu)
+            _rhs(c, s, z_nu, eq, second, f_th, f_nu)
         for i in range(n):
             rt = f_th[i]
             rn = f_nu[i]
@@ -494,31 +496,15 @@ def _attempt(y_th, y_nu, cy, sy, f0_th, f0_nu, h, net, plan, scratch, scale, rto
 
 
 @njit(cache=True)
-def rodas4_sync(
-    th0,
-    nu0,
-    p,
-    indptr,
-    indices,
-    w,
-    cl,
-    sl,
-    mass,
-    gamma,
-    criterion,
-    target,
-    t_max,
-    h0,
-    rtol,
-    atol,
-    plan,
-    fixed=False,
-):
-    """One trajectory from ``(th0, nu0)`` until the criterion holds or ``t_max``, the LU on
-    ``plan`` (a :class:`FactorPlan`): ``(status, tau, accepted, rejected, failed)``
+def rodas4_sync(th0, nu0, eq, criterion, target, t_max, h0, rtol, atol, plan, fixed=False):
+    """One trajectory from ``(th0, nu0)`` of the model ``eq`` (the equations' constants ``(p,
+    w, indptr, indices, cl, sl, mass, gamma)`` of
+    :func:`~antisync.kernels.core.make_model_kernels`) until the criterion holds or ``t_max``,
+    the LU on ``plan`` (a :class:`FactorPlan`): ``(status, tau, accepted, rejected, failed)``
     (``failed``: the step size fell below ``1e-13 t_max`` or kept being rejected, ``tau`` the
     time reached). ``fixed``: every step ``h0``, accepted whatever its error estimate, the
     crossing on the step's cubic interpolant (the order tests)."""
+    p, w, indptr, indices, cl, sl, mass, gamma = eq
     fp_perm, fp_inv, fp_ptr, fp_col, fp_diag, fp_entry = plan[:6]
     div_ptr, div_pos, upd_ptr, upd_ij, upd_ik, upd_kj = plan[6:]
     n = th0.shape[0]
@@ -554,13 +540,13 @@ def rodas4_sync(
     val = np.empty(fp_col.shape[0])
     work = np.empty((WORK_ROWS, n))
 
-    _eval(y_th, y_nu, cy, sy, p, indptr, indices, w, cl, sl, mass, gamma, second, f0_th, f0_nu)
+    _eval(y_th, y_nu, cy, sy, eq, second, f0_th, f0_nu)
     dr2, dev = _measure(cy, sy, f0_th, f0_nu, mass, gamma, second)
     r2 = _order2(cy, sy)
     if freq:
         if dev < target:
             return ALREADY_SYNCED, 0.0, 0, 0, False
-        _deviations(cy, sy, f0_th, f0_nu, indptr, indices, w, cl, sl, mass, gamma, second, work)
+        _deviations(cy, sy, f0_th, f0_nu, eq, second, work)
     elif r2 >= target:
         return ALREADY_SYNCED, 0.0, 0, 0, False
     scale = _row_scale(indptr, w)
@@ -617,7 +603,7 @@ def rodas4_sync(
                     ca, sa = _rotation(d_th[i])
                     c[i] = cy[i] * ca - sy[i] * sa
                     s[i] = sy[i] * ca + cy[i] * sa
-                _rhs(c, s, z_nu, p, indptr, indices, w, cl, sl, mass, gamma, second, f_th, f_nu)
+                _rhs(c, s, z_nu, eq, second, f_th, f_nu)
             for i in range(n):
                 rt = f_th[i]
                 rn = f_nu[i]
@@ -674,9 +660,9 @@ def rodas4_sync(
             for k in range(4):
                 for i in range(n):
                     work[DEV_PREV_ROW + k, i] = work[DEV_ROW + k, i]
-        _eval(y_th, y_nu, cy, sy, p, indptr, indices, w, cl, sl, mass, gamma, second, f0_th, f0_nu)
+        _eval(y_th, y_nu, cy, sy, eq, second, f0_th, f0_nu)
         if freq:
-            _deviations(cy, sy, f0_th, f0_nu, indptr, indices, w, cl, sl, mass, gamma, second, work)
+            _deviations(cy, sy, f0_th, f0_nu, eq, second, work)
             xc = _frequency_crossing(work, n, second, t - t_prev, True, target)
         else:
             r2 = _order2(cy, sy)
@@ -796,8 +782,8 @@ def rodas4_trip(th0, grid, w_fault, w_post, t_clear, t_max, h0, tols, plan, line
     work = np.empty((WORK_ROWS, n))
     fault = t_clear > 0.0
     w = w_fault if fault else w_post
-    net = (p, indptr, indices, w, 1.0, 0.0, mass, gamma, gamma_eff, second)
-    _eval(y_th, y_nu, cy, sy, p, indptr, indices, w, 1.0, 0.0, mass, gamma, second, f0_th, f0_nu)
+    net = (p, w, indptr, indices, 1.0, 0.0, mass, gamma, gamma_eff, second)
+    _eval(y_th, y_nu, cy, sy, net[:8], second, f0_th, f0_nu)
     settle = (
         0.0
         if _speed_rates(cy, sy, f0_th, f0_nu, indptr, indices, w, mass, gamma, acc, work) < tol
@@ -842,7 +828,7 @@ def rodas4_trip(th0, grid, w_fault, w_post, t_clear, t_max, h0, tols, plan, line
         for k in range(2):
             for i in range(n):
                 work[DEV_PREV_ROW + k, i] = work[DEV_ROW + k, i]
-        _eval(y_th, y_nu, cy, sy, p, indptr, indices, w, 1.0, 0.0, mass, gamma, second, f0_th, f0_nu)
+        _eval(y_th, y_nu, cy, sy, net[:8], second, f0_th, f0_nu)
         largest = _speed_rates(cy, sy, f0_th, f0_nu, indptr, indices, w, mass, gamma, acc, work)
         # the first swing on the step's interpolants
         for i in range(n):
@@ -883,9 +869,9 @@ def rodas4_trip(th0, grid, w_fault, w_post, t_clear, t_max, h0, tols, plan, line
         if last and t < t_max:
             # the fault clears: the grid without the line from this state on
             w = w_post
-            net = (p, indptr, indices, w, 1.0, 0.0, mass, gamma, gamma_eff, second)
+            net = (p, w, indptr, indices, 1.0, 0.0, mass, gamma, gamma_eff, second)
             end = t_max
-            _eval(y_th, y_nu, cy, sy, p, indptr, indices, w, 1.0, 0.0, mass, gamma, second, f0_th, f0_nu)
+            _eval(y_th, y_nu, cy, sy, net[:8], second, f0_th, f0_nu)
             if _speed_rates(cy, sy, f0_th, f0_nu, indptr, indices, w, mass, gamma, acc, work) >= tol:
                 settle = np.nan
             elif settle != settle:
@@ -900,11 +886,18 @@ def rodas4_trip(th0, grid, w_fault, w_post, t_clear, t_max, h0, tols, plan, line
 
 
 @njit(parallel=True, cache=True)
-def _integrate_items(
-    ks, seed, graph, model, fp, dt, t_max, rtol, atol, max_steps, out, acc0, rej0, acc, rej, failed
-):
+def _integrate_items(ks, seed, graph, model, fp, dt, t_max, rtol, atol, max_steps, out, counts):
     """Every (realization, network) item one trajectory per thread iteration (the layout of
-    :func:`antisync.kernels.cpu._integrate_items`), each with its own step sizes."""
+    :func:`antisync.kernels.cpu._integrate_items`), each with its own step sizes; ``counts``
+    ``(acc0, rej0, acc, rej, failed)`` gets each item's accepted and rejected steps and whether
+    the step size failed."""
+    # fields as locals before the prange, by index: a parallel loop loses its writes to arrays
+    # bound by unpacking a tuple (tests/test_architecture.py)
+    acc0 = counts[0]
+    rej0 = counts[1]
+    acc = counts[2]
+    rej = counts[3]
+    failed = counts[4]
     indptr = graph.indptr
     indices = graph.indices
     base_w = graph.base_w
@@ -912,13 +905,13 @@ def _integrate_items(
     var_is_base = graph.var_is_base
     todo = graph.todo
     freqs = model.freqs
-    starts = model.starts
     cl = model.cos_lag
     sl = model.sin_lag
     inertia = model.mass
     damping = model.gamma
     criterion = model.criterion
     targets = model.targets
+    starts = model.starts
     status0 = out.status0
     steps0 = out.steps0
     frac0 = out.frac0
@@ -939,24 +932,9 @@ def _integrate_items(
             th[i] = start_phase(starts, seed, ks[r], r, i)
         p = freqs[r] if freqs.shape[0] > 1 else freqs[0]
         w = base_w if v < 0 else var_w[v]
+        eq = (p, w, indptr, indices, cl, sl, inertia, damping)
         st, tau, n_acc, n_rej, bad = rodas4_sync(
-            th,
-            nu,
-            p,
-            indptr,
-            indices,
-            w,
-            cl,
-            sl,
-            inertia,
-            damping,
-            criterion,
-            targets[v + 1],
-            t_max,
-            dt,
-            rtol,
-            atol,
-            fp,
+            th, nu, eq, criterion, targets[v + 1], t_max, dt, rtol, atol, fp
         )
         k, x = _on_the_grid(st, tau, dt, max_steps)
         record(status0, steps0, frac0, status, steps, frac, r, v, st, k, x)
@@ -1050,11 +1028,7 @@ def simulate_model(
             float(atol),
             int(max_steps),
             out,
-            acc0,
-            rej0,
-            acc,
-            rej,
-            failed,
+            (acc0, rej0, acc, rej, failed),
         )
     if failed.any():
         r, v = np.argwhere(failed)[0]

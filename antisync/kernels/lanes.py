@@ -318,30 +318,15 @@ def _model_load(q, qr, qv, t, queue, graph, model, second, lanes, extra, out):
             lw[e, q] = graph.base_w[e] if v < 0 else graph.var_w[v, e]
         target = model.targets[v + 1]
         cq, sq, thq, dnuq = c[:, q], s[:, q], th[:, q], dnu[:, q]
-        _model_rhs(
-            cq, sq, nu[:, q], p[:, q], indptr, indices, lw[:, q], cl, sl, mass, gamma, second, thq, dnuq
-        )
+        eq = (p[:, q], lw[:, q], indptr, indices, cl, sl, mass, gamma)
+        _model_rhs(cq, sq, nu[:, q], eq, second, thq, dnuq)
         r2[q] = order2(cq, sq)
         d, dev = _model_measure(cq, sq, thq, dnuq, mass, gamma, second)
         lanes.dr2[q] = d
         if freq:
             met = dev < target
             if not met:
-                _model_deviations(
-                    cq,
-                    sq,
-                    thq,
-                    dnuq,
-                    indptr,
-                    indices,
-                    lw[:, q],
-                    cl,
-                    sl,
-                    mass,
-                    gamma,
-                    second,
-                    extra.work[:, :, q],
-                )
+                _model_deviations(cq, sq, thq, dnuq, eq, second, extra.work[:, :, q])
         else:
             met = r2[q] >= target
         if met:
@@ -446,13 +431,13 @@ def make_lane_driver(features: LaneFeatures):
             wide = fused or rk4
         else:
             freqs = model.freqs
-            starts = model.starts
             cl = model.cos_lag
             sl = model.sin_lag
             mass = model.mass
             gamma = model.gamma
-            targets = model.targets
             criterion = model.criterion
+            targets = model.targets
+            starts = model.starts
             freq = criterion == CRIT_FREQUENCY
             second = False
             for i in range(n):

@@ -121,10 +121,11 @@ def _rate_cotangents(b_th, b_dnu, mass, gamma, second):
 
 
 @njit(inline="always")
-def _rates_vjp(c, s, b_th, b_dnu, indptr, indices, w, cl, sl, mass, gamma, second, bc, bs, bnu, g, b_k):
+def _rates_vjp(c, s, b_th, b_dnu, eq, second, bc, bs, bnu, g, b_k):
     """Add the cotangents of ``(c, s, nu, w)`` from those of the rates ``theta'`` (``b_th``)
     and ``nu'`` (``b_dnu``) of :func:`~antisync.kernels.core.make_model_kernels`' ``rhs``;
     ``b_k`` is scratch."""
+    _, w, indptr, indices, cl, sl, mass, gamma = eq
     n = c.shape[0]
     for i in range(n):
         b_k[i], b_nu = _rate_cotangents(b_th[i], b_dnu[i], mass[i], gamma[i], second)
@@ -158,7 +159,7 @@ def _kdot_vjp(c, s, th, b_kd, indptr, indices, w, cl, sl, bc, bs, b_th, g):
 
 
 @njit(inline="always")
-def _rk4_record(y, st, sth, k, th, dnu, p, indptr, indices, w, cl, sl, mass, gamma, second, dt):
+def _rk4_record(y, st, sth, k, th, dnu, eq, second, dt):
     """One step of :func:`~antisync.kernels.core.make_model_kernels`' ``rk4_step`` from ``y``
     (rows c, s, nu; ``th``/``dnu`` its rates on entry), with the same operations in the same
     order (so bit for bit the same next state), keeping what the step's adjoint needs: the stage
@@ -179,22 +180,7 @@ def _rk4_record(y, st, sth, k, th, dnu, p, indptr, indices, w, cl, sl, mass, gam
             st[stage, 0, i] = y[0, i] + h * k[0, stage - 1, i]
             st[stage, 1, i] = y[1, i] + h * k[1, stage - 1, i]
             st[stage, 2, i] = y[2, i] + h * k[2, stage - 1, i]
-        _rhs(
-            st[stage, 0],
-            st[stage, 1],
-            st[stage, 2],
-            p,
-            indptr,
-            indices,
-            w,
-            cl,
-            sl,
-            mass,
-            gamma,
-            second,
-            th,
-            dnu,
-        )
+        _rhs(st[stage, 0], st[stage, 1], st[stage, 2], eq, second, th, dnu)
         for i in range(n):
             sth[stage, i] = th[i]
             k[0, stage, i] = -st[stage, 1, i] * th[i]
@@ -208,14 +194,15 @@ def _rk4_record(y, st, sth, k, th, dnu, p, indptr, indices, w, cl, sl, mass, gam
         y[1, i] = sn * inv
         if second:
             y[2, i] += dt / 6.0 * (k[2, 0, i] + 2.0 * k[2, 1, i] + 2.0 * k[2, 2, i] + k[2, 3, i])
-    _rhs(y[0], y[1], y[2], p, indptr, indices, w, cl, sl, mass, gamma, second, th, dnu)
+    _rhs(y[0], y[1], y[2], eq, second, th, dnu)
 
 
 @njit(cache=True)
-def _rk4_vjp(st, sth, lam, out, ak, by, b_k, indptr, indices, w, cl, sl, mass, gamma, second, dt, g):
+def _rk4_vjp(st, sth, lam, out, ak, by, b_k, eq, second, dt, g):
     """``out = (d step / d y)^T lam`` and ``g += (d step / d w)^T lam`` for the RK4 step whose
     stage states ``st`` (4, 3, n) and phase rates ``sth`` (4, n) :func:`_rk4_record` kept:
     no right-hand side is evaluated again. ``ak`` (4, 3, n), ``by`` (3, n), ``b_k`` (n): scratch."""
+    _, w, indptr, indices, cl, sl, mass, gamma = eq
     n = sth.shape[1]
     # the projection of (c, s) after the step: c' = z_c / rho, s' = z_s / rho, with
     # z = y + dt/6 (K1 + 2 K2 + 2 K3 + K4) and K = (-s theta', c theta') at each stage
@@ -275,7 +262,7 @@ def _rk4_vjp(st, sth, lam, out, ak, by, b_k, indptr, indices, w, cl, sl, mass, g
 
 
 @njit(cache=True)
-def _euler_vjp(y, th, lam, out, b_th, b_dnu, b_k, indptr, indices, w, cl, sl, mass, gamma, second, dt, g):
+def _euler_vjp(y, th, lam, out, b_th, b_dnu, b_k, eq, second, dt, g):
     """``out = (d step / d y)^T lam`` (and ``g``) for the Euler step from ``y`` with phase
     rates ``th`` (kept by the replay): a rotation of ``(c_i, s_i)`` by ``a_i = dt theta_i'`` and
     ``nu += dt nu'`` (renormalization: a projection that moves the state by rounding only, taken
@@ -290,34 +277,14 @@ def _euler_vjp(y, th, lam, out, b_th, b_dnu, b_k, indptr, indices, w, cl, sl, ma
         out[2, i] = lam[2, i] if second else 0.0
         b_th[i] = dt * (-sn * lam[0, i] + cn * lam[1, i])
         b_dnu[i] = dt * lam[2, i] if second else 0.0
-    _rates_vjp(
-        y[0],
-        y[1],
-        b_th,
-        b_dnu,
-        indptr,
-        indices,
-        w,
-        cl,
-        sl,
-        mass,
-        gamma,
-        second,
-        out[0],
-        out[1],
-        out[2],
-        g,
-        b_k,
-    )
+    _rates_vjp(y[0], y[1], b_th, b_dnu, eq, second, out[0], out[1], out[2], g, b_k)
 
 
 # ---- seeds: the crossing's dependence on the states at both ends of the last step ---------
 
 
 @njit(cache=True)
-def _order_seed(
-    y, coef_r, coef_d, th, b_th, b_dnu, b_k, indptr, indices, w, cl, sl, mass, gamma, second, lam, g
-):
+def _order_seed(y, coef_r, coef_d, th, b_th, b_dnu, b_k, eq, second, lam, g):
     """``lam += coef_r dR/dy + coef_d d(dR/dt)/dy`` (and ``g``) at ``y`` with rates ``th``."""
     n = th.shape[0]
     tc = 0.0
@@ -335,53 +302,14 @@ def _order_seed(
         b_th[i] = coef_d * 2.0 * (-tc * y[1, i] + ts * y[0, i])
         b_dnu[i] = 0.0
     if coef_d != 0.0:
-        _rates_vjp(
-            y[0],
-            y[1],
-            b_th,
-            b_dnu,
-            indptr,
-            indices,
-            w,
-            cl,
-            sl,
-            mass,
-            gamma,
-            second,
-            lam[0],
-            lam[1],
-            lam[2],
-            g,
-            b_k,
-        )
+        _rates_vjp(y[0], y[1], b_th, b_dnu, eq, second, lam[0], lam[1], lam[2], g, b_k)
 
 
 @njit(cache=True)
-def _deviation_seed(
-    y,
-    node,
-    row,
-    coef_v,
-    coef_r,
-    th,
-    dnu,
-    b_th,
-    b_dnu,
-    b_k,
-    b_kd,
-    indptr,
-    indices,
-    w,
-    cl,
-    sl,
-    mass,
-    gamma,
-    second,
-    lam,
-    g,
-):
+def _deviation_seed(y, node, row, coef_v, coef_r, th, dnu, b_th, b_dnu, b_k, b_kd, eq, second, lam, g):
     """``lam += coef_v d(dev)/dy + coef_r d(rate of dev)/dy`` (and ``g``) for deviation ``row``
     (0: ``theta'_i - mean``, 1: ``g_i - mean``, ``g = (P + K) / gamma``) of node ``node``."""
+    _, w, indptr, indices, cl, sl, mass, gamma = eq
     n = th.shape[0]
     for i in range(n):
         sigma = (1.0 if i == node else 0.0) - 1.0 / n
@@ -402,25 +330,7 @@ def _deviation_seed(
         _coupling_vjp(y[0], y[1], b_k, indptr, indices, w, cl, sl, lam[0], lam[1], g)
     # d K/dt depends on theta' as well: its cotangent joins b_th before the rates' VJP
     _kdot_vjp(y[0], y[1], th, b_kd, indptr, indices, w, cl, sl, lam[0], lam[1], b_th, g)
-    _rates_vjp(
-        y[0],
-        y[1],
-        b_th,
-        b_dnu,
-        indptr,
-        indices,
-        w,
-        cl,
-        sl,
-        mass,
-        gamma,
-        second,
-        lam[0],
-        lam[1],
-        lam[2],
-        g,
-        b_k,
-    )
+    _rates_vjp(y[0], y[1], b_th, b_dnu, eq, second, lam[0], lam[1], lam[2], g, b_k)
 
 
 @njit(inline="always")
@@ -450,40 +360,20 @@ def _seed_coefficients(f, x, dt, rk4):
 
 
 @njit(cache=True)
-def _advance(y, th, dnu, work, p, indptr, indices, w, cl, sl, mass, gamma, second, dt, rk4, step):
+def _advance(y, th, dnu, work, eq, second, dt, rk4, step):
     """One step of :func:`~antisync.kernels.core.make_model_kernels`' ``sync_steps`` (the same
     operations: the states are bit for bit the driver's); ``th``/``dnu`` current on entry and exit."""
     if rk4:
-        _rk4_step(y[0], y[1], y[2], th, dnu, work, p, indptr, indices, w, cl, sl, mass, gamma, second, dt)
+        _rk4_step(y[0], y[1], y[2], th, dnu, work, eq, second, dt)
     else:
         _euler_step(y[0], y[1], y[2], th, dnu, dt, second)
         if step % RENORM_EVERY == 0:
             _renormalize(y[0], y[1])
-    _rhs(y[0], y[1], y[2], p, indptr, indices, w, cl, sl, mass, gamma, second, th, dnu)
+    _rhs(y[0], y[1], y[2], eq, second, th, dnu)
 
 
 @njit(cache=True)
-def _forward(
-    y,
-    th,
-    dnu,
-    work,
-    p,
-    indptr,
-    indices,
-    w,
-    cl,
-    sl,
-    mass,
-    gamma,
-    second,
-    dt,
-    rk4,
-    criterion,
-    target,
-    max_steps,
-    every,
-):
+def _forward(y, th, dnu, work, eq, second, dt, rk4, criterion, target, max_steps, every):
     """``(status, steps, x, ck)``: :func:`~antisync.kernels.core.make_model_kernels`'
     ``sync_steps`` from ``y`` (bit for bit), with ``ck[c]`` the state after ``c every`` steps
     for every ``c every < steps`` (``y`` ends at the last state reached).
@@ -509,27 +399,7 @@ def _forward(
                 ck = grown
             ck[c] = y
         piece = min(length, max_steps - done)
-        st, k, x = _sync(
-            y[0],
-            y[1],
-            y[2],
-            th,
-            dnu,
-            work,
-            p,
-            indptr,
-            indices,
-            w,
-            cl,
-            sl,
-            mass,
-            gamma,
-            dt,
-            rk4,
-            criterion,
-            target,
-            piece,
-        )
+        st, k, x = _sync(y[0], y[1], y[2], th, dnu, work, eq, dt, rk4, criterion, target, piece)
         # SYNCED, ALREADY_SYNCED (at done = 0 only), or NOT_SYNCED at the step cap
         if st != NOT_SYNCED or done + piece >= max_steps:
             break
@@ -539,21 +409,22 @@ def _forward(
         return st, k, x, ck
     ck = np.empty(((k - 1) // every + 1, 3, n))
     y[:] = y0
-    _rhs(y[0], y[1], y[2], p, indptr, indices, w, cl, sl, mass, gamma, second, th, dnu)
+    _rhs(y[0], y[1], y[2], eq, second, th, dnu)
     for step in range(k):
         if step % every == 0:
             ck[step // every] = y
         if step < k - 1:
-            _advance(y, th, dnu, work, p, indptr, indices, w, cl, sl, mass, gamma, second, dt, rk4, step + 1)
+            _advance(y, th, dnu, work, eq, second, dt, rk4, step + 1)
     return st, k, x, ck
 
 
 @njit(cache=True)
-def _model_adjoint(
-    y0, p, indptr, indices, w, cl, sl, mass, gamma, dt, rk4, criterion, target, max_steps, every, g
-):
+def _model_adjoint(y0, eq, dt, rk4, criterion, target, max_steps, every, g):
     """``(status, steps, x, coef_target)`` of one trajectory from ``y0`` and, when it synchronizes,
-    ``g[p] = d tau0 / d w_p``; ``coef_target = d tau0 / d target`` (for the relative criterion)."""
+    ``g[p] = d tau0 / d w_p``; ``coef_target = d tau0 / d target`` (for the relative criterion).
+    ``eq``: the equations' constants ``(p, w, indptr, indices, cl, sl, mass, gamma)`` of
+    :func:`~antisync.kernels.core.make_model_kernels`."""
+    mass, gamma = eq[6], eq[7]
     n = y0.shape[1]
     second = False
     for i in range(n):
@@ -563,27 +434,7 @@ def _model_adjoint(
     th = np.empty(n)
     dnu = np.zeros(n)
     work = np.empty((WORK_ROWS, n))
-    st, k, x, ck = _forward(
-        y,
-        th,
-        dnu,
-        work,
-        p,
-        indptr,
-        indices,
-        w,
-        cl,
-        sl,
-        mass,
-        gamma,
-        second,
-        dt,
-        rk4,
-        criterion,
-        target,
-        max_steps,
-        every,
-    )
+    st, k, x, ck = _forward(y, th, dnu, work, eq, second, dt, rk4, criterion, target, max_steps, every)
     for q in range(g.shape[0]):
         g[q] = 0.0
     if st != SYNCED:
@@ -591,15 +442,15 @@ def _model_adjoint(
     n_ck = (k - 1) // every + 1
     # y: state k - 1 (from its checkpoint); y1: state k
     y[:] = ck[n_ck - 1]
-    _rhs(y[0], y[1], y[2], p, indptr, indices, w, cl, sl, mass, gamma, second, th, dnu)
+    _rhs(y[0], y[1], y[2], eq, second, th, dnu)
     for step in range((n_ck - 1) * every, k - 1):
-        _advance(y, th, dnu, work, p, indptr, indices, w, cl, sl, mass, gamma, second, dt, rk4, step + 1)
+        _advance(y, th, dnu, work, eq, second, dt, rk4, step + 1)
     y1 = y.copy()
     th1 = np.empty(n)
     dnu1 = np.zeros(n)
     th1[:] = th
     dnu1[:] = dnu
-    _advance(y1, th1, dnu1, work, p, indptr, indices, w, cl, sl, mass, gamma, second, dt, rk4, k)
+    _advance(y1, th1, dnu1, work, eq, second, dt, rk4, k)
     lam = np.zeros((3, n))  # the cotangent of state k
     lam0 = np.zeros((3, n))  # the seed at state k - 1
     b_th = np.empty(n)
@@ -631,18 +482,14 @@ def _model_adjoint(
         else:
             f = dt / (r1 - r0)
         c0, d0c, c1, d1c = _seed_coefficients(f, x, dt, rk4)
-        _order_seed(
-            y, c0, d0c, th, b_th, b_dnu, b_k, indptr, indices, w, cl, sl, mass, gamma, second, lam0, g
-        )
-        _order_seed(
-            y1, c1, d1c, th1, b_th, b_dnu, b_k, indptr, indices, w, cl, sl, mass, gamma, second, lam, g
-        )
+        _order_seed(y, c0, d0c, th, b_th, b_dnu, b_k, eq, second, lam0, g)
+        _order_seed(y1, c1, d1c, th1, b_th, b_dnu, b_k, eq, second, lam, g)
         coef_target = f
     else:
         # the active deviation at x: the one nearest the band's edge
         w0 = np.empty((WORK_ROWS, n))
-        _deviations(y[0], y[1], th, dnu, indptr, indices, w, cl, sl, mass, gamma, second, w0)
-        _deviations(y1[0], y1[1], th1, dnu1, indptr, indices, w, cl, sl, mass, gamma, second, work)
+        _deviations(y[0], y[1], th, dnu, eq, second, w0)
+        _deviations(y1[0], y1[1], th1, dnu1, eq, second, work)
         h00, h10, h01, h11 = _hermite_basis(x)
         s00, s10, s01, s11 = _hermite_slope(x)
         best = -1.0
@@ -668,52 +515,8 @@ def _model_adjoint(
                     row = rr
                     slope = sl_
         c0, d0c, c1, d1c = _seed_coefficients(dt / slope, x, dt, rk4)
-        _deviation_seed(
-            y,
-            node,
-            row,
-            c0,
-            d0c,
-            th,
-            dnu,
-            b_th,
-            b_dnu,
-            b_k,
-            b_kd,
-            indptr,
-            indices,
-            w,
-            cl,
-            sl,
-            mass,
-            gamma,
-            second,
-            lam0,
-            g,
-        )
-        _deviation_seed(
-            y1,
-            node,
-            row,
-            c1,
-            d1c,
-            th1,
-            dnu1,
-            b_th,
-            b_dnu,
-            b_k,
-            b_kd,
-            indptr,
-            indices,
-            w,
-            cl,
-            sl,
-            mass,
-            gamma,
-            second,
-            lam,
-            g,
-        )
+        _deviation_seed(y, node, row, c0, d0c, th, dnu, b_th, b_dnu, b_k, b_kd, eq, second, lam0, g)
+        _deviation_seed(y1, node, row, c1, d1c, th1, dnu1, b_th, b_dnu, b_k, b_kd, eq, second, lam, g)
     # backwards over the steps k .. 1, segment by segment from the checkpoints: each segment is
     # replayed forward keeping what its steps' adjoints need (RK4: the stage states and rates,
     # Euler: the states and rates), then walked backwards
@@ -730,76 +533,21 @@ def _model_adjoint(
         lo = c_idx * every
         hi = min(k, lo + every)  # steps lo+1 .. hi start from states lo .. hi-1
         y[:] = ck[c_idx]
-        _rhs(y[0], y[1], y[2], p, indptr, indices, w, cl, sl, mass, gamma, second, th, dnu)
+        _rhs(y[0], y[1], y[2], eq, second, th, dnu)
         for j in range(lo, hi):
             if rk4:
-                _rk4_record(
-                    y,
-                    rec_st[j - lo],
-                    rec_th[j - lo],
-                    kst,
-                    th,
-                    dnu,
-                    p,
-                    indptr,
-                    indices,
-                    w,
-                    cl,
-                    sl,
-                    mass,
-                    gamma,
-                    second,
-                    dt,
-                )
+                _rk4_record(y, rec_st[j - lo], rec_th[j - lo], kst, th, dnu, eq, second, dt)
             else:
                 seg[j - lo] = y
                 seg_th[j - lo] = th
                 if j < hi - 1:
-                    _advance(
-                        y, th, dnu, work, p, indptr, indices, w, cl, sl, mass, gamma, second, dt, rk4, j + 1
-                    )
+                    _advance(y, th, dnu, work, eq, second, dt, rk4, j + 1)
         for j in range(hi - 1, lo - 1, -1):
             # the step j -> j + 1
             if rk4:
-                _rk4_vjp(
-                    rec_st[j - lo],
-                    rec_th[j - lo],
-                    lam,
-                    out,
-                    ak,
-                    by,
-                    b_k,
-                    indptr,
-                    indices,
-                    w,
-                    cl,
-                    sl,
-                    mass,
-                    gamma,
-                    second,
-                    dt,
-                    g,
-                )
+                _rk4_vjp(rec_st[j - lo], rec_th[j - lo], lam, out, ak, by, b_k, eq, second, dt, g)
             else:
-                _euler_vjp(
-                    seg[j - lo],
-                    seg_th[j - lo],
-                    lam,
-                    out,
-                    b_th,
-                    b_dnu,
-                    b_k,
-                    indptr,
-                    indices,
-                    w,
-                    cl,
-                    sl,
-                    mass,
-                    gamma,
-                    second,
-                    dt,
-                    g,
-                )
+                _euler_vjp(seg[j - lo], seg_th[j - lo], lam, out, b_th, b_dnu, b_k, eq, second, dt, g)
             lam[:] = out
             if first_seed:  # state k - 1: add the crossing's seed there
                 first_seed = False
@@ -808,30 +556,27 @@ def _model_adjoint(
 
 
 @njit(parallel=True, cache=True)
-def _adjoint_items(
-    ks,
-    seed,
-    indptr,
-    indices,
-    w,
-    freqs,
-    starts,
-    cl,
-    sl,
-    mass,
-    gamma,
-    dt,
-    rk4,
-    criterion,
-    target,
-    max_steps,
-    every,
-    status0,
-    steps0,
-    frac0,
-    grad,
-    coef_t,
-):
+def _adjoint_items(ks, seed, net, model, dt, rk4, criterion, target, max_steps, every, out):
+    """:func:`_model_adjoint` of every realization: ``net`` ``(indptr, indices, w)``, ``model``
+    ``(freqs, starts, cl, sl, mass, gamma)`` (a row of ``freqs`` each, or one for all; ``starts``
+    as :func:`~antisync.physics.phases.start_phase` takes them), results into ``out``
+    ``(status0, steps0, frac0, grad, coef_t)``."""
+    # fields as locals before the prange, by index: a parallel loop loses its writes to arrays
+    # bound by unpacking a tuple (tests/test_architecture.py)
+    indptr = net[0]
+    indices = net[1]
+    w = net[2]
+    freqs = model[0]
+    starts = model[1]
+    cl = model[2]
+    sl = model[3]
+    mass = model[4]
+    gamma = model[5]
+    status0 = out[0]
+    steps0 = out[1]
+    frac0 = out[2]
+    grad = out[3]
+    coef_t = out[4]
     m = ks.shape[0]
     n = indptr.shape[0] - 1
     for r in prange(m):
@@ -841,24 +586,8 @@ def _adjoint_items(
             y0[0, i] = np.cos(theta)
             y0[1, i] = np.sin(theta)
         p = freqs[r] if freqs.shape[0] > 1 else freqs[0]
-        st, k, x, ct = _model_adjoint(
-            y0,
-            p,
-            indptr,
-            indices,
-            w,
-            cl,
-            sl,
-            mass,
-            gamma,
-            dt,
-            rk4,
-            criterion,
-            target,
-            max_steps,
-            every,
-            grad[r],
-        )
+        eq = (p, w, indptr, indices, cl, sl, mass, gamma)
+        st, k, x, ct = _model_adjoint(y0, eq, dt, rk4, criterion, target, max_steps, every, grad[r])
         status0[r] = st
         steps0[r] = k
         frac0[r] = x
@@ -925,26 +654,22 @@ def simulate_model_adjoint(
         _adjoint_items(
             ks,
             np.uint64(seed),
-            indptr.astype(np.int64),
-            indices.astype(np.int64),
-            w,
-            freqs,
-            starts,
-            float(params.cos_lag),
-            float(params.sin_lag),
-            per_node(params.inertia, n),
-            per_node(params.damping, n),
+            (indptr.astype(np.int64), indices.astype(np.int64), w),
+            (
+                freqs,
+                starts,
+                float(params.cos_lag),
+                float(params.sin_lag),
+                per_node(params.inertia, n),
+                per_node(params.damping, n),
+            ),
             float(dt),
             integrator == "rk4",
             int(params.criterion),
             float(params.targets[0]),
             int(max_steps),
             int(every),
-            status0,
-            steps0,
-            frac0,
-            grad,
-            coef_t,
+            (status0, steps0, frac0, grad, coef_t),
         )
     n_edges = deriv.indptr.size - 1
     dtau = np.zeros((m, n_edges))

@@ -212,16 +212,24 @@ def _sparse_mv2(indptr, nbr, wv, a, b, out_a, out_b):
 
 
 @njit(cache=True)
-def _rhs(theta, omega, kc, dense, w, indptr, nbr, wv, s, c, ws, wc, out):
+def _mv2(coupling, a, b, out_a, out_b):
+    """``out_a = W a`` and ``out_b = W b`` with ``coupling = (dense, w, indptr, nbr, wv)``:
+    ``W`` as the dense ``w`` or in symmetric CSR, as ``dense`` says."""
+    dense, w, indptr, nbr, wv = coupling
+    if dense:
+        _dense_mv2(w, a, b, out_a, out_b)
+    else:
+        _sparse_mv2(indptr, nbr, wv, a, b, out_a, out_b)
+
+
+@njit(cache=True)
+def _rhs(theta, omega, kc, coupling, s, c, ws, wc, out):
     """``out = f(theta)``; leaves ``s, c = sin, cos theta`` and ``ws, wc = W s, W c``."""
     n = theta.shape[0]
     for i in range(n):
         s[i] = math.sin(theta[i])
         c[i] = math.cos(theta[i])
-    if dense:
-        _dense_mv2(w, s, c, ws, wc)
-    else:
-        _sparse_mv2(indptr, nbr, wv, s, c, ws, wc)
+    _mv2(coupling, s, c, ws, wc)
     for i in range(n):
         out[i] = omega[i] + kc * (c[i] * ws[i] - s[i] * wc[i])
 
@@ -238,23 +246,24 @@ def _rank2(g, cv, s, sv, c):
 
 
 @njit(cache=True)
-def _vjp(v, kc, dense, w, indptr, nbr, wv, links, s, c, ws, wc, cv, sv, wcv, wsv, ybar, grad, g):
+def _vjp(v, kc, coupling, links, s, c, ws, wc, scratch, ybar, grad, g):
     """``ybar = (df/dtheta)^T v`` at the state with ``s, c, ws, wc`` (see :func:`_rhs`), and
-    the parameter part: ``grad += (df/dx)^T v`` (sparse) or ``g += cv s^T - sv c^T`` (dense).
+    the parameter part: ``grad += (df/dx)^T v`` (sparse) or ``g += cv s^T - sv c^T`` (dense);
+    ``scratch`` holds ``cv, sv, wcv, wsv``.
 
     ``(J^T v)_j = K sum_i W_ij cos(theta_i - theta_j) (v_i - v_j)
     = K (c_j (W cv)_j + s_j (W sv)_j - v_j (c_j (Wc)_j + s_j (Ws)_j))`` with ``cv = c v``,
     ``sv = s v``; ``d(v . f)/dx_l = K sin(theta_b - theta_a) (v_a - v_b)`` for ``l = (a, b)``.
     """
+    cv, sv, wcv, wsv = scratch
     n = s.shape[0]
     for i in range(n):
         cv[i] = c[i] * v[i]
         sv[i] = s[i] * v[i]
-    if dense:
-        _dense_mv2(w, cv, sv, wcv, wsv)
+    _mv2(coupling, cv, sv, wcv, wsv)
+    if coupling[0]:
         _rank2(g, cv, s, sv, c)
     else:
-        _sparse_mv2(indptr, nbr, wv, cv, sv, wcv, wsv)
         for l in range(links.shape[0]):
             a = links[l, 0]
             b = links[l, 1]
@@ -276,20 +285,20 @@ def _order(s, c):
 
 
 @njit(cache=True)
-def _stages(th, h, omega, kc, dense, w, indptr, nbr, wv, y, sn, cn, wsn, wcn, k1, k2, k3, k4):
+def _stages(th, h, omega, kc, coupling, y, sn, cn, wsn, wcn, k1, k2, k3, k4):
     """RK4's stages 2-4 of the step from ``th`` (``k1`` given): the states ``y[1..3]``, their
     sines, cosines and coupling sums, and ``k2``, ``k3``, ``k4``. The forward pass and the
     backward pass's recomputation call this one function: the same operations, the same bits."""
     n = th.size
     for i in range(n):
         y[1, i] = th[i] + 0.5 * h * k1[i]
-    _rhs(y[1], omega, kc, dense, w, indptr, nbr, wv, sn[1], cn[1], wsn[1], wcn[1], k2)
+    _rhs(y[1], omega, kc, coupling, sn[1], cn[1], wsn[1], wcn[1], k2)
     for i in range(n):
         y[2, i] = th[i] + 0.5 * h * k2[i]
-    _rhs(y[2], omega, kc, dense, w, indptr, nbr, wv, sn[2], cn[2], wsn[2], wcn[2], k3)
+    _rhs(y[2], omega, kc, coupling, sn[2], cn[2], wsn[2], wcn[2], k3)
     for i in range(n):
         y[3, i] = th[i] + h * k3[i]
-    _rhs(y[3], omega, kc, dense, w, indptr, nbr, wv, sn[3], cn[3], wsn[3], wcn[3], k4)
+    _rhs(y[3], omega, kc, coupling, sn[3], cn[3], wsn[3], wcn[3], k4)
 
 
 @njit(cache=True)
@@ -327,10 +336,8 @@ def _objective(omega, links, x, kc, starts, h, n_steps, want_grad, dense):
     lam = np.empty(n)
     ak = np.empty((4, n))
     ybar = np.empty(n)
-    cv = np.empty(n)
-    sv = np.empty(n)
-    wcv = np.empty(n)
-    wsv = np.empty(n)
+    scratch = (np.empty(n), np.empty(n), np.empty(n), np.empty(n))  # cv, sv, wcv, wsv
+    coupling = (dense, w, indptr, nbr, wv)
     total = 0.0
     for q in range(n_starts):
         # forward: RK4, every state kept, trapezoid sum of r
@@ -339,12 +346,12 @@ def _objective(omega, links, x, kc, starts, h, n_steps, want_grad, dense):
         acc = 0.0
         for m in range(n_steps + 1):
             th = traj[m]
-            _rhs(th, omega, kc, dense, w, indptr, nbr, wv, sn[0], cn[0], wsn[0], wcn[0], k1)
+            _rhs(th, omega, kc, coupling, sn[0], cn[0], wsn[0], wcn[0], k1)
             r, _, _ = _order(sn[0], cn[0])
             acc += (0.5 * h if (m == 0 or m == n_steps) else h) * r
             if m == n_steps:
                 break
-            _stages(th, h, omega, kc, dense, w, indptr, nbr, wv, y, sn, cn, wsn, wcn, k1, k2, k3, k4)
+            _stages(th, h, omega, kc, coupling, y, sn, cn, wsn, wcn, k1, k2, k3, k4)
             for i in range(n):
                 traj[m + 1, i] = th[i] + h / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i])
         total += 1.0 - acc / t_total
@@ -356,12 +363,12 @@ def _objective(omega, links, x, kc, starts, h, n_steps, want_grad, dense):
         for m in range(n_steps, -1, -1):
             th = traj[m]
             # stage 1 (the state itself): its sin/cos also serve the trapezoid term
-            _rhs(th, omega, kc, dense, w, indptr, nbr, wv, sn[0], cn[0], wsn[0], wcn[0], k1)
+            _rhs(th, omega, kc, coupling, sn[0], cn[0], wsn[0], wcn[0], k1)
             if m < n_steps:
                 # adjoint of theta_{m+1} = theta_m + h/6 (k1 + 2 k2 + 2 k3 + k4); lam holds
                 # dJ/d theta_{m+1}. Recompute the stage states of step m (same operations as
                 # the forward pass, so the same bits), then walk the stages backwards.
-                _stages(th, h, omega, kc, dense, w, indptr, nbr, wv, y, sn, cn, wsn, wcn, k1, k2, k3, k4)
+                _stages(th, h, omega, kc, coupling, y, sn, cn, wsn, wcn, k1, k2, k3, k4)
                 for i in range(n):
                     ak[3, i] = h / 6.0 * lam[i]
                     ak[2, i] = h / 3.0 * lam[i]
@@ -371,25 +378,7 @@ def _objective(omega, links, x, kc, starts, h, n_steps, want_grad, dense):
                 # k2 = f(y2), y2 = theta + h/2 k1; k1 = f(theta)
                 for st in range(3, -1, -1):
                     _vjp(
-                        ak[st],
-                        kc,
-                        dense,
-                        w,
-                        indptr,
-                        nbr,
-                        wv,
-                        links,
-                        sn[st],
-                        cn[st],
-                        wsn[st],
-                        wcn[st],
-                        cv,
-                        sv,
-                        wcv,
-                        wsv,
-                        ybar,
-                        grad,
-                        g,
+                        ak[st], kc, coupling, links, sn[st], cn[st], wsn[st], wcn[st], scratch, ybar, grad, g
                     )
                     back = h if st == 3 else 0.5 * h
                     for i in range(n):
