@@ -307,9 +307,13 @@ def _stages(yc, ys, st, indptr, indices, w, dt):
 
 
 @njit(inline="always")
-def _rk4_vjp(yc, ys, st, ac, as_, zc, zs, tc, ts, kc, ks, g, indptr, indices, w, dt):
+def _rk4_vjp(yc, ys, st, ac, as_, work, g, net, dt):
     """One step of the RK4 adjoint at ``y_n = (yc, ys)`` (Eq. A5): ``(ac, as_)`` holds
-    ``d tau / d y_{n+1}`` in and ``d tau / d y_n`` out; ``g`` gets this step's ``d tau / d w``."""
+    ``d tau / d y_{n+1}`` in and ``d tau / d y_n`` out; ``g`` gets this step's ``d tau / d w``.
+    ``work = (zc, zs, tc, ts, kc, ks)``: scratch, one value per node each; ``net = (indptr,
+    indices, w)``: the CSR weights."""
+    zc, zs, tc, ts, kc, ks = work
+    indptr, indices, w = net
     n = yc.shape[0]
     h = 0.5 * dt
     _stages(yc, ys, st, indptr, indices, w, dt)
@@ -478,23 +482,11 @@ def _rk4_adjoint(c, s, ck, seg, g, indptr, indices, w, dt, r2_target, max_steps,
     ts = np.zeros(n)
     kc = np.empty(n)
     ks = np.empty(n)
+    work = (zc, zs, tc, ts, kc, ks)
+    net = (indptr, indices, w)
     yk_c = cl[:, 0].copy()
     yk_s = sl[:, 0].copy()
-    _crossing_seed(
-        yk_c,
-        yk_s,
-        st,
-        w_r,
-        w_d,
-        ac,
-        as_,
-        kc,
-        ks,
-        g,
-        indptr,
-        indices,
-        w,
-    )
+    _crossing_seed(yk_c, yk_s, st, w_r, w_d, ac, as_, kc, ks, g, indptr, indices, w)
     for sg in range((k - 1) // every, -1, -1):
         j0 = sg * every
         j1 = min(j0 + every, k)
@@ -512,24 +504,10 @@ def _rk4_adjoint(c, s, ck, seg, g, indptr, indices, w, dt, r2_target, max_steps,
         for j in range(j1 - 1, j0 - 1, -1):
             cj = seg[j - j0, 0]
             sj = seg[j - j0, 1]
-            _rk4_vjp(cj, sj, st, ac, as_, zc, zs, tc, ts, kc, ks, g, indptr, indices, w, dt)
+            _rk4_vjp(cj, sj, st, ac, as_, work, g, net, dt)
             if j == k - 1:
                 # R and D at the step before the crossing (D depends on w even at j = 0)
-                _crossing_seed(
-                    cj,
-                    sj,
-                    st,
-                    w_r_prev,
-                    w_d_prev,
-                    ac,
-                    as_,
-                    kc,
-                    ks,
-                    g,
-                    indptr,
-                    indices,
-                    w,
-                )
+                _crossing_seed(cj, sj, st, w_r_prev, w_d_prev, ac, as_, kc, ks, g, indptr, indices, w)
     return SYNCED, k, x, ck
 
 
@@ -552,9 +530,12 @@ LANES = 16
 
 
 @njit(inline="always")
-def _vjp_edges(c, s, lam_new, g, w, indices, p, lanes, qa, cia, sia, lia, da, cib, sib, lib, db):
+def _vjp_edges(c, s, lam_new, g, w, indices, p, lanes, qa, node_a, node_b, da, db):
     """CSR entry ``p`` of :func:`_euler_vjp` for the lane vectors at ``qa`` and ``qa + VEC``
-    (loop-free, as ``edge_vec``)."""
+    (loop-free, as ``edge_vec``): ``node_a = (c_i, s_i, dt lam_i)`` of the first vector,
+    ``node_b`` of the second, ``da``, ``db`` their running diagonal sums."""
+    cia, sia, lia = node_a
+    cib, sib, lib = node_b
     oa = indices[p] * lanes + qa
     ob = oa + VEC
     ga = p * lanes + qa
@@ -589,12 +570,12 @@ def _euler_vjp_vec(c, s, lam, lam_new, g, indptr, indices, w, dt):
             sia = vload(s, oa)
             cib = vload(c, ob)
             sib = vload(s, ob)
+            node_a = (cia, sia, lia)
+            node_b = (cib, sib, lib)
             da = vsplat(0.0)
             db = vsplat(0.0)
             for p in range(indptr[i], indptr[i + 1]):
-                da, db = _vjp_edges(
-                    c, s, lam_new, g, w, indices, p, lanes, qa, cia, sia, lia, da, cib, sib, lib, db
-                )
+                da, db = _vjp_edges(c, s, lam_new, g, w, indices, p, lanes, qa, node_a, node_b, da, db)
             vstore(lam_new, oa, vload(lam_new, oa) - da)
             vstore(lam_new, ob, vload(lam_new, ob) - db)
 
@@ -731,10 +712,12 @@ def _transpose(indptr: np.ndarray, indices: np.ndarray) -> _Transpose:
 
 
 @njit(inline="always")
-def _column_link(trow, tpos, w, g, bss, bsc, t, cja, sja, cjb, sjb, lanes, qa, aca, asa, acb, asb):
+def _column_link(trow, tpos, w, g, bss, bsc, t, node_j, lanes, qa, aca, asa, acb, asb):
     """Entry ``t`` of column ``j`` of the transposed pattern in :func:`_rk4_vjp_vec`, for the
-    lane vectors at ``qa`` and ``qa + VEC``: row ``i``'s ``w_ij (bsc_i, bss_i)`` into the
-    column's sums and ``g[p] += bss_i s_j + bsc_i c_j`` (loop-free, as ``edge_vec``)."""
+    lane vectors at ``qa`` and ``qa + VEC`` (``node_j = (c_j, s_j)`` of the first, then of the
+    second): row ``i``'s ``w_ij (bsc_i, bss_i)`` into the column's sums and ``g[p] += bss_i s_j
+    + bsc_i c_j`` (loop-free, as ``edge_vec``)."""
+    cja, sja, cjb, sjb = node_j
     oa = trow[t] * lanes + qa
     ob = oa + VEC
     p = tpos[t]
@@ -824,7 +807,7 @@ def _node_cotangents(st, base, size, kc, ks, bss, bsc, own_c, own_s, o):
 
 
 @njit(cache=True)
-def _rk4_vjp_vec(yc, ys, st, ac, as_, zc, zs, tc, ts, kc, ks, g, indptr, indices, w, dt, tr, scratch):
+def _rk4_vjp_vec(yc, ys, st, ac, as_, work, g, net, dt, tr, scratch):
     """:func:`_rk4_vjp` (with :func:`_stages`, :func:`_velocity`, :func:`_velocity_vjp`) for
     every lane of ``[node, lane]`` arrays on machine vectors, two vectors of :data:`VEC` lanes at
     a time (whole cache lines of the 16 lanes, and independent chains for the out-of-order
@@ -835,7 +818,10 @@ def _rk4_vjp_vec(yc, ys, st, ac, as_, zc, zs, tc, ts, kc, ks, g, indptr, indices
     gather down column ``j`` of the transposed pattern ``tr`` (:class:`_Transpose`): the
     per-node cotangents first, into ``scratch`` (``[4, node * lane]``), then for each ``j`` a
     register sum of what the scatter adds into ``(bc_j, bs_j)`` in its order (the rows
-    ``i < j`` ascending, ``j``'s own term, the rows ``i >= j``)."""
+    ``i < j`` ascending, ``j``'s own term, the rows ``i >= j``). ``work`` and ``net`` as in
+    :func:`_rk4_vjp`, each array ``[node, lane]``."""
+    zc, zs, tc, ts, kc, ks = work
+    indptr, indices, w = net
     n, lanes = yc.shape
     size = n * lanes
     h = 0.5 * dt
@@ -900,13 +886,14 @@ def _rk4_vjp_vec(yc, ys, st, ac, as_, zc, zs, tc, ts, kc, ks, g, indptr, indices
                 sja = vload(st, base + size + oa)
                 cjb = vload(st, base + ob)
                 sjb = vload(st, base + size + ob)
+                node_j = (cja, sja, cjb, sjb)
                 if sq == 0:
                     aca, asa, acb, asb = vload(ac, oa), vload(as_, oa), vload(ac, ob), vload(as_, ob)
                 else:
                     aca, asa, acb, asb = vload(tc, oa), vload(ts, oa), vload(tc, ob), vload(ts, ob)
                 for t in range(tptr[j], tsplit[j]):
                     aca, asa, acb, asb = _column_link(
-                        trow, tpos, w, g, bss, bsc, t, cja, sja, cjb, sjb, lanes, qa, aca, asa, acb, asb
+                        trow, tpos, w, g, bss, bsc, t, node_j, lanes, qa, aca, asa, acb, asb
                     )
                 aca = aca + vload(own_c, oa)
                 asa = asa + vload(own_s, oa)
@@ -914,7 +901,7 @@ def _rk4_vjp_vec(yc, ys, st, ac, as_, zc, zs, tc, ts, kc, ks, g, indptr, indices
                 asb = asb + vload(own_s, ob)
                 for t in range(tsplit[j], tptr[j + 1]):
                     aca, asa, acb, asb = _column_link(
-                        trow, tpos, w, g, bss, bsc, t, cja, sja, cjb, sjb, lanes, qa, aca, asa, acb, asb
+                        trow, tpos, w, g, bss, bsc, t, node_j, lanes, qa, aca, asa, acb, asb
                     )
                 if sq > 0:
                     vstore(tc, oa, aca)  # the next stage's kc, ks read them
@@ -932,12 +919,15 @@ def _rk4_vjp_vec(yc, ys, st, ac, as_, zc, zs, tc, ts, kc, ks, g, indptr, indices
 
 
 @njit(cache=True)
-def _rk4_forward_lanes(
-    c, s, kv, yc, ys, ybc, ybs, lw, ck, k_lane, x_lane, coef, code, indptr, indices, w, run
-):
-    """The group's RK4 forward pass; per lane ``code``, ``k_lane``, ``x_lane`` and the Hermite
-    seed coefficients ``coef[:, q] = (R_k, D_k, R_{k-1}, D_{k-1})`` weights (as
-    :func:`_rk4_adjoint` forms them)."""
+def _rk4_forward_lanes(c, s, step_bufs, ck, crossing, net, run):
+    """The group's RK4 forward pass from the states in ``(c, s)``; into ``crossing = (k_lane,
+    x_lane, coef, code)`` per lane ``code``, ``k_lane``, ``x_lane`` and the Hermite seed
+    coefficients ``coef[:, q] = (R_k, D_k, R_{k-1}, D_{k-1})`` weights (as :func:`_rk4_adjoint`
+    forms them); checkpoints into ``ck`` (returned). ``step_bufs = (kv, yc, ys, ybc, ybs, lw)``:
+    the buffers and per-lane weights of the lane RK4 step; ``net = (indptr, indices, w)``."""
+    kv, yc, ys, ybc, ybs, lw = step_bufs
+    k_lane, x_lane, coef, code = crossing
+    indptr, indices, w = net
     n, lanes = c.shape
     dt = run.dt
     r2_target = run.r2_target
@@ -982,10 +972,12 @@ def _rk4_forward_lanes(
 
 
 @njit(cache=True)
-def _rk4_backward_lanes(
-    ck, seg_c, seg_s, c, s, kv, yc, ys, ybc, ybs, lw, g, k_lane, coef, code, indptr, indices, w, tr, run
-):
-    """The group's RK4 backward pass: ``g[p, q] = d tau0 / d w_p`` of every SYNCED lane."""
+def _rk4_backward_lanes(ck, seg_c, seg_s, c, s, step_bufs, g, crossing, net, tr, run):
+    """The group's RK4 backward pass: ``g[p, q] = d tau0 / d w_p`` of every SYNCED lane
+    (``step_bufs``, ``crossing`` and ``net`` as :func:`_rk4_forward_lanes` left them)."""
+    kv, yc, ys, ybc, ybs, lw = step_bufs
+    k_lane, _, coef, code = crossing
+    indptr, indices, w = net
     n, lanes = ck.shape[2], ck.shape[3]
     dt = run.dt
     every = run.every
@@ -1003,6 +995,7 @@ def _rk4_backward_lanes(
     ts = np.zeros((n, lanes))
     kc = np.empty((n, lanes))
     ks = np.empty((n, lanes))
+    work = (zc, zs, tc, ts, kc, ks)
     r2 = np.empty(lanes)
     dr2 = np.empty(lanes)
     # one-lane scratch of the seeds (the reference's own buffers)
@@ -1029,7 +1022,7 @@ def _rk4_backward_lanes(
         for j in range(j1 - 1, j0 - 1, -1):
             cj = seg_c[j - j0]
             sj = seg_s[j - j0]
-            _rk4_vjp_vec(cj, sj, st, ac, as_, zc, zs, tc, ts, kc, ks, g, indptr, indices, w, dt, tr, scratch)
+            _rk4_vjp_vec(cj, sj, st, ac, as_, work, g, net, dt, tr, scratch)
             for q in range(lanes):
                 if code[q] != SYNCED:
                     continue
@@ -1103,31 +1096,11 @@ def _adjoint_lanes_batch(ks, indptr, indices, w, tr, deriv, run, status0, steps0
             kv = np.zeros((8, n, lanes))
             yc = np.empty((n, lanes))
             ys = np.empty((n, lanes))
-            ck = _rk4_forward_lanes(
-                c, s, kv, yc, ys, cn, sn, lw, ck, k_lane, x_lane, coef, code, indptr, indices, w, run
-            )
-            _rk4_backward_lanes(
-                ck,
-                seg_c,
-                seg_s,
-                c,
-                s,
-                kv,
-                yc,
-                ys,
-                cn,
-                sn,
-                lw,
-                g,
-                k_lane,
-                coef,
-                code,
-                indptr,
-                indices,
-                w,
-                tr,
-                run,
-            )
+            step_bufs = (kv, yc, ys, cn, sn, lw)
+            crossing = (k_lane, x_lane, coef, code)
+            net = (indptr, indices, w)
+            ck = _rk4_forward_lanes(c, s, step_bufs, ck, crossing, net, run)
+            _rk4_backward_lanes(ck, seg_c, seg_s, c, s, step_bufs, g, crossing, net, tr, run)
         else:
             lw = np.empty((1, lanes))  # unused: every lane has the weights w
             ck = _euler_forward_lanes(
