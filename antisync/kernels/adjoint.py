@@ -598,10 +598,7 @@ def _euler_forward_lanes(c, s, cn, sn, lw, ck, k_lane, x_lane, span_lane, code, 
     crossing step ``k_lane`` (``max_steps + 1`` if none: renormalized to the end) and
     crossing ``x_lane``, ``span_lane = R_k - R_{k-1}``; checkpoints into ``ck`` (returned)."""
     n, lanes = c.shape
-    dt = run.dt
-    r2_target = run.r2_target
-    max_steps = run.max_steps
-    every = run.every
+    _, dt, r2_target, max_steps, every, _ = run
     r2 = np.empty(lanes)
     r2_prev = np.empty(lanes)
     live = 0
@@ -929,10 +926,7 @@ def _rk4_forward_lanes(c, s, step_bufs, ck, crossing, net, run):
     k_lane, x_lane, coef, code = crossing
     indptr, indices, w = net
     n, lanes = c.shape
-    dt = run.dt
-    r2_target = run.r2_target
-    max_steps = run.max_steps
-    every = run.every
+    _, dt, r2_target, max_steps, every, _ = run
     r2 = np.empty(lanes)
     dr2 = np.empty(lanes)
     r2_prev = np.empty(lanes)
@@ -1050,20 +1044,39 @@ def _rk4_backward_lanes(ck, seg_c, seg_s, c, s, step_bufs, g, crossing, net, tr,
                 )
 
 
+# ---- the batch drivers -----------------------------------------------------------------------
+
+
+@njit(inline="always")
+def _start_state(c, s, seed, k):
+    """``(c, s) = (cos theta, sin theta)`` of realization ``k``'s initial phases."""
+    for i in range(c.shape[0]):
+        th = phase(seed, k, i)
+        c[i] = np.cos(th)
+        s[i] = np.sin(th)
+
+
+@njit(inline="always")
+def _link_values(dtau, r, g, synced, d_ptr, d_pos, d_val):
+    """``dtau[r, e] = sum_p (dW/dbeta_e)_p g_p`` for every link ``e`` (:class:`LinkDerivatives`
+    ``d_ptr, d_pos, d_val``), or 0 unless ``synced``."""
+    for e in range(d_ptr.shape[0] - 1):
+        total = 0.0
+        if synced:
+            for p in range(d_ptr[e], d_ptr[e + 1]):
+                total += d_val[p] * g[d_pos[p]]
+        dtau[r, e] = total
+
+
 @njit(parallel=True, cache=True)
 def _adjoint_lanes_batch(ks, indptr, indices, w, tr, deriv, run, status0, steps0, frac0, dtau):
     """Realizations ``ks`` in groups of ``LANES``, one group per parallel task."""
-    d_ptr = deriv.indptr
-    d_pos = deriv.position
-    d_val = deriv.value
-    seed = run.seed
-    every = run.every
-    max_steps = run.max_steps
-    rk4 = run.rk4
+    # every field as a local before the prange (see antisync.kernels.lanes.integrate_lanes)
+    d_ptr, d_pos, d_val = deriv
+    seed, _, _, max_steps, every, rk4 = run
     m = ks.shape[0]
     n = indptr.shape[0] - 1
     nnz = w.shape[0]
-    n_edges = d_ptr.shape[0] - 1
     lanes = LANES
     n_groups = (m + lanes - 1) // lanes
     for group in prange(n_groups):
@@ -1073,10 +1086,7 @@ def _adjoint_lanes_batch(ks, indptr, indices, w, tr, deriv, run, status0, steps0
         c = np.ones((n, lanes))
         s = np.zeros((n, lanes))
         for r in range(r_lo, r_hi):
-            for i in range(n):
-                th = phase(seed, ks[r], i)
-                c[i, r - r_lo] = np.cos(th)
-                s[i, r - r_lo] = np.sin(th)
+            _start_state(c[:, r - r_lo], s[:, r - r_lo], seed, ks[r])
         cn = np.empty((n, lanes))
         sn = np.empty((n, lanes))
         ck = np.empty((16, 2, n, lanes))
@@ -1131,15 +1141,7 @@ def _adjoint_lanes_batch(ks, indptr, indices, w, tr, deriv, run, status0, steps0
             status0[r] = st
             steps0[r] = k_lane[q] if st == SYNCED else (0 if st == ALREADY_SYNCED else max_steps)
             frac0[r] = x_lane[q]
-            for e in range(n_edges):
-                total = 0.0
-                if st == SYNCED:
-                    for p in range(d_ptr[e], d_ptr[e + 1]):
-                        total += d_val[p] * g[d_pos[p], q]
-                dtau[r, e] = total
-
-
-# ---- the batch driver ----------------------------------------------------------------------
+            _link_values(dtau, r, g[:, q], st == SYNCED, d_ptr, d_pos, d_val)
 
 
 @njit(parallel=True, cache=True)
@@ -1147,19 +1149,11 @@ def _adjoint_batch(ks, indptr, indices, w, deriv, run, n_groups, status0, steps0
     """Realizations ``ks`` split into ``n_groups`` ranges, one per parallel task; each task
     integrates its realizations one at a time with per-task buffers."""
     # every field as a local before the prange (see antisync.kernels.lanes.integrate_lanes)
-    d_ptr = deriv.indptr
-    d_pos = deriv.position
-    d_val = deriv.value
-    seed = run.seed
-    dt = run.dt
-    r2_target = run.r2_target
-    max_steps = run.max_steps
-    every = run.every
-    rk4 = run.rk4
+    d_ptr, d_pos, d_val = deriv
+    seed, dt, r2_target, max_steps, every, rk4 = run
     m = ks.shape[0]
     n = indptr.shape[0] - 1
     nnz = w.shape[0]
-    n_edges = d_ptr.shape[0] - 1
     per = (m + n_groups - 1) // n_groups
     for group in prange(n_groups):
         r_lo = group * per
@@ -1175,10 +1169,7 @@ def _adjoint_batch(ks, indptr, indices, w, deriv, run, n_groups, status0, steps0
         lam_new = np.empty(n)
         g = np.zeros(nnz)
         for r in range(r_lo, r_hi):
-            for i in range(n):
-                th = phase(seed, ks[r], i)
-                c[i] = np.cos(th)
-                s[i] = np.sin(th)
+            _start_state(c, s, seed, ks[r])
             if rk4:
                 st, k, x, ck = _rk4_adjoint(
                     c, s, ck, seg, g, indptr, indices, w, dt, r2_target, max_steps, every
@@ -1190,12 +1181,7 @@ def _adjoint_batch(ks, indptr, indices, w, deriv, run, n_groups, status0, steps0
             status0[r] = st
             steps0[r] = k
             frac0[r] = x
-            for e in range(n_edges):
-                total = 0.0
-                if st == SYNCED:
-                    for q in range(d_ptr[e], d_ptr[e + 1]):
-                        total += d_val[q] * g[d_pos[q]]
-                dtau[r, e] = total
+            _link_values(dtau, r, g, st == SYNCED, d_ptr, d_pos, d_val)
 
 
 def _lane_order(ks, indptr, indices, w, run: _Run) -> np.ndarray:
