@@ -307,9 +307,13 @@ def _stages(yc, ys, st, indptr, indices, w, dt):
 
 
 @njit(inline="always")
-def _rk4_vjp(yc, ys, st, ac, as_, zc, zs, tc, ts, kc, ks, g, indptr, indices, w, dt):
+def _rk4_vjp(yc, ys, st, ac, as_, work, g, net, dt):
     """One step of the RK4 adjoint at ``y_n = (yc, ys)`` (Eq. A5): ``(ac, as_)`` holds
-    ``d tau / d y_{n+1}`` in and ``d tau / d y_n`` out; ``g`` gets this step's ``d tau / d w``."""
+    ``d tau / d y_{n+1}`` in and ``d tau / d y_n`` out; ``g`` gets this step's ``d tau / d w``.
+    ``work = (zc, zs, tc, ts, kc, ks)``: scratch, one value per node each; ``net = (indptr,
+    indices, w)``: the CSR weights."""
+    zc, zs, tc, ts, kc, ks = work
+    indptr, indices, w = net
     n = yc.shape[0]
     h = 0.5 * dt
     _stages(yc, ys, st, indptr, indices, w, dt)
@@ -478,23 +482,11 @@ def _rk4_adjoint(c, s, ck, seg, g, indptr, indices, w, dt, r2_target, max_steps,
     ts = np.zeros(n)
     kc = np.empty(n)
     ks = np.empty(n)
+    work = (zc, zs, tc, ts, kc, ks)
+    net = (indptr, indices, w)
     yk_c = cl[:, 0].copy()
     yk_s = sl[:, 0].copy()
-    _crossing_seed(
-        yk_c,
-        yk_s,
-        st,
-        w_r,
-        w_d,
-        ac,
-        as_,
-        kc,
-        ks,
-        g,
-        indptr,
-        indices,
-        w,
-    )
+    _crossing_seed(yk_c, yk_s, st, w_r, w_d, ac, as_, kc, ks, g, indptr, indices, w)
     for sg in range((k - 1) // every, -1, -1):
         j0 = sg * every
         j1 = min(j0 + every, k)
@@ -512,24 +504,10 @@ def _rk4_adjoint(c, s, ck, seg, g, indptr, indices, w, dt, r2_target, max_steps,
         for j in range(j1 - 1, j0 - 1, -1):
             cj = seg[j - j0, 0]
             sj = seg[j - j0, 1]
-            _rk4_vjp(cj, sj, st, ac, as_, zc, zs, tc, ts, kc, ks, g, indptr, indices, w, dt)
+            _rk4_vjp(cj, sj, st, ac, as_, work, g, net, dt)
             if j == k - 1:
                 # R and D at the step before the crossing (D depends on w even at j = 0)
-                _crossing_seed(
-                    cj,
-                    sj,
-                    st,
-                    w_r_prev,
-                    w_d_prev,
-                    ac,
-                    as_,
-                    kc,
-                    ks,
-                    g,
-                    indptr,
-                    indices,
-                    w,
-                )
+                _crossing_seed(cj, sj, st, w_r_prev, w_d_prev, ac, as_, kc, ks, g, indptr, indices, w)
     return SYNCED, k, x, ck
 
 
@@ -552,9 +530,12 @@ LANES = 16
 
 
 @njit(inline="always")
-def _vjp_edges(c, s, lam_new, g, w, indices, p, lanes, qa, cia, sia, lia, da, cib, sib, lib, db):
+def _vjp_edges(c, s, lam_new, g, w, indices, p, lanes, qa, node_a, node_b, da, db):
     """CSR entry ``p`` of :func:`_euler_vjp` for the lane vectors at ``qa`` and ``qa + VEC``
-    (loop-free, as ``edge_vec``)."""
+    (loop-free, as ``edge_vec``): ``node_a = (c_i, s_i, dt lam_i)`` of the first vector,
+    ``node_b`` of the second, ``da``, ``db`` their running diagonal sums."""
+    cia, sia, lia = node_a
+    cib, sib, lib = node_b
     oa = indices[p] * lanes + qa
     ob = oa + VEC
     ga = p * lanes + qa
@@ -589,12 +570,12 @@ def _euler_vjp_vec(c, s, lam, lam_new, g, indptr, indices, w, dt):
             sia = vload(s, oa)
             cib = vload(c, ob)
             sib = vload(s, ob)
+            node_a = (cia, sia, lia)
+            node_b = (cib, sib, lib)
             da = vsplat(0.0)
             db = vsplat(0.0)
             for p in range(indptr[i], indptr[i + 1]):
-                da, db = _vjp_edges(
-                    c, s, lam_new, g, w, indices, p, lanes, qa, cia, sia, lia, da, cib, sib, lib, db
-                )
+                da, db = _vjp_edges(c, s, lam_new, g, w, indices, p, lanes, qa, node_a, node_b, da, db)
             vstore(lam_new, oa, vload(lam_new, oa) - da)
             vstore(lam_new, ob, vload(lam_new, ob) - db)
 
@@ -617,10 +598,7 @@ def _euler_forward_lanes(c, s, cn, sn, lw, ck, k_lane, x_lane, span_lane, code, 
     crossing step ``k_lane`` (``max_steps + 1`` if none: renormalized to the end) and
     crossing ``x_lane``, ``span_lane = R_k - R_{k-1}``; checkpoints into ``ck`` (returned)."""
     n, lanes = c.shape
-    dt = run.dt
-    r2_target = run.r2_target
-    max_steps = run.max_steps
-    every = run.every
+    _, dt, r2_target, max_steps, every, _ = run
     r2 = np.empty(lanes)
     r2_prev = np.empty(lanes)
     live = 0
@@ -731,10 +709,12 @@ def _transpose(indptr: np.ndarray, indices: np.ndarray) -> _Transpose:
 
 
 @njit(inline="always")
-def _column_link(trow, tpos, w, g, bss, bsc, t, cja, sja, cjb, sjb, lanes, qa, aca, asa, acb, asb):
+def _column_link(trow, tpos, w, g, bss, bsc, t, node_j, lanes, qa, aca, asa, acb, asb):
     """Entry ``t`` of column ``j`` of the transposed pattern in :func:`_rk4_vjp_vec`, for the
-    lane vectors at ``qa`` and ``qa + VEC``: row ``i``'s ``w_ij (bsc_i, bss_i)`` into the
-    column's sums and ``g[p] += bss_i s_j + bsc_i c_j`` (loop-free, as ``edge_vec``)."""
+    lane vectors at ``qa`` and ``qa + VEC`` (``node_j = (c_j, s_j)`` of the first, then of the
+    second): row ``i``'s ``w_ij (bsc_i, bss_i)`` into the column's sums and ``g[p] += bss_i s_j
+    + bsc_i c_j`` (loop-free, as ``edge_vec``)."""
+    cja, sja, cjb, sjb = node_j
     oa = trow[t] * lanes + qa
     ob = oa + VEC
     p = tpos[t]
@@ -824,7 +804,7 @@ def _node_cotangents(st, base, size, kc, ks, bss, bsc, own_c, own_s, o):
 
 
 @njit(cache=True)
-def _rk4_vjp_vec(yc, ys, st, ac, as_, zc, zs, tc, ts, kc, ks, g, indptr, indices, w, dt, tr, scratch):
+def _rk4_vjp_vec(yc, ys, st, ac, as_, work, g, net, dt, tr, scratch):
     """:func:`_rk4_vjp` (with :func:`_stages`, :func:`_velocity`, :func:`_velocity_vjp`) for
     every lane of ``[node, lane]`` arrays on machine vectors, two vectors of :data:`VEC` lanes at
     a time (whole cache lines of the 16 lanes, and independent chains for the out-of-order
@@ -835,7 +815,10 @@ def _rk4_vjp_vec(yc, ys, st, ac, as_, zc, zs, tc, ts, kc, ks, g, indptr, indices
     gather down column ``j`` of the transposed pattern ``tr`` (:class:`_Transpose`): the
     per-node cotangents first, into ``scratch`` (``[4, node * lane]``), then for each ``j`` a
     register sum of what the scatter adds into ``(bc_j, bs_j)`` in its order (the rows
-    ``i < j`` ascending, ``j``'s own term, the rows ``i >= j``)."""
+    ``i < j`` ascending, ``j``'s own term, the rows ``i >= j``). ``work`` and ``net`` as in
+    :func:`_rk4_vjp`, each array ``[node, lane]``."""
+    zc, zs, tc, ts, kc, ks = work
+    indptr, indices, w = net
     n, lanes = yc.shape
     size = n * lanes
     h = 0.5 * dt
@@ -900,13 +883,14 @@ def _rk4_vjp_vec(yc, ys, st, ac, as_, zc, zs, tc, ts, kc, ks, g, indptr, indices
                 sja = vload(st, base + size + oa)
                 cjb = vload(st, base + ob)
                 sjb = vload(st, base + size + ob)
+                node_j = (cja, sja, cjb, sjb)
                 if sq == 0:
                     aca, asa, acb, asb = vload(ac, oa), vload(as_, oa), vload(ac, ob), vload(as_, ob)
                 else:
                     aca, asa, acb, asb = vload(tc, oa), vload(ts, oa), vload(tc, ob), vload(ts, ob)
                 for t in range(tptr[j], tsplit[j]):
                     aca, asa, acb, asb = _column_link(
-                        trow, tpos, w, g, bss, bsc, t, cja, sja, cjb, sjb, lanes, qa, aca, asa, acb, asb
+                        trow, tpos, w, g, bss, bsc, t, node_j, lanes, qa, aca, asa, acb, asb
                     )
                 aca = aca + vload(own_c, oa)
                 asa = asa + vload(own_s, oa)
@@ -914,7 +898,7 @@ def _rk4_vjp_vec(yc, ys, st, ac, as_, zc, zs, tc, ts, kc, ks, g, indptr, indices
                 asb = asb + vload(own_s, ob)
                 for t in range(tsplit[j], tptr[j + 1]):
                     aca, asa, acb, asb = _column_link(
-                        trow, tpos, w, g, bss, bsc, t, cja, sja, cjb, sjb, lanes, qa, aca, asa, acb, asb
+                        trow, tpos, w, g, bss, bsc, t, node_j, lanes, qa, aca, asa, acb, asb
                     )
                 if sq > 0:
                     vstore(tc, oa, aca)  # the next stage's kc, ks read them
@@ -932,17 +916,17 @@ def _rk4_vjp_vec(yc, ys, st, ac, as_, zc, zs, tc, ts, kc, ks, g, indptr, indices
 
 
 @njit(cache=True)
-def _rk4_forward_lanes(
-    c, s, kv, yc, ys, ybc, ybs, lw, ck, k_lane, x_lane, coef, code, indptr, indices, w, run
-):
-    """The group's RK4 forward pass; per lane ``code``, ``k_lane``, ``x_lane`` and the Hermite
-    seed coefficients ``coef[:, q] = (R_k, D_k, R_{k-1}, D_{k-1})`` weights (as
-    :func:`_rk4_adjoint` forms them)."""
+def _rk4_forward_lanes(c, s, step_bufs, ck, crossing, net, run):
+    """The group's RK4 forward pass from the states in ``(c, s)``; into ``crossing = (k_lane,
+    x_lane, coef, code)`` per lane ``code``, ``k_lane``, ``x_lane`` and the Hermite seed
+    coefficients ``coef[:, q] = (R_k, D_k, R_{k-1}, D_{k-1})`` weights (as :func:`_rk4_adjoint`
+    forms them); checkpoints into ``ck`` (returned). ``step_bufs = (kv, yc, ys, ybc, ybs, lw)``:
+    the buffers and per-lane weights of the lane RK4 step; ``net = (indptr, indices, w)``."""
+    kv, yc, ys, ybc, ybs, lw = step_bufs
+    k_lane, x_lane, coef, code = crossing
+    indptr, indices, w = net
     n, lanes = c.shape
-    dt = run.dt
-    r2_target = run.r2_target
-    max_steps = run.max_steps
-    every = run.every
+    _, dt, r2_target, max_steps, every, _ = run
     r2 = np.empty(lanes)
     dr2 = np.empty(lanes)
     r2_prev = np.empty(lanes)
@@ -982,10 +966,12 @@ def _rk4_forward_lanes(
 
 
 @njit(cache=True)
-def _rk4_backward_lanes(
-    ck, seg_c, seg_s, c, s, kv, yc, ys, ybc, ybs, lw, g, k_lane, coef, code, indptr, indices, w, tr, run
-):
-    """The group's RK4 backward pass: ``g[p, q] = d tau0 / d w_p`` of every SYNCED lane."""
+def _rk4_backward_lanes(ck, seg_c, seg_s, c, s, step_bufs, g, crossing, net, tr, run):
+    """The group's RK4 backward pass: ``g[p, q] = d tau0 / d w_p`` of every SYNCED lane
+    (``step_bufs``, ``crossing`` and ``net`` as :func:`_rk4_forward_lanes` left them)."""
+    kv, yc, ys, ybc, ybs, lw = step_bufs
+    k_lane, _, coef, code = crossing
+    indptr, indices, w = net
     n, lanes = ck.shape[2], ck.shape[3]
     dt = run.dt
     every = run.every
@@ -1003,6 +989,7 @@ def _rk4_backward_lanes(
     ts = np.zeros((n, lanes))
     kc = np.empty((n, lanes))
     ks = np.empty((n, lanes))
+    work = (zc, zs, tc, ts, kc, ks)
     r2 = np.empty(lanes)
     dr2 = np.empty(lanes)
     # one-lane scratch of the seeds (the reference's own buffers)
@@ -1029,7 +1016,7 @@ def _rk4_backward_lanes(
         for j in range(j1 - 1, j0 - 1, -1):
             cj = seg_c[j - j0]
             sj = seg_s[j - j0]
-            _rk4_vjp_vec(cj, sj, st, ac, as_, zc, zs, tc, ts, kc, ks, g, indptr, indices, w, dt, tr, scratch)
+            _rk4_vjp_vec(cj, sj, st, ac, as_, work, g, net, dt, tr, scratch)
             for q in range(lanes):
                 if code[q] != SYNCED:
                     continue
@@ -1057,20 +1044,39 @@ def _rk4_backward_lanes(
                 )
 
 
+# ---- the batch drivers -----------------------------------------------------------------------
+
+
+@njit(inline="always")
+def _start_state(c, s, seed, k):
+    """``(c, s) = (cos theta, sin theta)`` of realization ``k``'s initial phases."""
+    for i in range(c.shape[0]):
+        th = phase(seed, k, i)
+        c[i] = np.cos(th)
+        s[i] = np.sin(th)
+
+
+@njit(inline="always")
+def _link_values(dtau, r, g, synced, d_ptr, d_pos, d_val):
+    """``dtau[r, e] = sum_p (dW/dbeta_e)_p g_p`` for every link ``e`` (:class:`LinkDerivatives`
+    ``d_ptr, d_pos, d_val``), or 0 unless ``synced``."""
+    for e in range(d_ptr.shape[0] - 1):
+        total = 0.0
+        if synced:
+            for p in range(d_ptr[e], d_ptr[e + 1]):
+                total += d_val[p] * g[d_pos[p]]
+        dtau[r, e] = total
+
+
 @njit(parallel=True, cache=True)
 def _adjoint_lanes_batch(ks, indptr, indices, w, tr, deriv, run, status0, steps0, frac0, dtau):
     """Realizations ``ks`` in groups of ``LANES``, one group per parallel task."""
-    d_ptr = deriv.indptr
-    d_pos = deriv.position
-    d_val = deriv.value
-    seed = run.seed
-    every = run.every
-    max_steps = run.max_steps
-    rk4 = run.rk4
+    # every field as a local before the prange (see antisync.kernels.lanes.integrate_lanes)
+    d_ptr, d_pos, d_val = deriv
+    seed, _, _, max_steps, every, rk4 = run
     m = ks.shape[0]
     n = indptr.shape[0] - 1
     nnz = w.shape[0]
-    n_edges = d_ptr.shape[0] - 1
     lanes = LANES
     n_groups = (m + lanes - 1) // lanes
     for group in prange(n_groups):
@@ -1080,10 +1086,7 @@ def _adjoint_lanes_batch(ks, indptr, indices, w, tr, deriv, run, status0, steps0
         c = np.ones((n, lanes))
         s = np.zeros((n, lanes))
         for r in range(r_lo, r_hi):
-            for i in range(n):
-                th = phase(seed, ks[r], i)
-                c[i, r - r_lo] = np.cos(th)
-                s[i, r - r_lo] = np.sin(th)
+            _start_state(c[:, r - r_lo], s[:, r - r_lo], seed, ks[r])
         cn = np.empty((n, lanes))
         sn = np.empty((n, lanes))
         ck = np.empty((16, 2, n, lanes))
@@ -1103,31 +1106,11 @@ def _adjoint_lanes_batch(ks, indptr, indices, w, tr, deriv, run, status0, steps0
             kv = np.zeros((8, n, lanes))
             yc = np.empty((n, lanes))
             ys = np.empty((n, lanes))
-            ck = _rk4_forward_lanes(
-                c, s, kv, yc, ys, cn, sn, lw, ck, k_lane, x_lane, coef, code, indptr, indices, w, run
-            )
-            _rk4_backward_lanes(
-                ck,
-                seg_c,
-                seg_s,
-                c,
-                s,
-                kv,
-                yc,
-                ys,
-                cn,
-                sn,
-                lw,
-                g,
-                k_lane,
-                coef,
-                code,
-                indptr,
-                indices,
-                w,
-                tr,
-                run,
-            )
+            step_bufs = (kv, yc, ys, cn, sn, lw)
+            crossing = (k_lane, x_lane, coef, code)
+            net = (indptr, indices, w)
+            ck = _rk4_forward_lanes(c, s, step_bufs, ck, crossing, net, run)
+            _rk4_backward_lanes(ck, seg_c, seg_s, c, s, step_bufs, g, crossing, net, tr, run)
         else:
             lw = np.empty((1, lanes))  # unused: every lane has the weights w
             ck = _euler_forward_lanes(
@@ -1158,15 +1141,7 @@ def _adjoint_lanes_batch(ks, indptr, indices, w, tr, deriv, run, status0, steps0
             status0[r] = st
             steps0[r] = k_lane[q] if st == SYNCED else (0 if st == ALREADY_SYNCED else max_steps)
             frac0[r] = x_lane[q]
-            for e in range(n_edges):
-                total = 0.0
-                if st == SYNCED:
-                    for p in range(d_ptr[e], d_ptr[e + 1]):
-                        total += d_val[p] * g[d_pos[p], q]
-                dtau[r, e] = total
-
-
-# ---- the batch driver ----------------------------------------------------------------------
+            _link_values(dtau, r, g[:, q], st == SYNCED, d_ptr, d_pos, d_val)
 
 
 @njit(parallel=True, cache=True)
@@ -1174,19 +1149,11 @@ def _adjoint_batch(ks, indptr, indices, w, deriv, run, n_groups, status0, steps0
     """Realizations ``ks`` split into ``n_groups`` ranges, one per parallel task; each task
     integrates its realizations one at a time with per-task buffers."""
     # every field as a local before the prange (see antisync.kernels.lanes.integrate_lanes)
-    d_ptr = deriv.indptr
-    d_pos = deriv.position
-    d_val = deriv.value
-    seed = run.seed
-    dt = run.dt
-    r2_target = run.r2_target
-    max_steps = run.max_steps
-    every = run.every
-    rk4 = run.rk4
+    d_ptr, d_pos, d_val = deriv
+    seed, dt, r2_target, max_steps, every, rk4 = run
     m = ks.shape[0]
     n = indptr.shape[0] - 1
     nnz = w.shape[0]
-    n_edges = d_ptr.shape[0] - 1
     per = (m + n_groups - 1) // n_groups
     for group in prange(n_groups):
         r_lo = group * per
@@ -1202,10 +1169,7 @@ def _adjoint_batch(ks, indptr, indices, w, deriv, run, n_groups, status0, steps0
         lam_new = np.empty(n)
         g = np.zeros(nnz)
         for r in range(r_lo, r_hi):
-            for i in range(n):
-                th = phase(seed, ks[r], i)
-                c[i] = np.cos(th)
-                s[i] = np.sin(th)
+            _start_state(c, s, seed, ks[r])
             if rk4:
                 st, k, x, ck = _rk4_adjoint(
                     c, s, ck, seg, g, indptr, indices, w, dt, r2_target, max_steps, every
@@ -1217,12 +1181,7 @@ def _adjoint_batch(ks, indptr, indices, w, deriv, run, n_groups, status0, steps0
             status0[r] = st
             steps0[r] = k
             frac0[r] = x
-            for e in range(n_edges):
-                total = 0.0
-                if st == SYNCED:
-                    for q in range(d_ptr[e], d_ptr[e + 1]):
-                        total += d_val[q] * g[d_pos[q]]
-                dtau[r, e] = total
+            _link_values(dtau, r, g, st == SYNCED, d_ptr, d_pos, d_val)
 
 
 def _lane_order(ks, indptr, indices, w, run: _Run) -> np.ndarray:

@@ -535,30 +535,7 @@ def make_kernels(jit, dtype=np.float64) -> Kernels:
 
     euler_step_vec = jit(euler_step_vec)
 
-    def tangent_step_lanes(
-        c,
-        s,
-        acc,
-        sum_c,
-        sum_s,
-        tot_c,
-        tot_s,
-        lw,
-        indptr,
-        indices,
-        dt,
-        r2,
-        taylor,
-        u,
-        du,
-        cu,
-        su,
-        edge_a,
-        edge_b,
-        rho,
-        mu,
-        dr2,
-    ):
+    def tangent_step_lanes(c, s, acc, sum_c, sum_s, tot_c, tot_s, net, dt, r2, taylor, u, work, damage, dr2):
         """Euler step plus its tangents ``u[e] = dtheta/dbeta_e`` for damage on each edge ``e``.
 
         The tangent of ``theta <- theta + dt f(theta, W(beta))`` is
@@ -567,7 +544,14 @@ def make_kernels(jit, dtype=np.float64) -> Kernels:
         sin(theta_b - theta_a)`` (``dw_aj/dbeta = rho w_aj + mu [j = b]``; see
         :func:`antisync.physics.coupling.coupling_derivative`). Afterwards
         ``dr2[e] = d|sum_j e^{i theta_j}|^2 / dbeta_e``.
+
+        The arguments of ``euler_step_lanes``, the network as ``net = (lw, indptr, indices)``,
+        then the tangents ``u[e, node, lane]``, their scratch ``work = (du, cu, su)`` (each
+        ``[node, lane]``), the damage ``(edge_a, edge_b, rho, mu)`` per edge and ``dr2[e, lane]``.
         """
+        lw, indptr, indices = net
+        du, cu, su = work
+        edge_a, edge_b, rho, mu = damage
         n, lanes = c.shape
         lane_sums(c, s, sum_c, sum_s, acc, lw, indptr, indices, dt)
         for e in range(u.shape[0]):
