@@ -238,9 +238,7 @@ def summarize_lambda(rec_e: np.ndarray) -> dict:
     b = _coarsen(rec_e)
     return {
         "lambda": estimate_mean(b[:, 0], b[:, 3], b[:, 4]),
-        "n": int(rec_e[:, 0].sum()),
-        "n_already": int(rec_e[:, 1].sum()),
-        "n_not_synced": int(rec_e[:, 2].sum()),
+        **_status_counts(rec_e),
         "n_flagged": int(rec_e[:, 5].sum()),
     }
 
@@ -408,9 +406,7 @@ def summarize_variant(rec_v: np.ndarray) -> dict:
     return {
         "F": f,
         "tau": tau,
-        "n": int(rec_v[:, 0].sum()),
-        "n_already": int(rec_v[:, 1].sum()),
-        "n_not_synced": int(rec_v[:, 2].sum()),
+        **_status_counts(rec_v),
     }
 
 
@@ -419,9 +415,16 @@ def summarize_tau0(rec0: np.ndarray) -> dict:
     b = _coarsen(rec0)
     return {
         "tau0": estimate_mean(b[:, 0], b[:, 3], b[:, 4]),
-        "n": int(rec0[:, 0].sum()),
-        "n_already": int(rec0[:, 1].sum()),
-        "n_not_synced": int(rec0[:, 2].sum()),
+        **_status_counts(rec0),
+    }
+
+
+def _status_counts(rec: np.ndarray) -> dict[str, int]:
+    """``n``, ``n_already``, ``n_not_synced`` (the first fields of every block record), summed."""
+    return {
+        "n": int(rec[:, 0].sum()),
+        "n_already": int(rec[:, 1].sum()),
+        "n_not_synced": int(rec[:, 2].sum()),
     }
 
 

@@ -137,15 +137,24 @@ def _refuse_shared_names(descs: list[dict], sweep: Sweep) -> None:
     be shown with the other's numbers. Point names are injective on the values
     (:func:`~antisync.sweeps.points.point_suffix`); this is the guard for anything else (a
     graph named ``g_top`` beside the top-stage job of a graph ``g``, say)."""
+    clash = _first_shared_name(descs)
+    if clash is not None:
+        other, desc = clash
+        raise ConfigError(
+            f"{_describe(other, sweep)} and {_describe(desc, sweep)} would both be job "
+            f"{desc['job']!r} (one would show the other's numbers): give the graphs other "
+            "name: keys, or use other grid values"
+        )
+
+
+def _first_shared_name(descs: list[dict]) -> tuple[dict, dict] | None:
+    """The first two of ``descs`` (in order) with one job name, or None when the names differ."""
     seen: dict[str, dict] = {}
     for desc in descs:
         other = seen.setdefault(desc["job"], desc)
         if other is not desc:
-            raise ConfigError(
-                f"{_describe(other, sweep)} and {_describe(desc, sweep)} would both be job "
-                f"{desc['job']!r} (one would show the other's numbers): give the graphs other "
-                "name: keys, or use other grid values"
-            )
+            return other, desc
+    return None
 
 
 def _refuse_renamed_jobs(path: Path, stored: dict, meta: list[dict]) -> None:
@@ -164,16 +173,14 @@ def _refuse_renamed_jobs(path: Path, stored: dict, meta: list[dict]) -> None:
         return json.dumps([desc["graph"], point, float(desc["threshold"]), desc["repeat"]])
 
     old = [d for d in stored.get("jobs", []) if d.get("stage") == "main"]
-    names: dict[str, dict] = {}
-    for d in old:
-        first = names.setdefault(d["job"], d)
-        if first is not d:
-            raise StoreError(
-                f"{path} holds grid points {point_label(first.get('point') or {})} and "
-                f"{point_label(d.get('point') or {})} under one job {d['job']!r} (written by an "
-                "antisync that named values with 6 digits); one shows the other's numbers: run "
-                "the sweep again with --overwrite"
-            )
+    clash = _first_shared_name(old)
+    if clash is not None:
+        first, second = (point_label(d.get("point") or {}) for d in clash)
+        raise StoreError(
+            f"{path} holds grid points {first} and {second} under one job {clash[0]['job']!r} "
+            "(written by an antisync that named values with 6 digits); one shows the other's "
+            "numbers: run the sweep again with --overwrite"
+        )
     ours = {where(d): d["job"] for d in meta}
     for d in old:
         new = ours.get(where(d))
