@@ -211,7 +211,7 @@ def _sparse_mv2(indptr, nbr, wv, a, b, out_a, out_b):
         out_b[i] = acc_b
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _mv2(coupling, a, b, out_a, out_b):
     """``out_a = W a`` and ``out_b = W b`` with ``coupling = (dense, w, indptr, nbr, wv)``:
     ``W`` as the dense ``w`` or in symmetric CSR, as ``dense`` says."""
