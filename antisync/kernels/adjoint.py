@@ -1072,13 +1072,8 @@ def _link_values(dtau, r, g, synced, d_ptr, d_pos, d_val):
 def _adjoint_lanes_batch(ks, indptr, indices, w, tr, deriv, run, status0, steps0, frac0, dtau):
     """Realizations ``ks`` in groups of ``LANES``, one group per parallel task."""
     # every field as a local before the prange (see antisync.kernels.lanes.integrate_lanes)
-    d_ptr = deriv.indptr
-    d_pos = deriv.position
-    d_val = deriv.value
-    seed = run.seed
-    max_steps = run.max_steps
-    every = run.every
-    rk4 = run.rk4
+    d_ptr, d_pos, d_val = deriv
+    seed, _, _, max_steps, every, rk4 = run
     m = ks.shape[0]
     n = indptr.shape[0] - 1
     nnz = w.shape[0]
@@ -1154,15 +1149,8 @@ def _adjoint_batch(ks, indptr, indices, w, deriv, run, n_groups, status0, steps0
     """Realizations ``ks`` split into ``n_groups`` ranges, one per parallel task; each task
     integrates its realizations one at a time with per-task buffers."""
     # every field as a local before the prange (see antisync.kernels.lanes.integrate_lanes)
-    d_ptr = deriv.indptr
-    d_pos = deriv.position
-    d_val = deriv.value
-    seed = run.seed
-    dt = run.dt
-    r2_target = run.r2_target
-    max_steps = run.max_steps
-    every = run.every
-    rk4 = run.rk4
+    d_ptr, d_pos, d_val = deriv
+    seed, dt, r2_target, max_steps, every, rk4 = run
     m = ks.shape[0]
     n = indptr.shape[0] - 1
     nnz = w.shape[0]

@@ -76,15 +76,8 @@ LANES = 32
 @njit(parallel=True, cache=True)
 def _integrate_batch(ks, graph, run, status0, steps0, status, steps):
     # fields as locals before the prange (see antisync.kernels.lanes.integrate_lanes)
-    indptr = graph.indptr
-    indices = graph.indices
-    base_w = graph.base_w
-    var_w = graph.var_w
-    var_is_base = graph.var_is_base
-    seed = run.seed
-    dt = run.dt
-    r2_target = run.r2_target
-    max_steps = run.max_steps
+    indptr, indices, base_w, var_w, var_is_base = graph[:5]
+    seed, dt, r2_target, max_steps = run[:4]
     m = status0.shape[0]
     n = indptr.shape[0] - 1
     n_var = var_w.shape[0]
@@ -121,20 +114,8 @@ def _integrate_items(ks, seed, graph, model, dt, rk4, max_steps, out):
     ``make_model_kernels``' ``sync_steps`` from the realization's phases, the plain reference
     that the lane driver matches bit for bit."""
     # every field as a local before the prange (see antisync.kernels.lanes.integrate_lanes)
-    indptr = graph.indptr
-    indices = graph.indices
-    base_w = graph.base_w
-    var_w = graph.var_w
-    var_is_base = graph.var_is_base
-    todo = graph.todo
-    freqs = model.freqs
-    cl = model.cos_lag
-    sl = model.sin_lag
-    inertia = model.mass
-    damping = model.gamma
-    criterion = model.criterion
-    targets = model.targets
-    starts = model.starts
+    indptr, indices, base_w, var_w, var_is_base, todo = graph
+    freqs, cl, sl, inertia, damping, criterion, targets, starts = model
     status0 = out.status0
     steps0 = out.steps0
     frac0 = out.frac0

@@ -285,11 +285,7 @@ def _model_load(q, qr, qv, t, queue, graph, model, second, lanes, extra, out):
     was filled, 0 if the queue is empty."""
     indptr = graph.indptr
     indices = graph.indices
-    freqs = model.freqs
-    cl = model.cos_lag
-    sl = model.sin_lag
-    mass = model.mass
-    gamma = model.gamma
+    freqs, cl, sl, mass, gamma = model[:5]
     freq = model.criterion == CRIT_FREQUENCY
     c = lanes.c
     s = lanes.s
@@ -383,20 +379,8 @@ def make_lane_driver(features: LaneFeatures):
     def drive(ks, graph, run, model, out, tangents, n_groups):
         # every field as a local before the prange: a parallel loop that writes to an array
         # reached through a named tuple loses the writes (numba issues #5872, #7135, #10338)
-        indptr = graph.indptr
-        indices = graph.indices
-        base_w = graph.base_w
-        var_w = graph.var_w
-        var_is_base = graph.var_is_base
-        todo = graph.todo
-        seed = run.seed
-        dt = run.dt
-        r2_target = run.r2_target
-        max_steps = run.max_steps
-        taylor = run.taylor
-        lanes = run.lanes
-        renorm = run.renorm
-        block = run.block
+        indptr, indices, base_w, var_w, var_is_base, todo = graph
+        seed, dt, r2_target, max_steps, taylor, _, lanes, renorm, block = run
         status0 = out.status0
         steps0 = out.steps0
         frac0 = out.frac0
@@ -404,10 +388,7 @@ def make_lane_driver(features: LaneFeatures):
         steps = out.steps
         frac = out.frac
         dtau = out.dtau
-        edge_a = tangents.edge_a
-        edge_b = tangents.edge_b
-        rho = tangents.rho
-        mu = tangents.mu
+        edge_a, edge_b, rho, mu = tangents
         n = indptr.shape[0] - 1
         nnz = base_w.shape[0]
         n_var = var_w.shape[0]
@@ -430,14 +411,7 @@ def make_lane_driver(features: LaneFeatures):
             fused = taylor and not rk4 and not tangent
             wide = fused or rk4
         else:
-            freqs = model.freqs
-            cl = model.cos_lag
-            sl = model.sin_lag
-            mass = model.mass
-            gamma = model.gamma
-            criterion = model.criterion
-            targets = model.targets
-            starts = model.starts
+            freqs, cl, sl, mass, gamma, criterion, targets, starts = model
             freq = criterion == CRIT_FREQUENCY
             second = False
             for i in range(n):
