@@ -73,10 +73,9 @@ class ModelParams(NamedTuple):
 
 class Terms(NamedTuple):
     """The constants of the model's right-hand side on the lanes (``rhs``' other arguments), as
-    the step functions take them. Each unpacks them once at its top, outside its loops; the
-    helpers called per node (``rates_vec``, ``edge_vec``) take the arrays themselves (an inlined
-    helper that unpacks arrays, or loops over them, leaves numba's reference counting calls in
-    the vector loop around it)."""
+    the step functions take them. Each unpacks them once at its top, outside its loops, and
+    hands the arrays themselves to the helpers it calls per node (``rates_vec``, ``_sums_vec``):
+    see the note at :func:`rk4_vec`'s ``k1`` on arrays and inlined helpers in the loop."""
 
     p: np.ndarray
     """(N, width): the natural frequencies of each lane's realization."""
@@ -121,18 +120,28 @@ def rates_vec(c, s, nu, p, cl, sl, mass, gamma, second, o, sc, ss, i):
 
 
 @njit(inline="always")
+def _sums_vec(c, s, lw, gamma, indptr, indices, i, qa):
+    """Node ``i``'s coupling sums ``(sc, ss)`` of the lane vectors at ``qa`` and ``qa + VEC``,
+    kept in registers over its edges (``edge_vec``; ``gamma`` only fills its unused ``w``). With
+    its loop it compiles to the same machine code as the loop written out in each step (the RK4
+    step's instructions checked identical)."""
+    zero = vsplat(0.0)
+    sca, ssa, scb, ssb = zero, zero, zero, zero
+    for e in range(indptr[i], indptr[i + 1]):
+        sca, ssa, scb, ssb = _edge_vec(c, s, lw, gamma, False, indices, e, qa, sca, ssa, scb, ssb)
+    return sca, ssa, scb, ssb
+
+
+@njit(inline="always")
 def rhs_vec(c, s, nu, terms, th, dnu):
     """make_model_kernels' ``rhs`` for every lane (constants ``terms``, a :class:`Terms`): the
     coupling sums of each node kept in registers over its edges (``edge_vec``), then the rates
     into ``th``, ``dnu``."""
     p, lw, indptr, indices, cl, sl, mass, gamma, second = terms
     n, lanes = c.shape
-    zero = vsplat(0.0)
     for qa in range(0, lanes, 2 * VEC):
         for i in range(n):
-            sca, ssa, scb, ssb = zero, zero, zero, zero
-            for e in range(indptr[i], indptr[i + 1]):
-                sca, ssa, scb, ssb = _edge_vec(c, s, lw, gamma, False, indices, e, qa, sca, ssa, scb, ssb)
+            sca, ssa, scb, ssb = _sums_vec(c, s, lw, gamma, indptr, indices, i, qa)
             o = i * lanes + qa
             _, _, ta, da = rates_vec(c, s, nu, p, cl, sl, mass, gamma, second, o, sca, ssa, i)
             _, _, tb, db = rates_vec(c, s, nu, p, cl, sl, mass, gamma, second, o + VEC, scb, ssb, i)
@@ -160,9 +169,7 @@ def euler_vec(c, s, cn, sn, nu, terms, dt, taylor, r2, spare):
         qb = qa + VEC
         tca, tsa, tcb, tsb = zero, zero, zero, zero
         for i in range(n):
-            sca, ssa, scb, ssb = zero, zero, zero, zero
-            for e in range(indptr[i], indptr[i + 1]):
-                sca, ssa, scb, ssb = _edge_vec(c, s, lw, gamma, False, indices, e, qa, sca, ssa, scb, ssb)
+            sca, ssa, scb, ssb = _sums_vec(c, s, lw, gamma, indptr, indices, i, qa)
             oa = i * lanes + qa
             ca, sa, ta, da = rates_vec(c, s, nu, p, cl, sl, mass, gamma, second, oa, sca, ssa, i)
             xa, ya = _euler_node_vec(c, s, cn, sn, nu, ca, sa, ta, da, dt, taylor, second, oa, spare)
@@ -248,13 +255,10 @@ def _rk4_inner_vec(c, s, nu, src, dst, acc, terms, h, qa):
     p, lw, indptr, indices, cl, sl, mass, gamma, second = terms
     n, lanes = c.shape
     size = n * lanes
-    zero = vsplat(0.0)
     two = vsplat(2.0)
     src_c, src_s, src_nu = src[0], src[1], src[2]
     for i in range(n):
-        sca, ssa, scb, ssb = zero, zero, zero, zero
-        for e in range(indptr[i], indptr[i + 1]):
-            sca, ssa, scb, ssb = _edge_vec(src_c, src_s, lw, gamma, False, indices, e, qa, sca, ssa, scb, ssb)
+        sca, ssa, scb, ssb = _sums_vec(src_c, src_s, lw, gamma, indptr, indices, i, qa)
         for v in range(2):
             o = i * lanes + qa + v * VEC
             sc = sca if v == 0 else scb
@@ -297,11 +301,7 @@ def rk4_vec(c, s, nu, th, dnu, ya, yb, acc, terms, dt, order, r2, dr2):
         _rk4_inner_vec(c, s, nu, yb, ya, acc, terms, dt, qa)
         # stage 4, the update and the projection of (c_i, s_i) to the unit circle
         for i in range(n):
-            sca, ssa, scb, ssb = zero, zero, zero, zero
-            for e in range(indptr[i], indptr[i + 1]):
-                sca, ssa, scb, ssb = _edge_vec(
-                    ya_c, ya_s, lw, gamma, False, indices, e, qa, sca, ssa, scb, ssb
-                )
+            sca, ssa, scb, ssb = _sums_vec(ya_c, ya_s, lw, gamma, indptr, indices, i, qa)
             for v in range(2):
                 o = i * lanes + qa + v * VEC
                 sc = sca if v == 0 else scb
@@ -318,9 +318,7 @@ def rk4_vec(c, s, nu, th, dnu, ya, yb, acc, terms, dt, order, r2, dr2):
         tca, tsa, dca, dsa = zero, zero, zero, zero
         tcb, tsb, dcb, dsb = zero, zero, zero, zero
         for i in range(n):
-            sca, ssa, scb, ssb = zero, zero, zero, zero
-            for e in range(indptr[i], indptr[i + 1]):
-                sca, ssa, scb, ssb = _edge_vec(c, s, lw, gamma, False, indices, e, qa, sca, ssa, scb, ssb)
+            sca, ssa, scb, ssb = _sums_vec(c, s, lw, gamma, indptr, indices, i, qa)
             o = i * lanes + qa
             ca, sa, ta, da = rates_vec(c, s, nu, p, cl, sl, mass, gamma, second, o, sca, ssa, i)
             cb, sb, tb, db = rates_vec(c, s, nu, p, cl, sl, mass, gamma, second, o + VEC, scb, ssb, i)
