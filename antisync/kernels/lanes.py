@@ -616,51 +616,12 @@ def make_lane_driver(features: LaneFeatures):
                             for i in range(n):
                                 for q in range(width):
                                     work[DEV_PREV_ROW + row, i, q] = work[DEV_ROW + row, i, q]
+                    # the right-hand side's constants, built at the call like the groups above
+                    terms = ms.Terms(lane_p, lw, indptr, indices, cl, sl, mass, gamma, second)
                     if rk4:
-                        _model_rk4_vec(
-                            c,
-                            s,
-                            nu,
-                            th,
-                            dnu,
-                            ya,
-                            yb,
-                            kacc,
-                            lane_p,
-                            lw,
-                            indptr,
-                            indices,
-                            cl,
-                            sl,
-                            mass,
-                            gamma,
-                            second,
-                            dt,
-                            not freq,
-                            r2,
-                            dr2,
-                        )
+                        _model_rk4_vec(c, s, nu, th, dnu, ya, yb, kacc, terms, dt, not freq, r2, dr2)
                     elif fused:
-                        _model_euler_vec(
-                            c,
-                            s,
-                            cn,
-                            sn,
-                            nu,
-                            lane_p,
-                            lw,
-                            indptr,
-                            indices,
-                            cl,
-                            sl,
-                            mass,
-                            gamma,
-                            second,
-                            dt,
-                            taylor,
-                            r2,
-                            spare,
-                        )
+                        _model_euler_vec(c, s, cn, sn, nu, terms, dt, taylor, r2, spare)
                         c, cn = cn, c
                         s, sn = sn, s
                     else:
@@ -680,9 +641,8 @@ def make_lane_driver(features: LaneFeatures):
                         hits += (r2[q] >= r2_target) & (lane_r[q] >= 0)
                 else:
                     if freq and not rk4:
-                        _model_rhs_vec(
-                            c, s, nu, lane_p, lw, indptr, indices, cl, sl, mass, gamma, second, th, dnu
-                        )
+                        terms = ms.Terms(lane_p, lw, indptr, indices, cl, sl, mass, gamma, second)
+                        _model_rhs_vec(c, s, nu, terms, th, dnu)
                     if freq:
                         _model_deviations_lanes(
                             c, s, th, dnu, lw, indptr, indices, cl, sl, mass, gamma, second, work, m4

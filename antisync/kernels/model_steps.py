@@ -32,7 +32,7 @@ from antisync.kernels.core import (
 )
 from antisync.physics.phases import make_uniform
 
-__all__ = ["ModelParams", "draw_frequencies", "lag_terms"]
+__all__ = ["ModelParams", "Terms", "draw_frequencies", "lag_terms"]
 
 #: Counter streams of :func:`antisync.physics.phases.make_uniform` used by the natural frequencies (the
 #: initial phases are the separate hash :func:`antisync.physics.phases.phase`).
@@ -71,6 +71,32 @@ class ModelParams(NamedTuple):
     starts: np.ndarray | None = None
 
 
+class Terms(NamedTuple):
+    """The constants of the model's right-hand side on the lanes (``rhs``' other arguments), as
+    the step functions take them. Each unpacks them once at its top, outside its loops, and
+    hands the arrays themselves to the helpers it calls per node (``rates_vec``, ``_sums_vec``):
+    see the note at :func:`rk4_vec`'s ``k1`` on arrays and inlined helpers in the loop."""
+
+    p: np.ndarray
+    """(N, width): the natural frequencies of each lane's realization."""
+    lw: np.ndarray
+    """(nnz, width): the CSR weights of each lane's network."""
+    indptr: np.ndarray
+    """The CSR row pointers."""
+    indices: np.ndarray
+    """The CSR column indices."""
+    cl: float
+    """``cos alpha`` of the phase lag."""
+    sl: float
+    """``sin alpha``."""
+    mass: np.ndarray
+    """(N,): the inertia of each node (0: first order)."""
+    gamma: np.ndarray
+    """(N,): the damping of each node."""
+    second: bool
+    """Whether any node has inertia (the state's ``nu`` rows)."""
+
+
 @njit(inline="always")
 def rates_vec(c, s, nu, p, cl, sl, mass, gamma, second, o, sc, ss, i):
     """``rhs``' node ``i`` for the lane vector at flat offset ``o`` of the state ``(c, s, nu)``
@@ -94,16 +120,28 @@ def rates_vec(c, s, nu, p, cl, sl, mass, gamma, second, o, sc, ss, i):
 
 
 @njit(inline="always")
-def rhs_vec(c, s, nu, p, lw, indptr, indices, cl, sl, mass, gamma, second, th, dnu):
-    """make_model_kernels' ``rhs`` for every lane: the coupling sums of each node kept in
-    registers over its edges (``edge_vec``), then the rates into ``th``, ``dnu``."""
-    n, lanes = c.shape
+def _sums_vec(c, s, lw, gamma, indptr, indices, i, qa):
+    """Node ``i``'s coupling sums ``(sc, ss)`` of the lane vectors at ``qa`` and ``qa + VEC``,
+    kept in registers over its edges (``edge_vec``; ``gamma`` only fills its unused ``w``). With
+    its loop it compiles to the same machine code as the loop written out in each step (the RK4
+    step's instructions checked identical)."""
     zero = vsplat(0.0)
+    sca, ssa, scb, ssb = zero, zero, zero, zero
+    for e in range(indptr[i], indptr[i + 1]):
+        sca, ssa, scb, ssb = _edge_vec(c, s, lw, gamma, False, indices, e, qa, sca, ssa, scb, ssb)
+    return sca, ssa, scb, ssb
+
+
+@njit(inline="always")
+def rhs_vec(c, s, nu, terms, th, dnu):
+    """make_model_kernels' ``rhs`` for every lane (constants ``terms``, a :class:`Terms`): the
+    coupling sums of each node kept in registers over its edges (``edge_vec``), then the rates
+    into ``th``, ``dnu``."""
+    p, lw, indptr, indices, cl, sl, mass, gamma, second = terms
+    n, lanes = c.shape
     for qa in range(0, lanes, 2 * VEC):
         for i in range(n):
-            sca, ssa, scb, ssb = zero, zero, zero, zero
-            for e in range(indptr[i], indptr[i + 1]):
-                sca, ssa, scb, ssb = _edge_vec(c, s, lw, gamma, False, indices, e, qa, sca, ssa, scb, ssb)
+            sca, ssa, scb, ssb = _sums_vec(c, s, lw, gamma, indptr, indices, i, qa)
             o = i * lanes + qa
             _, _, ta, da = rates_vec(c, s, nu, p, cl, sl, mass, gamma, second, o, sca, ssa, i)
             _, _, tb, db = rates_vec(c, s, nu, p, cl, sl, mass, gamma, second, o + VEC, scb, ssb, i)
@@ -115,30 +153,28 @@ def rhs_vec(c, s, nu, p, lw, indptr, indices, cl, sl, mass, gamma, second, th, d
 
 
 @njit(inline="always")
-def euler_vec(c, s, cn, sn, nu, p, lw, indptr, indices, cl, sl, mass, gamma, second, dt, taylor, r2, spare):
-    """One Euler step of every lane, fused as the identical model's ``euler_step_vec``: per node
-    the coupling sums over its edges (in registers), ``rhs``' rates at the current state, the
-    rotation of ``(c_i, s_i)`` by ``dt theta_i'`` into ``(cn, sn)`` (the caller swaps the
-    buffers) and ``nu_i += dt nu_i'``; ``r2`` gets each lane's ``R``. The rates are not kept
+def euler_vec(c, s, cn, sn, nu, terms, dt, taylor, r2, spare):
+    """One Euler step of every lane (constants ``terms``, a :class:`Terms`), fused as the
+    identical model's ``euler_step_vec``: per node the coupling sums over its edges (in
+    registers), ``rhs``' rates at the current state, the rotation of ``(c_i, s_i)`` by
+    ``dt theta_i'`` into ``(cn, sn)`` (the caller swaps the buffers) and ``nu_i += dt nu_i'``;
+    ``r2`` gets each lane's ``R``. The rates are not kept
     (the order criteria with Euler need only ``R``). ``taylor`` promises every angle is within
     the Taylor range (else each vector is tested); ``spare`` (VEC floats) is scratch for a
     vector with an angle outside it."""
+    p, lw, indptr, indices, cl, sl, mass, gamma, second = terms
     n, lanes = c.shape
     zero = vsplat(0.0)
     for qa in range(0, lanes, 2 * VEC):
         qb = qa + VEC
         tca, tsa, tcb, tsb = zero, zero, zero, zero
         for i in range(n):
-            sca, ssa, scb, ssb = zero, zero, zero, zero
-            for e in range(indptr[i], indptr[i + 1]):
-                sca, ssa, scb, ssb = _edge_vec(c, s, lw, gamma, False, indices, e, qa, sca, ssa, scb, ssb)
-            o = i * lanes
-            xa, ya = _euler_node_vec(
-                c, s, cn, sn, nu, p, cl, sl, mass, gamma, second, dt, taylor, o + qa, sca, ssa, i, spare
-            )
-            xb, yb = _euler_node_vec(
-                c, s, cn, sn, nu, p, cl, sl, mass, gamma, second, dt, taylor, o + qb, scb, ssb, i, spare
-            )
+            sca, ssa, scb, ssb = _sums_vec(c, s, lw, gamma, indptr, indices, i, qa)
+            oa = i * lanes + qa
+            ca, sa, ta, da = rates_vec(c, s, nu, p, cl, sl, mass, gamma, second, oa, sca, ssa, i)
+            xa, ya = _euler_node_vec(c, s, cn, sn, nu, ca, sa, ta, da, dt, taylor, second, oa, spare)
+            cb, sb, tb, db = rates_vec(c, s, nu, p, cl, sl, mass, gamma, second, oa + VEC, scb, ssb, i)
+            xb, yb = _euler_node_vec(c, s, cn, sn, nu, cb, sb, tb, db, dt, taylor, second, oa + VEC, spare)
             tca = tca + xa
             tsa = tsa + ya
             tcb = tcb + xb
@@ -163,9 +199,10 @@ def _rotate_each(c, s, cn, sn, angles, o):
 
 
 @njit(inline="always")
-def _euler_node_vec(c, s, cn, sn, nu, p, cl, sl, mass, gamma, second, dt, taylor, o, sc, ss, i, spare):
-    """Node ``i`` of :func:`euler_vec` for the lane vector at flat offset ``o``."""
-    ci, si, th, dnu = rates_vec(c, s, nu, p, cl, sl, mass, gamma, second, o, sc, ss, i)
+def _euler_node_vec(c, s, cn, sn, nu, ci, si, th, dnu, dt, taylor, second, o, spare):
+    """A node of :func:`euler_vec` for the lane vector at flat offset ``o`` from its
+    ``rates_vec`` ``(ci, si, th, dnu)``: ``(c_i, s_i)`` rotated into ``(cn, sn)`` (returned) and
+    ``nu_i`` advanced."""
     a = th * dt
     if taylor or not vany_outside(a, TAYLOR_MAX_ANGLE):
         x, y = _rotate_by_vec(ci, si, cn, sn, o, a)
@@ -211,18 +248,17 @@ def euler_lanes(c, s, nu, th, dnu, dt, second):
 
 
 @njit(inline="always")
-def _rk4_inner_vec(c, s, nu, src, dst, acc, p, lw, indptr, indices, cl, sl, mass, gamma, second, h, qa):
-    """An inner RK4 stage of the lane vectors at ``qa`` and ``qa + VEC``: per node the rates at
-    the stage state ``src`` (rows c, s, nu), ``acc += 2 k`` and ``dst = (c, s, nu) + h k``."""
+def _rk4_inner_vec(c, s, nu, src, dst, acc, terms, h, qa):
+    """An inner RK4 stage of the lane vectors at ``qa`` and ``qa + VEC``: per node the rates
+    (constants ``terms``) at the stage state ``src`` (rows c, s, nu), ``acc += 2 k`` and
+    ``dst = (c, s, nu) + h k``."""
+    p, lw, indptr, indices, cl, sl, mass, gamma, second = terms
     n, lanes = c.shape
     size = n * lanes
-    zero = vsplat(0.0)
     two = vsplat(2.0)
     src_c, src_s, src_nu = src[0], src[1], src[2]
     for i in range(n):
-        sca, ssa, scb, ssb = zero, zero, zero, zero
-        for e in range(indptr[i], indptr[i + 1]):
-            sca, ssa, scb, ssb = _edge_vec(src_c, src_s, lw, gamma, False, indices, e, qa, sca, ssa, scb, ssb)
+        sca, ssa, scb, ssb = _sums_vec(src_c, src_s, lw, gamma, indptr, indices, i, qa)
         for v in range(2):
             o = i * lanes + qa + v * VEC
             sc = sca if v == 0 else scb
@@ -240,20 +276,19 @@ def _rk4_inner_vec(c, s, nu, src, dst, acc, p, lw, indptr, indices, cl, sl, mass
 
 
 @njit(inline="always")
-def rk4_vec(
-    c, s, nu, th, dnu, ya, yb, acc, p, lw, indptr, indices, cl, sl, mass, gamma, second, dt, order, r2, dr2
-):
-    """make_model_kernels' ``rk4_step`` for every lane, then ``rhs`` at the new state and, for
-    ``order``, ``R`` and ``dR/dt`` (``measure``'s sums) into ``r2``, ``dr2``. Each block of
-    ``2 VEC`` lanes runs its whole step before the next; ``acc`` (rows c, s, nu) sums
-    ``k1 + 2 k2 + 2 k3`` in ``rk4_step``'s order of additions, ``ya``, ``yb`` hold the stage
-    states in turn.
+def rk4_vec(c, s, nu, th, dnu, ya, yb, acc, terms, dt, order, r2, dr2):
+    """make_model_kernels' ``rk4_step`` for every lane (constants ``terms``, a :class:`Terms`),
+    then ``rhs`` at the new state and, for ``order``, ``R`` and ``dR/dt`` (``measure``'s sums)
+    into ``r2``, ``dr2``. Each block of ``2 VEC`` lanes runs its whole step before the next;
+    ``acc`` (rows c, s, nu) sums ``k1 + 2 k2 + 2 k3`` in ``rk4_step``'s order of additions,
+    ``ya``, ``yb`` hold the stage states in turn.
 
     The first stage of a step is the rates at its state, so the pass that computes them at the
     end of a step also writes the next step's ``k1`` (into ``acc``) and its first stage state
     (into ``ya``): on entry ``acc`` and ``ya`` hold them (:func:`rk4_start` for a lane just
     loaded). The rates themselves go to ``th``, ``dnu`` only without ``order`` (the frequency
     criterion's deviations read them); the order criteria need ``R`` and ``dR/dt`` alone."""
+    p, lw, indptr, indices, cl, sl, mass, gamma, second = terms
     n, lanes = c.shape
     size = n * lanes
     hh = 0.5 * dt
@@ -262,15 +297,11 @@ def rk4_vec(
     ya_c, ya_s, ya_nu = ya[0], ya[1], ya[2]
     for qa in range(0, lanes, 2 * VEC):
         qb = qa + VEC
-        _rk4_inner_vec(c, s, nu, ya, yb, acc, p, lw, indptr, indices, cl, sl, mass, gamma, second, hh, qa)
-        _rk4_inner_vec(c, s, nu, yb, ya, acc, p, lw, indptr, indices, cl, sl, mass, gamma, second, dt, qa)
+        _rk4_inner_vec(c, s, nu, ya, yb, acc, terms, hh, qa)
+        _rk4_inner_vec(c, s, nu, yb, ya, acc, terms, dt, qa)
         # stage 4, the update and the projection of (c_i, s_i) to the unit circle
         for i in range(n):
-            sca, ssa, scb, ssb = zero, zero, zero, zero
-            for e in range(indptr[i], indptr[i + 1]):
-                sca, ssa, scb, ssb = _edge_vec(
-                    ya_c, ya_s, lw, gamma, False, indices, e, qa, sca, ssa, scb, ssb
-                )
+            sca, ssa, scb, ssb = _sums_vec(ya_c, ya_s, lw, gamma, indptr, indices, i, qa)
             for v in range(2):
                 o = i * lanes + qa + v * VEC
                 sc = sca if v == 0 else scb
@@ -287,9 +318,7 @@ def rk4_vec(
         tca, tsa, dca, dsa = zero, zero, zero, zero
         tcb, tsb, dcb, dsb = zero, zero, zero, zero
         for i in range(n):
-            sca, ssa, scb, ssb = zero, zero, zero, zero
-            for e in range(indptr[i], indptr[i + 1]):
-                sca, ssa, scb, ssb = _edge_vec(c, s, lw, gamma, False, indices, e, qa, sca, ssa, scb, ssb)
+            sca, ssa, scb, ssb = _sums_vec(c, s, lw, gamma, indptr, indices, i, qa)
             o = i * lanes + qa
             ca, sa, ta, da = rates_vec(c, s, nu, p, cl, sl, mass, gamma, second, o, sca, ssa, i)
             cb, sb, tb, db = rates_vec(c, s, nu, p, cl, sl, mass, gamma, second, o + VEC, scb, ssb, i)
