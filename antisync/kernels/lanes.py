@@ -476,6 +476,8 @@ def make_lane_driver(features: LaneFeatures):
             dnu = np.zeros((nm, width))
             lane_p = np.zeros((nm, width))
             work = np.zeros((WORK_ROWS, nm, width))
+            # the right-hand side's constants, once per task (read only: see Lanes)
+            terms = ms.Terms(lane_p, lw, indptr, indices, cl, sl, mass, gamma, second)
             # RK4: the stage states in turn and the sum k1 + 2 k2 + 2 k3 (rows c, s, nu)
             ya = np.zeros((3, nm if rk4 else 0, width))
             yb = np.zeros((3, nm if rk4 else 0, width))
@@ -616,8 +618,6 @@ def make_lane_driver(features: LaneFeatures):
                             for i in range(n):
                                 for q in range(width):
                                     work[DEV_PREV_ROW + row, i, q] = work[DEV_ROW + row, i, q]
-                    # the right-hand side's constants, built at the call like the groups above
-                    terms = ms.Terms(lane_p, lw, indptr, indices, cl, sl, mass, gamma, second)
                     if rk4:
                         _model_rk4_vec(c, s, nu, th, dnu, ya, yb, kacc, terms, dt, not freq, r2, dr2)
                     elif fused:
@@ -641,7 +641,6 @@ def make_lane_driver(features: LaneFeatures):
                         hits += (r2[q] >= r2_target) & (lane_r[q] >= 0)
                 else:
                     if freq and not rk4:
-                        terms = ms.Terms(lane_p, lw, indptr, indices, cl, sl, mass, gamma, second)
                         _model_rhs_vec(c, s, nu, terms, th, dnu)
                     if freq:
                         _model_deviations_lanes(
