@@ -122,9 +122,9 @@ def rates_vec(c, s, nu, p, cl, sl, mass, gamma, second, o, sc, ss, i):
 @njit(inline="always")
 def _sums_vec(c, s, lw, gamma, indptr, indices, i, qa):
     """Node ``i``'s coupling sums ``(sc, ss)`` of the lane vectors at ``qa`` and ``qa + VEC``,
-    kept in registers over its edges (``edge_vec``; ``gamma`` only fills its unused ``w``). With
-    its loop it compiles to the same machine code as the loop written out in each step (the RK4
-    step's instructions checked identical)."""
+    kept in registers over its edges (``edge_vec``; ``gamma`` only fills its unused ``w``). The
+    RK4 step inside a ``prange`` body compiled to the same instructions with this helper as
+    with the loop written out in each stage (checked when it was introduced)."""
     zero = vsplat(0.0)
     sca, ssa, scb, ssb = zero, zero, zero, zero
     for e in range(indptr[i], indptr[i + 1]):
