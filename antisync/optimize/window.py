@@ -222,7 +222,7 @@ def _mv2(coupling, a, b, out_a, out_b):
         _sparse_mv2(indptr, nbr, wv, a, b, out_a, out_b)
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _rhs(theta, omega, kc, coupling, s, c, ws, wc, out):
     """``out = f(theta)``; leaves ``s, c = sin, cos theta`` and ``ws, wc = W s, W c``."""
     n = theta.shape[0]
@@ -245,7 +245,7 @@ def _rank2(g, cv, s, sv, c):
             g[a, b] += p * s[b] - q * c[b]
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _vjp(v, kc, coupling, links, s, c, ws, wc, scratch, ybar, grad, g):
     """``ybar = (df/dtheta)^T v`` at the state with ``s, c, ws, wc`` (see :func:`_rhs`), and
     the parameter part: ``grad += (df/dx)^T v`` (sparse) or ``g += cv s^T - sv c^T`` (dense);
@@ -284,7 +284,7 @@ def _order(s, c):
     return math.sqrt(cs * cs + ss * ss) / s.shape[0], cs, ss
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _stages(th, h, omega, kc, coupling, y, sn, cn, wsn, wcn, k1, k2, k3, k4):
     """RK4's stages 2-4 of the step from ``th`` (``k1`` given): the states ``y[1..3]``, their
     sines, cosines and coupling sums, and ``k2``, ``k3``, ``k4``. The forward pass and the
