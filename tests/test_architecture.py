@@ -332,6 +332,29 @@ def _unpacked(node: ast.Assign) -> str | None:
     return value.id if isinstance(value, ast.Name) else None
 
 
+def _unpacking_faults(tree: ast.AST, where: str) -> list[str]:
+    """What :func:`test_no_parallel_kernel_writes_through_an_unpacked_tuple` refuses in ``tree``."""
+    found = []
+    for func in ast.walk(tree):
+        if not (isinstance(func, ast.FunctionDef) and _is_parallel(func)):
+            continue
+        unpacked = set()
+        for node in ast.walk(func):
+            group = _unpacked(node) if isinstance(node, ast.Assign) else None
+            if group is None:
+                continue
+            if group not in READ_ONLY_GROUPS:
+                found.append(f"{where}.{func.name} line {node.lineno} unpacks {group}")
+            unpacked |= {e.id for e in node.targets[0].elts if isinstance(e, ast.Name)}
+        for node in ast.walk(func):
+            targets = node.targets if isinstance(node, ast.Assign) else []
+            targets = [node.target] if isinstance(node, ast.AugAssign) else targets
+            for target in targets:
+                if isinstance(target, ast.Subscript) and getattr(target.value, "id", None) in unpacked:
+                    found.append(f"{where}.{func.name} line {node.lineno} writes {target.value.id}")
+    return found
+
+
 def test_no_parallel_kernel_writes_through_an_unpacked_tuple():
     """A ``prange`` loop loses its writes to arrays bound by unpacking a tuple (``a, b = out``
     before the loop: numba 0.68 compiled it, ran it, and left ``a`` and ``b`` untouched; the
@@ -340,21 +363,31 @@ def test_no_parallel_kernel_writes_through_an_unpacked_tuple():
     stores into what it unpacked, and binds its outputs' fields one by one."""
     found = []
     for name, path in _modules().items():
-        for func in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
-            if not (isinstance(func, ast.FunctionDef) and _is_parallel(func)):
-                continue
-            unpacked = set()
-            for node in ast.walk(func):
-                group = _unpacked(node) if isinstance(node, ast.Assign) else None
-                if group is None:
-                    continue
-                if group not in READ_ONLY_GROUPS:
-                    found.append(f"{name}.{func.name} line {node.lineno} unpacks {group}")
-                unpacked |= {e.id for e in node.targets[0].elts if isinstance(e, ast.Name)}
-            for node in ast.walk(func):
-                targets = node.targets if isinstance(node, ast.Assign) else []
-                targets = [node.target] if isinstance(node, ast.AugAssign) else targets
-                for target in targets:
-                    if isinstance(target, ast.Subscript) and getattr(target.value, "id", None) in unpacked:
-                        found.append(f"{name}.{func.name} line {node.lineno} writes {target.value.id}")
+        found += _unpacking_faults(ast.parse(path.read_text(encoding="utf-8")), name)
     assert not found, "; ".join(found)
+
+
+def test_the_unpacking_check_sees_a_lost_write():
+    """The check refuses the two shapes that lost writes (an output group unpacked, a store into
+    an unpacked input) and passes the ones that keep them."""
+    bad = """
+@njit(parallel=True, cache=True)
+def f(ks, graph, out):
+    status0, steps0 = out
+    indptr, indices = graph
+    for r in prange(ks.shape[0]):
+        status0[r] = 1
+        indptr[r] += 1
+"""
+    good = """
+@njit(parallel=True, cache=True)
+def f(ks, graph, out):
+    status0 = out.status0
+    indptr, indices = graph
+    for r in prange(ks.shape[0]):
+        st, k = step(indptr, indices)
+        status0[r] = st
+"""
+    found = _unpacking_faults(ast.parse(bad), "m")
+    assert found == ["m.f line 4 unpacks out", "m.f line 7 writes status0", "m.f line 8 writes indptr"]
+    assert not _unpacking_faults(ast.parse(good), "m")
