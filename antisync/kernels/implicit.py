@@ -420,13 +420,13 @@ def _scratch(n, plan):
 @njit(cache=True, inline="always")
 def _attempt(y_th, y_nu, cy, sy, f0_th, f0_nu, h, net, plan, scratch, scale, rtol, atol):
     """One attempted Rodas4 step of size ``h`` from ``(y_th, y_nu)`` (``cy``, ``sy``: the cosines
-    and sines of ``y_th``; ``f0_th``, ``f0_nu``: the rates there) on the model ``net`` (``p,
-    w, indptr, indices, cl, sl, mass, gamma, gamma_eff, second``), the LU on ``plan``. Leaves the
+    and sines of ``y_th``; ``f0_th``, ``f0_nu``: the rates there) on the model ``net = (eq,
+    gamma_eff, second)`` (``eq`` as :func:`rodas4_sync` takes it), the LU on ``plan``. Leaves the
     stages in ``scratch`` (``u_th, u_nu, d_th, z_nu, ...``: the new state is ``y_th + d_th +
     u_th[5]``, ``z_nu + u_nu[5]``) and returns the weighted RMS error estimate, or -1 where a
     pivot is not resolved."""
-    eq = net[:8]
-    p, w, indptr, indices, cl, sl, mass, gamma, gamma_eff, second = net
+    eq, gamma_eff, second = net
+    p, w, indptr, indices, cl, sl, mass, gamma = eq
     fp_perm, fp_inv, fp_ptr, fp_col, fp_diag, fp_entry = plan[:6]
     div_ptr, div_pos, upd_ptr, upd_ij, upd_ik, upd_kj = plan[6:]
     u_th, u_nu, d_th, z_nu, f_th, f_nu, r_th, b, x, xp, c, s, dd, val = scratch
@@ -782,8 +782,9 @@ def rodas4_trip(th0, grid, w_fault, w_post, t_clear, t_max, h0, tols, plan, line
     work = np.empty((WORK_ROWS, n))
     fault = t_clear > 0.0
     w = w_fault if fault else w_post
-    net = (p, w, indptr, indices, 1.0, 0.0, mass, gamma, gamma_eff, second)
-    _eval(y_th, y_nu, cy, sy, net[:8], second, f0_th, f0_nu)
+    eq = (p, w, indptr, indices, 1.0, 0.0, mass, gamma)
+    net = (eq, gamma_eff, second)
+    _eval(y_th, y_nu, cy, sy, eq, second, f0_th, f0_nu)
     settle = (
         0.0
         if _speed_rates(cy, sy, f0_th, f0_nu, indptr, indices, w, mass, gamma, acc, work) < tol
@@ -828,7 +829,7 @@ def rodas4_trip(th0, grid, w_fault, w_post, t_clear, t_max, h0, tols, plan, line
         for k in range(2):
             for i in range(n):
                 work[DEV_PREV_ROW + k, i] = work[DEV_ROW + k, i]
-        _eval(y_th, y_nu, cy, sy, net[:8], second, f0_th, f0_nu)
+        _eval(y_th, y_nu, cy, sy, eq, second, f0_th, f0_nu)
         largest = _speed_rates(cy, sy, f0_th, f0_nu, indptr, indices, w, mass, gamma, acc, work)
         # the first swing on the step's interpolants
         for i in range(n):
@@ -869,9 +870,10 @@ def rodas4_trip(th0, grid, w_fault, w_post, t_clear, t_max, h0, tols, plan, line
         if last and t < t_max:
             # the fault clears: the grid without the line from this state on
             w = w_post
-            net = (p, w, indptr, indices, 1.0, 0.0, mass, gamma, gamma_eff, second)
+            eq = (p, w, indptr, indices, 1.0, 0.0, mass, gamma)
+            net = (eq, gamma_eff, second)
             end = t_max
-            _eval(y_th, y_nu, cy, sy, net[:8], second, f0_th, f0_nu)
+            _eval(y_th, y_nu, cy, sy, eq, second, f0_th, f0_nu)
             if _speed_rates(cy, sy, f0_th, f0_nu, indptr, indices, w, mass, gamma, acc, work) >= tol:
                 settle = np.nan
             elif settle != settle:

@@ -556,22 +556,15 @@ def _model_adjoint(y0, eq, dt, rk4, criterion, target, max_steps, every, g):
 
 
 @njit(parallel=True, cache=True)
-def _adjoint_items(ks, seed, net, model, dt, rk4, criterion, target, max_steps, every, out):
-    """:func:`_model_adjoint` of every realization: ``net`` ``(indptr, indices, w)``, ``model``
+def _adjoint_items(ks, seed, graph, model, dt, rk4, criterion, target, max_steps, every, out):
+    """:func:`_model_adjoint` of every realization: ``graph`` ``(indptr, indices, w)``, ``model``
     ``(freqs, starts, cl, sl, mass, gamma)`` (a row of ``freqs`` each, or one for all; ``starts``
     as :func:`~antisync.physics.phases.start_phase` takes them), results into ``out``
     ``(status0, steps0, frac0, grad, coef_t)``."""
-    # fields as locals before the prange, by index: a parallel loop loses its writes to arrays
-    # bound by unpacking a tuple (tests/test_architecture.py)
-    indptr = net[0]
-    indices = net[1]
-    w = net[2]
-    freqs = model[0]
-    starts = model[1]
-    cl = model[2]
-    sl = model[3]
-    mass = model[4]
-    gamma = model[5]
+    # the read-only inputs unpacked, the outputs bound by index: a parallel loop loses its writes
+    # to arrays bound by unpacking a tuple (tests/test_architecture.py)
+    indptr, indices, w = graph
+    freqs, starts, cl, sl, mass, gamma = model
     status0 = out[0]
     steps0 = out[1]
     frac0 = out[2]
