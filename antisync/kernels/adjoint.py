@@ -47,19 +47,20 @@ from antisync.kernels.core import (
     RENORM_EVERY,
     TAYLOR_MAX_ANGLE,
     VEC,
-    make_kernels,
     vload,
     vsplat,
     vsqrt,
     vstore,
 )
-from antisync.kernels.lanes import integrate_lanes
+from antisync.kernels.lanes import group_rows, integrate_lanes
+from antisync.kernels.precision import K64
 from antisync.kernels.shared import (
     NO_TANGENTS,
     Graph,
     Outputs,
     PathwiseResult,
     Threads,
+    csr_mv2,
     realization_ids,
     row_sum_bound,
 )
@@ -71,15 +72,14 @@ from antisync.types import Coupling, Integrator
 
 __all__ = ["CHECKPOINT_EVERY", "LANES", "LinkDerivatives", "link_derivatives", "simulate_adjoint"]
 
-_K = make_kernels(lambda f: njit(f, inline="always", cache=True))
-_euler_step = _K.euler_step
-_euler_vec = _K.euler_step_vec
-_rk4_vec = _K.rk4_step_vec
-_renormalize = _K.renormalize
-_order2 = _K.order2
-_rk4_lanes = _K.rk4_step_lanes
-_lane_velocity = _K.lane_velocity
-_hermite = _K.hermite_crossing
+_euler_step = K64.euler_step
+_euler_vec = K64.euler_step_vec
+_rk4_vec = K64.rk4_step_vec
+_renormalize = K64.renormalize
+_order2 = K64.order2
+_rk4_lanes = K64.rk4_step_lanes
+_lane_velocity = K64.lane_velocity
+_hermite = K64.hermite_crossing
 
 CHECKPOINT_EVERY = 64
 """Default ``K``: steps between stored states of the forward pass (memory, not results)."""
@@ -260,16 +260,9 @@ def _euler_adjoint(c, s, acc, ck, seg, lam, lam_new, g, indptr, indices, w, dt, 
 def _velocity(c, s, om, sc, ss, fc, fs, indptr, indices, w):
     """``(fc, fs) = (-s omega, c omega)``, ``omega_i = c_i ss_i - s_i sc_i`` with ``sc_i = sum_j
     w_ij c_j``, ``ss_i = sum_j w_ij s_j`` (Eq. 2 in (cos, sin) form); keeps the intermediates."""
+    csr_mv2(indptr, indices, w, c, s, sc, ss)
     for i in range(c.shape[0]):
-        a = 0.0
-        b = 0.0
-        for p in range(indptr[i], indptr[i + 1]):
-            j = indices[p]
-            a += w[p] * c[j]
-            b += w[p] * s[j]
-        sc[i] = a
-        ss[i] = b
-        om[i] = c[i] * b - s[i] * a
+        om[i] = c[i] * ss[i] - s[i] * sc[i]
         fc[i] = -s[i] * om[i]
         fs[i] = c[i] * om[i]
 
@@ -1154,10 +1147,8 @@ def _adjoint_batch(ks, indptr, indices, w, deriv, run, n_groups, status0, steps0
     m = ks.shape[0]
     n = indptr.shape[0] - 1
     nnz = w.shape[0]
-    per = (m + n_groups - 1) // n_groups
     for group in prange(n_groups):
-        r_lo = group * per
-        r_hi = min(m, r_lo + per)
+        r_lo, r_hi = group_rows(group, n_groups, m)
         if r_lo >= r_hi:
             continue
         c = np.empty(n)

@@ -868,6 +868,7 @@ class ModelKernels(NamedTuple):
     order_crossing: Callable
     frequency_crossing: Callable
     hermite_range: Callable
+    copy_rows: Callable
 
 
 def make_model_kernels(jit, base: Kernels) -> ModelKernels:
@@ -1076,6 +1077,15 @@ def make_model_kernels(jit, base: Kernels) -> ModelKernels:
 
     deviations = jit(deviations)
 
+    def copy_rows(work, dst, src, count):
+        """``work[dst + k] = work[src + k]`` for ``k < count``: the deviations kept as the step
+        before's (``dst = DEV_PREV_ROW``, ``src = DEV_ROW``) or put back (the reverse)."""
+        for k in range(count):
+            for i in range(work.shape[1]):
+                work[dst + k, i] = work[src + k, i]
+
+    copy_rows = jit(copy_rows)
+
     def hermite(y0, m0, y1, m1, x):
         """The cubic Hermite interpolant at ``x`` in [0, 1] (``m0``, ``m1``: rates times dt)."""
         x2 = x * x
@@ -1202,9 +1212,7 @@ def make_model_kernels(jit, base: Kernels) -> ModelKernels:
             r2_prev = r2
             dr2_prev = dr2
             if freq:
-                for k in range(4):
-                    for i in range(n):
-                        work[_DEV_PREV + k, i] = work[_DEV + k, i]
+                copy_rows(work, _DEV_PREV, _DEV, 4)
             if rk4:
                 rk4_step(c, s, nu, th, dnu, work, eq, second, dt)
                 r2 = order2(c, s)
@@ -1235,4 +1243,5 @@ def make_model_kernels(jit, base: Kernels) -> ModelKernels:
         order_crossing=order_crossing,
         frequency_crossing=frequency_crossing,
         hermite_range=hermite_range,
+        copy_rows=copy_rows,
     )

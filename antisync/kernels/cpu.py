@@ -26,7 +26,7 @@ from numba import njit, prange
 from antisync import _numba_cache  # noqa: F401 -- before any cache=True function (see there)
 from antisync.kernels import model_steps as ms
 from antisync.kernels.core import TAYLOR_MAX_ANGLE, WORK_ROWS, lanes_per_vector, renorm_interval
-from antisync.kernels.lanes import integrate_lanes, item_of, record, share_base
+from antisync.kernels.lanes import integrate_lanes, item_of
 from antisync.kernels.model_steps import ModelParams
 from antisync.kernels.precision import sync_steps
 from antisync.kernels.shared import (
@@ -41,8 +41,10 @@ from antisync.kernels.shared import (
     model_batch,
     per_node,
     realization_ids,
+    record_item,
     rotation_angle_bound,
     row_sum_bound,
+    share_base,
 )
 from antisync.physics.phases import phase, start_phase
 from antisync.types import Integrator
@@ -113,15 +115,10 @@ def _integrate_items(ks, seed, graph, model, dt, rk4, max_steps, out):
     ``model`` a :class:`~.shared.Model`, results into ``out``, an :class:`~.shared.Outputs`):
     ``make_model_kernels``' ``sync_steps`` from the realization's phases, the plain reference
     that the lane driver matches bit for bit."""
-    # every field as a local before the prange (see antisync.kernels.lanes.integrate_lanes)
+    # the read-only inputs as locals; the results go through record_item, a call (an array
+    # reached through a named tuple loses its writes in a parallel loop's own body)
     indptr, indices, base_w, var_w, var_is_base, todo = graph
     freqs, cl, sl, inertia, damping, criterion, targets, starts = model
-    status0 = out.status0
-    steps0 = out.steps0
-    frac0 = out.frac0
-    status = out.status
-    steps = out.steps
-    frac = out.frac
     m = ks.shape[0]
     n = indptr.shape[0] - 1
     n_var = var_w.shape[0]
@@ -144,9 +141,9 @@ def _integrate_items(ks, seed, graph, model, dt, rk4, max_steps, out):
         w = base_w if v < 0 else var_w[v]
         eq = (p, w, indptr, indices, cl, sl, inertia, damping)
         st, k, x = _model_sync(c, s, nu, th, dnu, work, eq, dt, rk4, criterion, targets[v + 1], max_steps)
-        record(status0, steps0, frac0, status, steps, frac, r, v, st, k, x)
+        record_item(out, r, v, st, k, x)
     for r in prange(m):
-        share_base(var_is_base, r, status0, steps0, frac0, status, steps, frac)
+        share_base(var_is_base, r, out)
 
 
 def simulate(

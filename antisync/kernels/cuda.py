@@ -40,7 +40,7 @@ import numpy as np
 
 from antisync.errors import AntisyncError
 from antisync.kernels.core import WORK_ROWS, make_kernels, make_model_kernels
-from antisync.kernels.shared import SimResult, model_inputs, per_node
+from antisync.kernels.shared import SimResult, model_inputs, per_node, record
 from antisync.physics.phases import make_phase
 from antisync.stats.estimators import (
     BLOCK_FIELDS,
@@ -688,6 +688,7 @@ def _model_kernel():
     device = cuda.jit(device=True)
     sync = make_model_kernels(device, make_kernels(device)).sync_steps
     phase = make_phase(device)
+    store = device(record.py_func)
     f64 = numba.float64
 
     @cuda.jit
@@ -725,14 +726,7 @@ def _model_kernel():
             w = base_w if v < 0 else var_w[v]
             eq = (freqs[row], w, indptr, indices, cl, sl, inertia, damping)
             st, k, x = sync(c, s, nu, th, dnu, work, eq, dt, rk4, criterion, targets[v + 1], max_steps)
-            if v < 0:
-                status0[r] = st
-                steps0[r] = k
-                frac0[r] = x
-            else:
-                status[r, v] = st
-                steps[r, v] = k
-                frac[r, v] = x
+            store(status0, steps0, frac0, status, steps, frac, r, v, st, k, x)
 
     return model_kernel
 

@@ -49,10 +49,10 @@ from numba import njit, prange
 from antisync import _numba_cache  # noqa: F401 -- before any cache=True function (see there)
 from antisync.kernels import model_steps as ms
 from antisync.kernels.core import CRIT_FREQUENCY, DEV_PREV_ROW, DEV_ROW, WORK_ROWS
-from antisync.kernels.lanes import item_of, record, share_base
+from antisync.kernels.lanes import item_of
 from antisync.kernels.model_steps import ModelParams
 from antisync.kernels.precision import K64
-from antisync.kernels.shared import SimResult, Threads, model_batch
+from antisync.kernels.shared import SimResult, Threads, model_batch, record_item, share_base
 from antisync.physics.phases import start_phase
 from antisync.status import ALREADY_SYNCED, NOT_SYNCED, SYNCED
 from antisync.types import RODAS4_ATOL, RODAS4_RTOL
@@ -79,6 +79,7 @@ _deviations = ms.MK.deviations
 _frequency_crossing = ms.MK.frequency_crossing
 _hermite_range = ms.MK.hermite_range
 _order_crossing = ms.MK.order_crossing
+_copy_rows = ms.MK.copy_rows
 _rotation = K64.rotation
 _order2 = K64.order2
 
@@ -495,6 +496,16 @@ def _attempt(y_th, y_nu, cy, sy, f0_th, f0_nu, h, net, plan, scratch, scale, rto
     return err
 
 
+@njit(cache=True, inline="always")
+def _shrunk(h, err):
+    """The step size to retry a rejected step with (never larger): a quarter where
+    :func:`_attempt` did not resolve a pivot (``err = -1``), a fifth for a NaN, else the
+    error's fourth root with a safety factor, at most five times smaller."""
+    if err < 0.0:
+        return h * 0.25
+    return h * max(_SHRINK, min(1.0, _SAFETY * err**-0.25 if err == err else _SHRINK))
+
+
 @njit(cache=True)
 def rodas4_sync(th0, nu0, eq, criterion, target, t_max, h0, rtol, atol, plan, fixed=False):
     """One trajectory from ``(th0, nu0)`` of the model ``eq`` (the equations' constants ``(p,
@@ -513,16 +524,16 @@ def rodas4_sync(th0, nu0, eq, criterion, target, t_max, h0, rtol, atol, plan, fi
     # u_1..u_6 for theta and nu, row by stage
     u_th = np.zeros((6, n))
     u_nu = np.zeros((6, n))
-    y_th = th0.copy()
-    y_nu = nu0.copy()
-    cy = np.empty(n)  # cos, sin of y_th
-    sy = np.empty(n)
+    # the state at the step's start: theta, nu, cos and sin of theta, the rates of theta and nu
+    state = np.zeros((6, n))
+    y_th, y_nu, cy, sy, f0_th, f0_nu = state[0], state[1], state[2], state[3], state[4], state[5]
+    y_th[:] = th0
+    y_nu[:] = nu0
+    kept = np.empty((6, n))  # the state one accepted step back, to redo a step shorter
     d_th = np.empty(n)  # a stage's input: y_th + d_th, z_nu
     z_nu = np.empty(n)
     f_th = np.empty(n)  # rates at the stage input
     f_nu = np.zeros(n)
-    f0_th = np.empty(n)  # rates at the step's start
-    f0_nu = np.zeros(n)
     r_th = np.empty(n)
     b = np.empty(n)
     x = np.empty(n)
@@ -530,13 +541,6 @@ def rodas4_sync(th0, nu0, eq, criterion, target, t_max, h0, rtol, atol, plan, fi
     c = np.empty(n)
     s = np.empty(n)
     dd = np.empty(n)
-    # the state at the step's start, to redo a step whose crossing is not resolved
-    p_th = np.empty(n)
-    p_nu = np.empty(n)
-    p_cy = np.empty(n)
-    p_sy = np.empty(n)
-    p_f_th = np.empty(n)
-    p_f_nu = np.zeros(n)
     val = np.empty(fp_col.shape[0])
     work = np.empty((WORK_ROWS, n))
 
@@ -633,22 +637,15 @@ def rodas4_sync(th0, nu0, eq, criterion, target, t_max, h0, rtol, atol, plan, fi
         err = math.sqrt(err / count)
         if fixed:
             err = 0.0 if err == err else err
-        if not err <= 1.0:
-            # rejected (a NaN too): shrink, never grow after a rejection
-            fac = _SAFETY * err**-0.25 if err == err else _SHRINK
-            h *= max(_SHRINK, min(1.0, fac))
+        if not err <= 1.0:  # rejected (a NaN too)
+            h = _shrunk(h, err)
             rejected += 1
             rejects_in_row += 1
             continue
         rejects_in_row = 0
         accepted += 1
+        kept[:, :] = state
         for i in range(n):
-            p_th[i] = y_th[i]
-            p_nu[i] = y_nu[i]
-            p_cy[i] = cy[i]
-            p_sy[i] = sy[i]
-            p_f_th[i] = f0_th[i]
-            p_f_nu[i] = f0_nu[i]
             y_th[i] += d_th[i] + u_th[5, i]
             y_nu[i] = z_nu[i] + u_nu[5, i] if (second and mass[i] > 0.0) else 0.0
         t_prev = t
@@ -657,9 +654,7 @@ def rodas4_sync(th0, nu0, eq, criterion, target, t_max, h0, rtol, atol, plan, fi
         r2_prev = r2
         dr2_prev = dr2
         if freq:
-            for k in range(4):
-                for i in range(n):
-                    work[DEV_PREV_ROW + k, i] = work[DEV_ROW + k, i]
+            _copy_rows(work, DEV_PREV_ROW, DEV_ROW, 4)
         _eval(y_th, y_nu, cy, sy, eq, second, f0_th, f0_nu)
         if freq:
             _deviations(cy, sy, f0_th, f0_nu, eq, second, work)
@@ -680,17 +675,9 @@ def rodas4_sync(th0, nu0, eq, criterion, target, t_max, h0, rtol, atol, plan, fi
                 xl >= 0.0 and abs(xc - xl) * (t - t_prev) <= _CROSSING_RTOL * tau
             ) or t - t_prev <= _H_FLOOR * 1e3 * t_max:
                 return SYNCED, tau, accepted, rejected, False
-            for i in range(n):
-                y_th[i] = p_th[i]
-                y_nu[i] = p_nu[i]
-                cy[i] = p_cy[i]
-                sy[i] = p_sy[i]
-                f0_th[i] = p_f_th[i]
-                f0_nu[i] = p_f_nu[i]
+            state[:, :] = kept
             if freq:
-                for k in range(4):
-                    for i in range(n):
-                        work[DEV_ROW + k, i] = work[DEV_PREV_ROW + k, i]
+                _copy_rows(work, DEV_ROW, DEV_PREV_ROW, 4)
             r2 = r2_prev
             dr2 = dr2_prev
             h_cap = _REFINE * (t - t_prev)
@@ -808,12 +795,8 @@ def rodas4_trip(th0, grid, w_fault, w_post, t_clear, t_max, h0, tols, plan, line
             h = end - t
             last = True
         err = _attempt(y_th, y_nu, cy, sy, f0_th, f0_nu, h, net, plan, scratch, scale, rtol, atol)
-        if err < 0.0:  # a pivot not resolved
-            h *= 0.25
-            rejects_in_row += 1
-            continue
-        if not err <= 1.0:  # rejected (a NaN too)
-            h *= max(_SHRINK, min(1.0, _SAFETY * err**-0.25 if err == err else _SHRINK))
+        if not 0.0 <= err <= 1.0:
+            h = _shrunk(h, err)
             rejects_in_row += 1
             continue
         rejects_in_row = 0
@@ -826,9 +809,7 @@ def rodas4_trip(th0, grid, w_fault, w_post, t_clear, t_max, h0, tols, plan, line
         t_prev = t
         t = end if last else t + h
         step = t - t_prev
-        for k in range(2):
-            for i in range(n):
-                work[DEV_PREV_ROW + k, i] = work[DEV_ROW + k, i]
+        _copy_rows(work, DEV_PREV_ROW, DEV_ROW, 2)
         _eval(y_th, y_nu, cy, sy, eq, second, f0_th, f0_nu)
         largest = _speed_rates(cy, sy, f0_th, f0_nu, indptr, indices, w, mass, gamma, acc, work)
         # the first swing on the step's interpolants
@@ -902,12 +883,6 @@ def _integrate_items(ks, seed, graph, model, fp, dt, t_max, rtol, atol, max_step
     failed = counts[4]
     indptr, indices, base_w, var_w, var_is_base, todo = graph
     freqs, cl, sl, inertia, damping, criterion, targets, starts = model
-    status0 = out.status0
-    steps0 = out.steps0
-    frac0 = out.frac0
-    status = out.status
-    steps = out.steps
-    frac = out.frac
     m = ks.shape[0]
     n = indptr.shape[0] - 1
     n_var = var_w.shape[0]
@@ -927,7 +902,7 @@ def _integrate_items(ks, seed, graph, model, fp, dt, t_max, rtol, atol, max_step
             th, nu, eq, criterion, targets[v + 1], t_max, dt, rtol, atol, fp
         )
         k, x = _on_the_grid(st, tau, dt, max_steps)
-        record(status0, steps0, frac0, status, steps, frac, r, v, st, k, x)
+        record_item(out, r, v, st, k, x)
         if v < 0:
             acc0[r] = n_acc
             rej0[r] = n_rej
@@ -937,7 +912,7 @@ def _integrate_items(ks, seed, graph, model, fp, dt, t_max, rtol, atol, max_step
         if bad:
             failed[r, v + 1] = True
     for r in prange(m):
-        share_base(var_is_base, r, status0, steps0, frac0, status, steps, frac)
+        share_base(var_is_base, r, out)
 
 
 @njit(cache=True)

@@ -17,9 +17,9 @@ sensitivities for every damaged edge at once (the tangent of the Euler step, exa
 discretized dynamics): the pathwise estimator.
 
 :func:`integrate_lanes` is called by the CPU backend's entry points (:mod:`.cpu`) and by the
-adjoint's ordering pass (:mod:`.adjoint`); :func:`next_item`, :func:`record` and
-:func:`share_base` are the work-queue bookkeeping that the one-trajectory drivers of :mod:`.cpu`
-share with it.
+adjoint's ordering pass (:mod:`.adjoint`); :func:`item_of` is the work-queue bookkeeping that
+the one-trajectory drivers of :mod:`.cpu` and :mod:`.implicit` share with it (with
+:mod:`.shared`'s ``record``, ``record_item`` and ``share_base``).
 """
 
 from __future__ import annotations
@@ -34,7 +34,7 @@ from antisync import _numba_cache  # noqa: F401 -- before any cache=True functio
 from antisync.kernels import model_steps as ms
 from antisync.kernels.core import CRIT_FREQUENCY, CRIT_ORDER, DEV_PREV_ROW, DEV_ROW, VEC, WORK_ROWS
 from antisync.kernels.precision import K64, order2, renormalize, rk4_vec, step_lanes, step_vec
-from antisync.kernels.shared import Graph, Model, Outputs
+from antisync.kernels.shared import Graph, Model, Outputs, record, record_item, share_base
 from antisync.physics.phases import phase, start_phase
 from antisync.status import ALREADY_SYNCED, NOT_SYNCED, SYNCED
 
@@ -43,12 +43,11 @@ __all__ = [
     "Lanes",
     "ModelLanes",
     "Queue",
+    "group_rows",
     "integrate_lanes",
     "item_of",
     "make_lane_driver",
     "next_item",
-    "record",
-    "share_base",
 ]
 
 _tangent_lanes = K64.tangent_step_lanes
@@ -124,28 +123,6 @@ def next_item(r, v, r_hi, var_is_base):
             r += 1
         if r >= r_hi or v < 0 or not var_is_base[v]:
             return r, v
-
-
-@njit(inline="always")
-def record(status0, steps0, frac0, status, steps, frac, r, v, st, k, x):
-    """Store item ``(r, v)``'s status, steps and crossing fraction: the undamaged network's for
-    ``v < 0``, else variant ``v``'s. (The arrays one by one: outputs passed in a tuple lose
-    their writes inside a parallel loop.)"""
-    if v < 0:
-        status0[r] = st
-        steps0[r] = k
-        frac0[r] = x
-    else:
-        status[r, v] = st
-        steps[r, v] = k
-        frac[r, v] = x
-
-
-@njit(inline="always")
-def _record_out(out, r, v, st, k, x):
-    """:func:`record` into ``out`` (an :class:`~.shared.Outputs`), for :func:`_model_load`:
-    never in a ``prange`` body itself (see :class:`Lanes`)."""
-    record(out.status0, out.steps0, out.frac0, out.status, out.steps, out.frac, r, v, st, k, x)
 
 
 @njit(inline="always")
@@ -251,6 +228,15 @@ def _lane_initial(c, s, kv, lw, indptr, indices, rk4, q, r2, dr2, u, dr2t):
 
 
 @njit(inline="always")
+def group_rows(group, n_groups, m):
+    """The realizations ``r_lo <= r < r_hi`` of ``group`` when ``m`` are dealt to ``n_groups``
+    in contiguous runs of ``ceil(m / n_groups)`` (the last groups may get fewer, or none)."""
+    per = (m + n_groups - 1) // n_groups
+    r_lo = group * per
+    return r_lo, min(m, r_lo + per)
+
+
+@njit(inline="always")
 def item_of(item, per, var_is_base, todo):
     """``(r, v, run)`` of flat item ``item`` of a one-trajectory-per-item driver (``per`` items
     a realization: the undamaged network ``v = -1``, then each variant): ``run`` is False for a
@@ -262,16 +248,6 @@ def item_of(item, per, var_is_base, todo):
     if todo.shape[0] > 0 and not todo[r, v + 1]:
         return r, v, False  # not asked for: left at -1 / NaN
     return r, v, True
-
-
-@njit(inline="always")
-def share_base(var_is_base, r, status0, steps0, frac0, status, steps, frac):
-    """Realization ``r``'s variants that leave the weights unchanged get the undamaged result."""
-    for v in range(var_is_base.shape[0]):
-        if var_is_base[v]:
-            status[r, v] = status0[r]
-            steps[r, v] = steps0[r]
-            frac[r, v] = frac0[r]
 
 
 @njit(cache=True)  # not inlined: numba's inline pass fails on it ("closure with *args")
@@ -326,7 +302,7 @@ def _model_load(q, qr, qv, t, queue, graph, model, second, lanes, extra, out):
         else:
             met = r2[q] >= target
         if met:
-            _record_out(out, r, v, ALREADY_SYNCED, 0, 0.0)
+            record_item(out, r, v, ALREADY_SYNCED, 0, 0.0)
             continue
         lanes.item_r[q] = r
         lanes.item_v[q] = v
@@ -428,10 +404,8 @@ def make_lane_driver(features: LaneFeatures):
         ni = n if identical else 0
         nm = n - ni
         m = ks.shape[0]
-        per = (m + n_groups - 1) // n_groups
         for group in prange(n_groups):
-            r_lo = group * per
-            r_hi = min(m, r_lo + per)
+            r_lo, r_hi = group_rows(group, n_groups, m)
             if r_lo >= r_hi:
                 continue
             # the state and weights in the run's precision (float32 or float64)
@@ -664,7 +638,7 @@ def make_lane_driver(features: LaneFeatures):
                 event = hits > 0 or t >= next_cap
             for r in range(r_lo, r_hi):
                 # variants that leave W unchanged share the undamaged result
-                share_base(var_is_base, r, status0, steps0, frac0, status, steps, frac)
+                share_base(var_is_base, r, out)
                 if status0[r] == ALREADY_SYNCED:
                     for e in range(n_edges):
                         dtau[r, e] = 0.0

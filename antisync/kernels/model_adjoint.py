@@ -55,26 +55,23 @@ from antisync.kernels.core import (
     DEV_ROW,
     RENORM_EVERY,
     WORK_ROWS,
-    make_kernels,
-    make_model_kernels,
 )
+from antisync.kernels.model_steps import MK
+from antisync.kernels.precision import K64
 from antisync.kernels.shared import PathwiseResult, Threads, batch_starts, per_node, realization_ids
 from antisync.physics.phases import start_phase
 from antisync.status import NOT_SYNCED, SYNCED
 
 __all__ = ["simulate_model_adjoint"]
 
-_jit = lambda f: njit(f, inline="always", cache=True)  # noqa: E731
-_B = make_kernels(_jit)
-_MK = make_model_kernels(_jit, _B)
-_rhs = _MK.rhs
-_rk4_step = _MK.rk4_step
-_euler_step = _MK.euler_step
-_sync = _MK.sync_steps
-_measure = _MK.measure
-_deviations = _MK.deviations
-_renormalize = _B.renormalize
-_rotation = _B.rotation
+_rhs = MK.rhs
+_rk4_step = MK.rk4_step
+_euler_step = MK.euler_step
+_sync = MK.sync_steps
+_measure = MK.measure
+_deviations = MK.deviations
+_renormalize = K64.renormalize
+_rotation = K64.rotation
 
 
 # ---- the vector-Jacobian products of the right-hand side ----------------------------------

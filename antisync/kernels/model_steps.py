@@ -22,7 +22,6 @@ from antisync.kernels.core import (
     DEV_ROW,
     TAYLOR_MAX_ANGLE,
     VEC,
-    make_kernels,
     make_model_kernels,
     vany_outside,
     vload,
@@ -30,6 +29,7 @@ from antisync.kernels.core import (
     vsqrt,
     vstore,
 )
+from antisync.kernels.precision import K64
 from antisync.physics.phases import make_uniform
 
 __all__ = ["ModelParams", "Terms", "draw_frequencies", "lag_terms"]
@@ -39,14 +39,12 @@ __all__ = ["ModelParams", "Terms", "draw_frequencies", "lag_terms"]
 STREAM_FREQ_A = 1
 STREAM_FREQ_B = 2
 
-_jit = lambda f: njit(f, inline="always", cache=True)  # noqa: E731
-_K = make_kernels(_jit)
-MK = make_model_kernels(_jit, _K)
+MK = make_model_kernels(lambda f: njit(f, inline="always", cache=True), K64)
 """The one-trajectory model functions (``sync_steps``, ``rhs``, ``measure``, ...), inlined."""
-_rotation = _K.rotation
-_edge_vec = _K.edge_vec
-_rotate_by_vec = _K.rotate_by_vec
-_taylor = _K.taylor_rotation
+_rotation = K64.rotation
+_edge_vec = K64.edge_vec
+_rotate_by_vec = K64.rotate_by_vec
+_taylor = K64.taylor_rotation
 
 
 class ModelParams(NamedTuple):

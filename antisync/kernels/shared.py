@@ -26,10 +26,14 @@ __all__ = [
     "Tangents",
     "Threads",
     "batch_starts",
+    "csr_mv2",
     "model_batch",
     "model_inputs",
     "per_node",
     "realization_ids",
+    "record",
+    "record_item",
+    "share_base",
     "rotation_angle_bound",
     "row_sum_bound",
 ]
@@ -306,3 +310,52 @@ def model_batch(
         np.empty((m, 0)),
     )
     return ks, graph, model, out
+
+
+@numba.njit(inline="always")
+def record(status0, steps0, frac0, status, steps, frac, r, v, st, k, x):
+    """Store item ``(r, v)``'s status, steps and crossing fraction: the undamaged network's for
+    ``v < 0``, else variant ``v``'s. (The arrays one by one: outputs passed in a tuple lose
+    their writes inside a parallel loop.)"""
+    if v < 0:
+        status0[r] = st
+        steps0[r] = k
+        frac0[r] = x
+    else:
+        status[r, v] = st
+        steps[r, v] = k
+        frac[r, v] = x
+
+
+# Called, not inlined, from a prange body: an array reached through a named tuple keeps its
+# writes there only inside a called function (see antisync.kernels.lanes.Lanes).
+@numba.njit(cache=True)
+def record_item(out, r, v, st, k, x):
+    """:func:`record` into ``out`` (an :class:`Outputs`), once per trajectory."""
+    record(out.status0, out.steps0, out.frac0, out.status, out.steps, out.frac, r, v, st, k, x)
+
+
+@numba.njit(cache=True)
+def share_base(var_is_base, r, out):
+    """Realization ``r``'s variants that leave the weights unchanged get the undamaged result
+    (in ``out``, an :class:`Outputs`)."""
+    for v in range(var_is_base.shape[0]):
+        if var_is_base[v]:
+            out.status[r, v] = out.status0[r]
+            out.steps[r, v] = out.steps0[r]
+            out.frac[r, v] = out.frac0[r]
+
+
+@numba.njit(inline="always")
+def csr_mv2(indptr, indices, w, a, b, out_a, out_b):
+    """``out_a = W a`` and ``out_b = W b`` for ``W`` in CSR (``w`` its values): the coupling
+    sums ``sum_j w_ij a_j`` in row order, the same order wherever they are taken."""
+    for i in range(indptr.shape[0] - 1):
+        acc_a = 0.0
+        acc_b = 0.0
+        for p in range(indptr[i], indptr[i + 1]):
+            j = indices[p]
+            acc_a += w[p] * a[j]
+            acc_b += w[p] * b[j]
+        out_a[i] = acc_a
+        out_b[i] = acc_b

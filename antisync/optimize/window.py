@@ -84,6 +84,7 @@ from numba import njit
 
 from antisync import _numba_cache  # noqa: F401 -- before any cache=True function (see there)
 from antisync.errors import ConfigError
+from antisync.kernels.shared import csr_mv2
 from antisync.optimize.budget import Budget, project
 
 __all__ = [
@@ -200,15 +201,7 @@ def _dense_mv2(w, a, b, out_a, out_b):
 @njit(cache=True)
 def _sparse_mv2(indptr, nbr, wv, a, b, out_a, out_b):
     """``out_a = W a`` and ``out_b = W b`` with ``W`` in symmetric CSR."""
-    for i in range(a.shape[0]):
-        acc_a = 0.0
-        acc_b = 0.0
-        for e in range(indptr[i], indptr[i + 1]):
-            j = nbr[e]
-            acc_a += wv[e] * a[j]
-            acc_b += wv[e] * b[j]
-        out_a[i] = acc_a
-        out_b[i] = acc_b
+    csr_mv2(indptr, nbr, wv, a, b, out_a, out_b)
 
 
 @njit(cache=True, inline="always")

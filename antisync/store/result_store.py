@@ -77,32 +77,10 @@ class ResultStore:
         self._lock.check_target()
 
     def lock(self, *, read_only_ok: bool = False) -> contextlib.AbstractContextManager[bool]:
-        """Hold the exclusive writer lock of this output for the ``with`` block.
-
-        The lock is an ``flock`` on ``<output>.lock``, which holds JSON ``{pid, host, started,
-        command}`` naming the holder; see :meth:`~antisync.store.lock.OutputLock.hold`.
-        Reentrant within one thread: a sweep holds it across the ``run_jobs`` calls of its
-        stages.
-
-        Parameters
-        ----------
-        read_only_ok : bool
-            When the folder does not allow creating the lock file (read-only), yield False
-            instead of raising: nothing may then be written, but a ``--resume`` can still
-            find the file complete and leave it alone.
-
-        Returns
-        -------
-        context manager yielding bool
-            True when the lock is held and the output may be written.
-
-        Raises
-        ------
-        StoreError
-            On entering: another process (or another thread of this one) holds the lock (the
-            message names its pid, host, start time and command), or the path is refused by
-            :meth:`check_target`.
-        """
+        """Hold the exclusive writer lock of this output for the ``with`` block: a context
+        manager yielding True when the output may be written (False with ``read_only_ok`` in a
+        read-only folder). The lock, its reentrance and its errors are
+        :meth:`~antisync.store.lock.OutputLock.hold`'s (this output's path checked first)."""
         return self._lock.hold(read_only_ok=read_only_ok)
 
     # ---- opening -------------------------------------------------------------------------
