@@ -306,6 +306,7 @@ class Kernels(NamedTuple):
     euler_step_lanes: Callable
     euler_step_vec: Callable
     edge_vec: Callable
+    node_sums_vec: Callable
     tangent_step_lanes: Callable
     rk4_step_lanes: Callable
     rk4_step_vec: Callable
@@ -501,6 +502,16 @@ def make_kernels(jit, dtype=np.float64) -> Kernels:
 
     edge_vec = jit(edge_vec)
 
+    def node_sums_vec(c, s, lw, w, shared, indptr, indices, i, qa):
+        """Node ``i``'s coupling sums ``(sc, ss)`` of the lane vectors at ``qa`` and ``qa + VEC``,
+        kept in registers over its edges (``edge_vec``)."""
+        sca, ssa, scb, ssb = vsplat(zero), vsplat(zero), vsplat(zero), vsplat(zero)
+        for p in range(indptr[i], indptr[i + 1]):
+            sca, ssa, scb, ssb = edge_vec(c, s, lw, w, shared, indices, p, qa, sca, ssa, scb, ssb)
+        return sca, ssa, scb, ssb
+
+    node_sums_vec = jit(node_sums_vec)
+
     def euler_step_vec(c, s, cn, sn, lw, w, shared, indptr, indices, dt, r2):
         """``euler_step_lanes`` with ``taylor=True`` on machine vectors, fused.
 
@@ -521,9 +532,7 @@ def make_kernels(jit, dtype=np.float64) -> Kernels:
             tcb = vsplat(zero)
             tsb = vsplat(zero)
             for i in range(n):
-                sca, ssa, scb, ssb = vsplat(zero), vsplat(zero), vsplat(zero), vsplat(zero)
-                for p in range(indptr[i], indptr[i + 1]):
-                    sca, ssa, scb, ssb = edge_vec(c, s, lw, w, shared, indices, p, qa, sca, ssa, scb, ssb)
+                sca, ssa, scb, ssb = node_sums_vec(c, s, lw, w, shared, indptr, indices, i, qa)
                 xa, ya = rotate_vec(c, s, cn, sn, i * lanes + qa, sca, ssa, dt)
                 xb, yb = rotate_vec(c, s, cn, sn, i * lanes + qb, scb, ssb, dt)
                 tca = tca + xa
@@ -703,27 +712,15 @@ def make_kernels(jit, dtype=np.float64) -> Kernels:
                     vstore(ya_c, o, vload(c, o) + hh * vload(k, o))
                     vstore(ya_s, o, vload(s, o) + hh * vload(k, size + o))
             for i in range(n):
-                sca, ssa, scb, ssb = vsplat(zero), vsplat(zero), vsplat(zero), vsplat(zero)
-                for p in range(indptr[i], indptr[i + 1]):
-                    sca, ssa, scb, ssb = edge_vec(
-                        ya_c, ya_s, lw, w, shared, indices, p, qa, sca, ssa, scb, ssb
-                    )
+                sca, ssa, scb, ssb = node_sums_vec(ya_c, ya_s, lw, w, shared, indptr, indices, i, qa)
                 rk4_stage_vec(c, s, k, 2 * size, ya_c, ya_s, yb_c, yb_s, i * lanes + qa, sca, ssa, hh)
                 rk4_stage_vec(c, s, k, 2 * size, ya_c, ya_s, yb_c, yb_s, i * lanes + qb, scb, ssb, hh)
             for i in range(n):
-                sca, ssa, scb, ssb = vsplat(zero), vsplat(zero), vsplat(zero), vsplat(zero)
-                for p in range(indptr[i], indptr[i + 1]):
-                    sca, ssa, scb, ssb = edge_vec(
-                        yb_c, yb_s, lw, w, shared, indices, p, qa, sca, ssa, scb, ssb
-                    )
+                sca, ssa, scb, ssb = node_sums_vec(yb_c, yb_s, lw, w, shared, indptr, indices, i, qa)
                 rk4_stage_vec(c, s, k, 4 * size, yb_c, yb_s, ya_c, ya_s, i * lanes + qa, sca, ssa, dt)
                 rk4_stage_vec(c, s, k, 4 * size, yb_c, yb_s, ya_c, ya_s, i * lanes + qb, scb, ssb, dt)
             for i in range(n):
-                sca, ssa, scb, ssb = vsplat(zero), vsplat(zero), vsplat(zero), vsplat(zero)
-                for p in range(indptr[i], indptr[i + 1]):
-                    sca, ssa, scb, ssb = edge_vec(
-                        ya_c, ya_s, lw, w, shared, indices, p, qa, sca, ssa, scb, ssb
-                    )
+                sca, ssa, scb, ssb = node_sums_vec(ya_c, ya_s, lw, w, shared, indptr, indices, i, qa)
                 rk4_final_vec(c, s, k, ya_c, ya_s, i * lanes + qa, sca, ssa, sixth)
                 rk4_final_vec(c, s, k, ya_c, ya_s, i * lanes + qb, scb, ssb, sixth)
             # the velocity at the new state (stage 1 of the next step), R and dR/dt
@@ -736,9 +733,7 @@ def make_kernels(jit, dtype=np.float64) -> Kernels:
             d2b = vsplat(zero)
             d3b = vsplat(zero)
             for i in range(n):
-                sca, ssa, scb, ssb = vsplat(zero), vsplat(zero), vsplat(zero), vsplat(zero)
-                for p in range(indptr[i], indptr[i + 1]):
-                    sca, ssa, scb, ssb = edge_vec(c, s, lw, w, shared, indices, p, qa, sca, ssa, scb, ssb)
+                sca, ssa, scb, ssb = node_sums_vec(c, s, lw, w, shared, indptr, indices, i, qa)
                 o = i * lanes + qa
                 ci, si, dc, ds = velocity_vec(c, s, o, sca, ssa)
                 vstore(k, o, dc)
@@ -825,6 +820,7 @@ def make_kernels(jit, dtype=np.float64) -> Kernels:
         euler_step_lanes=euler_step_lanes,
         euler_step_vec=euler_step_vec,
         edge_vec=edge_vec,
+        node_sums_vec=node_sums_vec,
         tangent_step_lanes=tangent_step_lanes,
         rk4_step_lanes=rk4_step_lanes,
         rk4_step_vec=rk4_step_vec,

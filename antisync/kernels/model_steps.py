@@ -42,7 +42,7 @@ STREAM_FREQ_B = 2
 MK = make_model_kernels(lambda f: njit(f, inline="always", cache=True), K64)
 """The one-trajectory model functions (``sync_steps``, ``rhs``, ``measure``, ...), inlined."""
 _rotation = K64.rotation
-_edge_vec = K64.edge_vec
+_node_sums_vec = K64.node_sums_vec  # its w (unused: lw per lane) filled with gamma
 _rotate_by_vec = K64.rotate_by_vec
 _taylor = K64.taylor_rotation
 
@@ -72,7 +72,7 @@ class ModelParams(NamedTuple):
 class Terms(NamedTuple):
     """The constants of the model's right-hand side on the lanes (``rhs``' other arguments), as
     the step functions take them. Each unpacks them once at its top, outside its loops, and
-    hands the arrays themselves to the helpers it calls per node (``rates_vec``, ``_sums_vec``):
+    hands the arrays themselves to the helpers it calls per node (``rates_vec``, ``node_sums_vec``):
     see the note at :func:`rk4_vec`'s ``k1`` on arrays and inlined helpers in the loop."""
 
     p: np.ndarray
@@ -118,19 +118,6 @@ def rates_vec(c, s, nu, p, cl, sl, mass, gamma, second, o, sc, ss, i):
 
 
 @njit(inline="always")
-def _sums_vec(c, s, lw, gamma, indptr, indices, i, qa):
-    """Node ``i``'s coupling sums ``(sc, ss)`` of the lane vectors at ``qa`` and ``qa + VEC``,
-    kept in registers over its edges (``edge_vec``; ``gamma`` only fills its unused ``w``). The
-    RK4 step inside a ``prange`` body compiled to the same instructions with this helper as
-    with the loop written out in each stage (checked when it was introduced)."""
-    zero = vsplat(0.0)
-    sca, ssa, scb, ssb = zero, zero, zero, zero
-    for e in range(indptr[i], indptr[i + 1]):
-        sca, ssa, scb, ssb = _edge_vec(c, s, lw, gamma, False, indices, e, qa, sca, ssa, scb, ssb)
-    return sca, ssa, scb, ssb
-
-
-@njit(inline="always")
 def rhs_vec(c, s, nu, terms, th, dnu):
     """make_model_kernels' ``rhs`` for every lane (constants ``terms``, a :class:`Terms`): the
     coupling sums of each node kept in registers over its edges (``edge_vec``), then the rates
@@ -139,7 +126,7 @@ def rhs_vec(c, s, nu, terms, th, dnu):
     n, lanes = c.shape
     for qa in range(0, lanes, 2 * VEC):
         for i in range(n):
-            sca, ssa, scb, ssb = _sums_vec(c, s, lw, gamma, indptr, indices, i, qa)
+            sca, ssa, scb, ssb = _node_sums_vec(c, s, lw, gamma, False, indptr, indices, i, qa)
             o = i * lanes + qa
             _, _, ta, da = rates_vec(c, s, nu, p, cl, sl, mass, gamma, second, o, sca, ssa, i)
             _, _, tb, db = rates_vec(c, s, nu, p, cl, sl, mass, gamma, second, o + VEC, scb, ssb, i)
@@ -167,7 +154,7 @@ def euler_vec(c, s, cn, sn, nu, terms, dt, taylor, r2, spare):
         qb = qa + VEC
         tca, tsa, tcb, tsb = zero, zero, zero, zero
         for i in range(n):
-            sca, ssa, scb, ssb = _sums_vec(c, s, lw, gamma, indptr, indices, i, qa)
+            sca, ssa, scb, ssb = _node_sums_vec(c, s, lw, gamma, False, indptr, indices, i, qa)
             oa = i * lanes + qa
             ca, sa, ta, da = rates_vec(c, s, nu, p, cl, sl, mass, gamma, second, oa, sca, ssa, i)
             xa, ya = _euler_node_vec(c, s, cn, sn, nu, ca, sa, ta, da, dt, taylor, second, oa, spare)
@@ -256,7 +243,7 @@ def _rk4_inner_vec(c, s, nu, src, dst, acc, terms, h, qa):
     two = vsplat(2.0)
     src_c, src_s, src_nu = src[0], src[1], src[2]
     for i in range(n):
-        sca, ssa, scb, ssb = _sums_vec(src_c, src_s, lw, gamma, indptr, indices, i, qa)
+        sca, ssa, scb, ssb = _node_sums_vec(src_c, src_s, lw, gamma, False, indptr, indices, i, qa)
         for v in range(2):
             o = i * lanes + qa + v * VEC
             sc = sca if v == 0 else scb
@@ -299,7 +286,7 @@ def rk4_vec(c, s, nu, th, dnu, ya, yb, acc, terms, dt, order, r2, dr2):
         _rk4_inner_vec(c, s, nu, yb, ya, acc, terms, dt, qa)
         # stage 4, the update and the projection of (c_i, s_i) to the unit circle
         for i in range(n):
-            sca, ssa, scb, ssb = _sums_vec(ya_c, ya_s, lw, gamma, indptr, indices, i, qa)
+            sca, ssa, scb, ssb = _node_sums_vec(ya_c, ya_s, lw, gamma, False, indptr, indices, i, qa)
             for v in range(2):
                 o = i * lanes + qa + v * VEC
                 sc = sca if v == 0 else scb
@@ -316,7 +303,7 @@ def rk4_vec(c, s, nu, th, dnu, ya, yb, acc, terms, dt, order, r2, dr2):
         tca, tsa, dca, dsa = zero, zero, zero, zero
         tcb, tsb, dcb, dsb = zero, zero, zero, zero
         for i in range(n):
-            sca, ssa, scb, ssb = _sums_vec(c, s, lw, gamma, indptr, indices, i, qa)
+            sca, ssa, scb, ssb = _node_sums_vec(c, s, lw, gamma, False, indptr, indices, i, qa)
             o = i * lanes + qa
             ca, sa, ta, da = rates_vec(c, s, nu, p, cl, sl, mass, gamma, second, o, sca, ssa, i)
             cb, sb, tb, db = rates_vec(c, s, nu, p, cl, sl, mass, gamma, second, o + VEC, scb, ssb, i)
