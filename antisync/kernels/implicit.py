@@ -572,7 +572,8 @@ def rodas4_sync(th0, nu0, eq, criterion, target, t_max, h0, rtol, atol, plan, fi
             h = t_max - t
             last = True
         # _attempt's step written out: calling it here (inlined or not) cost this loop 3-5% on
-        # IEEE 300 (bench/ab_groups.py, same bits; bench/RESULTS.md, "Arguments in groups")
+        # IEEE 300 (bench/ab_groups.py, same bits; bench/RESULTS.md, "One kernel family
+        # instance, the backends' shared bookkeeping")
         g = 1.0 / (h * _GAMMA)
         inv_h = 1.0 / h
         for i in range(n):

@@ -33,9 +33,9 @@ __all__ = [
     "realization_ids",
     "record",
     "record_item",
-    "share_base",
     "rotation_angle_bound",
     "row_sum_bound",
+    "share_base",
 ]
 
 
