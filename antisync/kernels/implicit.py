@@ -581,7 +581,7 @@ def rodas4_sync(th0, nu0, eq, criterion, target, t_max, h0, rtol, atol, plan, fi
         # the matrix at the step's start
         _assemble(val, cy, sy, indptr, indices, w, cl, sl, dd, fp_entry, fp_diag, fp_inv)
         if not _factor(val, fp_diag, div_ptr, div_pos, upd_ptr, upd_ij, upd_ik, upd_kj, scale * (g + 1.0)):
-            h *= 0.25
+            h = _shrunk(h, -1.0)  # a pivot not resolved, as _attempt's -1
             rejected += 1
             rejects_in_row += 1
             continue
