@@ -238,6 +238,11 @@ def _trip(config, set_, lines, contingencies, t_clear, cct, cct_max, t_max, wher
 
     out, figure, overwrite, resume = files["out"], files["figure"], files["overwrite"], files["resume"]
     cfg = load_config(config, list(set_ or []), typed_values(threads=where["threads"]))
+    if cfg.sync.give_up is not None:
+        raise GridError(
+            "sync.give_up stops random starts that keep slipping (--removal); a trip runs from the "
+            "operating point for --t-max: remove give_up"
+        )
     if not t_max > 0:
         raise GridError(f"--t-max must be a positive number of seconds, got {t_max:g}")
     if cct and not 0 < cct_max < t_max:

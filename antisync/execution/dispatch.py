@@ -188,16 +188,19 @@ def _model(simulate_model, job, first, count, variant_weights, realizations, tod
     )
 
 
-def model_simulator(dynamics) -> Callable:
+def model_simulator(dynamics, give_up: tuple[float, float] | None = None) -> Callable:
     """The CPU model driver of ``dynamics.integrator`` (a config's
     :class:`~antisync.plan.config.Dynamics`) with its settings bound: the lanes of
     :func:`antisync.kernels.cpu.simulate_model` (Euler, RK4) or
-    :func:`antisync.kernels.implicit.simulate_model` (Rodas4 at ``dynamics.rtol``/``atol``)."""
+    :func:`antisync.kernels.implicit.simulate_model` (Rodas4 at ``dynamics.rtol``/``atol``, and
+    ``give_up``: ``sync.give_up_rule``, which the config allows with rodas4 only)."""
     rtol, atol = dynamics.tolerances
+    if give_up is not None and dynamics.integrator != "rodas4":
+        raise ValueError(f"give_up stops rodas4 early; integrator {dynamics.integrator} has no such stop")
     return {
         "euler": functools.partial(cpu.simulate_model, integrator="euler"),
         "rk4": functools.partial(cpu.simulate_model, integrator="rk4"),
-        "rodas4": functools.partial(implicit.simulate_model, rtol=rtol, atol=atol),
+        "rodas4": functools.partial(implicit.simulate_model, rtol=rtol, atol=atol, give_up=give_up),
     }[dynamics.integrator]
 
 

@@ -214,6 +214,7 @@ def line_removal(
         dt=dyn.dt,
         max_steps=dyn.max_steps,
         dynamics=dyn,
+        give_up=cfg.sync.give_up_rule,
         interpolate=dyn.interpolate,
     )
     groups = -(-len(todo) // LINES_PER_TASK) if client is None else _groups(client, m)
@@ -320,7 +321,7 @@ def _removal_task(ks, variants, intact: bool, fixed: dict, threads):
     if not intact:
         todo = np.ones((ks.size, variants.shape[0] + 1), dtype=np.bool_)
         todo[:, 0] = False
-    sim = model_simulator(fixed["dynamics"])(
+    sim = model_simulator(fixed["dynamics"], fixed["give_up"])(
         fixed["seed"],
         0,
         0,

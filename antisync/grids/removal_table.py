@@ -15,7 +15,7 @@ from antisync.grids.errors import GridError
 from antisync.grids.lines import Rows
 from antisync.stats.exact import clopper_pearson, mcnemar_exact, tau_p_value
 from antisync.stats.multiplicity import FDR_LEVEL, benjamini_hochberg
-from antisync.status import ALREADY_SYNCED, SYNCED
+from antisync.status import ALREADY_SYNCED, GAVE_UP, SYNCED
 
 __all__ = ["LineRemoval", "RemovalTable", "line_rows"]
 
@@ -37,7 +37,8 @@ class LineRemoval:
     ``d_psync`` (the basin-stability change), McNemar's exact ``p_value`` and conditional
     interval ``d_psync_ci``; ``both``: pairs SYNCED both times, ``d_tau`` / ``d_tau_se`` and
     ``ratio`` / ``ratio_se`` (``tau0 / tau``) over them; ``islanding``: the line is a bridge
-    removed anyway (``islanding=True``).
+    removed anyway (``islanding=True``); ``gave_up``: realizations stopped early after the
+    change by ``sync.give_up`` (status GAVE_UP, among the not synchronized).
     """
 
     line: tuple
@@ -63,6 +64,7 @@ class LineRemoval:
     ratio: float
     ratio_se: float
     islanding: bool = False
+    gave_up: int = 0
 
     @property
     def label(self) -> str:
@@ -113,6 +115,11 @@ class RemovalTable(Rows):
     @property
     def synced0(self) -> int:
         return int(np.isin(self.status0, (SYNCED, ALREADY_SYNCED)).sum())
+
+    @property
+    def gave_up0(self) -> int:
+        """The intact grid's realizations stopped early by ``sync.give_up`` (status GAVE_UP)."""
+        return int((self.status0 == GAVE_UP).sum())
 
     @property
     def p_sync(self) -> float:
@@ -193,6 +200,8 @@ class RemovalTable(Rows):
             "realizations": self.n,
             "starts": self.starts,
             "synced0": self.synced0,
+            "gave_up0": self.gave_up0,
+            "gave_up": int((self.status == GAVE_UP).sum()),
             "p_sync": self.p_sync,
             "p_sync_ci": list(self.p_sync_ci),
             "tau0_mean": t,
@@ -219,6 +228,14 @@ class RemovalTable(Rows):
             f"P_sync = {self.p_sync:.4f} [{lo:.4f}, {hi:.4f}], tau0 = {t:.3f} +- {se:.3f}; "
             f"{len(self.rows)} lines{skipped}; {self.seconds:.1f} s"
         )
+        gave_up = int((self.status == GAVE_UP).sum())
+        if self.gave_up0 or gave_up:
+            rule = (self.config.get("sync") or {}).get("give_up") or {}
+            head += (
+                f"; stopped by sync.give_up (deviation never below {rule.get('band', '?')} rad/s by "
+                f"t = {rule.get('after', '?')} s, counted as not synchronized): {self.gave_up0} intact, "
+                f"{gave_up} after the changes"
+            )
         braess = {r.line for r in self.braess_lines(q)}
         sync, tau = self.sync_called(q), self.tau_called(q)
         out = [
@@ -309,6 +326,7 @@ def line_rows(
                 ratio=f_mean,
                 ratio_se=f_se,
                 islanding=(a, b) in bridges,
+                gave_up=int((status[:, v] == GAVE_UP).sum()),
             )
         )
     return rows

@@ -54,7 +54,7 @@ from antisync.kernels.model_steps import ModelParams
 from antisync.kernels.precision import K64
 from antisync.kernels.shared import SimResult, Threads, model_batch, record_item, share_base
 from antisync.physics.phases import start_phase
-from antisync.status import ALREADY_SYNCED, NOT_SYNCED, SYNCED
+from antisync.status import ALREADY_SYNCED, GAVE_UP, NOT_SYNCED, SYNCED
 from antisync.types import RODAS4_ATOL, RODAS4_RTOL
 
 __all__ = [
@@ -506,15 +506,29 @@ def _shrunk(h, err):
     return h * max(_SHRINK, min(1.0, _SAFETY * err**-0.25 if err == err else _SHRINK))
 
 
+@njit(cache=True, inline="always")
+def _largest_deviation(work, n):
+    """The largest ``|theta_i' - mean|`` of :func:`_deviations`' first row."""
+    largest = 0.0
+    for i in range(n):
+        largest = max(largest, abs(work[DEV_ROW, i]))
+    return largest
+
+
 @njit(cache=True)
-def rodas4_sync(th0, nu0, eq, criterion, target, t_max, h0, rtol, atol, plan, fixed=False):
+def rodas4_sync(
+    th0, nu0, eq, criterion, target, t_max, h0, rtol, atol, plan, fixed=False, after=math.inf, band=0.0
+):
     """One trajectory from ``(th0, nu0)`` of the model ``eq`` (the equations' constants ``(p,
     w, indptr, indices, cl, sl, mass, gamma)`` of
     :func:`~antisync.kernels.core.make_model_kernels`) until the criterion holds or ``t_max``,
     the LU on ``plan`` (a :class:`FactorPlan`): ``(status, tau, accepted, rejected, failed)``
     (``failed``: the step size fell below ``1e-13 t_max`` or kept being rejected, ``tau`` the
     time reached). ``fixed``: every step ``h0``, accepted whatever its error estimate, the
-    crossing on the step's cubic interpolant (the order tests)."""
+    crossing on the step's cubic interpolant (the order tests). ``after``, ``band`` (frequency
+    criterion): a trajectory whose largest frequency deviation has not been below ``band`` at
+    any accepted step by time ``after`` ends there with status ``GAVE_UP`` (``sync.give_up``;
+    ``after = inf``: never)."""
     p, w, indptr, indices, cl, sl, mass, gamma = eq
     fp_perm, fp_inv, fp_ptr, fp_col, fp_diag, fp_entry = plan[:6]
     div_ptr, div_pos, upd_ptr, upd_ij, upd_ik, upd_kj = plan[6:]
@@ -555,6 +569,8 @@ def rodas4_sync(th0, nu0, eq, criterion, target, t_max, h0, rtol, atol, plan, fi
         return ALREADY_SYNCED, 0.0, 0, 0, False
     scale = _row_scale(indptr, w)
 
+    # sync.give_up: watched until the largest frequency deviation first falls below band
+    watch = freq and after < t_max
     t = 0.0
     h = min(h0, t_max)
     h_cap = t_max  # the step size cap up to ``cap_until``, the end of an unresolved crossing's step
@@ -690,6 +706,11 @@ def rodas4_sync(th0, nu0, eq, criterion, target, t_max, h0, rtol, atol, plan, fi
             accepted -= 1
             refined += 1
             continue
+        if watch:
+            if _largest_deviation(work, n) < band:
+                watch = False
+            elif t >= after:
+                return GAVE_UP, t, accepted, rejected, False
         # a PI controller (Gustafsson): the error now and one step back
         err = max(err, 1e-10)
         fac = _SAFETY * err**-_BETA1 * err_prev**_BETA2
@@ -872,11 +893,11 @@ def rodas4_trip(th0, grid, w_fault, w_post, t_clear, t_max, h0, tols, plan, line
 
 
 @njit(parallel=True, cache=True)
-def _integrate_items(ks, seed, graph, model, fp, dt, t_max, rtol, atol, max_steps, out, counts):
+def _integrate_items(ks, seed, graph, model, fp, dt, t_max, tols, max_steps, out, counts):
     """Every (realization, network) item one trajectory per thread iteration (the layout of
     :func:`antisync.kernels.cpu._integrate_items`), each with its own step sizes; ``counts``
     ``(acc0, rej0, acc, rej, failed)`` gets each item's accepted and rejected steps and whether
-    the step size failed."""
+    the step size failed; ``tols``: ``(rtol, atol, after, band)`` (:func:`rodas4_sync`)."""
     # fields as locals before the prange, by index: a parallel loop loses its writes to arrays
     # bound by unpacking a tuple (tests/test_architecture.py)
     acc0 = counts[0]
@@ -886,6 +907,7 @@ def _integrate_items(ks, seed, graph, model, fp, dt, t_max, rtol, atol, max_step
     failed = counts[4]
     indptr, indices, base_w, var_w, var_is_base, todo = graph
     freqs, cl, sl, inertia, damping, criterion, targets, starts = model
+    rtol, atol, after, band = tols
     m = ks.shape[0]
     n = indptr.shape[0] - 1
     n_var = var_w.shape[0]
@@ -902,7 +924,7 @@ def _integrate_items(ks, seed, graph, model, fp, dt, t_max, rtol, atol, max_step
         w = base_w if v < 0 else var_w[v]
         eq = (p, w, indptr, indices, cl, sl, inertia, damping)
         st, tau, n_acc, n_rej, bad = rodas4_sync(
-            th, nu, eq, criterion, targets[v + 1], t_max, dt, rtol, atol, fp
+            th, nu, eq, criterion, targets[v + 1], t_max, dt, rtol, atol, fp, False, after, band
         )
         k, x = _on_the_grid(st, tau, dt, max_steps)
         record_item(out, r, v, st, k, x)
@@ -955,12 +977,15 @@ def simulate_model(
     todo: np.ndarray | None = None,
     plan: FactorPlan | None = None,
     stats: bool = False,
+    give_up: tuple[float, float] | None = None,
 ) -> SimResult | tuple[SimResult, StepStats]:
     """Integrate realizations ``first .. first+count-1`` of a generalized model by Rodas4 for
     the base network and every variant: the arguments of
     :func:`antisync.kernels.cpu.simulate_model` (``dt`` the first step and the unit of the
     stored times, ``t_max = max_steps dt``) plus the tolerances ``rtol``, ``atol`` and the
-    pattern's :func:`factor_plan` (made once per pattern in a process when None).
+    pattern's :func:`factor_plan` (made once per pattern in a process when None); ``give_up``:
+    ``(after, band)`` of ``sync.give_up`` (frequency criterion), None: every trajectory runs to
+    its criterion or ``t_max``.
 
     Returns a :class:`~antisync.kernels.shared.SimResult` (``tau = (steps - 1 + frac) dt``),
     and with ``stats`` also the :class:`StepStats`. A trajectory whose step size collapses (a
@@ -972,10 +997,15 @@ def simulate_model(
     ks, graph, model, out = model_batch(
         first, count, realizations, indptr, indices, base_weights, variant_weights, params, "rodas4", todo
     )
+    if give_up is not None and not (model.criterion == CRIT_FREQUENCY and give_up[0] > 0 and give_up[1] > 0):
+        raise ValueError(
+            f"give_up (after, band) needs the frequency criterion and positive values, got {give_up}"
+        )
     m = ks.size
     n_var = graph.var_w.shape[0]
     if plan is None:
         plan = plan_of_pattern(indptr, indices)
+    after, band = (math.inf, 0.0) if give_up is None else (float(give_up[0]), float(give_up[1]))
     acc0 = np.full(m, -1, dtype=np.int64)
     rej0 = np.full(m, -1, dtype=np.int64)
     acc = np.full((m, n_var), -1, dtype=np.int64)
@@ -992,8 +1022,7 @@ def simulate_model(
             plan,
             float(dt),
             t_max,
-            float(rtol),
-            float(atol),
+            (float(rtol), float(atol), after, band),
             int(max_steps),
             out,
             (acc0, rej0, acc, rej, failed),

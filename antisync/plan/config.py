@@ -360,6 +360,7 @@ class Config:
         check_graph(self.graph)
         self._check_model()
         self._check_stop()
+        self._check_give_up()
 
     @property
     def generalized(self) -> bool:
@@ -390,6 +391,21 @@ class Config:
                 "sync.criterion relative needs fixed model.frequencies (a list or a file): with "
                 "frequencies drawn per realization every realization has its own locked state; "
                 "use criterion frequency or order-parameter"
+            )
+
+    def _check_give_up(self) -> None:
+        rule = self.sync.give_up_rule
+        if rule is None:
+            return
+        dyn = self.dynamics
+        if dyn.integrator != "rodas4":
+            raise ConfigError(
+                f"sync.give_up stops the adaptive integrator early; dynamics.integrator is "
+                f"{dyn.integrator}: use integrator rodas4 or remove give_up"
+            )
+        if rule[0] >= dyn.t_max:
+            raise ConfigError(
+                f"sync.give_up.after ({rule[0]:g}) must come before dynamics.t_max ({dyn.t_max:g})"
             )
 
     def _check_stop(self) -> None:

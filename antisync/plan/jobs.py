@@ -179,6 +179,11 @@ def config_graph(config: Config) -> nx.Graph:
 
 def make_job(config: Config, graph: nx.Graph | None = None, name: str | None = None) -> Job:
     """Build the graph, resolve edges and betas, and compute all coupling arrays."""
+    if config.sync.give_up is not None:
+        raise ConfigError(
+            "sync.give_up records trajectories stopped early as GAVE_UP, which only `antisync grid "
+            "--removal` counts; remove give_up for run and sweep"
+        )
     if graph is None:
         graph = config_graph(config)
     nodes = graphs.node_order(graph)

@@ -288,12 +288,20 @@ class Sync:
         ``relative``: ``r >= fraction r*``, ``r*`` of the stable locked state of each variant.
     tolerance : float
         ``frequency``: every ``|theta_i' - mean_j theta_j'| < tolerance``.
+    give_up : dict or None
+        ``frequency`` with ``dynamics.integrator: rodas4``, ``antisync grid --removal`` only:
+        ``{after: T, band: B}`` stops a trajectory at time ``T`` when its largest frequency
+        deviation has not once been below ``B`` (rad/s) by then (a machine still slipping, a
+        solitary state) and records it as ``GAVE_UP``, counted as not synchronized and apart.
+        A rule measured on the grid it is set for, not a proof (docs/power_grids.md); None: every
+        trajectory runs to its criterion or ``t_max``.
     """
 
     criterion: Criterion = "order-parameter"
     threshold: float | None = None
     fraction: float = 0.99
     tolerance: float = 1e-3
+    give_up: dict | None = None
 
     def __post_init__(self):
         choice("sync.criterion", self.criterion, CRITERIA)
@@ -301,6 +309,34 @@ class Sync:
             object.__setattr__(self, "threshold", fraction("sync.threshold", self.threshold))
         object.__setattr__(self, "fraction", fraction("sync.fraction", self.fraction))
         object.__setattr__(self, "tolerance", positive("sync.tolerance", self.tolerance))
+        if self.give_up is not None:
+            object.__setattr__(self, "give_up", self._give_up())
+
+    def _give_up(self) -> dict:
+        """``give_up`` checked: ``{after, band}``, both positive, the band wider than the
+        tolerance, under the frequency criterion."""
+        want = "a mapping {after: seconds, band: rad/s}, e.g. {after: 20, band: 1.0}"
+        g = self.give_up
+        if not isinstance(g, dict) or set(g) != {"after", "band"}:
+            raise ConfigError(f"sync.give_up must be {want}, got {show(g)}")
+        if self.criterion != "frequency":
+            raise ConfigError(
+                f"sync.give_up watches frequency deviations: it needs sync.criterion frequency, not "
+                f"{self.criterion} (remove give_up)"
+            )
+        after = positive("sync.give_up.after", g["after"])
+        band = positive("sync.give_up.band", g["band"])
+        if band <= self.tolerance:
+            raise ConfigError(
+                f"sync.give_up.band ({band:g}) must be wider than sync.tolerance ({self.tolerance:g}): "
+                "a trajectory inside the tolerance is synchronized, not slipping"
+            )
+        return {"after": after, "band": band}
+
+    @property
+    def give_up_rule(self) -> tuple[float, float] | None:
+        """``(after, band)`` of :attr:`give_up`, or None."""
+        return None if self.give_up is None else (self.give_up["after"], self.give_up["band"])
 
     @property
     def is_default(self) -> bool:

@@ -326,6 +326,9 @@ def merge_docs(sources) -> dict:
             **head["summary"],
             "lines": len(rows),
             "seconds": sum(float(d["summary"].get("seconds") or 0.0) for d in docs),
+            # stopped by sync.give_up after the changes: each part's own lines (the intact
+            # grid's gave_up0 is the same in every part)
+            "gave_up": sum(int(d["summary"].get("gave_up") or 0) for d in docs),
         },
         "sync_called": [r["label"] for r in rows if r["label"] in sync],
         "tau_called": [r["label"] for r in rows if r["label"] in tau],
