@@ -68,7 +68,7 @@ bench: $(STAMP)
 	$(BIN)/python bench/bench_dask.py
 	$(BIN)/python bench/bench_implicit.py --starts 100 --timed-starts 16 --radau-starts 8 --skip-rk4-lanes --rtol 1e-4 --atol 1e-4
 	$(BIN)/python bench/bench_trip.py --rows 16
-	$(BIN)/python bench/removal_give_up.py --lines 4 --starts 200 --check-starts 50
+	$(BIN)/python bench/removal_give_up.py --lines 4 --starts 200 --check-starts 50 --study-starts 100
 	$(BIN)/python bench/bench_design_gradnet.py --skip-textbook
 
 # every warning is an error (mkdocs.yml: strict); the API pages come from the docstrings
