@@ -10,7 +10,7 @@ The grid is ``configs/ieee300_grid.yaml`` with ``dynamics.integrator: rodas4`` a
 ``atol``) and uniform random starts of seed 1, as ``antisync grid --removal`` integrates it
 (:func:`antisync.grids.removal.line_removal`, ``--threads`` threads, wall time):
 
-1. **timed**: ``--lines`` lines drawn at random (numpy seed 0) from the non-bridge lines, at
+1. **timed**: ``--lines`` lines drawn at random (numpy seed ``--sample-seed``) from the non-bridge lines, at
    ``--starts`` starts, with ``sync.give_up: {after, band}``; seconds per trajectory (the intact
    grid counted as one more grid) times ``(L + 1) x 1,000`` for all ``L`` lines, in hours on
    this machine's ``--threads`` cores;
@@ -48,8 +48,9 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--config", type=Path, default=ROOT / "configs" / "ieee300_grid.yaml")
     ap.add_argument("--lines", type=int, default=16, help="lines drawn at random and timed")
+    ap.add_argument("--sample-seed", type=int, default=0, help="numpy seed of the lines drawn")
     ap.add_argument("--starts", type=int, default=1000)
-    ap.add_argument("--check-starts", type=int, default=200, help="starts integrated to t_max too")
+    ap.add_argument("--check-starts", type=int, default=200, help="starts integrated to t_max too (0: none)")
     ap.add_argument("--study-starts", type=int, default=300, help="intact starts studied (0: none)")
     ap.add_argument("--after", type=float, default=20.0)
     ap.add_argument("--band", type=float, default=1.0)
@@ -68,7 +69,7 @@ def main() -> None:
     }
     cfg = resolve_config(args.config, common)
     every = sorted(planned_lines(cfg, None, 1.0, False))
-    rng = np.random.default_rng(0)
+    rng = np.random.default_rng(args.sample_seed)
     sample = [every[i] for i in sorted(rng.choice(len(every), args.lines, replace=False))]
     lines = ",".join("-".join(p) for p in sample)  # as --lines takes them
     print(
@@ -104,6 +105,8 @@ def main() -> None:
         _study(cfg, args.study_starts, args.band, args.threads)
 
     m = args.check_starts
+    if not m:
+        return
     t0 = time.perf_counter()
     full = line_removal(args.config, lines=lines, realizations=m, threads=args.threads, **common)
     took_full = time.perf_counter() - t0
