@@ -122,6 +122,11 @@ class RemovalTable(Rows):
         return int((self.status0 == GAVE_UP).sum())
 
     @property
+    def gave_up(self) -> int:
+        """The trajectories after the lines' changes stopped early by ``sync.give_up``."""
+        return int((self.status == GAVE_UP).sum())
+
+    @property
     def p_sync(self) -> float:
         """The intact grid's ``P_sync`` (its basin stability at these starts)."""
         return self.synced0 / self.n if self.n else math.nan
@@ -201,7 +206,7 @@ class RemovalTable(Rows):
             "starts": self.starts,
             "synced0": self.synced0,
             "gave_up0": self.gave_up0,
-            "gave_up": int((self.status == GAVE_UP).sum()),
+            "gave_up": self.gave_up,
             "p_sync": self.p_sync,
             "p_sync_ci": list(self.p_sync_ci),
             "tau0_mean": t,
@@ -228,13 +233,12 @@ class RemovalTable(Rows):
             f"P_sync = {self.p_sync:.4f} [{lo:.4f}, {hi:.4f}], tau0 = {t:.3f} +- {se:.3f}; "
             f"{len(self.rows)} lines{skipped}; {self.seconds:.1f} s"
         )
-        gave_up = int((self.status == GAVE_UP).sum())
-        if self.gave_up0 or gave_up:
+        if self.gave_up0 or self.gave_up:
             rule = (self.config.get("sync") or {}).get("give_up") or {}
             head += (
                 f"; stopped by sync.give_up (deviation never below {rule.get('band', '?')} rad/s by "
                 f"t = {rule.get('after', '?')} s, counted as not synchronized): {self.gave_up0} intact, "
-                f"{gave_up} after the changes"
+                f"{self.gave_up} after the changes"
             )
         braess = {r.line for r in self.braess_lines(q)}
         sync, tau = self.sync_called(q), self.tau_called(q)
