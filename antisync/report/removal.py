@@ -597,9 +597,11 @@ def removal_figure(source, config, path, *, by: RemovalBy = "speedup", overwrite
     fig.colorbar(sm, ax=ax, shrink=0.7, label=label)
     s = doc["summary"]
     change = "removal" if s["beta"] == 1 else f"weakening by beta = {s['beta']:g}"
+    gave_up = int(s.get("gave_up0") or 0) + int(s.get("gave_up") or 0)
     ax.set_title(
         f"{s['name']}: dynamic N-1, each line's {change}\n"
-        f"{s['realizations']} paired starts{_where(s)}, intact P_sync = {s['p_sync']:.3f}; {len(rows)} lines",
+        f"{s['realizations']} paired starts{_where(s)}, intact P_sync = {s['p_sync']:.3f}; {len(rows)} lines"
+        + (f"; {gave_up} trajectories stopped by sync.give_up" if gave_up else ""),
         fontsize=10,
     )
     handles = [
