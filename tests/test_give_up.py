@@ -165,3 +165,23 @@ def test_a_removal_with_the_rule_is_the_removal_without_it_where_it_did_not_give
     # the figure is drawn from the table (its title counts the stopped trajectories)
     png = removal_figure(cut, None, tmp_path / "cut.png")
     assert png.read_bytes().startswith(b"\x89PNG")
+
+
+def test_a_trip_refuses_the_rule_in_one_line():
+    """``--trip`` runs from the operating point for ``--t-max``: it has no slipping random
+    starts to give up on, so the rule is refused rather than ignored."""
+    res = CliRunner().invoke(
+        app,
+        [
+            "grid",
+            str(CONFIGS / "ieee39_grid.yaml"),
+            "--trip",
+            "--set",
+            "dynamics.integrator=rodas4",
+            "--set",
+            "sync.give_up={after: 5, band: 1.0}",
+        ],
+    )
+    assert res.exit_code == 2, res.output
+    assert "sync.give_up" in res.output and "a trip runs from the operating point" in res.output
+    assert len(res.output.strip().splitlines()) == 1
