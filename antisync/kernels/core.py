@@ -863,6 +863,7 @@ class ModelKernels(NamedTuple):
     deviations: Callable
     order_crossing: Callable
     frequency_crossing: Callable
+    largest_deviation: Callable
     hermite_range: Callable
     copy_rows: Callable
 
@@ -1126,6 +1127,8 @@ def make_model_kernels(jit, base: Kernels) -> ModelKernels:
     ends = jit(ends)
 
     def largest_deviation(work, n, rows, dt, rk4, x):
+        """The largest ``|deviation|`` of the tested rows (``rows``: 2 with inertia) at ``x`` of
+        the last step's interpolants (``x = 1``: the step's end, exactly)."""
         dev = 0.0
         for i in range(n):
             for k in range(rows):
@@ -1238,6 +1241,7 @@ def make_model_kernels(jit, base: Kernels) -> ModelKernels:
         deviations=deviations,
         order_crossing=order_crossing,
         frequency_crossing=frequency_crossing,
+        largest_deviation=largest_deviation,
         hermite_range=hermite_range,
         copy_rows=copy_rows,
     )

@@ -77,6 +77,7 @@ _rhs = ms.MK.rhs
 _measure = ms.MK.measure
 _deviations = ms.MK.deviations
 _frequency_crossing = ms.MK.frequency_crossing
+_largest_deviation = ms.MK.largest_deviation
 _hermite_range = ms.MK.hermite_range
 _order_crossing = ms.MK.order_crossing
 _copy_rows = ms.MK.copy_rows
@@ -506,15 +507,6 @@ def _shrunk(h, err):
     return h * max(_SHRINK, min(1.0, _SAFETY * err**-0.25 if err == err else _SHRINK))
 
 
-@njit(cache=True, inline="always")
-def _largest_deviation(work, n):
-    """The largest ``|theta_i' - mean|`` of :func:`_deviations`' first row."""
-    largest = 0.0
-    for i in range(n):
-        largest = max(largest, abs(work[DEV_ROW, i]))
-    return largest
-
-
 @njit(cache=True)
 def rodas4_sync(
     th0, nu0, eq, criterion, target, t_max, h0, rtol, atol, plan, fixed=False, after=math.inf, band=0.0
@@ -526,9 +518,9 @@ def rodas4_sync(
     (``failed``: the step size fell below ``1e-13 t_max`` or kept being rejected, ``tau`` the
     time reached). ``fixed``: every step ``h0``, accepted whatever its error estimate, the
     crossing on the step's cubic interpolant (the order tests). ``after``, ``band`` (frequency
-    criterion): a trajectory whose largest frequency deviation has not been below ``band`` at
-    any accepted step by time ``after`` ends there with status ``GAVE_UP`` (``sync.give_up``;
-    ``after = inf``: never)."""
+    criterion): a trajectory whose largest deviation of the criterion (the one it must bring
+    below ``target``) has not been below ``band`` at any accepted step by time ``after`` ends
+    there with status ``GAVE_UP`` (``sync.give_up``; ``after = inf``: never)."""
     p, w, indptr, indices, cl, sl, mass, gamma = eq
     fp_perm, fp_inv, fp_ptr, fp_col, fp_diag, fp_entry = plan[:6]
     div_ptr, div_pos, upd_ptr, upd_ij, upd_ik, upd_kj = plan[6:]
@@ -707,7 +699,8 @@ def rodas4_sync(
             refined += 1
             continue
         if watch:
-            if _largest_deviation(work, n) < band:
+            # the criterion's own deviations (with inertia also g_i's) at the step's end
+            if _largest_deviation(work, n, 2 if second else 1, 0.0, False, 1.0) < band:
                 watch = False
             elif t >= after:
                 return GAVE_UP, t, accepted, rejected, False
