@@ -291,8 +291,9 @@ class Sync:
     give_up : dict or None
         ``frequency`` with ``dynamics.integrator: rodas4``, ``antisync grid --removal`` only:
         ``{after: T, band: B}`` stops a trajectory at time ``T`` when the largest of the
-        deviations the criterion tests has not once been below ``B`` (rad/s) by then (a machine still slipping, a
-        solitary state) and records it as ``GAVE_UP``, counted as not synchronized and apart.
+        deviations the criterion tests has not once been below ``B`` (rad/s) by then (a machine
+        still slipping, a solitary state) and records it as ``GAVE_UP``, counted as not
+        synchronized and apart.
         A rule measured on the grid it is set for, not a proof (docs/power_grids.md); None: every
         trajectory runs to its criterion or ``t_max``.
     """
