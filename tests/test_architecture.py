@@ -321,7 +321,7 @@ def _is_parallel(func: ast.FunctionDef) -> bool:
 
 
 #: the groups a parallel kernel may unpack in one line: its inputs, which it only reads
-READ_ONLY_GROUPS = {"graph", "run", "model", "tangents", "deriv", "tols"}
+READ_ONLY_GROUPS = {"graph", "run", "model", "tangents", "deriv", "tols", "trips"}
 
 
 def _unpacked(node: ast.Assign) -> str | None:

@@ -25,11 +25,14 @@ T_MAX = 12.0
 TOL = 1e-3
 
 
-def _reference(grid, line, t_clear, theta0, share=1.0, settle=False):
+def _reference(grid, line, t_clear, theta0, share=1.0, settle=False, t_max=T_MAX):
     """Radau (rtol 1e-10) on the dense swing equation: the fault (every line at bus a out)
     until ``t_clear``, then the grid without ``a-b`` (with ``share`` < 1: ``a-b`` at ``1 -
-    share`` of its K); the rates at the same grid times as the RK4 kernel's. Returns (settles,
-    max |theta'|)."""
+    share`` of its K) for ``t_max`` after the trip, sampled on a grid of DT. Settling is the
+    frequency criterion with inertia (docs/models.md): every ``|theta_i' - mean|`` and every
+    ``|g_i - mean g|``, ``g_i = (P_i + coupling_i) / D_i``, below TOL. Returns (settles, max
+    |theta'|), or with ``settle`` the time after the trip from the first grid time past the
+    last one out of the band."""
     a, b = line
     n = len(grid.labels)
     p = grid.p
@@ -46,33 +49,34 @@ def _reference(grid, line, t_clear, theta0, share=1.0, settle=False):
         second = m > 0
         dth = np.where(second, nu, force / d)
         dnu = np.where(second, (force - d * nu) / np.where(second, m, 1.0), 0.0)
-        return dth, dnu
+        return dth, dnu, force / d
 
     def rhs(k):
-        return lambda t, y: np.concatenate(rates(y[:n], y[n:], k))
+        return lambda t, y: np.concatenate(rates(y[:n], y[n:], k)[:2])
 
-    times = np.arange(int(round(T_MAX / DT)) + 1) * DT
+    end = t_clear + t_max
+    times = np.arange(int(round(end / DT)) + 1) * DT
     y0 = np.concatenate([theta0, np.zeros(n)])
-    segments = [(fault, 0.0, t_clear), (post, t_clear, T_MAX)] if t_clear > 0 else [(post, 0.0, T_MAX)]
+    segments = [(fault, 0.0, t_clear), (post, t_clear, end)] if t_clear > 0 else [(post, 0.0, end)]
     worst, last_out = 0.0, -1
     for k, t0, t1 in segments:
-        grid_t = times[(times >= t0) & (times < t1)] if t1 < T_MAX else times[times >= t0]
+        grid_t = times[(times >= t0) & (times < t1)] if t1 < end else times[times >= t0]
         sol = solve_ivp(rhs(k), (t0, t1), y0, method="Radau", rtol=1e-10, atol=1e-10, dense_output=True)
         assert sol.success
         for t in grid_t:
-            dth, _ = rates(sol.sol(t)[:n], sol.sol(t)[n:], k)
+            dth, _, g = rates(sol.sol(t)[:n], sol.sol(t)[n:], k)
             worst = max(worst, float(np.max(np.abs(dth))))
-            if np.max(np.abs(dth - dth.mean())) >= TOL:
+            if max(np.max(np.abs(dth - dth.mean())), np.max(np.abs(g - g.mean()))) >= TOL:
                 last_out = int(round(t / DT))
         y0 = sol.y[:, -1]
     if settle:
-        return (last_out + 1) * DT
+        return max((last_out + 1) * DT - t_clear, 0.0)
     return last_out < len(times) - 1, worst
 
 
 def _reference_settle(grid, line, t_clear, theta0):
-    """Radau's time to settle on the grid of DT (the first grid time after the last one with a
-    deviation at or above the band)."""
+    """Radau's time to settle after the trip, on the grid of DT (the first grid time after the
+    last one with a deviation at or above the band)."""
     return _reference(grid, line, t_clear, theta0, settle=True)
 
 
@@ -112,22 +116,126 @@ def test_a_trip_after_a_fault_is_radau_s_integration(ieee14, method):
     assert any(verdicts) and not all(verdicts)  # both verdicts are compared
 
 
+#: Radau's verdicts of IEEE 14's first line by fault duration (the scan test's, both methods)
+_RADAU_VERDICTS: dict = {}
+
+
 @pytest.mark.parametrize("method", list(METHODS))
-def test_the_critical_clearing_time_is_an_independent_bisection_s(ieee14, method):
+def test_the_critical_clearing_time_is_an_independent_scan_s(ieee14, method):
+    """The CCT by definition (the longest fault with every shorter scanned one survived), against
+    Radau's verdicts on the same scan: every 0.05 s, then every 0.01 s in the first failing
+    interval."""
     grid, lines = ieee14
     theta0 = operating_point(grid)
     line = lines[0]
-    tol = 1e-2
-    (cct,) = critical_clearing(
-        grid, [line], cct_max=1.5, cct_tol=tol, t_max=T_MAX, dt=DT, tolerance=TOL, **METHODS[method]
+    scan, tol, window = 0.05, 1e-2, 20.0
+    cct, _ = critical_clearing(
+        grid,
+        [line],
+        cct_max=1.5,
+        cct_tol=tol,
+        cct_scan=scan,
+        t_max=window,
+        dt=DT,
+        tolerance=TOL,
+        **METHODS[method],
     )
-    lo, hi = 0.0, 1.5
-    assert _reference(grid, line, 1e-9, theta0)[0]
-    while hi - lo > tol:
-        mid = 0.5 * (lo + hi)
-        lo, hi = (mid, hi) if _reference(grid, line, mid, theta0)[0] else (lo, mid)
-    assert 0 < cct < 1.5  # a real bisection, not a clamp (1-2: about 0.39 s)
-    assert abs(cct - lo) <= tol
+
+    def survives(t_clear):
+        key = round(t_clear, 9)
+        if key not in _RADAU_VERDICTS:  # shared by both methods
+            _RADAU_VERDICTS[key] = _reference(grid, line, t_clear, theta0, t_max=window)[0]
+        return _RADAU_VERDICTS[key]
+
+    assert survives(1e-9)
+    k = 1
+    while survives(k * scan):
+        k += 1
+    lo = (k - 1) * scan
+    while lo + tol < k * scan - 1e-9 and survives(lo + tol):
+        lo += tol
+    assert 0 < cct[0] < 1.5  # a real scan, not a clamp
+    assert abs(cct[0] - lo) <= 1e-9, (cct, lo)
+
+
+def test_the_critical_clearing_time_is_the_same_for_every_cct_max_and_every_shorter_fault_survives(ieee14):
+    """IEEE 14 line 1-2 at the config's dt: the verdicts near the boundary switch more than once
+    when the settling window counted from the fault's start (settles after a 0.766 s fault, not
+    after 0.768, again after 0.7695), and a bisection landed on 0.7695 or 0.7666 by its first
+    midpoint. The scan gives one CCT whatever --cct-max, and every fault below it settles."""
+    grid, _ = ieee14
+    index = {str(v): i for i, v in enumerate(grid.labels)}
+    line = (index["1"], index["2"])
+    kw = {"t_max": 20.0, "dt": 0.02, "tolerance": TOL}
+    ccts = [critical_clearing(grid, [line], cct_max=top, **kw)[0][0] for top in (1.0, 5.0)]
+    assert ccts[0] == ccts[1] and 0.7 < ccts[0] < 0.8
+    below = np.concatenate([np.linspace(0.01, ccts[0], 40), ccts[0] - np.array([1e-4, 5e-4, 1e-3])])
+    trips = trip_lines(grid, [line] * below.size, t_clear=below, **kw)
+    assert all(t.settles for t in trips)
+    (after,) = trip_lines(grid, [line], t_clear=ccts[0] + 1e-3, **kw)
+    assert not after.settles
+
+
+def test_t_max_is_the_window_after_the_trip(ieee14):
+    """--t-max counts from the trip: line 4-5 cleared after a 4.575 s fault settles within the
+    default 20 s after it (a window from the fault's start left it 15.4 s), and the time to
+    settle is on the trip's clock: the same trip after a longer window settles at the same time."""
+    grid, _ = ieee14
+    index = {str(v): i for i, v in enumerate(grid.labels)}
+    line = (index["4"], index["5"])
+    kw = {"dt": 0.02, "tolerance": TOL, "t_clear": 4.575}
+    (short,) = trip_lines(grid, [line], t_max=20.0, **kw)
+    (long,) = trip_lines(grid, [line], t_max=40.0, **kw)
+    assert short.settles and 0 < short.settle_time < 20.0
+    assert abs(long.settle_time - short.settle_time) < 1e-9
+
+
+def test_settling_with_inertia_needs_the_g_condition_too():
+    """The trip's criterion is the frequency criterion with inertia: a window that ends where
+    every ``|theta_i' - mean|`` is already in the band but some ``|g_i - mean g|`` is not
+    (Radau says where: IEEE 14 at damping 0.5, underdamped, so ``g = theta' + theta''`` swings
+    wider than ``theta'``) is not settled; a window past both settles when ``g`` enters."""
+    grid = load_grid_config(IEEE14, ["model.damping=0.5"])
+    theta0 = operating_point(grid)
+    line, t_clear, n = (0, 1), 0.1, len(grid.labels)
+    m = np.asarray(grid.inertia, dtype=float) * np.ones(n)
+    d = np.asarray(grid.damping, dtype=float) * np.ones(n)
+    fault = grid.omega.copy()
+    fault[0, :] = fault[:, 0] = 0.0
+    post = grid.omega.copy()
+    post[0, 1] = post[1, 0] = 0.0
+
+    def rhs(k):
+        def f(t, y):
+            force = grid.p + np.sum(k * np.sin(y[None, :n] - y[:n, None]), axis=1)
+            return np.concatenate([y[n:], (force - d * y[n:]) / m])
+
+        return f
+
+    y0 = np.concatenate([theta0, np.zeros(n)])
+    s1 = solve_ivp(rhs(fault), (0, t_clear), y0, method="Radau", rtol=1e-10, atol=1e-10)
+    times = t_clear + np.arange(1, 8001) * 0.005
+    s2 = solve_ivp(
+        rhs(post), (t_clear, times[-1]), s1.y[:, -1], t_eval=times, method="Radau", rtol=1e-10, atol=1e-10
+    )
+    th = s2.y[n:]
+    g = (grid.p[:, None] + np.sum(post[:, :, None] * np.sin(s2.y[None, :n] - s2.y[:n, None]), axis=1)) / d[
+        :, None
+    ]
+    dev_th = np.max(np.abs(th - th.mean(axis=0)), axis=0)
+    dev_g = np.max(np.abs(g - g.mean(axis=0)), axis=0)
+    last_th, last_g = times[np.flatnonzero(dev_th >= TOL)[-1]], times[np.flatnonzero(dev_g >= TOL)[-1]]
+    # g leaves the band later: a window ending where only g is out of it tells
+    between = (times > last_th + 0.1) & (times < last_g)
+    assert between.any()
+    end = times[between][np.argmax(dev_g[between])]
+    assert dev_g[times == end][0] > 1.2 * TOL
+    for method in METHODS.values():
+        kw = {"t_clear": t_clear, "dt": DT, "tolerance": TOL, "theta0": theta0, **method}
+        (trip,) = trip_lines(grid, [line], t_max=end - t_clear, **kw)
+        assert not trip.settles, method
+        (trip,) = trip_lines(grid, [line], t_max=last_g - t_clear + 2.0, **kw)
+        assert trip.settles and abs(trip.settle_time - (last_g - t_clear)) < 2 * 0.005, (trip, last_g)
 
 
 def test_no_fault_trip_of_every_line_settles_where_the_post_trip_grid_locks(ieee14):
@@ -150,9 +258,11 @@ def test_a_grid_without_an_operating_point_is_refused():
     [
         (["--lines", "1-9"], "not a line of the grid"),
         (["--lines", "7-8"], "is a bridge"),
-        (["--t-clear", "0"], "--t-clear must be a fault duration"),
-        (["--t-clear", "30", "--t-max", "20"], "--t-clear must be a fault duration"),
-        (["--cct", "--cct-max", "25"], "--cct-max"),
+        (["--t-clear", "0"], "--t-clear must be a finite fault duration"),
+        (["--t-clear", "inf"], "--t-clear must be a finite fault duration"),
+        (["--t-max", "inf"], "--t-max must be a finite positive number"),
+        (["--cct", "--cct-max", "inf"], "--cct-max"),
+        (["--cct", "--cct-scan", "0.0001"], "--cct-scan must be in"),
         (["--set", "model.frequencies=[40, -40, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0]"], "no operating point"),
         (["--contingencies", "missing.txt"], "cannot read it"),
         (["--contingencies", "{dir}/c.txt"], "line 2: expected 'label from to share'"),
@@ -217,7 +327,7 @@ def test_report_draws_a_trip_table_from_its_file_alone(tmp_path):
     without its network, are one line and exit 2 with nothing written."""
     out = tmp_path / "t.json"
     args = ["grid", str(IEEE14), "--trip", "--lines", "1-2,2-3,4-5", "--t-clear", "0.1", "--cct"]
-    res = CliRunner().invoke(app, [*args, "--t-max", "10", "--set", f"dynamics.dt={DT}", "--out", str(out)])
+    res = CliRunner().invoke(app, [*args, "--t-max", "12", "--set", f"dynamics.dt={DT}", "--out", str(out)])
     assert res.exit_code == 0, res.output
     folder = tmp_path / "report"
     res = CliRunner().invoke(app, ["report", str(out), "--out", str(folder)])
@@ -282,17 +392,18 @@ def test_a_contingency_table_trips_its_rows_and_a_circuit_keeps_the_rest_of_its_
     )
     table = read_contingencies(tmp_path / "c.txt", grid)
     assert [(label, share) for label, _, share in table] == [("A", 1.0), ("B", 0.5), ("C", 1.0), ("D", 0.5)]
-    kw = {"t_max": T_MAX, "dt": DT, "tolerance": TOL}
+    kw = {"t_max": 20.0, "dt": DT, "tolerance": TOL}
     report = trip_report(grid, contingencies=table, **kw)
     assert report["contingencies"] and report["bridges_skipped"] == [["7", "8"]]
     rows = {r["label"]: r for r in report["lines"]}
     assert sorted(rows) == ["A", "B", "D"] and rows["B"]["share"] == 0.5
     (plain,) = trip_lines(grid, [lines[0]], theta0=theta0, **kw)
     assert plain.line == (1, 2)
+    assert plain.settles  # within 20 s of the trip
     for key in ("settles", "settle_time", "max_frequency", "max_angle", "post_locked"):
         assert rows["A"][key] == getattr(plain, key)
     for label, line in (("B", lines[0]), ("D", (6, 7))):
-        settles, worst = _reference(grid, line, 0.0, theta0, share=0.5)
+        settles, worst = _reference(grid, line, 0.0, theta0, share=0.5, t_max=20.0)
         assert rows[label]["settles"] == settles and abs(rows[label]["max_frequency"] - worst) < 1e-4
     assert rows["B"]["max_frequency"] < rows["A"]["max_frequency"]  # half the line stays
 
@@ -316,7 +427,15 @@ def test_trips_in_tasks_resume_from_their_journal_and_refuse_other_work(ieee14, 
 
     grid, lines = ieee14
     assert len(lines) > TRIPS_PER_TASK  # more than one task
-    kw = {"t_max": 6.0, "dt": DT, "tolerance": TOL, "cct": True, "cct_max": 0.5, "cct_tol": 0.05}
+    kw = {
+        "t_max": 6.0,
+        "dt": DT,
+        "tolerance": TOL,
+        "cct": True,
+        "cct_max": 0.5,
+        "cct_tol": 0.05,
+        "cct_scan": 0.1,
+    }
     plain = _text(trip_report(grid, **kw))
     folder = tmp_path / "t.json.partial"
     assert _text(trip_report(grid, journal=folder, **kw)) == plain
@@ -332,7 +451,7 @@ def test_trips_in_tasks_resume_from_their_journal_and_refuse_other_work(ieee14, 
     assert sorted(folder.glob("task_*.npz")) == files
     # a task file tagged for another grid is dropped and its trips integrated again
     other = TripJournal(tmp_path / "other", {"x": 1})
-    other.save(0, np.zeros((16, 5)))
+    other.save(0, np.zeros((16, 6)))
     (tmp_path / "other" / "task_0_16.npz").replace(files[0])
     assert _text(trip_report(grid, journal=folder, **kw)) == plain  # its zeros were not merged
 

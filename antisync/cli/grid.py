@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import contextlib
+import math
 from pathlib import Path
 from typing import Annotated
 
@@ -33,9 +34,17 @@ def grid(
         float | None, typer.Option("--t-clear", help="--trip: the fault's duration before the trip (s).")
     ] = None,
     cct: Annotated[
-        bool, typer.Option("--cct", help="--trip: each line's critical clearing time by bisection.")
+        bool,
+        typer.Option(
+            "--cct",
+            help="--trip: each line's critical clearing time, the longest fault with every shorter "
+            "one survived (a scan every --cct-scan s, then every 1 ms in the first failing interval).",
+        ),
     ] = False,
     cct_max: Annotated[float, typer.Option("--cct-max", help="--cct: the longest fault tried (s).")] = 1.0,
+    cct_scan: Annotated[
+        float, typer.Option("--cct-scan", help="--cct: the coarse scan's step of fault durations (s).")
+    ] = 0.01,
     contingencies: Annotated[
         Path | None,
         typer.Option(
@@ -45,7 +54,9 @@ def grid(
             "every line; --lines keeps the rows on the lines it names.",
         ),
     ] = None,
-    t_max: Annotated[float, typer.Option("--t-max", help="--trip: how long after the fault (s).")] = 20.0,
+    t_max: Annotated[
+        float, typer.Option("--t-max", help="--trip: how long the grid runs after the trip (s).")
+    ] = 20.0,
     lines: Annotated[
         str | None,
         typer.Option(
@@ -128,7 +139,8 @@ def grid(
     if trip:
         where = {"threads": threads, "workers": workers, "scheduler": scheduler}
         files = {"out": out, "figure": figure, "overwrite": overwrite, "resume": resume}
-        _trip(config, set_, lines, contingencies, t_clear, cct, cct_max, t_max, where, files, quiet)
+        cct_spec = {"cct": cct, "cct_max": cct_max, "cct_scan": cct_scan}
+        _trip(config, set_, lines, contingencies, t_clear, cct_spec, t_max, where, files, quiet)
         return
     for name, value in (("--t-clear", t_clear), ("--cct", cct or None), ("--contingencies", contingencies)):
         if value is not None:
@@ -207,7 +219,7 @@ def grid(
             info(f"wrote {path}", quiet)
 
 
-def _trip(config, set_, lines, contingencies, t_clear, cct, cct_max, t_max, where, files, quiet) -> None:
+def _trip(config, set_, lines, contingencies, t_clear, cct_spec, t_max, where, files, quiet) -> None:
     """``--trip``: the engineer's N-1 table (antisync/grids/trip.py), printed, as JSON with
     ``--out`` and drawn with ``--figure`` (both written atomically; an existing file only with
     ``--overwrite``). ``where``: threads, workers, scheduler (here or on Dask, as a removal);
@@ -223,6 +235,7 @@ def _trip(config, set_, lines, contingencies, t_clear, cct, cct_max, t_max, wher
     from antisync.grids.removal_journal import journal_folder, remove_journal
     from antisync.grids.trip import (
         CCT_TOL,
+        CLOCK,
         FORMAT,
         check_finished_trips,
         format_trips,
@@ -243,10 +256,15 @@ def _trip(config, set_, lines, contingencies, t_clear, cct, cct_max, t_max, wher
             "sync.give_up stops random starts that keep slipping (--removal); a trip runs from the "
             "operating point for --t-max: remove give_up"
         )
-    if not t_max > 0:
-        raise GridError(f"--t-max must be a positive number of seconds, got {t_max:g}")
-    if cct and not 0 < cct_max < t_max:
-        raise GridError(f"--cct-max must be in (0, --t-max = {t_max:g}) seconds, got {cct_max:g}")
+    cct, cct_max, cct_scan = cct_spec["cct"], cct_spec["cct_max"], cct_spec["cct_scan"]
+    if not 0 < t_max < math.inf:
+        raise GridError(f"--t-max must be a finite positive number of seconds, got {t_max:g}")
+    if cct and not 0 < cct_max < math.inf:
+        raise GridError(f"--cct-max must be a finite positive number of seconds, got {cct_max:g}")
+    if cct and not CCT_TOL <= cct_scan <= cct_max:
+        raise GridError(
+            f"--cct-scan must be in [{CCT_TOL:g}, --cct-max = {cct_max:g}] seconds, got {cct_scan:g}"
+        )
     if resume and overwrite:
         raise GridError("--resume finishes the interrupted run and --overwrite starts over: give one")
     if resume and out is None:
@@ -271,6 +289,7 @@ def _trip(config, set_, lines, contingencies, t_clear, cct, cct_max, t_max, wher
                 settings = {"t_clear": t_clear, "t_max": t_max, "dt": cfg.dynamics.dt, "tolerance": tolerance}
                 settings.update(integration_record(**integration))
                 settings.update(cct_max=cct_max if cct else None, cct_tol=CCT_TOL if cct else None)
+                settings.update(cct_scan=cct_scan if cct else None, clock=CLOCK)
                 check_finished_trips(out, g, plan_trips(g, parse_lines(lines, g.labels), table), settings)
                 info(f"{out} is complete: nothing to resume (it is left as it is)", quiet)
                 return
@@ -296,6 +315,7 @@ def _trip(config, set_, lines, contingencies, t_clear, cct, cct_max, t_max, wher
                     t_clear=t_clear,
                     cct=cct,
                     cct_max=cct_max,
+                    cct_scan=cct_scan,
                     t_max=t_max,
                     dt=cfg.dynamics.dt,
                     tolerance=tolerance,

@@ -21,7 +21,7 @@ of the identical oscillators grid crossing times.
 
 from __future__ import annotations
 
-from antisync.execution.dispatch import MODEL_KINDS, RESOLVED_BACKENDS, TABLE, Key
+from antisync.execution.dispatch import MODEL_KINDS, RESOLVED_BACKENDS, TABLE, TRIP_ROWS, Key
 from antisync.types import INTEGRATORS, LAMBDA_METHODS, PRECISIONS
 
 __all__ = ["cell", "table"]
@@ -54,6 +54,9 @@ def table() -> str:
             lines.append(f"| {model} | {method} | " + " | ".join(cells) + " |")
     lines.append("")
     lines += [f"[{k}] {why}  " for why, k in notes.items()]
+    runs = [i for i, why in TRIP_ROWS.items() if why is None]
+    lines += ["", f"Line trips (`antisync grid --trip`, cpu float64): {', '.join(runs)}.  "]
+    lines += [f"{i}: {why}.  " for i, why in TRIP_ROWS.items() if why is not None]
     return "\n".join(lines).rstrip() + "\n"
 
 

@@ -48,6 +48,7 @@ __all__ = [
     "PASSES",
     "REFUSALS",
     "TABLE",
+    "TRIP_ROWS",
     "Driver",
     "Key",
     "LambdaPass",
@@ -60,6 +61,7 @@ __all__ = [
     "lookup",
     "model_params",
     "model_simulator",
+    "trip_simulator",
     "sync_flips",
 ]
 
@@ -186,6 +188,28 @@ def _model(simulate_model, job, first, count, variant_weights, realizations, tod
         realizations=ks,
         **({} if todo is None else {"todo": todo}),
     )
+
+
+#: The integrators of a line trip (``antisync grid --trip``: the swing equation from the
+#: operating point, with a fault and the trip; :mod:`antisync.kernels.trip`), and why the others
+#: do not run one.
+TRIP_ROWS: dict[str, str | None] = {
+    "euler": "a line trip integrates by rk4 or rodas4 (Euler's first-order step under-resolves the swing)",
+    "rk4": None,
+    "rodas4": None,
+}
+
+
+def trip_simulator(integrator: str) -> Callable:
+    """The trip kernels' driver (:func:`antisync.kernels.trip.integrate_trips`) with
+    ``integrator`` bound, or the row's one-line refusal (:data:`TRIP_ROWS`) as a
+    :class:`~antisync.errors.ConfigError`."""
+    why = TRIP_ROWS.get(integrator, f"a line trip integrates by rk4 or rodas4, not {integrator}")
+    if why is not None:
+        raise ConfigError(why)
+    from antisync.kernels.trip import integrate_trips
+
+    return functools.partial(integrate_trips, integrator=integrator)
 
 
 def model_simulator(dynamics, give_up: tuple[float, float] | None = None) -> Callable:

@@ -13,28 +13,28 @@ refused. For the line ``a-b``:
    Sec. 13.1; P. Sauer and M. Pai, *Power System Dynamics and Stability*, Prentice Hall 1998,
    Ch. 9). The bus's own injection ``P_a`` still acts on it.
 2. **Trip** at ``t_clear`` (0: the line simply opens): the protection opens ``a-b`` and the
-   fault is gone; the grid runs on without the line until ``t_max``. A contingency of an
-   official table that opens one circuit of several in parallel (:func:`read_contingencies`)
-   takes that circuit's ``share`` of the line's ``K``: the line stays at ``(1 - share) K``.
+   fault is gone; the grid runs on without the line for ``t_max`` seconds **after the trip**. A
+   contingency of an official table that opens one circuit of several in parallel
+   (:func:`read_contingencies`) takes that circuit's ``share`` of the line's ``K``: the line
+   stays at ``(1 - share) K``.
 
 The swing equation is the one every antisync grid integrates, ``m_i theta_i'' + D_i theta_i' =
-P_i + sum_j K_ij sin(theta_j - theta_i)`` (a bus with ``m_i = 0`` first order), here from the
-operating point by classical RK4 at a fixed step (:func:`_trajectory`, numba; one line per
-thread), or on a stiff grid by Rodas4 with adaptive steps
-(:func:`antisync.kernels.implicit.rodas4_trip`; ``integrator="rodas4"``, what ``antisync grid
---trip`` uses for a config whose integrator is ``rodas4``), which follows the first swing with
-short steps and the settled grid with long ones.
+P_i + sum_j K_ij sin(theta_j - theta_i)`` (a bus with ``m_i = 0`` first order), integrated by
+the model kernels (:mod:`antisync.kernels.trip`): their classical RK4 at a fixed step, or on a
+stiff grid Rodas4 with adaptive steps (``integrator="rodas4"``, what ``antisync grid --trip``
+uses for a config whose integrator is ``rodas4``), which follows the first swing with short
+steps and the settled grid with long ones.
 
-Per line (:class:`Trip`): whether the grid **settles** (every frequency deviation
-``|theta_i' - mean theta'|`` below ``tolerance`` from some time on until ``t_max``: frequency
-locking, the criterion of ``sync: {criterion: frequency}``), that **time to settle**, the
-**maximum frequency deviation** ``max_t max_i |theta_i'|`` (from the nominal frequency) and the
-**maximum line angle difference** ``max_t max_(ij) |theta_i - theta_j|`` over the lines in
-service (the first swing), beside whether the post-trip grid has a stable locked state (the
-static indicator). The **critical clearing time** is the longest fault the grid survives,
-found by bisection on ``t_clear`` in ``(0, cct_max]`` to ``cct_tol`` (:func:`critical_clearing`):
-the verdicts are assumed to switch once (settles below, not above), which is what a single
-first swing gives.
+Per line (:class:`Trip`): whether the grid **settles** (the frequency criterion of ``sync:
+{criterion: frequency}``, as ``antisync run`` and ``--removal`` judge it: every ``|theta_i' -
+mean theta'|`` and, with inertia, every ``|g_i - mean g|``, ``g_i = (P_i + coupling_i) / D_i``,
+below ``tolerance`` from some time on until ``t_max`` after the trip), that **time to settle**
+(counted from the trip), the **maximum frequency deviation** ``max_t max_i |theta_i'|`` (from
+the nominal frequency) and the **maximum line angle difference** ``max_t max_(ij) |theta_i -
+theta_j|`` over the lines in service (the first swing), beside whether the post-trip grid has a
+stable locked state (the static indicator). The **critical clearing time** is the longest fault
+such that every shorter fault is survived, found by a scan (:func:`critical_clearing`) that is
+sound where the verdicts switch more than once near the boundary.
 """
 
 from __future__ import annotations
@@ -46,26 +46,33 @@ import sys
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
-import numba
 import numpy as np
-from numba import njit, prange
 from tqdm import tqdm
 
-from antisync import _numba_cache  # noqa: F401 -- before any cache=True function (see there)
+from antisync.errors import ConfigError
+from antisync.execution.dispatch import trip_simulator
 from antisync.execution.executors.dask import TaskLostError
 from antisync.execution.executors.tasks import map_tasks
 from antisync.grids.errors import GridError
 from antisync.grids.lines import grid_bridges, lines_of, split_bridges
 from antisync.grids.load import Grid
 from antisync.grids.removal_journal import TripJournal, key_changes
-from antisync.kernels.implicit import plan_of_pattern, rodas4_trip
-from antisync.kernels.shared import Threads, per_node
+from antisync.kernels.shared import per_node
 from antisync.physics.coupling import to_csr
 from antisync.physics.locked import locked_state
 from antisync.types import RODAS4_ATOL, RODAS4_RTOL
 
 FORMAT = "antisync-trip"
 """The ``format`` of a trip table's JSON (``antisync grid CONFIG --trip --out X.json``)."""
+
+CLOCK = "t_max and settle_time count from the trip (the fault's end)"
+"""What a trip table's times mean (its ``clock``; tables without it counted from the fault's start)."""
+
+CRITERION = (
+    "frequency locking: every |theta_i' - mean| and, with inertia, every |g_i - mean g| "
+    "(g_i = (P_i + coupling_i) / D_i) below the tolerance"
+)
+"""The settling criterion of a trip table (its ``criterion``), ``sync: {criterion: frequency}``'s."""
 
 __all__ = [
     "CCT_TOL",
@@ -94,7 +101,8 @@ class Trip:
     t_clear: float
     settles: bool
     settle_time: float
-    """First time from which every frequency deviation stays below the tolerance (``nan`` if never)."""
+    """The time after the trip from which the frequency criterion holds until ``t_max`` after it
+    (0 if it holds from the trip on; ``nan`` if it does not hold at the end)."""
     max_frequency: float
     """``max_t max_i |theta_i'|`` (rad/s from the nominal frequency)."""
     max_angle: float
@@ -128,165 +136,35 @@ def operating_point(grid: Grid) -> np.ndarray:
     return state.phi.copy()
 
 
-@njit(cache=True)
-def _rates(theta, nu, indptr, indices, k, p, mass, damping, fault, ta, tb, keep, out_th, out_nu):
-    """``theta'`` and ``nu'`` (``nu`` the frequency of a bus with inertia). ``fault``: bus
-    ``ta``'s lines carry nothing; else the line ``ta-tb`` carries ``keep`` of its ``K`` (0: out)."""
-    n = theta.size
-    for i in range(n):
-        acc = p[i]
-        for q in range(indptr[i], indptr[i + 1]):
-            j = indices[q]
-            if fault:
-                if i == ta or j == ta:
-                    continue
-            elif (i == ta and j == tb) or (i == tb and j == ta):
-                if keep > 0.0:
-                    acc += keep * k[q] * math.sin(theta[j] - theta[i])
-                continue
-            acc += k[q] * math.sin(theta[j] - theta[i])
-        if mass[i] > 0:
-            out_th[i] = nu[i]
-            out_nu[i] = (acc - damping[i] * nu[i]) / mass[i]
-        else:
-            out_th[i] = acc / damping[i]
-            out_nu[i] = 0.0
-
-
-@njit(cache=True)
-def _step(theta, nu, dt, indptr, indices, k, p, mass, damping, fault, ta, tb, keep, work):
-    """One classical RK4 step in place; ``theta'`` at the step's start left in ``work[0]``."""
-    n = theta.size
-    k1t, k1v, k2t, k2v, k3t, k3v, k4t, k4v, yt, yv = work
-    _rates(theta, nu, indptr, indices, k, p, mass, damping, fault, ta, tb, keep, k1t, k1v)
-    for i in range(n):
-        yt[i] = theta[i] + 0.5 * dt * k1t[i]
-        yv[i] = nu[i] + 0.5 * dt * k1v[i]
-    _rates(yt, yv, indptr, indices, k, p, mass, damping, fault, ta, tb, keep, k2t, k2v)
-    for i in range(n):
-        yt[i] = theta[i] + 0.5 * dt * k2t[i]
-        yv[i] = nu[i] + 0.5 * dt * k2v[i]
-    _rates(yt, yv, indptr, indices, k, p, mass, damping, fault, ta, tb, keep, k3t, k3v)
-    for i in range(n):
-        yt[i] = theta[i] + dt * k3t[i]
-        yv[i] = nu[i] + dt * k3v[i]
-    _rates(yt, yv, indptr, indices, k, p, mass, damping, fault, ta, tb, keep, k4t, k4v)
-    for i in range(n):
-        theta[i] += dt / 6.0 * (k1t[i] + 2.0 * k2t[i] + 2.0 * k3t[i] + k4t[i])
-        nu[i] += dt / 6.0 * (k1v[i] + 2.0 * k2v[i] + 2.0 * k3v[i] + k4v[i])
-
-
-@njit(cache=True)
-def _trajectory(theta0, indptr, indices, k, p, mass, damping, ta, tb, keep, t_clear, n_steps, dt, tol, out):
-    """Integrate one contingency; ``out = [settle_time, max_frequency, max_angle]`` (settle
-    time ``nan`` when the deviations are above ``tol`` at the end). The step that holds
-    ``t_clear`` is split there: its fault-on part and its post-trip part are two RK4 steps."""
-    n = theta0.size
-    theta = theta0.copy()
-    nu = np.zeros(n)
-    work = np.empty((10, n))
-    rate = np.empty(n)
-    dummy = np.empty(n)
-    last_out = -1  # last step at which some deviation was >= tol
-    max_f = 0.0
-    max_a = 0.0
-    for s in range(n_steps + 1):
-        t0 = s * dt
-        fault = t0 < t_clear
-        # the rates at this state, in the configuration that holds from it on
-        _rates(theta, nu, indptr, indices, k, p, mass, damping, fault, ta, tb, keep, rate, dummy)
-        mean = 0.0
-        for i in range(n):
-            mean += rate[i]
-        mean /= n
-        for i in range(n):
-            if abs(rate[i]) > max_f:
-                max_f = abs(rate[i])
-            if abs(rate[i] - mean) >= tol:
-                last_out = s
-            for q in range(indptr[i], indptr[i + 1]):
-                j = indices[q]
-                if j <= i or (keep == 0.0 and ((i == ta and j == tb) or (i == tb and j == ta))):
-                    continue
-                d = abs(theta[i] - theta[j])
-                if d > max_a:
-                    max_a = d
-        if s == n_steps:
-            break
-        if fault and t_clear < t0 + dt:
-            _step(theta, nu, t_clear - t0, indptr, indices, k, p, mass, damping, True, ta, tb, keep, work)
-            _step(
-                theta, nu, t0 + dt - t_clear, indptr, indices, k, p, mass, damping, False, ta, tb, keep, work
-            )
-        else:
-            _step(theta, nu, dt, indptr, indices, k, p, mass, damping, fault, ta, tb, keep, work)
-    out[0] = np.nan if last_out == n_steps else (last_out + 1) * dt
-    out[1] = max_f
-    out[2] = max_a
-
-
-@njit(parallel=True, cache=True)
-def _trajectories(theta0, indptr, indices, k, p, mass, damping, ta, tb, keep, t_clear, n_steps, dt, tol, out):
-    for e in prange(ta.size):
-        _trajectory(
-            theta0,
-            indptr,
-            indices,
-            k,
-            p,
-            mass,
-            damping,
-            ta[e],
-            tb[e],
-            keep[e],
-            t_clear[e],
-            n_steps,
-            dt,
-            tol,
-            out[e],
-        )
-
-
-@njit(parallel=True, cache=True)
-def _rodas4_trajectories(theta0, grid, k, ta, tb, keep, t_clear, t_max, h0, tols, plan, out):
-    """:func:`_trajectories` by Rodas4 (:func:`antisync.kernels.implicit.rodas4_trip`): per line
-    the fault's weights (bus ``ta``'s lines at 0) and the post-trip weights (``ta-tb`` at
-    ``keep`` of its ``K``); ``out[e, 3]`` is 1 where the step size collapsed."""
-    indptr = grid[1]
-    indices = grid[2]
-    n = indptr.shape[0] - 1
-    for e in prange(ta.size):
-        a = ta[e]
-        b = tb[e]
-        w_fault = k.copy()
-        w_post = k.copy()
-        for i in range(n):
-            for q in range(indptr[i], indptr[i + 1]):
-                j = indices[q]
-                if i == a or j == a:
-                    w_fault[q] = 0.0
-                if (i == a and j == b) or (i == b and j == a):
-                    w_post[q] = keep[e] * k[q]
-        rodas4_trip(theta0, grid, w_fault, w_post, t_clear[e], t_max, h0, tols, plan, (a, b, keep[e]), out[e])
-
-
 def _arrays(grid: Grid):
     """The grid's CSR coupling (:func:`antisync.physics.coupling.to_csr`), injections, inertia
-    and damping per bus, as the kernel takes them."""
+    and damping per bus, as the kernels take them. A grid without inertia is the first-order
+    model ``theta_i' = P_i / D_i + sum_j (K_ij / D_i) sin(...)``: its injections and each bus's
+    row of ``K`` divided by its damping, which is then 1 (the model kernels' first order)."""
     n = len(grid.labels)
     csr = to_csr(grid.omega)
-    p = np.asarray(grid.p, dtype=np.float64)
-    return csr.indptr, csr.indices, csr.weights, p, per_node(grid.inertia, n), per_node(grid.damping, n)
+    p = np.asarray(grid.p, dtype=np.float64).copy()
+    mass, damping = per_node(grid.inertia, n), per_node(grid.damping, n)
+    if np.any(mass[damping <= 0] == 0) or np.any(damping < 0):
+        raise GridError("every bus needs damping > 0 where it has no inertia, and damping >= 0")
+    k = csr.weights.copy()
+    if not np.any(mass > 0):
+        k /= np.repeat(damping, np.diff(csr.indptr))
+        p /= damping
+        damping = np.ones(n)
+    return csr.indptr, csr.indices, k, p, mass, damping
 
 
 def _check(grid: Grid, t_clear, t_max: float, dt: float) -> None:
     if grid.coupling != "raw" or grid.lag != 0.0:
         raise GridError("a line trip integrates the swing equation: dynamics.coupling raw and no phase lag")
-    if not (dt > 0 and t_max > dt):
-        raise GridError(f"--t-max ({t_max:g}) must exceed the step dt ({dt:g}), both positive")
+    if not (math.isfinite(dt) and dt > 0 and math.isfinite(t_max) and t_max > dt):
+        raise GridError(
+            f"--t-max ({t_max:g}) must be a finite time above the step dt ({dt:g}), both positive"
+        )
     for t in np.atleast_1d(t_clear):
-        if not (0 <= t < t_max):
-            raise GridError(f"--t-clear must be >= 0 and below --t-max ({t_max:g} s), got {t:g}")
+        if not (0 <= t < math.inf):
+            raise GridError(f"--t-clear must be a finite fault duration >= 0 s, got {t:g}")
 
 
 def _integrate(
@@ -304,17 +182,20 @@ def _integrate(
     rtol=RODAS4_RTOL,
     atol=RODAS4_ATOL,
 ):
-    """The kernel's ``[settle_time, max_frequency, max_angle]`` per line (``nan`` settle time:
-    it does not settle) and the shares as an array; what :func:`trip_lines` reports and all
-    :func:`critical_clearing` needs (no static post-trip state: it does not depend on the
-    fault, and a bisection would recompute it at every halving). ``integrator``: ``rk4`` at the
-    fixed step ``dt``, or ``rodas4`` under ``rtol``, ``atol`` from the first step ``dt``."""
+    """Per line ``[settle_time, max_frequency, max_angle]`` (settle time from the trip, ``nan``:
+    it does not settle within ``t_max`` after the trip) and the clearing times and shares as
+    arrays; what :func:`trip_lines` reports and all :func:`critical_clearing` needs (no static
+    post-trip state: it does not depend on the fault). The kernels are
+    :func:`antisync.kernels.trip.trip_batch`'s: ``rk4`` at the fixed step ``dt``, or ``rodas4``
+    under ``rtol``, ``atol`` from the first step ``dt``."""
     _check(grid, t_clear, t_max, dt)
+    try:
+        simulate = trip_simulator(integrator)
+    except ConfigError as exc:
+        raise GridError(str(exc)) from None
     if theta0 is None:
         theta0 = operating_point(grid)
     indptr, indices, k, p, mass, damping = _arrays(grid)
-    if np.any(mass[damping <= 0] == 0) or np.any(damping < 0):
-        raise GridError("every bus needs damping > 0 where it has no inertia, and damping >= 0")
     ta = np.array([a for a, _ in lines], dtype=np.int64)
     tb = np.array([b for _, b in lines], dtype=np.int64)
     clear = np.ascontiguousarray(np.broadcast_to(np.asarray(t_clear, dtype=np.float64), (len(lines),)))
@@ -322,41 +203,23 @@ def _integrate(
     if share.shape != (len(lines),) or not np.all((share > 0) & (share <= 1)):
         raise GridError("a trip's share of its line must be in (0, 1], one per line")
     keep = np.ascontiguousarray(1.0 - share)
-    if integrator == "rodas4":
-        out = np.empty((len(lines), 4))
-        plan = plan_of_pattern(indptr, indices)
-        # one line at a time per thread: a trip that does not settle takes many more steps
-        with Threads(threads), numba.parallel_chunksize(1):
-            _rodas4_trajectories(
-                theta0,
-                (p, indptr, indices, mass, damping),
-                k,
-                ta,
-                tb,
-                keep,
-                clear,
-                float(t_max),
-                float(dt),
-                (float(tolerance), float(rtol), float(atol)),
-                plan,
-                out,
-            )
-        if out[:, 3].any():
-            a, b = lines[int(np.flatnonzero(out[:, 3])[0])]
+    tols = (float(tolerance), float(rtol), float(atol))
+    grid_arrays = (p, indptr, indices, mass, damping)
+    out = simulate(theta0, grid_arrays, k, (ta, tb, keep, clear), t_max, dt, tols, threads=threads)
+    if out[:, 3].any():
+        a, b = lines[int(np.flatnonzero(out[:, 3])[0])]
+        count, first = int(out[:, 3].sum()), f"{grid.labels[a]}-{grid.labels[b]}"
+        if integrator == "rodas4":
             raise GridError(
-                f"rodas4: the step size collapsed on {int(out[:, 3].sum())} trips (first: line "
-                f"{grid.labels[a]}-{grid.labels[b]}); tighten dynamics.rtol/atol or use integrator rk4"
+                f"rodas4: the step size collapsed on {count} trips (first: line {first}); loosen "
+                "dynamics.rtol/atol towards 1e-4 or use integrator rk4"
             )
-        return out[:, :3], clear, share
-    if integrator != "rk4":
-        raise GridError(f"a line trip integrates by rk4 or rodas4, not {integrator}")
-    out = np.empty((len(lines), 3))
-    n_steps = int(math.ceil(t_max / dt - 1e-9))
-    with Threads(threads):
-        _trajectories(
-            theta0, indptr, indices, k, p, mass, damping, ta, tb, keep, clear, n_steps, dt, tolerance, out
+        raise GridError(
+            f"rk4: dynamics.dt = {dt:g} is unstable on {count} trips (first: line {first}): the state "
+            "overflowed; lower dynamics.dt or use integrator rodas4"
         )
-    return out, clear, share
+    out[:, 0] = np.maximum(out[:, 0] - clear, 0.0)  # from the trip
+    return out[:, :3], clear, share
 
 
 def trip_lines(
@@ -395,15 +258,22 @@ def trip_lines(
     return _trips(grid, lines, clear, share, labels, rows)
 
 
-#: The critical clearing time's bisection tolerance (s), unless a caller gives another.
+#: The critical clearing time's resolution (s): the fine scan's step inside the first failing
+#: interval of the coarse scan (:func:`critical_clearing`), unless a caller gives another.
 CCT_TOL = 1e-3
+
+#: The coarse scan's step (s) of the fault durations a critical clearing time is searched on.
+CCT_SCAN = 0.01
+
+#: Coarse scan points integrated per line at a time (a line stops at its first failure).
+_SCAN_CHUNK = 8
 
 #: Trips per task: the unit of the progress bar, of the journal (``--out``'s ``.partial``
 #: folder) and of a Dask task.
 TRIPS_PER_TASK = 16
 
 #: The columns of a task's rows (:func:`_trip_task`).
-COLUMNS = ("settle_time", "max_frequency", "max_angle", "post_locked", "cct")
+COLUMNS = ("settle_time", "max_frequency", "max_angle", "post_locked", "cct", "cct_again")
 
 
 def _post_locked(grid: Grid, a: int, b: int, share: float) -> bool:
@@ -430,7 +300,7 @@ def _trip_task(grid: Grid, lines, t_clear, shares, cct: dict | None, settings: d
             post[key] = _post_locked(grid, a, b, share[e])
         rows[e, 3] = post[key]
     if cct is not None:
-        rows[:, 4] = critical_clearing(grid, lines, **cct, **settings, shares=share)
+        rows[:, 4], rows[:, 5] = critical_clearing(grid, lines, **cct, **settings, shares=share)
     return rows
 
 
@@ -476,6 +346,7 @@ def critical_clearing(
     *,
     cct_max: float = 1.0,
     cct_tol: float = CCT_TOL,
+    cct_scan: float = CCT_SCAN,
     t_max: float = 20.0,
     dt: float = 0.0025,
     tolerance: float = 1e-3,
@@ -485,39 +356,97 @@ def critical_clearing(
     integrator: str = "rk4",
     rtol: float = RODAS4_RTOL,
     atol: float = RODAS4_ATOL,
-) -> np.ndarray:
-    """Each line's critical clearing time: the longest fault at its first bus after which the
-    tripped grid still settles, by bisection to ``cct_tol`` seconds on ``(0, cct_max]`` (every
-    line's bisection advances together: one parallel batch per halving). 0 where even an
-    instant trip does not settle; ``cct_max`` (or more) where the longest fault tried does.
-    ``theta0``: the operating point when the caller has it (else :func:`operating_point`);
+) -> tuple[np.ndarray, np.ndarray]:
+    """Each line's critical clearing time: the longest fault at its first bus such that every
+    shorter fault is survived (the grid settles within ``t_max`` after the trip), on a scan:
+
+    1. the **coarse scan**, the faults ``k cct_scan`` (``k = 1, 2, ...``, and ``cct_max``) in
+       increasing order, until the first one the grid does not survive;
+    2. the **fine scan** of that failing interval ``(lo, hi)``, the faults ``lo + i cct_tol``
+       below ``hi``; the CCT is the last fault survived before the first one that is not.
+
+    A verdict that switches more than once near the boundary (settles, does not, settles again)
+    cannot move the result: it is the first failure, and the scan points do not depend on
+    ``cct_max``. What it guarantees: every scanned fault up to the CCT was survived, at
+    ``cct_scan`` spacing and at ``cct_tol`` in the last interval; a window of failure narrower
+    than ``cct_scan`` between two survived scan points is not seen.
+
+    Returns ``(cct, again)`` per line: ``cct`` 0 where even an instant trip does not settle,
+    ``cct_max`` where every scanned fault up to it is survived (no CCT up to ``cct_max``);
+    ``again`` the shortest scanned fault longer than the CCT that the grid survives again (the
+    verdicts switch back: a second window), ``nan`` where no scanned one does (only the points
+    integrated are known: the fine scan's and the coarse chunk's holding the first failure).
+    Every line's scan advances together: one parallel batch of every active line's next
+    :data:`_SCAN_CHUNK` points. ``theta0``: the operating point when the caller has it;
     ``integrator``, ``rtol``, ``atol`` as in :func:`trip_lines`."""
-    if not (0 < cct_tol < cct_max < t_max):
-        raise GridError(f"need 0 < cct_tol ({cct_tol:g}) < cct_max ({cct_max:g}) < t_max ({t_max:g})")
+    if not (
+        0 < cct_tol <= cct_scan and 0 < cct_max and all(map(math.isfinite, (cct_tol, cct_scan, cct_max)))
+    ):
+        raise GridError(
+            f"need 0 < cct_tol ({cct_tol:g}) <= cct_scan ({cct_scan:g}) and a finite "
+            f"cct_max > 0 ({cct_max:g})"
+        )
     if theta0 is None:
         theta0 = operating_point(grid)
     kw = {"t_max": t_max, "dt": dt, "tolerance": tolerance, "theta0": theta0, "threads": threads}
     kw.update(integrator=integrator, rtol=rtol, atol=atol)
-
-    def settles(picked, t_clear, share):
-        return np.isfinite(_integrate(grid, [lines[e] for e in picked], t_clear, share, **kw)[0][:, 0])
-
-    every = np.arange(len(lines))
     share = np.ones(len(lines)) if shares is None else np.asarray(shares, dtype=np.float64)
-    ok0 = settles(every, 0.0, share)
-    lo = np.zeros(len(lines))  # settles at lo
-    hi = np.full(len(lines), cct_max)  # does not settle at hi (unless it settles at cct_max)
-    ok_max = settles(every, cct_max, share)
-    active = ok0 & ~ok_max
-    while np.any(active & (hi - lo > cct_tol)):
-        mid = 0.5 * (lo + hi)
-        todo = np.flatnonzero(active & (hi - lo > cct_tol))
-        for e, ok in zip(todo, settles(todo, mid[todo], share[todo]), strict=True):
-            if ok:
-                lo[e] = mid[e]
-            else:
-                hi[e] = mid[e]
-    return np.where(~ok0, 0.0, np.where(ok_max, cct_max, lo))
+
+    def survives(items):
+        """The verdicts of ``(line index, fault duration)`` items, in one batch."""
+        if not items:
+            return np.zeros(0, dtype=bool)
+        picked = [lines[e] for e, _ in items]
+        clear = np.array([t for _, t in items])
+        rows = _integrate(grid, picked, clear, share[[e for e, _ in items]], **kw)[0]
+        return np.isfinite(rows[:, 0])
+
+    n = len(lines)
+    ok0 = survives([(e, 0.0) for e in range(n)])
+    coarse = cct_scan * np.arange(1, int(math.floor(cct_max / cct_scan + 1e-9)) + 1)
+    if coarse.size == 0 or coarse[-1] < cct_max * (1 - 1e-12):
+        coarse = np.append(coarse, cct_max)
+    cct = np.where(ok0, cct_max, 0.0)
+    again = np.full(n, np.nan)
+    first_fail = np.full(n, -1)  # the coarse index of each line's first failure
+    done = np.zeros(n, dtype=int)  # coarse points integrated per line
+    active = list(np.flatnonzero(ok0))
+    while active:
+        items = [(e, float(t)) for e in active for t in coarse[done[e] : done[e] + _SCAN_CHUNK]]
+        verdicts = iter(survives(items))
+        still = []
+        for e in active:
+            chunk = coarse[done[e] : done[e] + _SCAN_CHUNK]
+            ok = np.array([next(verdicts) for _ in chunk], dtype=bool)
+            if ok.all():
+                done[e] += chunk.size
+                if done[e] < coarse.size:
+                    still.append(e)
+                continue
+            j = int(np.argmin(ok))
+            first_fail[e] = done[e] + j
+            later = np.flatnonzero(ok[j + 1 :])
+            if later.size:
+                again[e] = chunk[j + 1 + later[0]]
+        active = still
+    # the fine scan of each failing interval
+    failing = np.flatnonzero(first_fail >= 0)
+    fine = {}
+    for e in failing:
+        lo = 0.0 if first_fail[e] == 0 else coarse[first_fail[e] - 1]
+        hi = coarse[first_fail[e]]
+        count = int(math.ceil((hi - lo) / cct_tol - 1e-9)) - 1
+        fine[e] = (lo, lo + cct_tol * np.arange(1, max(count, 0) + 1), hi)
+    verdicts = iter(survives([(e, float(t)) for e in failing for t in fine[e][1]]))
+    for e in failing:
+        lo, points, hi = fine[e]
+        ok = np.array([next(verdicts) for _ in points], dtype=bool)
+        j = int(np.argmin(ok)) if not ok.all() else points.size
+        cct[e] = lo if j == 0 else points[j - 1]
+        later = np.flatnonzero(ok[j + 1 :]) if j < points.size else np.zeros(0, dtype=int)
+        if later.size:
+            again[e] = points[j + 1 + later[0]]
+    return cct, again
 
 
 def read_contingencies(path, grid: Grid) -> list[tuple[str, tuple[int, int], float]]:
@@ -636,6 +565,7 @@ def trip_report(
     cct: bool = False,
     cct_max: float = 1.0,
     cct_tol: float = CCT_TOL,
+    cct_scan: float = CCT_SCAN,
     t_max: float = 20.0,
     dt: float = 0.0025,
     tolerance: float = 1e-3,
@@ -668,10 +598,8 @@ def trip_report(
     Every refusal comes before any integration: a line not in the grid, a bridge named in
     ``lines``, a clearing time that is not in ``(0, t_max)``, a grid without a stable
     operating point, a journal of other work."""
-    if t_clear is not None and not 0 < t_clear < t_max:
-        raise GridError(
-            f"--t-clear must be a fault duration in (0, --t-max = {t_max:g}) seconds, got {t_clear:g}"
-        )
+    if t_clear is not None and not 0 < t_clear < math.inf:
+        raise GridError(f"--t-clear must be a finite fault duration > 0 seconds, got {t_clear:g}")
     todo, names, shares, skipped = plan_trips(grid, lines, contingencies)
     clear = 0.0 if t_clear is None else t_clear
     _check(grid, clear, t_max, dt)
@@ -680,7 +608,7 @@ def trip_report(
     settings = {"t_max": t_max, "dt": dt, "tolerance": tolerance, "theta0": theta0}
     settings.update(integrator=integrator, rtol=rtol, atol=atol)
     settings["threads"] = threads if client is None else threads or 1
-    spec = {"cct_max": cct_max, "cct_tol": cct_tol} if cct else None
+    spec = {"cct_max": cct_max, "cct_tol": cct_tol, "cct_scan": cct_scan} if cct else None
     values = np.full((len(todo), len(COLUMNS)), np.nan)
     book = None
     if journal is not None:
@@ -691,6 +619,7 @@ def trip_report(
                 for name, (a, b), sh in zip(names or [None] * len(todo), todo, shares, strict=True)
             ],
             "t_clear": t_clear,
+            "clock": CLOCK,
             "cct": spec,
             "t_max": t_max,
             "dt": dt,
@@ -735,8 +664,9 @@ def trip_report(
     trips = _trips(grid, todo, np.full(len(todo), float(clear)), shares, names, values)
     rows = [t.as_dict() for t in trips]
     if cct:
-        for row, value in zip(rows, values[:, 4], strict=True):
+        for row, value, again in zip(rows, values[:, 4], values[:, 5], strict=True):
             row["cct"] = float(value)
+            row["cct_again"] = None if np.isnan(again) else float(again)
     return {
         "format": FORMAT,
         "grid": grid.name,
@@ -745,11 +675,14 @@ def trip_report(
         else "bolted three-phase fault at the line's first bus",
         "t_clear": t_clear,
         "t_max": t_max,
+        "clock": CLOCK,
+        "criterion": CRITERION,
         "dt": dt,
         "tolerance": tolerance,
         **integration_record(integrator, rtol, atol),
         "cct_max": cct_max if cct else None,
         "cct_tol": cct_tol if cct else None,
+        "cct_scan": cct_scan if cct else None,
         "contingencies": contingencies is not None,
         "bridges_skipped": [list(map(str, b)) for b in skipped],
         "lines": rows,
@@ -774,15 +707,19 @@ def network_record(grid: Grid) -> dict:
 
 def format_trips(report: dict) -> str:
     """The trip table as Markdown, lines that do not settle first (with a contingency table,
-    each row's label and the share of its line it opens)."""
+    each row's label and the share of its line it opens). The time to settle counts from the
+    trip; with critical clearing times, "again" is the shortest scanned fault above the CCT
+    that the grid survives again (the verdicts switch back), and a note under the table counts
+    those lines and says what the scan resolved."""
     cct = report["cct_max"] is not None
     table = report.get("contingencies", False)
     head = "| contingency | share " if table else ""
     head += (
-        "| line | settles | time to settle (s) | max |freq| (rad/s) | max angle (rad) | post-trip locked |"
+        "| line | settles | time to settle after the trip (s) | max |freq| (rad/s) | max angle (rad) "
+        "| post-trip locked |"
     )
-    head += " CCT (s) |" if cct else ""
-    out = [head, "|" + "---|" * (6 + cct + 2 * table)]
+    head += " CCT (s) | survives again at (s) |" if cct else ""
+    out = [head, "|" + "---|" * (6 + 2 * cct + 2 * table)]
     for r in sorted(report["lines"], key=lambda r: (r["settles"], -r["max_frequency"])):
         row = f"| {r['label']} | {r['share']:.3g} " if table else ""
         row += (
@@ -790,6 +727,18 @@ def format_trips(report: dict) -> str:
             f"{r['max_frequency']:.4g} | {r['max_angle']:.3f} | {'yes' if r['post_locked'] else 'no'} |"
         )
         if cct:
-            row += f" {r['cct']:.4f} |"
+            again = r.get("cct_again")
+            row += f" {r['cct']:.4f} | {'-' if again is None else f'{again:.4f}'} |"
         out.append(row)
+    if cct:
+        windows = sum(r.get("cct_again") is not None for r in report["lines"])
+        top = sum(r["cct"] >= report["cct_max"] for r in report["lines"])
+        out.append("")
+        out.append(
+            f"CCT: the longest fault with every shorter scanned fault survived (scan every "
+            f"{report.get('cct_scan') or CCT_SCAN:g} s, then every {report['cct_tol']:g} s in the first "
+            f"failing interval); {top} line(s) survive every fault up to --cct-max {report['cct_max']:g} s; "
+            f"{windows} line(s) survive again a longer fault than their CCT (second window). "
+            f"Settling within --t-max {report['t_max']:g} s after the trip."
+        )
     return "\n".join(out)

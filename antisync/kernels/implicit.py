@@ -67,6 +67,9 @@ __all__ = [
     "plan_of_pattern",
     "rodas4_trip",
     "simulate_model",
+    "speed_rates",
+    "trip_band",
+    "trip_swing",
 ]
 
 #: The default tolerances of ``dynamics.rtol`` / ``dynamics.atol``.
@@ -722,14 +725,11 @@ def rodas4_sync(
 
 
 @njit(cache=True, inline="always")
-def _speed_rates(cy, sy, f_th, f_nu, indptr, indices, w, mass, gamma, acc, work):
-    """``acc`` = the rates of the speeds ``theta_i'`` (``nu_i'`` with inertia, else ``sum_j w_ij
-    cos(theta_j - theta_i) (theta_j' - theta_i') / gamma_i``; no phase lag), and rows
-    ``DEV_ROW``, ``DEV_ROW + 1`` of ``work`` the speeds' deviations from their mean and those
-    deviations' rates (the frequency band of :func:`rodas4_trip`); the largest ``|deviation|``."""
+def speed_rates(cy, sy, f_th, f_nu, indptr, indices, w, mass, gamma, acc):
+    """``acc`` = the rates of the speeds ``theta_i'``: ``nu_i'`` with inertia, else ``sum_j w_ij
+    cos(theta_j - theta_i) (theta_j' - theta_i') / gamma_i`` (no phase lag; ``gamma_i`` 1 in a
+    first-order model): the slopes of a trip's speed interpolants (its largest ``|theta_i'|``)."""
     n = cy.shape[0]
-    m0 = 0.0
-    m1 = 0.0
     for i in range(n):
         if mass[i] > 0.0:
             acc[i] = f_nu[i]
@@ -739,36 +739,75 @@ def _speed_rates(cy, sy, f_th, f_nu, indptr, indices, w, mass, gamma, acc, work)
                 j = indices[q]
                 kd += w[q] * (cy[j] * cy[i] + sy[j] * sy[i]) * (f_th[j] - f_th[i])
             acc[i] = kd / gamma[i]
-        m0 += f_th[i]
-        m1 += acc[i]
-    largest = 0.0
+
+
+@njit(cache=True, inline="always")
+def trip_swing(p_th, p_f, p_acc, th, f, acc, step, indptr, indices, line, max_f, max_a):
+    """The largest ``|theta_i'|`` and line angle difference ``|theta_i - theta_j|`` over one step
+    of a trip, on the cubic Hermite interpolants from the values and rates at both ends (``p_``:
+    the step's start); ``line = (a, b, keep)``: the tripped line is left out when ``keep`` is 0.
+    Returns the running maxima ``(max_f, max_a)``."""
+    ta, tb, keep = line
+    for i in range(th.shape[0]):
+        lo, hi = _hermite_range(p_f[i], step * p_acc[i], f[i], step * acc[i])
+        max_f = max(max_f, -lo, hi)
+        for q in range(indptr[i], indptr[i + 1]):
+            j = indices[q]
+            if j > i and not (keep == 0.0 and ((i == ta and j == tb) or (i == tb and j == ta))):
+                lo, hi = _hermite_range(
+                    p_th[i] - p_th[j], step * (p_f[i] - p_f[j]), th[i] - th[j], step * (f[i] - f[j])
+                )
+                max_a = max(max_a, -lo, hi)
+    return max_f, max_a
+
+
+@njit(cache=True, inline="always")
+def trip_band(work, n, second, t_prev, step, tol, settle):
+    """The settling clock of a trip after one step: the frequency criterion of ``sync: {criterion:
+    frequency}`` (every ``theta_i' - mean`` and, with inertia, every ``g_i - mean g`` within
+    ``tol``; :func:`~antisync.kernels.core.make_model_kernels`' deviations, in ``work``'s rows
+    now and one step back) on the step's interpolants. Returns the time from which every
+    deviation has stayed in the band (``nan``: out of it at the step's end): entered inside the
+    step (located on the interpolants), or an excursion out of it between two in-band ends
+    (the step's end)."""
+    rows = 2 if second else 1
+    if _largest_deviation(work, n, rows, step, True, 1.0) >= tol:
+        return np.nan
+    if settle != settle:
+        x = _frequency_crossing(work, n, second, step, True, tol)
+        return t_prev + (x if x >= 0.0 else 1.0) * step
     for i in range(n):
-        work[DEV_ROW, i] = f_th[i] - m0 / n
-        work[DEV_ROW + 1, i] = acc[i] - m1 / n
-        largest = max(largest, abs(work[DEV_ROW, i]))
-    return largest
+        for k in range(rows):
+            row = DEV_ROW + 2 * k
+            lo, hi = _hermite_range(
+                work[DEV_PREV_ROW + 2 * k, i],
+                step * work[DEV_PREV_ROW + 2 * k + 1, i],
+                work[row, i],
+                step * work[row + 1, i],
+            )
+            if hi >= tol or lo <= -tol:
+                return t_prev + step
+    return settle
 
 
 @njit(cache=True)
-def rodas4_trip(th0, grid, w_fault, w_post, t_clear, t_max, h0, tols, plan, line, out):
+def rodas4_trip(th0, grid, w_fault, w_post, t_clear, t_end, h0, tols, plan, line, out):
     """A contingency from the state ``th0`` at rest: the swing equation (no phase lag) on the
-    weights ``w_fault`` until ``t_clear`` (none when 0), then on ``w_post`` until ``t_max``,
-    by Rodas4 with adaptive steps; the step that would pass ``t_clear`` ends there and the next
+    weights ``w_fault`` until ``t_clear`` (none when 0), then on ``w_post`` until ``t_end``, by
+    Rodas4 with adaptive steps; the step that would pass ``t_clear`` ends there and the next
     starts afresh at ``h0``. ``grid``: ``(p, indptr, indices, mass, gamma)``; ``tols``: the
     frequency band, ``rtol`` and ``atol``; ``line``: ``(a, b, keep)``, the tripped line, left
     out of the angle differences when ``keep`` is 0.
 
-    ``out`` = ``[settle_time, max_frequency, max_angle, failed]``, the quantities of
-    :func:`antisync.grids.trip.trip_lines` on the integrator's dense output (each accepted
-    step's cubic Hermite interpolant of every speed and every line's angle difference from
-    their values and rates at both ends): the largest ``|theta_i'|`` and ``|theta_i -
-    theta_j|`` over the interpolants (a continuous maximum, where RK4 samples its grid), and
-    the time from which every speed stays within the band of the mean (``nan`` if it is out at
-    ``t_max``), located on the interpolants when the band is entered. ``failed`` (1): the step
-    size collapsed (the other values are those reached)."""
+    ``out`` = ``[settle_time, max_frequency, max_angle, failed]`` on the integrator's dense
+    output (each accepted step's cubic Hermite interpolants, :func:`trip_swing` and
+    :func:`trip_band`): the largest ``|theta_i'|`` and ``|theta_i - theta_j|`` over the
+    interpolants, and the time (from ``t = 0``, the fault's start) from which the frequency
+    criterion has held until ``t_end`` (``nan`` if it does not hold there). ``failed`` (1): the
+    step size collapsed (the other values are those reached). The RK4 twin is
+    :func:`antisync.kernels.trip.rk4_trip`."""
     p, indptr, indices, mass, gamma = grid
     tol, rtol, atol = tols
-    ta, tb, keep = line
     n = th0.shape[0]
     second, gamma_eff = _orders(mass, gamma)
     scratch = _scratch(n, plan)
@@ -783,28 +822,27 @@ def rodas4_trip(th0, grid, w_fault, w_post, t_clear, t_max, h0, tols, plan, line
     p_th = np.empty(n)  # the state, speeds and their rates at the accepted step's start
     p_f = np.empty(n)
     p_acc = np.empty(n)
-    work = np.empty((WORK_ROWS, n))
+    work = np.zeros((WORK_ROWS, n))
     fault = t_clear > 0.0
     w = w_fault if fault else w_post
     eq = (p, w, indptr, indices, 1.0, 0.0, mass, gamma)
     net = (eq, gamma_eff, second)
     _eval(y_th, y_nu, cy, sy, eq, second, f0_th, f0_nu)
-    settle = (
-        0.0
-        if _speed_rates(cy, sy, f0_th, f0_nu, indptr, indices, w, mass, gamma, acc, work) < tol
-        else np.nan
-    )
+    _deviations(cy, sy, f0_th, f0_nu, eq, second, work)
+    speed_rates(cy, sy, f0_th, f0_nu, indptr, indices, w, mass, gamma_eff, acc)
+    rows = 2 if second else 1
+    settle = 0.0 if _largest_deviation(work, n, rows, 0.0, False, 1.0) < tol else np.nan
     max_f = 0.0  # over the accepted steps' interpolants, which hold their ends
     max_a = 0.0
     scale = _row_scale(indptr, w_post)
     t = 0.0
-    end = t_clear if fault else t_max  # the end of the current configuration
+    end = t_clear if fault else t_end  # the end of the current configuration
     h = min(h0, end)
     err_prev = 1.0
     rejects_in_row = 0
     failed = 0.0
-    while t < t_max:
-        if h < _H_FLOOR * t_max or rejects_in_row > _MAX_REJECTS:
+    while t < t_end:
+        if h < _H_FLOOR * t_end or rejects_in_row > _MAX_REJECTS:
             failed = 1.0
             break
         last = False
@@ -826,59 +864,35 @@ def rodas4_trip(th0, grid, w_fault, w_post, t_clear, t_max, h0, tols, plan, line
         t_prev = t
         t = end if last else t + h
         step = t - t_prev
-        _copy_rows(work, DEV_PREV_ROW, DEV_ROW, 2)
+        _copy_rows(work, DEV_PREV_ROW, DEV_ROW, 4)
         _eval(y_th, y_nu, cy, sy, eq, second, f0_th, f0_nu)
-        largest = _speed_rates(cy, sy, f0_th, f0_nu, indptr, indices, w, mass, gamma, acc, work)
-        # the first swing on the step's interpolants
-        for i in range(n):
-            lo, hi = _hermite_range(p_f[i], step * p_acc[i], f0_th[i], step * acc[i])
-            max_f = max(max_f, -lo, hi)
-            for q in range(indptr[i], indptr[i + 1]):
-                j = indices[q]
-                if j > i and not (keep == 0.0 and ((i == ta and j == tb) or (i == tb and j == ta))):
-                    lo, hi = _hermite_range(
-                        p_th[i] - p_th[j],
-                        step * (p_f[i] - p_f[j]),
-                        y_th[i] - y_th[j],
-                        step * (f0_th[i] - f0_th[j]),
-                    )
-                    max_a = max(max_a, -lo, hi)
-        # the band: entered inside this step, left, or an excursion between in-band ends
-        if largest >= tol:
-            settle = np.nan
-        elif settle != settle:
-            x = _frequency_crossing(work, n, False, step, True, tol)
-            settle = t_prev + (x if x >= 0.0 else 1.0) * step
-        else:
-            for i in range(n):
-                lo, hi = _hermite_range(
-                    work[DEV_PREV_ROW, i],
-                    step * work[DEV_PREV_ROW + 1, i],
-                    work[DEV_ROW, i],
-                    step * work[DEV_ROW + 1, i],
-                )
-                if hi >= tol or lo <= -tol:
-                    settle = t
-                    break
+        _deviations(cy, sy, f0_th, f0_nu, eq, second, work)
+        speed_rates(cy, sy, f0_th, f0_nu, indptr, indices, w, mass, gamma_eff, acc)
+        max_f, max_a = trip_swing(
+            p_th, p_f, p_acc, y_th, f0_th, acc, step, indptr, indices, line, max_f, max_a
+        )
+        settle = trip_band(work, n, second, t_prev, step, tol, settle)
         # a PI controller (Gustafsson), and within the band's reach at most half of it per step
         err = max(err, 1e-10)
         fac = _SAFETY * err**-_BETA1 * err_prev**_BETA2
         err_prev = err
         h = h * max(_SHRINK, min(_GROW, fac))
-        if last and t < t_max:
+        if last and t < t_end:
             # the fault clears: the grid without the line from this state on
             w = w_post
             eq = (p, w, indptr, indices, 1.0, 0.0, mass, gamma)
             net = (eq, gamma_eff, second)
-            end = t_max
+            end = t_end
             _eval(y_th, y_nu, cy, sy, eq, second, f0_th, f0_nu)
-            if _speed_rates(cy, sy, f0_th, f0_nu, indptr, indices, w, mass, gamma, acc, work) >= tol:
+            _deviations(cy, sy, f0_th, f0_nu, eq, second, work)
+            speed_rates(cy, sy, f0_th, f0_nu, indptr, indices, w, mass, gamma_eff, acc)
+            if _largest_deviation(work, n, rows, 0.0, False, 1.0) >= tol:
                 settle = np.nan
             elif settle != settle:
                 settle = t
             h = h0
             err_prev = 1.0
-        h = min(h, _near_step(work, n, False, tol))
+        h = min(h, _near_step(work, n, second, tol))
     out[0] = settle
     out[1] = max_f
     out[2] = max_a
