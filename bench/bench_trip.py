@@ -10,7 +10,7 @@ rows that open a bridge whole skipped) from the intact grid's operating point
 line's first bus, then the trip, for 20 s (the CLI's default ``--t-max``):
 
 - ``rk4``: :func:`antisync.grids.trip.trip_lines` at the config's ``dt`` (0.0005 s on
-  ACTIVSg2000: the largest Laplacian eigenvalue of K is 5,017), the trips one per thread;
+  ACTIVSg2000: the largest Laplacian eigenvalue of K is 4,983), the trips one per thread;
 - ``rodas4``: the same with ``integrator="rodas4"`` at each ``--rtol`` (``atol`` the same).
 
 Each is timed after a warm-up call (compilation excluded), on ``--threads`` threads; the post-trip

