@@ -136,8 +136,9 @@ def test_the_removal_table_counts_gave_up_apart_and_as_not_synchronized():
 
 
 def test_a_removal_with_the_rule_is_the_removal_without_it_where_it_did_not_give_up(tmp_path):
-    """IEEE 39, two lines, 24 starts, Rodas4: the table with ``give_up`` holds GAVE_UP exactly
-    where the table without it holds NOT_SYNCED, the same statuses and tau elsewhere, the same
+    """IEEE 39, two lines, 24 starts, Rodas4: the table with ``give_up`` holds GAVE_UP (or, for
+    the audit's sample integrated to t_max, NOT_SYNCED) exactly where the table without it holds
+    NOT_SYNCED, the same statuses and tau elsewhere, the same
     ``P_sync``, ``lost`` and ``gained``; a journal written with the rule is refused by a run
     without it in one line naming the rule (its key holds the whole sync section)."""
     run = dict(
@@ -155,7 +156,10 @@ def test_a_removal_with_the_rule_is_the_removal_without_it_where_it_did_not_give
     a = np.column_stack([cut.status0, cut.status])
     b = np.column_stack([full.status0, full.status])
     assert (a == GAVE_UP).any()
-    np.testing.assert_array_equal(a == GAVE_UP, b == NOT_SYNCED)
+    # the audit's sample (at least AUDIT_MIN given-up trajectories) ran to t_max: NOT_SYNCED
+    assert cut.audit["sampled"] >= 2 and cut.audit["locked"] == 0
+    assert int((a == NOT_SYNCED).sum()) == cut.audit["sampled"]
+    np.testing.assert_array_equal((a == GAVE_UP) | (a == NOT_SYNCED), b == NOT_SYNCED)
     np.testing.assert_array_equal(a[a != GAVE_UP], b[a != GAVE_UP])
     np.testing.assert_array_equal(cut.tau, full.tau)
     np.testing.assert_array_equal(cut.tau0, full.tau0)
@@ -185,3 +189,82 @@ def test_a_trip_refuses_the_rule_in_one_line():
     assert res.exit_code == 2, res.output
     assert "sync.give_up" in res.output and "a trip runs from the operating point" in res.output
     assert len(res.output.strip().splitlines()) == 1
+
+
+def _low_damping(factor: float) -> dict:
+    """IEEE 39 with generator damping ``D = factor m`` (the shipped grid has ``D = m``; 0.2 m is
+    2 p.u. on the machine base for H = 5 s, a common textbook value), loads as shipped."""
+    read = _numbers
+    inertia = read(CONFIGS / "ieee39_grid_inertia.txt")
+    damping = np.where(inertia > 0, factor * inertia, read(CONFIGS / "ieee39_grid_damping.txt"))
+    return {
+        "frequencies": {"file": "ieee39_grid_power.txt"},
+        "inertia": {"file": "ieee39_grid_inertia.txt"},
+        "damping": damping.tolist(),
+    }
+
+
+def _numbers(path) -> np.ndarray:
+    return np.array(
+        [float(x) for row in path.read_text().splitlines() if not row.startswith("#") for x in row.split()]
+    )
+
+
+def test_the_rule_refuses_in_one_line_where_a_locking_start_would_be_stopped():
+    """IEEE 39 at generator damping 0.2 m and 0.1 m: starts lock at 37-42 s, after the rule's 20 s,
+    so the rule would count them as not synchronized. The pilot (the intact grid's starts
+    without the rule and with ``after / PILOT_MARGIN``) sees it and refuses before any task."""
+    run = dict(
+        lines="6-7",
+        realizations=24,
+        seed=1,
+        dynamics={"integrator": "rodas4", "rtol": 1e-4, "atol": 1e-4, "t_max": 200.0},
+        **{"lambda": {"method": "finite-difference"}},
+    )
+    rule = {"sync": {"criterion": "frequency", "tolerance": 1e-3, "give_up": {"after": 20.0, "band": 1.0}}}
+    for factor in (0.2, 0.1):
+        with pytest.raises(
+            GridError, match=r"sync.give_up is not trusted on this grid: \d+ of the \d+ starts"
+        ):
+            line_removal(CONFIGS / "ieee39_grid.yaml", model=_low_damping(factor), **run, **rule)
+
+
+def test_the_audit_catches_a_given_up_start_that_locks_and_integrates_the_task_again(monkeypatch):
+    """The audit of a task: a trajectory that locks without the rule but is marked GAVE_UP (a
+    miscount the rule could make on a grid where the pilot passed) is found in the sample, and
+    every given-up trajectory of the task is integrated again without the rule: the task's
+    outcome is the rule-free one, the counts say so."""
+    from antisync.grids import removal
+
+    run = dict(
+        lines="1-2",
+        realizations=24,
+        dynamics={"integrator": "rodas4", "rtol": 1e-4, "atol": 1e-4, "t_max": 40.0},
+        **{"lambda": {"method": "finite-difference"}},
+    )
+    free = line_removal(CONFIGS / "ieee39_grid.yaml", **run)
+    rule = {"sync": {"criterion": "frequency", "tolerance": 1e-3, "give_up": {"after": 10.0, "band": 1.0}}}
+    real = removal._removal_task
+
+    def miscounting(ks, variants, intact, fixed, threads):
+        part = real(ks, variants, intact, {**fixed, "give_up": None}, threads)
+        st = np.concatenate([part[0][:, None], part[2]], axis=1)
+        tau = np.concatenate([part[1][:, None], part[3]], axis=1)
+        todo = np.ones(st.shape, dtype=bool)
+        todo[:, 0] = intact
+        locked = np.flatnonzero(st[:, 1] == SYNCED)[:3]
+        gone = np.flatnonzero(st[:, 1] == NOT_SYNCED)
+        st[locked, 1] = GAVE_UP  # the miscount
+        st[gone, 1] = GAVE_UP
+        tau[locked, 1] = np.nan
+        audit = removal._audited(ks, variants, fixed, threads, st, tau, todo)
+        tau = np.where(st == SYNCED, tau, np.nan)
+        return st[:, 0], tau[:, 0], st[:, 1:], tau[:, 1:], audit
+
+    monkeypatch.setattr(removal, "_removal_task", miscounting)
+    monkeypatch.setattr(removal, "AUDIT_MIN", 6)
+    cut = line_removal(CONFIGS / "ieee39_grid.yaml", **run, **rule)
+    assert cut.audit["locked"] >= 1 and cut.audit["rerun"] == int((free.status[:, 0] != SYNCED).sum()) + 3
+    np.testing.assert_array_equal(cut.status, free.status)
+    np.testing.assert_array_equal(cut.tau, free.tau)
+    assert "integrated again without it" in cut.to_markdown()

@@ -68,7 +68,7 @@ from antisync.physics import coupling, graphs
 from antisync.plan.jobs import check_step
 from antisync.plan.model import model_setup
 from antisync.stats.estimators import crossing_times
-from antisync.status import SYNCED
+from antisync.status import ALREADY_SYNCED, GAVE_UP, SYNCED
 
 __all__ = ["CHUNK", "CLIENT_HINT", "TASKS_PER_WORKER", "line_removal"]
 
@@ -78,6 +78,15 @@ CHUNK = 256
 #: lines and of the journal, so that an interrupted run of a large grid keeps all but a few
 #: lines' worth of work (on ACTIVSg2000 a task of 4 lines x 100 starts is ~5 minutes).
 LINES_PER_TASK = 4
+#: ``sync.give_up``'s checks (docs/power_grids.md): the **pilot** integrates every start of the
+#: intact grid without the rule and with ``after / PILOT_MARGIN``, and refuses the run if any
+#: start that locks would be stopped; the **audit** integrates, in every task, at least
+#: ``AUDIT_MIN`` and ``AUDIT_FRACTION`` of its given-up trajectories without the rule, and if one
+#: of them locks, every given-up trajectory of the task again without it.
+PILOT_MARGIN = 1.25
+AUDIT_FRACTION = 0.01
+AUDIT_MIN = 2
+
 #: Tasks per Dask worker thread that :func:`line_removal` aims for (lines are grouped so that a
 #: few realizations x many lines still spread over the cluster).
 TASKS_PER_WORKER = 4
@@ -217,10 +226,13 @@ def line_removal(
         give_up=cfg.sync.give_up_rule,
         interpolate=dyn.interpolate,
     )
+    if fixed["give_up"] is not None:
+        _pilot(fixed, variants, m, threads, log)
     groups = -(-len(todo) // LINES_PER_TASK) if client is None else _groups(client, m)
     tasks = _plan(m, variants, base=csr.weights, groups=groups)
     done = 0
     have = np.zeros((m, 1 + len(todo)), dtype=bool)  # the trajectories held: intact, then each line
+    audit = np.zeros(3, dtype=np.int64)  # sync.give_up's audit: sampled, of them locking, rerun
     book = None
     if journal is not None:
         key = {
@@ -231,7 +243,7 @@ def line_removal(
             remove_journal(journal)
         key = {**key, "beta": beta, "islanding": bool(islanding)}
         book = RemovalJournal(journal, key, work=work_digest(fixed, variants))
-        have = book.load(status0, tau0, status, tau)
+        have = book.load(status0, tau0, status, tau, audit)
         tasks = _unfinished(tasks, have)
         done = int(have.sum())
         if done and log is not None:
@@ -248,6 +260,7 @@ def line_removal(
             if intact:
                 status0[span], tau0[span] = part[0], part[1]
             status[span, group], tau[span, group] = part[2], part[3]
+            audit += part[4]
             if book is not None:
                 book.save(ks, group, intact, part)
             have[span, 0] |= intact
@@ -283,6 +296,7 @@ def line_removal(
         skipped=tuple(skipped),
         config=cfg.to_dict(),
         level=level,
+        audit=None if fixed["give_up"] is None else _audit_record(audit),
     )
 
 
@@ -311,17 +325,13 @@ def _groups(client, m: int) -> int:
     return max(1, -(-TASKS_PER_WORKER * threads // chunks))
 
 
-def _removal_task(ks, variants, intact: bool, fixed: dict, threads):
-    """Integrate realizations ``ks`` of the intact grid (if ``intact``) and of ``variants``:
-    ``(status0, tau0, status, tau)``, times in the model's units (NaN where not SYNCED)."""
+def _simulate(ks, variants, fixed: dict, threads, todo, give_up):
+    """The model driver on realizations ``ks`` of the intact grid and ``variants`` (``todo``:
+    bool ``(ks, 1 + variants)`` or None, every item) with the stop rule ``give_up``."""
     params = model_params(
         fixed["setup"], fixed["model"], fixed["seed"], ks, fixed["n_nodes"], fixed["targets"]
     )
-    todo = None
-    if not intact:
-        todo = np.ones((ks.size, variants.shape[0] + 1), dtype=np.bool_)
-        todo[:, 0] = False
-    sim = model_simulator(fixed["dynamics"], fixed["give_up"])(
+    return model_simulator(fixed["dynamics"], give_up)(
         fixed["seed"],
         0,
         0,
@@ -336,14 +346,99 @@ def _removal_task(ks, variants, intact: bool, fixed: dict, threads):
         realizations=ks,
         todo=todo,
     )
+
+
+def _removal_task(ks, variants, intact: bool, fixed: dict, threads):
+    """Integrate realizations ``ks`` of the intact grid (if ``intact``) and of ``variants``:
+    ``(status0, tau0, status, tau, audit)``, times in the model's units (NaN where not
+    SYNCED); ``audit``: ``sync.give_up``'s audit of this task (:func:`_audited`)."""
+    todo = np.ones((ks.size, variants.shape[0] + 1), dtype=np.bool_)
+    todo[:, 0] = intact
+    sim = _simulate(ks, variants, fixed, threads, None if intact else todo, fixed["give_up"])
+    st = np.concatenate([sim.status0[:, None], sim.status], axis=1)
     t0, t = crossing_times(sim, fixed["interpolate"])
-    dt = fixed["dt"]
-    return (
-        sim.status0,
-        np.where(sim.status0 == SYNCED, t0 * dt, np.nan),
-        sim.status,
-        np.where(sim.status == SYNCED, t * dt, np.nan),
-    )
+    tau = np.concatenate([t0[:, None], t], axis=1) * fixed["dt"]
+    audit = np.zeros(3, dtype=np.int64)
+    if fixed["give_up"] is not None:
+        audit = _audited(ks, variants, fixed, threads, st, tau, todo)
+    tau = np.where(st == SYNCED, tau, np.nan)
+    return st[:, 0], tau[:, 0], st[:, 1:], tau[:, 1:], audit
+
+
+def _audited(ks, variants, fixed: dict, threads, st, tau, todo) -> np.ndarray:
+    """``sync.give_up``'s audit of a task, in place on its statuses ``st`` and times ``tau``
+    (``(ks, 1 + variants)``): a sample of its GAVE_UP trajectories (at least :data:`AUDIT_MIN`
+    and :data:`AUDIT_FRACTION` of them, drawn from the task's seed) integrated to ``t_max``
+    without the rule; if one of them locks, every GAVE_UP trajectory of the task is. What is
+    integrated again takes its rule-free outcome. Returns ``[sampled, of them locking,
+    integrated again]``."""
+    given = (st == GAVE_UP) & todo
+    rows, cols = np.nonzero(given)
+    if rows.size == 0:
+        return np.zeros(3, dtype=np.int64)
+    size = min(rows.size, max(AUDIT_MIN, int(np.ceil(AUDIT_FRACTION * rows.size))))
+    rng = np.random.default_rng([fixed["seed"], int(ks[0]), int(variants.shape[0]), int(cols.min())])
+    pick = np.zeros(rows.size, dtype=bool)
+    pick[rng.choice(rows.size, size=size, replace=False)] = True
+
+    def again(mask):
+        want = np.zeros_like(todo)
+        want[rows[mask], cols[mask]] = True
+        sim = _simulate(ks, variants, fixed, threads, want, None)
+        free = np.concatenate([sim.status0[:, None], sim.status], axis=1)
+        t0, t = crossing_times(sim, fixed["interpolate"])
+        times = np.concatenate([t0[:, None], t], axis=1) * fixed["dt"]
+        st[want], tau[want] = free[want], times[want]
+        return free[rows[mask], cols[mask]]
+
+    locked = int(np.isin(again(pick), (SYNCED, ALREADY_SYNCED)).sum())
+    rerun = size
+    if locked:
+        again(~pick)
+        rerun = rows.size
+    return np.array([size, locked, rerun], dtype=np.int64)
+
+
+def _pilot(fixed: dict, variants, m: int, threads, log) -> None:
+    """``sync.give_up``'s pilot: every start of the intact grid integrated without the rule and
+    with ``after / PILOT_MARGIN``; a start that locks without the rule but is stopped by the
+    tightened one means the rule is not trusted on this grid: one line, before any task."""
+    after, band = fixed["give_up"]
+    ks = np.arange(m, dtype=np.int64)
+    todo = np.zeros((m, 2), dtype=np.bool_)
+    todo[:, 0] = True
+    pilot = {**fixed, "targets": fixed["setup"].targets[:2]}
+    free = _simulate(ks, variants[:1], pilot, threads, todo, None).status0
+    tight = _simulate(ks, variants[:1], pilot, threads, todo, (after / PILOT_MARGIN, band)).status0
+    locks = np.isin(free, (SYNCED, ALREADY_SYNCED))
+    stopped = locks & (tight == GAVE_UP)
+    if stopped.any():
+        raise GridError(
+            f"sync.give_up is not trusted on this grid: {int(stopped.sum())} of the {int(locks.sum())} "
+            f"starts of the intact grid that lock by t_max were still outside the band {band:g} at "
+            f"after / {PILOT_MARGIN:g} = {after / PILOT_MARGIN:g} s (first: realization "
+            f"{int(np.flatnonzero(stopped)[0])}); raise sync.give_up.after or remove give_up"
+        )
+    if log is not None:
+        log(
+            f"sync.give_up pilot: {int(locks.sum())} of {m} intact starts lock, none outside the band at "
+            f"{after / PILOT_MARGIN:g} s (after / {PILOT_MARGIN:g})"
+        )
+
+
+def _audit_record(audit: np.ndarray) -> dict:
+    """What a removal table says of ``sync.give_up``'s checks (its ``audit``)."""
+    sampled, locked, rerun = (int(v) for v in audit)
+    bound = None if locked or not sampled else min(1.0, 3.0 / sampled)
+    return {
+        "pilot": f"every intact start that locks was inside the band by after / {PILOT_MARGIN:g}",
+        "sampled": sampled,
+        "locked": locked,
+        "rerun": rerun,
+        "fraction": AUDIT_FRACTION,
+        "minimum": AUDIT_MIN,
+        "bound95": bound,
+    }
 
 
 def _task_call(task: tuple, variants: np.ndarray, fixed: dict, threads) -> tuple:

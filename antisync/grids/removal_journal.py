@@ -165,10 +165,11 @@ class RemovalJournal(TaskJournal):
     KIND = "removal"
     KEY_FILE = "removal_key.json"
 
-    def load(self, status0, tau0, status, tau) -> np.ndarray:
+    def load(self, status0, tau0, status, tau, audit=None) -> np.ndarray:
         """Fill the arrays from the saved tasks that carry this journal's :attr:`tag` and fit
         the arrays; delete every other task file. Return which cells were filled (bool
-        ``(realizations, 1 + lines)``, column 0 the intact grid)."""
+        ``(realizations, 1 + lines)``, column 0 the intact grid). ``audit``: ``sync.give_up``'s
+        audit counts of the tasks read are added to it."""
         have = np.zeros((status0.size, 1 + status.shape[1]), dtype=bool)
         for task in self._read_tasks(lambda path: self._read(path, status0.size, status.shape[1])):
             ks, group, intact, part = task
@@ -177,6 +178,8 @@ class RemovalJournal(TaskJournal):
                 have[ks, 0] = True
             status[np.ix_(ks, group)], tau[np.ix_(ks, group)] = part["status"], part["tau"]
             have[np.ix_(ks, 1 + group)] = True
+            if audit is not None:
+                audit += part["audit"]
         return have
 
     def _read(self, path: Path, m: int, lines: int):
@@ -185,7 +188,9 @@ class RemovalJournal(TaskJournal):
         lines (checked whole before anything is merged)."""
 
         def read(f):
-            return f["ks"], f["group"], f["intact"], {k: f[k] for k in ("status0", "tau0", "status", "tau")}
+            part = {k: f[k] for k in ("status0", "tau0", "status", "tau")}
+            part["audit"] = f["audit"] if "audit" in f else np.zeros(3, dtype=np.int64)
+            return f["ks"], f["group"], f["intact"], part
 
         task = load_arrays(path, self.tag, read)
         if task is None:
@@ -201,6 +206,8 @@ class RemovalJournal(TaskJournal):
         )
         if not index_ok or n == 0 or intact.shape != () or intact.dtype != np.bool_:
             return None
+        if part["audit"].shape != (3,) or part["audit"].dtype.kind not in "iu" or (part["audit"] < 0).any():
+            return None
         shapes = {"status": (n, group.size), "tau": (n, group.size)}
         if intact:
             shapes.update(status0=(n,), tau0=(n,))
@@ -212,7 +219,8 @@ class RemovalJournal(TaskJournal):
 
     def save(self, ks, group, intact: bool, part) -> None:
         """Save a finished task at once (:func:`antisync.store.journal.save_arrays`: whole or
-        absent), tagged :attr:`tag`; ``part``: ``(status0, tau0, status, tau)``."""
+        absent), tagged :attr:`tag`; ``part``: ``(status0, tau0, status, tau, audit)`` (``audit``:
+        ``sync.give_up``'s counts of the task, zeros without the rule)."""
         name = f"task_{ks[0]}_{group[0] if group.size else 0}_{group.size}_{int(intact)}.npz"
         arrays = {
             "ks": ks,
@@ -222,6 +230,7 @@ class RemovalJournal(TaskJournal):
             "tau0": part[1],
             "status": part[2],
             "tau": part[3],
+            "audit": np.asarray(part[4], dtype=np.int64),
         }
         save_arrays(self.folder / name, arrays, self.tag)
 

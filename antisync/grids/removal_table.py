@@ -17,7 +17,7 @@ from antisync.stats.exact import clopper_pearson, mcnemar_exact, tau_p_value
 from antisync.stats.multiplicity import FDR_LEVEL, benjamini_hochberg
 from antisync.status import ALREADY_SYNCED, GAVE_UP, SYNCED
 
-__all__ = ["LineRemoval", "RemovalTable", "line_rows"]
+__all__ = ["LineRemoval", "RemovalTable", "audit_line", "line_rows"]
 
 
 def _mean_se(x: np.ndarray) -> tuple[float, float]:
@@ -107,6 +107,11 @@ class RemovalTable(Rows):
     skipped: tuple = field(default=())
     config: dict = field(default_factory=dict)
     level: float = 0.95
+    audit: dict | None = None
+    """``sync.give_up``'s pilot and audit (:func:`antisync.grids.removal.line_removal`): the
+    given-up trajectories sampled and integrated to ``t_max`` without the rule, how many of them
+    locked, how many were integrated again, and the 95% upper bound of the share of the others
+    that would lock (``bound95``, 3 / sampled when none did); None without the rule."""
 
     @property
     def n(self) -> int:
@@ -207,6 +212,7 @@ class RemovalTable(Rows):
             "synced0": self.synced0,
             "gave_up0": self.gave_up0,
             "gave_up": self.gave_up,
+            "give_up_audit": self.audit,
             "p_sync": self.p_sync,
             "p_sync_ci": list(self.p_sync_ci),
             "tau0_mean": t,
@@ -240,6 +246,8 @@ class RemovalTable(Rows):
                 f"t = {rule.get('after', '?')} s, counted as not synchronized): {self.gave_up0} intact, "
                 f"{self.gave_up} after the changes"
             )
+        if self.audit is not None:
+            head += f"; {audit_line(self.audit)}"
         braess = {r.line for r in self.braess_lines(q)}
         sync, tau = self.sync_called(q), self.tau_called(q)
         out = [
@@ -334,3 +342,19 @@ def line_rows(
             )
         )
     return rows
+
+
+def audit_line(audit: dict) -> str:
+    """One line on ``sync.give_up``'s pilot and audit (a removal table's ``audit``)."""
+    text = (
+        f"sync.give_up checked: pilot passed ({audit['pilot']}); audit integrated {audit['sampled']} "
+        f"given-up trajectories to t_max without the rule, {audit['locked']} locked"
+    )
+    if audit["locked"]:
+        return (
+            text
+            + f", so the tasks holding them were integrated again without it ({audit['rerun']} trajectories)"
+        )
+    if audit["bound95"] is not None:
+        text += f" (95% bound on the share of the others that would lock: {audit['bound95']:.2g})"
+    return text
