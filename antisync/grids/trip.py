@@ -273,7 +273,11 @@ _SCAN_CHUNK = 8
 TRIPS_PER_TASK = 16
 
 #: The columns of a task's rows (:func:`_trip_task`).
-COLUMNS = ("settle_time", "max_frequency", "max_angle", "post_locked", "cct", "cct_again")
+COLUMNS = ("settle_time", "max_frequency", "max_angle", "post_locked", "cct", "cct_again", "peak_error")
+
+#: RK4 trips whose largest phase advance in one step (``dt max |theta_i'|``) exceeds this (rad) are
+#: integrated again at ``dt / 2`` to estimate how well their frequency peak is resolved.
+STEP_ANGLE = 0.1
 
 
 def _post_locked(grid: Grid, a: int, b: int, share: float) -> bool:
@@ -293,6 +297,7 @@ def _trip_task(grid: Grid, lines, t_clear, shares, cct: dict | None, settings: d
     out, _, share = _integrate(grid, lines, t_clear, shares, **settings)
     rows = np.full((len(lines), len(COLUMNS)), np.nan)
     rows[:, :3] = out
+    rows[:, 6] = _peak_error(grid, lines, t_clear, share, out[:, 1], settings)
     post = {}
     for e, (a, b) in enumerate(lines):
         key = (a, b, float(share[e]))
@@ -302,6 +307,27 @@ def _trip_task(grid: Grid, lines, t_clear, shares, cct: dict | None, settings: d
     if cct is not None:
         rows[:, 4], rows[:, 5] = critical_clearing(grid, lines, **cct, **settings, shares=share)
     return rows
+
+
+def _peak_error(grid: Grid, lines, t_clear, share, peak, settings: dict) -> np.ndarray:
+    """RK4's check of the fault's transients: each trip whose largest phase advance in one step
+    ``dt max |theta_i'|`` exceeds :data:`STEP_ANGLE` is integrated again at ``dt / 2``, and the
+    error of its frequency peak at ``dt`` estimated as ``16/15 |peak(dt) - peak(dt/2)|``
+    (Richardson, order 4; on IEEE 39 line 16-17 after a 1 s fault: 2.8 rad/s estimated against
+    2.9 measured, of 336.7). 0 where the step is short enough or the integrator is Rodas4
+    (adaptive: its error control resolves the swing)."""
+    error = np.zeros(len(lines))
+    if settings.get("integrator", "rk4") != "rk4":
+        return error
+    dt = settings["dt"]
+    coarse = np.flatnonzero(dt * peak > STEP_ANGLE)
+    if coarse.size:
+        clear = np.broadcast_to(np.asarray(t_clear, dtype=np.float64), (len(lines),))[coarse]
+        fine = _integrate(
+            grid, [lines[e] for e in coarse], clear, share[coarse], **{**settings, "dt": 0.5 * dt}
+        )[0][:, 1]
+        error[coarse] = 16.0 / 15.0 * np.abs(peak[coarse] - fine)
+    return error
 
 
 def _trips(grid: Grid, lines, clear, share, labels, rows) -> list[Trip]:
@@ -663,6 +689,8 @@ def trip_report(
         bar.close()
     trips = _trips(grid, todo, np.full(len(todo), float(clear)), shares, names, values)
     rows = [t.as_dict() for t in trips]
+    for row, error in zip(rows, values[:, 6], strict=True):
+        row["max_frequency_error"] = float(error)
     if cct:
         for row, value, again in zip(rows, values[:, 4], values[:, 5], strict=True):
             row["cct"] = float(value)
@@ -730,6 +758,16 @@ def format_trips(report: dict) -> str:
             again = r.get("cct_again")
             row += f" {r['cct']:.4f} | {'-' if again is None else f'{again:.4f}'} |"
         out.append(row)
+    coarse = [r for r in report["lines"] if r.get("max_frequency_error", 0.0) > 0.01 * r["max_frequency"]]
+    if coarse:
+        worst = max(coarse, key=lambda r: r["max_frequency_error"] / r["max_frequency"])
+        out.append("")
+        out.append(
+            f"RK4 at dt = {report['dt']:g}: the frequency peak of {len(coarse)} trip(s) is resolved worse "
+            f"than 1% (worst: line {'-'.join(worst['line'])}, {worst['max_frequency']:.4g} rad/s, "
+            f"estimated error {worst['max_frequency_error']:.2g} by step doubling): use a smaller "
+            "dynamics.dt or rodas4"
+        )
     if cct:
         windows = sum(r.get("cct_again") is not None for r in report["lines"])
         top = sum(r["cct"] >= report["cct_max"] for r in report["lines"])
