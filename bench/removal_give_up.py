@@ -106,8 +106,8 @@ def main() -> None:
         f"GAVE_UP {n_gave} of {args.starts * grids}; intact P_sync {fast.p_sync:.4f}"
     )
     print(
-        f"projected: every line at 1,000 starts = the pilot at 1,000 starts + {len(every) + 1} grids x 1,000 x "
-        f"{1e3 * per:.2f} ms = {hours:.2f} h"
+        f"projected: every line at 1,000 starts = the pilot at 1,000 starts + {len(every) + 1} grids "
+        f"x 1,000 x {1e3 * per:.2f} ms = {hours:.2f} h"
     )
 
     if args.study_starts:
