@@ -263,6 +263,7 @@ def test_a_grid_without_an_operating_point_is_refused():
         (["--t-max", "inf"], "--t-max must be a finite positive number"),
         (["--cct", "--cct-max", "inf"], "--cct-max"),
         (["--cct", "--cct-scan", "0.0001"], "--cct-scan must be in"),
+        (["--set", "dynamics.dt=2.0"], "dynamics.dt = 2 is unstable for the second-order model"),
         (["--set", "model.frequencies=[40, -40, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0]"], "no operating point"),
         (["--contingencies", "missing.txt"], "cannot read it"),
         (["--contingencies", "{dir}/c.txt"], "line 2: expected 'label from to share'"),

@@ -237,6 +237,7 @@ def _trip(config, set_, lines, contingencies, t_clear, cct_spec, t_max, where, f
         CCT_TOL,
         CLOCK,
         FORMAT,
+        check_explicit_step,
         check_finished_trips,
         format_trips,
         integration_record,
@@ -270,6 +271,8 @@ def _trip(config, set_, lines, contingencies, t_clear, cct_spec, t_max, where, f
     if resume and out is None:
         raise GridError("--resume finishes an interrupted --trip --out X.json run: give its --out")
     g = grid_from_config(cfg)
+    if cfg.dynamics.integrator != "rodas4":
+        check_explicit_step(cfg, g)  # the trip's RK4 at dt, checked as `antisync run` checks it
     table = None if contingencies is None else read_contingencies(contingencies, g)
     tolerance = cfg.sync.tolerance if cfg.sync.criterion == "frequency" else 1e-3
     # the config's rodas4 (a stiff grid's) with its tolerances; any other integrator: RK4 at dt

@@ -79,6 +79,7 @@ __all__ = [
     "COLUMNS",
     "TRIPS_PER_TASK",
     "Trip",
+    "check_explicit_step",
     "check_finished_trips",
     "critical_clearing",
     "format_trips",
@@ -153,6 +154,24 @@ def _arrays(grid: Grid):
         p /= damping
         damping = np.ones(n)
     return csr.indptr, csr.indices, k, p, mass, damping
+
+
+def check_explicit_step(config, grid: Grid) -> None:
+    """Refuse, as ``antisync run`` does for the same config, a ``dynamics.dt`` at which the
+    explicit step makes the operating point's neighbourhood unstable (the second-order model's
+    check with inertia, else the first-order one): a one-line
+    :class:`~antisync.errors.ConfigError` naming the largest stable ``dt``. A trip by Rodas4 has
+    no such limit."""
+    from antisync.plan.jobs import check_step
+    from antisync.plan.model import check_second_order_step
+
+    n = len(grid.labels)
+    mass, gamma = per_node(grid.inertia, n), per_node(grid.damping, n)
+    if (mass > 0).any():
+        csr = to_csr(grid.omega)
+        check_second_order_step(config, csr.indptr, csr.indices, csr.weights, mass, gamma)
+    else:
+        check_step(grid.omega, config)
 
 
 def _check(grid: Grid, t_clear, t_max: float, dt: float) -> None:

@@ -52,6 +52,7 @@ __all__ = [
     "Model",
     "ModelSetup",
     "Sync",
+    "check_second_order_step",
     "drawn_frequencies",
     "model_setup",
     "node_frequencies",
@@ -556,7 +557,7 @@ def model_setup(
     n = indptr.size - 1
     mass, gamma = node_parameters(model, n)
     if (mass > 0).any() and config.dynamics.integrator in STABLE_STEP:
-        _check_second_order_step(config, indptr, indices, weights[0], mass, gamma)
+        check_second_order_step(config, indptr, indices, weights[0], mass, gamma)
     fixed = node_frequencies(model, n)
     freqs = None if fixed is None else fixed - fixed.mean()
     lag = float(model.phase_lag)
@@ -662,7 +663,7 @@ def unsynced_hint(config) -> str | None:
 STABLE_STEP = {"euler": 2.0, "rk4": 2.785}
 
 
-def _check_second_order_step(config, indptr, indices, weights, mass, gamma) -> None:
+def check_second_order_step(config, indptr, indices, weights, mass, gamma) -> None:
     """Refuse a ``dt`` at which the explicit integrator is unstable near synchrony.
 
     Linearized at the in-phase state, ``m u'' + gamma u' = -L u`` (``L`` the coupling's
