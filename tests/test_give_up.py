@@ -268,3 +268,27 @@ def test_the_audit_catches_a_given_up_start_that_locks_and_integrates_the_task_a
     np.testing.assert_array_equal(cut.status, free.status)
     np.testing.assert_array_equal(cut.tau, free.tau)
     assert "integrated again without it" in cut.to_markdown()
+
+
+def test_validate_checks_a_removal_config_with_the_rule():
+    """``antisync validate`` of a ``--removal`` config with ``sync.give_up``: checked as that
+    command checks it, ok in one line saying where the rule runs."""
+    args = ["--set", "dynamics.integrator=rodas4", "--set", "sync.give_up={after: 20, band: 1.0}"]
+    res = CliRunner().invoke(app, ["validate", str(CONFIGS / "ieee39_grid.yaml"), *args])
+    assert res.exit_code == 0, res.output
+    assert (
+        "# ok: a config for antisync grid --removal (35 non-bridge lines; sync.give_up after 20 s"
+        in res.output
+    )
+
+
+@pytest.mark.parametrize("key", ["rtol", "atol"])
+def test_a_tolerance_below_what_float64_delivers_is_refused_in_one_line(key):
+    """Rodas4 at rtol = atol = 1e-15 ended in a FloatingPointError after minutes: refused first."""
+    args = ["--set", "dynamics.integrator=rodas4", "--set", f"dynamics.{key}=1e-15"]
+    for cmd in (["validate"], ["grid", "--trip"], ["grid", "--removal"]):
+        res = CliRunner().invoke(app, [cmd[0], str(CONFIGS / "ieee39_grid.yaml"), *cmd[1:], *args])
+        assert res.exit_code == 2 and f"dynamics.{key} = 1e-15 is below what float64" in res.output, (
+            res.output
+        )
+        assert len(res.output.strip().splitlines()) == 1

@@ -480,3 +480,40 @@ def test_a_large_grids_figure_names_only_the_resolved_the_moved_and_the_largest_
     largest = {f"{k}-{k + 1}" for k in range(40 - NAMED_LINES, 40)}
     assert named == {"0-1", "5-6", "3-4"} | largest
     assert len(_named_lines(rows, marks, value, small=True)) == 40
+
+
+@pytest.mark.parametrize(
+    ("damage", "says"),
+    [
+        ({"gave_up0": "three"}, "summary.gave_up0 is 'three', not a count"),
+        ({"gave_up": -1}, "summary.gave_up is -1, not a count"),
+        ({"give_up_audit": {"sampled": "x"}}, "summary.give_up_audit is not sync.give_up's audit"),
+    ],
+)
+def test_report_refuses_a_removal_table_with_bad_give_up_counts_in_one_line(tmp_path, damage, says):
+    """A removal table whose ``sync.give_up`` counts are of the wrong kind: one line, exit 2, no
+    empty figures folder left behind."""
+    table = line_removal(ring_config(4), lines="0-3")
+    saved = write_table(table, tmp_path / "r.json")
+    doc = json.loads(saved.read_text())
+    doc["summary"].update(damage)
+    saved.write_text(json.dumps(doc))
+    res = CliRunner().invoke(app, ["report", str(saved)])
+    assert_one_line(res, says)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["r.json"]
+
+
+def test_report_index_of_a_removal_table_names_the_given_up_counts(tmp_path):
+    """``antisync report`` of a removal table run with ``sync.give_up``: its index says how many
+    trajectories the rule stopped and what its audit checked."""
+    table = line_removal(ring_config(4), lines="0-3")
+    saved = write_table(table, tmp_path / "r.json")
+    doc = json.loads(saved.read_text())
+    audit = {"pilot": "p", "sampled": 4, "locked": 0, "rerun": 4, "bound95": 0.75}
+    doc["summary"].update(gave_up0=2, gave_up=3, give_up_audit=audit)
+    saved.write_text(json.dumps(doc))
+    res = CliRunner().invoke(app, ["report", str(saved), "--out", str(tmp_path / "rep")])
+    assert res.exit_code == 0, res.output
+    index = (tmp_path / "rep" / "index.md").read_text()
+    assert "Stopped by sync.give_up (counted as not synchronized): 2 intact, 3 after" in index
+    assert "audit integrated 4 given-up trajectories" in index

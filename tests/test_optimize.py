@@ -260,3 +260,87 @@ def test_validate_reads_a_design_config_and_run_sends_it_to_design():
     assert ok.exit_code == 0 and "# ok: design of 78 link weight(s) of 34 nodes" in ok.output
     run = CliRunner().invoke(app, ["run", config])
     assert run.exit_code == 2 and "antisync design" in run.output
+
+
+def _write_design_config(tmp_path, out, extra: str = "") -> str:
+    cfg = tmp_path / "d.yaml"
+    cfg.write_text(DESIGN.replace("output: OUT}", f"output: {out}{extra}}}"))
+    return str(cfg)
+
+
+@pytest.mark.parametrize("kind", ["hdf5", "text", "link", "config"])
+def test_design_overwrite_never_replaces_a_file_that_is_not_a_design(tmp_path, kind):
+    """``antisync design --overwrite`` goes through the one output policy: a user's own HDF5
+    file, a text file, a symbolic link and the config itself are refused in one line (exit 2)
+    and left as they were, ``--overwrite`` or not."""
+    import h5py
+
+    out = tmp_path / "d.h5"
+    if kind == "hdf5":
+        with h5py.File(out, "w") as f:
+            f["data"] = np.arange(3)
+    elif kind == "text":
+        out.write_text("my notes\n")
+    elif kind == "link":
+        (tmp_path / "target.h5").write_text("elsewhere\n")
+        out.symlink_to(tmp_path / "target.h5")
+    cfg = _write_design_config(tmp_path, out)
+    if kind == "config":
+        out = tmp_path / "d.yaml"
+        cfg = _write_design_config(tmp_path, out)
+        # the config's own path as its output: refused (it must end in .h5 first)
+    before = out.read_bytes()
+    for flags in ([], ["--overwrite"], ["--resume"]):
+        res = CliRunner().invoke(app, ["design", cfg, "-q", "--no-figures", *flags])
+        assert res.exit_code == 2 and len(res.output.strip().splitlines()) == 1, res.output
+        assert "design.output" in res.output or "exists" in res.output, res.output
+        assert out.read_bytes() == before
+    assert out.is_symlink() == (kind == "link")
+
+
+def test_a_design_resumes_with_other_threads_and_keeps_its_rows_in_order(tmp_path):
+    """Threads are where a design runs, not what it computes: a design started with ``--threads
+    1`` and finished by a ``--resume`` without it; its verification rows in the order an
+    uninterrupted design lists them (the baselines read back from the file are not re-sorted)."""
+    from antisync.store.design_file import write_design
+
+    out = tmp_path / "d.h5"
+    cfg = _write_design_config(tmp_path, out)
+    res = CliRunner().invoke(app, ["design", cfg, "-q", "--no-figures", "--threads", "1"])
+    assert res.exit_code == 0, res.output
+    whole = read_design(out)
+    # cut it back to an unfinished file holding its baselines, as a killed run leaves it
+    rec = {**whole, "complete": False}
+    for key in ("verification", "sensitivity"):
+        rec.pop(key, None)
+    rec["baselines"] = {k: v for k, v in whole["baselines"].items() if k != "designed"}
+    write_design(out, rec)
+    res = CliRunner().invoke(app, ["design", cfg, "-q", "--no-figures", "--resume"])
+    assert res.exit_code == 0, res.output
+    again = read_design(out)
+    names = [r["design"] for r in again["verification"]["rows"]]
+    assert names == [r["design"] for r in whole["verification"]["rows"]]
+
+
+def test_a_repeated_candidate_is_named_as_repeated(tmp_path):
+    cfg = _write_design_config(tmp_path, tmp_path / "d.h5", ", candidates: ['1-6', '6-1']")
+    res = CliRunner().invoke(app, ["design", cfg])
+    assert res.exit_code == 2 and "names the same link as '1-6'" in res.output, res.output
+
+
+def test_summary_and_report_read_design_files_and_refuse_another_version(tmp_path):
+    import h5py
+
+    out = tmp_path / "d.h5"
+    cfg = _write_design_config(tmp_path, out)
+    assert CliRunner().invoke(app, ["design", cfg, "-q", "--no-figures"]).exit_code == 0
+    res = CliRunner().invoke(app, ["summary", str(out)])
+    assert res.exit_code == 0 and "| designed |" in res.output and "| lambda2 |" in res.output, res.output
+    res = CliRunner().invoke(app, ["summary", str(out), "--format", "csv"])
+    assert res.exit_code == 0 and res.output.startswith("design,mean_tau")
+    with h5py.File(out, "a") as f:
+        f.attrs["version"] = 99
+    for cmd in (["report", str(out), "--out", str(tmp_path / "rep")], ["summary", str(out)]):
+        res = CliRunner().invoke(app, cmd)
+        assert res.exit_code == 2 and "format version 99" in res.output, res.output
+    assert not (tmp_path / "rep").exists()

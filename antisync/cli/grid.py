@@ -41,10 +41,15 @@ def grid(
             "one survived (a scan every --cct-scan s, then every 1 ms in the first failing interval).",
         ),
     ] = False,
-    cct_max: Annotated[float, typer.Option("--cct-max", help="--cct: the longest fault tried (s).")] = 1.0,
+    cct_max: Annotated[
+        float | None, typer.Option("--cct-max", help="--cct: the longest fault tried (s) [default: 1].")
+    ] = None,
     cct_scan: Annotated[
-        float, typer.Option("--cct-scan", help="--cct: the coarse scan's step of fault durations (s).")
-    ] = 0.01,
+        float | None,
+        typer.Option(
+            "--cct-scan", help="--cct: the coarse scan's step of fault durations (s) [default: 0.01]."
+        ),
+    ] = None,
     contingencies: Annotated[
         Path | None,
         typer.Option(
@@ -55,8 +60,9 @@ def grid(
         ),
     ] = None,
     t_max: Annotated[
-        float, typer.Option("--t-max", help="--trip: how long the grid runs after the trip (s).")
-    ] = 20.0,
+        float | None,
+        typer.Option("--t-max", help="--trip: how long the grid runs after the trip (s) [default: 20]."),
+    ] = None,
     lines: Annotated[
         str | None,
         typer.Option(
@@ -65,7 +71,9 @@ def grid(
             "(default: every line, bridges skipped)."
         ),
     ] = None,
-    beta: Annotated[float, typer.Option(help="Weaken each line by beta in (0, 1]; 1 removes it.")] = 1.0,
+    beta: Annotated[
+        float | None, typer.Option(help="Weaken each line by beta in (0, 1]; 1 removes it [default: 1].")
+    ] = None,
     realizations: Annotated[int | None, typer.Option(help="Override `realizations` (--removal).")] = None,
     seed: Annotated[int | None, typer.Option(help="Override `seed` (--removal).")] = None,
     islanding: Annotated[
@@ -97,11 +105,13 @@ def grid(
         ),
     ] = None,
     by: Annotated[
-        RemovalBy,
+        RemovalBy | None,
         typer.Option(
-            "--by", parser=one_of("--by", RemovalBy), help="--figure's colour: F_1 - 1 (speedup) or d P_sync."
+            "--by",
+            parser=one_of("--by", RemovalBy),
+            help="--removal --figure's colour: F_1 - 1 (speedup) or d P_sync [default: speedup].",
         ),
-    ] = "speedup",
+    ] = None,
     overwrite: Annotated[
         bool, typer.Option("--overwrite", help="Replace an existing --out or --figure file.")
     ] = False,
@@ -137,12 +147,42 @@ def grid(
     from antisync.store.provenance import command_line
 
     if trip:
+        removal_only = {
+            "--removal": removal or None,
+            "--beta": beta,
+            "--realizations": realizations,
+            "--seed": seed,
+            "--top": top,
+            "--islanding": islanding or None,
+            "--by": by,
+        }
+        for name, value in removal_only.items():
+            if value is not None:
+                raise GridError(
+                    f"{name} is not an option of --trip (the line trips from the operating point)"
+                )
+        for name, value in (("--cct-max", cct_max), ("--cct-scan", cct_scan)):
+            if value is not None and not cct:
+                raise GridError(f"{name} sets the critical clearing times' search: add --cct")
+        cct_max = 1.0 if cct_max is None else cct_max
+        t_max = 20.0 if t_max is None else t_max
+        if cct_scan is None:
+            cct_scan = 0.01 if not 0.001 <= cct_max < 0.01 else cct_max
         where = {"threads": threads, "workers": workers, "scheduler": scheduler}
         files = {"out": out, "figure": figure, "overwrite": overwrite, "resume": resume}
         cct_spec = {"cct": cct, "cct_max": cct_max, "cct_scan": cct_scan}
         _trip(config, set_, lines, contingencies, t_clear, cct_spec, t_max, where, files, quiet)
         return
-    for name, value in (("--t-clear", t_clear), ("--cct", cct or None), ("--contingencies", contingencies)):
+    beta = 1.0 if beta is None else beta
+    by = "speedup" if by is None else by
+    trip_only = (
+        ("--t-clear", t_clear),
+        ("--t-max", t_max),
+        ("--cct", cct or None),
+        ("--cct-max", cct_max),
+        ("--cct-scan", cct_scan),
+    )
+    for name, value in (*trip_only, ("--contingencies", contingencies)):
         if value is not None:
             raise GridError(f"{name} is for the line trips from the operating point: add --trip")
     beta = check_beta(beta)
@@ -172,7 +212,9 @@ def grid(
         g = grid_from_config(cfg)
         picked = parse_lines(lines, g.labels)
         hint = "leave it out of --lines (without --lines every bridge is skipped)"
-        table = static_table(g, beta=beta, lines=picked, skip_bridges=picked is None, bridge_hint=hint)
+        table = static_table(
+            g, beta=beta, lines=picked, skip_bridges=picked is None, bridge_hint=hint, progress=not quiet
+        )
         typer.echo(format_table(table, top=top))
         return
     # the work's own refusals (a line not in the grid, a bridge, a per-node file of the wrong
@@ -231,7 +273,7 @@ def _trip(config, set_, lines, contingencies, t_clear, cct_spec, t_max, where, f
     from antisync.grids.errors import GridError
     from antisync.grids.lines import parse_lines
     from antisync.grids.load import grid_from_config
-    from antisync.grids.removal_file import check_output, replace_atomically
+    from antisync.grids.removal_file import check_output, plain, replace_atomically
     from antisync.grids.removal_journal import journal_folder, remove_journal
     from antisync.grids.trip import (
         CCT_TOL,
@@ -242,6 +284,7 @@ def _trip(config, set_, lines, contingencies, t_clear, cct_spec, t_max, where, f
         format_trips,
         integration_record,
         plan_trips,
+        provenance,
         read_contingencies,
         trip_report,
     )
@@ -249,6 +292,7 @@ def _trip(config, set_, lines, contingencies, t_clear, cct_spec, t_max, where, f
     from antisync.report.removal import check_figure, trip_figure
     from antisync.store.lock import writer_lock
     from antisync.store.outputs import config_inputs
+    from antisync.store.provenance import command_line
 
     out, figure, overwrite, resume = files["out"], files["figure"], files["overwrite"], files["resume"]
     cfg = load_config(config, list(set_ or []), typed_values(threads=where["threads"]))
@@ -260,8 +304,10 @@ def _trip(config, set_, lines, contingencies, t_clear, cct_spec, t_max, where, f
     cct, cct_max, cct_scan = cct_spec["cct"], cct_spec["cct_max"], cct_spec["cct_scan"]
     if not 0 < t_max < math.inf:
         raise GridError(f"--t-max must be a finite positive number of seconds, got {t_max:g}")
-    if cct and not 0 < cct_max < math.inf:
-        raise GridError(f"--cct-max must be a finite positive number of seconds, got {cct_max:g}")
+    if cct and not CCT_TOL <= cct_max < math.inf:
+        raise GridError(
+            f"--cct-max must be a finite fault duration of at least {CCT_TOL:g} s, got {cct_max:g}"
+        )
     if cct and not CCT_TOL <= cct_scan <= cct_max:
         raise GridError(
             f"--cct-scan must be in [{CCT_TOL:g}, --cct-max = {cct_max:g}] seconds, got {cct_scan:g}"
@@ -331,10 +377,15 @@ def _trip(config, set_, lines, contingencies, t_clear, cct_spec, t_max, where, f
         except KeyboardInterrupt:
             _interrupted(journal)
         typer.echo(format_trips(report))
-        if out is not None:
-            replace_atomically(
-                out, lambda tmp: tmp.write_text(json.dumps(report, indent=1) + "\n", encoding="utf-8")
+        if report["bridges_skipped"]:
+            skipped = ", ".join("-".join(b) for b in report["bridges_skipped"])
+            info(
+                f"skipped {len(report['bridges_skipped'])} trip(s) that open a bridge whole: {skipped}", quiet
             )
+        if out is not None:
+            doc = plain({**report, **provenance(command_line()), "config": cfg.to_dict()})
+            text = json.dumps(doc, indent=1, allow_nan=False) + "\n"  # strict JSON: nan as null
+            replace_atomically(out, lambda tmp: tmp.write_text(text, encoding="utf-8"))
             remove_journal(journal)
             info(f"wrote {out}", quiet)
         if figure is not None:

@@ -54,10 +54,15 @@ def summary(
     from antisync.stats.sum_rule import sum_rule_note, views_sums
     from antisync.stats.summary import named_views, view_records
     from antisync.store import is_sweep_file, read_views, stop_record, stored_config
+    from antisync.store.design_file import is_design_file, read_design
     from antisync.sweeps import sweep_summary
 
     def listed(recs: list[dict]) -> list[dict]:
         return flag_signs(sort_records(recs, sort) if sort else recs)
+
+    if is_design_file(results):
+        typer.echo(_design_summary(read_design(results), results, format))
+        return
 
     if format == "json":
         s = summarize(results)
@@ -109,3 +114,35 @@ def _model_note(path, records: list[dict], views) -> str | None:
     cfg = stored_config(path)
     rows = r_star_rows(views if views is not None else read_views(path)) if relative_criterion(cfg) else None
     return model_line(cfg, rows)
+
+
+def _design_summary(rec: dict, path, format: str) -> str:
+    """A design file (``antisync design``) as its verification table: each design's mean tau on
+    the fresh starts with its standard error, the synchronized share and its paired difference
+    to the designed one with a 95% interval; JSON the whole row list, CSV the rows."""
+    import csv
+    import io
+    import json
+
+    ver = rec.get("verification") or {}
+    rows = ver.get("rows", [])
+    if format == "json":
+        keep = {"complete": rec["complete"], "reason": rec["reason"], "design": rec["design"]}
+        return json.dumps({"kind": "design", "file": str(path), **keep, "verification": rows}, indent=2)
+    if format == "csv":
+        buf = io.StringIO()
+        fields = ["design", "mean_tau", "se", "synced", "minus_designed", "low", "high"]
+        writer = csv.DictWriter(buf, fieldnames=fields, extrasaction="ignore")
+        writer.writeheader()
+        writer.writerows(rows)
+        return buf.getvalue().rstrip("\n")
+    head = f"{path}: a design ({rec['reason'] or 'not finished'})"
+    if not rows:
+        return head + "; no verification yet (antisync design CONFIG --resume finishes it)"
+    out = [head, "", "| design | mean tau +- se | synced | minus designed [95% CI] |", "|---|---|---|---|"]
+    for r in rows:
+        out.append(
+            f"| {r['design']} | {r['mean_tau']:.4g} +- {r['se']:.2g} | {r['synced']:.3f} | "
+            f"{r['minus_designed']:+.4g} [{r['low']:+.4g}, {r['high']:+.4g}] |"
+        )
+    return "\n".join(out)

@@ -46,6 +46,18 @@ def validate(config: ConfigArg, set_: SetOpt = None, debug: DebugOpt = False) ->
         )
         return
     cfg = load_config(config, list(set_ or []))
+    if cfg.sync.give_up is not None:
+        # sync.give_up is for `antisync grid --removal` only: checked as that command checks it
+        from antisync.grids.removal_config import planned_lines
+
+        lines = planned_lines(cfg, None, 1.0, False)
+        typer.echo(cfg.resolved().to_yaml().rstrip())
+        rule = cfg.sync.give_up
+        typer.echo(
+            f"# ok: a config for antisync grid --removal ({len(lines)} non-bridge lines; sync.give_up "
+            f"after {rule['after']:g} s, band {rule['band']:g}; antisync run and sweep refuse give_up)"
+        )
+        return
     job = make_job(cfg)
     preflight(cfg, [job])
     typer.echo(cfg.resolved().to_yaml().rstrip())

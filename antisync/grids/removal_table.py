@@ -346,15 +346,15 @@ def line_rows(
 
 def audit_line(audit: dict) -> str:
     """One line on ``sync.give_up``'s pilot and audit (a removal table's ``audit``)."""
+    pilot = audit.get("pilot", "every intact start that locks was inside the band early enough")
     text = (
-        f"sync.give_up checked: pilot passed ({audit['pilot']}); audit integrated {audit['sampled']} "
+        f"sync.give_up checked: pilot passed ({pilot}); audit integrated {audit['sampled']} "
         f"given-up trajectories to t_max without the rule, {audit['locked']} locked"
     )
     if audit["locked"]:
-        return (
-            text
-            + f", so the tasks holding them were integrated again without it ({audit['rerun']} trajectories)"
-        )
-    if audit["bound95"] is not None:
-        text += f" (95% bound on the share of the others that would lock: {audit['bound95']:.2g})"
+        rerun = audit["rerun"]
+        return text + f", so the tasks holding them were integrated again without it ({rerun} trajectories)"
+    bound = audit.get("bound95")
+    if isinstance(bound, int | float) and not isinstance(bound, bool):
+        text += f" (95% bound on the share of the others that would lock: {bound:.2g})"
     return text

@@ -53,10 +53,12 @@ Pure numpy/scipy/networkx: nothing here compiles.
 from __future__ import annotations
 
 import math
+import sys
 import time
 from dataclasses import asdict, dataclass, field
 
 import numpy as np
+from tqdm import tqdm
 
 from antisync.grids.errors import GridError
 from antisync.grids.lines import Rows, grid_bridges, lines_of, split_bridges
@@ -307,8 +309,10 @@ def line_indicators(
     labels=None,
     skip_bridges: bool = False,
     bridge_hint: str = "pass skip_bridges=True",
+    progress: bool | None = False,
 ) -> LineTable:
-    """The static indicators after weakening each line (both directions) by ``beta``.
+    """The static indicators after weakening each line (both directions) by ``beta``
+    (``progress``: a bar of the lines done on stderr; None: when stderr is a terminal).
 
     Parameters
     ----------
@@ -362,7 +366,11 @@ def line_indicators(
         )
     base = _state_of(coupling_matrix(omega, coupling), p, lag, inertia, damping)
     rows = []
-    for a, b in todo:
+    show = sys.stderr.isatty() if progress is None else progress
+    bar = tqdm(
+        todo, unit="line", desc="lines", delay=1.0, disable=not show, file=sys.stderr, dynamic_ncols=True
+    )
+    for a, b in bar:
         changed = omega.copy()
         changed[a, b] *= 1.0 - beta
         changed[b, a] *= 1.0 - beta
@@ -384,6 +392,7 @@ def line_indicators(
                 destroys=bool(base.stable and not st.stable),
             )
         )
+    bar.close()
     return LineTable(base, tuple(rows), beta, tuple(skipped), time.perf_counter() - t0, tuple(labels))
 
 
@@ -395,9 +404,11 @@ def static_table(
     skip_bridges: bool = True,
     lines=None,
     bridge_hint: str = "pass skip_bridges=True",
+    progress: bool | None = False,
 ) -> LineTable:
     """:func:`line_indicators` of a :class:`Grid` (bridges skipped by default when removing);
-    ``lag``: the grid's own (``model.phase_lag``) unless given."""
+    ``lag``: the grid's own (``model.phase_lag``) unless given; ``progress``: a bar of the lines
+    done on stderr (None: when stderr is a terminal)."""
     return line_indicators(
         grid.omega,
         grid.p,
@@ -410,6 +421,7 @@ def static_table(
         labels=grid.labels,
         skip_bridges=skip_bridges,
         bridge_hint=bridge_hint,
+        progress=progress,
     )
 
 

@@ -49,6 +49,7 @@ from pathlib import Path
 import numpy as np
 from tqdm import tqdm
 
+from antisync._version import __version__
 from antisync.errors import ConfigError
 from antisync.execution.dispatch import trip_simulator
 from antisync.execution.executors.dask import TaskLostError
@@ -60,6 +61,10 @@ from antisync.grids.removal_journal import TripJournal, key_changes
 from antisync.kernels.shared import per_node
 from antisync.physics.coupling import to_csr
 from antisync.physics.locked import locked_state
+from antisync.plan.config import MIN_TOLERANCE
+from antisync.plan.jobs import check_step
+from antisync.plan.model import check_second_order_step
+from antisync.store.provenance import git_revision, now
 from antisync.types import RODAS4_ATOL, RODAS4_RTOL
 
 FORMAT = "antisync-trip"
@@ -87,6 +92,7 @@ __all__ = [
     "network_record",
     "operating_point",
     "plan_trips",
+    "provenance",
     "read_contingencies",
     "trip_lines",
     "trip_report",
@@ -162,9 +168,6 @@ def check_explicit_step(config, grid: Grid) -> None:
     check with inertia, else the first-order one): a one-line
     :class:`~antisync.errors.ConfigError` naming the largest stable ``dt``. A trip by Rodas4 has
     no such limit."""
-    from antisync.plan.jobs import check_step
-    from antisync.plan.model import check_second_order_step
-
     n = len(grid.labels)
     mass, gamma = per_node(grid.inertia, n), per_node(grid.damping, n)
     if (mass > 0).any():
@@ -180,6 +183,11 @@ def _check(grid: Grid, t_clear, t_max: float, dt: float) -> None:
     if not (math.isfinite(dt) and dt > 0 and math.isfinite(t_max) and t_max > dt):
         raise GridError(
             f"--t-max ({t_max:g}) must be a finite time above the step dt ({dt:g}), both positive"
+        )
+    if t_max / dt > MAX_STEPS:
+        raise GridError(
+            f"--t-max {t_max:g} s is {t_max / dt:.3g} steps of dynamics.dt = {dt:g}: at most "
+            f"{MAX_STEPS:.0e} (a trip that has not settled by then is not told apart by a longer window)"
         )
     for t in np.atleast_1d(t_clear):
         if not (0 <= t < math.inf):
@@ -208,6 +216,10 @@ def _integrate(
     :func:`antisync.kernels.trip.trip_batch`'s: ``rk4`` at the fixed step ``dt``, or ``rodas4``
     under ``rtol``, ``atol`` from the first step ``dt``."""
     _check(grid, t_clear, t_max, dt)
+    if integrator == "rodas4" and not (MIN_TOLERANCE <= min(rtol, atol) and max(rtol, atol) < 1):
+        raise GridError(
+            f"rodas4's rtol and atol must be in [{MIN_TOLERANCE:g}, 1), got {rtol:g} and {atol:g}"
+        )
     try:
         simulate = trip_simulator(integrator)
     except ConfigError as exc:
@@ -286,6 +298,9 @@ CCT_SCAN = 0.01
 
 #: Coarse scan points integrated per line at a time (a line stops at its first failure).
 _SCAN_CHUNK = 8
+
+#: The most steps of ``dt`` a trip's window after the trip may hold (``--t-max / dt``).
+MAX_STEPS = 1e7
 
 #: Trips per task: the unit of the progress bar, of the journal (``--out``'s ``.partial``
 #: folder) and of a Dask task.
@@ -558,6 +573,14 @@ def plan_trips(grid: Grid, lines=None, contingencies=None):
         whole_bridge = [row for row in rows if row[1] in bridges and row[2] == 1.0]
         skipped = [(grid.labels[a], grid.labels[b]) for _, (a, b), _ in whole_bridge]
         rows = [row for row in rows if row not in whole_bridge]
+        if not rows:
+            names = ", ".join(
+                f"{label} ({u}-{v})" for (label, _, _), (u, v) in zip(whole_bridge, skipped, strict=True)
+            )
+            raise GridError(
+                f"every contingency asked for opens a bridge whole ({names}): the islands could not share "
+                "a frequency, so there is no trip to integrate"
+            )
         names = [label for label, _, _ in rows]
         todo = [line for _, line, _ in rows]
         shares = np.array([share for _, _, share in rows])
@@ -592,6 +615,8 @@ def check_finished_trips(path, grid: Grid, plan, settings: dict) -> None:
     theirs = {k: doc.get(k) for k in ("grid", *settings)}
     changes = key_changes(theirs, {"grid": grid.name, **settings})
     changes = [] if changes == "no key differs" else [changes]
+    if doc.get("work") != _grid_digest(grid):
+        changes.append("the grid's data (its couplings, injections, inertia or damping as built)")
     if stored != asked:
         changes.append(f"trips: {len(stored)} in the table, {len(asked)} asked, not the same")
     if changes:
@@ -732,8 +757,26 @@ def trip_report(
         "cct_scan": cct_scan if cct else None,
         "contingencies": contingencies is not None,
         "bridges_skipped": [list(map(str, b)) for b in skipped],
+        "work": _grid_digest(grid),
         "lines": rows,
         "network": network_record(grid),
+    }
+
+
+#: The trip table's format version: 2 since its times count from the trip, its criterion has
+#: the g_i condition and its CCT is the scan's (1: tables before, read as they are).
+FORMAT_VERSION = 2
+
+
+def provenance(command: str = "") -> dict:
+    """What a trip table's file records of where it came from, as the other results do: the
+    format version, antisync's version, the git revision, the command and the time."""
+    return {
+        "format_version": FORMAT_VERSION,
+        "version": __version__,
+        "git_revision": git_revision(),
+        "command": command,
+        "written": now(),
     }
 
 

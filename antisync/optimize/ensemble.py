@@ -208,8 +208,15 @@ def make_problem(
         start.append(float(data.get("weight", 1.0)))
     existing = {tuple(p) for p in links}
     cost = [1.0] * len(links)
+    named = {}
     for item in candidates:
         pair = _candidate_pair(item, index)
+        if pair in named:
+            raise ConfigError(
+                f"design.candidates: {item!r} names the same link as {named[pair]!r}; give each "
+                "candidate once"
+            )
+        named[pair] = item
         if pair in existing:
             raise ConfigError(
                 f"design.candidates: {item!r} is already a link of the graph; candidates are "

@@ -16,6 +16,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
+import yaml
 from tqdm.auto import tqdm
 
 from antisync.errors import StoreError
@@ -27,6 +28,7 @@ from antisync.plan.config import Config
 from antisync.status import SYNCED
 from antisync.store.design_file import check_design_target, read_design, write_design
 from antisync.store.lock import writer_lock
+from antisync.store.outputs import config_inputs
 
 __all__ = ["baselines", "run_design", "sensitivity"]
 
@@ -77,14 +79,14 @@ def run_design(
 ) -> Path:
     """Run the design of ``config`` and ``spec`` into ``spec.output``; return its path."""
     path = Path(spec.output)
-    check_design_target(path, resume=resume, overwrite=overwrite)
+    problem = spec.problem(config)  # its refusals (candidates, bounds) before the file's
+    check_design_target(path, resume=resume, overwrite=overwrite, protect=config_inputs(config))
     with writer_lock(path):
-        return _run(config, spec, path, resume, progress, threads, log)
+        return _run(config, spec, problem, path, resume, progress, threads, log)
 
 
-def _run(config, spec, path, resume, progress, threads, log) -> Path:
+def _run(config, spec, problem, path, resume, progress, threads, log) -> Path:
     settings = spec.settings
-    problem = spec.problem(config)
     config_text = config.to_yaml()
     record = {
         "config": config_text,
@@ -104,7 +106,9 @@ def _run(config, spec, path, resume, progress, threads, log) -> Path:
     }
     if resume and path.exists():
         old = read_design(path)
-        if old["config"] != config_text or old["design"] != json.loads(json.dumps(spec.to_dict())):
+        if _work(old["config"]) != _work(config_text) or old["design"] != json.loads(
+            json.dumps(spec.to_dict())
+        ):
             raise StoreError(
                 f"{path} was written by a different design config; --resume continues only the "
                 "same config (use --overwrite to start again, or another design.output)"
@@ -120,7 +124,10 @@ def _run(config, spec, path, resume, progress, threads, log) -> Path:
     if "baselines" not in record:
         log("exact spectral baselines (uniform, lambda2, resistance) ...")
         record["baselines"] = baselines(problem)
+    # the baselines in the order they are made (a file read back lists them alphabetically)
+    made = ("uniform", "lambda2", "resistance", "graph")
     base = record["baselines"]
+    base = {k: base[k] for k in sorted(base, key=lambda k: made.index(k) if k in made else len(made))}
     if spec.objective == "tau":
         if state is None:
             if spec.start == "graph" and not problem.budget.contains(problem.start):
@@ -143,6 +150,16 @@ def _run(config, spec, path, resume, progress, threads, log) -> Path:
     record["complete"] = True
     write_design(path, record)
     return path
+
+
+#: Config keys that say where a design runs, not what it computes: a resume may change them.
+WHERE_KEYS = ("threads", "executor", "backend")
+
+
+def _work(config_text: str) -> dict:
+    """A design's stored config without :data:`WHERE_KEYS`: what a ``--resume`` compares."""
+    d = yaml.safe_load(config_text)
+    return {k: v for k, v in d.items() if k not in WHERE_KEYS} if isinstance(d, dict) else {"config": d}
 
 
 def _state_of(stored: dict | None) -> State | None:

@@ -115,6 +115,11 @@ _GRAPH_KEYS = {
 _GRAPH_FILE_KINDS = ("edgelist", "graphml", "gml")
 
 
+#: The smallest ``dynamics.rtol`` / ``atol``: a few hundred float64 epsilons (a step's error
+#: estimate is itself a difference of O(1) numbers; at 1e-15 the step size collapsed).
+MIN_TOLERANCE = 1e-12
+
+
 @dataclass(frozen=True)
 class Dynamics:
     """Model and integrator (paper Eqs. 2, 20; Sec. 3: Euler, dt = 0.001, r = 0.99)."""
@@ -158,6 +163,11 @@ class Dynamics:
             value = positive(f"dynamics.{key}", value)
             if value >= 1.0:
                 raise ConfigError(f"dynamics.{key} must be below 1 (a tolerance), got {value:g}")
+            if value < MIN_TOLERANCE:
+                raise ConfigError(
+                    f"dynamics.{key} = {value:g} is below what float64 steps can deliver: give at least "
+                    f"{MIN_TOLERANCE:g} (1e-4 to 1e-8 are usual)"
+                )
             object.__setattr__(self, key, value)
         object.__setattr__(self, "dt", positive("dynamics.dt", self.dt))
         object.__setattr__(self, "t_max", positive("dynamics.t_max", self.t_max))

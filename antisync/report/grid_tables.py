@@ -16,6 +16,7 @@ from pathlib import Path
 
 from antisync.grids.errors import GridError
 from antisync.grids.removal_file import FORMAT as REMOVAL_FORMAT
+from antisync.grids.removal_table import audit_line
 from antisync.grids.trip import FORMAT as TRIP_FORMAT
 from antisync.grids.trip import format_trips
 from antisync.report.removal import removal_doc, removal_figure, resolved, trip_figure
@@ -85,6 +86,13 @@ def trip_doc(path: str | Path) -> dict:
         for key in (*_TRIP_ROW_KEYS, *(("cct",) if cct else ())):
             if key not in row:
                 refuse(f"row {k} lacks {key!r}")
+        for key in ("settle_time", "max_frequency", "max_angle", *(("cct",) if cct else ())):
+            value = row[key]
+            if value is not None and (isinstance(value, bool) or not isinstance(value, int | float)):
+                refuse(f"row {k}'s {key} is {value!r:.40}, not a number")
+        for key in ("settles", "post_locked"):
+            if not isinstance(row[key], bool):
+                refuse(f"row {k}'s {key} is {row[key]!r:.40}, not true or false")
         if row["settle_time"] is None:  # nan, written as null
             row["settle_time"] = math.nan
     net = doc.get("network")
@@ -93,7 +101,23 @@ def trip_doc(path: str | Path) -> dict:
             "no 'network' with nodes, links and inertia (a table written before it kept one: draw it "
             "with antisync grid CONFIG --trip --figure)"
         )
+    if len(net["inertia"]) != len(net["nodes"]):
+        refuse(f"its network has {len(net['nodes'])} nodes but {len(net['inertia'])} inertia values")
+    if doc.get("format_version", 1) not in (1, 2):
+        refuse(f"format_version {doc['format_version']!r} is not one this antisync reads (1 or 2)")
     return doc
+
+
+def _give_up_words(summary: dict) -> str:
+    """What a removal table's summary says of ``sync.give_up`` (nothing without the rule)."""
+    gave0, gave = summary.get("gave_up0") or 0, summary.get("gave_up") or 0
+    audit = summary.get("give_up_audit")
+    if not (gave0 or gave or audit):
+        return ""
+    text = (
+        f" Stopped by sync.give_up (counted as not synchronized): {gave0} intact, {gave} after the changes."
+    )
+    return text + (f" {audit_line(audit)}." if audit else "")
 
 
 def _removal_markdown(doc: dict) -> str:
@@ -108,7 +132,7 @@ def _removal_markdown(doc: dict) -> str:
         f"{'; ' + s['starts'] if 'starts' in s else ''}): intact "
         f"P_sync = {s['p_sync']:.4f} [{lo:.4f}, {hi:.4f}], tau0 = {tau0:.3f}; {s['lines']} lines. "
         "T: troublemaker (P_sync lost), B: Braess line, slower: tau rises (resolved at false "
-        f"discovery rate {doc.get('fdr_level', 0.05):g} over the lines).",
+        f"discovery rate {doc.get('fdr_level', 0.05):g} over the lines).{_give_up_words(s)}",
         "",
         "| line | P_sync after | lost | gained | d P_sync | d tau +- se | tau0/tau +- se | mark |",
         "|---|---|---|---|---|---|---|---|",

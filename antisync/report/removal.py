@@ -210,6 +210,14 @@ def _check_doc(doc: dict, where: str) -> dict:
                 f"row {row['label']} has n = {row['n']}, beta = {row['beta']}; the summary says "
                 f"{summary['realizations']} realizations, beta = {summary['beta']}"
             )
+    for key in ("gave_up0", "gave_up"):  # sync.give_up's counts (tables before it lack them)
+        if key in summary and not (summary[key] is None or (_is_int(summary[key]) and summary[key] >= 0)):
+            refuse(f"summary.{key} is {summary[key]!r:.40}, not a count")
+    audit = summary.get("give_up_audit")
+    if audit is not None and not (
+        isinstance(audit, dict) and all(_is_int(audit.get(k)) for k in ("sampled", "locked", "rerun"))
+    ):
+        refuse("summary.give_up_audit is not sync.give_up's audit (sampled, locked and rerun counts)")
     if summary["lines"] != len(rows):
         refuse(f"summary.lines is {summary['lines']} but it has {len(rows)} rows")
     for key in ("sync_called", "tau_called"):

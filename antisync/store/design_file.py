@@ -30,6 +30,7 @@ import h5py
 import numpy as np
 
 from antisync.errors import StoreError
+from antisync.store.outputs import check_output_path
 
 __all__ = ["FORMAT", "check_design_target", "is_design_file", "read_design", "write_design"]
 
@@ -49,19 +50,30 @@ def is_design_file(path: str | Path) -> bool:
         return False
 
 
-def check_design_target(path: str | Path, *, resume: bool, overwrite: bool) -> None:
-    """Refuse to start on an existing file without ``--resume`` or ``--overwrite``, and a
-    ``--resume`` of a file that is not a design file."""
-    path = Path(path)
-    if path.is_dir():
-        raise StoreError(f"{path} is a folder: give design.output a file path ending in .h5")
+def check_design_target(path: str | Path, *, resume: bool, overwrite: bool, protect=()) -> None:
+    """``design.output`` checked before any work by antisync's one output policy
+    (:func:`antisync.store.outputs.check_output_path`, as runs and grid tables): an ``.h5``
+    path in an existing folder, no link, no input of the run (``protect``: the config and the
+    files it reads), and an existing file replaced (``--overwrite``) or continued
+    (``--resume``) only when it is a design file; a ``--resume`` of a damaged design file is
+    refused before anything runs."""
+    path = check_output_path(
+        path,
+        option="design.output",
+        suffixes=(".h5",),
+        hint="a design is written as HDF5; give design.output a path ending in .h5",
+        overwrite=True,  # an existing design file: --resume or --overwrite, below
+        replaceable=lambda p: None if is_design_file(p) else "not a design file",
+        kind="an antisync design file (HDF5 that antisync design wrote)",
+        protect=protect,
+    )
     if path.exists() and not (resume or overwrite):
         raise StoreError(
             f"{path} exists: continue it with --resume, replace it with --overwrite, or choose "
             "another design.output"
         )
     if resume and path.exists():
-        read_design(path)  # a foreign or broken file is refused before anything runs
+        read_design(path)  # a broken design file is refused before anything runs
 
 
 def write_design(path: str | Path, record: dict) -> None:
@@ -95,7 +107,7 @@ def write_design(path: str | Path, record: dict) -> None:
                 st.create_dataset(key, data=np.asarray(state[key], dtype=float))
             for key in ("iteration", "step", "stall", "period_count", "done", "reason"):
                 st.attrs[key] = state[key]
-        base = f.create_group("baselines")
+        base = f.create_group("baselines", track_order=True)
         for name, x in record.get("baselines", {}).items():
             base.create_dataset(name, data=np.asarray(x, dtype=float))
         ver = record.get("verification")
@@ -127,6 +139,12 @@ def read_design(path: str | Path) -> dict:
             raise StoreError(
                 f"{path} is not a design file (written by `antisync design`); "
                 "for a run's file use antisync summary / report"
+            )
+        version = f.attrs.get("version")
+        if version != VERSION:
+            raise StoreError(
+                f"{path} is a design file of format version {version}; this antisync reads version "
+                f"{VERSION} (run the design again with this antisync, or read it with the one that wrote it)"
             )
         try:
             out = {
