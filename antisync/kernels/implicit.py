@@ -69,7 +69,9 @@ __all__ = [
     "simulate_model",
     "speed_rates",
     "trip_band",
+    "trip_rates",
     "trip_swing",
+    "trip_switch",
 ]
 
 #: The default tolerances of ``dynamics.rtol`` / ``dynamics.atol``.
@@ -762,6 +764,27 @@ def trip_swing(p_th, p_f, p_acc, th, f, acc, step, indptr, indices, line, max_f,
 
 
 @njit(cache=True, inline="always")
+def trip_rates(cy, sy, f_th, f_nu, eq, second, gamma, acc, work):
+    """At a trip's state (``cy``, ``sy`` its cosines and sines, ``f_th``, ``f_nu`` its rates on
+    the weights of ``eq``): the frequency criterion's deviations into ``work``
+    (:func:`~antisync.kernels.core.make_model_kernels`' ``deviations``) and the speeds' rates
+    into ``acc`` (:func:`speed_rates`; ``gamma`` 1 in a first-order model)."""
+    _, w, indptr, indices, _, _, mass, _ = eq
+    _deviations(cy, sy, f_th, f_nu, eq, second, work)
+    speed_rates(cy, sy, f_th, f_nu, indptr, indices, w, mass, gamma, acc)
+
+
+@njit(cache=True, inline="always")
+def trip_switch(work, n, second, tol, t, settle):
+    """The settling clock where a trip's configuration starts (the fault at ``t = 0``, the trip
+    at its clearing time), from the deviations of the state at ``t`` on the new weights: ``nan``
+    when one is out of the band, else the time from which they have been in it."""
+    if _largest_deviation(work, n, 2 if second else 1, 0.0, False, 1.0) >= tol:
+        return np.nan
+    return t if settle != settle else settle
+
+
+@njit(cache=True, inline="always")
 def trip_band(work, n, second, t_prev, step, tol, settle):
     """The settling clock of a trip after one step: the frequency criterion of ``sync: {criterion:
     frequency}`` (every ``theta_i' - mean`` and, with inertia, every ``g_i - mean g`` within
@@ -828,10 +851,8 @@ def rodas4_trip(th0, grid, w_fault, w_post, t_clear, t_end, h0, tols, plan, line
     eq = (p, w, indptr, indices, 1.0, 0.0, mass, gamma)
     net = (eq, gamma_eff, second)
     _eval(y_th, y_nu, cy, sy, eq, second, f0_th, f0_nu)
-    _deviations(cy, sy, f0_th, f0_nu, eq, second, work)
-    speed_rates(cy, sy, f0_th, f0_nu, indptr, indices, w, mass, gamma_eff, acc)
-    rows = 2 if second else 1
-    settle = 0.0 if _largest_deviation(work, n, rows, 0.0, False, 1.0) < tol else np.nan
+    trip_rates(cy, sy, f0_th, f0_nu, eq, second, gamma_eff, acc, work)
+    settle = trip_switch(work, n, second, tol, 0.0, np.nan)
     max_f = 0.0  # over the accepted steps' interpolants, which hold their ends
     max_a = 0.0
     scale = _row_scale(indptr, w_post)
@@ -866,8 +887,7 @@ def rodas4_trip(th0, grid, w_fault, w_post, t_clear, t_end, h0, tols, plan, line
         step = t - t_prev
         _copy_rows(work, DEV_PREV_ROW, DEV_ROW, 4)
         _eval(y_th, y_nu, cy, sy, eq, second, f0_th, f0_nu)
-        _deviations(cy, sy, f0_th, f0_nu, eq, second, work)
-        speed_rates(cy, sy, f0_th, f0_nu, indptr, indices, w, mass, gamma_eff, acc)
+        trip_rates(cy, sy, f0_th, f0_nu, eq, second, gamma_eff, acc, work)
         max_f, max_a = trip_swing(
             p_th, p_f, p_acc, y_th, f0_th, acc, step, indptr, indices, line, max_f, max_a
         )
@@ -884,12 +904,8 @@ def rodas4_trip(th0, grid, w_fault, w_post, t_clear, t_end, h0, tols, plan, line
             net = (eq, gamma_eff, second)
             end = t_end
             _eval(y_th, y_nu, cy, sy, eq, second, f0_th, f0_nu)
-            _deviations(cy, sy, f0_th, f0_nu, eq, second, work)
-            speed_rates(cy, sy, f0_th, f0_nu, indptr, indices, w, mass, gamma_eff, acc)
-            if _largest_deviation(work, n, rows, 0.0, False, 1.0) >= tol:
-                settle = np.nan
-            elif settle != settle:
-                settle = t
+            trip_rates(cy, sy, f0_th, f0_nu, eq, second, gamma_eff, acc, work)
+            settle = trip_switch(work, n, second, tol, t, settle)
             h = h0
             err_prev = 1.0
         h = min(h, _near_step(work, n, second, tol))

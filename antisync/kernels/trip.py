@@ -32,7 +32,14 @@ from numba import njit, prange
 
 from antisync import _numba_cache  # noqa: F401 -- before any cache=True function (see there)
 from antisync.kernels.core import DEV_PREV_ROW, DEV_ROW, WORK_ROWS
-from antisync.kernels.implicit import plan_of_pattern, rodas4_trip, speed_rates, trip_band, trip_swing
+from antisync.kernels.implicit import (
+    plan_of_pattern,
+    rodas4_trip,
+    trip_band,
+    trip_rates,
+    trip_swing,
+    trip_switch,
+)
 from antisync.kernels.model_steps import MK
 from antisync.kernels.shared import Threads
 
@@ -44,8 +51,6 @@ INTEGRATORS = ("rk4", "rodas4")
 
 _rhs = MK.rhs
 _rk4_step = MK.rk4_step
-_deviations = MK.deviations
-_largest_deviation = MK.largest_deviation
 _copy_rows = MK.copy_rows
 
 
@@ -76,7 +81,6 @@ def rk4_trip(th0, grid, w_fault, w_post, t_clear, t_end, dt, tol, line, out):
     p_c = np.empty(n)
     p_s = np.empty(n)
     work = np.zeros((WORK_ROWS, n))
-    rows = 2 if second else 1
     fault = t_clear > 0.0
     settle = np.nan
     max_f = 0.0
@@ -90,12 +94,8 @@ def rk4_trip(th0, grid, w_fault, w_post, t_clear, t_end, dt, tol, line, out):
         eq = (p, w, indptr, indices, 1.0, 0.0, mass, gamma)
         # the rates at this state in the configuration that holds from it on
         _rhs(c, s, nu, eq, second, th, dnu)
-        _deviations(c, s, th, dnu, eq, second, work)
-        speed_rates(c, s, th, dnu, indptr, indices, w, mass, gamma, acc)
-        if _largest_deviation(work, n, rows, 0.0, False, 1.0) >= tol:
-            settle = np.nan
-        elif settle != settle:
-            settle = t
+        trip_rates(c, s, th, dnu, eq, second, gamma, acc, work)
+        settle = trip_switch(work, n, second, tol, t, settle)
         t0 = t
         length = t_clear if phase == 0 else t_end - t_clear
         steps = max(1, int(math.ceil(length / dt - 1e-9)))
@@ -114,8 +114,7 @@ def rk4_trip(th0, grid, w_fault, w_post, t_clear, t_end, dt, tol, line, out):
             t_prev = t
             t = t0 + (k + 1) * dt if k < steps - 1 else t0 + length
             _rhs(c, s, nu, eq, second, th, dnu)
-            _deviations(c, s, th, dnu, eq, second, work)
-            speed_rates(c, s, th, dnu, indptr, indices, w, mass, gamma, acc)
+            trip_rates(c, s, th, dnu, eq, second, gamma, acc, work)
             max_f, max_a = trip_swing(
                 p_u, p_f, p_acc, u, th, acc, t - t_prev, indptr, indices, line, max_f, max_a
             )
