@@ -186,7 +186,7 @@ def test_cli_design_writes_a_resumable_file_and_its_figures(tmp_path):
         ("objective: speed", "design.objective"),
         ("upper: 0.01", "design.upper"),
         ("colour: red", "design.colour"),
-        ("start: best", "design.start"),
+        ("start: worst", "design.start"),
     ],
 )
 def test_bad_design_input_is_one_line_exit_2_and_touches_nothing(tmp_path, change, message):
@@ -344,3 +344,21 @@ def test_summary_and_report_read_design_files_and_refuse_another_version(tmp_pat
         res = CliRunner().invoke(app, cmd)
         assert res.exit_code == 2 and "format version 99" in res.output, res.output
     assert not (tmp_path / "rep").exists()
+
+
+def test_the_default_start_is_the_best_baseline_on_validation_starts(tmp_path):
+    """``design.start: best`` (the default): the descent starts from the baseline with the
+    smallest mean tau on the validation starts, named in the log with every baseline's mean; the
+    first iterate is that baseline's weights."""
+    out = tmp_path / "d.h5"
+    cfg = _write_design_config(tmp_path, out)
+    res = CliRunner().invoke(app, ["design", cfg, "--no-figures"])
+    assert res.exit_code == 0, res.output
+    line = next(x for x in res.output.splitlines() if x.startswith("design.start best: "))
+    means = dict(
+        part.rsplit(" ", 1) for part in line.split("(mean tau on 200 validation starts: ")[1][:-1].split(", ")
+    )
+    pick = line.split()[2]
+    assert pick == min(means, key=lambda k: float(means[k]))
+    rec = read_design(out)
+    assert np.allclose(rec["iterations"][0]["x"], rec["baselines"][pick])

@@ -196,6 +196,61 @@ def test_karate_normalized_lambda2():
     assert result.value == pytest.approx(np.max(result.history), rel=1e-12)
 
 
+def test_karate_normalized_lambda2_at_lower_0_reaches_the_lower_005_optimum():
+    """At ``lower: 0`` the plain ascent stalled at 0.250 where a leaf's link went to 0; the set
+    holds the ``lower: 0.05`` optimum (>= 0.662), which the continuation reaches and passes."""
+    n, links = karate()
+    at_0 = design_normalized_lambda2(n, links, Budget.of(78, len(links)))
+    at_005 = design_normalized_lambda2(n, links, Budget.of(78, len(links), lo=0.05))
+    assert at_005.value >= 0.662 and at_0.value >= at_005.value
+    assert Budget.of(78, len(links)).contains(at_0.x) and np.isnan(at_0.bound)
+    assert at_0.value == pytest.approx(normalized_lambda2(n, links, at_0.x)[0], rel=1e-12)
+
+
+def _dense_normalized(n, links, total, parts):
+    """An independent search: normalized lambda_2 at every point of the budget simplex on a grid
+    of ``total / parts`` (every composition of ``parts`` into the links), dense eigenvalues."""
+    import itertools
+
+    size = len(links)
+    cuts = np.array(list(itertools.combinations(range(parts + size - 1), size - 1)))
+    edges = np.concatenate([-np.ones((len(cuts), 1)), cuts, np.full((len(cuts), 1), parts + size - 1)], 1)
+    x = (np.diff(edges, axis=1) - 1) * total / parts
+    w = np.zeros((len(x), n, n))
+    for k, (a, b) in enumerate(links):
+        w[:, a, b] = w[:, b, a] = x[:, k]
+    degree = w.sum(axis=2)
+    keep = (degree > 0).all(axis=1)
+    s = 1 / np.sqrt(degree[keep])
+    lam = np.linalg.eigvalsh(np.eye(n)[None] - s[:, :, None] * w[keep] * s[:, None, :])[:, 1]
+    return float(lam.max())
+
+
+@pytest.mark.parametrize("graph", ["lollipop", "bull", "house", "path"])
+def test_normalized_lambda2_at_lower_0_beats_a_dense_search_and_every_positive_bound(graph):
+    """Small graphs at ``lower: 0``: the design is at least the best point of an independent dense
+    search of the whole budget set (grid 1/30 of the budget) and at least the design at a positive
+    lower bound (a subset). At ``lower: 0`` the supremum is approached as leaf links vanish (on the
+    path P5, lambda_2 -> 1 as its end links -> 0: the ends follow their neighbours at full
+    normalized strength, unheard), so no maximum is attained and the design is a best point."""
+    g = {
+        "lollipop": nx.lollipop_graph(3, 3),
+        "bull": nx.bull_graph(),
+        "house": nx.house_graph(),
+        "path": nx.path_graph(5),
+    }[graph]
+    n = g.number_of_nodes()
+    links = np.array(sorted((min(u, v), max(u, v)) for u, v in g.edges()))
+    total = float(len(links))
+    result = design_normalized_lambda2(n, links, Budget.of(total, len(links)))
+    assert result.value >= _dense_normalized(n, links, total, 30) - 1e-9
+    assert (
+        result.value >= design_normalized_lambda2(n, links, Budget.of(total, len(links), lo=0.1)).value - 1e-9
+    )
+    if graph == "path":
+        assert 0.98 < result.value <= 1.0
+
+
 # --- resistance ------------------------------------------------------------------------------
 
 

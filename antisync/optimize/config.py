@@ -12,7 +12,7 @@ with a ``design:`` section. Every key, its default and what it means: docs/desig
       lower: 0.05             # per-link bounds (0 lets a link be removed)
       upper: null
       candidates: []          # links to add: ["0-9", ...], each at cost candidate_cost
-      start: lambda2          # graph | uniform | lambda2 | resistance
+      start: best             # best (baseline on validation starts) | graph | uniform | lambda2 | resistance
       iterations: 200
       starts: 256
 """
@@ -37,7 +37,7 @@ second eigenvalue of the Laplacian the dynamics couple through (normalized for n
 coupling), maximized; ``resistance``: the total effective resistance of the weighted
 Laplacian, minimized (exact spectral designs, no simulation)."""
 
-STARTS = ("graph", "uniform", "lambda2", "resistance")
+STARTS = ("best", "graph", "uniform", "lambda2", "resistance")
 
 
 @dataclass(frozen=True)
@@ -50,7 +50,7 @@ class DesignSpec:
     upper: float = math.inf
     candidates: tuple = ()
     candidate_cost: float = 1.0
-    start: str = "lambda2"
+    start: str = "best"
     settings: Settings = Settings()
     output: str = ""
 
@@ -126,7 +126,7 @@ def design_from_mapping(raw: dict, source: Path | None = None) -> tuple[Config, 
 def _spec(section: dict) -> DesignSpec:
     objective = section.get("objective", "tau")
     choice("design.objective", objective, OBJECTIVES)
-    start = section.get("start", "lambda2")
+    start = section.get("start", "best")
     choice("design.start", start, STARTS)
     budget = section.get("budget")
     if budget is not None:

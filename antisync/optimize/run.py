@@ -23,7 +23,7 @@ from antisync.errors import StoreError
 from antisync.optimize import spectral
 from antisync.optimize.config import DesignSpec
 from antisync.optimize.descent import State, run_descent, stream_seed, verify
-from antisync.optimize.ensemble import Problem, sample
+from antisync.optimize.ensemble import Problem, evaluate, sample
 from antisync.plan.config import Config
 from antisync.status import SYNCED
 from antisync.store.design_file import check_design_target, read_design, write_design
@@ -135,7 +135,10 @@ def _run(config, spec, problem, path, resume, progress, threads, log) -> Path:
                     "design.start graph: the graph's own weights are outside the budget set "
                     "(budget or bounds); start from uniform, lambda2 or resistance"
                 )
-            state = State.first(problem.start if spec.start == "graph" else base[spec.start], settings)
+            first = spec.start
+            if first == "best":
+                first = _best_start(problem, base, settings, threads, log)
+            state = State.first(problem.start if first == "graph" else base[first], settings)
         state = _descend(problem, state, settings, record, path, progress, threads)
         designed = state.best
         record["reason"] = state.reason
@@ -150,6 +153,21 @@ def _run(config, spec, problem, path, resume, progress, threads, log) -> Path:
     record["complete"] = True
     write_design(path, record)
     return path
+
+
+def _best_start(problem, base: dict, settings, threads, log) -> str:
+    """``design.start: best``: the baseline with the smallest mean tau on ``check_starts``
+    starts of the validation stream (the one the descent's checks use; the final comparison's
+    fresh starts are another), so that a poor baseline cannot trap the descent."""
+    names = list(base)
+    ks = np.arange(settings.check_starts, dtype=np.uint64)
+    seed = stream_seed(problem.config.seed, "validation")
+    tau, _ = evaluate(problem, [base[k] for k in names], seed, ks, threads)
+    means = tau.mean(axis=1)
+    pick = names[int(np.argmin(means))]
+    shown = ", ".join(f"{k} {m:.4g}" for k, m in zip(names, means, strict=True))
+    log(f"design.start best: {pick} (mean tau on {ks.size} validation starts: {shown})")
+    return pick
 
 
 #: Config keys that say where a design runs, not what it computes: a resume may change them.

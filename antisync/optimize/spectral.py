@@ -382,15 +382,15 @@ def design_normalized_lambda2(
     budget : Budget
         The feasible set over the ``L`` links.
     max_iter : int
-        Number of ascent steps.
+        Number of ascent steps of each stage (below).
     step : float
-        Length of the first step, in units of ``|x0|`` (``x0 = budget.uniform()``, the start).
+        Length of each stage's first step, in units of ``|x0|`` (``x0 = budget.uniform()``).
 
     Returns
     -------
     SpectralDesign
-        The best iterate; ``bound`` is ``nan`` (the objective is not concave: nothing is
-        certified, and the result is a local improvement).
+        The best point of every stage; ``bound`` is ``nan`` (the objective is not concave:
+        nothing is certified, and the result is a local improvement, the best found).
 
     Notes
     -----
@@ -398,15 +398,44 @@ def design_normalized_lambda2(
     :func:`normalized_lambda2` and ``P`` the projection onto the set, with the diminishing,
     non-summable steps ``s_k = step |x0| / sqrt(k + 1)`` (N. Z. Shor, *Minimization Methods
     for Non-Differentiable Functions*, Springer 1985, Ch. 2); the best iterate is kept. The
-    method is slow (the optimum is typically a multiple eigenvalue, where the function is
-    not differentiable): expect hundreds of steps.
+    optimum is typically a multiple eigenvalue, where the function is not differentiable.
+
+    **The boundary where a degree vanishes.** At ``lo = 0`` the ascent from ``x0`` drives a
+    leaf's only link towards 0, where its degree and the normalized Laplacian are undefined, and
+    it stalls there (the karate club at ``lower: 0``: 0.250, while the optimum at ``lower: 0.05``,
+    0.662, is feasible). So the ascent runs in stages on the **continuation** of the lower
+    bounds ``lo_k = max(lo, f_k x0)``, ``f_k`` = :data:`CONTINUATION` down to 0, each stage
+    started from the last one's best: every stage's set lies inside the given one, so every
+    iterate is feasible, and a weight reaches 0 only in the last stages, from a point where the
+    other links already carry the leaf's node. A first stage at the given bounds from ``x0``
+    (the plain ascent) is kept too; the result is the best point of all stages.
     """
     a, b = _check_design(n, links, budget)
-    x = budget.uniform()
+    x0 = budget.uniform()
+    scale = step * float(np.linalg.norm(x0))
+    best_x, best, history = _ascend(n, a, b, budget, x0, max_iter, scale)
+    x = x0
+    for f in CONTINUATION:
+        lo = np.maximum(budget.lo, f * x0)
+        stage = Budget(budget.total, budget.cost, lo, np.maximum(budget.hi, lo))
+        x, value, part = _ascend(n, a, b, stage, project(x, stage), max_iter, scale)
+        history = np.concatenate([history, part])
+        if value > best:
+            best_x, best = x, value
+    return SpectralDesign(best_x, float(best), float("nan"), len(history) - 1, history)
+
+
+#: The stages of :func:`design_normalized_lambda2`'s continuation: each stage's lower bounds
+#: are these fractions of the uniform point's weights (and at least the given ones).
+CONTINUATION = (0.5, 0.2, 0.1, 0.05, 0.02, 0.01, 0.0)
+
+
+def _ascend(n, a, b, budget: Budget, x, max_iter: int, scale: float):
+    """Projected supergradient ascent of :func:`normalized_lambda2` from ``x`` (feasible):
+    ``(best x, best value, values)``."""
     value, grad = _normalized(n, a, b, x)
     best_x, best = x, value
     history = [value]
-    scale = step * float(np.linalg.norm(x))
     for k in range(max_iter):
         norm = float(np.linalg.norm(grad))
         if norm == 0.0:  # a stationary point (or an isolated node at the start)
@@ -419,7 +448,7 @@ def design_normalized_lambda2(
         x, grad = trial, trial_grad
         if value > best:
             best_x, best = x, value
-    return SpectralDesign(best_x, float(best), float("nan"), len(history) - 1, np.array(history))
+    return best_x, best, np.array(history)
 
 
 # ---------------------------------------------------------------------------------------------

@@ -60,7 +60,7 @@ def check_design_target(path: str | Path, *, resume: bool, overwrite: bool, prot
     path = check_output_path(
         path,
         option="design.output",
-        suffixes=(".h5",),
+        suffixes=(".h5", ".hdf5"),
         hint="a design is written as HDF5; give design.output a path ending in .h5",
         overwrite=True,  # an existing design file: --resume or --overwrite, below
         replaceable=lambda p: None if is_design_file(p) else "not a design file",
