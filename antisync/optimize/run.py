@@ -35,9 +35,10 @@ __all__ = ["baselines", "run_design", "sensitivity"]
 
 def baselines(problem: Problem) -> dict[str, np.ndarray]:
     """The designs every result is compared with, by name: ``uniform`` (the feasible point
-    nearest equal weights), ``lambda2`` (the exact maximum of lambda_2 of the Laplacian the
-    dynamics couple through: normalized for normalized coupling, by projected ascent; the
-    weighted Laplacian for raw coupling, certified), ``resistance`` (the minimum total effective
+    nearest equal weights), ``lambda2`` (lambda_2 of the Laplacian the dynamics couple through,
+    maximized: for raw coupling the weighted Laplacian's exact maximum, certified; for normalized
+    coupling the best point of a projected ascent with a continuation on the lower bounds,
+    :func:`antisync.optimize.spectral.design_normalized_lambda2`, not certified), ``resistance`` (the minimum total effective
     resistance of the weighted Laplacian) and ``graph`` (the graph's own weights, when they are
     in the budget set)."""
     n, links, budget = problem.n_nodes, problem.links, problem.budget
@@ -122,7 +123,7 @@ def _run(config, spec, problem, path, resume, progress, threads, log) -> Path:
     else:
         state = None
     if "baselines" not in record:
-        log("exact spectral baselines (uniform, lambda2, resistance) ...")
+        log("spectral baselines (uniform, lambda2, resistance) ...")
         record["baselines"] = baselines(problem)
     # the baselines in the order they are made (a file read back lists them alphabetically)
     made = ("uniform", "lambda2", "resistance", "graph")
