@@ -38,9 +38,9 @@ def baselines(problem: Problem) -> dict[str, np.ndarray]:
     nearest equal weights), ``lambda2`` (lambda_2 of the Laplacian the dynamics couple through,
     maximized: for raw coupling the weighted Laplacian's exact maximum, certified; for normalized
     coupling the best point of a projected ascent with a continuation on the lower bounds,
-    :func:`antisync.optimize.spectral.design_normalized_lambda2`, not certified), ``resistance`` (the minimum total effective
-    resistance of the weighted Laplacian) and ``graph`` (the graph's own weights, when they are
-    in the budget set)."""
+    :func:`antisync.optimize.spectral.design_normalized_lambda2`, not certified),
+    ``resistance`` (the minimum total effective resistance of the weighted Laplacian) and
+    ``graph`` (the graph's own weights, when they are in the budget set)."""
     n, links, budget = problem.n_nodes, problem.links, problem.budget
     out = {"uniform": budget.uniform()}
     if problem.coupling_kind == "normalized":
