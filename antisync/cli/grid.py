@@ -321,11 +321,12 @@ def _trip(config, set_, lines, contingencies, t_clear, cct_spec, t_max, where, f
         check_explicit_step(cfg, g)  # the trip's RK4 at dt, checked as `antisync run` checks it
     table = None if contingencies is None else read_contingencies(contingencies, g)
     tolerance = cfg.sync.tolerance if cfg.sync.criterion == "frequency" else 1e-3
-    # the config's rodas4 (a stiff grid's) with its tolerances; any other integrator: RK4 at dt
+    # the config's integrator: rk4 at dt, or rodas4 (a stiff grid's) with its tolerances; the
+    # dispatch table's trip row refuses euler
     dyn = cfg.dynamics
     rtol, atol = dyn.tolerances
     integration = {
-        "integrator": "rodas4" if dyn.integrator == "rodas4" else "rk4",
+        "integrator": dyn.integrator,
         "rtol": rtol,
         "atol": atol,
     }

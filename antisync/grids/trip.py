@@ -192,6 +192,10 @@ def _check(grid: Grid, t_clear, t_max: float, dt: float) -> None:
     for t in np.atleast_1d(t_clear):
         if not (0 <= t < math.inf):
             raise GridError(f"--t-clear must be a finite fault duration >= 0 s, got {t:g}")
+        if t / dt > MAX_STEPS:
+            raise GridError(
+                f"a fault of {t:g} s is {t / dt:.3g} steps of dynamics.dt = {dt:g}: at most {MAX_STEPS:.0e}"
+            )
 
 
 def _integrate(
@@ -298,6 +302,11 @@ CCT_SCAN = 0.01
 
 #: Coarse scan points integrated per line at a time (a line stops at its first failure).
 _SCAN_CHUNK = 8
+
+#: The most faults of a CCT's coarse scan (``cct_max / cct_scan``) and of its fine scan of the
+#: first failing interval (``cct_scan / cct_tol``).
+MAX_SCAN = 1e5
+MAX_FINE = 1000
 
 #: The most steps of ``dt`` a trip's window after the trip may hold (``--t-max / dt``).
 MAX_STEPS = 1e7
@@ -446,6 +455,14 @@ def critical_clearing(
             f"need 0 < cct_tol ({cct_tol:g}) <= cct_scan ({cct_scan:g}) and a finite "
             f"cct_max > 0 ({cct_max:g})"
         )
+    if cct_scan > MAX_FINE * cct_tol or cct_max > MAX_SCAN * cct_scan:
+        raise GridError(
+            f"the CCT scan would hold {cct_max / cct_scan:.3g} faults of {cct_scan:g} s and "
+            f"{cct_scan / cct_tol:.3g} of {cct_tol:g} s in its last interval (at most {MAX_SCAN:.0e} and "
+            f"{MAX_FINE:g}): choose --cct-scan in [{cct_max / MAX_SCAN:.3g}, {MAX_FINE * cct_tol:g}] s "
+            "or a shorter --cct-max"
+        )
+    _check(grid, cct_max, t_max, dt)
     if theta0 is None:
         theta0 = operating_point(grid)
     kw = {"t_max": t_max, "dt": dt, "tolerance": tolerance, "theta0": theta0, "threads": threads}
