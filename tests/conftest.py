@@ -66,3 +66,39 @@ def pytest_xdist_make_scheduler(config, log):
             return path
 
     return ModelFilesTogether(config, log)
+
+
+#: The test suite's time guard: a test whose call runs longer than this (seconds, on two cores
+#: beside the other worker) is named at the end of every run, and one not in :data:`KNOWN_SLOW`
+#: is marked new, so that a contributor sees what a change added to `make test` (the budget of
+#: the whole suite is 8 minutes on two cores: bench/RESULTS.md, "The test suite on two cores").
+#: A name, not a failure: speed is measured in bench/, never asserted in tests.
+SLOW_TEST_BUDGET = 30.0
+
+#: The tests over :data:`SLOW_TEST_BUDGET` in a fresh clone (f4eb863 + 1e39668, 2026-12-05): most
+#: of their time is numba compiling a kernel family the first time a test uses it.
+KNOWN_SLOW = (
+    "tests/test_capabilities.py::test_every_cpu_row_runs",
+    "tests/test_implicit.py::test_a_stiff_grid_matches_rk4_on_the_same_phases",
+    "tests/test_grid_trip.py::test_a_trip_after_a_fault_is_radau_s_integration",
+)
+
+
+def pytest_terminal_summary(terminalreporter, exitstatus, config):
+    """Name the tests over :data:`SLOW_TEST_BUDGET` (the new ones first)."""
+    slow = [
+        (rep.duration, rep.nodeid)
+        for key in ("passed", "failed")
+        for rep in terminalreporter.stats.get(key, [])
+        if getattr(rep, "when", None) == "call" and rep.duration > SLOW_TEST_BUDGET
+    ]
+    if not slow:
+        return
+    new = [(d, n) for d, n in slow if not n.startswith(KNOWN_SLOW)]
+    terminalreporter.write_line(
+        f"{len(slow)} test(s) over the {SLOW_TEST_BUDGET:g} s budget, {len(new)} new "
+        "(tests/conftest.py KNOWN_SLOW lists the known ones):"
+    )
+    for duration, nodeid in sorted(slow, key=lambda t: (t[1].startswith(KNOWN_SLOW), -t[0])):
+        mark = "" if nodeid.startswith(KNOWN_SLOW) else "NEW "
+        terminalreporter.write_line(f"  {mark}{duration:6.1f} s  {nodeid}")
