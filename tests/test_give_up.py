@@ -292,3 +292,25 @@ def test_a_tolerance_below_what_float64_delivers_is_refused_in_one_line(key):
             res.output
         )
         assert len(res.output.strip().splitlines()) == 1
+
+
+def test_a_removal_with_the_rule_on_dask_equals_the_local_table():
+    """With ``sync.give_up`` the tasks are the same on a cluster as here (the audit samples each
+    task's given-up trajectories): a LocalCluster of two workers gives the local table, the
+    audit's counts included, where it would otherwise split the six lines into six tasks."""
+    from helpers import local_cluster_client
+
+    run = dict(
+        lines="1-2,2-3,3-4,4-5,5-6,6-7",
+        realizations=24,
+        dynamics={"integrator": "rodas4", "rtol": 1e-4, "atol": 1e-4, "t_max": 40.0},
+        sync={"criterion": "frequency", "tolerance": 1e-3, "give_up": {"after": 10.0, "band": 1.0}},
+        **{"lambda": {"method": "finite-difference"}},
+    )
+    here = line_removal(CONFIGS / "ieee39_grid.yaml", **run)
+    assert (here.status == GAVE_UP).any() and here.audit["sampled"] > 0
+    with local_cluster_client() as client:
+        there = line_removal(CONFIGS / "ieee39_grid.yaml", client=client, **run)
+    for name in ("status0", "tau0", "status", "tau"):
+        np.testing.assert_array_equal(getattr(there, name), getattr(here, name), err_msg=name)
+    assert there.audit == here.audit

@@ -228,7 +228,10 @@ def line_removal(
     )
     if fixed["give_up"] is not None:
         _pilot(fixed, variants, m, threads, log)
-    groups = -(-len(todo) // LINES_PER_TASK) if client is None else _groups(client, m)
+    # with sync.give_up the tasks are the same on every executor: the audit samples each task's
+    # given-up trajectories, so a cluster's other grouping would audit others (another table)
+    local = client is None or fixed["give_up"] is not None
+    groups = -(-len(todo) // LINES_PER_TASK) if local else _groups(client, m)
     tasks = _plan(m, variants, base=csr.weights, groups=groups)
     done = 0
     have = np.zeros((m, 1 + len(todo)), dtype=bool)  # the trajectories held: intact, then each line
@@ -368,7 +371,9 @@ def _removal_task(ks, variants, intact: bool, fixed: dict, threads):
 def _audited(ks, variants, fixed: dict, threads, st, tau, todo) -> np.ndarray:
     """``sync.give_up``'s audit of a task, in place on its statuses ``st`` and times ``tau``
     (``(ks, 1 + variants)``): a sample of its GAVE_UP trajectories (at least :data:`AUDIT_MIN`
-    and :data:`AUDIT_FRACTION` of them, drawn from the task's seed) integrated to ``t_max``
+    and :data:`AUDIT_FRACTION` of them, drawn from the run's seed and the task's first realization
+    and line: the same on every executor, whose tasks are the same with the rule) integrated to
+    ``t_max``
     without the rule; if one of them locks, every GAVE_UP trajectory of the task is. What is
     integrated again takes its rule-free outcome. Returns ``[sampled, of them locking,
     integrated again]``."""
@@ -377,7 +382,8 @@ def _audited(ks, variants, fixed: dict, threads, st, tau, todo) -> np.ndarray:
     if rows.size == 0:
         return np.zeros(3, dtype=np.int64)
     size = min(rows.size, max(AUDIT_MIN, int(np.ceil(AUDIT_FRACTION * rows.size))))
-    rng = np.random.default_rng([fixed["seed"], int(ks[0]), int(variants.shape[0]), int(cols.min())])
+    first = int(fixed["group"][0]) + 1 if fixed["group"].size else 0
+    rng = np.random.default_rng([fixed["seed"], int(ks[0]), first, int(todo[0, 0])])
     pick = np.zeros(rows.size, dtype=bool)
     pick[rng.choice(rows.size, size=size, replace=False)] = True
 
@@ -446,7 +452,7 @@ def _task_call(task: tuple, variants: np.ndarray, fixed: dict, threads) -> tuple
     ks, group, intact = task
     targets = fixed["setup"].targets
     targets = np.concatenate([targets[:1], targets[1:][group]])
-    return ks, variants[group], intact, {**fixed, "targets": targets}, threads
+    return ks, variants[group], intact, {**fixed, "targets": targets, "group": group}, threads
 
 
 def _unfinished(tasks: list[tuple], have: np.ndarray) -> list[tuple]:
