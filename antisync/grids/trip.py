@@ -674,7 +674,7 @@ def trip_report(
     is skipped and listed.
 
     The trips run in tasks of :data:`TRIPS_PER_TASK` (:func:`_trip_task`, each with its own
-    critical clearing bisection): here on ``threads`` numba threads, or on the Dask cluster of
+    critical clearing scan): here on ``threads`` numba threads, or on the Dask cluster of
     ``client`` (an open ``distributed.Client``; one numba thread per task unless ``threads``
     says otherwise) through :func:`antisync.execution.executors.tasks.map_tasks`, with the same
     rows either way. ``journal`` (a folder: :class:`~antisync.grids.removal_journal.TripJournal`)

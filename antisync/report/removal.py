@@ -684,8 +684,9 @@ def trip_figure(report: dict, grid: Grid | None, path, *, overwrite: bool = Fals
     if lost:
         nx.draw_networkx_edges(g, pos, edgelist=lost, ax=ax, edge_color="k", width=1.2, style="dashed")
     _draw_buses(g, pos, ax, inertia, small)
+    method = "scan" if report.get("format_version", 1) >= 2 else "bisection"  # tables before: bisection
     label = (
-        f"critical clearing time (s; bisection to {report['cct_tol']:g} s, at most {report['cct_max']:g})"
+        f"critical clearing time (s; {method} to {report['cct_tol']:g} s, at most {report['cct_max']:g})"
         if cct
         else "max |theta'| after the trip (rad/s)"
     )
