@@ -758,6 +758,7 @@ def trip_report(
             row["cct_again"] = None if np.isnan(again) else float(again)
     return {
         "format": FORMAT,
+        "format_version": FORMAT_VERSION,
         "grid": grid.name,
         "fault": "none (the line opens)"
         if t_clear is None
