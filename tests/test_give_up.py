@@ -5,6 +5,7 @@ locks by ``t_max`` (on these starts); the refusals; the removal table counts it 
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import numpy as np
@@ -72,7 +73,7 @@ def test_a_slipping_trajectory_ends_at_the_time_given():
         1e-6,
         plan,
     )
-    st, t, *_ = implicit.rodas4_sync(*args)
+    st, t, *_ = implicit.rodas4_sync(*args, False, math.inf, 0.0)
     assert st == NOT_SYNCED and t == 100.0
     st, t, *_ = implicit.rodas4_sync(*args, False, 7.5, 0.5)
     assert st == GAVE_UP and 7.5 <= t < 8.0

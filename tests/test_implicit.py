@@ -93,6 +93,8 @@ def _one(theta0, w, p, mass, gamma, criterion, target, t_max, h, rtol=1e-6, atol
         atol,
         plan,
         fixed,
+        math.inf,
+        0.0,
     )
 
 

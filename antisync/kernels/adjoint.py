@@ -210,7 +210,7 @@ def _euler_adjoint(c, s, acc, ck, seg, lam, lam_new, g, indptr, indices, w, dt, 
     r2_prev = _order2(c, s)
     if r2_prev >= r2_target:
         return ALREADY_SYNCED, 0, 0.0, ck
-    ck = _store(ck, 0, c, s)
+    ck = _store(ck, np.int64(0), c, s)
     k = 0
     r2 = r2_prev
     for step in range(1, max_steps + 1):
@@ -449,7 +449,7 @@ def _rk4_adjoint(c, s, ck, seg, g, indptr, indices, w, dt, r2_target, max_steps,
     _lane_velocity(cl, sl, kv[0], kv[1], dtot, om, sum_c, sum_s, lw, indptr, indices)
     r2[0] = dtot[2, 0] ** 2 + dtot[3, 0] ** 2
     dr2[0] = 2.0 * (dtot[2, 0] * dtot[0, 0] + dtot[3, 0] * dtot[1, 0])
-    ck = _store(ck, 0, c, s)
+    ck = _store(ck, np.int64(0), c, s)
     k = 0
     x = 0.0
     for step in range(1, max_steps + 1):
@@ -461,7 +461,7 @@ def _rk4_adjoint(c, s, ck, seg, g, indptr, indices, w, dt, r2_target, max_steps,
             x = _hermite(r2_prev, dr2_prev, r2[0], dr2[0], dt, r2_target)
             break
         if step % every == 0:
-            ck = _store(ck, step // every, cl[:, 0], sl[:, 0])
+            ck = _store(ck, step // every, cl.ravel(), sl.ravel())  # (n, 1): C views, one _store
     if k == 0:
         return NOT_SYNCED, max_steps, 0.0, ck
     # tau = dt (k - 1 + x), P(x) = target for the Hermite cubic P through (R, D) at k - 1 and k
@@ -600,7 +600,7 @@ def _euler_forward_lanes(c, s, cn, sn, lw, ck, k_lane, x_lane, span_lane, code, 
         x_lane[q] = 0.0
         span_lane[q] = 1.0
         live += _start_lane(q, r2[q], r2_target, max_steps, code, k_lane)
-    ck = _store_lanes(ck, 0, c, s)
+    ck = _store_lanes(ck, np.int64(0), c, s)
     t = 0
     while live > 0 and t < max_steps:
         r2, r2_prev = r2_prev, r2
@@ -936,7 +936,7 @@ def _rk4_forward_lanes(c, s, step_bufs, ck, crossing, net, run):
         x_lane[q] = 0.0
         # the reference asks _order2 (sums in the same order as d2, d3 here)
         live += _start_lane(q, _order2(c[:, q], s[:, q]), r2_target, max_steps, code, k_lane)
-    ck = _store_lanes(ck, 0, c, s)
+    ck = _store_lanes(ck, np.int64(0), c, s)
     t = 0
     while live > 0 and t < max_steps:
         r2, r2_prev = r2_prev, r2

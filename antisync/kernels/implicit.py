@@ -52,7 +52,7 @@ from antisync.kernels.core import CRIT_FREQUENCY, DEV_PREV_ROW, DEV_ROW, WORK_RO
 from antisync.kernels.lanes import item_of
 from antisync.kernels.model_steps import ModelParams
 from antisync.kernels.precision import K64
-from antisync.kernels.shared import SimResult, Threads, model_batch, record_item, share_base
+from antisync.kernels.shared import SimResult, Threads, has_inertia, model_batch, record_item, share_base
 from antisync.physics.phases import start_phase
 from antisync.status import ALREADY_SYNCED, GAVE_UP, NOT_SYNCED, SYNCED
 from antisync.types import RODAS4_ATOL, RODAS4_RTOL
@@ -380,9 +380,7 @@ def _orders(mass, gamma):
     """``(second, gamma_eff)``: whether any node has inertia, and the damping of each node's
     ``theta'`` (1 everywhere in a first-order model, whose damping is unused)."""
     n = mass.shape[0]
-    second = False
-    for i in range(n):
-        second |= mass[i] > 0.0
+    second = has_inertia(mass)
     gamma_eff = np.empty(n)
     for i in range(n):
         gamma_eff[i] = gamma[i] if second else 1.0
@@ -513,9 +511,7 @@ def _shrunk(h, err):
 
 
 @njit(cache=True)
-def rodas4_sync(
-    th0, nu0, eq, criterion, target, t_max, h0, rtol, atol, plan, fixed=False, after=math.inf, band=0.0
-):
+def rodas4_sync(th0, nu0, eq, criterion, target, t_max, h0, rtol, atol, plan, fixed, after, band):
     """One trajectory from ``(th0, nu0)`` of the model ``eq`` (the equations' constants ``(p,
     w, indptr, indices, cl, sl, mass, gamma)`` of
     :func:`~antisync.kernels.core.make_model_kernels`) until the criterion holds or ``t_max``,
@@ -947,7 +943,7 @@ def _integrate_items(ks, seed, graph, model, fp, dt, t_max, tols, max_steps, out
         w = base_w if v < 0 else var_w[v]
         eq = (p, w, indptr, indices, cl, sl, inertia, damping)
         st, tau, n_acc, n_rej, bad = rodas4_sync(
-            th, nu, eq, criterion, targets[v + 1], t_max, dt, rtol, atol, fp, False, after, band
+            th, nu, eq, criterion, targets[v + 1], t_max, dt, rtol, atol, fp, np.bool_(False), after, band
         )
         k, x = _on_the_grid(st, tau, dt, max_steps)
         record_item(out, r, v, st, k, x)

@@ -34,7 +34,7 @@ from antisync import _numba_cache  # noqa: F401 -- before any cache=True functio
 from antisync.kernels import model_steps as ms
 from antisync.kernels.core import CRIT_FREQUENCY, CRIT_ORDER, DEV_PREV_ROW, DEV_ROW, VEC, WORK_ROWS
 from antisync.kernels.precision import K64, order2, renormalize, rk4_vec, step_lanes, step_vec
-from antisync.kernels.shared import Graph, Model, Outputs, record, record_item, share_base
+from antisync.kernels.shared import Graph, Model, Outputs, has_inertia, record, record_item, share_base
 from antisync.physics.phases import phase, start_phase
 from antisync.status import ALREADY_SYNCED, NOT_SYNCED, SYNCED
 
@@ -302,7 +302,7 @@ def _model_load(q, qr, qv, t, queue, graph, model, second, lanes, extra, out):
         else:
             met = r2[q] >= target
         if met:
-            record_item(out, r, v, ALREADY_SYNCED, 0, 0.0)
+            record_item(out, r, v, np.int64(ALREADY_SYNCED), np.int64(0), 0.0)
             continue
         lanes.item_r[q] = r
         lanes.item_v[q] = v
@@ -382,16 +382,14 @@ def make_lane_driver(features: LaneFeatures):
             targets = np.zeros(0)
             criterion = CRIT_ORDER
             freq = False
-            second = False
+            second = has_inertia(mass)
             # the Euler step with Taylor rotations and the RK4 step run on pairs of machine vectors
             fused = taylor and not rk4 and not tangent
             wide = fused or rk4
         else:
             freqs, cl, sl, mass, gamma, criterion, targets, starts = model
             freq = criterion == CRIT_FREQUENCY
-            second = False
-            for i in range(n):
-                second |= mass[i] > 0.0
+            second = has_inertia(mass)
             # Euler with an order criterion needs no rates after the step: the step is fused
             fused = not rk4 and not freq
             wide = True
@@ -458,9 +456,9 @@ def make_lane_driver(features: LaneFeatures):
             kacc = np.zeros((3, nm if rk4 else 0, width))
             m4 = np.zeros((4, width))
             lane_target = np.zeros(width)
-            qr, qv = r_lo, -1
+            qr, qv = r_lo, np.int64(-1)  # typed, not literal: see has_inertia
             active = 0
-            t = 0
+            t = np.int64(0)
             # a lane's step count is t - lane_t0; the per-lane pass below runs only when some lane
             # may have met the criterion (a vectorized test) or reaches the step cap (and at t = 0,
             # to fill the lanes): it records what ended and refills the lane from the queue. Euler

@@ -58,7 +58,14 @@ from antisync.kernels.core import (
 )
 from antisync.kernels.model_steps import MK
 from antisync.kernels.precision import K64
-from antisync.kernels.shared import PathwiseResult, Threads, batch_starts, per_node, realization_ids
+from antisync.kernels.shared import (
+    PathwiseResult,
+    Threads,
+    batch_starts,
+    has_inertia,
+    per_node,
+    realization_ids,
+)
 from antisync.physics.phases import start_phase
 from antisync.status import NOT_SYNCED, SYNCED
 
@@ -423,9 +430,7 @@ def _model_adjoint(y0, eq, dt, rk4, criterion, target, max_steps, every, g):
     :func:`~antisync.kernels.core.make_model_kernels`."""
     mass, gamma = eq[6], eq[7]
     n = y0.shape[1]
-    second = False
-    for i in range(n):
-        second |= mass[i] > 0.0
+    second = has_inertia(mass)
     freq = criterion == CRIT_FREQUENCY
     y = y0.copy()
     th = np.empty(n)
@@ -490,8 +495,8 @@ def _model_adjoint(y0, eq, dt, rk4, criterion, target, max_steps, every, g):
         h00, h10, h01, h11 = _hermite_basis(x)
         s00, s10, s01, s11 = _hermite_slope(x)
         best = -1.0
-        node = 0
-        row = 0
+        node = np.int64(0)  # not 0: see antisync.kernels.shared.has_inertia
+        row = np.int64(0)
         slope = 0.0
         rows = 2 if second else 1
         for rr in range(rows):

@@ -27,6 +27,7 @@ __all__ = [
     "Threads",
     "batch_starts",
     "csr_mv2",
+    "has_inertia",
     "model_batch",
     "model_inputs",
     "per_node",
@@ -325,6 +326,22 @@ def record(status0, steps0, frac0, status, steps, frac, r, v, st, k, x):
         status[r, v] = st
         steps[r, v] = k
         frac[r, v] = x
+
+
+# One specialization per kernel: a variable that starts as a constant and is refined in a loop
+# (``second = False`` then ``second |= mass[i] > 0``; ``node = 0`` then ``node = i``) is typed
+# ``Literal[bool](False)`` or ``Literal[int](0)`` in numba's first inference pass, and every
+# jitted function it reaches is compiled for the literal and again for ``bool``/``int64``, which
+# doubled the compile time of the largest kernels (bench/specializations.py lists the kernels
+# compiled more than once). Such variables start from a call instead: :func:`has_inertia`,
+# ``np.int64(0)``, ``np.bool_(False)``.
+@numba.njit(cache=True)
+def has_inertia(mass):
+    """Whether any node has inertia (``mass[i] > 0``: a second-order model), typed ``bool``."""
+    for i in range(mass.shape[0]):
+        if mass[i] > 0.0:
+            return True
+    return False
 
 
 # Called, not inlined, from a prange body: an array reached through a named tuple keeps its

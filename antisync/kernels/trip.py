@@ -41,7 +41,7 @@ from antisync.kernels.implicit import (
     trip_switch,
 )
 from antisync.kernels.model_steps import MK
-from antisync.kernels.shared import Threads
+from antisync.kernels.shared import Threads, has_inertia
 
 __all__ = ["INTEGRATORS", "integrate_trips", "rk4_trip", "trip_batch"]
 
@@ -65,9 +65,7 @@ def rk4_trip(th0, grid, w_fault, w_post, t_clear, t_end, dt, tol, line, out):
     gamma)``; ``line``: ``(a, b, keep)``."""
     p, indptr, indices, mass, gamma = grid
     n = th0.shape[0]
-    second = False
-    for i in range(n):
-        second |= mass[i] > 0.0
+    second = has_inertia(mass)
     c = np.cos(th0)
     s = np.sin(th0)
     nu = np.zeros(n)
@@ -178,6 +176,10 @@ def integrate_trips(theta0, grid, k, trips, t_after, h0, tols, integrator, threa
         raise ValueError(f"a trip integrates by {' or '.join(INTEGRATORS)}, not {integrator}")
     _, indptr, indices, _, _ = grid
     plan = plan_of_pattern(indptr, indices)
+    # writable C arrays of one type whatever the caller built (a broadcast, a read-only column):
+    # one compiled trip_batch
+    types = (np.int64, np.int64, np.float64, np.float64)
+    trips = tuple(np.array(a, dtype=t) for a, t in zip(trips, types, strict=True))
     out = np.empty((trips[0].size, 4))
     with Threads(threads), numba.parallel_chunksize(1):
         trip_batch(theta0, grid, k, trips, float(t_after), float(h0), tols, plan, integrator == "rodas4", out)

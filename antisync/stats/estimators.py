@@ -159,6 +159,15 @@ def block_records(sim, dt: float, block: int, interpolate: bool = False):
     return rec, rec0, tail
 
 
+def _readonly(a, dtype):
+    """``a`` as a read-only C-contiguous array of ``dtype`` (a view where it is one already): the
+    callers' C, Fortran, broadcast and read-only arrays all reach :func:`_reduce_lambda` as one
+    type, so numba compiles it once rather than once per layout."""
+    view = np.ascontiguousarray(a, dtype=dtype).view()
+    view.flags.writeable = False
+    return view
+
+
 @njit(cache=True)
 def _reduce_lambda(values, code, flagged, flip, slope, tau0, block, edges, rec, tail):
     m, n_edges = values.shape
@@ -227,7 +236,9 @@ def lambda_block_records(
     missing = slope is None or tau0 is None
     zeros = np.zeros(values.shape)
     slope, tau0 = (zeros, zeros) if missing else (slope, tau0)
-    _reduce_lambda(values, code, flagged.astype(np.int64), flip, slope, tau0, block, TAIL_EDGES, rec, tail)
+    inputs = (values, code, flagged, flip, slope, tau0)
+    dtypes = (np.float64, np.int8, np.int64, np.int8, np.float64, np.float64)
+    _reduce_lambda(*map(_readonly, inputs, dtypes), block, TAIL_EDGES, rec, tail)
     if missing:
         rec[:, :, 8:10] = np.nan
     return rec, tail
