@@ -47,6 +47,11 @@ whose removal destroys the stable state or lowers the margin most is a troublema
 whether the grid's dynamics reaches the new state after a sudden removal is a dynamic question
 this module does not answer.
 
+Each line's state is found by Newton's method from the intact grid's locked state
+(:class:`antisync.physics.warm.LineChanges`: the same state as the continuation's, accepted only
+where that is proven, else the continuation for that line, named in ``LineTable.continued``).
+``warm=False`` is the continuation for every line.
+
 Pure numpy/scipy/networkx: nothing here compiles.
 """
 
@@ -64,7 +69,8 @@ from antisync.grids.errors import GridError
 from antisync.grids.lines import Rows, grid_bridges, lines_of, split_bridges
 from antisync.grids.load import Grid
 from antisync.physics.coupling import coupling_matrix
-from antisync.physics.locked import SPARSE_FROM, jacobian, locked_state, rightmost, vouched_bound
+from antisync.physics.locked import SPARSE_FROM, LockedState, jacobian, locked_state, rightmost, vouched_bound
+from antisync.physics.warm import LineChanges
 
 __all__ = [
     "BRAESS_TOL",
@@ -159,6 +165,9 @@ class LineTable(Rows):
     skipped: tuple = field(default=())  # bridges left out (``skip_bridges=True``)
     seconds: float = 0.0
     labels: tuple = field(default=())  # node labels in matrix order
+    #: the lines (label pairs) whose state the continuation from ``P = 0`` found: the warm start
+    #: from the intact state was refused (:mod:`antisync.physics.warm`) or not offered
+    continued: tuple = field(default=())
 
     def name(self, line: tuple[int, int] | None) -> str:
         """``"u-v"`` of 0-based end nodes (e.g. ``base.max_load_line``) by the node labels."""
@@ -231,11 +240,14 @@ def _check_margin_key(key: str) -> None:
 
 
 def _state_of(w: np.ndarray, p: np.ndarray, lag, inertia, damping) -> GridState:
-    st = locked_state(w, p, lag, inertia, damping)
+    return _indicators(w, locked_state(w, p, lag, inertia, damping), lag, inertia)
+
+
+def _indicators(w: np.ndarray, st: LockedState | None, lag, inertia) -> GridState:
+    """The :class:`GridState` of ``w``'s locked state ``st`` (None: none found)."""
     if st is None:
         return GridState.missing()
     rows, cols = np.nonzero(w)  # row-major: the first of equal loads is the dense argmax's
-    s = np.abs(np.sin(st.phi[cols] - st.phi[rows]))
     if np.any(np.asarray(inertia) > 0):
         # the first-order Jacobian's rightmost eigenvalue but the rotation's zero (sparse on a
         # large grid, as locked.py's margin)
@@ -244,15 +256,22 @@ def _state_of(w: np.ndarray, p: np.ndarray, lag, inertia, damping) -> GridState:
         lambda2 = -rightmost(jacobian(st.phi, w, lag, sparse=sparse), missed_below=bound)
     else:
         lambda2 = float(-st.max_real)  # the linearization is the Jacobian itself
+    return _grid_state(st, rows, cols, w[rows, cols], lambda2)
+
+
+def _grid_state(st: LockedState, rows, cols, vals, lambda2: float) -> GridState:
+    """:class:`GridState` of the locked state ``st`` of the network whose nonzero entries are
+    ``vals`` at ``rows, cols`` (row-major)."""
+    s = np.abs(np.sin(st.phi[cols] - st.phi[rows]))
     top = int(np.argmax(s)) if s.size else 0
     return GridState(
         True,
         bool(st.stable),
         float(-st.max_real),
-        float((w[rows, cols] * s).max()) if s.size else 0.0,
+        float((vals * s).max()) if s.size else 0.0,
         float(s.max()) if s.size else 0.0,
         float(st.r),
-        lambda2,
+        float(lambda2),
         (int(min(rows[top], cols[top])), int(max(rows[top], cols[top]))) if s.size else None,
     )
 
@@ -310,6 +329,7 @@ def line_indicators(
     skip_bridges: bool = False,
     bridge_hint: str = "pass skip_bridges=True",
     progress: bool | None = False,
+    warm: bool = True,
 ) -> LineTable:
     """The static indicators after weakening each line (both directions) by ``beta``
     (``progress``: a bar of the lines done on stderr; None: when stderr is a terminal).
@@ -339,6 +359,12 @@ def line_indicators(
         listed in the table's ``skipped`` instead.
     bridge_hint : str
         How to leave a bridge out, ending the refusal of one (the CLI names its option).
+    warm : bool
+        Start each line's Newton iteration at the intact grid's locked state
+        (:class:`antisync.physics.warm.LineChanges`: lossless grids, raw coupling), the
+        continuation from ``P = 0`` only where that is refused; False: the continuation for every
+        line. The same locked state either way (``LineTable.continued`` names the lines the
+        continuation solved).
 
     Returns
     -------
@@ -364,36 +390,81 @@ def line_indicators(
         todo, skipped = split_bridges(
             omega, labels, todo, grid_bridges(omega), refuse=not skip_bridges, hint=bridge_hint
         )
-    base = _state_of(coupling_matrix(omega, coupling), p, lag, inertia, damping)
-    rows = []
+    w = coupling_matrix(omega, coupling)
+    intact = locked_state(w, p, lag, inertia, damping)
+    base = _indicators(w, intact, lag, inertia)
+    changes = None
+    if warm and coupling == "raw" and intact is not None:
+        changes = LineChanges(w, p, intact, lag, inertia, damping)
+        changes = changes if changes.applies else None
+    job = _Job(omega, p, coupling, lag, inertia, damping, beta, labels, base, changes)
     show = sys.stderr.isatty() if progress is None else progress
     bar = tqdm(
         todo, unit="line", desc="lines", delay=1.0, disable=not show, file=sys.stderr, dynamic_ncols=True
     )
+    rows, continued = [], []
     for a, b in bar:
-        changed = omega.copy()
-        changed[a, b] *= 1.0 - beta
-        changed[b, a] *= 1.0 - beta
-        st = _state_of(coupling_matrix(changed, coupling), p, lag, inertia, damping)
-        rows.append(
-            LineIndicators(
-                line=(labels[a], labels[b]),
-                nodes=(a, b),
-                beta=beta,
-                exists=st.exists,
-                stable=st.stable,
-                margin=st.margin,
-                max_flow=st.max_flow,
-                max_load=st.max_load,
-                r=st.r,
-                lambda2=st.lambda2,
-                **_changes(st, base),
-                restores=bool(st.stable and not base.stable),
-                destroys=bool(base.stable and not st.stable),
-            )
-        )
+        row, cont = job.row(a, b)
+        rows.append(row)
+        continued.append(cont)
+        if cont:
+            bar.set_postfix_str(f"{sum(continued)} by continuation", refresh=False)
     bar.close()
-    return LineTable(base, tuple(rows), beta, tuple(skipped), time.perf_counter() - t0, tuple(labels))
+    return LineTable(
+        base,
+        tuple(rows),
+        beta,
+        tuple(skipped),
+        time.perf_counter() - t0,
+        tuple(labels),
+        tuple(r.line for r, cont in zip(rows, continued, strict=True) if cont),
+    )
+
+
+@dataclass(frozen=True)
+class _Job:
+    """What every line's row needs: the intact grid, the change and the warm starts."""
+
+    omega: np.ndarray
+    p: np.ndarray
+    coupling: str
+    lag: float
+    inertia: object
+    damping: object
+    beta: float
+    labels: list
+    base: GridState
+    changes: LineChanges | None
+
+    def row(self, a: int, b: int) -> tuple[LineIndicators, bool]:
+        """Line ``a - b``'s row, and whether the continuation from ``P = 0`` found its state."""
+        warm = None if self.changes is None else self.changes.state(a, b, 1.0 - self.beta)
+        if warm is None:
+            changed = self.omega.copy()
+            changed[a, b] *= 1.0 - self.beta
+            changed[b, a] *= 1.0 - self.beta
+            st = _state_of(
+                coupling_matrix(changed, self.coupling), self.p, self.lag, self.inertia, self.damping
+            )
+        else:
+            st = _grid_state(warm.state, warm.rows, warm.cols, warm.vals, warm.lambda2)
+        base = self.base
+        row = LineIndicators(
+            line=(self.labels[a], self.labels[b]),
+            nodes=(a, b),
+            beta=self.beta,
+            exists=st.exists,
+            stable=st.stable,
+            margin=st.margin,
+            max_flow=st.max_flow,
+            max_load=st.max_load,
+            r=st.r,
+            lambda2=st.lambda2,
+            **_changes(st, base),
+            restores=bool(st.stable and not base.stable),
+            destroys=bool(base.stable and not st.stable),
+        )
+        return row, warm is None
 
 
 def static_table(
@@ -405,10 +476,11 @@ def static_table(
     lines=None,
     bridge_hint: str = "pass skip_bridges=True",
     progress: bool | None = False,
+    warm: bool = True,
 ) -> LineTable:
     """:func:`line_indicators` of a :class:`Grid` (bridges skipped by default when removing);
     ``lag``: the grid's own (``model.phase_lag``) unless given; ``progress``: a bar of the lines
-    done on stderr (None: when stderr is a terminal)."""
+    done on stderr (None: when stderr is a terminal); ``warm``: as there."""
     return line_indicators(
         grid.omega,
         grid.p,
@@ -422,6 +494,7 @@ def static_table(
         skip_bridges=skip_bridges,
         bridge_hint=bridge_hint,
         progress=progress,
+        warm=warm,
     )
 
 
