@@ -43,7 +43,10 @@ run: $(STAMP)
 # tests stay on one worker, and the files that compile the model kernels most share one worker
 # (tests/conftest.py, MODEL_FILES), so those kernels compile once, not on both workers side by
 # side; the on-disk cache shares them); pytest's exit 5 (no tests) fails too
-PYTEST := $(BIN)/python -m pytest -n auto --dist loadfile
+# BLAS on one thread per worker: the workers already fill the cores, and OpenBLAS's own threads on
+# top of them spin against each other (tests/test_static_fast.py's IEEE 118 table: 345 s beside
+# another job with BLAS's default threads, 5.8 s with one)
+PYTEST := OPENBLAS_NUM_THREADS=1 MKL_NUM_THREADS=1 $(BIN)/python -m pytest -n auto --dist loadfile
 
 test: $(STAMP)
 	$(BIN)/ruff check antisync tests bench tools
