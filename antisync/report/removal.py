@@ -689,6 +689,8 @@ def trip_figure(report: dict, grid: Grid | None, path, *, overwrite: bool = Fals
         f"critical clearing time (s; {method} to {report['cct_tol']:g} s, at most {report['cct_max']:g})"
         if cct
         else "max |theta'| after the trip (rad/s)"
+        if report["t_clear"] is None
+        else "max |theta'| from the fault on (rad/s)"  # a faulted load bus swings fastest
     )
     fig.colorbar(matplotlib.cm.ScalarMappable(norm=norm, cmap=cmap), ax=ax, shrink=0.7, label=label)
     fault = "no fault" if report["t_clear"] is None else f"fault {report['t_clear']:g} s at the first bus"
