@@ -1,4 +1,6 @@
+import os
 import sys
+import time
 from pathlib import Path
 
 import pytest
@@ -102,3 +104,45 @@ def pytest_terminal_summary(terminalreporter, exitstatus, config):
     for duration, nodeid in sorted(slow, key=lambda t: (t[1].startswith(KNOWN_SLOW), -t[0])):
         mark = "" if nodeid.startswith(KNOWN_SLOW) else "NEW "
         terminalreporter.write_line(f"  {mark}{duration:6.1f} s  {nodeid}")
+
+
+#: ``ANTISYNC_COMPILE_LOG=path make test``: every numba compilation of the run, one line per
+#: compile that no other compile encloses (a kernel's callees compile inside it), appended to
+#: ``path`` by each xdist worker: ``worker  seconds  function  test``. Where a cold run's time
+#: goes, and whether two workers compiled the same kernel
+#: (``sort -k3 path | uniq -f2 -D``); bench/specializations.py lists the signatures compiled.
+COMPILE_LOG = os.environ.get("ANTISYNC_COMPILE_LOG")
+
+
+def pytest_configure(config):
+    if COMPILE_LOG:
+        from numba.core import event
+
+        event.register("numba:compile", _compile_log(event.Listener)())
+
+
+def _compile_log(base):
+    """The listener of :data:`COMPILE_LOG`, a subclass of numba's ``event.Listener``."""
+
+    class CompileLog(base):
+        worker = os.environ.get("PYTEST_XDIST_WORKER", "main")
+        depth = 0
+        started = 0.0
+
+        def on_start(self, ev):
+            if self.depth == 0:
+                self.started = time.perf_counter()
+            self.depth += 1
+
+        def on_end(self, ev):
+            self.depth -= 1
+            if self.depth:
+                return
+            seconds = time.perf_counter() - self.started
+            func = getattr(ev.data.get("dispatcher"), "py_func", None)
+            name = f"{func.__module__}.{func.__qualname__}" if func is not None else "?"
+            test = os.environ.get("PYTEST_CURRENT_TEST", "-").split(" ")[0]
+            with open(COMPILE_LOG, "a") as fh:
+                fh.write(f"{self.worker}\t{seconds:.2f}\t{name}\t{test}\n")
+
+    return CompileLog
