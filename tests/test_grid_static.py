@@ -335,3 +335,32 @@ def test_activsg2000_operating_point_is_a_stable_locked_state():
     state = grid_state(grid.omega, grid.p, inertia=grid.inertia, damping=grid.damping)
     assert state.exists and state.stable
     assert state.margin == pytest.approx(0.158694739611, rel=1e-9)
+
+
+@pytest.mark.parametrize("sparse_from", [500, 1])
+def test_a_stiff_line_does_not_hide_a_locked_state(monkeypatch, sparse_from):
+    """A ring with one line of K = 1e5 (ACTIVSg10k's stiffest): the rounding of phi_j - phi_i
+    times K keeps |F_i| near 1e-11, above an absolute 10 TOL, and locked_state reported no state.
+    The floor scales with the largest row of |w| (locked.rounding_floor): the state is found,
+    dense and sparse, a fixed point to that floor, its stiff line nearly rigid, and close to the
+    state with that line at K = 1e3."""
+    import antisync.physics.locked as locked
+
+    monkeypatch.setattr(locked, "SPARSE_FROM", sparse_from)
+    n = 8
+    w = np.zeros((n, n))
+    for i in range(n):
+        w[i, (i + 1) % n] = w[(i + 1) % n, i] = 1.0
+    p = np.array([0.9, 0.5, 0.2, -0.1, -0.3, -0.3, -0.4, -0.5])
+    p -= p.mean()
+    w[4, 5] = w[5, 4] = 1e5
+    st = locked_state(w, p)
+    assert st is not None and st.stable
+    res = locked.residual(st.phi, st.nu, w, p, 0.0)
+    assert np.max(np.abs(res)) < locked.rounding_floor(np.abs(w).sum(axis=1)) < 1e-9
+    # the stiff line is nearly rigid: its ends' phases agree to P / K
+    assert abs(st.phi[5] - st.phi[4]) < 1e-4
+    softer = w.copy()
+    softer[4, 5] = softer[5, 4] = 1e3
+    near = locked_state(softer, p)
+    assert np.max(np.abs(near.phi - st.phi)) < 1e-2

@@ -35,11 +35,18 @@ __all__ = [
     "locked_state",
     "residual",
     "rightmost",
+    "rounding_floor",
     "vouched_bound",
 ]
 
 #: Newton stops when every |F_i| is below this (the residual of an exact state in float64).
 TOL = 1e-13
+#: Newton's last test, where its steps end at the floor of rounding above ``TOL``: every ``|F_i|``
+#: below ``10 TOL`` or below ``FLOOR_ULPS`` roundings of the largest row sum of ``|w|``, whichever
+#: is larger (:func:`rounding_floor`). ``F_i`` carries the rounding of each ``phi_j - phi_i``
+#: times ``w_ij``: a line of ``K = 1e5`` (ACTIVSg10k's stiffest) leaves ``|F_i|`` near 1e-11
+#: whatever the iteration does, and an absolute ``10 TOL`` reported no locked state there.
+FLOOR_ULPS = 10
 #: An eigenvalue counts as stable when its real part is below ``-STABLE_MARGIN``.
 STABLE_MARGIN = 1e-9
 #: From this many nodes on, Newton's steps and the stability margin work on sparse matrices
@@ -80,10 +87,19 @@ def jacobian(phi: np.ndarray, w: np.ndarray, lag: float, sparse: bool = False):
     return g - np.diag(g.sum(axis=1))
 
 
-def _newton(phi, nu, f_of, solve, max_iter=50):
+def rounding_floor(row_sums: np.ndarray) -> float:
+    """The residual Newton's method accepts after its last step (:data:`FLOOR_ULPS`):
+    ``max(10 TOL, FLOOR_ULPS eps max_i sum_j |w_ij|)`` from the row sums of ``|w|``."""
+    scale = float(np.max(row_sums)) if row_sums.size else 0.0
+    return max(10 * TOL, FLOOR_ULPS * float(np.finfo(np.float64).eps) * scale)
+
+
+def _newton(phi, nu, f_of, solve, max_iter=50, floor=10 * TOL):
     """Newton's method on the unknowns ``phi_1..phi_{N-1}`` and ``nu`` (``phi_0 = 0``):
     ``f_of(phi, nu)`` is the residual, ``solve(phi, f)`` the step for it through the Jacobian
-    with column 0 made ``dF/dnu = -g`` (None where that matrix is singular)."""
+    with column 0 made ``dF/dnu = -g`` (None where that matrix is singular). Converged: every
+    ``|F_i|`` below ``TOL``, or below ``floor`` (:func:`rounding_floor`) after ``max_iter``
+    steps."""
     for _ in range(max_iter):
         f = f_of(phi, nu)
         if np.max(np.abs(f)) < TOL:
@@ -96,7 +112,7 @@ def _newton(phi, nu, f_of, solve, max_iter=50):
         nu = nu + step[0]
         if phi.size and np.max(np.abs(step)) > 1e3:
             return phi, nu, False
-    return phi, nu, bool(np.max(np.abs(f_of(phi, nu))) < 10 * TOL)
+    return phi, nu, bool(np.max(np.abs(f_of(phi, nu))) < floor)
 
 
 def _dense_step(phi, f, w, lag, g):
@@ -275,6 +291,10 @@ def locked_state(
     g = 1.0 if not (m > 0).any() or np.all(gamma == gamma[0]) else gamma / gamma.mean()
     sparse = n >= SPARSE_FROM
     coo = _coo(w) if sparse else None
+    if sparse:
+        floor = rounding_floor(np.bincount(coo[0], np.abs(coo[2]), minlength=n))
+    else:
+        floor = rounding_floor(np.abs(w).sum(axis=1))
 
     def newton(phi, nu, p_s, lag_s):
         if sparse:
@@ -283,12 +303,14 @@ def locked_state(
                 nu,
                 lambda ph, v: _residual_sparse(ph, v, coo, p_s, lag_s, g),
                 lambda ph, f: _sparse_step(ph, f, coo, lag_s, g),
+                floor=floor,
             )
         return _newton(
             phi,
             nu,
             lambda ph, v: residual(ph, v, w, p_s, lag_s, g),
             lambda ph, f: _dense_step(ph, f, w, lag_s, g),
+            floor=floor,
         )
 
     s, ds = 0.0, 0.125
