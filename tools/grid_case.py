@@ -5,6 +5,7 @@
     python tools/grid_case.py --case case118 --out configs   # writes configs/ieee118_grid.*
     python tools/grid_case.py --case case300 --out configs   # writes configs/ieee300_grid.*
     python tools/grid_case.py --case ACTIVSg2000 --out configs   # configs/activsg2000_grid.*
+    python tools/grid_case.py --case ACTIVSg10k --out configs    # configs/activsg10k_grid.* (40 s)
     python tools/grid_case.py --case case39 --check          # the shipped files are the output
     python tools/grid_case.py --case ACTIVSg2000 --check     # and K, P against the published point
     python tools/grid_case.py --case ACTIVSg2000 --operating-point runpf --out /tmp   # the earlier files
@@ -42,7 +43,8 @@ The operating point (``--operating-point``, default per case in :data:`CASES`):
   with ``Pg - Pd`` (:func:`check_published`). Refused unless the published voltages solve the
   published dispatch: the AC injections from ``VM``, ``VA`` and the full ``Ybus`` must equal
   ``Pg - Pd`` within :data:`PUBLISHED_TOL` at every bus (case118 and case300 fail: 0.072 and
-  9.3 p.u.; their published slack dispatch or rounding is not a solved point).
+  9.3 p.u.; their published slack dispatch or rounding is not a solved point; ACTIVSg2000 and
+  ACTIVSg10k pass, 5.7e-4 and 7.3e-3 p.u.).
 - ``runpf-qlim``: ``runpf`` with the generators' Q limits enforced, MATPOWER's outer loop
   (``ENFORCE_Q_LIMS = 1``: every machine beyond a limit is held at it, its bus made PQ, and the
   flow solved again until none is beyond; :func:`runpf_qlim`). PYPOWER 5.1.21's own
@@ -75,6 +77,9 @@ PowerWorld, its 176 machines at a Q limit held there). Measured against its publ
 So ACTIVSg2000 takes ``published``; its ``K`` are written with 6 decimals (``.6f``, the 1e-6
 check; ``runpf`` cases keep 6 significant digits).
 
+The branch admittances are all taken in one sparse pass (``makeYbus``, then one ``{column:
+Y}`` dict a row): ACTIVSg10k's 10,000 buses need no dense matrix.
+
 Per case (:data:`CASES`):
 
 - **case39** (IEEE 39-bus New England, buses 1..39): ``H_i`` at the ten generator buses 30..39
@@ -105,6 +110,46 @@ Per case (:data:`CASES`):
   published operating point (above). No dynamic data: ``H_RATED`` on each in-service machine's
   MVA base (``mBase``, which this case gives per machine). Its official N-1 table
   (``contab_ACTIVSg2000.m``) becomes ``<prefix>_contingencies.txt`` (:func:`contingency_table`).
+- **ACTIVSg10k** (the synthetic grid of 10,000 buses on the US part of the WECC, same authors,
+  paper and licence; ``case_ACTIVSg10k.m`` and ``contab_ACTIVSg10k.m``): ACTIVSg2000's recipe
+  (``published``, ``H_RATED`` on ``mBase``), with one difference in the network. The published
+  point passes the refusal test with 7.3e-3 p.u. (bus 21301), 13 times ACTIVSg2000's: the case
+  prints ``r`` and ``x`` with six decimals, and its shortest branches (``x`` down to 1e-5) carry
+  up to 5% rounding; with it, ``VA``'s 1e-6 degrees, ``VM``'s 1e-7 and ``Pg``, ``Pd``'s 0.01 MW, a
+  first-order bound of the rounding's effect on the injections covers the mismatch at every bus
+  (at most 0.998 of the bound), and the published branch flows balance every bus within 0.04 MW
+  (measured once). 1,546 of the 1,937 in-service machines sit at a Q limit (293 of them with
+  ``Qmin = Qmax``). The case has 300 three-winding transformers, each written as its star
+  equivalent: a fictitious 1 kV bus without injection joined to the three winding buses by three
+  transformer branches. In 193 of them one winding's reactance is negative (``x`` from -0.0002 to
+  -0.217 p.u.: the transformer's short-circuit reactances ``x_i + x_j`` break the triangle
+  inequality), so that branch's ``B_ij`` is negative, which antisync's edge lists refuse. Kron
+  reduction of such a star point (exact for the linear network) couples the two other windings
+  negatively (189 of the 193 deltas have one negative coupling, -0.02 to -92 p.u., median 26% of
+  the delta's smaller positive one; 4 have two), so no positive network on the three buses is
+  exact. :func:`eliminate_negative` replaces each such star point (:func:`eliminate`) by a branch
+  from the negative winding ``i`` to each other winding ``j``, the series combination of the
+  branches ``i``-star and star-``j`` alone: the two short-circuit reactances through ``i`` are
+  kept exactly (``x_i + x_j``: the whole transformer when the third winding carries nothing), the
+  third is made shorter by ``2 |x_i|``. Measured once on the lossless model (not a mode of this
+  script: the locked states from the published injections of the grid with every star point a node
+  and the negative couplings as they are, and of the shipped grid): the flows on the 11,638 lines
+  both share differ by at most 0.55 p.u. (median 1.9e-4, 99% within 0.054), an order of magnitude
+  below the lossless model's own difference from the published AC flows (median 0.0072, 99% within
+  0.46, at most 7.4 p.u.); Kron reduction with the negative couplings dropped instead differs by
+  up to 2.7 p.u. (median 0.0032). The grid has 9,807 buses and 12,024 lines. None of the 11,806
+  rows of the official table opens a branch at a star point (such rows would be left out, counted
+  in the header). The other 107 star points stay buses (first order, like every bus without a
+  machine), so the lines are the case's branches; one winding, 10193 to the star point 10195, has
+  ``x = 1e-5`` and ``K = 1.04e5`` p.u., 70 times ACTIVSg2000's largest. Newton's residual at bus
+  10193 then has a float64 floor of ~1e-12, above ``antisync.physics.locked.TOL`` = 1e-13: 5 of
+  the static table's 8,097 removals (and the post-trip state of contingency 3) report no locked
+  state, which exists and is stable at a tolerance of 1e-10. Eliminating those 107 star points too
+  (tried: exact Kron, positive deltas; 9,700 buses, largest ``K`` 3,044) cures that, but turns
+  each transformer into a triangle whose third side can be as small as 0.002 p.u.; the static
+  table then puts the removals of such sides, which are no branch of the case, first, with no
+  locked state (a winding's bus, a machine's at 28791, left on a side of a few p.u. or less;
+  10193-10194, 28790-28791, ...), so the 107 are kept.
 
 Files: ``<prefix>.edges`` (``from to K``), ``<prefix>_power.txt``, ``<prefix>_inertia.txt``,
 ``<prefix>_damping.txt`` (one number per bus, in increasing bus number: antisync's node order).
@@ -173,6 +218,17 @@ CASES = {
         "activsg2000",
         f"# No dynamic data in the case: H = {H_RATED:g} s on each in-service machine's MVA base (mBase),\n"
         "# m_i proportional to the rating (our choice, not from a source).\n",
+        "mBase",
+        "matpower",
+        "published",
+    ),
+    "ACTIVSg10k": (
+        "ACTIVSg10k synthetic US WECC 10,000-bus system",
+        "activsg10k",
+        f"# No dynamic data in the case: H = {H_RATED:g} s on each in-service machine's MVA base (mBase),\n"
+        "# m_i proportional to the rating (our choice, not from a source). The star points (1 kV\n"
+        "# buses) of the 193 three-winding transformers with a winding of negative reactance\n"
+        "# replaced by a branch from that winding to each other one (tools/grid_case.py, eliminate).\n",
         "mBase",
         "matpower",
         "published",
@@ -393,41 +449,79 @@ def published_report(name: str, case: dict, k: np.ndarray) -> str:
 def check_published(name: str, out: Path, prefix: str) -> str:
     """Check the shipped ``<prefix>.edges`` and ``_power.txt`` against the published operating
     point, computed here without PYPOWER: ``K_ij = VM_i VM_j B_ij`` from the bus matrix's ``VM``
-    and the in-service branches (``B_ij = Im(-y_s / (tap e^{-j shift}))`` of the branch from the
-    lower-numbered bus, ``y_s = 1 / (r + j x)``, parallel branches summed) and ``P_i = (Pg_i -
-    Pd_i) / baseMVA`` of the in-service machines; exits unless every line is there and every
-    difference is within :data:`CHECK_TOL`. For cases without Kron-eliminated buses."""
+    and the in-service branches (``B_ij = Im(Y_ij)``, ``Y_ij = -y_s / (tap e^{-j shift})^*`` of
+    the branch from ``i``, ``-y_s / (tap e^{-j shift})`` of the branch to ``i``, ``y_s = 1 / (r +
+    j x)``, parallel branches summed, ``i`` the lower-numbered bus) and ``P_i = (Pg_i - Pd_i) /
+    baseMVA`` of the in-service machines; exits unless every line is there and every difference
+    is within :data:`CHECK_TOL`. The buses missing from the shipped files (eliminated by
+    :func:`eliminate_negative`) must be without injection and not next to each other; their
+    branches are combined here again from the branch data (``c_k(x)``: the branches ``k-x``'s
+    part of ``Y_kk``, ``(y_s + j b / 2)``, over ``tap^2`` at the from end): with two neighbours
+    or none across a negative branch ``Y_ij - Y_ik Y_kj / Y_kk``, with more ``Y_ij - Y_ik Y_kj /
+    (c_k(i) + c_k(j))`` from the one neighbour ``i`` across a negative branch to each other
+    ``j`` (:func:`eliminate`)."""
     case = raw_case(name)
     bus, gen, branch, base = case["bus"], case["gen"], case["branch"], case["baseMVA"]
     numbers = bus[:, 0].astype(int)
     vm = dict(zip(numbers.tolist(), bus[:, 7], strict=True))
-    susceptance: dict[tuple[int, int], float] = {}
+    y: dict[tuple[int, int], complex] = {}  # off-diagonal Y_ab, both orders
+    part: dict[tuple[int, int], complex] = {}  # the branches a-b's part of Y_aa
     for row in branch[branch[:, 10] > 0]:
         f, t = int(row[0]), int(row[1])
         tap = (row[8] or 1.0) * np.exp(1j * np.deg2rad(row[9]))
         ys = 1.0 / complex(row[2], row[3])
-        y = -ys / np.conj(tap) if f < t else -ys / tap  # Y_ft, or Y_tf when f is the larger
-        pair = (min(f, t), max(f, t))
-        susceptance[pair] = susceptance.get(pair, 0.0) + y.imag
-    expected = {(a, b): vm[a] * vm[b] * x for (a, b), x in susceptance.items()}
+        y[f, t] = y.get((f, t), 0.0) - ys / np.conj(tap)
+        y[t, f] = y.get((t, f), 0.0) - ys / tap
+        part[f, t] = part.get((f, t), 0.0) + (ys + 0.5j * row[4]) / abs(tap) ** 2
+        part[t, f] = part.get((t, f), 0.0) + ys + 0.5j * row[4]
     shipped_p = np.loadtxt(out / f"{prefix}_power.txt", comments="#")
-    if shipped_p.size != numbers.size:
-        return f"{prefix}: {numbers.size - shipped_p.size} buses Kron-eliminated, not checked against {name}"
     shipped = np.loadtxt(out / f"{prefix}.edges", comments="#", ndmin=2)
     found = {(int(a), int(b)): x for a, b, x in shipped}
+    kept = {a for pair in found for a in pair}
+    gone = [b for b in numbers.tolist() if b not in kept]
+    if shipped_p.size != len(kept):
+        sys.exit(f"grid_case: {prefix}_power.txt has {shipped_p.size} buses, {prefix}.edges {len(kept)}")
+    on = gen[gen[:, 7] > 0]
+    near = {b: [] for b in gone}
+    for a, b in y:
+        if a in near:
+            near[a].append(b)
+    for k in gone:
+        row = bus[numbers == k][0]
+        if row[2] or row[3] or row[4] or row[5] or k in on[:, 0] or any(j in near for j in near[k]):
+            sys.exit(
+                f"grid_case: bus {k}, missing from {prefix}.edges, has an injection or a missing neighbour"
+            )
+        j_neg = [j for j in near[k] if y[k, j].imag < 0]
+        for i in near[k]:
+            for j in near[k]:
+                if i == j:
+                    continue
+                if len(near[k]) == 2 or not j_neg:
+                    y[i, j] = y.get((i, j), 0.0) - y[i, k] * y[k, j] / sum(part[k, x] for x in near[k])
+                elif j_neg in ([i], [j]):
+                    y[i, j] = y.get((i, j), 0.0) - y[i, k] * y[k, j] / (part[k, i] + part[k, j])
+                elif len(j_neg) != 1:
+                    sys.exit(f"grid_case: bus {k} has {len(j_neg)} negative branches to {len(near[k])} buses")
+    expected = {
+        (a, b): vm[a] * vm[b] * v.imag
+        for (a, b), v in y.items()
+        if a < b and a in kept and b in kept and v != 0
+    }
     if len(found) != len(shipped) or found.keys() != expected.keys():
         sys.exit(f"grid_case: the lines of {prefix}.edges are not the case's in-service branches")
     dk = max(abs(found[pair] - expected[pair]) for pair in expected)
     p = -bus[:, 2].copy()
     index = {b: k for k, b in enumerate(numbers.tolist())}
-    for g in gen[gen[:, 7] > 0]:
+    for g in on:
         p[index[int(g[0])]] += g[1]
-    dp = np.abs(shipped_p - p / base).max()
+    dp = np.abs(shipped_p - p[[index[b] for b in sorted(kept)]] / base).max()
     if not dk <= CHECK_TOL or not dp <= CHECK_TOL:
         sys.exit(f"grid_case: {prefix} differs from the published point: |dK| {dk:.2e}, |dP| {dp:.2e} p.u.")
+    combined = f" (the {len(gone)} eliminated buses' branches combined here)" if gone else ""
     return (
         f"the {len(found)} K within {dk:.1e} p.u. of VM_i VM_j B_ij from the published VM and the branch "
-        f"data, P within {dp:.1e} of Pg - Pd (tolerance {CHECK_TOL:g})"
+        f"data{combined}, P within {dp:.1e} of Pg - Pd (tolerance {CHECK_TOL:g})"
     )
 
 
@@ -452,60 +546,123 @@ def check_andes() -> str:
     return f"ANDES {andes.__version__} {path.name}: M = 2 H of the 10 machines = Pai's table / 5"
 
 
-def eliminate_negative(ybus: np.ndarray, free: np.ndarray) -> np.ndarray:
-    """The buses kept (a boolean mask) after Kron-eliminating every bus without injection
-    (``free``) that ends a branch of negative susceptance ``Im(Y_ij) < 0`` (a series capacitor);
-    ``ybus`` is reduced in place on the kept buses' rows. Exits when such a branch has no free
-    end, or when a negative one is left."""
-    keep = np.ones(ybus.shape[0], dtype=bool)
+def eliminate(rows: list[dict], k: int, leg) -> None:
+    """Remove bus ``k`` (without injection) from the bus admittance matrix ``rows`` (one
+    ``{column: Y}`` dict a row), in place. With two neighbours, or none across a branch of
+    negative susceptance, Kron reduction: ``Y_ij <- Y_ij - Y_ik Y_kj / Y_kk`` (exact for the
+    linear network without injection at ``k``; two neighbours: the series combination). With
+    three or more, one of them ``i`` across a negative branch (a three-winding transformer's
+    star point with a winding of negative reactance, whose exact delta couples the two other
+    windings negatively): a branch from ``i`` to each other neighbour ``j``, the series
+    combination of the branches ``i-k`` and ``k-j`` alone, ``Y_ij <- Y_ij - Y_ik Y_kj / (c_k(i) +
+    c_k(j))``, ``c_k(x) = leg(k, x)[0]`` the branches ``k-x``'s part of ``Y_kk`` (``leg(k,
+    x)[1]``: their part of ``Y_xx``). It keeps the short-circuit reactances between ``i`` and each
+    other winding; the pairs without ``i`` get no branch of their own (module docstring). Exits
+    on more than one negative branch at more than two neighbours."""
+    near = sorted(j for j in rows[k] if j != k)
+    negative = [j for j in near if rows[k][j].imag < 0]
+    if len(near) == 2 or not negative:
+        update = np.outer([rows[i][k] for i in near], [rows[k][j] for j in near]) / rows[k][k]
+        for x, i in enumerate(near):
+            del rows[i][k]
+            for y, j in enumerate(near):
+                rows[i][j] = rows[i].get(j, 0.0) - update[x, y]
+    elif len(negative) == 1:
+        i = negative[0]
+        parts = {x: leg(k, x) for x in near}
+        rows[i][i] += (len(near) - 2) * parts[i][1]  # the branch i-k is in each of the series pairs
+        for j in near:
+            if j == i:
+                continue
+            c = parts[i][0] + parts[j][0]
+            rows[i][j] = rows[i].get(j, 0.0) - rows[i][k] * rows[k][j] / c
+            rows[j][i] = rows[j].get(i, 0.0) - rows[j][k] * rows[k][i] / c
+            rows[i][i] -= rows[i][k] * rows[k][i] / c
+            rows[j][j] -= rows[j][k] * rows[k][j] / c
+        for j in near:
+            del rows[j][k]
+    else:
+        sys.exit(f"grid_case: bus {k} (0-based) has {len(negative)} negative branches to {len(near)} buses")
+    rows[k] = {}
+
+
+def eliminate_negative(rows: list[dict], free: np.ndarray, kv: np.ndarray, leg, keep: np.ndarray) -> None:
+    """Eliminate (:func:`eliminate`) every kept bus without injection (``free``) that ends a
+    branch of negative susceptance ``Im(Y_ij) < 0`` (a series capacitor; a three-winding
+    transformer's winding of negative reactance at its star point), updating the mask of
+    kept buses ``keep``. The pairs are taken in increasing order (the first row, then the first
+    column, a negative one again after each elimination); of a pair's free ends the one of lower
+    base voltage ``kv`` is eliminated (a three-winding transformer's star point, written at 1 kV,
+    rather than a winding's bus), on a tie the first. Exits when such a branch has no free
+    end."""
     while True:
-        off = ybus.imag.copy()
-        np.fill_diagonal(off, 0.0)
-        off[~keep, :] = 0.0
-        off[:, ~keep] = 0.0
-        bad = np.argwhere(np.triu(off < 0))
-        if bad.size == 0:
-            return keep
-        a, b = bad[0]
-        k = a if free[a] else b if free[b] else None
-        if k is None:
+        bad = [
+            (a, b) for a in range(len(rows)) if keep[a] for b, y in rows[a].items() if a < b and y.imag < 0
+        ]
+        if not bad:
+            return
+        a, b = min(bad)
+        ends = [x for x in (a, b) if free[x]]
+        if not ends:
             sys.exit(f"grid_case: the branch of buses {a}-{b} (0-based) has a negative susceptance")
-        # Kron reduction of bus k: Y <- Y - Y[:, k] Y[k, :] / Y[k, k] (exact without injection at k)
-        ybus -= np.outer(ybus[:, k], ybus[k, :]) / ybus[k, k]
+        k = min(ends, key=lambda x: kv[x])
+        eliminate(rows, k, leg)
         keep[k] = False
-        ybus[k, :] = 0.0
-        ybus[:, k] = 0.0
+
+
+def network(name: str, case: dict):
+    """``(internal, rows, keep, rating)`` of a case: PYPOWER's internal case (buses renumbered
+    0..N-1 in the case's order), its bus admittance matrix (``makeYbus``: transformer taps,
+    parallel circuits summed, charging and shunts on the diagonal) as one ``{column: Y}`` dict a
+    row after :func:`eliminate_negative`, the kept buses and each bus's machine rating (the
+    in-service machines' ``Pmax`` or ``mBase``, :data:`CASES`)."""
+    from pypower.ext2int import ext2int
+    from pypower.makeYbus import makeYbus
+
+    internal = ext2int(case)
+    bus, gen, branch, base = internal["bus"], internal["gen"], internal["branch"], internal["baseMVA"]
+    ybus = makeYbus(base, bus, branch)[0].tocsr()
+    ybus.sort_indices()
+    rows = [
+        dict(zip(ybus.indices[s:e].tolist(), ybus.data[s:e], strict=True))
+        for s, e in zip(ybus.indptr[:-1], ybus.indptr[1:], strict=True)
+    ]
+    rating = np.zeros(bus.shape[0])
+    column = 8 if CASES[name][3] == "Pmax" else 6  # PYPOWER's PMAX or MBASE
+    for g in gen:
+        if g[7] > 0:  # in service
+            rating[int(g[0])] += g[column]
+    free = (bus[:, 2] == 0) & (bus[:, 3] == 0) & (bus[:, 4] == 0) & (bus[:, 5] == 0) & (rating == 0)
+    ends = branch[:, :2].astype(int)
+
+    def leg(k: int, x: int) -> tuple[complex, complex]:
+        """The branches k-x's parts of Y_kk and Y_xx (makeYbus of those branches alone)."""
+        own = ((ends[:, 0] == k) & (ends[:, 1] == x)) | ((ends[:, 0] == x) & (ends[:, 1] == k))
+        y = makeYbus(base, bus, branch[own])[0]
+        return y[k, k], y[x, x]
+
+    keep = np.ones(bus.shape[0], dtype=bool)
+    eliminate_negative(rows, free, bus[:, 9], leg, keep)
+    return internal, rows, keep, rating
 
 
 def convert(name: str, case: dict):
     """``(buses, lines, K, P, m, D)`` of a solved case (module docstring): ``buses`` the kept
     bus numbers in increasing order, ``lines`` pairs of bus numbers."""
-    from pypower.ext2int import ext2int
-    from pypower.makeYbus import makeYbus
-
-    internal = ext2int(case)  # buses renumbered 0..N-1, in the case's order
-    bus, gen, branch = internal["bus"], internal["gen"], internal["branch"]
     numbers = case["bus"][:, 0].astype(int)
     if list(numbers) != sorted(numbers):
         sys.exit(f"grid_case: {name}'s buses are not listed in increasing order")
-    ybus = makeYbus(internal["baseMVA"], bus, branch)[0].toarray()
-    base = internal["baseMVA"]
+    internal, rows, keep, rating = network(name, case)
+    bus, gen, base = internal["bus"], internal["gen"], internal["baseMVA"]
     p = -bus[:, 2].astype(float)
-    rating = np.zeros(p.size)
-    column = 8 if CASES[name][3] == "Pmax" else 6  # PYPOWER's PMAX or MBASE
     for g in gen:
         if g[7] > 0:  # in service
             p[int(g[0])] += g[1]
-            rating[int(g[0])] += g[column]
     p /= base
-    free = (bus[:, 2] == 0) & (bus[:, 3] == 0) & (bus[:, 4] == 0) & (bus[:, 5] == 0) & (rating == 0)
-    keep = eliminate_negative(ybus, free)
     idx = np.flatnonzero(keep)
     vm = bus[:, 7]
-    kept = np.zeros_like(ybus, dtype=bool)
-    kept[np.ix_(idx, idx)] = True
-    lines = [(int(a), int(b)) for a, b in np.argwhere(np.triu(kept & (ybus != 0), 1))]
-    k = np.array([vm[a] * vm[b] * ybus[a, b].imag for a, b in lines])
+    lines = [(a, b) for a in idx.tolist() for b in sorted(rows[a]) if a < b and keep[b] and rows[a][b] != 0]
+    k = np.array([vm[a] * vm[b] * rows[a][b].imag for a, b in lines])
     if (k <= 0).any():
         sys.exit(f"grid_case: {name} has a line with a non-positive susceptance")
     if name == "case39":
@@ -584,10 +741,12 @@ def contingency_table(name: str, case: dict, lines: set, head: str) -> str:
     """The case's official branch contingencies (``matpower/data/contab_<name>.m``, rows
     ``CT_TBRCH ... BR_STATUS CT_REP 0``: one branch out of service) as ``label from to share``:
     the line of the shipped grid that the branch belongs to and the share of that line's
-    susceptance ``Im(Ybus_ab)`` the branch carries (1 for a single circuit; below 1 for one
+    susceptance ``Im(Y_ab)`` (of the admittance matrix the lines are read from, after
+    :func:`eliminate_negative`) the branch carries (1 for a single circuit; below 1 for one
     circuit of several in parallel, which the trip weakens by that share). Generator
-    contingencies are left out (counted in the header)."""
-    from pypower.ext2int import ext2int
+    contingencies and the outages of a branch at an eliminated bus (a winding of a three-winding
+    transformer whose star point is replaced: no one line of the grid) are left out (counted in
+    the header)."""
     from pypower.makeYbus import makeYbus
 
     text = matpower_file(name, "contab").read_text()
@@ -596,11 +755,10 @@ def contingency_table(name: str, case: dict, lines: set, head: str) -> str:
         sys.exit(f"grid_case: contab_{name}.m has no chgtab matrix")
     rows = [r.split("%")[0].replace(";", " ").split() for r in block.group(1).splitlines()]
     rows = [r for r in rows if r]
-    internal = ext2int(case)
+    internal, ybus, keep, _ = network(name, case)
     base, bus, branch = internal["baseMVA"], internal["bus"], internal["branch"]
-    ybus = makeYbus(base, bus, branch)[0].tocsr()
     numbers = case["bus"][:, 0].astype(int)
-    body, labels, generators = [], set(), 0
+    body, labels, generators, eliminated = [], set(), 0, 0
     for label, _prob, table, row, column, change, value in rows:
         labels.add(label)
         if table != "CT_TBRCH":
@@ -610,18 +768,33 @@ def contingency_table(name: str, case: dict, lines: set, head: str) -> str:
             sys.exit(f"grid_case: contingency {label} is not a branch outage ({column} {change} {value})")
         r = int(row) - 1  # ext2int keeps the order of the in-service branches (all of them here)
         a, b = sorted((int(branch[r, 0]), int(branch[r, 1])))
+        if not (keep[a] and keep[b]):
+            eliminated += 1
+            continue
         pair = (int(numbers[a]), int(numbers[b]))
         if pair not in lines:
             sys.exit(f"grid_case: contingency {label}'s branch {pair} is not a line of the converted grid")
         own = makeYbus(base, bus, branch[[r]])[0].tocsr()
-        share = own[a, b].imag / ybus[a, b].imag
+        share = own[a, b].imag / ybus[a][b].imag
         body.append(f"{label} {pair[0]} {pair[1]} {share:.6g}\n")
     if len(case["branch"]) != len(branch):
         sys.exit(f"grid_case: {name} has branches out of service; the contingency rows would shift")
+    if not eliminated:
+        left = (
+            f"the {generators} generator\n# outages are left out"
+            if generators
+            else "no generator\n# outages among them"
+        )
+    else:
+        left = (
+            ("" if not generators else f"the {generators} generator outages and ")
+            + f"the {eliminated}\n# outages of a winding of a three-winding transformer whose star point is"
+            "\n# replaced (tools/grid_case.py, eliminate_negative: not one line of the grid) are left out"
+        )
     return (
         f"# The {len(body)} branch contingencies of the case's official contingency table\n"
-        f"# (matpower/data/contab_{name}.m, {len(labels)} contingencies; the {generators} generator\n"
-        "# outages are left out): label, the line (from to, bus numbers of the .edges file) and the\n"
+        f"# (matpower/data/contab_{name}.m, {len(labels)} contingencies; {left}): label, the line (from to,"
+        " bus numbers of the .edges file) and the\n"
         "# share of its susceptance Im(Ybus) the tripped branch carries (1: the whole line; below 1:\n"
         "# one circuit of several in parallel).\n" + head + "".join(body)
     )
