@@ -377,16 +377,7 @@ class LineChanges:
     def _lambda2(self, lu) -> float:
         """The smallest nonzero eigenvalue of the loaded Laplacian ``-J``: one over the largest
         of its pseudo-inverse."""
-        a = self._lambda2_op(lu)
-        theta = spla.eigsh(
-            a,
-            k=WARM_EIGS,
-            which="LA",
-            return_eigenvectors=False,
-            tol=1e-12,
-            ncv=WARM_NCV,
-            v0=self._start(self.start_lambda2),
-        )
+        theta = _largest(spla.eigsh, self._lambda2_op(lu), "LA", self._start(self.start_lambda2))
         return float(1.0 / np.max(theta))
 
     def _margin_op(self, lu) -> spla.LinearOperator:
@@ -416,16 +407,7 @@ class LineChanges:
     def _rightmost(self, lu, phi, coo) -> float:
         """:func:`~antisync.physics.locked.rightmost` of the linearization at ``phi``: the
         largest eigenvalues of its inverse on the complement of the rotation's zero mode."""
-        a = self._margin_op(lu)
-        theta = spla.eigs(
-            a,
-            k=WARM_EIGS,
-            which="LM",
-            return_eigenvectors=False,
-            tol=1e-12,
-            ncv=WARM_NCV,
-            v0=self._start(self.start_margin),
-        )
+        theta = _largest(spla.eigs, self._margin_op(lu), "LM", self._start(self.start_margin))
         found = float(np.max((1.0 / theta).real))
         bound = self._bound()
         if bound is not None and found > bound:
@@ -442,6 +424,12 @@ class LineChanges:
         network (every ``cos`` positive): ``-min(gamma / m) / 2`` over the nodes with inertia."""
         gen = self.m > 0
         return -float(np.min(self.gamma[gen] / self.m[gen])) / 2 if gen.any() else -np.inf
+
+
+def _largest(solver, op, which: str, v0: np.ndarray) -> np.ndarray:
+    """The :data:`WARM_EIGS` eigenvalues of ``op`` that ``which`` names, by ``solver``
+    (:func:`scipy.sparse.linalg.eigsh` or ``eigs``) from the start vector ``v0``."""
+    return solver(op, k=WARM_EIGS, which=which, return_eigenvectors=False, tol=1e-12, ncv=WARM_NCV, v0=v0)
 
 
 def _warm_newton(phi, nu, f_of, factor, solve, first=None):
