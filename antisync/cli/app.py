@@ -13,7 +13,10 @@ from antisync._version import __version__
 from antisync.cli.capabilities import capabilities
 from antisync.cli.common import fail, flush_stdout
 from antisync.cli.design import design
-from antisync.cli.grid import grid
+from antisync.cli.grid.flags import grid
+from antisync.cli.grid.removal import removal as grid_removal
+from antisync.cli.grid.static import static as grid_static
+from antisync.cli.grid.trip import trip as grid_trip
 from antisync.cli.paper import paper
 from antisync.cli.report import report
 from antisync.cli.run import run
@@ -59,13 +62,30 @@ def usage_errors_as_one_line(subcommand: Callable[[], str | None] = lambda: None
         fail(usage_message(exc, subcommand()))
 
 
+#: The hidden subcommand of ``antisync grid`` that reads the one-command form
+#: (``antisync grid CONFIG --removal``; :mod:`antisync.cli.grid.flags`).
+GRID_FLAGS = "flags"
+
+
+class GridGroup(OneLineUsageGroup):
+    """``antisync grid``: the subcommands ``static``, ``removal`` and ``trip``; a command line
+    that starts with anything else (a config path, an option) is the one-command form of
+    before them, read by the hidden ``flags`` subcommand."""
+
+    def parse_args(self, ctx, args):
+        if args and args[0] not in self.commands and args[0] not in ctx.help_option_names:
+            args = [GRID_FLAGS, *args]
+        return super().parse_args(ctx, args)
+
+
 def usage_message(exc: Exception, subcommand: str | None = None) -> str:
     """``run: invalid value for '--threads': ... (see antisync run --help)``: the subcommand,
     click's message with a lower-case start, and the help that lists what is valid."""
     names = []
     ctx = getattr(exc, "ctx", None)
     while ctx is not None and ctx.parent is not None:  # the root's name is the program's name
-        names.append(ctx.info_name)
+        if ctx.info_name != GRID_FLAGS:  # the one-command form reads as `antisync grid`
+            names.append(ctx.info_name)
         ctx = ctx.parent
     command = " ".join(reversed(names)) or subcommand or ""
     message = " ".join(exc.format_message().splitlines()).strip().rstrip(".")
@@ -108,7 +128,19 @@ app.command()(summary)
 app.command()(report)
 app.command()(validate)
 app.command()(paper)
-app.command()(grid)
+grid_app = typer.Typer(
+    name="grid",
+    help="A power grid's lines: static indicators, the dynamic N-1 by random starts, or the "
+    "engineer's N-1 with faults and critical clearing times (docs/power_grids.md).",
+    cls=GridGroup,
+    no_args_is_help=True,
+    pretty_exceptions_enable=False,
+)
+grid_app.command("static")(grid_static)
+grid_app.command("removal")(grid_removal)
+grid_app.command("trip")(grid_trip)
+grid_app.command(GRID_FLAGS, hidden=True)(grid)
+app.add_typer(grid_app)
 app.command()(capabilities)
 app.command()(design)
 

@@ -1,0 +1,101 @@
+"""`antisync grid removal CONFIG`: the dynamic N-1 by random starts."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from antisync.cli.common import (
+    DebugOpt,
+    QuietOpt,
+    SetOpt,
+    dask_executor,
+    info,
+    one_of,
+    typed_values,
+    user_errors,
+)
+from antisync.cli.grid.options import (
+    BetaOpt,
+    GridConfigArg,
+    LinesOpt,
+    OutOpt,
+    OverwriteOpt,
+    ResumeOpt,
+    SchedulerOpt,
+    ThreadsOpt,
+    TopOpt,
+    WorkersOpt,
+    check_files,
+    check_top,
+    interrupted,
+)
+from antisync.types import RemovalBy
+
+
+@user_errors
+def removal(
+    config: GridConfigArg,
+    lines: LinesOpt = None,
+    beta: BetaOpt = None,
+    realizations: Annotated[int | None, typer.Option(help="Override `realizations`.")] = None,
+    seed: Annotated[int | None, typer.Option(help="Override `seed`.")] = None,
+    islanding: Annotated[
+        bool, typer.Option("--islanding", help="Remove bridges too, marking the rows (default: refused).")
+    ] = False,
+    threads: ThreadsOpt = None,
+    workers: WorkersOpt = None,
+    scheduler: SchedulerOpt = None,
+    top: TopOpt = None,
+    out: OutOpt = None,
+    figure: Annotated[
+        Path | None,
+        typer.Option(
+            "--figure", help="Draw the grid, lines coloured by the removal response (.png, .pdf, .svg)."
+        ),
+    ] = None,
+    by: Annotated[
+        RemovalBy | None,
+        typer.Option(
+            "--by",
+            parser=one_of("--by", RemovalBy),
+            help="The figure's colour: F_1 - 1 (speedup) or d P_sync.",
+        ),
+    ] = None,
+    overwrite: OverwriteOpt = False,
+    resume: ResumeOpt = False,
+    set_: SetOpt = None,
+    quiet: QuietOpt = False,
+    debug: DebugOpt = False,
+) -> None:
+    """The dynamic N-1: each line removed on the same random starts, P_sync lost/gained, change of tau."""
+    from antisync.api.grids import removal as removal_table
+    from antisync.plan.config import load_config
+
+    check_top(top)
+    check_files(resume, overwrite, out, "--removal")
+    # the config, --set and the typed options read and refused exactly as `antisync run` does
+    values = typed_values(realizations=realizations, seed=seed, threads=threads)
+    cfg = load_config(config, list(set_ or []), values)
+    with dask_executor(cfg, workers=workers, scheduler=scheduler, quiet=quiet) as ex:
+        try:
+            res = removal_table(
+                cfg,
+                source=config,
+                lines=lines,
+                beta=1.0 if beta is None else beta,
+                islanding=islanding,
+                output=out,
+                resume=resume,
+                overwrite=overwrite,
+                figure=figure,
+                by=by or "speedup",
+                client=None if ex is None else ex.client,
+                log=None if quiet else (lambda m: info(f"antisync grid: {m}")),
+            )
+        except KeyboardInterrupt:
+            interrupted(out)
+    if not res.kept:  # a finished file asked to resume is left as it is
+        typer.echo(res.to_markdown(top=top))

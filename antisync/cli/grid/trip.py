@@ -1,0 +1,117 @@
+"""`antisync grid trip CONFIG`: the engineer's N-1 from the operating point."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from antisync.cli.common import DebugOpt, QuietOpt, SetOpt, dask_executor, info, typed_values, user_errors
+from antisync.cli.grid.options import (
+    GridConfigArg,
+    LinesOpt,
+    OutOpt,
+    OverwriteOpt,
+    ResumeOpt,
+    SchedulerOpt,
+    ThreadsOpt,
+    WorkersOpt,
+    check_files,
+    interrupted,
+)
+
+
+@user_errors
+def trip(
+    config: GridConfigArg,
+    t_clear: Annotated[
+        float | None, typer.Option("--t-clear", help="The fault's duration before the trip (s).")
+    ] = None,
+    cct: Annotated[
+        bool,
+        typer.Option(
+            "--cct",
+            help="Each line's critical clearing time, the longest fault with every shorter one survived "
+            "(a scan every --cct-scan s, then every 1 ms in the first failing interval).",
+        ),
+    ] = False,
+    cct_max: Annotated[
+        float | None, typer.Option("--cct-max", help="--cct: the longest fault tried (s) [default: 1].")
+    ] = None,
+    cct_scan: Annotated[
+        float | None,
+        typer.Option(
+            "--cct-scan", help="--cct: the coarse scan's step of fault durations (s) [default: 0.01]."
+        ),
+    ] = None,
+    contingencies: Annotated[
+        Path | None,
+        typer.Option(
+            "--contingencies",
+            help="The trips of a contingency table (label from to share per row; "
+            "configs/activsg2000_grid_contingencies.txt is the case's official N-1) instead of "
+            "every line; --lines keeps the rows on the lines it names.",
+        ),
+    ] = None,
+    t_max: Annotated[
+        float | None, typer.Option("--t-max", help="How long the grid runs after the trip (s) [default: 20].")
+    ] = None,
+    lines: LinesOpt = None,
+    threads: ThreadsOpt = None,
+    workers: WorkersOpt = None,
+    scheduler: SchedulerOpt = None,
+    out: OutOpt = None,
+    figure: Annotated[
+        Path | None,
+        typer.Option(
+            "--figure",
+            help="Draw the grid, lines coloured by the critical clearing time or the frequency swing "
+            "(.png, .pdf, .svg).",
+        ),
+    ] = None,
+    overwrite: OverwriteOpt = False,
+    resume: ResumeOpt = False,
+    set_: SetOpt = None,
+    quiet: QuietOpt = False,
+    debug: DebugOpt = False,
+) -> None:
+    """The engineer's N-1: each line tripped from the operating point, after a fault, with CCTs."""
+    from antisync.api.grids import trip as trip_table
+    from antisync.grids.errors import GridError
+    from antisync.plan.config import load_config
+
+    for name, value in (("--cct-max", cct_max), ("--cct-scan", cct_scan)):
+        if value is not None and not cct:
+            raise GridError(f"{name} sets the critical clearing times' search: add --cct")
+    check_files(resume, overwrite, out, "--trip")
+    cfg = load_config(config, list(set_ or []), typed_values(threads=threads))
+    with dask_executor(cfg, workers=workers, scheduler=scheduler, quiet=quiet) as ex:
+        try:
+            res = trip_table(
+                cfg,
+                source=config,
+                lines=lines,
+                contingencies=contingencies,
+                t_clear=t_clear,
+                cct=cct,
+                cct_max=1.0 if cct_max is None else cct_max,
+                cct_scan=cct_scan,
+                t_max=20.0 if t_max is None else t_max,
+                output=out,
+                resume=resume,
+                overwrite=overwrite,
+                figure=figure,
+                client=None if ex is None else ex.client,
+                progress=False if quiet else None,
+                log=None if quiet else info,
+            )
+        except KeyboardInterrupt:
+            interrupted(out)
+    if res.kept:
+        return  # a finished file asked to resume: left as it is
+    typer.echo(res.to_markdown())
+    skipped = ", ".join("-".join(b) for b in res.table["bridges_skipped"])
+    if skipped:
+        n = len(res.table["bridges_skipped"])
+        info(f"skipped {n} trip(s) that open a bridge whole: {skipped}", quiet)
