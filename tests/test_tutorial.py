@@ -29,6 +29,7 @@ def test_the_tutorial_runs_and_says_what_it_shows(tmp_path):
     out = "\n".join(_text(c) for c in nb.cells if c.cell_type == "code")
     assert "15 nodes, 20 links" in out
     assert "resolved of 40" in out and "xi2 has the Kuramoto sign on" in out
+    assert "lines ranked" in out  # the power-grid cell (antisync.grid)
     assert (tmp_path / "florentine.h5").is_file() and (tmp_path / "florentine_freq.h5").is_file()
     # the figure cell drew one
     assert any(o.get("output_type") == "display_data" for c in nb.cells for o in c.get("outputs", []))
