@@ -27,8 +27,8 @@ __all__ = ["Result", "__version__", "design", "grid", "load", "measures", "run",
 
 if TYPE_CHECKING:
     from antisync import measures
-    from antisync.api import grids as grid
     from antisync.api import Result, design, load, run, summarize, sweep
+    from antisync.api import grids as grid
 
 
 def __getattr__(name: str):
