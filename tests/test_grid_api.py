@@ -193,3 +193,99 @@ def test_contingencies_name_their_lines(tmp_path):
 def test_a_usage_error_of_the_one_command_form_names_antisync_grid():
     ran = runner.invoke(app, ["grid", str(IEEE14), "--no-such-option"])
     assert ran.exit_code == 2 and "(see antisync grid --help)" in ran.output and "flags" not in ran.output
+
+
+# ---- grid tables in HDF5 (antisync.store.grid_file) and their readers ----
+
+
+def test_a_removal_table_in_hdf5_is_the_json_document_and_every_start(tmp_path):
+    """``output=X.h5``: the file holds the JSON file's document exactly (provenance and the
+    run's seconds aside), its rows as columns, and every start's paired outcome."""
+    import h5py
+
+    from antisync.store.grid_file import read_grid_table, read_outcomes
+
+    as_json = antisync.grid.removal(RING_CONFIG, lines="0-1,2-3", output=tmp_path / "r.json")
+    as_hdf5 = antisync.grid.removal(RING_CONFIG, lines="0-1,2-3", output=tmp_path / "r.h5")
+    doc = read_grid_table(tmp_path / "r.h5")
+    other = json.loads((tmp_path / "r.json").read_text())
+    for d in (doc, other):
+        d["summary"].pop("seconds")
+    assert _without_provenance(doc) == _without_provenance(other)
+    assert as_hdf5.records == as_json.records
+    outcomes = read_outcomes(tmp_path / "r.h5")
+    table = as_hdf5.table
+    for key in ("status0", "tau0", "status", "tau"):
+        np.testing.assert_array_equal(outcomes[key], getattr(table, key))
+    assert outcomes["status"].shape == (6, 2)
+    with h5py.File(tmp_path / "r.h5", "r") as f:
+        assert f.attrs["kind"] == "removal" and f.attrs["command"] == doc["command"]
+        assert [x.decode() for x in f["rows/label"][()]] == ["0-1", "2-3"]
+        np.testing.assert_array_equal(f["rows/p_after"][()], [r["p_after"] for r in as_hdf5.records])
+
+
+def test_load_summary_and_report_read_grid_tables_of_either_kind(tmp_path):
+    """``antisync.load``, ``antisync summary`` (table, json, csv) and ``antisync report`` read a
+    removal and a trip table, JSON or HDF5, and say the same of both files."""
+    removal = {
+        s: antisync.grid.removal(RING_CONFIG, lines="0-1,2-3", output=tmp_path / f"r{s}")
+        for s in (".json", ".h5")
+    }
+    trip = {
+        s: antisync.grid.trip(IEEE14, lines="1-2,2-3", t_clear=0.1, t_max=5.0, output=tmp_path / f"t{s}")
+        for s in (".json", ".h5")
+    }
+    for kind, results in (("removal", removal), ("trip", trip)):
+        loaded = {s: antisync.load(tmp_path / f"{kind[0]}{s}") for s in results}
+        for s, res in loaded.items():
+            assert (
+                res.kind == kind
+                and res.records == results[s].records
+                and res.path == tmp_path / f"{kind[0]}{s}"
+            )
+        assert loaded[".json"].records == loaded[".h5"].records
+        printed = {}
+        for s in results:
+            for fmt in ("table", "json", "csv"):
+                ran = runner.invoke(app, ["summary", str(tmp_path / f"{kind[0]}{s}"), "--format", fmt])
+                assert ran.exit_code == 0, ran.output
+                printed[s, fmt] = ran.output
+        assert printed[".json", "table"] == printed[".h5", "table"] == loaded[".h5"].to_markdown() + "\n"
+        assert printed[".json", "csv"] == printed[".h5", "csv"]
+        as_json = {s: json.loads(printed[s, "json"]) for s in results}
+        assert as_json[".h5"]["kind"] == kind and as_json[".h5"]["file"].endswith(".h5")
+        rows = "rows" if kind == "removal" else "lines"
+        assert as_json[".json"][rows] == as_json[".h5"][rows] == loaded[".h5"].records
+    ran = runner.invoke(app, ["report", str(tmp_path / "r.h5"), "--out", str(tmp_path / "fig")])
+    assert ran.exit_code == 0, ran.output
+    assert (tmp_path / "fig" / "index.md").is_file() and (tmp_path / "fig" / "ring6_removal.png").is_file()
+    ran = runner.invoke(app, ["summary", str(tmp_path / "r.h5"), "--sort", "km"])
+    assert ran.exit_code == 2 and "a grid table is ranked as it is" in ran.output
+
+
+def test_an_hdf5_grid_table_resumes_and_replaces_only_its_own_kind(tmp_path):
+    """``resume=True`` on a finished ``.h5`` table returns it as it is; ``overwrite`` replaces a
+    removal table but never a run's result file or a trip table; a damaged ``.h5`` is one line
+    to every reader."""
+    out = tmp_path / "r.h5"
+    first = antisync.grid.removal(RING_CONFIG, lines="0-1", output=out)
+    before = out.read_bytes()
+    again = antisync.grid.removal(RING_CONFIG, lines="0-1", output=out, resume=True)
+    assert again.kept and again.records == first.records and out.read_bytes() == before
+    run = antisync.run(
+        {"graph": {"kind": "lollipop", "nodes": 4, "path": 1}, "betas": [], "edges": ["1->2"]},
+        realizations=8,
+        output=tmp_path / "run.h5",
+    )
+    trip = antisync.grid.trip(IEEE14, lines="1-2", t_max=2.0, output=tmp_path / "t.h5")
+    for other in (run.path, trip.path):
+        kept = other.read_bytes()
+        with pytest.raises(GridError, match="not an HDF5 removal table"):
+            antisync.grid.removal(RING_CONFIG, lines="0-1", output=other, overwrite=True)
+        assert other.read_bytes() == kept
+    damaged = tmp_path / "damaged.h5"
+    damaged.write_bytes(before[: len(before) // 2])
+    ran = runner.invoke(app, ["summary", str(damaged)])
+    assert ran.exit_code == 2 and len(ran.output.strip().splitlines()) == 1, ran.output
+    with pytest.raises(AntisyncError):
+        antisync.load(damaged)

@@ -48,7 +48,14 @@ from antisync.grids.lines import parse_lines
 from antisync.grids.load import grid_from_config
 from antisync.grids.removal import line_removal
 from antisync.grids.removal_config import check_beta, planned_lines, resolve_config
-from antisync.grids.removal_file import check_output, plain, replace_atomically, table_document, write_table
+from antisync.grids.removal_file import (
+    check_output,
+    is_hdf5_table,
+    plain,
+    replace_atomically,
+    table_document,
+    write_table,
+)
 from antisync.grids.removal_journal import journal_folder, remove_journal
 from antisync.grids.static import format_table, static_table
 from antisync.grids.trip import (
@@ -67,18 +74,19 @@ from antisync.grids.trip import (
 )
 from antisync.plan.config import Config
 from antisync.plan.sources import flag, shown
+from antisync.report.grid_tables import read_table, removal_markdown
 from antisync.report.removal import (
     check_figure,
     check_finished_table,
-    removal_doc,
     removal_figure,
     trip_figure,
 )
+from antisync.store.grid_file import write_grid_table
 from antisync.store.lock import writer_lock
 from antisync.store.outputs import config_inputs
 from antisync.store.provenance import command_line
 
-__all__ = ["GridResult", "contingencies", "removal", "static", "trip"]
+__all__ = ["GridResult", "contingencies", "load_table", "removal", "static", "trip"]
 
 #: What each kind of result's ``records`` are: one row per line, as the CLI's table shows them.
 KINDS = ("static", "removal", "trip")
@@ -133,8 +141,8 @@ class GridResult:
             return format_table(self.table, top=top)
         if self.kind == "trip":
             return format_trips(self.table)
-        if self.kept:
-            raise GridError("a removal table read back from its file is printed by `antisync report FILE`")
+        if isinstance(self.table, Mapping):  # read back from its file
+            return removal_markdown(self.table)
         return self.table.to_markdown(top=top)
 
     def __repr__(self) -> str:
@@ -255,8 +263,7 @@ def removal(
             if resume and out.exists() and not journal.exists():
                 check_finished_table(out, cfg, asked, beta)  # only the arguments are compared
                 say(f"{out} is complete: nothing to resume (it is left as it is)")
-                doc = removal_doc(out)
-                return GridResult("removal", list(doc.get("rows") or []), doc, out, kept=True)
+                return dataclasses.replace(load_table(out), kept=True)
             check_output(out, overwrite or (resume and journal.exists()), protect=inputs)
         if figure is not None:
             check_figure(figure, overwrite, protect=inputs)
@@ -365,8 +372,7 @@ def trip(
                 settings.update(cct_scan=cct_scan if cct else None, clock=CLOCK)
                 check_finished_trips(out, g, plan_trips(g, picked, table), settings)
                 say(f"{out} is complete: nothing to resume (it is left as it is)")
-                doc = json.loads(out.read_text(encoding="utf-8"))
-                return GridResult("trip", list(doc.get("lines") or []), doc, out, kept=True)
+                return dataclasses.replace(load_table(out), kept=True)
             out = check_output(
                 out, overwrite or (resume and journal.exists()), protect=inputs, table="trip", fmt=FORMAT
             )
@@ -393,8 +399,11 @@ def trip(
         )
         if out is not None:
             doc = plain({**report, **provenance(command_line()), "config": cfg.to_dict()})
-            text = json.dumps(doc, indent=1, allow_nan=False) + "\n"  # strict JSON: nan as null
-            replace_atomically(out, lambda tmp: tmp.write_text(text, encoding="utf-8"))
+            if is_hdf5_table(out):
+                write_grid_table(out, doc)
+            else:
+                text = json.dumps(doc, indent=1, allow_nan=False) + "\n"  # strict JSON: nan as null
+                replace_atomically(out, lambda tmp: tmp.write_text(text, encoding="utf-8"))
             remove_journal(journal)
             say(f"wrote {out}")
         if figure is not None:
@@ -414,6 +423,16 @@ def contingencies(
         {"label": label, "line": [g.labels[a], g.labels[b]], "share": float(share)}
         for label, (a, b), share in read_contingencies(path, g)
     ]
+
+
+def load_table(path: str | os.PathLike) -> GridResult:
+    """A removal or trip table's file (JSON, or HDF5 with ``.h5``) as the :class:`GridResult`
+    its run returned: ``records`` its rows (``nan`` as None), ``table`` its document
+    (:func:`antisync.report.grid_tables.read_table`). ``antisync.load`` reads these files too."""
+    path = Path(path)
+    kind, doc = read_table(path)
+    rows = doc["rows"] if kind == "removal" else doc["lines"]
+    return GridResult(kind, plain(rows), doc, path)
 
 
 def _config(where: str, config, overrides: Mapping) -> Config:

@@ -147,8 +147,10 @@ class Result:
         )
 
 
-def load(path: str | Path) -> Result:
-    """Read a run or sweep file written by :func:`run`, :func:`sweep` or the CLI.
+def load(path: str | Path):
+    """Read a run or sweep file written by :func:`run`, :func:`sweep` or the CLI, as a
+    :class:`Result`; a table of ``antisync grid removal|trip --out`` (JSON or HDF5) as the
+    :class:`antisync.api.grids.GridResult` its run returned (:func:`antisync.api.grids.load_table`).
 
     Raises
     ------
@@ -157,6 +159,10 @@ def load(path: str | Path) -> Result:
         with a one-line message.
     """
     path = _result_path(path)
+    if _grid_table(path):
+        from antisync.api.grids import load_table
+
+        return load_table(path)
     s = summarize(path)
     sweep = s if s["kind"] == "sweep" else None
     fields = {k: s[k] for k in ("config_yaml", "stop", "model", "r_star")}
@@ -448,6 +454,16 @@ def _options(where: str, resume, overwrite, progress, executor, log) -> dict:
             f"{where}: log must be None or a callable taking one string (e.g. print), got {shown(log)}"
         )
     return {**opts, "executor": executor, "log": log}
+
+
+def _grid_table(path: Path) -> bool:
+    """Whether ``path`` is a table of ``antisync grid`` (its JSON or HDF5 file)."""
+    from antisync.report.grid_tables import table_kind
+
+    try:
+        return table_kind(path) is not None
+    except AntisyncError:
+        return False  # JSON of another kind: the result readers name what is wrong
 
 
 def _result_path(path) -> Path:

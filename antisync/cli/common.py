@@ -21,7 +21,12 @@ EXIT_USAGE = 2
 
 ConfigArg = Annotated[Path, typer.Argument(help="YAML config file (see configs/).", show_default=False)]
 ResultArg = Annotated[
-    Path, typer.Argument(help="HDF5 result file written by `antisync run`.", show_default=False)
+    Path,
+    typer.Argument(
+        help="HDF5 result file written by `antisync run` (or sweep, design), or a table of "
+        "`antisync grid removal|trip --out`.",
+        show_default=False,
+    ),
 ]
 SetOpt = Annotated[
     list[str] | None,

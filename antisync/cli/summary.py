@@ -43,12 +43,17 @@ def summary(
     interval [low, high] where asymmetric) and, with betas, one per (link, beta) (<F_beta>);
     columns empty on every row are left out. It ends with warnings (one line per kind), which
     model ran and, for a sweep, the excluded graphs.
+
+    A table of `antisync grid removal|trip --out` (JSON or HDF5) prints as its ranked table,
+    its whole document (json) or its rows (csv).
     """
     import json
 
     from antisync.api import summarize
+    from antisync.errors import AntisyncError
     from antisync.execution.stopping import stop_note
     from antisync.plan.describe import stored_name
+    from antisync.report.grid_tables import table_kind, table_text
     from antisync.report.tables import format_records, format_sweep
     from antisync.stats.records import flag_signs, sign_rule_note, sort_records
     from antisync.stats.sum_rule import sum_rule_note, views_sums
@@ -60,6 +65,11 @@ def summary(
     def listed(recs: list[dict]) -> list[dict]:
         return flag_signs(sort_records(recs, sort) if sort else recs)
 
+    if table_kind(results) is not None:  # a table of `antisync grid removal|trip --out`
+        if sort is not None:
+            raise AntisyncError("--sort orders a result file's links; a grid table is ranked as it is")
+        typer.echo(table_text(results, format))
+        return
     if is_design_file(results):
         typer.echo(_design_summary(read_design(results), results, format))
         return

@@ -1,7 +1,9 @@
 """The file of a dynamic line removal: a :class:`~antisync.grids.removal_table.RemovalTable` as
-JSON (:func:`table_document`, :func:`write_table`), antisync's output policy for it and for the
-removal's figure (:func:`check_output`, :func:`check_new_file`), and the atomic replacement
-every one of them is written by.
+JSON or HDF5 (:func:`table_document`, :func:`write_table`; ``.h5``: :mod:`antisync.store.grid_file`,
+the same document and every start's outcome), the one reader of a grid table's file of either
+kind (:func:`read_document`), antisync's output policy for it and for the removal's figure
+(:func:`check_output`, :func:`check_new_file`), and the atomic replacement every one of them is
+written by.
 """
 
 from __future__ import annotations
@@ -15,9 +17,12 @@ from pathlib import Path
 import numpy as np
 
 from antisync._version import __version__
+from antisync.errors import StoreError
 from antisync.grids.errors import GridError
 from antisync.grids.removal_table import RemovalTable
 from antisync.stats.multiplicity import FDR_LEVEL
+from antisync.store.grid_file import SUFFIXES as HDF5_SUFFIXES
+from antisync.store.grid_file import grid_table_kind, read_grid_table, write_grid_table
 from antisync.store.outputs import check_output_path, config_inputs, json_format_problem
 from antisync.store.provenance import git_revision, now
 
@@ -27,6 +32,7 @@ __all__ = [
     "check_new_file",
     "check_output",
     "plain",
+    "read_document",
     "replace_atomically",
     "table_document",
     "write_table",
@@ -49,12 +55,40 @@ def check_output(
         path,
         overwrite,
         "--out",
-        (".json",),
-        f"the {table} table is written as JSON; name it *.json",
-        replaceable=lambda p: json_format_problem(p, fmt),
-        kind=f"an antisync {table} table (JSON of format {fmt!r})",
+        (".json", *HDF5_SUFFIXES),
+        f"the {table} table is written as JSON or HDF5; name it *.json or *.h5",
+        replaceable=lambda p: _table_problem(p, table, fmt),
+        kind=f"an antisync {table} table (JSON of format {fmt!r}, or an HDF5 grid table)",
         protect=protect,
     )
+
+
+def _table_problem(path: Path, table: str, fmt: str) -> str | None:
+    """What ``path`` is when it is not a ``table`` table (JSON of format ``fmt``, or HDF5)."""
+    if Path(path).suffix.lower() in HDF5_SUFFIXES:
+        return None if grid_table_kind(path) == table else f"not an HDF5 {table} table"
+    return json_format_problem(path, fmt)
+
+
+def is_hdf5_table(path: str | Path) -> bool:
+    """Whether ``path`` names an HDF5 grid table's file (by its suffix)."""
+    return Path(path).suffix.lower() in HDF5_SUFFIXES
+
+
+def read_document(path: str | Path, what: str = "grid table"):
+    """The document of a grid table's file, JSON (``.json`` or any other suffix) or HDF5
+    (``.h5``, :func:`antisync.store.grid_file.read_grid_table`), as parsed; one-line GridError
+    when it cannot be read (the caller checks its ``format``)."""
+    path = Path(path)
+    if is_hdf5_table(path):
+        try:
+            return read_grid_table(path)
+        except StoreError as exc:
+            raise GridError(str(exc)) from None
+    try:
+        return json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, ValueError) as exc:
+        raise GridError(f"{path}: cannot read the {what} ({type(exc).__name__}: {exc})") from None
 
 
 def check_new_file(
@@ -126,11 +160,15 @@ def table_document(table: RemovalTable, command: str = "") -> dict:
 
 
 def write_table(table: RemovalTable, path: str | Path, overwrite: bool = False, command: str = "") -> Path:
-    """Write ``table`` as JSON (:func:`table_document`) atomically (:func:`replace_atomically`),
-    so an existing result is never half-written. ``nan`` is written as ``null``. An existing
+    """Write ``table`` as JSON (:func:`table_document`), or with an ``.h5`` suffix as HDF5 (the
+    same document and every start's outcome: :func:`antisync.store.grid_file.write_grid_table`),
+    atomically, so an existing result is never half-written. ``nan`` is written as ``null``. An existing
     ``path`` is replaced (``overwrite``) only when it is a removal table, and never when it is a
     file the table's config reads (:func:`check_output`)."""
     path = check_output(path, overwrite, protect=config_inputs(table.config))
+    if is_hdf5_table(path):
+        outcomes = {"status0": table.status0, "tau0": table.tau0, "status": table.status, "tau": table.tau}
+        return write_grid_table(path, table_document(table, command), outcomes)
     text = json.dumps(table_document(table, command), indent=1, default=str)
 
     def write(tmp: Path) -> None:

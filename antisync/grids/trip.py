@@ -40,7 +40,6 @@ sound where the verdicts switch more than once near the boundary.
 from __future__ import annotations
 
 import hashlib
-import json
 import math
 import sys
 from dataclasses import asdict, dataclass
@@ -57,6 +56,7 @@ from antisync.execution.executors.tasks import map_tasks
 from antisync.grids.errors import GridError
 from antisync.grids.lines import grid_bridges, lines_of, split_bridges
 from antisync.grids.load import Grid
+from antisync.grids.removal_file import read_document
 from antisync.grids.removal_journal import TripJournal, key_changes
 from antisync.kernels.shared import per_node
 from antisync.physics.coupling import to_csr
@@ -617,9 +617,9 @@ def check_finished_trips(path, grid: Grid, plan, settings: dict) -> None:
     ``t_clear``, ``t_max``, ``dt``, ``tolerance``, ``integrator``, ``rtol``, ``atol``, ``cct_max``,
     ``cct_tol``)."""
     try:
-        doc = json.loads(Path(path).read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError, ValueError) as exc:
-        raise GridError(f"--resume: {path} cannot be read as a trip table ({type(exc).__name__})") from None
+        doc = read_document(path, "trip table")
+    except GridError as exc:
+        raise GridError(f"--resume: {exc}") from None
     if not isinstance(doc, dict) or doc.get("format") != FORMAT or not isinstance(doc.get("lines"), list):
         raise GridError(f"--resume: {path} is not a trip table (format {FORMAT!r})")
     todo, names, shares, _ = plan

@@ -1,5 +1,6 @@
-"""``antisync report`` of the JSON tables that ``antisync grid`` writes: a dynamic line removal
-(``--removal --out``) and the engineer's N-1 (``--trip --out``).
+"""``antisync report`` and ``antisync summary`` of the tables that ``antisync grid`` writes (JSON,
+or HDF5 with an ``.h5`` suffix): a dynamic line removal (``removal --out``) and the engineer's
+N-1 (``trip --out``).
 
 :func:`table_kind` tells such a file from a result file; :func:`write_table_report` draws its
 figures (:func:`antisync.report.removal.removal_figure`, by the speedup and by ``d P_sync``;
@@ -16,12 +17,22 @@ from pathlib import Path
 
 from antisync.grids.errors import GridError
 from antisync.grids.removal_file import FORMAT as REMOVAL_FORMAT
+from antisync.grids.removal_file import is_hdf5_table, plain, read_document
 from antisync.grids.removal_table import audit_line
 from antisync.grids.trip import FORMAT as TRIP_FORMAT
 from antisync.grids.trip import format_trips
 from antisync.report.removal import removal_doc, removal_figure, resolved, trip_figure
+from antisync.store.grid_file import grid_table_kind
 
-__all__ = ["TABLE_KINDS", "table_kind", "trip_doc", "write_table_report"]
+__all__ = [
+    "TABLE_KINDS",
+    "read_table",
+    "removal_markdown",
+    "table_kind",
+    "table_text",
+    "trip_doc",
+    "write_table_report",
+]
 
 #: The JSON tables ``antisync report`` draws, by their ``format``.
 TABLE_KINDS = {REMOVAL_FORMAT: "removal", TRIP_FORMAT: "trip"}
@@ -35,6 +46,8 @@ _NETWORK_KEYS = ("nodes", "links", "inertia")
 
 
 def _read_json(path: Path):
+    if is_hdf5_table(path) or grid_table_kind(path) is not None:
+        return read_document(path)
     try:
         return json.loads(path.read_text(encoding="utf-8"))
     except (OSError, UnicodeDecodeError, ValueError) as exc:
@@ -42,10 +55,14 @@ def _read_json(path: Path):
 
 
 def table_kind(path: str | Path) -> str | None:
-    """``"removal"`` or ``"trip"`` for a JSON table of ``antisync grid``; None for a file that
-    is not JSON (a result file: the HDF5 reports read it). A JSON file of another kind is a
-    one-line :class:`GridError` naming the kinds that are drawn."""
+    """``"removal"`` or ``"trip"`` for a table of ``antisync grid`` (JSON, or HDF5:
+    :mod:`antisync.store.grid_file`); None for a file that is neither (a result file: the HDF5
+    reports read it). A JSON file of another kind is a one-line :class:`GridError` naming the
+    kinds that are drawn."""
     path = Path(path)
+    kind = grid_table_kind(path)
+    if kind is not None:
+        return kind
     try:
         with open(path, "rb") as fh:
             head = fh.read(64).lstrip()
@@ -120,7 +137,7 @@ def _give_up_words(summary: dict) -> str:
     return text + (f" {audit_line(audit)}." if audit else "")
 
 
-def _removal_markdown(doc: dict) -> str:
+def removal_markdown(doc: dict) -> str:
     """The removal table's summary and its first :data:`TOP_ROWS` rows, ranked by the net
     starts lost, then the change of tau (the marks of :func:`antisync.report.removal.resolved`)."""
     s = doc["summary"]
@@ -185,7 +202,7 @@ def write_table_report(
             "",
             f"![d P_sync by line]({figures['psync']}.png)",
             "",
-            _removal_markdown(doc),
+            removal_markdown(doc),
         ]
     else:
         doc = trip_doc(path)
@@ -204,3 +221,39 @@ def write_table_report(
     index = folder / "index.md"
     index.write_text("\n".join([title, "", f"From `{path.name}`.", "", *body]) + "\n", encoding="utf-8")
     return [*written, index]
+
+
+def read_table(path: str | Path) -> tuple[str, dict]:
+    """``(kind, document)`` of a grid table's file, checked (:func:`removal_doc`,
+    :func:`trip_doc`); a one-line GridError for any other file."""
+    kind = table_kind(path)
+    if kind is None:
+        raise GridError(f"{path} is not a table of antisync grid removal|trip --out (JSON or HDF5)")
+    return kind, (removal_doc(path) if kind == "removal" else trip_doc(path))
+
+
+def table_text(path: str | Path, format: str = "table") -> str:
+    """What ``antisync summary`` prints of a grid table: the ranked table (Markdown), the whole
+    document (``json``: ``kind``, ``file`` and the document's keys; ``nan`` as ``null``) or the
+    rows (``csv``: one column per key, a pair as ``a-b``)."""
+    import csv
+    import io
+
+    kind, doc = read_table(path)
+    rows = doc["rows"] if kind == "removal" else doc["lines"]
+    if format == "json":
+        return json.dumps(plain({"kind": kind, "file": str(path), **doc}), indent=2, allow_nan=False)
+    if format == "csv":
+        keys = [k for k in rows[0] if all(k in r for r in rows)] if rows else []
+        buf = io.StringIO()
+        writer = csv.writer(buf)
+        writer.writerow(keys)
+        for r in rows:
+            writer.writerow(
+                [
+                    "-".join(map(str, v)) if isinstance(v, list | tuple) else ("" if v is None else v)
+                    for v in (r[k] for k in keys)
+                ]
+            )
+        return buf.getvalue().rstrip("\n")
+    return removal_markdown(doc) if kind == "removal" else format_trips(doc)

@@ -14,7 +14,6 @@ figure is drawn, with the Agg backend.
 
 from __future__ import annotations
 
-import json
 import math
 from pathlib import Path
 
@@ -25,7 +24,13 @@ from antisync.errors import AntisyncError
 from antisync.grids.errors import GridError
 from antisync.grids.load import Grid
 from antisync.grids.removal_config import resolve_config, work_config
-from antisync.grids.removal_file import FORMAT, check_new_file, replace_atomically, table_document
+from antisync.grids.removal_file import (
+    FORMAT,
+    check_new_file,
+    read_document,
+    replace_atomically,
+    table_document,
+)
 from antisync.grids.removal_journal import key_changes
 from antisync.grids.removal_table import RemovalTable
 from antisync.physics import graphs
@@ -98,9 +103,9 @@ def _read_doc(source, where: str | None) -> dict:
         path = Path(source)
         where = str(path) if where is None else f"{where} ({path})"
         try:
-            doc = json.loads(path.read_text(encoding="utf-8"))
-        except (OSError, UnicodeDecodeError, ValueError) as exc:
-            raise GridError(f"{where}: cannot read the removal table ({exc})") from None
+            doc = read_document(path, "removal table")
+        except GridError as exc:
+            raise GridError(f"{where}: {exc}") from None
         if not isinstance(doc, dict) or doc.get("format") != FORMAT:
             raise GridError(f"{where}: not a removal table (written by antisync grid --removal --out)")
         return _check_doc(doc, where)

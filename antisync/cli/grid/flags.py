@@ -98,7 +98,10 @@ def grid(
     ] = None,
     top: Annotated[int | None, typer.Option(help="Print only the first TOP rows of the ranking.")] = None,
     out: Annotated[
-        Path | None, typer.Option("--out", "-o", help="Write the removal or trip table as JSON (atomically).")
+        Path | None,
+        typer.Option(
+            "--out", "-o", help="Write the removal or trip table atomically, as X.json or X.h5 (HDF5)."
+        ),
     ] = None,
     figure: Annotated[
         Path | None,

@@ -30,7 +30,15 @@ WorkersOpt = Annotated[
 SchedulerOpt = Annotated[
     str | None, typer.Option(help="Run on the Dask cluster at this address (tcp://host:8786).")
 ]
-OutOpt = Annotated[Path | None, typer.Option("--out", "-o", help="Write the table as JSON (atomically).")]
+OutOpt = Annotated[
+    Path | None,
+    typer.Option(
+        "--out",
+        "-o",
+        help="Write the table atomically: X.json, or X.h5 (HDF5: the same document, its rows as "
+        "columns and a removal's every start); antisync summary, report and antisync.load read both.",
+    ),
+]
 OverwriteOpt = Annotated[
     bool, typer.Option("--overwrite", help="Replace an existing --out or --figure file.")
 ]
