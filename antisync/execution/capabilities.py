@@ -21,7 +21,7 @@ of the identical oscillators grid crossing times.
 
 from __future__ import annotations
 
-from antisync.execution.dispatch import MODEL_KINDS, RESOLVED_BACKENDS, TABLE, TRIP_ROWS, Key
+from antisync.execution.dispatch import DESIGN_REFUSALS, MODEL_KINDS, RESOLVED_BACKENDS, TABLE, TRIP_ROWS, Key
 from antisync.types import INTEGRATORS, LAMBDA_METHODS, PRECISIONS
 
 __all__ = ["cell", "table"]
@@ -57,6 +57,9 @@ def table() -> str:
     runs = [i for i, why in TRIP_ROWS.items() if why is None]
     lines += ["", f"Line trips (`antisync grid --trip`, cpu float64): {', '.join(runs)}.  "]
     lines += [f"{i}: {why}.  " for i, why in TRIP_ROWS.items() if why is not None]
+    designs = [i for i in INTEGRATORS if i not in DESIGN_REFUSALS]
+    lines += ["", f"Designs (`antisync design`, cpu float64, both models): {', '.join(designs)}.  "]
+    lines += [f"{value}: {why}.  " for value, why in DESIGN_REFUSALS.items()]
     return "\n".join(lines).rstrip() + "\n"
 
 

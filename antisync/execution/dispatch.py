@@ -43,17 +43,20 @@ from antisync.store.state import ChunkResult
 from antisync.types import BACKENDS, INTEGRATORS, LAMBDA_METHODS, PRECISIONS
 
 __all__ = [
+    "DESIGN_REFUSALS",
     "DRIVERS",
     "MODEL_KINDS",
     "PASSES",
     "REFUSALS",
     "TABLE",
     "TRIP_ROWS",
+    "DesignDrivers",
     "Driver",
     "Key",
     "LambdaPass",
     "Refusal",
     "Row",
+    "design_drivers",
     "fd_variants",
     "job_model_params",
     "key_of",
@@ -210,6 +213,111 @@ def trip_simulator(integrator: str) -> Callable:
     from antisync.kernels.trip import integrate_trips
 
     return functools.partial(integrate_trips, integrator=integrator)
+
+
+#: Where a design (``antisync design``, :mod:`antisync.optimize`) cannot run, by the config value
+#: that rules it out: it differentiates the explicit steps, on the CPU.
+DESIGN_REFUSALS: dict[str, str] = {
+    "rodas4": "a design differentiates dynamics.integrator euler or rk4, not rodas4 (the adjoint is "
+    "written for the explicit steps)",
+    "cuda": "a design runs on the CPU: set backend: cpu (or leave it out)",
+}
+
+
+class DesignDrivers(NamedTuple):
+    """A design's two kernels for a config (:func:`design_drivers`), one signature whatever the
+    model kind (``params``: the model's :class:`~antisync.kernels.model_steps.ModelParams`, None
+    for Eq. 2's identical oscillators):
+
+    - ``forward(seed, indptr, indices, base_w, var_w, params, ks, threads, todo)``: the times of
+      the base weights and of every row of ``var_w`` on the starts ``ks`` (a
+      :class:`~antisync.kernels.shared.SimResult`);
+    - ``adjoint(seed, indptr, indices, weights, deriv, params, ks, threads)``: each start's
+      ``d tau0 / d x`` along ``deriv`` (a :class:`~antisync.kernels.shared.PathwiseResult`).
+    """
+
+    forward: Callable
+    adjoint: Callable
+
+
+def design_drivers(config) -> DesignDrivers:
+    """The kernels of a design of ``config`` (a :class:`~antisync.plan.config.Config`), or the
+    one-line :class:`~antisync.errors.ConfigError` of :data:`DESIGN_REFUSALS`."""
+    dyn = config.dynamics
+    for value in (dyn.integrator, config.backend):
+        if value in DESIGN_REFUSALS:
+            raise ConfigError(DESIGN_REFUSALS[value])
+    clock = {"dt": dyn.dt, "max_steps": dyn.max_steps}
+    if config.generalized:
+        simulate = model_simulator(dyn)
+
+        def forward(seed, indptr, indices, base_w, var_w, params, ks, threads, todo):
+            return simulate(
+                seed,
+                0,
+                0,
+                indptr,
+                indices,
+                base_w,
+                var_w,
+                params,
+                **clock,
+                threads=threads,
+                realizations=ks,
+                todo=todo,
+            )
+
+        def adjoint(seed, indptr, indices, weights, deriv, params, ks, threads):
+            return simulate_model_adjoint(
+                seed,
+                0,
+                0,
+                indptr,
+                indices,
+                weights,
+                deriv,
+                params,
+                **clock,
+                integrator=dyn.integrator,
+                threads=threads,
+                realizations=ks,
+            )
+
+        return DesignDrivers(forward, adjoint)
+    clock["threshold"] = dyn.threshold
+
+    def forward_identical(seed, indptr, indices, base_w, var_w, params, ks, threads, todo):
+        return cpu.simulate(
+            seed,
+            0,
+            0,
+            indptr,
+            indices,
+            base_w,
+            var_w,
+            **clock,
+            threads=threads,
+            realizations=ks,
+            integrator=dyn.integrator,
+            todo=todo,
+        )
+
+    def adjoint_identical(seed, indptr, indices, weights, deriv, params, ks, threads):
+        return simulate_adjoint(
+            seed,
+            0,
+            0,
+            indptr,
+            indices,
+            weights,
+            deriv,
+            **clock,
+            threads=threads,
+            realizations=ks,
+            integrator=dyn.integrator,
+        )
+
+    return DesignDrivers(forward_identical, adjoint_identical)
 
 
 def model_simulator(dynamics, give_up: tuple[float, float] | None = None) -> Callable:

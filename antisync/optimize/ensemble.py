@@ -17,7 +17,8 @@ synchronized by ``t_max`` counts as ``t_max`` with derivative 0 (a censored time
 objective is ``E[min(tau, t_max)]``, and the fraction censored is reported with it), a start
 already synchronized at ``t = 0`` as 0. The gradient ``d tau / d x_l`` of every link comes
 from one adjoint pass per start (:func:`antisync.kernels.adjoint.simulate_adjoint` for Eq. 2,
-:func:`antisync.kernels.model_adjoint.simulate_model_adjoint` for the models) with
+:func:`antisync.kernels.model_adjoint.simulate_model_adjoint` for the models, both reached
+through the dispatch table's :func:`antisync.execution.dispatch.design_drivers`) with
 ``dW/dx_l`` in place of a damage direction: the derivative of the same discrete function of
 the weights whose values are returned, so a central difference of :func:`sample`'s ``tau`` on
 the same starts converges to it (tests/test_optimize.py).
@@ -32,10 +33,8 @@ import networkx as nx
 import numpy as np
 
 from antisync.errors import ConfigError
-from antisync.execution.dispatch import model_params, model_simulator
-from antisync.kernels import cpu
-from antisync.kernels.adjoint import LinkDerivatives, simulate_adjoint
-from antisync.kernels.model_adjoint import simulate_model_adjoint
+from antisync.execution.dispatch import design_drivers, model_params
+from antisync.kernels.adjoint import LinkDerivatives
 from antisync.optimize.budget import Budget
 from antisync.physics import graphs
 from antisync.physics.coupling import CouplingCSR, to_csr
@@ -159,13 +158,7 @@ class Problem:
 
 def check_designable(config: Config) -> None:
     """One clear :class:`ConfigError` for a config whose times a design cannot differentiate."""
-    if config.dynamics.integrator not in ("euler", "rk4"):
-        raise ConfigError(
-            f"a design differentiates dynamics.integrator euler or rk4, not "
-            f"{config.dynamics.integrator} (the adjoint is written for the explicit steps)"
-        )
-    if config.backend == "cuda":
-        raise ConfigError("a design runs on the CPU: set backend: cpu (or leave it out)")
+    design_drivers(config)  # the dispatch table's refusals: the integrator, the backend
     if config.sync.criterion == "relative":
         raise ConfigError(
             "a design cannot use sync.criterion relative (its target r* moves with every weight "
@@ -313,42 +306,11 @@ def sample(
     value with the same mean to ``O(h^2)``. ``cut=None``: the adjoint's values only (what the
     tests compare with central differences)."""
     config = problem.config
-    dyn = config.dynamics
     ks = np.asarray(ks, dtype=np.uint64)
     csr = problem.coupling(x)
-    deriv = problem.derivatives(x)
-    if config.generalized:
-        res = simulate_model_adjoint(
-            seed,
-            0,
-            0,
-            csr.indptr,
-            csr.indices,
-            csr.weights,
-            deriv,
-            _model_params(problem, csr, ks, 1),
-            dt=dyn.dt,
-            max_steps=dyn.max_steps,
-            integrator=dyn.integrator,
-            threads=threads,
-            realizations=ks,
-        )
-    else:
-        res = simulate_adjoint(
-            seed,
-            0,
-            0,
-            csr.indptr,
-            csr.indices,
-            csr.weights,
-            deriv,
-            dt=dyn.dt,
-            threshold=dyn.threshold,
-            max_steps=dyn.max_steps,
-            threads=threads,
-            realizations=ks,
-            integrator=dyn.integrator,
-        )
+    params = _model_params(problem, csr, ks, 1) if config.generalized else None
+    adjoint = design_drivers(config).adjoint
+    res = adjoint(seed, csr.indptr, csr.indices, csr.weights, problem.derivatives(x), params, ks, threads)
     grad = np.where((res.status0 == SYNCED)[:, None], res.dtau, 0.0)
     tau = _times(config, res.status0, res.steps0, res.frac0)
     if cut is not None:
@@ -395,46 +357,12 @@ def evaluate(
     one forward integration per design and start, the designs as variants of one batch
     (``todo``, bool ``(m, D)``: only the marked ones; the others' times are NaN)."""
     config = problem.config
-    dyn = config.dynamics
     ks = np.asarray(ks, dtype=np.uint64)
     weights = np.stack([problem.coupling(x).weights for x in designs])
     pattern = problem.coupling(designs[0])
-    if config.generalized:
-        simulate = model_simulator(dyn)
-        res = simulate(
-            seed,
-            0,
-            0,
-            pattern.indptr,
-            pattern.indices,
-            weights[0],
-            weights[1:],
-            _model_params(problem, pattern, ks, len(designs)),
-            dt=dyn.dt,
-            max_steps=dyn.max_steps,
-            threads=threads,
-            realizations=ks,
-            todo=todo,
-        )
-    else:
-        kwargs = {} if dyn.integrator == "euler" else {"integrator": dyn.integrator}
-        if todo is not None:
-            kwargs["todo"] = todo
-        res = cpu.simulate(
-            seed,
-            0,
-            0,
-            pattern.indptr,
-            pattern.indices,
-            weights[0],
-            weights[1:],
-            dt=dyn.dt,
-            threshold=dyn.threshold,
-            max_steps=dyn.max_steps,
-            threads=threads,
-            realizations=ks,
-            **kwargs,
-        )
+    params = _model_params(problem, pattern, ks, len(designs)) if config.generalized else None
+    forward = design_drivers(config).forward
+    res = forward(seed, pattern.indptr, pattern.indices, weights[0], weights[1:], params, ks, threads, todo)
     status = np.vstack([res.status0[None, :], res.status.T])
     steps = np.vstack([res.steps0[None, :], res.steps.T])
     frac = np.vstack([res.frac0[None, :], res.frac.T])
