@@ -117,11 +117,25 @@ def pytest_terminal_summary(terminalreporter, exitstatus, config):
 COMPILE_LOG = os.environ.get("ANTISYNC_COMPILE_LOG")
 
 
+_SESSION_START = time.perf_counter()
+
+
 def pytest_configure(config):
     if COMPILE_LOG:
         from numba.core import event
 
         event.register("numba:compile", _compile_log(event.Listener)())
+
+
+def pytest_runtest_logreport(report):
+    """With :data:`COMPILE_LOG`, each test's phases also go to ``COMPILE_LOG.tests`` (``worker
+    seconds-since-start duration phase test``, by the worker that ran it): what each worker did
+    when, and how long it was busy (the wall time of `make test` is its busier worker's)."""
+    worker = os.environ.get("PYTEST_XDIST_WORKER")
+    if COMPILE_LOG and worker:
+        at = time.perf_counter() - _SESSION_START
+        with open(COMPILE_LOG + ".tests", "a") as fh:
+            fh.write(f"{worker}\t{at:.2f}\t{report.duration:.2f}\t{report.when}\t{report.nodeid}\n")
 
 
 def _compile_log(base):
