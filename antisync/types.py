@@ -12,7 +12,7 @@ Example
 
 from __future__ import annotations
 
-from typing import Literal, get_args
+from typing import Literal, NamedTuple, get_args
 
 __all__ = [
     "BACKENDS",
@@ -20,6 +20,7 @@ __all__ = [
     "CROSSINGS",
     "EXECUTORS",
     "INTEGRATORS",
+    "LAMBDA_ROWS",
     "RODAS4_ATOL",
     "RODAS4_RTOL",
     "LAMBDA_METHODS",
@@ -34,6 +35,7 @@ __all__ = [
     "Executor",
     "Integrator",
     "LambdaMethod",
+    "LambdaRows",
     "LinearMethod",
     "Measure",
     "Precision",
@@ -85,3 +87,34 @@ LINEAR_METHODS: tuple[LinearMethod, ...] = get_args(LinearMethod)
 PRECISIONS: tuple[Precision, ...] = get_args(Precision)
 COUPLINGS: tuple[Coupling, ...] = get_args(Coupling)
 REMOVAL_BY: tuple[RemovalBy, ...] = get_args(RemovalBy)
+
+
+class LambdaRows(NamedTuple):
+    """What a ``lambda.method`` needs of a job besides the undamaged trajectories: the rows of
+    damaged weights :func:`antisync.plan.jobs.make_job` builds for it and the passes it adds per
+    realization. Each estimator declares its needs here, once (:data:`LAMBDA_ROWS`); the job
+    builder reads the declaration instead of testing method names, and the dispatch table's
+    :class:`~antisync.execution.dispatch.LambdaPass` of the method is what consumes the rows."""
+
+    dbeta_variant: bool = False
+    """A variant at ``beta = dbeta`` per edge (the paper's forward secant, Eq. 17)."""
+    orbit: Literal["edge", "automorphism"] | None = None
+    """Rows at ``+-dbeta`` per edge (``edge``: central differences) or per automorphism orbit."""
+    secants: bool = False
+    """Every edge at ``+-dbeta`` for the central secants that replace the flagged values."""
+    passes: Literal["tangents", "backward"] | None = None
+    """A derivative pass along the undamaged trajectories: forward tangents (one per link) or
+    the adjoint's backward sweep (about four trajectories; the relative criterion adds its
+    target's rows)."""
+
+
+#: Every estimator's needs (:class:`LambdaRows`), by ``lambda.method``.
+LAMBDA_ROWS: dict[LambdaMethod, LambdaRows] = {
+    "finite-difference": LambdaRows(dbeta_variant=True),
+    "central-difference": LambdaRows(orbit="edge"),
+    "orbit": LambdaRows(orbit="automorphism"),
+    "pathwise": LambdaRows(passes="tangents"),
+    "hybrid": LambdaRows(passes="tangents", secants=True),
+    "adjoint": LambdaRows(passes="backward"),
+    "adjoint-hybrid": LambdaRows(passes="backward", secants=True),
+}

@@ -390,3 +390,17 @@ def f(ks, graph, out):
     found = _unpacking_faults(ast.parse(bad), "m")
     assert found == ["m.f line 4 unpacks out", "m.f line 7 writes status0", "m.f line 8 writes indptr"]
     assert not _unpacking_faults(ast.parse(good), "m")
+
+
+def test_the_job_builder_reads_the_estimators_declarations_not_their_names():
+    """Each ``lambda.method`` declares the rows it needs once (``antisync.types.LAMBDA_ROWS``);
+    ``plan/jobs.py`` builds a job from the declarations and holds no method's name, and every
+    estimator of the dispatch table is declared."""
+    from antisync.execution.dispatch import PASSES
+    from antisync.types import LAMBDA_METHODS, LAMBDA_ROWS
+
+    assert set(LAMBDA_ROWS) == set(LAMBDA_METHODS)
+    assert {method for _, method in PASSES} <= set(LAMBDA_ROWS)
+    tree = ast.parse((PACKAGE / "plan" / "jobs.py").read_text(encoding="utf-8"))
+    strings = {n.value for n in ast.walk(tree) if isinstance(n, ast.Constant) and isinstance(n.value, str)}
+    assert not strings & set(LAMBDA_METHODS), sorted(strings & set(LAMBDA_METHODS))

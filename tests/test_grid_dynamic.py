@@ -187,7 +187,10 @@ def test_cli_refuses_bad_input_with_one_line_and_leaves_the_file(tmp_path):
         (["--lines", "0-2", "--overwrite"], "line 0-2 is not a line of the grid"),
         (["--lines", "0-9", "--overwrite"], "not u-v with two nodes of the grid"),
         (["--lines", "0-1", "--beta", "2", "--overwrite"], "beta must be a number in (0, 1]"),
-        (["--lines", "0-1", "--overwrite", "--out", str(tmp_path / "x.h5")], "written as JSON"),
+        (
+            ["--lines", "0-1", "--overwrite", "--out", str(tmp_path / "x.csv")],
+            "written as JSON or HDF5; name it *.json or *.h5",
+        ),
         (["--lines", "0-1"], "exists; pass --overwrite"),
     ):
         res = runner.invoke(app, ["grid", str(cfg), "--removal", "--out", str(out), *args])

@@ -9,7 +9,8 @@ message the run gets. :mod:`antisync.execution.compute` looks a chunk's row up o
 what it holds; :mod:`antisync.execution.capabilities` prints the same cells (docs/models.md).
 
 Adding an integrator or a precision is a value of :mod:`antisync.types` the drivers accept
-(the refusals say where it does not run); adding an estimator is a row of :data:`PASSES`; adding
+(the refusals say where it does not run); adding an estimator is a row of :data:`PASSES` and its
+declaration in :data:`antisync.types.LAMBDA_ROWS` (the rows it needs built); adding
 a backend is a row of :data:`DRIVERS` per model kind. A cell with neither a row nor a refusal is
 an error when this module is imported, so the table cannot leave a combination unexplained.
 

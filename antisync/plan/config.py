@@ -36,6 +36,7 @@ from antisync.types import (
     EXECUTORS,
     INTEGRATORS,
     LAMBDA_METHODS,
+    LAMBDA_ROWS,
     LINEAR_METHODS,
     MEASURES,
     PRECISIONS,
@@ -359,7 +360,8 @@ class Config:
                 object.__setattr__(self, key, n)
         # kept pairs are held in memory: (keep_pairs x variants) int64 arrays
         object.__setattr__(self, "keep_pairs", integer("keep_pairs", self.keep_pairs, 0, 10**7, "0..10**7"))
-        if self.lambda_.method in ("pathwise", "hybrid") and self.dynamics.integrator != "euler":
+        tangents = LAMBDA_ROWS[self.lambda_.method].passes == "tangents"
+        if tangents and self.dynamics.integrator != "euler":
             raise ConfigError(
                 f"lambda.method {self.lambda_.method} needs dynamics.integrator euler "
                 "(the tangent is written for the Euler step); use adjoint, finite-difference or "
@@ -382,7 +384,7 @@ class Config:
         if not self.generalized:
             return
         method = self.lambda_.method
-        if method in ("pathwise", "hybrid"):
+        if LAMBDA_ROWS[method].passes == "tangents":
             raise ConfigError(
                 f"lambda.method {method}: its forward tangents are written for the Euler step of "
                 "identical first-order oscillators; with this model/sync section use adjoint or "
@@ -390,7 +392,7 @@ class Config:
                 "central-difference (the derivative d<F>/dbeta) or finite-difference (the paper's "
                 "forward secant)"
             )
-        if method == "orbit" and not self.model.symmetric:
+        if LAMBDA_ROWS[method].orbit == "automorphism" and not self.model.symmetric:
             raise ConfigError(
                 "lambda.method orbit averages over the graph's automorphisms, which fixed natural "
                 "frequencies or per-node inertia/damping do not respect (a link and its image see "

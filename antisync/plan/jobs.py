@@ -19,6 +19,7 @@ from antisync.physics import coupling, graphs
 from antisync.physics.locked import linearization
 from antisync.plan.config import Config, graph_name
 from antisync.plan.model import DTARGET_STEP, STABLE_STEP, ModelSetup, model_setup
+from antisync.types import LAMBDA_ROWS
 
 __all__ = ["Chunk", "Job", "make_job", "stiffness_note"]
 
@@ -146,9 +147,8 @@ class Job:
         the integrations, a derivative pass (pathwise: one tangent per link; adjoint: forward,
         recomputed and backward sweeps, ~4 trajectories), scaled by the graph's directed edges.
         Sizes chunks only (so a checkpoint comes every few seconds on any graph)."""
-        method = self.config.lambda_.method if self.kuramoto else None
-        passes = {"pathwise": 1 + len(self.edges), "hybrid": 1 + len(self.edges)}.get(method, 0)
-        passes = 4 if method in ("adjoint", "adjoint-hybrid") else passes
+        kind = LAMBDA_ROWS[self.config.lambda_.method].passes if self.kuramoto else None
+        passes = {"tangents": 1 + len(self.edges), "backward": 4}.get(kind, 0)
         size = max(1.0, len(self.csr.indices) / 12)
         return (self.integrations_per_realization + passes) * size
 
@@ -157,7 +157,7 @@ class Job:
         if realizations_per_chunk is None:
             # aim at ~25k lollipop integrations per chunk: a few seconds on one core
             realizations_per_chunk = max(1, int(25_000 // self.work_per_realization))
-            if self.kuramoto and self.config.lambda_.method in ("adjoint", "adjoint-hybrid"):
+            if self.kuramoto and LAMBDA_ROWS[self.config.lambda_.method].passes == "backward":
                 # the adjoint's 16-lane groups run to their slowest lane: sorted by predicted
                 # crossing, fewer than ~32 groups waste lanes (Les Miserables: ~118 per chunk
                 # took 13% more CPU than 1024)
@@ -202,8 +202,8 @@ def make_job(config: Config, graph: nx.Graph | None = None, name: str | None = N
                 raise ConfigError(f"edge {text!r} is listed twice")
             edges.append(e)
     dbeta = config.lambda_.dbeta
-    fd = config.lambda_.method == "finite-difference"
-    grid = sorted(set(config.betas) | ({dbeta} if fd else set())) if kuramoto else []
+    needs = LAMBDA_ROWS[config.lambda_.method]
+    grid = sorted(set(config.betas) | ({dbeta} if needs.dbeta_variant else set())) if kuramoto else []
     variant_edge = np.repeat(np.arange(len(edges)), len(grid))
     variant_beta = np.tile(np.array(grid, dtype=np.float64), len(edges))
     w = coupling.coupling_matrix(omega, config.dynamics.coupling)
@@ -255,15 +255,15 @@ def _model_fields(
     its estimator integrates besides the variants: central differences' rows (``orbit``,
     ``central-difference``), the hybrids' secants, and for the adjoint with the relative
     criterion ``d target / d beta_e`` (a central difference of the target at ``+-DTARGET_STEP``)."""
-    method = config.lambda_.method
+    needs = LAMBDA_ROWS[config.lambda_.method]
     labels = [
         f"{graphs.edge_label(*edges[e])} beta {b:g}" for e, b in zip(variant_edge, variant_beta, strict=True)
     ]
     blocks = {}
     ow = orbit.get("orbit_weights")
     if ow is not None:
-        blocks["orbit"] = (list(ow), [(e // 2, (-1) ** e * config.lambda_.dbeta) for e in range(len(ow))])
-    if method in ("hybrid", "adjoint-hybrid"):
+        blocks["orbits"] = (list(ow), [(e // 2, (-1) ** e * config.lambda_.dbeta) for e in range(len(ow))])
+    if needs.secants:
         blocks["secant"] = (
             list(secant),
             [
@@ -271,7 +271,7 @@ def _model_fields(
                 for e in range(len(secant))
             ],
         )
-    if method in ("adjoint", "adjoint-hybrid") and config.sync.criterion == "relative":
+    if needs.passes == "backward" and config.sync.criterion == "relative":
         h = DTARGET_STEP
         damages = [(a, b, x) for a, b in edge_idx for x in (h, -h)]
         rows = coupling.variant_weights(omega, csr, damages, config.dynamics.coupling)
@@ -288,7 +288,7 @@ def _model_fields(
     for name, (rows, _) in blocks.items():
         part = slice(at, at + len(rows))
         at += len(rows)
-        if name == "orbit":
+        if name == "orbits":
             fields["orbit_targets"] = targets[part]
             fields["orbit_r_star"] = None if r_star is None else r_star[part]
         elif name == "secant":
@@ -389,11 +389,11 @@ def _orbit_fields(
 ) -> dict:
     """``orbit_weights`` and ``orbit_sizes`` for ``lambda.method: orbit`` and, with every link
     its own orbit, ``central-difference`` (else empty)."""
-    method = config.lambda_.method
-    if method not in ("orbit", "central-difference") or "km" not in config.measures:
+    orbit = LAMBDA_ROWS[config.lambda_.method].orbit
+    if orbit is None or "km" not in config.measures:
         return {}
     index = {v: i for i, v in enumerate(nodes)}
-    if method == "central-difference":
+    if orbit == "edge":
         orbits = [[(index[a], index[b])] for a, b in edges]
     else:
         rep = _all_orbits(tuple(nodes), tuple(map(tuple, omega)))
