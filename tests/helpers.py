@@ -87,11 +87,13 @@ def sweep_cli(folder, name: str, text: str, *options: str):
 @contextlib.contextmanager
 def local_cluster_client(workers: int = 2):
     """A real Dask cluster for a test: ``workers`` single-threaded worker processes on the
-    loopback address, no dashboard; yields its client (not the default one)."""
+    loopback address, the dashboard on a free port (``dashboard_address=None`` is distributed's
+    default port 8787, which the other xdist worker's cluster may hold: a warning); yields its
+    client (not the default one)."""
     from distributed import Client, LocalCluster
 
     with LocalCluster(
-        n_workers=workers, threads_per_worker=1, processes=True, host="127.0.0.1", dashboard_address=None
+        n_workers=workers, threads_per_worker=1, processes=True, host="127.0.0.1", dashboard_address=":0"
     ) as cluster:
         with Client(cluster, set_as_default=False) as client:
             yield client

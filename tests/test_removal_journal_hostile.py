@@ -379,7 +379,7 @@ def test_a_client_that_is_not_a_distributed_client_is_refused_before_any_work(tm
 def test_a_closed_client_is_refused_in_one_line():
     from distributed import Client, LocalCluster
 
-    with LocalCluster(n_workers=1, processes=False, dashboard_address=None) as cluster:
+    with LocalCluster(n_workers=1, processes=False, dashboard_address=":0") as cluster:
         client = Client(cluster, set_as_default=False)
         client.close()
         with pytest.raises(GridError, match="client is a distributed.Client that is closed"):
