@@ -17,6 +17,7 @@ from antisync.grids.load import Grid
 from antisync.grids.removal_file import plain
 from antisync.physics import graphs
 from antisync.plan import sources
+from antisync.plan.config import Config
 from antisync.plan.model import node_frequencies, node_parameters
 
 __all__ = ["WHERE_KEYS", "check_beta", "planned_lines", "resolve_config", "work_config"]
@@ -56,7 +57,11 @@ def _grid_mapping(grid: Grid) -> dict:
 def resolve_config(source, overrides: Mapping):
     """The :class:`~antisync.plan.config.Config` of a grid (a :class:`~antisync.grids.load.Grid`,
     as :func:`antisync.grids.removal.line_removal` integrates it), a YAML path, a mapping or a
-    Config, with ``overrides`` (config keys); a value that is not valid is a one-line GridError."""
+    Config, with ``overrides`` (config keys); a value that is not valid is a one-line GridError.
+    A Config without overrides is already resolved and validated: it is returned as it is (a
+    command resolves its config once)."""
+    if isinstance(source, Config) and not overrides:
+        return source
     if isinstance(source, Grid):
         source = _grid_mapping(source)
     try:

@@ -51,7 +51,7 @@ from tqdm import tqdm
 from antisync._version import __version__
 from antisync.errors import ConfigError
 from antisync.execution.dispatch import trip_simulator
-from antisync.execution.executors.dask import TaskLostError
+from antisync.execution.executors.dask import TaskLostError, client_threads
 from antisync.execution.executors.tasks import map_tasks
 from antisync.grids.errors import GridError
 from antisync.grids.lines import grid_bridges, lines_of, split_bridges
@@ -312,8 +312,12 @@ MAX_FINE = 1000
 MAX_STEPS = 1e7
 
 #: Trips per task: the unit of the progress bar, of the journal (``--out``'s ``.partial``
-#: folder) and of a Dask task.
+#: folder) and of a Dask task (fewer on a cluster: :data:`TASKS_PER_THREAD`).
 TRIPS_PER_TASK = 16
+#: On a Dask cluster a task holds fewer trips when that gives each worker thread about this
+#: many tasks (four trips on two workers: four tasks of one, not one task of four that one
+#: worker runs alone). Each trip's row is its own whatever shares its task (tested).
+TASKS_PER_THREAD = 4
 
 #: The columns of a task's rows (:func:`_trip_task`).
 COLUMNS = ("settle_time", "max_frequency", "max_angle", "post_locked", "cct", "cct_again", "peak_error")
@@ -673,10 +677,11 @@ def trip_report(
     ``lines`` (if given) keeping those on the lines it names; a row that opens a bridge whole
     is skipped and listed.
 
-    The trips run in tasks of :data:`TRIPS_PER_TASK` (:func:`_trip_task`, each with its own
-    critical clearing scan): here on ``threads`` numba threads, or on the Dask cluster of
-    ``client`` (an open ``distributed.Client``; one numba thread per task unless ``threads``
-    says otherwise) through :func:`antisync.execution.executors.tasks.map_tasks`, with the same
+    The trips run in tasks of :data:`TRIPS_PER_TASK` (fewer on a cluster,
+    :data:`TASKS_PER_THREAD`; :func:`_trip_task`, each with its own critical clearing scan):
+    here on ``threads`` numba threads, or on the Dask cluster of ``client`` (an open
+    ``distributed.Client``; one numba thread per task unless ``threads`` says otherwise) through
+    :func:`antisync.execution.executors.tasks.map_tasks`, with the same
     rows either way. ``journal`` (a folder: :class:`~antisync.grids.removal_journal.TripJournal`)
     keeps every finished task at once, and a call with the same arguments and journal reads
     them back and runs only the rest. ``progress``: a bar of the trips done and the time left
@@ -715,10 +720,11 @@ def trip_report(
         }
         book = TripJournal(journal, key, work=_grid_digest(grid))
     have = np.zeros(len(todo), dtype=bool) if book is None else book.load(values)
+    per = TRIPS_PER_TASK if client is None else _trips_per_task(len(todo), client)
     tasks = [
-        (lo, min(lo + TRIPS_PER_TASK, len(todo)))
-        for lo in range(0, len(todo), TRIPS_PER_TASK)
-        if not have[lo : min(lo + TRIPS_PER_TASK, len(todo))].all()
+        (lo, min(lo + per, len(todo)))
+        for lo in range(0, len(todo), per)
+        if not have[lo : min(lo + per, len(todo))].all()
     ]
     calls = ((grid, todo[lo:hi], clear, shares[lo:hi], spec, settings) for lo, hi in tasks)
     show = sys.stderr.isatty() if progress is None else progress
@@ -779,6 +785,13 @@ def trip_report(
         "lines": rows,
         "network": network_record(grid),
     }
+
+
+def _trips_per_task(trips: int, client) -> int:
+    """Trips per task on ``client``'s cluster: about :data:`TASKS_PER_THREAD` tasks per worker
+    thread, at most :data:`TRIPS_PER_TASK` trips each."""
+    threads = client_threads(client) or 1
+    return max(1, min(TRIPS_PER_TASK, -(-trips // (TASKS_PER_THREAD * threads))))
 
 
 #: The trip table's format version: 2 since its times count from the trip, its criterion has
