@@ -13,15 +13,34 @@ from typing import Annotated
 
 import typer
 
-from antisync.cli.common import DebugOpt, QuietOpt, SetOpt, one_of, user_errors
-from antisync.types import RemovalBy
+from antisync.cli.common import DebugOpt, QuietOpt, SetOpt, user_errors
+from antisync.cli.grid.options import (
+    BetaOpt,
+    ByOpt,
+    CctMaxOpt,
+    CctOpt,
+    CctScanOpt,
+    ContingenciesOpt,
+    GridConfigArg,
+    IslandingOpt,
+    LinesOpt,
+    OutOpt,
+    OverwriteOpt,
+    RealizationsOpt,
+    ResumeOpt,
+    SchedulerOpt,
+    SeedOpt,
+    TClearOpt,
+    ThreadsOpt,
+    TMaxOpt,
+    TopOpt,
+    WorkersOpt,
+)
 
 
 @user_errors
 def grid(
-    config: Annotated[
-        Path, typer.Argument(help="YAML config of a grid (configs/ieee39_grid.yaml).", show_default=False)
-    ],
+    config: GridConfigArg,
     removal: Annotated[
         bool,
         typer.Option("--removal", help="Integrate each line's removal on the same starts (dynamic N-1)."),
@@ -34,75 +53,22 @@ def grid(
             "a fault of --t-clear s at its first bus); --cct adds critical clearing times.",
         ),
     ] = False,
-    t_clear: Annotated[
-        float | None, typer.Option("--t-clear", help="--trip: the fault's duration before the trip (s).")
-    ] = None,
-    cct: Annotated[
-        bool,
-        typer.Option(
-            "--cct",
-            help="--trip: each line's critical clearing time, the longest fault with every shorter "
-            "one survived (a scan every --cct-scan s, then every 1 ms in the first failing interval).",
-        ),
-    ] = False,
-    cct_max: Annotated[
-        float | None, typer.Option("--cct-max", help="--cct: the longest fault tried (s) [default: 1].")
-    ] = None,
-    cct_scan: Annotated[
-        float | None,
-        typer.Option(
-            "--cct-scan", help="--cct: the coarse scan's step of fault durations (s) [default: 0.01]."
-        ),
-    ] = None,
-    contingencies: Annotated[
-        Path | None,
-        typer.Option(
-            "--contingencies",
-            help="--trip: the trips of a contingency table (label from to share per row; "
-            "configs/activsg2000_grid_contingencies.txt is the case's official N-1) instead of "
-            "every line; --lines keeps the rows on the lines it names.",
-        ),
-    ] = None,
-    t_max: Annotated[
-        float | None,
-        typer.Option("--t-max", help="--trip: how long the grid runs after the trip (s) [default: 20]."),
-    ] = None,
-    lines: Annotated[
-        str | None,
-        typer.Option(
-            help='Lines to change, "4-5,2-3" (a label may hold a dash: "a-b-c" is read when one split '
-            "gives two nodes), or a YAML list of pairs for any label: '[[a-b, c], [\"x,y\", -2]]' "
-            "(default: every line, bridges skipped)."
-        ),
-    ] = None,
-    beta: Annotated[
-        float | None, typer.Option(help="Weaken each line by beta in (0, 1]; 1 removes it [default: 1].")
-    ] = None,
-    realizations: Annotated[int | None, typer.Option(help="Override `realizations` (--removal).")] = None,
-    seed: Annotated[int | None, typer.Option(help="Override `seed` (--removal).")] = None,
-    islanding: Annotated[
-        bool, typer.Option("--islanding", help="Remove bridges too, marking the rows (default: refused).")
-    ] = False,
-    threads: Annotated[
-        int | None, typer.Option(help="CPU threads (default: all cores; with Dask, per task: 1).")
-    ] = None,
-    workers: Annotated[
-        int | None,
-        typer.Option(
-            help="--removal or --trip on a local Dask cluster of this many single-threaded workers."
-        ),
-    ] = None,
-    scheduler: Annotated[
-        str | None,
-        typer.Option(help="--removal or --trip on the Dask cluster at this address (tcp://host:8786)."),
-    ] = None,
-    top: Annotated[int | None, typer.Option(help="Print only the first TOP rows of the ranking.")] = None,
-    out: Annotated[
-        Path | None,
-        typer.Option(
-            "--out", "-o", help="Write the removal or trip table atomically, as X.json or X.h5 (HDF5)."
-        ),
-    ] = None,
+    t_clear: TClearOpt = None,
+    cct: CctOpt = False,
+    cct_max: CctMaxOpt = None,
+    cct_scan: CctScanOpt = None,
+    contingencies: ContingenciesOpt = None,
+    t_max: TMaxOpt = None,
+    lines: LinesOpt = None,
+    beta: BetaOpt = None,
+    realizations: RealizationsOpt = None,
+    seed: SeedOpt = None,
+    islanding: IslandingOpt = False,
+    threads: ThreadsOpt = None,
+    workers: WorkersOpt = None,
+    scheduler: SchedulerOpt = None,
+    top: TopOpt = None,
+    out: OutOpt = None,
     figure: Annotated[
         Path | None,
         typer.Option(
@@ -111,24 +77,9 @@ def grid(
             "critical clearing time or frequency swing (--trip) (.png, .pdf, .svg).",
         ),
     ] = None,
-    by: Annotated[
-        RemovalBy | None,
-        typer.Option(
-            "--by",
-            parser=one_of("--by", RemovalBy),
-            help="--removal --figure's colour: F_1 - 1 (speedup) or d P_sync [default: speedup].",
-        ),
-    ] = None,
-    overwrite: Annotated[
-        bool, typer.Option("--overwrite", help="Replace an existing --out or --figure file.")
-    ] = False,
-    resume: Annotated[
-        bool,
-        typer.Option(
-            "--resume",
-            help="Finish an interrupted --removal or --trip --out run from its OUT.partial folder.",
-        ),
-    ] = False,
+    by: ByOpt = None,
+    overwrite: OverwriteOpt = False,
+    resume: ResumeOpt = False,
     set_: SetOpt = None,
     quiet: QuietOpt = False,
     debug: DebugOpt = False,

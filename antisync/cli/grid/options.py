@@ -7,6 +7,9 @@ from typing import Annotated
 
 import typer
 
+from antisync.cli.common import one_of
+from antisync.types import RemovalBy
+
 GridConfigArg = Annotated[
     Path, typer.Argument(help="YAML config of a grid (configs/ieee39_grid.yaml).", show_default=False)
 ]
@@ -14,12 +17,12 @@ LinesOpt = Annotated[
     str | None,
     typer.Option(
         help='Lines to change, "4-5,2-3" (a label may hold a dash: "a-b-c" is read when one split '
-        "gives two nodes), or a YAML list of pairs for any label: '[[a-b, c], [\"x,y\", -2]]' "
+        "gives two nodes), or a YAML list of pairs for any label: '\\[\\[a-b, c], \\[\"x,y\", -2]]' "
         "(default: every line, bridges skipped)."
     ),
 ]
 BetaOpt = Annotated[
-    float | None, typer.Option(help="Weaken each line by beta in (0, 1]; 1 removes it [default: 1].")
+    float | None, typer.Option(help="Weaken each line by beta in (0, 1]; 1 removes it (default 1).")
 ]
 ThreadsOpt = Annotated[
     int | None, typer.Option(help="CPU threads (default: all cores; with Dask, per task: 1).")
@@ -76,3 +79,51 @@ def interrupted(out: Path | None) -> None:
     kept = f"finished tasks are in {journal}; the same command with --resume finishes it"
     typer.echo(f"antisync grid: interrupted; {kept if journal else 'nothing was saved (no --out)'}", err=True)
     raise typer.Exit(130) from None
+
+
+# ---- the removal's options ----
+
+RealizationsOpt = Annotated[int | None, typer.Option(help="Override `realizations`.")]
+SeedOpt = Annotated[int | None, typer.Option(help="Override `seed`.")]
+IslandingOpt = Annotated[
+    bool, typer.Option("--islanding", help="Remove bridges too, marking the rows (default: refused).")
+]
+ByOpt = Annotated[
+    RemovalBy | None,
+    typer.Option(
+        "--by", parser=one_of("--by", RemovalBy), help="The figure's colour: F_1 - 1 (speedup) or d P_sync."
+    ),
+]
+
+# ---- the trip's options ----
+
+TClearOpt = Annotated[
+    float | None, typer.Option("--t-clear", help="The fault's duration before the trip (s).")
+]
+CctOpt = Annotated[
+    bool,
+    typer.Option(
+        "--cct",
+        help="Each line's critical clearing time, the longest fault with every shorter one survived "
+        "(a scan every --cct-scan s, then every 1 ms in the first failing interval).",
+    ),
+]
+CctMaxOpt = Annotated[
+    float | None, typer.Option("--cct-max", help="--cct: the longest fault tried (s) (default 1).")
+]
+CctScanOpt = Annotated[
+    float | None,
+    typer.Option("--cct-scan", help="--cct: the coarse scan's step of fault durations (s) (default 0.01)."),
+]
+ContingenciesOpt = Annotated[
+    Path | None,
+    typer.Option(
+        "--contingencies",
+        help="The trips of a contingency table (label from to share per row; "
+        "configs/activsg2000_grid_contingencies.txt is the case's official N-1) instead of "
+        "every line; --lines keeps the rows on the lines it names.",
+    ),
+]
+TMaxOpt = Annotated[
+    float | None, typer.Option("--t-max", help="How long the grid runs after the trip (s) (default 20).")
+]

@@ -13,18 +13,21 @@ from antisync.cli.common import (
     SetOpt,
     dask_executor,
     info,
-    one_of,
     typed_values,
     user_errors,
 )
 from antisync.cli.grid.options import (
     BetaOpt,
+    ByOpt,
     GridConfigArg,
+    IslandingOpt,
     LinesOpt,
     OutOpt,
     OverwriteOpt,
+    RealizationsOpt,
     ResumeOpt,
     SchedulerOpt,
+    SeedOpt,
     ThreadsOpt,
     TopOpt,
     WorkersOpt,
@@ -32,7 +35,6 @@ from antisync.cli.grid.options import (
     check_top,
     interrupted,
 )
-from antisync.types import RemovalBy
 
 
 @user_errors
@@ -40,11 +42,9 @@ def removal(
     config: GridConfigArg,
     lines: LinesOpt = None,
     beta: BetaOpt = None,
-    realizations: Annotated[int | None, typer.Option(help="Override `realizations`.")] = None,
-    seed: Annotated[int | None, typer.Option(help="Override `seed`.")] = None,
-    islanding: Annotated[
-        bool, typer.Option("--islanding", help="Remove bridges too, marking the rows (default: refused).")
-    ] = False,
+    realizations: RealizationsOpt = None,
+    seed: SeedOpt = None,
+    islanding: IslandingOpt = False,
     threads: ThreadsOpt = None,
     workers: WorkersOpt = None,
     scheduler: SchedulerOpt = None,
@@ -56,14 +56,7 @@ def removal(
             "--figure", help="Draw the grid, lines coloured by the removal response (.png, .pdf, .svg)."
         ),
     ] = None,
-    by: Annotated[
-        RemovalBy | None,
-        typer.Option(
-            "--by",
-            parser=one_of("--by", RemovalBy),
-            help="The figure's colour: F_1 - 1 (speedup) or d P_sync.",
-        ),
-    ] = None,
+    by: ByOpt = None,
     overwrite: OverwriteOpt = False,
     resume: ResumeOpt = False,
     set_: SetOpt = None,

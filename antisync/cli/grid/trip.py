@@ -9,13 +9,19 @@ import typer
 
 from antisync.cli.common import DebugOpt, QuietOpt, SetOpt, dask_executor, info, typed_values, user_errors
 from antisync.cli.grid.options import (
+    CctMaxOpt,
+    CctOpt,
+    CctScanOpt,
+    ContingenciesOpt,
     GridConfigArg,
     LinesOpt,
     OutOpt,
     OverwriteOpt,
     ResumeOpt,
     SchedulerOpt,
+    TClearOpt,
     ThreadsOpt,
+    TMaxOpt,
     WorkersOpt,
     check_files,
     interrupted,
@@ -25,38 +31,12 @@ from antisync.cli.grid.options import (
 @user_errors
 def trip(
     config: GridConfigArg,
-    t_clear: Annotated[
-        float | None, typer.Option("--t-clear", help="The fault's duration before the trip (s).")
-    ] = None,
-    cct: Annotated[
-        bool,
-        typer.Option(
-            "--cct",
-            help="Each line's critical clearing time, the longest fault with every shorter one survived "
-            "(a scan every --cct-scan s, then every 1 ms in the first failing interval).",
-        ),
-    ] = False,
-    cct_max: Annotated[
-        float | None, typer.Option("--cct-max", help="--cct: the longest fault tried (s) [default: 1].")
-    ] = None,
-    cct_scan: Annotated[
-        float | None,
-        typer.Option(
-            "--cct-scan", help="--cct: the coarse scan's step of fault durations (s) [default: 0.01]."
-        ),
-    ] = None,
-    contingencies: Annotated[
-        Path | None,
-        typer.Option(
-            "--contingencies",
-            help="The trips of a contingency table (label from to share per row; "
-            "configs/activsg2000_grid_contingencies.txt is the case's official N-1) instead of "
-            "every line; --lines keeps the rows on the lines it names.",
-        ),
-    ] = None,
-    t_max: Annotated[
-        float | None, typer.Option("--t-max", help="How long the grid runs after the trip (s) [default: 20].")
-    ] = None,
+    t_clear: TClearOpt = None,
+    cct: CctOpt = False,
+    cct_max: CctMaxOpt = None,
+    cct_scan: CctScanOpt = None,
+    contingencies: ContingenciesOpt = None,
+    t_max: TMaxOpt = None,
     lines: LinesOpt = None,
     threads: ThreadsOpt = None,
     workers: WorkersOpt = None,
