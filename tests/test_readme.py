@@ -5,9 +5,10 @@ A shell block's lines are read as commands (a trailing ``\\`` joins lines, ``#``
 comment). ``make T``: the Makefile has target T. ``antisync run CONFIG ...`` is validated with
 its overrides (``antisync validate``; its ``--realizations`` and ``--out`` become ``--set``s),
 and a ``summary`` or ``report`` must read a file an earlier ``run`` of its block writes.
-``antisync paper`` runs as ``--dry-run``; ``antisync grid CONFIG`` (static) runs for real and
-``--removal`` is validated. The Python block runs as written (its output path moved to a
-temporary folder) and its printed number is the paper's within 4 standard errors.
+``antisync paper`` runs as ``--dry-run``; ``antisync grid [static] CONFIG`` runs for real, and
+the config of ``grid removal|trip`` (or ``--removal``) is validated. The Python block runs as
+written (its output path moved to a temporary folder) and its printed number is the paper's
+within 4 standard errors.
 """
 
 from __future__ import annotations
@@ -103,8 +104,10 @@ def test_every_shell_command_of_the_readme_works(tmp_path):
             elif words[:2] == ["antisync", "paper"]:
                 res = _cli(*words[1:], "--dry-run")
                 assert res.returncode == 0 and "min" in res.stdout, f"README: {what}\n{res.stderr}"
-            elif words[:2] == ["antisync", "grid"] and "--removal" in words:
-                res = _cli("validate", words[2])
+            elif words[:2] == ["antisync", "grid"] and (
+                "--removal" in words or words[2] in ("removal", "trip")
+            ):
+                res = _cli("validate", words[3] if words[2] in ("removal", "trip") else words[2])
                 assert res.returncode == 0, f"README: {what}\n{res.stderr}"
             elif words[:2] == ["antisync", "grid"]:
                 res = _cli(*words[1:])
