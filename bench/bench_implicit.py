@@ -49,7 +49,9 @@ def _taus(res, dt):
 
 
 def _radau(job, params, ks, seed, dt, t_max, rtol, atol):
-    """scipy's Radau with the analytic sparse Jacobian: ``(status, tau, steps, cpu seconds)``."""
+    """scipy's Radau with the analytic sparse Jacobian: ``(status, tau, steps, cpu seconds)``
+    per start ``ks`` (``params.starts``' rows when the config draws its starts around the locked
+    state, ``model.start``; else the paper's phases)."""
     import scipy.sparse as sp
     from scipy.integrate import solve_ivp
 
@@ -101,8 +103,12 @@ def _radau(job, params, ks, seed, dt, t_max, rtol, atol):
     deviation.terminal = True
     deviation.direction = -1
     out = []
-    for k in ks:
-        th0 = np.array([phase(np.uint64(seed), np.uint64(k), i) for i in range(n)])
+    starts = np.asarray(params.starts) if params.starts is not None else np.zeros((0, n))
+    for r, k in enumerate(ks):
+        if starts.shape[0]:
+            th0 = starts[r].copy()
+        else:
+            th0 = np.array([phase(np.uint64(seed), np.uint64(k), i) for i in range(n)])
         y0 = np.concatenate([th0, np.zeros(ni)])
         c0 = time.process_time()
         sol = solve_ivp(f, (0.0, t_max), y0, method="Radau", jac=jac, rtol=rtol, atol=atol, events=deviation)
