@@ -362,3 +362,26 @@ def test_the_default_start_is_the_best_baseline_on_validation_starts(tmp_path):
     assert pick == min(means, key=lambda k: float(means[k]))
     rec = read_design(out)
     assert np.allclose(rec["iterations"][0]["x"], rec["baselines"][pick])
+
+
+@pytest.mark.parametrize(("model", "weight"), [(None, 80.0), ({"inertia": 1.0, "damping": 1.0}, 2e4)])
+def test_a_design_the_step_cannot_integrate_is_refused_not_timed(model, weight):
+    """A design moves the weights: one that gives a link much of the budget can make the run's
+    ``dynamics.dt`` repel synchrony (raw coupling, RK4 at dt 0.02: stable for the lollipop's unit
+    weights, not for one link at weight 80, or 2e4 with inertia, whose modes oscillate).
+    :func:`sample` and :func:`evaluate` refuse it in one
+    line naming the design and what to lower, as ``antisync run`` refuses the graph, instead of
+    returning the times of an unstable integration."""
+    from antisync.optimize.ensemble import evaluate, sample
+
+    problem = _problem(coupling="raw", model=model)
+    start = np.asarray(problem.start, dtype=float)
+    problem.check_step(start, "the start")  # the run's own graph: fine
+    heavy = start.copy()
+    heavy[0] = weight
+    ks = np.arange(2, dtype=np.uint64)
+    with pytest.raises(ConfigError, match="a design's weights: ") as info:
+        sample(problem, heavy, 3, ks)
+    assert "design.upper" in str(info.value) and "\n" not in str(info.value)
+    with pytest.raises(ConfigError, match="design 2 of 2"):
+        evaluate(problem, [start, heavy], 3, ks)

@@ -39,8 +39,8 @@ from antisync.optimize.budget import Budget
 from antisync.physics import graphs
 from antisync.physics.coupling import CouplingCSR, to_csr
 from antisync.plan.config import Config
-from antisync.plan.jobs import config_graph
-from antisync.plan.model import model_setup
+from antisync.plan.jobs import check_step, config_graph
+from antisync.plan.model import STABLE_STEP, check_second_order_step, model_setup, node_parameters
 from antisync.status import ALREADY_SYNCED, SYNCED
 
 __all__ = ["Problem", "Sample", "check_designable", "evaluate", "make_problem", "sample"]
@@ -107,6 +107,29 @@ class Problem:
         strength = np.bincount(rows, weights=raw, minlength=self.n_nodes)
         safe = np.where(strength > 0, strength, 1.0)
         return CouplingCSR(self._pattern.indptr, self._pattern.indices, raw / safe[rows])
+
+    def check_step(self, x: np.ndarray, what: str) -> None:
+        """Refuse weights ``x`` at which ``dynamics.dt`` makes the synchronized state unstable
+        (the check ``antisync run`` makes of its graph: :func:`antisync.plan.jobs.check_step`, or
+        with inertia :func:`antisync.plan.model.check_second_order_step`). A design moves the
+        weights, so the step a run of the starting network allows can be too large for a
+        designed one (a link given much of the budget): its times would be those of a repelling
+        state, silently. ``what`` names the design in the one-line ConfigError."""
+        config = self.config
+        if config.dynamics.integrator not in STABLE_STEP:
+            return
+        try:
+            mass, gamma = node_parameters(config.model, self.n_nodes)
+            if (mass > 0).any():
+                csr = self.coupling(x)
+                check_second_order_step(config, csr.indptr, csr.indices, csr.weights, mass, gamma)
+            else:
+                check_step(self.omega(x), config)
+        except ConfigError as exc:
+            raise ConfigError(
+                f"{what}: {exc}; lower design.upper (or design.budget) or dynamics.dt so that every "
+                "design the search may reach stays stable"
+            ) from None
 
     def derivatives(self, x: np.ndarray) -> LinkDerivatives:
         """``dW/dx_l`` of every variable on the CSR pattern: rows ``a`` and ``b`` change.
@@ -279,6 +302,10 @@ def _model_params(problem: Problem, csr: CouplingCSR, ks: np.ndarray, kinds: int
     return model_params(setup, config.model, config.seed, ks, problem.n_nodes, targets)
 
 
+#: :func:`evaluate` checks the step of every design of a call with at most this many (the
+#: baselines of a verification), else of the first (a secant's ``x``).
+MAX_CHECKED = 16
+
 #: A start's derivative along link ``l`` is replaced by a central secant where its relative size
 #: ``|x_l (d tau / d x_l) / tau|`` exceeds this (``lambda.hybrid_cut``'s default, docs/estimators.md).
 HYBRID_CUT = 2.0
@@ -307,6 +334,7 @@ def sample(
     tests compare with central differences)."""
     config = problem.config
     ks = np.asarray(ks, dtype=np.uint64)
+    problem.check_step(x, "a design's weights")
     csr = problem.coupling(x)
     params = _model_params(problem, csr, ks, 1) if config.generalized else None
     adjoint = design_drivers(config).adjoint
@@ -358,6 +386,10 @@ def evaluate(
     (``todo``, bool ``(m, D)``: only the marked ones; the others' times are NaN)."""
     config = problem.config
     ks = np.asarray(ks, dtype=np.uint64)
+    # every design compared; of a secant's designs (x +- h_l per link) the first, x: the others
+    # are within SECANT_STEP of it
+    for k, x in enumerate(designs if len(designs) <= MAX_CHECKED else designs[:1]):
+        problem.check_step(x, f"design {k + 1} of {len(designs)}")
     weights = np.stack([problem.coupling(x).weights for x in designs])
     pattern = problem.coupling(designs[0])
     params = _model_params(problem, pattern, ks, len(designs)) if config.generalized else None
