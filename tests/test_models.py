@@ -609,3 +609,40 @@ def test_lane_driver_todo_integrates_only_the_marked_items():
     for field in ("status0", "steps0", "status", "steps", "frac0", "frac"):
         np.testing.assert_array_equal(getattr(got, field), getattr(ref, field), err_msg=field)
     assert (got.steps0[~todo[:, 0]] == -1).all() and (got.steps0[todo[:, 0]] >= 0).all()
+
+
+@pytest.mark.parametrize("integrator", ["euler", "rk4"])
+@pytest.mark.parametrize("lanes", [0, cpu.LANES])
+def test_a_diverged_trajectory_is_never_synchronized(integrator, lanes):
+    """An explicit step far beyond its stability bound (raw coupling 40 per link, dt 0.5: the
+    configs' check refuses it, a direct kernel call does not) drives the state to inf and NaN.
+    The frequency criterion's deviation then is NaN, never 0: numba's ``max(0.0, nan)`` is 0.0,
+    and such trajectories were reported SYNCED within a few steps. Now none is: each runs to
+    ``t_max`` and counts as NOT_SYNCED, on both drivers."""
+    job = job_of(
+        LOLLIPOP + "edges: ['2->1']\nbetas: [0.5]\n"
+        "model: {frequencies: [0.1, -0.1, 0.05, 0.0, -0.05, 0.0], inertia: 1.0}\n"
+        "sync: {criterion: frequency, tolerance: 0.01}\n"
+        f"dynamics: {{coupling: raw, integrator: {integrator}, dt: 0.01, t_max: 20}}\n"
+    )
+    ks = np.arange(8, dtype=np.uint64)
+    from antisync.execution.dispatch import job_model_params
+
+    params = job_model_params(job, ks, job.model.targets)
+    sim = cpu.simulate_model(
+        job.config.seed,
+        0,
+        0,
+        job.csr.indptr,
+        job.csr.indices,
+        40.0 * job.csr.weights,
+        40.0 * job.variant_weights,
+        params,
+        dt=0.5,
+        max_steps=40,
+        integrator=integrator,
+        realizations=ks,
+        lanes=lanes,
+    )
+    assert (sim.status0 == Status.NOT_SYNCED).all(), sim.status0
+    assert (sim.status == Status.NOT_SYNCED).all(), sim.status

@@ -998,13 +998,26 @@ def make_model_kernels(jit, base: Kernels) -> ModelKernels:
         for i in range(n):
             cn = c[i] + dt / 6.0 * (work[0, i] + 2.0 * work[1, i] + 2.0 * work[2, i] + work[3, i])
             sn = s[i] + dt / 6.0 * (work[4, i] + 2.0 * work[5, i] + 2.0 * work[6, i] + work[7, i])
-            inv = 1.0 / math.sqrt(cn * cn + sn * sn)
+            norm2 = cn * cn + sn * sn
+            # a diverged state (a step beyond its stability bound) can reach 0 here: NaN, whose
+            # deviation never meets the criterion, not a ZeroDivisionError
+            inv = 1.0 / math.sqrt(norm2) if norm2 > 0.0 else math.nan
             c[i] = cn * inv
             s[i] = sn * inv
             if second:
                 nu[i] += dt / 6.0 * (work[8, i] + 2.0 * work[9, i] + 2.0 * work[10, i] + work[11, i])
 
     rk4_step = jit(rk4_step)
+
+    def worse(dev, d):
+        """``max(dev, d)`` that keeps a NaN: numba's ``max(0.0, nan)`` is ``0.0``, so a diverged
+        state (an explicit step beyond its stability bound) had the deviation 0, "synchronized".
+        Equal to ``max`` for numbers, bit for bit."""
+        if d <= dev or dev != dev:
+            return dev
+        return d
+
+    worse = jit(worse)
 
     def measure(c, s, th, dnu, mass, gamma, second):
         """``(dR/dt, deviation)`` of the current state: the largest ``|theta_i' - mean|``, and
@@ -1030,9 +1043,9 @@ def make_model_kernels(jit, base: Kernels) -> ModelKernels:
         mean2 /= n
         dev = 0.0
         for i in range(n):
-            dev = max(dev, abs(th[i] - mean))
+            dev = worse(dev, abs(th[i] - mean))
             if second:
-                dev = max(dev, abs(th[i] + mass[i] / gamma[i] * dnu[i] - mean2))
+                dev = worse(dev, abs(th[i] + mass[i] / gamma[i] * dnu[i] - mean2))
         return 2.0 * (tc * dc + ts * ds), dev
 
     measure = jit(measure)
@@ -1133,7 +1146,7 @@ def make_model_kernels(jit, base: Kernels) -> ModelKernels:
         for i in range(n):
             for k in range(rows):
                 y0, m0, y1, m1 = ends(work, _DEV + 2 * k, i, dt, rk4)
-                dev = max(dev, abs(hermite(y0, m0, y1, m1, x)))
+                dev = worse(dev, abs(hermite(y0, m0, y1, m1, x)))
         return dev
 
     largest_deviation = jit(largest_deviation)
