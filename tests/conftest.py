@@ -7,6 +7,12 @@ import pytest
 
 sys.path.insert(0, str(Path(__file__).parent))
 
+#: the generated kernels of user laws (antisync.kernels.law) are written inside the checkout, not
+#: in the user's ~/.cache: every worker of a run, and the next run, loads them from there
+os.environ.setdefault(
+    "ANTISYNC_LAW_CACHE", str(Path(__file__).resolve().parent.parent / "build" / "law-cache")
+)
+
 
 @pytest.fixture(scope="session")
 def paper_values():
@@ -42,6 +48,7 @@ MODEL_FILES = {
     "test_implicit.py",
     "test_models_cuda_sim.py",
     "test_model_start.py",
+    "test_laws.py",
 }
 
 #: Tests of other files that join :data:`MODEL_FILES`' unit (node ids up to here): the capability

@@ -24,6 +24,7 @@ HDF5_OWNER = "antisync.store"
 STAGES = (
     "ground",
     "physics",
+    "laws",
     "stats",
     "kernels",
     "plan",

@@ -22,7 +22,11 @@ from antisync.plan.jobs import make_job
 DOCS = Path(__file__).resolve().parent.parent / "docs" / "models.md"
 
 #: the model kinds' config sections (a generalized model: natural frequencies drawn per realization)
-MODELS = {"identical": "{}", "model": "{frequencies: {distribution: normal, sd: 0.1}}"}
+MODELS = {
+    "identical": "{}",
+    "model": "{frequencies: {distribution: normal, sd: 0.1}}",
+    "law": "{law: stuart-landau, params: {omega: 0.2}}",
+}
 REFUSED = [key for key, row in TABLE.items() if isinstance(row, str)]
 RUNS_ON_CPU = [key for key, row in TABLE.items() if isinstance(row, Row) and key.backend == "cpu"]
 

@@ -64,14 +64,23 @@ __all__ = [
     "lambda_pass",
     "lookup",
     "model_params",
+    "model_kind",
     "model_simulator",
     "trip_simulator",
     "sync_flips",
 ]
 
-#: the model kinds: Eq. 2's identical first-order oscillators, and a generalized model (a
-#: ``model:`` or ``sync:`` section, docs/models.md), integrated by the model kernels
-MODEL_KINDS = ("identical", "model")
+#: the model kinds: Eq. 2's identical first-order oscillators, a generalized model (a
+#: ``model:`` or ``sync:`` section, docs/models.md), integrated by the model kernels, and a
+#: user's law (``model.law``), integrated by its generated kernels (:mod:`antisync.kernels.law`)
+MODEL_KINDS = ("identical", "model", "law")
+
+
+def model_kind(config) -> str:
+    """The model kind (:data:`MODEL_KINDS`) of ``config``."""
+    if config.model.law is not None:
+        return "law"
+    return "model" if config.generalized else "identical"
 
 
 class Key(NamedTuple):
@@ -87,8 +96,7 @@ class Key(NamedTuple):
 def key_of(config, backend: str) -> Key:
     """The cell of ``config`` (a :class:`~antisync.plan.config.Config`) run on ``backend``."""
     dyn = config.dynamics
-    model = "model" if config.generalized else "identical"
-    return Key(model, config.lambda_.method, dyn.integrator, backend, dyn.precision)
+    return Key(model_kind(config), config.lambda_.method, dyn.integrator, backend, dyn.precision)
 
 
 # -- the integration drivers ------------------------------------------------------------------
@@ -222,6 +230,8 @@ DESIGN_REFUSALS: dict[str, str] = {
     "rodas4": "a design differentiates dynamics.integrator euler or rk4, not rodas4 (the adjoint is "
     "written for the explicit steps)",
     "cuda": "a design runs on the CPU: set backend: cpu (or leave it out)",
+    "law": "a design differentiates the built-in models' steps; a law (model.law) has no adjoint "
+    "generated yet: write the model with model: frequencies/phase_lag/inertia/damping",
 }
 
 
@@ -245,7 +255,7 @@ def design_drivers(config) -> DesignDrivers:
     """The kernels of a design of ``config`` (a :class:`~antisync.plan.config.Config`), or the
     one-line :class:`~antisync.errors.ConfigError` of :data:`DESIGN_REFUSALS`."""
     dyn = config.dynamics
-    for value in (dyn.integrator, config.backend):
+    for value in (dyn.integrator, config.backend, model_kind(config)):
         if value in DESIGN_REFUSALS:
             raise ConfigError(DESIGN_REFUSALS[value])
     clock = {"dt": dyn.dt, "max_steps": dyn.max_steps}
@@ -335,6 +345,36 @@ def model_simulator(dynamics, give_up: tuple[float, float] | None = None) -> Cal
         "rk4": functools.partial(cpu.simulate_model, integrator="rk4"),
         "rodas4": functools.partial(implicit.simulate_model, rtol=rtol, atol=atol, give_up=give_up),
     }[dynamics.integrator]
+
+
+def _law_lanes(job, first, count, threads, variant_weights, realizations, todo, variant_targets):
+    """A user's law by its generated kernels (:func:`antisync.kernels.law.simulate_law`; Euler,
+    RK4 or Rodas4, one trajectory per item). Every network of the job has the same target."""
+    from antisync.kernels.law import LawParams, simulate_law
+
+    setup = job.law
+    weights = job.variant_weights if variant_weights is None else variant_weights
+    dyn = job.config.dynamics
+    rtol, atol = dyn.tolerances
+    targets = np.full(len(weights) + 1, setup.target)
+    return simulate_law(
+        *_network(job, first, count),
+        weights,
+        LawParams(setup.law, setup.values, targets, rtol, atol),
+        **_clock(dyn, threshold=False),
+        integrator=dyn.integrator,
+        threads=threads,
+        realizations=realizations,
+        todo=todo,
+    )
+
+
+def _law_step(job) -> None:
+    """A law's explicit step checked on its own Jacobian (:func:`antisync.kernels.law.check_step`)."""
+    if job.kuramoto and job.config.dynamics.integrator in _EXPLICIT:
+        from antisync.kernels.law import check_step
+
+        check_step(job.law, job.config.seed, job.csr, job.config.dynamics)
 
 
 def _model_lanes(job, first, count, threads, variant_weights, realizations, todo, variant_targets):
@@ -488,6 +528,7 @@ DRIVERS: dict[tuple[str, str, str], Driver] = {
         ),
         Driver("model", "cpu", _model_lanes, integrators=(*_EXPLICIT, "rodas4")),
         Driver("model", "cuda", _model_cuda, check_job=_cuda_nodes, device=True),
+        Driver("law", "cpu", _law_lanes, check_job=_law_step, integrators=(*_EXPLICIT, "rodas4")),
     )
     for integrator in d.integrators
 }
@@ -495,7 +536,8 @@ DRIVERS: dict[tuple[str, str, str], Driver] = {
 
 def _lanes(job) -> Driver:
     """The CPU driver of ``job``'s model kind and integrator: where every Lambda pass integrates."""
-    return DRIVERS["identical" if job.model is None else "model", job.config.dynamics.integrator, "cpu"]
+    kind = "law" if job.law is not None else "identical" if job.model is None else "model"
+    return DRIVERS[kind, job.config.dynamics.integrator, "cpu"]
 
 
 # -- the Lambda passes ------------------------------------------------------------------------
@@ -651,7 +693,7 @@ def _secants(job, values, code, flagged, tau0, first: int, threads: int | None, 
     pairs = flagged[np.ix_(rows, links)]
     todo = np.concatenate([np.zeros((rows.size, 1), dtype=bool), pairs, pairs], axis=1)
     index = np.concatenate([links, links + len(job.edges)])
-    targets = None if job.model is None else job.model.secant_targets[index]
+    targets = None if job.model is None else job.model.secant_targets[index]  # a law's are its own
     sec = _lanes(job).simulate(job, 0, 0, threads, job.secant_weights[index], first + rows, todo, targets)
     tau = (sec.steps - 1 + sec.frac) * job.config.dynamics.dt
     plus, minus = tau[:, : links.size], tau[:, links.size :]
@@ -718,6 +760,9 @@ PASSES: dict[tuple[str, str], LambdaPass] = {
         LambdaPass("model", "orbit", _orbit_differences),
         LambdaPass("model", "adjoint", _derivative_values(_model_adjoint_pass)),
         LambdaPass("model", "adjoint-hybrid", _derivative_values(_model_adjoint_pass, secants=True)),
+        LambdaPass("law", "finite-difference", _forward_secants, **_FD),
+        LambdaPass("law", "central-difference", _orbit_differences),
+        LambdaPass("law", "orbit", _orbit_differences),
     )
 }
 
@@ -782,6 +827,35 @@ REFUSALS: tuple[Refusal, ...] = (
         "d<F>/dbeta) or finite-difference (the paper's forward secant)",
         model=("model",),
         method=_TANGENTS,
+    ),
+    Refusal(
+        "config",
+        "lambda.method {method}: its forward tangents are written for the Euler step of identical "
+        "first-order oscillators; with a law (model.law) use central-difference (the derivative "
+        "d<F>/dbeta), finite-difference (the paper's forward secant) or orbit",
+        model=("law",),
+        method=_TANGENTS,
+    ),
+    Refusal(
+        "backend",
+        "lambda.method {method} needs an adjoint pass along the trajectories, which is not yet "
+        "generated for a law (model.law): use central-difference (the derivative d<F>/dbeta), "
+        "finite-difference (the paper's forward secant) or orbit",
+        model=("law",),
+        method=("adjoint", "adjoint-hybrid"),
+    ),
+    Refusal(
+        "backend",
+        "a law (model.law) runs on the cpu backend only: its kernels are generated for the CPU (no "
+        "CUDA twin yet); use --backend cpu",
+        model=("law",),
+        backend=_but(RESOLVED_BACKENDS, "cpu"),
+    ),
+    Refusal(
+        "backend",
+        "a law (model.law) runs in dynamics.precision float64 only",
+        model=("law",),
+        precision=_but(PRECISIONS, *_FLOAT64),
     ),
     # the model kernels run Euler or RK4 with either crossing on both backends, float64 only
     Refusal(
@@ -914,4 +988,4 @@ def lookup(config, backend: str) -> Row:
 
 def lambda_pass(job) -> LambdaPass:
     """The Lambda pass of ``job``'s model kind and ``lambda.method`` (on any backend)."""
-    return PASSES["model" if job.config.generalized else "identical", job.config.lambda_.method]
+    return PASSES[model_kind(job.config), job.config.lambda_.method]

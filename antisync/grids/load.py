@@ -90,6 +90,11 @@ def grid_from_config(config: Config) -> Grid:
         (the static indicators need one operating point): one line.
     """
     model = config.model
+    if model.law is not None:
+        raise GridError(
+            f"model.law {model.law['name']}: the grid tools need the built-in swing equation (its operating "
+            "point, load flows and line trips); write the grid with model: frequencies/inertia/damping"
+        )
     if model.drawn:
         raise GridError(
             f"model.frequencies {model.frequencies} are drawn per realization; the static indicators "

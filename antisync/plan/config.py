@@ -384,6 +384,12 @@ class Config:
         if not self.generalized:
             return
         method = self.lambda_.method
+        if LAMBDA_ROWS[method].passes == "tangents" and self.model.law is not None:
+            raise ConfigError(
+                f"lambda.method {method}: its forward tangents are written for the Euler step of "
+                "identical first-order oscillators; with a law (model.law) use central-difference (the "
+                "derivative d<F>/dbeta), finite-difference (the paper's forward secant) or orbit"
+            )
         if LAMBDA_ROWS[method].passes == "tangents":
             raise ConfigError(
                 f"lambda.method {method}: its forward tangents are written for the Euler step of "
@@ -397,6 +403,11 @@ class Config:
                 "lambda.method orbit averages over the graph's automorphisms, which fixed natural "
                 "frequencies or per-node inertia/damping do not respect (a link and its image see "
                 "different nodes); use central-difference (every link on its own)"
+            )
+        if self.model.law is not None and self.sync.criterion != "order-parameter":
+            raise ConfigError(
+                f"sync.criterion {self.sync.criterion} is written for the built-in model; a law "
+                "(model.law) runs to the order-parameter criterion of its phases: remove sync.criterion"
             )
         if self.sync.criterion == "relative" and self.model.drawn:
             raise ConfigError(
@@ -474,8 +485,16 @@ class Config:
         # paper's model read (and --resume) exactly as before these sections existed
         if self.model.is_default and self.model.damping == 1.0:
             d.pop("model")
-        elif self.model.start is None:
-            d["model"].pop("start")  # the uniform start: files written before it existed read the same
+        else:
+            if self.model.start is None:
+                d["model"].pop("start")  # the uniform start: files written before it existed read the same
+            for key in ("law", "params"):
+                if d["model"][key] is None:
+                    d["model"].pop(key)  # likewise without a law
+                elif key == "params":
+                    d["model"][key] = {
+                        k: list(v) if isinstance(v, tuple) else v for k, v in d["model"][key].items()
+                    }
         if not self.stop.active:
             d.pop("stop")
         elif isinstance(self.model.frequencies, tuple):
@@ -497,6 +516,9 @@ class Config:
             if isinstance(spec, dict) and "file" in spec:
                 # the file's content decides the numbers, not its name: an edited file is another run
                 d["model"][key] = {**spec, "sha256": _file_digest(spec["file"])}
+        for name, spec in (self.model.params or {}).items():
+            if isinstance(spec, dict) and "file" in spec:
+                d["model"]["params"][name] = {**spec, "sha256": _file_digest(spec["file"])}
         return d
 
 
@@ -758,6 +780,18 @@ def _resolve_frequency_file(value: dict, source: Path | None) -> dict:
             p = Path(spec["file"])
             if not p.is_absolute():
                 value = {**value, key: {"file": str((source.parent / p).resolve())}}
+    law = value.get("law")
+    if isinstance(law, str) and law.endswith((".yaml", ".yml")) and source and not Path(law).is_absolute():
+        value = {**value, "law": str((source.parent / law).resolve())}
+    params = value.get("params")
+    if isinstance(params, dict) and source:
+        resolved = {}
+        for name, spec in params.items():
+            if isinstance(spec, dict) and set(spec) == {"file"} and isinstance(spec["file"], str):
+                if not Path(spec["file"]).is_absolute():
+                    spec = {"file": str((source.parent / spec["file"]).resolve())}
+            resolved[name] = spec
+        value = {**value, "params": resolved}
     return value
 
 

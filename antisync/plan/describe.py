@@ -68,6 +68,12 @@ def relative_criterion(cfg) -> bool:
 def model_text(model: Model) -> str:
     """The dynamics of ``model`` in words: its order, inertia and damping, phase lag and
     natural frequencies."""
+    if model.law is not None:
+        law = model.law
+        given = ", ".join(f"{k} {_per_node(v)}" for k, v in (model.params or {}).items())
+        rates = "; ".join(f"{s}' = {e}" for s, e in law["rates"].items())
+        coupling = "; ".join(f"{u} = sum_j {e}" for u, e in law["coupling"].items())
+        return f"law {law['name']} ({rates}; {coupling}" + (f"; {given})" if given else ")")
     if model.is_default:
         return "identical first-order Kuramoto (the paper's Eq. 2)"
     lag = f"phase lag {model.phase_lag:g}" if model.phase_lag else ""

@@ -18,7 +18,7 @@ from antisync.errors import ConfigError
 from antisync.physics import coupling, graphs
 from antisync.physics.locked import linearization
 from antisync.plan.config import Config, graph_name
-from antisync.plan.model import DTARGET_STEP, STABLE_STEP, ModelSetup, model_setup
+from antisync.plan.model import DTARGET_STEP, STABLE_STEP, LawSetup, ModelSetup, law_setup, model_setup
 from antisync.types import LAMBDA_ROWS
 
 __all__ = ["Chunk", "Job", "make_job", "stiffness_note"]
@@ -75,7 +75,9 @@ class Job:
         Number of directed links in each edge's orbit.
     model : ModelSetup or None
         The ``model:`` and ``sync:`` sections resolved for the kernels (docs/models.md);
-        ``None`` for the paper's model, which runs on the default kernels.
+        ``None`` for the paper's model, which runs on the default kernels, and for a law.
+    law : LawSetup or None
+        A user's law (``model.law``) with its parameters per node; None otherwise.
     nnc_of : str
         For the raw-coupling twin of a run (``km_nnc``, Sec. 3.4), the name of the normalized
         job it pairs with; ``""`` otherwise.
@@ -100,6 +102,7 @@ class Job:
     orbit_weights: np.ndarray | None = None
     orbit_sizes: np.ndarray | None = None
     model: ModelSetup | None = None
+    law: LawSetup | None = None
 
     @property
     def kuramoto(self) -> bool:
@@ -190,8 +193,8 @@ def make_job(config: Config, graph: nx.Graph | None = None, name: str | None = N
     index = {v: i for i, v in enumerate(nodes)}
     omega = graphs.omega_matrix(graph)
     kuramoto = "km" in config.measures
-    if kuramoto:  # without km nothing is integrated: dt does not matter
-        check_step(omega, config)
+    if kuramoto and config.model.law is None:  # without km nothing is integrated: dt does not matter
+        check_step(omega, config)  # a law's step is checked on its own Jacobian (execution.dispatch)
     if config.edges == "all":
         edges = graphs.all_directed_edges(graph)
     else:
@@ -222,8 +225,10 @@ def make_job(config: Config, graph: nx.Graph | None = None, name: str | None = N
         config.dynamics.coupling,
     )
     orbit = _orbit_fields(graph, nodes, omega, csr, edges, config)
-    model = None
-    if config.generalized:
+    model = law = None
+    if config.model.law is not None:
+        law = law_setup(config, len(nodes))
+    elif config.generalized:
         model = _model_fields(
             config, edges, edge_idx, variant_edge, variant_beta, omega, csr, vw, secant, orbit
         )
@@ -244,6 +249,7 @@ def make_job(config: Config, graph: nx.Graph | None = None, name: str | None = N
         tangent=coupling.tangent_coefficients(omega, edge_idx, config.dynamics.coupling),
         secant_weights=secant,
         model=model,
+        law=law,
         **orbit,
     )
 

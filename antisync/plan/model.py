@@ -49,11 +49,14 @@ __all__ = [
     "CRITERIA",
     "DISTRIBUTIONS",
     "DTARGET_STEP",
+    "LawSetup",
     "Model",
     "ModelSetup",
     "Sync",
     "check_second_order_step",
     "drawn_frequencies",
+    "law_setup",
+    "law_values",
     "model_setup",
     "node_frequencies",
     "node_parameters",
@@ -214,8 +217,18 @@ class Model:
     inertia: float | tuple | dict = 0.0
     damping: float | tuple | dict = 1.0
     start: None | dict = None
+    law: None | str | dict = None
+    """A user's model (docs/models.md, "Write your own model"): a shipped law's name, a law file
+    or a mapping (:func:`antisync.laws.read_law`); stored as the law's mapping, so a result file
+    holds the equations it ran. With a law the keys above keep their defaults."""
+    params: None | dict = None
+    """The law's per-node parameters: ``{name: number, list (one per node) or {file: PATH}}``;
+    a parameter not given keeps the law's default."""
 
     def __post_init__(self):
+        if self.law is not None or self.params is not None:
+            self._check_law()
+            return
         object.__setattr__(self, "frequencies", _check_frequencies(self.frequencies))
         object.__setattr__(self, "start", _check_start(self.start))
         if self.start is not None and self.drawn:
@@ -244,10 +257,57 @@ class Model:
         object.__setattr__(self, "inertia", inertia)
         object.__setattr__(self, "damping", damping)
 
+    def _check_law(self) -> None:
+        """A law and its parameters, checked; the built-in model's keys must keep their defaults."""
+        from antisync.laws import read_law
+
+        if self.law is None:
+            raise ConfigError(
+                "model.params gives a law's parameters: it needs model.law (e.g. law: stuart-landau)"
+            )
+        for key, default in (
+            ("frequencies", None),
+            ("phase_lag", 0.0),
+            ("inertia", 0.0),
+            ("damping", 1.0),
+            ("start", None),
+        ):
+            if getattr(self, key) != default:
+                raise ConfigError(
+                    f"model.{key} belongs to the built-in model; with model.law give the law's parameters "
+                    "in model.params (and write the dynamics in the law)"
+                )
+        law = read_law(self.law)
+        object.__setattr__(self, "law", law.as_dict())
+        params = self.params or {}
+        if not isinstance(params, dict):
+            raise ConfigError(f"model.params must be a mapping of the law's parameters, got {show(params)}")
+        known = law.param_names
+        out = {}
+        for name, value in params.items():
+            if name not in known:
+                have = ", ".join(known) or "none"
+                raise ConfigError(
+                    f"unknown key 'model.params.{name}'; law {law.name} has the parameters: {have}"
+                )
+            out[name] = _law_parameter(f"model.params.{name}", value)
+        object.__setattr__(self, "params", out or None)
+
+    @property
+    def user_law(self):
+        """The :class:`~antisync.laws.spec.Law` of ``model.law``, or None (the built-in model)."""
+        if self.law is None:
+            return None
+        from antisync.laws import read_law
+
+        return read_law(self.law)
+
     @property
     def is_default(self) -> bool:
         """The paper's identical first-order model from uniform phases (runs on the default
         kernels)."""
+        if self.law is not None:
+            return False
         return self.frequencies is None and self.phase_lag == 0 and self.inertia == 0 and self.start is None
 
     @property
@@ -271,7 +331,9 @@ class Model:
 
     @property
     def per_node(self) -> bool:
-        """Inertia or damping given per node."""
+        """Inertia or damping given per node (or, for a law, a parameter given per node)."""
+        if self.law is not None:
+            return any(not isinstance(v, float) for v in (self.params or {}).values())
         return not (isinstance(self.inertia, float) and isinstance(self.damping, float))
 
 
@@ -414,6 +476,66 @@ def read_frequency_file(path: str | Path, what: str = "model.frequencies.file") 
             )
         values.append(x)
     return np.array(values, dtype=np.float64)
+
+
+@dataclass(frozen=True)
+class LawSetup:
+    """A user's law resolved for a graph: the :class:`~antisync.laws.spec.Law`, its parameters per
+    node ``values`` ``(n_params, n)``, and the order-parameter target ``R = (r N)^2`` at the
+    threshold (every network of the job has the same)."""
+
+    law: object
+    values: np.ndarray
+    target: float
+
+
+def law_setup(config, n: int) -> LawSetup:
+    """``config.model``'s law for a graph of ``n`` nodes (:class:`LawSetup`)."""
+    return LawSetup(
+        config.model.user_law, law_values(config.model, n), float((config.dynamics.threshold * n) ** 2)
+    )
+
+
+def _law_parameter(key: str, value):
+    """A law's parameter: a finite number, one per node (a list) or ``{file: PATH}``."""
+    if isinstance(value, list | tuple):
+        if not value:
+            raise ConfigError(f"{key} is an empty list; give a number or one number per node")
+        return tuple(parse_number(f"{key}[{i}]", x) for i, x in enumerate(value))
+    if isinstance(value, dict):
+        if set(value) != {"file"} or not isinstance(value["file"], str) or not value["file"]:
+            raise ConfigError(
+                f"{key} must be a number, a list (one per node) or {{file: PATH}}, got {show(value)}"
+            )
+        return {"file": value["file"]}
+    return parse_number(key, value, "a number, a list (one per node) or {file: PATH}")
+
+
+def law_values(model: Model, n: int) -> np.ndarray:
+    """The law's parameters per node, ``(n_params, n)`` in the law's order: each one's value
+    from ``model.params`` (a number, a list or a file, read like a frequency file) or the law's
+    default."""
+    law = model.user_law
+    params = model.params or {}
+    out = np.empty((len(law.params), n))
+    for k, (name, default) in enumerate(law.params):
+        value = params.get(name, default)
+        key = f"model.params.{name}"
+        if isinstance(value, float):
+            out[k] = value
+            continue
+        if isinstance(value, dict):
+            key = f"{key}.file {value['file']}"
+            values = read_frequency_file(Path(value["file"]), f"model.params.{name}.file")
+        else:
+            values = np.array(value, dtype=np.float64)
+        if values.size != n:
+            raise ConfigError(
+                f"{key} has {values.size} values; the graph has {n} nodes: give one value per node, "
+                "in node order"
+            )
+        out[k] = values
+    return out
 
 
 def node_parameters(model: Model, n: int) -> tuple[np.ndarray, np.ndarray]:

@@ -1,0 +1,780 @@
+"""A user's law compiled into batch kernels: generated Numba code, once per law, cached on disk.
+
+:class:`~antisync.laws.spec.Law` gives a node law and an edge law in sympy. This module writes
+them as Python source over the CSR loops every kernel of antisync uses (``indptr``,
+``indices``, one weight per in-link), appends the generic drivers of :data:`_DRIVERS` (Euler,
+RK4 and Rodas4 from the realization's random phases to the order-parameter criterion), and
+imports the file: numba compiles it once and caches the machine code beside it, keyed by the
+law's text and antisync's sources, so a second process loads it in about a second. Nothing is
+generated per node: the compile time does not depend on the network.
+
+The generated functions (state ``y`` flat, state ``k`` of node ``i`` at ``y[k n + i]``;
+per-node parameters ``P`` of shape ``(n_params, n)``):
+
+- ``law_rhs(y, w, indptr, indices, P, out)``: ``out = f(y)``, each node's coupling inputs
+  summed over its in-links (sympy's common subexpressions hoisted);
+- ``law_order(y, f, P, n)``: ``(R, dR/dt)``, ``R = |sum_i e^{i phase_i}|^2``, with the phase's
+  rate ``grad(phase) . f`` (the cubic Hermite crossing of :mod:`antisync.kernels.core` needs it);
+- ``law_start(seed, k, P, y, n)``: the start of realization ``k`` from the paper's
+  counter-based phases (:func:`antisync.physics.phases.phase`);
+- ``law_jac(y, w, indptr, indices, P, jq)``: the Jacobian's entries on the expanded pattern of
+  :func:`expanded_pattern` (each node's ``S x S`` block with itself and with each in-neighbour),
+  by the chain rule through the coupling inputs: what Rodas4 factors.
+
+The drivers keep the statuses and the crossing times of the built-in model kernels: ``tau =
+(steps - 1 + frac) dt``, the crossing on the cubic Hermite interpolant of ``R`` over the step
+(RK4, Rodas4) or its straight line (Euler), a state that is not finite never synchronized.
+"""
+
+from __future__ import annotations
+
+import functools
+import hashlib
+import importlib.util
+import os
+import sys
+import tempfile
+from pathlib import Path
+from typing import NamedTuple
+
+import numba
+import numpy as np
+
+from antisync import _numba_cache
+from antisync.kernels.shared import Outputs, SimResult, Threads, realization_ids
+from antisync.laws.spec import Law
+from antisync.types import RODAS4_ATOL, RODAS4_RTOL
+
+__all__ = [
+    "CompiledLaw",
+    "LawParams",
+    "cache_root",
+    "check_step",
+    "compile_law",
+    "expanded_pattern",
+    "generate_source",
+    "jacobian",
+    "simulate_law",
+    "starts",
+]
+
+#: bumped when the generated code's layout changes (old files are then never read)
+GENERATOR = 1
+
+
+class LawParams(NamedTuple):
+    """A law's run constants: ``values`` ``(n_params, n)`` (the law's parameters per node, in
+    the order of ``law.params``), ``targets`` ``(V + 1,)`` (``R = (r N)^2`` at the threshold, base
+    first), and Rodas4's tolerances."""
+
+    law: Law
+    values: np.ndarray
+    targets: np.ndarray
+    rtol: float = RODAS4_RTOL
+    atol: float = RODAS4_ATOL
+
+
+class CompiledLaw(NamedTuple):
+    """The generated module's functions (module docstring) and the file they came from."""
+
+    rhs: object
+    order: object
+    start: object
+    jac: object
+    items: object
+    path: Path
+
+
+def cache_root() -> Path:
+    """Where generated laws are written: ``$ANTISYNC_LAW_CACHE``, else
+    ``$XDG_CACHE_HOME/antisync/laws`` (``~/.cache/antisync/laws``)."""
+    env = os.environ.get("ANTISYNC_LAW_CACHE")
+    if env:
+        return Path(env)
+    base = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
+    return Path(base) / "antisync" / "laws"
+
+
+# -- code generation ----------------------------------------------------------------------------
+
+
+def _printer():
+    from sympy.printing.pycode import PythonCodePrinter
+
+    class _Printer(PythonCodePrinter):
+        """Python's ``math`` for numba; ``abs`` and ``sign`` spelt so numba types them."""
+
+        def _print_Abs(self, expr):
+            return f"abs({self._print(expr.args[0])})"
+
+        def _print_sign(self, expr):
+            a = self._print(expr.args[0])
+            return f"(0.0 if {a} == 0 else math.copysign(1.0, {a}))"
+
+    return _Printer({"fully_qualified_modules": True, "standard": "python3"})
+
+
+def _block(exprs, targets, indent: str, printer, accumulate: bool = False) -> list[str]:
+    """Lines assigning ``exprs`` to ``targets`` (``+=`` with ``accumulate``) with sympy's common
+    subexpressions hoisted into ``c0, c1, ...`` locals."""
+    import sympy
+
+    subs, reduced = sympy.cse(list(exprs), symbols=sympy.numbered_symbols("c"), optimizations="basic")
+    lines = [f"{indent}{sym} = {printer.doprint(e)}" for sym, e in subs]
+    op = "+=" if accumulate else "="
+    lines += [f"{indent}{t} {op} {printer.doprint(e)}" for t, e in zip(targets, reduced, strict=True)]
+    return lines
+
+
+def _loads(exprs, sym, indent: str, fmt: str) -> list[str]:
+    """``name = <fmt(k)>`` for each symbol of ``sym`` some expression of ``exprs`` reads."""
+    used = set().union(*(getattr(e, "free_symbols", set()) for e in exprs)) if exprs else set()
+    return [f"{indent}{s} = {fmt.format(k=k)}" for k, s in enumerate(sym) if s in used]
+
+
+def generate_source(law: Law) -> str:
+    """The Python source of ``law``'s kernels (module docstring)."""
+    import sympy
+
+    sym = law.symbolic()
+    pr = _printer()
+    n_s, n_u = len(sym.x), len(sym.u)
+    node_exprs = list(sym.rates)
+    edge_exprs = list(sym.coupling)
+    out = [
+        f"# generated by antisync.kernels.law (generator {GENERATOR}) for the law {law.name!r}; do not edit",
+        f"# {law.text}",
+        "import math",
+        "import numpy as np",
+        "from numba import njit, prange",
+        "from antisync.kernels import law_support as support",
+        "from antisync.kernels.law_support import ALREADY_SYNCED, NOT_SYNCED, SYNCED, RA, RC, RGAMMA",
+        "from antisync.kernels.law_support import factor, item_of, order_crossing, phase, record, solve",
+        "",
+        f"S = {n_s}",
+        "",
+        "",
+        "@njit(cache=True)",
+        "def law_rhs(y, wq, indptr, indices, P, out):",
+        "    n = indptr.shape[0] - 1",
+        "    for i in range(n):",
+    ]
+    out += _loads(node_exprs + edge_exprs, sym.x, "        ", "y[{k} * n + i]")
+    out += _loads(node_exprs + edge_exprs, sym.p, "        ", "P[{k}, i]")
+    out += [f"        {u} = 0.0" for u in sym.u]
+    out += [
+        "        for q in range(indptr[i], indptr[i + 1]):",
+        "            j = indices[q]",
+        "            w = wq[q]",
+    ]
+    out += _loads(edge_exprs, sym.xj, "            ", "y[{k} * n + j]")
+    out += _loads(edge_exprs, sym.pj, "            ", "P[{k}, j]")
+    out += _block(edge_exprs, [str(u) for u in sym.u], "            ", pr, accumulate=True)
+    out += _block(node_exprs, [f"out[{k} * n + i]" for k in range(n_s)], "        ", pr)
+
+    # R and its rate: the phase and its gradient along f
+    grad = list(sym.phase_gradient)
+    rate = sum((g * sympy.Symbol(f"f{k}") for k, g in enumerate(grad)), sympy.Integer(0))
+    out += [
+        "",
+        "",
+        "@njit(cache=True)",
+        "def law_order(y, f, P, n):",
+        "    tc = 0.0",
+        "    ts = 0.0",
+        "    dc = 0.0",
+        "    ds = 0.0",
+        "    for i in range(n):",
+    ]
+    out += _loads([sym.phase, rate], sym.x, "        ", "y[{k} * n + i]")
+    out += _loads([sym.phase, rate], sym.p, "        ", "P[{k}, i]")
+    out += [f"        f{k} = f[{k} * n + i]" for k in range(n_s)]
+    out += _block([sym.phase, rate], ["ph", "rate"], "        ", pr)
+    out += [
+        "        co = math.cos(ph)",
+        "        si = math.sin(ph)",
+        "        tc += co",
+        "        ts += si",
+        "        dc -= si * rate",
+        "        ds += co * rate",
+        "    return tc * tc + ts * ts, 2.0 * (tc * dc + ts * ds)",
+        "",
+        "",
+        "@njit(cache=True)",
+        "def law_start(seed, k, P, y, n):",
+        "    for i in range(n):",
+        "        phi = phase(seed, k, i)",
+    ]
+    out += _loads(list(sym.start), sym.p, "        ", "P[{k}, i]")
+    out += _block(list(sym.start), [f"y[{k} * n + i]" for k in range(n_s)], "        ", pr)
+
+    # the Jacobian on the expanded pattern: row (s, i), entries (r, i) then (r, j) per in-link
+    d_edge_i = [[h.diff(x) for x in sym.x] for h in sym.coupling]  # d h_m / d x_r (own)
+    d_edge_j = [[h.diff(x) for x in sym.xj] for h in sym.coupling]  # d h_m / d xj_r
+    d_node_x = [[g.diff(x) for x in sym.x] for g in sym.rates]  # d g_s / d x_r
+    d_node_u = [[g.diff(u) for u in sym.u] for g in sym.rates]  # d g_s / d u_m
+    own = [f"a{m}_{r}" for m in range(n_u) for r in range(n_s)]
+    flat_i = [d_edge_i[m][r] for m in range(n_u) for r in range(n_s)]
+    gx = [f"gx{s}_{r}" for s in range(n_s) for r in range(n_s)]
+    gu = [f"gu{s}_{m}" for s in range(n_s) for m in range(n_u)]
+    node_flat = [d_node_x[s][r] for s in range(n_s) for r in range(n_s)]
+    node_flat += [d_node_u[s][m] for s in range(n_s) for m in range(n_u)]
+    hj = [f"hj{m}_{r}" for m in range(n_u) for r in range(n_s)]
+    flat_j = [d_edge_j[m][r] for m in range(n_u) for r in range(n_s)]
+    every = edge_exprs + flat_i + flat_j + node_flat
+    out += [
+        "",
+        "",
+        "@njit(cache=True)",
+        "def law_jac(y, wq, indptr, indices, P, jq):",
+        "    n = indptr.shape[0] - 1",
+        "    nnz = indices.shape[0]",
+        "    for i in range(n):",
+        "        deg = indptr[i + 1] - indptr[i]",
+        # row (s, i) of the expanded CSR starts at s * (S n + S nnz)/S... see expanded_pattern
+        "        rowlen = S * (1 + deg)",
+        "        base = S * (S * i + S * indptr[i])",
+    ]
+    out += _loads(every, sym.x, "        ", "y[{k} * n + i]")
+    out += _loads(every, sym.p, "        ", "P[{k}, i]")
+    out += [f"        {u} = 0.0" for u in sym.u]
+    out += [f"        {a} = 0.0" for a in own]
+    out += [
+        "        for q in range(indptr[i], indptr[i + 1]):",
+        "            j = indices[q]",
+        "            w = wq[q]",
+    ]
+    out += _loads(edge_exprs + flat_i, sym.xj, "            ", "y[{k} * n + j]")
+    out += _loads(edge_exprs + flat_i, sym.pj, "            ", "P[{k}, j]")
+    out += _block(edge_exprs + flat_i, [str(u) for u in sym.u] + own, "            ", pr, accumulate=True)
+    out += _block(node_flat, gx + gu, "        ", pr)
+    # the diagonal block
+    for s in range(n_s):
+        for r in range(n_s):
+            chain = " + ".join([f"gx{s}_{r}"] + [f"gu{s}_{m} * a{m}_{r}" for m in range(n_u)])
+            out.append(f"        jq[base + {s} * rowlen + {r}] = {chain}")
+    out += [
+        "        for q in range(indptr[i], indptr[i + 1]):",
+        "            j = indices[q]",
+        "            w = wq[q]",
+        "            at = base + S + S * (q - indptr[i])",
+    ]
+    out += _loads(flat_j, sym.xj, "            ", "y[{k} * n + j]")
+    out += _loads(flat_j, sym.pj, "            ", "P[{k}, j]")
+    out += _block(flat_j, hj, "            ", pr)
+    for s in range(n_s):
+        for r in range(n_s):
+            chain = " + ".join(f"gu{s}_{m} * hj{m}_{r}" for m in range(n_u))
+            out.append(f"            jq[at + {s} * rowlen + {r}] = {chain}")
+    out += ["    return nnz", "", ""]
+    return "\n".join(out) + _DRIVERS
+
+
+def expanded_pattern(indptr: np.ndarray, indices: np.ndarray, n_states: int) -> tuple[np.ndarray, ...]:
+    """The Jacobian's CSR pattern for ``n_states`` states per node: row ``s n + i`` holds
+    ``(r, i)`` for every state ``r``, then ``(r, j)`` for each in-neighbour ``j`` in CSR order
+    (``law_jac`` writes its entries in that order; a neighbour that is the node itself is
+    allowed, its entries then sit twice in the row and the factorization adds them)."""
+    indptr = np.asarray(indptr, dtype=np.int64)
+    indices = np.asarray(indices, dtype=np.int64)
+    n = indptr.size - 1
+    S = n_states
+    rows = []
+    # law_jac's layout is node-major: node i's S rows are consecutive blocks of length
+    # S (1 + deg_i); expanded row (s, i) is stored at row index s n + i of the pattern
+    ptr = np.zeros(S * n + 1, dtype=np.int64)
+    cols = np.empty(S * S * (n + indices.size), dtype=np.int64)
+    order = np.empty(S * n, dtype=np.int64)  # storage block of row s n + i
+    at = 0
+    for i in range(n):
+        nb = indices[indptr[i] : indptr[i + 1]]
+        line = [r * n + i for r in range(S)] + [r * n + int(j) for j in nb for r in range(S)]
+        for s in range(S):
+            cols[at : at + len(line)] = line
+            order[s * n + i] = at
+            at += len(line)
+        rows.append(len(line))
+    # the pattern in row order (s n + i): gather the node-major storage
+    lengths = np.array([rows[r % n] for r in range(S * n)], dtype=np.int64)
+    ptr[1:] = np.cumsum(lengths)
+    out = np.empty(ptr[-1], dtype=np.int64)
+    perm = np.empty(ptr[-1], dtype=np.int64)  # pattern position -> law_jac position
+    for r in range(S * n):
+        out[ptr[r] : ptr[r + 1]] = cols[order[r] : order[r] + lengths[r]]
+        perm[ptr[r] : ptr[r + 1]] = np.arange(order[r], order[r] + lengths[r])
+    return ptr, out, perm
+
+
+# The drivers: generic in the law (they call law_rhs, law_order, law_start, law_jac above).
+_DRIVERS = '''
+@njit(cache=True)
+def law_sync(y, wq, indptr, indices, P, dt, rk4, target, max_steps):
+    """Euler or RK4 from y to the order-parameter criterion: (status, steps, frac)."""
+    n = indptr.shape[0] - 1
+    m = y.shape[0]
+    f = np.empty(m)
+    k2 = np.empty(m)
+    k3 = np.empty(m)
+    k4 = np.empty(m)
+    z = np.empty(m)
+    law_rhs(y, wq, indptr, indices, P, f)
+    r2, dr2 = law_order(y, f, P, n)
+    if not (r2 == r2 and dr2 == dr2):
+        return NOT_SYNCED, max_steps, 0.0
+    if r2 >= target:
+        return ALREADY_SYNCED, 0, 0.0
+    h = 0.5 * dt
+    for step in range(1, max_steps + 1):
+        r2_prev = r2
+        dr2_prev = dr2
+        if rk4:
+            for a in range(m):
+                z[a] = y[a] + h * f[a]
+            law_rhs(z, wq, indptr, indices, P, k2)
+            for a in range(m):
+                z[a] = y[a] + h * k2[a]
+            law_rhs(z, wq, indptr, indices, P, k3)
+            for a in range(m):
+                z[a] = y[a] + dt * k3[a]
+            law_rhs(z, wq, indptr, indices, P, k4)
+            for a in range(m):
+                y[a] += dt / 6.0 * (f[a] + 2.0 * k2[a] + 2.0 * k3[a] + k4[a])
+        else:
+            for a in range(m):
+                y[a] += dt * f[a]
+        law_rhs(y, wq, indptr, indices, P, f)
+        r2, dr2 = law_order(y, f, P, n)
+        if not (r2 == r2 and dr2 == dr2):
+            return NOT_SYNCED, max_steps, 0.0  # diverged: never synchronized
+        x = order_crossing(r2_prev, dr2_prev, r2, dr2, dt, rk4, target)
+        if x >= 0.0:
+            return SYNCED, step, x
+    return NOT_SYNCED, max_steps, 0.0
+
+
+@njit(cache=True)
+def law_rodas4(y, wq, indptr, indices, P, target, t_max, h0, rtol, atol, plan, jperm):
+    """Rodas4 (the coefficients and controller of antisync.kernels.implicit) from y to the
+    order-parameter criterion: (status, tau, accepted, rejected, failed)."""
+    fp_perm, fp_inv, fp_ptr, fp_col, fp_diag, fp_entry = plan[:6]
+    div_ptr, div_pos, upd_ptr, upd_ij, upd_ik, upd_kj = plan[6:]
+    n = indptr.shape[0] - 1
+    m = y.shape[0]
+    u = np.zeros((6, m))
+    f0 = np.empty(m)
+    f = np.empty(m)
+    z = np.empty(m)
+    d = np.empty(m)
+    b = np.empty(m)
+    x = np.empty(m)
+    xp = np.empty(m)
+    kept = np.empty(m)
+    kept_f = np.empty(m)
+    jq = np.empty(jperm.shape[0])
+    val = np.empty(fp_col.shape[0])
+    law_rhs(y, wq, indptr, indices, P, f0)
+    r2, dr2 = law_order(y, f0, P, n)
+    if not (r2 == r2 and dr2 == dr2):
+        return NOT_SYNCED, 0.0, 0, 0, True
+    if r2 >= target:
+        return ALREADY_SYNCED, 0.0, 0, 0, False
+    t = 0.0
+    h = min(h0, t_max)
+    h_cap = t_max
+    cap_until = 0.0
+    err_prev = 1.0
+    accepted = 0
+    rejected = 0
+    in_row = 0
+    while t < t_max:
+        if h < support.H_FLOOR * t_max or in_row > support.MAX_REJECTS:
+            return NOT_SYNCED, t, accepted, rejected, True
+        last = False
+        if t + h >= t_max:
+            h = t_max - t
+            last = True
+        g = 1.0 / (h * RGAMMA)
+        inv_h = 1.0 / h
+        law_jac(y, wq, indptr, indices, P, jq)
+        val[:] = 0.0
+        scale = 0.0
+        for e in range(fp_entry.shape[0]):
+            v = jq[jperm[e]]
+            val[fp_entry[e]] -= v
+            scale = max(scale, abs(v))
+        for a in range(m):
+            val[fp_diag[fp_inv[a]]] += g
+        if not factor(val, fp_diag, div_ptr, div_pos, upd_ptr, upd_ij, upd_ik, upd_kj, scale + g):
+            h *= 0.25
+            rejected += 1
+            in_row += 1
+            continue
+        for stage in range(6):
+            if stage == 0:
+                for a in range(m):
+                    f[a] = f0[a]
+            else:
+                if stage < 5:
+                    for a in range(m):
+                        acc = 0.0
+                        for s in range(stage):
+                            acc += RA[stage, s] * u[s, a]
+                        d[a] = acc
+                else:
+                    for a in range(m):
+                        d[a] += u[4, a]
+                for a in range(m):
+                    z[a] = y[a] + d[a]
+                law_rhs(z, wq, indptr, indices, P, f)
+            for a in range(m):
+                acc = f[a]
+                for s in range(stage):
+                    acc += RC[stage, s] * inv_h * u[s, a]
+                b[a] = acc
+            solve(val, fp_ptr, fp_col, fp_diag, fp_perm, b, x, xp)
+            for a in range(m):
+                u[stage, a] = x[a]
+        err = 0.0
+        for a in range(m):
+            yn = y[a] + d[a] + u[5, a]
+            e = u[5, a] / (atol + rtol * max(abs(y[a]), abs(yn)))
+            err += e * e
+        err = math.sqrt(err / m)
+        if not err <= 1.0:
+            h *= max(support.SHRINK, min(1.0, support.SAFETY * err**-0.25 if err == err else support.SHRINK))
+            rejected += 1
+            in_row += 1
+            continue
+        in_row = 0
+        accepted += 1
+        for a in range(m):
+            kept[a] = y[a]
+            kept_f[a] = f0[a]
+            y[a] += d[a] + u[5, a]
+        t_prev = t
+        t = t_max if last else t + h
+        r2_prev = r2
+        dr2_prev = dr2
+        law_rhs(y, wq, indptr, indices, P, f0)
+        r2, dr2 = law_order(y, f0, P, n)
+        if not (r2 == r2 and dr2 == dr2):
+            return NOT_SYNCED, t, accepted, rejected, True
+        xc = order_crossing(r2_prev, dr2_prev, r2, dr2, t - t_prev, True, target)
+        if xc >= 0.0:
+            xl = order_crossing(r2_prev, dr2_prev, r2, dr2, t - t_prev, False, target)
+            tau = t_prev + xc * (t - t_prev)
+            if (xl >= 0.0 and abs(xc - xl) * (t - t_prev) <= support.CROSSING_RTOL * tau) or (
+                t - t_prev <= support.H_FLOOR * 1e3 * t_max
+            ):
+                return SYNCED, tau, accepted, rejected, False
+            for a in range(m):
+                y[a] = kept[a]
+                f0[a] = kept_f[a]
+            r2 = r2_prev
+            dr2 = dr2_prev
+            h_cap = support.REFINE * (t - t_prev)
+            cap_until = t
+            h = h_cap
+            t = t_prev
+            accepted -= 1
+            continue
+        err = max(err, 1e-10)
+        fac = support.SAFETY * err**-support.BETA1 * err_prev**support.BETA2
+        err_prev = err
+        if t >= cap_until:
+            h_cap = t_max
+        h = min(h * max(support.SHRINK, min(support.GROW, fac)), h_cap)
+        if dr2 != 0.0:
+            h = min(h, support.NEAR * max(target - r2, n * n - target) / abs(dr2))
+    return NOT_SYNCED, t_max, accepted, rejected, False
+
+
+@njit(cache=True)
+def law_item(ks, seed, indptr, indices, base_w, var_w, var_is_base, todo, P, targets, clock, plan, jperm,
+             status0, steps0, frac0, status, steps, frac, item, per):
+    dt, t_max, max_steps, method, rtol, atol = clock
+    r, v, run = item_of(item, per, var_is_base, todo)
+    if not run:
+        return
+    n = indptr.shape[0] - 1
+    y = np.empty(S * n)
+    law_start(seed, ks[r], P, y, n)
+    w = base_w if v < 0 else var_w[v]
+    if method == 2:
+        st, tau, acc, rej, failed = law_rodas4(
+            y, w, indptr, indices, P, targets[v + 1], t_max, dt, rtol, atol, plan, jperm
+        )
+        k, x = support.on_the_grid(st, tau, dt, int(max_steps))
+        if failed:
+            st = NOT_SYNCED
+            k = int(max_steps)
+            x = 0.0
+    else:
+        st, k, x = law_sync(y, w, indptr, indices, P, dt, method == 1, targets[v + 1], int(max_steps))
+    record(status0, steps0, frac0, status, steps, frac, r, v, st, k, x)
+
+
+@njit(parallel=True, cache=True)
+def law_items(ks, seed, indptr, indices, base_w, var_w, var_is_base, todo, P, targets, clock, plan, jperm,
+              status0, steps0, frac0, status, steps, frac):
+    m = ks.shape[0]
+    per = var_w.shape[0] + 1
+    for item in prange(m * per):
+        law_item(ks, seed, indptr, indices, base_w, var_w, var_is_base, todo, P, targets, clock, plan, jperm,
+                 status0, steps0, frac0, status, steps, frac, np.int64(item), per)
+    for r in prange(m):
+        for v in range(var_is_base.shape[0]):
+            if var_is_base[v]:
+                status[r, v] = status0[r]
+                steps[r, v] = steps0[r]
+                frac[r, v] = frac0[r]
+'''
+
+
+# -- compiling and running ----------------------------------------------------------------------
+
+
+@functools.lru_cache(maxsize=32)
+def compile_law(law: Law) -> CompiledLaw:
+    """``law``'s kernels: the generated module, written once under :func:`cache_root` (named by
+    the digest of the law's text, the generator and antisync's sources) and imported; numba
+    caches its machine code beside it."""
+    source = generate_source(law)
+    key = hashlib.sha1(
+        "\n".join([source, _numba_cache.cache_dir().name, numba.__version__]).encode()
+    ).hexdigest()[:16]
+    folder = cache_root() / key
+    path = folder / f"law_{key}.py"
+    if not path.is_file() or path.read_text(encoding="utf-8") != source:
+        folder.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(dir=folder, suffix=".tmp")
+        with os.fdopen(fd, "w", encoding="utf-8") as fh:
+            fh.write(source)
+        os.replace(tmp, path)  # atomic: a concurrent process reads the whole file or none
+    name = f"antisync_law_{key}"
+    module = sys.modules.get(name)
+    if module is None:
+        spec = importlib.util.spec_from_file_location(name, path)
+        module = importlib.util.module_from_spec(spec)
+        sys.modules[name] = module
+        spec.loader.exec_module(module)
+    return CompiledLaw(
+        module.law_rhs, module.law_order, module.law_start, module.law_jac, module.law_items, path
+    )
+
+
+@functools.lru_cache(maxsize=16)
+def _jacobian_plan(indptr: bytes, indices: bytes, n_states: int):
+    from antisync.kernels.implicit import factor_plan
+
+    ip = np.frombuffer(indptr, dtype=np.int64)
+    ix = np.frombuffer(indices, dtype=np.int64)
+    ptr, cols, perm = expanded_pattern(ip, ix, n_states)
+    return factor_plan(ptr, cols), perm
+
+
+def _no_plan():
+    from antisync.kernels.implicit import FactorPlan
+
+    empty = np.zeros(0, dtype=np.int64)
+    return FactorPlan(*(empty for _ in range(12))), empty
+
+
+_METHODS = {"euler": 0, "rk4": 1, "rodas4": 2}
+
+
+def simulate_law(
+    seed: int,
+    first: int,
+    count: int,
+    indptr: np.ndarray,
+    indices: np.ndarray,
+    base_weights: np.ndarray,
+    variant_weights: np.ndarray,
+    params: LawParams,
+    *,
+    dt: float,
+    max_steps: int,
+    integrator: str = "rk4",
+    threads: int | None = None,
+    realizations: np.ndarray | None = None,
+    todo: np.ndarray | None = None,
+) -> SimResult:
+    """Integrate realizations ``first .. first+count-1`` (or ``realizations``) of a user's law
+    for the base weights and every row of ``variant_weights`` (the arguments of
+    :func:`antisync.kernels.cpu.simulate_model`; ``params`` a :class:`LawParams`): one
+    trajectory per item, in parallel. Rodas4 starts at step ``dt``, runs to ``t_max = max_steps
+    dt`` and stores its crossing time on the grid of ``dt`` as the built-in drivers do."""
+    if integrator not in _METHODS:
+        raise ValueError(f"integrator must be one of {', '.join(_METHODS)}, got {integrator!r}")
+    law = params.law
+    compiled = compile_law(law)
+    ks = realization_ids(first, count, realizations)
+    m = ks.size
+    n = indptr.size - 1
+    indptr = np.ascontiguousarray(indptr, dtype=np.int64)
+    indices = np.ascontiguousarray(indices, dtype=np.int64)
+    base = np.ascontiguousarray(base_weights, dtype=np.float64)
+    var_w = np.ascontiguousarray(variant_weights, dtype=np.float64).reshape(-1, base.size)
+    n_var = var_w.shape[0]
+    var_is_base = np.array([np.array_equal(w, base) for w in var_w], dtype=np.bool_)
+    values = np.ascontiguousarray(params.values, dtype=np.float64).reshape(len(law.params), n)
+    targets = np.ascontiguousarray(params.targets, dtype=np.float64)
+    if targets.shape != (n_var + 1,):
+        raise ValueError(f"targets must have shape ({n_var + 1},), got {targets.shape}")
+    if todo is None:
+        todo = np.zeros((0, 0), dtype=np.bool_)
+    else:
+        todo = np.ascontiguousarray(todo, dtype=np.bool_)
+        if todo.shape != (m, n_var + 1):
+            raise ValueError(f"todo must have shape {(m, n_var + 1)}, got {todo.shape}")
+        var_is_base[:] = False
+    if integrator == "rodas4":
+        plan, jperm = _jacobian_plan(indptr.tobytes(), indices.tobytes(), len(law.states))
+    else:
+        plan, jperm = _no_plan()
+    clock = (
+        float(dt),
+        float(dt) * int(max_steps),
+        float(max_steps),
+        _METHODS[integrator],
+        params.rtol,
+        params.atol,
+    )
+    out = Outputs(
+        np.full(m, -1, dtype=np.int8),
+        np.full(m, -1, dtype=np.int64),
+        np.full(m, np.nan),
+        np.full((m, n_var), -1, dtype=np.int8),
+        np.full((m, n_var), -1, dtype=np.int64),
+        np.full((m, n_var), np.nan),
+        np.empty((m, 0)),
+    )
+    with Threads(threads):
+        compiled.items(
+            ks,
+            np.uint64(seed),
+            indptr,
+            indices,
+            base,
+            var_w,
+            var_is_base,
+            todo,
+            values,
+            targets,
+            clock,
+            plan,
+            jperm,
+            out.status0,
+            out.steps0,
+            out.frac0,
+            out.status,
+            out.steps,
+            out.frac,
+        )
+    return SimResult(out.status0, out.steps0, out.status, out.steps, out.frac0, out.frac)
+
+
+#: the largest state (states x nodes) whose step is checked by a dense eigenvalue problem
+CHECK_MAX_STATES = 3000
+
+
+def _growth(z: np.ndarray, integrator: str) -> np.ndarray:
+    """``|R(z)|``, the explicit step's amplification of a mode with ``z = dt lambda``."""
+    if integrator == "euler":
+        return np.abs(1 + z)
+    return np.abs(1 + z + z**2 / 2 + z**3 / 6 + z**4 / 24)
+
+
+def jacobian(law: Law, values: np.ndarray, indptr, indices, weights, y: np.ndarray) -> np.ndarray:
+    """The law's Jacobian at the flat state ``y`` as a dense matrix (``(S n, S n)``)."""
+    compiled = compile_law(law)
+    indptr = np.ascontiguousarray(indptr, dtype=np.int64)
+    indices = np.ascontiguousarray(indices, dtype=np.int64)
+    ptr, cols, perm = expanded_pattern(indptr, indices, len(law.states))
+    jq = np.empty(perm.size)
+    compiled.jac(
+        np.ascontiguousarray(y, dtype=np.float64),
+        np.ascontiguousarray(weights, dtype=np.float64),
+        indptr,
+        indices,
+        np.ascontiguousarray(values, dtype=np.float64),
+        jq,
+    )
+    dense = np.zeros((ptr.size - 1, ptr.size - 1))
+    rows = np.repeat(np.arange(ptr.size - 1), np.diff(ptr))
+    np.add.at(dense, (rows, cols), jq[perm])
+    return dense
+
+
+def starts(law: Law, values: np.ndarray, seed: int, ks) -> np.ndarray:
+    """The flat start of each realization ``ks`` (rows), as the kernels draw it."""
+    compiled = compile_law(law)
+    n = values.shape[1]
+    out = np.empty((len(ks), len(law.states) * n))
+    for row, k in enumerate(ks):
+        compiled.start(
+            np.uint64(seed), np.int64(k), np.ascontiguousarray(values, dtype=np.float64), out[row], n
+        )
+    return out
+
+
+def in_phase(law: Law, values: np.ndarray) -> np.ndarray:
+    """The flat state with every node at its start for the phase ``phi = 0`` (the in-phase
+    state of a phase model, where synchrony is approached)."""
+    import sympy
+
+    sym = law.symbolic()
+    n = values.shape[1]
+    out = np.empty(len(law.states) * n)
+    for k, expr in enumerate(sym.start):
+        f = sympy.lambdify([sym.phi, *sym.p], expr, modules="math")
+        out[k * n : (k + 1) * n] = [f(0.0, *values[:, i]) for i in range(n)]
+    return out
+
+
+def check_step(setup, seed: int, csr, dynamics) -> None:
+    """Refuse an explicit ``dynamics.dt`` that a decaying mode of the law's Jacobian would make
+    grow: at the start of realization 0 and at the in-phase state (every node's start at ``phi
+    = 0``), every eigenvalue ``lambda`` with a negative real part must have ``|R(dt lambda)| <=
+    1`` (Euler's or RK4's amplification). Beyond :data:`CHECK_MAX_STATES` states the check is
+    skipped (a dense eigenvalue problem); a diverging trajectory is then still never counted as
+    synchronized (its state is not finite)."""
+    from antisync.errors import ConfigError
+
+    law, values = setup.law, setup.values
+    n = values.shape[1]
+    if len(law.states) * n > CHECK_MAX_STATES:
+        return
+    dt, integrator = dynamics.dt, dynamics.integrator
+    for where, y in (
+        ("the start of realization 0", starts(law, values, seed, [0])[0]),
+        ("the in-phase state", in_phase(law, values)),
+    ):
+        if not np.isfinite(y).all():
+            raise ConfigError(
+                f"model.law {law.name}: the start is not finite at {where}; check model.law.start "
+                "and model.params"
+            )
+        jac = jacobian(law, values, csr.indptr, csr.indices, csr.weights, y)
+        if not np.isfinite(jac).all():
+            raise ConfigError(
+                f"model.law {law.name}: the law is not finite at {where} (its Jacobian has inf or "
+                "NaN); check model.law.rates and model.params"
+            )
+        lam = np.linalg.eigvals(jac)
+        decaying = lam[lam.real < 0]
+        if decaying.size and _growth(dt * decaying, integrator).max() > 1.0 + 1e-12:
+            lo, hi = 0.0, dt
+            for _ in range(60):
+                mid = 0.5 * (lo + hi)
+                if _growth(mid * decaying, integrator).max() <= 1.0:
+                    lo = mid
+                else:
+                    hi = mid
+            fastest = decaying[np.argmax(np.abs(decaying))]
+            raise ConfigError(
+                f"dynamics.dt = {dt:g} is too large for law {law.name} on this graph: at {where} a decaying "
+                f"mode (eigenvalue {fastest.real:.4g}{fastest.imag:+.4g}i of the Jacobian) grows under "
+                f"{integrator} steps unless dt < {lo:.3g}; use a smaller dt or integrator rodas4"
+            )

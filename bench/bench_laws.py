@@ -1,0 +1,132 @@
+"""A user's law against the built-in kernels it rewrites, per trajectory-step, and its compile time.
+
+    python bench/bench_laws.py [--threads 2] [--repeat 3]
+
+The paper's first-order Kuramoto model written as the law ``kuramoto`` (natural frequencies
+omega: 0) and the built-in model kernels with the same network and starts, on the lollipop (N =
+6), the karate club (N = 34) and a random 3-regular graph of N = 1,000 nodes, RK4 at dt 0.01 for
+a fixed number of steps (the target ``R`` is out of reach: every item runs ``--steps`` steps).
+Timed per trajectory-step, in the same round, back to back, against:
+
+- ``builtin lanes``: :func:`antisync.kernels.cpu.simulate_model`, the SIMD lane driver every
+  model run uses (the competent baseline: 2 x VEC trajectories stepped together per thread);
+- ``builtin one``: the same kernels one trajectory per item (``lanes=0``), the layout the law's
+  generated driver has.
+
+The law's cold compile (a fresh cache folder, a new process) and its load from the cache are
+timed too. Prints the fastest of ``--repeat`` rounds per kind and each round's ratio.
+"""
+
+from __future__ import annotations
+
+import argparse
+import functools
+import os
+import platform
+import subprocess
+import sys
+import tempfile
+import time
+
+import networkx as nx
+import numpy as np
+
+from antisync.kernels import cpu
+from antisync.kernels.law import LawParams, simulate_law
+from antisync.kernels.model_steps import ModelParams
+from antisync.laws import read_law
+from antisync.physics import coupling, graphs
+
+GRAPHS = {
+    "lollipop N=6": (lambda: nx.lollipop_graph(3, 3), 2048),
+    "karate N=34": (nx.karate_club_graph, 512),
+    "3-regular N=1000": (lambda: nx.random_regular_graph(3, 1000, seed=1), 32),
+}
+
+COMPILE = """
+import time, numpy as np
+t = time.perf_counter()
+from antisync.kernels.law import LawParams, simulate_law
+from antisync.laws import read_law
+law = read_law("stuart-landau")
+ip = np.array([0, 1, 2, 3]); ix = np.array([1, 2, 0])
+simulate_law(1, 0, 2, ip, ix, np.ones(3), np.zeros((0, 3)), LawParams(law, np.zeros((1, 3)), np.full(1, 8.0)),
+             dt=0.01, max_steps=10, integrator="rk4")
+print(time.perf_counter() - t)
+"""
+
+
+def _compile_times() -> tuple[float, float]:
+    with tempfile.TemporaryDirectory() as folder:
+        env = {**os.environ, "ANTISYNC_LAW_CACHE": folder}
+        cold = float(
+            subprocess.run(
+                [sys.executable, "-c", COMPILE], env=env, capture_output=True, text=True, check=True
+            ).stdout
+        )
+        warm = float(
+            subprocess.run(
+                [sys.executable, "-c", COMPILE], env=env, capture_output=True, text=True, check=True
+            ).stdout
+        )
+    return cold, warm
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--threads", type=int, default=2)
+    ap.add_argument("--repeat", type=int, default=3)
+    ap.add_argument("--steps", type=int, default=400)
+    args = ap.parse_args()
+    print(f"# {platform.processor() or platform.machine()}, {os.cpu_count()} cores, threads {args.threads}")
+    cold, warm = _compile_times()
+    print(
+        f"law stuart-landau: cold compile + first call {cold:.1f} s, "
+        f"from the cache {warm:.2f} s (new processes)"
+    )
+    law = read_law("kuramoto")
+    for name, (make, m) in GRAPHS.items():
+        g = make()
+        nx.set_edge_attributes(g, 1.0, "weight")
+        om = graphs.omega_matrix(g)
+        csr = coupling.to_csr(coupling.coupling_matrix(om, "normalized"), pattern=om > 0)
+        n = om.shape[0]
+        never = np.full(1, 2.0 * n * n)  # R = |sum e^{i theta}|^2 <= n^2: never reached
+        vw = np.zeros((0, csr.weights.size))
+        common = (5, 0, m, csr.indptr, csr.indices, csr.weights, vw)
+        clock = {"dt": 0.01, "max_steps": args.steps, "threads": args.threads}
+        builtin = ModelParams(np.zeros((1, n)), 1.0, 0.0, 0.0, 1.0, 0, never)
+        kinds = {
+            "law": functools.partial(
+                simulate_law, *common, LawParams(law, np.zeros((1, n)), never), integrator="rk4", **clock
+            ),
+            "builtin lanes": functools.partial(
+                cpu.simulate_model, *common, builtin, integrator="rk4", **clock
+            ),
+            "builtin one": functools.partial(
+                cpu.simulate_model, *common, builtin, integrator="rk4", lanes=0, **clock
+            ),
+        }
+        for f in kinds.values():
+            f()  # compile or load
+        best = {k: np.inf for k in kinds}
+        ratios = {k: [] for k in kinds}
+        for _ in range(args.repeat):
+            t = {}
+            for k, f in kinds.items():
+                t0 = time.perf_counter()
+                f()
+                t[k] = (time.perf_counter() - t0) / (m * args.steps) * 1e9
+                best[k] = min(best[k], t[k])
+            for k in kinds:
+                ratios[k].append(t["law"] / t[k])
+        for k in kinds:
+            r = np.median(ratios[k])
+            print(
+                f"{name:18s} {k:14s} {best[k]:10.1f} ns/trajectory-step   law / this: {r:.2f} "
+                f"(rounds {min(ratios[k]):.2f}-{max(ratios[k]):.2f})"
+            )
+
+
+if __name__ == "__main__":
+    main()

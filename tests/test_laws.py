@@ -1,0 +1,432 @@
+"""User-written models (``model.law``, docs/models.md "Write your own model"): the math language
+refuses what it does not know by name, a law compiles once into generated kernels, the paper's
+model and the swing equation written as laws reproduce the built-in kernels, and Stuart-Landau
+and second-harmonic networks agree with an independent scipy solve."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import networkx as nx
+import numpy as np
+import pytest
+from scipy.integrate import solve_ivp
+from typer.testing import CliRunner
+
+from antisync.cli.app import app
+from antisync.errors import ConfigError
+from antisync.kernels import cpu, implicit
+from antisync.kernels.law import LawParams, compile_law, jacobian, simulate_law, starts
+from antisync.kernels.model_steps import ModelParams
+from antisync.laws import Law, law_names, read_law
+from antisync.physics import coupling, graphs
+from antisync.plan.config import load_config_text
+from antisync.plan.jobs import make_job
+from antisync.status import NOT_SYNCED, SYNCED
+
+KURAMOTO = read_law("kuramoto")
+NONE = np.zeros((0, 0))
+
+
+def _csr(g):
+    om = graphs.omega_matrix(g)
+    csr = coupling.to_csr(coupling.coupling_matrix(om, "normalized"), pattern=om > 0)
+    return om, csr
+
+
+def _tau(res):
+    return res.steps0 - 1 + res.frac0
+
+
+# -- the language -------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize(
+    "rates, words",
+    [
+        ("u + foo(theta)", "unknown function 'foo'"),
+        ("u + gamma", "unknown name 'gamma'"),
+        ("u ^ 2", "'^' is not a power; write **"),
+        ("u.real", "attribute is not in the language"),
+        ("u[0]", "subscript is not in the language"),
+        ("u if theta > 0 else 0", "ifexp is not in the language"),
+        ("'u'", "'u' is not a number"),
+        ("atan2(u)", "atan2 takes 2 arguments, got 1"),
+        ("__import__('os')", "unknown function '__import__'"),
+        ("u +", "not an expression"),
+    ],
+)
+def test_the_language_refuses_by_name(rates, words):
+    law = {"states": ["theta"], "coupling": {"u": "w * sin(theta_j - theta_i)"}, "rates": {"theta": rates}}
+    with pytest.raises(ConfigError, match="model.law.rates.theta") as err:
+        Law.from_mapping(law)
+    assert words in str(err.value)
+    assert repr(rates) in str(err.value) or words == "not an expression"
+
+
+@pytest.mark.parametrize(
+    "law, words",
+    [
+        (
+            {"states": ["x", "y"], "coupling": {"u": "w * (x_j - x_i)"}, "rates": {"x": "u"}, "phase": "x"},
+            "no law for the state 'y'",
+        ),
+        ({"states": ["x"], "coupling": {"u": "w * (z_j - x_i)"}, "rates": {"x": "u"}}, "unknown name 'z_j'"),
+        (
+            {"states": ["x"], "coupling": {"u": "sin(x_j - x_i)"}, "rates": {"x": "u"}},
+            "no input reads the link's weight w",
+        ),
+        ({"states": ["x"], "coupling": {"u": "w * x_j"}, "rates": {"x": "u * x_j"}}, "unknown name 'x_j'"),
+        ({"states": ["w"], "coupling": {"u": "w"}, "rates": {"w": "u"}}, "'w' is reserved"),
+        ({"states": ["x", "y"], "coupling": {"u": "w * x_j"}, "rates": {"x": "u", "y": "u"}}, "needs phase"),
+        (
+            {"states": ["x"], "coupling": {"u": "w * x_j"}, "rates": {"x": "u"}, "colour": 1},
+            "unknown key 'model.law.colour'",
+        ),
+    ],
+)
+def test_a_law_with_a_fault_is_refused_on_load(law, words):
+    with pytest.raises(ConfigError, match="model.law") as err:
+        Law.from_mapping(law)
+    assert words in str(err.value)
+
+
+def test_the_library_reads_and_round_trips():
+    assert {"kuramoto", "stuart-landau", "swing", "second-harmonic", "kuramoto-sakaguchi", "winfree"} <= set(
+        law_names()
+    )
+    for name in law_names():
+        law = read_law(name)
+        assert Law.from_mapping(law.as_dict()) == law
+
+
+def test_bad_config_values_are_one_line_exit_2(tmp_path):
+    base = (
+        "graph: {kind: lollipop, nodes: 6, path: 3}\nrealizations: 4\noutput: "
+        + str(tmp_path / "r.h5")
+        + "\n"
+    )
+    cases = {
+        "model: {law: kuramoto, params: {omega: [1, 2]}}\n": "model.params.omega has 2 values",
+        "model: {law: kuramoto, params: {gamma: 1}}\n": "unknown key 'model.params.gamma'; law kuramoto has",
+        "model: {law: kuramoto, phase_lag: 0.1}\n": "model.phase_lag belongs to the built-in model",
+        "model: {law: nosuch}\n": "model.law must be a shipped law",
+        "model: {law: kuramoto}\nsync: {criterion: frequency}\n": "sync.criterion frequency is written for",
+        "model: {law: kuramoto}\nlambda: {method: adjoint}\n": "not yet generated for a law",
+        "model: {law: kuramoto}\ndynamics: {dt: 2.0}\n": "dynamics.dt = 2 is too large for law kuramoto",
+    }
+    for extra, words in cases.items():
+        path = tmp_path / "c.yaml"
+        path.write_text(base + extra)
+        res = CliRunner().invoke(app, ["run", str(path)])
+        assert res.exit_code == 2, (extra, res.output)
+        assert words in res.output, (extra, res.output)
+        assert "Traceback" not in res.output
+        assert not (tmp_path / "r.h5").exists()
+
+
+def test_a_law_file_beside_the_config(tmp_path):
+    (tmp_path / "my.yaml").write_text(
+        "name: mine\nstates: [theta]\ncoupling: {u: 'w * sin(theta_j - theta_i)'}\nrates: {theta: u}\n"
+    )
+    (tmp_path / "om.txt").write_text("\n".join(["0.1", "-0.1"] * 3) + "\n")
+    cfg = load_config_text(
+        "graph: {kind: lollipop, nodes: 6, path: 3}\nmodel: {law: my.yaml}\n", source=tmp_path / "c.yaml"
+    )
+    assert cfg.model.law["name"] == "mine"
+    # the stored config holds the law itself: a result file says what ran without the law's file
+    assert cfg.to_dict()["model"]["law"]["rates"] == {"theta": "u"}
+    cfg = load_config_text(
+        "graph: {kind: lollipop, nodes: 6, path: 3}\n"
+        "model: {law: kuramoto, params: {omega: {file: om.txt}}}\n",
+        source=tmp_path / "c.yaml",
+    )
+    job = make_job(cfg)
+    np.testing.assert_array_equal(job.law.values[0], [0.1, -0.1] * 3)
+
+
+# -- compiled once ------------------------------------------------------------------------------
+
+
+def test_a_law_compiles_once_into_a_cached_file():
+    law = read_law("kuramoto")
+    first = compile_law(law)
+    assert compile_law(Law.from_mapping(law.as_dict())) is first
+    assert first.path.is_file() and law.text in first.path.read_text()
+
+
+def test_the_jacobian_is_the_rates_derivative():
+    """``law_jac`` on the expanded pattern against central differences of ``law_rhs``."""
+    law = read_law("stuart-landau")
+    g = nx.karate_club_graph()
+    _, csr = _csr(g)
+    n = g.number_of_nodes()
+    values = np.linspace(-0.3, 0.3, n)[None, :]
+    y = starts(law, values, 5, [2])[0] * 1.1
+    jac = jacobian(law, values, csr.indptr, csr.indices, csr.weights, y)
+    rhs = compile_law(law).rhs
+    ip, ix = csr.indptr.astype(np.int64), csr.indices.astype(np.int64)
+    num = np.empty_like(jac)
+    h = 1e-6
+    for a in range(y.size):
+        yp, ym = y.copy(), y.copy()
+        yp[a] += h
+        ym[a] -= h
+        fp, fm = np.empty(y.size), np.empty(y.size)
+        rhs(yp, csr.weights, ip, ix, values, fp)
+        rhs(ym, csr.weights, ip, ix, values, fm)
+        num[:, a] = (fp - fm) / (2 * h)
+    np.testing.assert_allclose(jac, num, atol=1e-7)
+
+
+# -- the built-in models written as laws --------------------------------------------------------
+
+
+@pytest.mark.parametrize("graph", ["lollipop", "karate"])
+def test_the_papers_model_as_a_law_is_the_builtin(graph):
+    """Same integrator and steps, same realizations: Euler and Rodas4 to 1e-12 relative in every
+    tau0 (Euler's rotation of ``(cos, sin)`` and the law's ``theta += dt theta'`` are the same
+    step in exact arithmetic). The built-in RK4 steps the circle's embedding ``(cos, sin)``, the
+    law ``theta``: the two differ by the method's error, which falls as dt^4."""
+    g = nx.lollipop_graph(3, 3) if graph == "lollipop" else nx.karate_club_graph()
+    nx.set_edge_attributes(g, 1.0, "weight")
+    _, csr = _csr(g)
+    n = g.number_of_nodes()
+    targets = np.full(1, (0.99 * n) ** 2)
+    vw = np.zeros((0, csr.weights.size))
+    params = ModelParams(np.zeros((1, n)), 1.0, 0.0, 0.0, 1.0, 0, targets)
+    law = LawParams(KURAMOTO, np.zeros((1, n)), targets)
+    args = (7, 0, 64, csr.indptr, csr.indices, csr.weights, vw)
+    gaps = {}
+    for integrator in ("euler", "rk4", "rodas4"):
+        for dt in (0.02, 0.01):
+            if integrator == "rodas4":
+                want = implicit.simulate_model(*args, params, dt=dt, max_steps=int(200 / dt))
+            else:
+                want = cpu.simulate_model(
+                    *args, params, dt=dt, max_steps=int(200 / dt), integrator=integrator
+                )
+            got = simulate_law(*args, law, dt=dt, max_steps=int(200 / dt), integrator=integrator)
+            np.testing.assert_array_equal(got.status0, want.status0)
+            assert (want.status0 == SYNCED).all()
+            gap = np.max(np.abs(_tau(got) - _tau(want)) / _tau(want))
+            if integrator == "rk4":
+                gaps[dt] = gap
+            else:
+                assert gap < 1e-12, (integrator, dt, gap)
+    assert gaps[0.01] < 1e-8 and gaps[0.02] / gaps[0.01] > 8, gaps
+
+
+def test_the_swing_equation_as_a_law_is_the_builtin():
+    """The second-order model with injections, inertia and damping per node (karate club): the
+    law's 2N states against the built-in kernels' (Rodas4 eliminates ``nu``; the same matrix)."""
+    g = nx.karate_club_graph()
+    nx.set_edge_attributes(g, 1.0, "weight")
+    _, csr = _csr(g)
+    n = g.number_of_nodes()
+    rng = np.random.default_rng(1)
+    p = rng.normal(0, 0.1, n)
+    p -= p.mean()
+    m = rng.uniform(0.3, 0.7, n)
+    gamma = rng.uniform(0.8, 1.2, n)
+    targets = np.full(1, (0.95 * n) ** 2)
+    vw = np.zeros((0, csr.weights.size))
+    params = ModelParams(p[None, :], 1.0, 0.0, m, gamma, 0, targets)
+    law = LawParams(read_law("swing"), np.vstack([p, m, gamma]), targets)
+    args = (3, 0, 48, csr.indptr, csr.indices, csr.weights, vw)
+    for integrator, tol in (("euler", 1e-12), ("rodas4", 1e-12), ("rk4", 1e-9)):
+        if integrator == "rodas4":
+            want = implicit.simulate_model(*args, params, dt=0.01, max_steps=20000)
+        else:
+            want = cpu.simulate_model(*args, params, dt=0.01, max_steps=20000, integrator=integrator, lanes=0)
+        got = simulate_law(*args, law, dt=0.01, max_steps=20000, integrator=integrator)
+        np.testing.assert_array_equal(got.status0, want.status0)
+        ok = want.status0 == SYNCED
+        assert ok.sum() > 40
+        assert np.max(np.abs(_tau(got) - _tau(want))[ok] / _tau(want)[ok]) < tol, integrator
+
+
+# -- independent references ---------------------------------------------------------------------
+
+
+def _reference_tau(law, values, csr, y0, threshold, t_max, method="DOP853", rtol=1e-11, atol=1e-11):
+    """The first time r(t) reaches ``threshold`` by scipy (an event on r), from the law's own
+    sympy expressions evaluated by numpy: nothing of the generated kernels."""
+    import sympy
+
+    sym = law.symbolic()
+    n = values.shape[1]
+    S = len(law.states)
+    rows = np.repeat(np.arange(n), np.diff(csr.indptr))
+    cols = csr.indices
+    edge = [sympy.lambdify([*sym.x, *sym.xj, *sym.p, *sym.pj, sym.w], h, "numpy") for h in sym.coupling]
+    node = [sympy.lambdify([*sym.x, *sym.u, *sym.p], g, "numpy") for g in sym.rates]
+    phase = sympy.lambdify([*sym.x, *sym.p], sym.phase, "numpy")
+
+    def rhs(t, y):
+        x = y.reshape(S, n)
+        xi, xj = x[:, rows], x[:, cols]
+        pi, pj = values[:, rows], values[:, cols]
+        u = [
+            np.bincount(rows, np.broadcast_to(h(*xi, *xj, *pi, *pj, csr.weights), rows.shape), n)
+            for h in edge
+        ]
+        return np.concatenate([np.broadcast_to(f(*x, *u, *values), (n,)) for f in node])
+
+    def r_minus(t, y):
+        ph = phase(*y.reshape(S, n), *values)
+        return abs(np.exp(1j * ph).mean()) - threshold
+
+    r_minus.terminal = True
+    r_minus.direction = 1
+    sol = solve_ivp(rhs, (0, t_max), y0, method=method, rtol=rtol, atol=atol, events=r_minus)
+    return sol.t_events[0][0] if sol.t_events[0].size else math.inf
+
+
+@pytest.mark.parametrize("name", ["stuart-landau", "second-harmonic"])
+def test_tau0_and_lambda_agree_with_solve_ivp(name):
+    """Every link's central secant of ``F = tau0 / tau(beta)`` per realization, and tau0, by the
+    generated RK4 kernels against DOP853 on the law's own expressions (tolerances 1e-11), on
+    common starts: per-realization agreement, far inside 4 standard errors of the ensemble."""
+    law = read_law(name)
+    g = nx.lollipop_graph(3, 2)
+    nx.set_edge_attributes(g, 1.0, "weight")
+    om, csr = _csr(g)
+    n = g.number_of_nodes()
+    values = np.full((1, n), 0.1 if name == "stuart-landau" else 0.0)
+    dbeta = 0.05
+    edges = graphs.all_directed_edges(g)
+    index = {v: i for i, v in enumerate(graphs.node_order(g))}
+    damages = [(index[a], index[b], s * dbeta) for a, b in edges for s in (1, -1)]
+    vw = coupling.variant_weights(om, csr, damages, "normalized")
+    targets = np.full(len(vw) + 1, (0.99 * n) ** 2)
+    ks = np.arange(6)
+    got = simulate_law(
+        11,
+        0,
+        0,
+        csr.indptr,
+        csr.indices,
+        csr.weights,
+        vw,
+        LawParams(law, values, targets),
+        dt=0.005,
+        max_steps=40000,
+        integrator="rk4",
+        realizations=ks,
+    )
+    assert (got.status0 == SYNCED).all() and (got.status == SYNCED).all()
+    tau0 = _tau(got) * 0.005
+    tau = (got.steps - 1 + got.frac) * 0.005
+    y0 = starts(law, values, 11, ks)
+    for r in range(ks.size):
+        want0 = _reference_tau(law, values, csr, y0[r], 0.99, 200)
+        assert abs(tau0[r] - want0) < 1e-6 * want0
+        for e in range(0, len(edges), 3):
+            plus = _reference_tau(law, values, _with(csr, vw[2 * e]), y0[r], 0.99, 200)
+            minus = _reference_tau(law, values, _with(csr, vw[2 * e + 1]), y0[r], 0.99, 200)
+            want = want0 * (1 / plus - 1 / minus) / (2 * dbeta)
+            mine = tau0[r] * (1 / tau[r, 2 * e] - 1 / tau[r, 2 * e + 1]) / (2 * dbeta)
+            assert abs(mine - want) < 1e-4 * max(1.0, abs(want)), (r, edges[e], mine, want)
+
+
+def _with(csr, weights):
+    """``csr``'s pattern with other weights (a damaged network)."""
+    return coupling.CouplingCSR(csr.indptr, csr.indices, weights)
+
+
+def test_rodas4_on_a_stiff_law_matches_radau():
+    """A stiff Stuart-Landau network (strong coupling beside slow amplitudes: Jacobian
+    eigenvalues from ~-2000 to ~-1): Rodas4 at its default tolerances against scipy's Radau at
+    1e-10 on the same starts."""
+    law = read_law("stuart-landau")
+    g = nx.path_graph(5)
+    nx.set_edge_attributes(g, 1.0, "weight")
+    g[1][2]["weight"] = 1000.0
+    om = graphs.omega_matrix(g)
+    csr = coupling.to_csr(coupling.coupling_matrix(om, "raw"), pattern=om > 0)
+    n = 5
+    values = np.full((1, n), 0.05)
+    targets = np.full(1, (0.99 * n) ** 2)
+    ks = np.arange(4)
+    got = simulate_law(
+        2,
+        0,
+        0,
+        csr.indptr,
+        csr.indices,
+        csr.weights,
+        np.zeros((0, csr.weights.size)),
+        LawParams(law, values, targets, 1e-8, 1e-8),
+        dt=0.01,
+        max_steps=10000,
+        integrator="rodas4",
+        realizations=ks,
+    )
+    assert (got.status0 == SYNCED).all()
+    y0 = starts(law, values, 2, ks)
+    for r in range(ks.size):
+        want = _reference_tau(law, values, csr, y0[r], 0.99, 100, method="Radau", rtol=1e-10, atol=1e-10)
+        assert abs(_tau(got)[r] * 0.01 - want) < 1e-5 * want
+
+
+def test_a_state_that_is_not_finite_is_never_synchronized():
+    """A law whose rates turn NaN at t = 1 (``sqrt`` of a clock that goes negative) never
+    synchronizes; the same law whose clock stays positive does."""
+
+    def law(clock: str) -> Law:
+        return Law.from_mapping(
+            {
+                "states": ["theta", "s"],
+                "coupling": {"u": "w * sin(theta_j - theta_i)"},
+                "rates": {"theta": "u + 1e-9 * sqrt(s)", "s": clock},
+                "phase": "theta",
+                "start": {"theta": "phi", "s": "1"},
+            }
+        )
+
+    g = nx.cycle_graph(4)
+    nx.set_edge_attributes(g, 1.0, "weight")
+    _, csr = _csr(g)
+    args = (1, 0, 8, csr.indptr, csr.indices, csr.weights, np.zeros((0, csr.weights.size)))
+    targets = np.full(1, (0.99 * 4) ** 2)
+    fine = simulate_law(*args, LawParams(law("0"), np.zeros((0, 4)), targets), dt=0.01, max_steps=5000)
+    assert (fine.status0 == SYNCED).sum() >= 6
+    broken = simulate_law(*args, LawParams(law("-1"), np.zeros((0, 4)), targets), dt=0.01, max_steps=5000)
+    late = fine.steps0 > 100  # synchronized after t = 1, where the broken law is NaN
+    assert late.any()
+    assert (broken.status0[late] == NOT_SYNCED).all()
+    np.testing.assert_array_equal(broken.steps0[late], 5000)
+
+
+# -- a run ---------------------------------------------------------------------------------------
+
+
+def test_the_docs_example_runs(tmp_path):
+    """docs/laws.md's complete example, as written (with fewer realizations)."""
+    text = (Path(__file__).resolve().parent.parent / "docs" / "laws.md").read_text()
+    block = text.split("```yaml\n", 1)[1].split("```", 1)[0]
+    assert len(block.strip().splitlines()) <= 20
+    cfg = tmp_path / "stuart_landau_lollipop.yaml"
+    cfg.write_text(block + f"realizations: 8\nedges: ['2->1']\nbetas: [0.5]\noutput: {tmp_path / 'sl.h5'}\n")
+    res = CliRunner().invoke(app, ["run", str(cfg)])
+    assert res.exit_code == 0, res.output
+    assert read_law("stuart-landau").rates == load_config_text(block).model.user_law.rates
+
+
+def test_a_law_runs_end_to_end_and_resumes(tmp_path):
+    out = tmp_path / "sl.h5"
+    cfg = tmp_path / "sl.yaml"
+    cfg.write_text(
+        "graph: {kind: lollipop, nodes: 6, path: 3}\nmodel: {law: stuart-landau, params: {omega: 0.1}}\n"
+        "edges: ['2->1', '2->3']\nbetas: [0.5]\nrealizations: 40\nblock_size: 10\n"
+        f"lambda: {{method: central-difference}}\ndynamics: {{dt: 0.01, integrator: rk4}}\noutput: {out}\n"
+    )
+    res = CliRunner().invoke(app, ["run", str(cfg)])
+    assert res.exit_code == 0, res.output
+    summary = CliRunner().invoke(app, ["summary", str(out)])
+    assert summary.exit_code == 0, summary.output
+    assert "model: law stuart-landau" in summary.output
+    again = CliRunner().invoke(app, ["run", str(cfg), "--resume"])
+    assert again.exit_code == 0, again.output
