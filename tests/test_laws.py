@@ -204,8 +204,9 @@ def test_the_papers_model_as_a_law_is_the_builtin(graph):
             if integrator == "rodas4":
                 want = implicit.simulate_model(*args, params, dt=dt, max_steps=int(200 / dt))
             else:
+                # the one-trajectory driver: the lane driver's bits (tests/test_models.py)
                 want = cpu.simulate_model(
-                    *args, params, dt=dt, max_steps=int(200 / dt), integrator=integrator
+                    *args, params, dt=dt, max_steps=int(200 / dt), integrator=integrator, lanes=0
                 )
             got = simulate_law(*args, law, dt=dt, max_steps=int(200 / dt), integrator=integrator)
             np.testing.assert_array_equal(got.status0, want.status0)
