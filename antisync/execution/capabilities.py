@@ -59,7 +59,7 @@ def table() -> str:
     lines += ["", f"Line trips (`antisync grid --trip`, cpu float64): {', '.join(runs)}.  "]
     lines += [f"{i}: {why}.  " for i, why in TRIP_ROWS.items() if why is not None]
     designs = [i for i in INTEGRATORS if i not in DESIGN_REFUSALS]
-    lines += ["", f"Designs (`antisync design`, cpu float64, the built-in models): {', '.join(designs)}.  "]
+    lines += ["", f"Designs (`antisync design`, cpu float64, every model kind): {', '.join(designs)}.  "]
     lines += [f"{value}: {why}.  " for value, why in DESIGN_REFUSALS.items()]
     return "\n".join(lines).rstrip() + "\n"
 

@@ -230,15 +230,13 @@ DESIGN_REFUSALS: dict[str, str] = {
     "rodas4": "a design differentiates dynamics.integrator euler or rk4, not rodas4 (the adjoint is "
     "written for the explicit steps)",
     "cuda": "a design runs on the CPU: set backend: cpu (or leave it out)",
-    "law": "a design differentiates the built-in models' steps; a law (model.law) has no adjoint "
-    "generated yet: write the model with model: frequencies/phase_lag/inertia/damping",
 }
 
 
 class DesignDrivers(NamedTuple):
     """A design's two kernels for a config (:func:`design_drivers`), one signature whatever the
-    model kind (``params``: the model's :class:`~antisync.kernels.model_steps.ModelParams`, None
-    for Eq. 2's identical oscillators):
+    model kind (``params``: the model's :class:`~antisync.kernels.model_steps.ModelParams`, a
+    law's :class:`~antisync.kernels.law.LawParams`, None for Eq. 2's identical oscillators):
 
     - ``forward(seed, indptr, indices, base_w, var_w, params, ks, threads, todo)``: the times of
       the base weights and of every row of ``var_w`` on the starts ``ks`` (a
@@ -255,10 +253,47 @@ def design_drivers(config) -> DesignDrivers:
     """The kernels of a design of ``config`` (a :class:`~antisync.plan.config.Config`), or the
     one-line :class:`~antisync.errors.ConfigError` of :data:`DESIGN_REFUSALS`."""
     dyn = config.dynamics
-    for value in (dyn.integrator, config.backend, model_kind(config)):
+    for value in (dyn.integrator, config.backend):
         if value in DESIGN_REFUSALS:
             raise ConfigError(DESIGN_REFUSALS[value])
     clock = {"dt": dyn.dt, "max_steps": dyn.max_steps}
+    if model_kind(config) == "law":
+        from antisync.kernels.law import simulate_law, simulate_law_adjoint
+
+        def forward_law(seed, indptr, indices, base_w, var_w, params, ks, threads, todo):
+            return simulate_law(
+                seed,
+                0,
+                0,
+                indptr,
+                indices,
+                base_w,
+                var_w,
+                params,
+                **clock,
+                integrator=dyn.integrator,
+                threads=threads,
+                realizations=ks,
+                todo=todo,
+            )
+
+        def adjoint_law(seed, indptr, indices, weights, deriv, params, ks, threads):
+            return simulate_law_adjoint(
+                seed,
+                0,
+                0,
+                indptr,
+                indices,
+                weights,
+                deriv,
+                params,
+                **clock,
+                integrator=dyn.integrator,
+                threads=threads,
+                realizations=ks,
+            )
+
+        return DesignDrivers(forward_law, adjoint_law)
     if config.generalized:
         simulate = model_simulator(dyn)
 
@@ -350,17 +385,14 @@ def model_simulator(dynamics, give_up: tuple[float, float] | None = None) -> Cal
 def _law_lanes(job, first, count, threads, variant_weights, realizations, todo, variant_targets):
     """A user's law by its generated kernels (:func:`antisync.kernels.law.simulate_law`; Euler,
     RK4 or Rodas4, one trajectory per item). Every network of the job has the same target."""
-    from antisync.kernels.law import LawParams, simulate_law
+    from antisync.kernels.law import simulate_law
 
-    setup = job.law
     weights = job.variant_weights if variant_weights is None else variant_weights
     dyn = job.config.dynamics
-    rtol, atol = dyn.tolerances
-    targets = np.full(len(weights) + 1, setup.target)
     return simulate_law(
         *_network(job, first, count),
         weights,
-        LawParams(setup.law, setup.values, targets, rtol, atol),
+        _law_params(job, len(weights) + 1),
         **_clock(dyn, threshold=False),
         integrator=dyn.integrator,
         threads=threads,
@@ -652,6 +684,30 @@ def _model_adjoint_pass(job, first: int, count: int, threads: int | None):
     )
 
 
+def _law_params(job, kinds: int):
+    """A law job's :class:`~antisync.kernels.law.LawParams` for ``kinds`` networks."""
+    from antisync.kernels.law import LawParams
+
+    rtol, atol = job.config.dynamics.tolerances
+    return LawParams(job.law.law, job.law.values, np.full(kinds, job.law.target), rtol, atol)
+
+
+def _law_adjoint_pass(job, first: int, count: int, threads: int | None):
+    """``d tau0 / d beta_e`` of a law by the adjoint of its generated steps and of its crossing
+    (:func:`antisync.kernels.law.simulate_law_adjoint`)."""
+    from antisync.kernels.law import simulate_law_adjoint
+
+    dyn = job.config.dynamics
+    return simulate_law_adjoint(
+        *_network(job, first, count),
+        _job_link_derivatives(job),
+        _law_params(job, 1),
+        **_clock(dyn, threshold=False),
+        integrator=dyn.integrator,
+        threads=threads,
+    )
+
+
 def _derivatives(job, sim, first: int, count: int, threads: int | None, *, derivative, secants: bool):
     """``-d tau0/d beta / tau0`` of every edge from ``derivative(job, first, count, threads)``
     (the pass along the undamaged trajectories); with ``secants`` (the hybrids) the values beyond
@@ -763,6 +819,8 @@ PASSES: dict[tuple[str, str], LambdaPass] = {
         LambdaPass("law", "finite-difference", _forward_secants, **_FD),
         LambdaPass("law", "central-difference", _orbit_differences),
         LambdaPass("law", "orbit", _orbit_differences),
+        LambdaPass("law", "adjoint", _derivative_values(_law_adjoint_pass)),
+        LambdaPass("law", "adjoint-hybrid", _derivative_values(_law_adjoint_pass, secants=True)),
     )
 }
 
@@ -838,14 +896,6 @@ REFUSALS: tuple[Refusal, ...] = (
     ),
     Refusal(
         "backend",
-        "lambda.method {method} needs an adjoint pass along the trajectories, which is not yet "
-        "generated for a law (model.law): use central-difference (the derivative d<F>/dbeta), "
-        "finite-difference (the paper's forward secant) or orbit",
-        model=("law",),
-        method=("adjoint", "adjoint-hybrid"),
-    ),
-    Refusal(
-        "backend",
         "a law (model.law) runs on the cpu backend only: its kernels are generated for the CPU (no "
         "CUDA twin yet); use --backend cpu",
         model=("law",),
@@ -906,7 +956,7 @@ REFUSALS: tuple[Refusal, ...] = (
         "steps are chosen adaptively from the state (accepted or rejected by its error estimate), "
         "so tau is not a smooth function of the weights through them and no discrete adjoint is "
         "written: use finite-difference or central-difference with rodas4, or {method} with rk4",
-        model=("model",),
+        model=("model", "law"),
         method=("adjoint", "adjoint-hybrid"),
         integrator=_IMPLICIT,
     ),

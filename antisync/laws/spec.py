@@ -218,6 +218,14 @@ class Law:
         return json.dumps(self.as_dict(), sort_keys=True)
 
     @property
+    def dynamics_text(self) -> str:
+        """The canonical text of the equations alone (no ``name``, no ``about``): what the
+        generated kernels are keyed by, so two laws that differ only in words share them."""
+        d = self.as_dict()
+        del d["name"], d["about"]
+        return json.dumps(d, sort_keys=True)
+
+    @property
     def param_names(self) -> tuple[str, ...]:
         return tuple(p for p, _ in self.params)
 

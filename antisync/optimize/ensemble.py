@@ -40,7 +40,7 @@ from antisync.physics import graphs
 from antisync.physics.coupling import CouplingCSR, to_csr
 from antisync.plan.config import Config
 from antisync.plan.jobs import check_step, config_graph
-from antisync.plan.model import STABLE_STEP, check_second_order_step, model_setup, node_parameters
+from antisync.plan.model import STABLE_STEP, check_second_order_step, law_setup, model_setup, node_parameters
 from antisync.status import ALREADY_SYNCED, SYNCED
 
 __all__ = ["Problem", "Sample", "check_designable", "evaluate", "make_problem", "sample"]
@@ -119,6 +119,12 @@ class Problem:
         if config.dynamics.integrator not in STABLE_STEP:
             return
         try:
+            if config.model.law is not None:
+                from antisync.kernels.law import check_step as check_law_step
+
+                law = law_setup(config, self.n_nodes)
+                check_law_step(law, config.seed, self.coupling(x), config.dynamics)
+                return
             mass, gamma = node_parameters(config.model, self.n_nodes)
             if (mass > 0).any():
                 csr = self.coupling(x)
@@ -297,6 +303,12 @@ def _times(config: Config, status, steps, frac) -> np.ndarray:
 
 def _model_params(problem: Problem, csr: CouplingCSR, ks: np.ndarray, kinds: int):
     config = problem.config
+    if config.model.law is not None:
+        from antisync.kernels.law import LawParams
+
+        law = law_setup(config, problem.n_nodes)
+        rtol, atol = config.dynamics.tolerances
+        return LawParams(law.law, law.values, np.full(kinds, law.target), rtol, atol)
     setup, _, _ = model_setup(config, csr.indptr, csr.indices, [csr.weights], [], 0)
     targets = np.full(kinds, setup.targets[0])
     return model_params(setup, config.model, config.seed, ks, problem.n_nodes, targets)
