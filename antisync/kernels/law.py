@@ -11,8 +11,9 @@ generated per node: the compile time does not depend on the network.
 The generated functions (state ``y`` flat, state ``k`` of node ``i`` at ``y[k n + i]``;
 per-node parameters ``P`` of shape ``(n_params, n)``):
 
-- ``law_rhs(y, w, indptr, indices, P, out)``: ``out = f(y)``, each node's coupling inputs
-  summed over its in-links (sympy's common subexpressions hoisted);
+- ``law_rhs(y, w, indptr, indices, P, out, G)``: ``out = f(y)``, each node's coupling inputs
+  summed over its in-links (sympy's common subexpressions hoisted; a separable edge law from
+  per-node factors, ``G`` their scratch of ``KH`` rows: :func:`_rhs_source`);
 - ``law_order(y, f, P, n)``: ``(R, dR/dt)``, ``R = |sum_i e^{i phase_i}|^2``, with the phase's
   rate ``grad(phase) . f`` (the cubic Hermite crossing of :mod:`antisync.kernels.core` needs it);
 - ``law_start(seed, k, P, y, n)``: the start of realization ``k`` from the paper's
@@ -61,7 +62,7 @@ __all__ = [
 ]
 
 #: bumped when the generated code's layout changes (old files are then never read)
-GENERATOR = 1
+GENERATOR = 2
 
 
 class LawParams(NamedTuple):
@@ -83,6 +84,8 @@ class CompiledLaw(NamedTuple):
     order: object
     start: object
     jac: object
+    hoisted: int
+    """``KH``: the rows of ``law_rhs``' scratch ``G`` (``(KH, n)``)."""
     items: object
     vjp: object
     adjoint: object
@@ -136,6 +139,104 @@ def _loads(exprs, sym, indent: str, fmt: str) -> list[str]:
     return [f"{indent}{s} = {fmt.format(k=k)}" for k, s in enumerate(sym) if s in used]
 
 
+#: the most neighbour sums a hoisted edge law may need (more: the law is evaluated per link)
+MAX_HOISTED = 12
+
+
+def _separate(h, sym):
+    """``h`` as ``sum_t I_t W_t J_t`` (``I`` of the receiving node, ``W`` of the weight, ``J`` of
+    the neighbour), after expanding sines and cosines of sums; None where a factor mixes them."""
+    import sympy
+
+    own = set(sym.x) | set(sym.p)
+    other = set(sym.xj) | set(sym.pj)
+    expanded = sympy.expand(sympy.expand_trig(h))
+    terms = []
+    for term in sympy.Add.make_args(expanded):
+        parts = {"I": sympy.Integer(1), "W": sympy.Integer(1), "J": sympy.Integer(1)}
+        for factor in sympy.Mul.make_args(term):
+            free = factor.free_symbols
+            if free <= own:
+                parts["I"] *= factor
+            elif free <= other:
+                parts["J"] *= factor
+            elif free <= {sym.w}:
+                parts["W"] *= factor
+            else:
+                return None
+        terms.append((parts["I"], parts["W"], parts["J"]))
+    return terms
+
+
+def _rhs_source(sym, pr) -> list[str]:
+    """``law_rhs(y, wq, indptr, indices, P, out, G)``. An input whose edge law separates
+    (:func:`_separate`: ``w sin(theta_j - theta_i) = w (sin theta_j cos theta_i - cos theta_j sin
+    theta_i)``) is formed from neighbour sums ``sum_j W(w_ij) J(state_j)``, each ``J`` computed
+    once per node into a row of the scratch ``G`` (``(KH, n)``): no function of a neighbour's
+    state per link, as the built-in kernels form the Kuramoto coupling. The others are
+    evaluated per link."""
+    import sympy
+
+    n_s = len(sym.x)
+    node_exprs = list(sym.rates)
+    split = {m: _separate(h, sym) for m, h in enumerate(sym.coupling)}
+    pairs: dict = {}
+    for terms in split.values():
+        if terms is not None:
+            for _, w, j in terms:
+                pairs.setdefault((w, j), len(pairs))
+    if len(pairs) > MAX_HOISTED:
+        split = dict.fromkeys(split)
+        pairs = {}
+    arrays: dict = {}  # J -> row of G
+    for _, j in pairs:
+        if j != 1:
+            arrays.setdefault(j, len(arrays))
+    per_link = [m for m, terms in split.items() if terms is None]
+    link_exprs = [sym.coupling[m] for m in per_link]
+    out = [
+        f"KH = {max(1, len(arrays))}",
+        "",
+        "",
+        "@njit(cache=True)",
+        "def law_rhs(y, wq, indptr, indices, P, out, G):",
+    ]
+    out += ["    n = indptr.shape[0] - 1"]
+    if arrays:
+        js = list(arrays)
+        out += ["    for j in range(n):"]
+        out += _loads(js, sym.xj, "        ", "y[{k} * n + j]")
+        out += _loads(js, sym.pj, "        ", "P[{k}, j]")
+        out += _block(js, [f"G[{k}, j]" for k in range(len(js))], "        ", pr)
+    out += ["    for i in range(n):"]
+    hoisted = [m for m in split if split[m] is not None]
+    sums = {
+        m: sum((i * sympy.Symbol(f"s{pairs[w, j]}") for i, w, j in split[m]), sympy.Integer(0))
+        for m in hoisted
+    }
+    every = node_exprs + link_exprs + list(sums.values())
+    out += _loads(every, sym.x, "        ", "y[{k} * n + i]")
+    out += _loads(every, sym.p, "        ", "P[{k}, i]")
+    out += [f"        s{k} = 0.0" for k in range(len(pairs))]
+    out += [f"        {sym.u[m]} = 0.0" for m in per_link]
+    out += [
+        "        for q in range(indptr[i], indptr[i + 1]):",
+        "            j = indices[q]",
+        "            w = wq[q]",
+    ]
+    for (w, j), k in pairs.items():
+        term = pr.doprint(w) if j == 1 else f"({pr.doprint(w)}) * G[{arrays[j]}, j]"
+        out.append(f"            s{k} += {term}")
+    if per_link:
+        out += _loads(link_exprs, sym.xj, "            ", "y[{k} * n + j]")
+        out += _loads(link_exprs, sym.pj, "            ", "P[{k}, j]")
+        out += _block(link_exprs, [str(sym.u[m]) for m in per_link], "            ", pr, accumulate=True)
+    if hoisted:
+        out += _block([sums[m] for m in hoisted], [str(sym.u[m]) for m in hoisted], "        ", pr)
+    out += _block(node_exprs, [f"out[{k} * n + i]" for k in range(n_s)], "        ", pr)
+    return out
+
+
 def generate_source(law: Law) -> str:
     """The Python source of ``law``'s kernels (module docstring)."""
     import sympy
@@ -143,7 +244,6 @@ def generate_source(law: Law) -> str:
     sym = law.symbolic()
     pr = _printer()
     n_s, n_u = len(sym.x), len(sym.u)
-    node_exprs = list(sym.rates)
     edge_exprs = list(sym.coupling)
     out = [
         f"# generated by antisync.kernels.law (generator {GENERATOR}); do not edit",
@@ -156,25 +256,8 @@ def generate_source(law: Law) -> str:
         "from antisync.kernels.law_support import factor, item_of, order_crossing, phase, record, solve",
         "",
         f"S = {n_s}",
-        "",
-        "",
-        "@njit(cache=True)",
-        "def law_rhs(y, wq, indptr, indices, P, out):",
-        "    n = indptr.shape[0] - 1",
-        "    for i in range(n):",
     ]
-    out += _loads(node_exprs + edge_exprs, sym.x, "        ", "y[{k} * n + i]")
-    out += _loads(node_exprs + edge_exprs, sym.p, "        ", "P[{k}, i]")
-    out += [f"        {u} = 0.0" for u in sym.u]
-    out += [
-        "        for q in range(indptr[i], indptr[i + 1]):",
-        "            j = indices[q]",
-        "            w = wq[q]",
-    ]
-    out += _loads(edge_exprs, sym.xj, "            ", "y[{k} * n + j]")
-    out += _loads(edge_exprs, sym.pj, "            ", "P[{k}, j]")
-    out += _block(edge_exprs, [str(u) for u in sym.u], "            ", pr, accumulate=True)
-    out += _block(node_exprs, [f"out[{k} * n + i]" for k in range(n_s)], "        ", pr)
+    out += _rhs_source(sym, pr)
 
     # R and its rate: the phase and its gradient along f
     grad = list(sym.phase_gradient)
@@ -428,12 +511,13 @@ def law_sync(y, wq, indptr, indices, P, dt, rk4, target, max_steps):
     """Euler or RK4 from y to the order-parameter criterion: (status, steps, frac)."""
     n = indptr.shape[0] - 1
     m = y.shape[0]
+    G = np.empty((KH, n))
     f = np.empty(m)
     k2 = np.empty(m)
     k3 = np.empty(m)
     k4 = np.empty(m)
     z = np.empty(m)
-    law_rhs(y, wq, indptr, indices, P, f)
+    law_rhs(y, wq, indptr, indices, P, f, G)
     r2, dr2 = law_order(y, f, P, n)
     if not (r2 == r2 and dr2 == dr2):
         return NOT_SYNCED, max_steps, 0.0
@@ -446,19 +530,19 @@ def law_sync(y, wq, indptr, indices, P, dt, rk4, target, max_steps):
         if rk4:
             for a in range(m):
                 z[a] = y[a] + h * f[a]
-            law_rhs(z, wq, indptr, indices, P, k2)
+            law_rhs(z, wq, indptr, indices, P, k2, G)
             for a in range(m):
                 z[a] = y[a] + h * k2[a]
-            law_rhs(z, wq, indptr, indices, P, k3)
+            law_rhs(z, wq, indptr, indices, P, k3, G)
             for a in range(m):
                 z[a] = y[a] + dt * k3[a]
-            law_rhs(z, wq, indptr, indices, P, k4)
+            law_rhs(z, wq, indptr, indices, P, k4, G)
             for a in range(m):
                 y[a] += dt / 6.0 * (f[a] + 2.0 * k2[a] + 2.0 * k3[a] + k4[a])
         else:
             for a in range(m):
                 y[a] += dt * f[a]
-        law_rhs(y, wq, indptr, indices, P, f)
+        law_rhs(y, wq, indptr, indices, P, f, G)
         r2, dr2 = law_order(y, f, P, n)
         if not (r2 == r2 and dr2 == dr2):
             return NOT_SYNCED, max_steps, 0.0  # diverged: never synchronized
@@ -476,6 +560,7 @@ def law_rodas4(y, wq, indptr, indices, P, target, t_max, h0, rtol, atol, plan, j
     div_ptr, div_pos, upd_ptr, upd_ij, upd_ik, upd_kj = plan[6:]
     n = indptr.shape[0] - 1
     m = y.shape[0]
+    G = np.empty((KH, n))
     u = np.zeros((6, m))
     f0 = np.empty(m)
     f = np.empty(m)
@@ -488,7 +573,7 @@ def law_rodas4(y, wq, indptr, indices, P, target, t_max, h0, rtol, atol, plan, j
     kept_f = np.empty(m)
     jq = np.empty(jperm.shape[0])
     val = np.empty(fp_col.shape[0])
-    law_rhs(y, wq, indptr, indices, P, f0)
+    law_rhs(y, wq, indptr, indices, P, f0, G)
     r2, dr2 = law_order(y, f0, P, n)
     if not (r2 == r2 and dr2 == dr2):
         return NOT_SYNCED, 0.0, 0, 0, True
@@ -541,7 +626,7 @@ def law_rodas4(y, wq, indptr, indices, P, target, t_max, h0, rtol, atol, plan, j
                         d[a] += u[4, a]
                 for a in range(m):
                     z[a] = y[a] + d[a]
-                law_rhs(z, wq, indptr, indices, P, f)
+                law_rhs(z, wq, indptr, indices, P, f, G)
             for a in range(m):
                 acc = f[a]
                 for s in range(stage):
@@ -571,7 +656,7 @@ def law_rodas4(y, wq, indptr, indices, P, target, t_max, h0, rtol, atol, plan, j
         t = t_max if last else t + h
         r2_prev = r2
         dr2_prev = dr2
-        law_rhs(y, wq, indptr, indices, P, f0)
+        law_rhs(y, wq, indptr, indices, P, f0, G)
         r2, dr2 = law_order(y, f0, P, n)
         if not (r2 == r2 and dr2 == dr2):
             return NOT_SYNCED, t, accepted, rejected, True
@@ -650,7 +735,7 @@ def law_items(ks, seed, indptr, indices, base_w, var_w, var_is_base, todo, P, ta
 _ADJOINT_DRIVERS = '''
 
 @njit(cache=True)
-def law_step_adjoint(y, lam, wq, indptr, indices, P, dt, rk4, gw, f, z, k2, k3, mu, kap):
+def law_step_adjoint(y, lam, wq, indptr, indices, P, dt, rk4, gw, f, z, k2, k3, mu, kap, G):
     """lam <- the adjoint of one step from y (Euler or RK4), gw += its weight gradient."""
     m = y.shape[0]
     if not rk4:
@@ -662,13 +747,13 @@ def law_step_adjoint(y, lam, wq, indptr, indices, P, dt, rk4, gw, f, z, k2, k3, 
             lam[a] += mu[a]
         return
     h = 0.5 * dt
-    law_rhs(y, wq, indptr, indices, P, f)
+    law_rhs(y, wq, indptr, indices, P, f, G)
     for a in range(m):
         z[a] = y[a] + h * f[a]
-    law_rhs(z, wq, indptr, indices, P, k2)
+    law_rhs(z, wq, indptr, indices, P, k2, G)
     for a in range(m):
         z[a] = y[a] + h * k2[a]
-    law_rhs(z, wq, indptr, indices, P, k3)
+    law_rhs(z, wq, indptr, indices, P, k3, G)
     total = np.zeros(m)
     # stage 4 at y + dt k3
     for a in range(m):
@@ -704,12 +789,12 @@ def law_step_adjoint(y, lam, wq, indptr, indices, P, dt, rk4, gw, f, z, k2, k3, 
 
 
 @njit(cache=True)
-def law_crossing_seed(y, wq, indptr, indices, P, cr, cm, lam, gw, f, gR, gRd, mu, sc):
+def law_crossing_seed(y, wq, indptr, indices, P, cr, cm, lam, gw, f, gR, gRd, mu, sc, G):
     \"\"\"lam += cr dR/dy + cm dRdot/dy at y and gw += cm dRdot/dw, with dRdot/dy = gRd + J^T gR
     and dRdot/dw = (df/dw)^T gR (law_grads, law_vjp).\"\"\"
     n = indptr.shape[0] - 1
     m = y.shape[0]
-    law_rhs(y, wq, indptr, indices, P, f)
+    law_rhs(y, wq, indptr, indices, P, f, G)
     law_grads(y, f, P, n, gR, gRd)
     for a in range(m):
         mu[a] = 0.0
@@ -724,6 +809,7 @@ def law_adjoint_one(y0, wq, indptr, indices, P, dt, rk4, target, max_steps, gw):
     """d tau0 / d w_q of one trajectory (gw, zero unless SYNCED): (status, steps, frac)."""
     n = indptr.shape[0] - 1
     m = y0.shape[0]
+    G = np.empty((KH, n))
     y = y0.copy()
     st, steps, x = law_sync(y, wq, indptr, indices, P, dt, rk4, target, max_steps)
     if st != SYNCED:
@@ -738,26 +824,26 @@ def law_adjoint_one(y0, wq, indptr, indices, P, dt, rk4, target, max_steps, gw):
     h = 0.5 * dt
     for k in range(1, steps + 1):
         yk = ys[k - 1]
-        law_rhs(yk, wq, indptr, indices, P, f)
+        law_rhs(yk, wq, indptr, indices, P, f, G)
         if rk4:
             for a in range(m):
                 z[a] = yk[a] + h * f[a]
-            law_rhs(z, wq, indptr, indices, P, k2)
+            law_rhs(z, wq, indptr, indices, P, k2, G)
             for a in range(m):
                 z[a] = yk[a] + h * k2[a]
-            law_rhs(z, wq, indptr, indices, P, k3)
+            law_rhs(z, wq, indptr, indices, P, k3, G)
             for a in range(m):
                 z[a] = yk[a] + dt * k3[a]
-            law_rhs(z, wq, indptr, indices, P, k4)
+            law_rhs(z, wq, indptr, indices, P, k4, G)
             for a in range(m):
                 ys[k, a] = yk[a] + dt / 6.0 * (f[a] + 2.0 * k2[a] + 2.0 * k3[a] + k4[a])
         else:
             for a in range(m):
                 ys[k, a] = yk[a] + dt * f[a]
     # the crossing: H(x) = target on the step (steps - 1, steps); tau = (steps - 1 + x) dt
-    law_rhs(ys[steps - 1], wq, indptr, indices, P, f)
+    law_rhs(ys[steps - 1], wq, indptr, indices, P, f, G)
     r0, d0 = law_order(ys[steps - 1], f, P, n)
-    law_rhs(ys[steps], wq, indptr, indices, P, f)
+    law_rhs(ys[steps], wq, indptr, indices, P, f, G)
     r1, d1 = law_order(ys[steps], f, P, n)
     if rk4:
         m0 = dt * d0
@@ -783,11 +869,11 @@ def law_adjoint_one(y0, wq, indptr, indices, P, dt, rk4, target, max_steps, gw):
     mu = np.empty(m)
     kap = np.empty(m)
     net = (wq, indptr, indices, P)
-    law_crossing_seed(ys[steps], *net, c * h_r1, c * h_m1 * dt, lam, gw, f, gR, gRd, mu, kap)
+    law_crossing_seed(ys[steps], *net, c * h_r1, c * h_m1 * dt, lam, gw, f, gR, gRd, mu, kap, G)
     for k in range(steps, 0, -1):
-        law_step_adjoint(ys[k - 1], lam, wq, indptr, indices, P, dt, rk4, gw, f, z, k2, k3, mu, kap)
+        law_step_adjoint(ys[k - 1], lam, wq, indptr, indices, P, dt, rk4, gw, f, z, k2, k3, mu, kap, G)
         if k == steps:
-            law_crossing_seed(ys[k - 1], *net, c * h_r0, c * h_m0 * dt, lam, gw, f, gR, gRd, mu, kap)
+            law_crossing_seed(ys[k - 1], *net, c * h_r0, c * h_m0 * dt, lam, gw, f, gR, gRd, mu, kap, G)
     return st, steps, x
 
 
@@ -838,6 +924,7 @@ def compile_law(law: Law) -> CompiledLaw:
         module.law_order,
         module.law_start,
         module.law_jac,
+        module.KH,
         module.law_items,
         module.law_vjp,
         module.law_adjoint_items,
