@@ -365,3 +365,22 @@ def test_a_closing_worker_drops_only_the_heartbeat_its_close_cut_short():
         logger.removeHandler(handler)
         for other in logger.handlers:  # the plugin filters every handler it finds
             other.filters = [f for f in other.filters if f is not keep]
+
+
+def test_a_law_runs_on_the_cluster_as_locally(client, tmp_path):
+    """A user's law (model.law) on the cluster: each worker loads the generated kernels from the
+    law cache (or compiles them once), and the file is the local run's, array for array."""
+    path = tmp_path / "law.yaml"
+    path.write_text(
+        "graph: {kind: lollipop, nodes: 6, path: 3}\nmodel: {law: stuart-landau, params: {omega: 0.1}}\n"
+        "edges: ['2->1', '4->3']\nbetas: [0.5]\nrealizations: 200\nblock_size: 50\nseed: 2\n"
+        "lambda: {method: adjoint-hybrid}\ndynamics: {integrator: rk4, dt: 0.01}\n"
+    )
+    local = run_config(load_config(path), output=tmp_path / "local.h5", executor=LocalExecutor("cpu", None))
+    out = run_config(
+        load_config(path),
+        output=tmp_path / "dask.h5",
+        executor=DaskExecutor(client, "cpu", tasks_per_thread=1),
+        chunk_realizations=50,
+    )
+    _assert_same(out, (_arrays(local), _summary(local)))

@@ -116,6 +116,7 @@ def test_bad_config_values_are_one_line_exit_2(tmp_path):
         "model: {law: kuramoto}\nlambda: {method: pathwise}\n": "with a law (model.law) use",
         "model: {law: kuramoto}\nlambda: {method: adjoint}\ndynamics: {integrator: rodas4}\n": "no discrete",
         "model: {law: kuramoto}\ndynamics: {dt: 2.0}\n": "dynamics.dt = 2 is too large for law kuramoto",
+        "model: {law: swing, params: {m: 0}}\ndynamics: {integrator: rodas4}\n": "the rate of nu is not",
     }
     for extra, words in cases.items():
         path = tmp_path / "c.yaml"

@@ -402,8 +402,9 @@ def _law_lanes(job, first, count, threads, variant_weights, realizations, todo, 
 
 
 def _law_step(job) -> None:
-    """A law's explicit step checked on its own Jacobian (:func:`antisync.kernels.law.check_step`)."""
-    if job.kuramoto and job.config.dynamics.integrator in _EXPLICIT:
+    """A law checked finite at its start, and its explicit step on its own Jacobian
+    (:func:`antisync.kernels.law.check_step`)."""
+    if job.kuramoto:
         from antisync.kernels.law import check_step
 
         check_step(job.law, job.config.seed, job.csr, job.config.dynamics)

@@ -62,7 +62,7 @@ __all__ = [
 ]
 
 #: bumped when the generated code's layout changes (old files are then never read)
-GENERATOR = 2
+GENERATOR = 3
 
 
 class LawParams(NamedTuple):
@@ -198,7 +198,7 @@ def _rhs_source(sym, pr) -> list[str]:
         f"KH = {max(1, len(arrays))}",
         "",
         "",
-        "@njit(cache=True)",
+        '@njit(cache=True, error_model="numpy")',
         "def law_rhs(y, wq, indptr, indices, P, out, G):",
     ]
     out += ["    n = indptr.shape[0] - 1"]
@@ -265,7 +265,7 @@ def generate_source(law: Law) -> str:
     out += [
         "",
         "",
-        "@njit(cache=True)",
+        '@njit(cache=True, error_model="numpy")',
         "def law_order(y, f, P, n):",
         "    tc = 0.0",
         "    ts = 0.0",
@@ -287,7 +287,7 @@ def generate_source(law: Law) -> str:
         "    return tc * tc + ts * ts, 2.0 * (tc * dc + ts * ds)",
         "",
         "",
-        "@njit(cache=True)",
+        '@njit(cache=True, error_model="numpy")',
         "def law_start(seed, k, P, y, n):",
         "    for i in range(n):",
         "        phi = phase(seed, k, i)",
@@ -312,7 +312,7 @@ def generate_source(law: Law) -> str:
     out += [
         "",
         "",
-        "@njit(cache=True)",
+        '@njit(cache=True, error_model="numpy")',
         "def law_jac(y, wq, indptr, indices, P, jq):",
         "    n = indptr.shape[0] - 1",
         "    nnz = indices.shape[0]",
@@ -373,7 +373,7 @@ def _adjoint_source(sym, pr) -> list[str]:
     hj = [h.diff(x) for h in edge for x in sym.xj]
     hw = [h.diff(sym.w) for h in edge]
     out = [
-        "@njit(cache=True)",
+        '@njit(cache=True, error_model="numpy")',
         "def law_vjp(y, wq, indptr, indices, P, a, out_y, out_w):",
         "    n = indptr.shape[0] - 1",
         "    for i in range(n):",
@@ -429,7 +429,7 @@ def _adjoint_source(sym, pr) -> list[str]:
     out += [
         "",
         "",
-        "@njit(cache=True)",
+        '@njit(cache=True, error_model="numpy")',
         "def law_grads(y, f, P, n, gR, gRd):",
         "    tc = 0.0",
         "    ts = 0.0",
@@ -506,7 +506,7 @@ def expanded_pattern(indptr: np.ndarray, indices: np.ndarray, n_states: int) -> 
 
 # The drivers: generic in the law (they call law_rhs, law_order, law_start, law_jac above).
 _DRIVERS = '''
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def law_sync(y, wq, indptr, indices, P, dt, rk4, target, max_steps):
     """Euler or RK4 from y to the order-parameter criterion: (status, steps, frac)."""
     n = indptr.shape[0] - 1
@@ -552,7 +552,7 @@ def law_sync(y, wq, indptr, indices, P, dt, rk4, target, max_steps):
     return NOT_SYNCED, max_steps, 0.0
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def law_rodas4(y, wq, indptr, indices, P, target, t_max, h0, rtol, atol, plan, jperm):
     """Rodas4 (the coefficients and controller of antisync.kernels.implicit) from y to the
     order-parameter criterion: (status, tau, accepted, rejected, failed)."""
@@ -690,7 +690,7 @@ def law_rodas4(y, wq, indptr, indices, P, target, t_max, h0, rtol, atol, plan, j
     return NOT_SYNCED, t_max, accepted, rejected, False
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def law_item(ks, seed, indptr, indices, base_w, var_w, var_is_base, todo, P, targets, clock, plan, jperm,
              status0, steps0, frac0, status, steps, frac, item, per):
     dt, t_max, max_steps, method, rtol, atol = clock
@@ -715,7 +715,7 @@ def law_item(ks, seed, indptr, indices, base_w, var_w, var_is_base, todo, P, tar
     record(status0, steps0, frac0, status, steps, frac, r, v, st, k, x)
 
 
-@njit(parallel=True, cache=True)
+@njit(parallel=True, cache=True, error_model="numpy")
 def law_items(ks, seed, indptr, indices, base_w, var_w, var_is_base, todo, P, targets, clock, plan, jperm,
               status0, steps0, frac0, status, steps, frac):
     m = ks.shape[0]
@@ -734,7 +734,7 @@ def law_items(ks, seed, indptr, indices, base_w, var_w, var_is_base, todo, P, ta
 
 _ADJOINT_DRIVERS = '''
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def law_step_adjoint(y, lam, wq, indptr, indices, P, dt, rk4, gw, f, z, k2, k3, mu, kap, G):
     """lam <- the adjoint of one step from y (Euler or RK4), gw += its weight gradient."""
     m = y.shape[0]
@@ -788,7 +788,7 @@ def law_step_adjoint(y, lam, wq, indptr, indices, P, dt, rk4, gw, f, z, k2, k3, 
         lam[a] += total[a] + mu[a]
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def law_crossing_seed(y, wq, indptr, indices, P, cr, cm, lam, gw, f, gR, gRd, mu, sc, G):
     \"\"\"lam += cr dR/dy + cm dRdot/dy at y and gw += cm dRdot/dw, with dRdot/dy = gRd + J^T gR
     and dRdot/dw = (df/dw)^T gR (law_grads, law_vjp).\"\"\"
@@ -804,7 +804,7 @@ def law_crossing_seed(y, wq, indptr, indices, P, cr, cm, lam, gw, f, gR, gRd, mu
         lam[a] += cr * gR[a] + cm * gRd[a] + mu[a]
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def law_adjoint_one(y0, wq, indptr, indices, P, dt, rk4, target, max_steps, gw):
     """d tau0 / d w_q of one trajectory (gw, zero unless SYNCED): (status, steps, frac)."""
     n = indptr.shape[0] - 1
@@ -877,7 +877,7 @@ def law_adjoint_one(y0, wq, indptr, indices, P, dt, rk4, target, max_steps, gw):
     return st, steps, x
 
 
-@njit(parallel=True, cache=True)
+@njit(parallel=True, cache=True, error_model="numpy")
 def law_adjoint_items(ks, seed, indptr, indices, wq, P, dt, rk4, target, max_steps,
                       status0, steps0, frac0, gw):
     m = ks.shape[0]
@@ -1170,19 +1170,26 @@ def in_phase(law: Law, values: np.ndarray) -> np.ndarray:
 
 
 def check_step(setup, seed: int, csr, dynamics) -> None:
-    """Refuse an explicit ``dynamics.dt`` that a decaying mode of the law's Jacobian would make
-    grow: at the start of realization 0 and at the in-phase state (every node's start at ``phi
-    = 0``), every eigenvalue ``lambda`` with a negative real part must have ``|R(dt lambda)| <=
-    1`` (Euler's or RK4's amplification). Beyond :data:`CHECK_MAX_STATES` states the check is
-    skipped (a dense eigenvalue problem); a diverging trajectory is then still never counted as
-    synchronized (its state is not finite)."""
+    """Refuse a law that is not finite at its start, and an explicit ``dynamics.dt`` that a
+    decaying mode of the law's Jacobian would make grow.
+
+    At the start of realization 0 and at the in-phase state (every node's start at ``phi = 0``)
+    the state, the rates and the Jacobian must be finite (any integrator); for Euler and RK4
+    every eigenvalue ``lambda`` of the Jacobian there with a negative real part must have
+    ``|R(dt lambda)| <= 1`` (the step's amplification). Beyond :data:`CHECK_MAX_STATES` states
+    the eigenvalues are not computed (a dense problem); a diverging trajectory is then still
+    never counted as synchronized (its state is not finite)."""
     from antisync.errors import ConfigError
 
     law, values = setup.law, setup.values
     n = values.shape[1]
-    if len(law.states) * n > CHECK_MAX_STATES:
-        return
     dt, integrator = dynamics.dt, dynamics.integrator
+    explicit = integrator in ("euler", "rk4") and len(law.states) * n <= CHECK_MAX_STATES
+    compiled = compile_law(law)
+    ip = np.ascontiguousarray(csr.indptr, dtype=np.int64)
+    ix = np.ascontiguousarray(csr.indices, dtype=np.int64)
+    w = np.ascontiguousarray(csr.weights, dtype=np.float64)
+    vals = np.ascontiguousarray(values, dtype=np.float64)
     for where, y in (
         ("the start of realization 0", starts(law, values, seed, [0])[0]),
         ("the in-phase state", in_phase(law, values)),
@@ -1192,6 +1199,17 @@ def check_step(setup, seed: int, csr, dynamics) -> None:
                 f"model.law {law.name}: the start is not finite at {where}; check model.law.start "
                 "and model.params"
             )
+        f = np.empty(y.size)
+        compiled.rhs(y, w, ip, ix, vals, f, np.empty((compiled.hoisted, n)))
+        if not np.isfinite(f).all():
+            bad = int(np.flatnonzero(~np.isfinite(f))[0])
+            state, node = law.states[bad // n], bad % n
+            raise ConfigError(
+                f"model.law {law.name}: the rate of {state} is not finite at {where} (node {node}): "
+                f"check model.law.rates.{state} ({dict(law.rates)[state]!r}) and model.params"
+            )
+        if not explicit:
+            continue
         jac = jacobian(law, values, csr.indptr, csr.indices, csr.weights, y)
         if not np.isfinite(jac).all():
             raise ConfigError(
