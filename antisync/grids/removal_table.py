@@ -12,7 +12,7 @@ from dataclasses import asdict, dataclass, field
 import numpy as np
 
 from antisync.grids.errors import GridError
-from antisync.grids.lines import Rows
+from antisync.grids.lines import Rows, listed
 from antisync.stats.exact import clopper_pearson, mcnemar_exact, tau_p_value
 from antisync.stats.multiplicity import FDR_LEVEL, benjamini_hochberg
 from antisync.status import ALREADY_SYNCED, GAVE_UP, SYNCED
@@ -232,7 +232,7 @@ class RemovalTable(Rows):
         t, se = self.tau0_mean
         skipped = ""
         if self.skipped:
-            skipped = f"; bridges skipped: {', '.join(f'{u}-{v}' for u, v in self.skipped)}"
+            skipped = f"; bridges skipped: {listed(self.skipped)}"
         head = (
             f"{self.name}: beta={self.beta:g}, {self.n} realizations (seed {self.seed}; "
             f"{self.starts}): intact "

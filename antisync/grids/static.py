@@ -66,7 +66,7 @@ import numpy as np
 from tqdm import tqdm
 
 from antisync.grids.errors import GridError
-from antisync.grids.lines import Rows, grid_bridges, lines_of, split_bridges
+from antisync.grids.lines import Rows, grid_bridges, lines_of, listed, split_bridges
 from antisync.grids.load import Grid
 from antisync.physics.coupling import coupling_matrix
 from antisync.physics.locked import SPARSE_FROM, LockedState, jacobian, locked_state, rightmost, vouched_bound
@@ -510,8 +510,7 @@ def format_table(table: LineTable, top: int | None = None, by: str = "d_margin")
     b = table.base
     skipped = ""
     if table.skipped:
-        names = ", ".join(f"{u}-{v}" for u, v in table.skipped)
-        skipped = f" ({len(table.skipped)} bridges skipped: {names})"
+        skipped = f" ({len(table.skipped)} bridges skipped: {listed(table.skipped)})"
     head = (
         f"intact: stable={b.stable} margin={b.margin:.4f} lambda2={b.lambda2:.4f} "
         f"max_flow={b.max_flow:.4f} max_load={b.max_load:.4f} (line {table.name(b.max_load_line)}) "

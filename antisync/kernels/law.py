@@ -62,7 +62,7 @@ __all__ = [
 ]
 
 #: bumped when the generated code's layout changes (old files are then never read)
-GENERATOR = 3
+GENERATOR = 4
 
 
 class LawParams(NamedTuple):
@@ -169,16 +169,16 @@ def _separate(h, sym):
 
 
 def _rhs_source(sym, pr) -> list[str]:
-    """``law_rhs(y, wq, indptr, indices, P, out, G)``. An input whose edge law separates
-    (:func:`_separate`: ``w sin(theta_j - theta_i) = w (sin theta_j cos theta_i - cos theta_j sin
-    theta_i)``) is formed from neighbour sums ``sum_j W(w_ij) J(state_j)``, each ``J`` computed
-    once per node into a row of the scratch ``G`` (``(KH, n)``): no function of a neighbour's
-    state per link, as the built-in kernels form the Kuramoto coupling. The others are
-    evaluated per link."""
-    import sympy
+    """``law_rhs(y, wq, indptr, indices, P, out, G)`` and ``rhs_rows(n, nnz)``, the rows of the
+    scratch ``G`` it takes on a network of ``n`` nodes and ``nnz`` links.
 
-    n_s = len(sym.x)
-    node_exprs = list(sym.rates)
+    An input whose edge law separates (:func:`_separate`: ``w sin(theta_j - theta_i) = w (sin
+    theta_j cos theta_i - cos theta_j sin theta_i)``) can be formed from neighbour sums ``sum_j
+    W(w_ij) J(state_j)``, each ``J`` computed once per node into a row of ``G`` (``KH`` rows): no
+    function of a neighbour's state per link, as the built-in kernels form the Kuramoto coupling
+    (``law_rhs_hoisted``). That pays where the ``KH n`` per-node functions are fewer than the
+    ``nnz`` links (``rhs_rows`` returns ``KH``, else 0); with ``G`` of no rows the edge law is
+    evaluated per link (``law_rhs_link``)."""
     split = {m: _separate(h, sym) for m, h in enumerate(sym.coupling)}
     pairs: dict = {}
     for terms in split.values():
@@ -192,16 +192,44 @@ def _rhs_source(sym, pr) -> list[str]:
     for _, j in pairs:
         if j != 1:
             arrays.setdefault(j, len(arrays))
-    per_link = [m for m, terms in split.items() if terms is None]
-    link_exprs = [sym.coupling[m] for m in per_link]
+    hoists = any(t is not None for t in split.values())
     out = [
         f"KH = {max(1, len(arrays))}",
         "",
         "",
         '@njit(cache=True, error_model="numpy")',
+        "def rhs_rows(n, nnz):",
+        f"    return KH if {hoists} and KH * n < nnz else 0",
+        "",
+        "",
+        '@njit(cache=True, error_model="numpy")',
         "def law_rhs(y, wq, indptr, indices, P, out, G):",
+        "    if G.shape[0] > 0:",
+        "        law_rhs_hoisted(y, wq, indptr, indices, P, out, G)",
+        "    else:",
+        "        law_rhs_link(y, wq, indptr, indices, P, out)",
     ]
-    out += ["    n = indptr.shape[0] - 1"]
+    out += _rhs_variant(sym, pr, "law_rhs_hoisted(y, wq, indptr, indices, P, out, G)", split, pairs, arrays)
+    out += _rhs_variant(sym, pr, "law_rhs_link(y, wq, indptr, indices, P, out)", dict.fromkeys(split), {}, {})
+    return out
+
+
+def _rhs_variant(sym, pr, signature: str, split: dict, pairs: dict, arrays: dict) -> list[str]:
+    """One right-hand side: the inputs of ``split`` with terms from neighbour sums (``pairs``,
+    ``G``'s rows ``arrays``), the others per link."""
+    import sympy
+
+    n_s = len(sym.x)
+    node_exprs = list(sym.rates)
+    per_link = [m for m, terms in split.items() if terms is None]
+    link_exprs = [sym.coupling[m] for m in per_link]
+    out = [
+        "",
+        "",
+        '@njit(cache=True, error_model="numpy")',
+        f"def {signature}:",
+        "    n = indptr.shape[0] - 1",
+    ]
     if arrays:
         js = list(arrays)
         out += ["    for j in range(n):"]
@@ -511,7 +539,7 @@ def law_sync(y, wq, indptr, indices, P, dt, rk4, target, max_steps):
     """Euler or RK4 from y to the order-parameter criterion: (status, steps, frac)."""
     n = indptr.shape[0] - 1
     m = y.shape[0]
-    G = np.empty((KH, n))
+    G = np.empty((rhs_rows(n, indices.shape[0]), n))
     f = np.empty(m)
     k2 = np.empty(m)
     k3 = np.empty(m)
@@ -560,7 +588,7 @@ def law_rodas4(y, wq, indptr, indices, P, target, t_max, h0, rtol, atol, plan, j
     div_ptr, div_pos, upd_ptr, upd_ij, upd_ik, upd_kj = plan[6:]
     n = indptr.shape[0] - 1
     m = y.shape[0]
-    G = np.empty((KH, n))
+    G = np.empty((rhs_rows(n, indices.shape[0]), n))
     u = np.zeros((6, m))
     f0 = np.empty(m)
     f = np.empty(m)
@@ -809,7 +837,7 @@ def law_adjoint_one(y0, wq, indptr, indices, P, dt, rk4, target, max_steps, gw):
     """d tau0 / d w_q of one trajectory (gw, zero unless SYNCED): (status, steps, frac)."""
     n = indptr.shape[0] - 1
     m = y0.shape[0]
-    G = np.empty((KH, n))
+    G = np.empty((rhs_rows(n, indices.shape[0]), n))
     y = y0.copy()
     st, steps, x = law_sync(y, wq, indptr, indices, P, dt, rk4, target, max_steps)
     if st != SYNCED:
