@@ -16,25 +16,10 @@ from __future__ import annotations
 
 import collections
 import sys
+from pathlib import Path
 
-STAGES = (  # tests/test_architecture.py
-    "ground",
-    "physics",
-    "laws",
-    "stats",
-    "kernels",
-    "plan",
-    "measures",
-    "store",
-    "execution",
-    "sweeps",
-    "grids",
-    "optimize",
-    "report",
-    "paper",
-    "api",
-    "cli",
-)
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "tests"))
+from test_architecture import STAGES  # noqa: E402 -- the layer order the tests hold
 
 
 def stage(mod: str) -> int:

@@ -257,45 +257,15 @@ def design_drivers(config) -> DesignDrivers:
         if value in DESIGN_REFUSALS:
             raise ConfigError(DESIGN_REFUSALS[value])
     clock = {"dt": dyn.dt, "max_steps": dyn.max_steps}
-    if model_kind(config) == "law":
-        from antisync.kernels.law import simulate_law, simulate_law_adjoint
-
-        def forward_law(seed, indptr, indices, base_w, var_w, params, ks, threads, todo):
-            return simulate_law(
-                seed,
-                0,
-                0,
-                indptr,
-                indices,
-                base_w,
-                var_w,
-                params,
-                **clock,
-                integrator=dyn.integrator,
-                threads=threads,
-                realizations=ks,
-                todo=todo,
-            )
-
-        def adjoint_law(seed, indptr, indices, weights, deriv, params, ks, threads):
-            return simulate_law_adjoint(
-                seed,
-                0,
-                0,
-                indptr,
-                indices,
-                weights,
-                deriv,
-                params,
-                **clock,
-                integrator=dyn.integrator,
-                threads=threads,
-                realizations=ks,
-            )
-
-        return DesignDrivers(forward_law, adjoint_law)
     if config.generalized:
-        simulate = model_simulator(dyn)
+        if model_kind(config) == "law":
+            from antisync.kernels.law import simulate_law, simulate_law_adjoint
+
+            simulate = functools.partial(simulate_law, integrator=dyn.integrator)
+            backward = simulate_law_adjoint
+        else:
+            simulate = model_simulator(dyn)
+            backward = simulate_model_adjoint
 
         def forward(seed, indptr, indices, base_w, var_w, params, ks, threads, todo):
             return simulate(
@@ -314,7 +284,7 @@ def design_drivers(config) -> DesignDrivers:
             )
 
         def adjoint(seed, indptr, indices, weights, deriv, params, ks, threads):
-            return simulate_model_adjoint(
+            return backward(
                 seed,
                 0,
                 0,

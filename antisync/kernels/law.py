@@ -42,7 +42,14 @@ import numba
 import numpy as np
 
 from antisync import _numba_cache
-from antisync.kernels.shared import Outputs, PathwiseResult, SimResult, Threads, realization_ids
+from antisync.kernels.shared import (
+    PathwiseResult,
+    SimResult,
+    Threads,
+    realization_ids,
+    todo_mask,
+    unset_outputs,
+)
 from antisync.laws.spec import Law
 from antisync.status import SYNCED
 from antisync.types import RODAS4_ATOL, RODAS4_RTOL
@@ -62,7 +69,7 @@ __all__ = [
 ]
 
 #: bumped when the generated code's layout changes (old files are then never read)
-GENERATOR = 4
+GENERATOR = 5
 
 
 class LawParams(NamedTuple):
@@ -535,6 +542,28 @@ def expanded_pattern(indptr: np.ndarray, indices: np.ndarray, n_states: int) -> 
 # The drivers: generic in the law (they call law_rhs, law_order, law_start, law_jac above).
 _DRIVERS = '''
 @njit(cache=True, error_model="numpy")
+def law_advance(y, out, f, wq, indptr, indices, P, dt, rk4, k2, k3, k4, z, G):
+    """out = one Euler or RK4 step from y (f = law_rhs at y); out may be y."""
+    m = y.shape[0]
+    if not rk4:
+        for a in range(m):
+            out[a] = y[a] + dt * f[a]
+        return
+    h = 0.5 * dt
+    for a in range(m):
+        z[a] = y[a] + h * f[a]
+    law_rhs(z, wq, indptr, indices, P, k2, G)
+    for a in range(m):
+        z[a] = y[a] + h * k2[a]
+    law_rhs(z, wq, indptr, indices, P, k3, G)
+    for a in range(m):
+        z[a] = y[a] + dt * k3[a]
+    law_rhs(z, wq, indptr, indices, P, k4, G)
+    for a in range(m):
+        out[a] = y[a] + dt / 6.0 * (f[a] + 2.0 * k2[a] + 2.0 * k3[a] + k4[a])
+
+
+@njit(cache=True, error_model="numpy")
 def law_sync(y, wq, indptr, indices, P, dt, rk4, target, max_steps):
     """Euler or RK4 from y to the order-parameter criterion: (status, steps, frac)."""
     n = indptr.shape[0] - 1
@@ -551,25 +580,10 @@ def law_sync(y, wq, indptr, indices, P, dt, rk4, target, max_steps):
         return NOT_SYNCED, max_steps, 0.0
     if r2 >= target:
         return ALREADY_SYNCED, 0, 0.0
-    h = 0.5 * dt
     for step in range(1, max_steps + 1):
         r2_prev = r2
         dr2_prev = dr2
-        if rk4:
-            for a in range(m):
-                z[a] = y[a] + h * f[a]
-            law_rhs(z, wq, indptr, indices, P, k2, G)
-            for a in range(m):
-                z[a] = y[a] + h * k2[a]
-            law_rhs(z, wq, indptr, indices, P, k3, G)
-            for a in range(m):
-                z[a] = y[a] + dt * k3[a]
-            law_rhs(z, wq, indptr, indices, P, k4, G)
-            for a in range(m):
-                y[a] += dt / 6.0 * (f[a] + 2.0 * k2[a] + 2.0 * k3[a] + k4[a])
-        else:
-            for a in range(m):
-                y[a] += dt * f[a]
+        law_advance(y, y, f, wq, indptr, indices, P, dt, rk4, k2, k3, k4, z, G)
         law_rhs(y, wq, indptr, indices, P, f, G)
         r2, dr2 = law_order(y, f, P, n)
         if not (r2 == r2 and dr2 == dr2):
@@ -849,25 +863,9 @@ def law_adjoint_one(y0, wq, indptr, indices, P, dt, rk4, target, max_steps, gw):
     k2 = np.empty(m)
     k3 = np.empty(m)
     k4 = np.empty(m)
-    h = 0.5 * dt
     for k in range(1, steps + 1):
-        yk = ys[k - 1]
-        law_rhs(yk, wq, indptr, indices, P, f, G)
-        if rk4:
-            for a in range(m):
-                z[a] = yk[a] + h * f[a]
-            law_rhs(z, wq, indptr, indices, P, k2, G)
-            for a in range(m):
-                z[a] = yk[a] + h * k2[a]
-            law_rhs(z, wq, indptr, indices, P, k3, G)
-            for a in range(m):
-                z[a] = yk[a] + dt * k3[a]
-            law_rhs(z, wq, indptr, indices, P, k4, G)
-            for a in range(m):
-                ys[k, a] = yk[a] + dt / 6.0 * (f[a] + 2.0 * k2[a] + 2.0 * k3[a] + k4[a])
-        else:
-            for a in range(m):
-                ys[k, a] = yk[a] + dt * f[a]
+        law_rhs(ys[k - 1], wq, indptr, indices, P, f, G)
+        law_advance(ys[k - 1], ys[k], f, wq, indptr, indices, P, dt, rk4, k2, k3, k4, z, G)
     # the crossing: H(x) = target on the step (steps - 1, steps); tau = (steps - 1 + x) dt
     law_rhs(ys[steps - 1], wq, indptr, indices, P, f, G)
     r0, d0 = law_order(ys[steps - 1], f, P, n)
@@ -1019,13 +1017,7 @@ def simulate_law(
     targets = np.ascontiguousarray(params.targets, dtype=np.float64)
     if targets.shape != (n_var + 1,):
         raise ValueError(f"targets must have shape ({n_var + 1},), got {targets.shape}")
-    if todo is None:
-        todo = np.zeros((0, 0), dtype=np.bool_)
-    else:
-        todo = np.ascontiguousarray(todo, dtype=np.bool_)
-        if todo.shape != (m, n_var + 1):
-            raise ValueError(f"todo must have shape {(m, n_var + 1)}, got {todo.shape}")
-        var_is_base[:] = False
+    todo = todo_mask(todo, m, n_var, var_is_base)
     if integrator == "rodas4":
         plan, jperm = _jacobian_plan(indptr.tobytes(), indices.tobytes(), len(law.states))
     else:
@@ -1038,15 +1030,7 @@ def simulate_law(
         params.rtol,
         params.atol,
     )
-    out = Outputs(
-        np.full(m, -1, dtype=np.int8),
-        np.full(m, -1, dtype=np.int64),
-        np.full(m, np.nan),
-        np.full((m, n_var), -1, dtype=np.int8),
-        np.full((m, n_var), -1, dtype=np.int64),
-        np.full((m, n_var), np.nan),
-        np.empty((m, 0)),
-    )
+    out = unset_outputs(m, n_var)
     with Threads(threads):
         compiled.items(
             ks,

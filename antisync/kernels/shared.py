@@ -37,6 +37,8 @@ __all__ = [
     "rotation_angle_bound",
     "row_sum_bound",
     "share_base",
+    "todo_mask",
+    "unset_outputs",
 ]
 
 
@@ -283,13 +285,7 @@ def model_batch(
     m = ks.size
     n_var = var_w.shape[0]
     n = indptr.size - 1
-    if todo is None:
-        todo = np.zeros((0, 0), dtype=np.bool_)
-    else:
-        todo = np.ascontiguousarray(todo, dtype=np.bool_)
-        if todo.shape != (m, n_var + 1):
-            raise ValueError(f"todo must have shape {(m, n_var + 1)}, got {todo.shape}")
-        var_is_base[:] = False
+    todo = todo_mask(todo, m, n_var, var_is_base)
     graph = Graph(indptr.astype(np.int64), indices.astype(np.int64), base_weights, var_w, var_is_base, todo)
     model = Model(
         freqs,
@@ -301,7 +297,26 @@ def model_batch(
         targets,
         starts,
     )
-    out = Outputs(
+    return ks, graph, model, unset_outputs(m, n_var)
+
+
+def todo_mask(todo, m: int, n_var: int, var_is_base: np.ndarray) -> np.ndarray:
+    """The kernels' ``todo``: ``(0, 0)`` for every item, else the bool ``(m, n_var + 1)`` mask
+    checked; given, a variant equal to the base is integrated rather than copied from a base
+    that may not run (``var_is_base`` cleared in place)."""
+    if todo is None:
+        return np.zeros((0, 0), dtype=np.bool_)
+    todo = np.ascontiguousarray(todo, dtype=np.bool_)
+    if todo.shape != (m, n_var + 1):
+        raise ValueError(f"todo must have shape {(m, n_var + 1)}, got {todo.shape}")
+    var_is_base[:] = False
+    return todo
+
+
+def unset_outputs(m: int, n_var: int) -> Outputs:
+    """:class:`Outputs` of ``m`` realizations and ``n_var`` variants, every item at ``-1`` /
+    NaN (not integrated) until a driver records it; no tangents."""
+    return Outputs(
         np.full(m, -1, dtype=np.int8),
         np.full(m, -1, dtype=np.int64),
         np.full(m, np.nan),
@@ -310,7 +325,6 @@ def model_batch(
         np.full((m, n_var), np.nan),
         np.empty((m, 0)),
     )
-    return ks, graph, model, out
 
 
 @numba.njit(inline="always")
