@@ -401,6 +401,12 @@ def test_a_state_that_is_not_finite_is_never_synchronized():
     assert late.any()
     assert (broken.status0[late] == NOT_SYNCED).all()
     np.testing.assert_array_equal(broken.steps0[late], 5000)
+    # Rodas4 rejects every step of a NaN state until its step size collapses: an error naming
+    # it, never a status (as the built-in Rodas4)
+    with pytest.raises(FloatingPointError, match="step size collapsed on .* law"):
+        simulate_law(
+            *args, LawParams(law, np.ones((1, 4)), targets), dt=0.01, max_steps=5000, integrator="rodas4"
+        )
 
 
 @pytest.mark.parametrize("name", ["kuramoto", "stuart-landau", "second-harmonic"])

@@ -69,7 +69,7 @@ __all__ = [
 ]
 
 #: bumped when the generated code's layout changes (old files are then never read)
-GENERATOR = 5
+GENERATOR = 6
 
 
 class LawParams(NamedTuple):
@@ -618,7 +618,7 @@ def law_rodas4(y, wq, indptr, indices, P, target, t_max, h0, rtol, atol, plan, j
     law_rhs(y, wq, indptr, indices, P, f0, G)
     r2, dr2 = law_order(y, f0, P, n)
     if not (r2 == r2 and dr2 == dr2):
-        return NOT_SYNCED, 0.0, 0, 0, True
+        return NOT_SYNCED, 0.0, 0, 0, False  # not finite at the start: never synchronized
     if r2 >= target:
         return ALREADY_SYNCED, 0.0, 0, 0, False
     t = 0.0
@@ -701,7 +701,7 @@ def law_rodas4(y, wq, indptr, indices, P, target, t_max, h0, rtol, atol, plan, j
         law_rhs(y, wq, indptr, indices, P, f0, G)
         r2, dr2 = law_order(y, f0, P, n)
         if not (r2 == r2 and dr2 == dr2):
-            return NOT_SYNCED, t, accepted, rejected, True
+            return NOT_SYNCED, t, accepted, rejected, False  # diverged: never synchronized
         xc = order_crossing(r2_prev, dr2_prev, r2, dr2, t - t_prev, True, target)
         if xc >= 0.0:
             xl = order_crossing(r2_prev, dr2_prev, r2, dr2, t - t_prev, False, target)
@@ -734,7 +734,7 @@ def law_rodas4(y, wq, indptr, indices, P, target, t_max, h0, rtol, atol, plan, j
 
 @njit(cache=True, error_model="numpy")
 def law_item(ks, seed, indptr, indices, base_w, var_w, var_is_base, todo, P, targets, clock, plan, jperm,
-             status0, steps0, frac0, status, steps, frac, item, per):
+             status0, steps0, frac0, status, steps, frac, collapsed, item, per):
     dt, t_max, max_steps, method, rtol, atol = clock
     r, v, run = item_of(item, per, var_is_base, todo)
     if not run:
@@ -748,7 +748,8 @@ def law_item(ks, seed, indptr, indices, base_w, var_w, var_is_base, todo, P, tar
             y, w, indptr, indices, P, targets[v + 1], t_max, dt, rtol, atol, plan, jperm
         )
         k, x = support.on_the_grid(st, tau, dt, int(max_steps))
-        if failed:
+        if failed:  # the step size collapsed: reported by simulate_law, never a status
+            collapsed[r, v + 1] = True
             st = NOT_SYNCED
             k = int(max_steps)
             x = 0.0
@@ -759,12 +760,12 @@ def law_item(ks, seed, indptr, indices, base_w, var_w, var_is_base, todo, P, tar
 
 @njit(parallel=True, cache=True, error_model="numpy")
 def law_items(ks, seed, indptr, indices, base_w, var_w, var_is_base, todo, P, targets, clock, plan, jperm,
-              status0, steps0, frac0, status, steps, frac):
+              status0, steps0, frac0, status, steps, frac, collapsed):
     m = ks.shape[0]
     per = var_w.shape[0] + 1
     for item in prange(m * per):
         law_item(ks, seed, indptr, indices, base_w, var_w, var_is_base, todo, P, targets, clock, plan, jperm,
-                 status0, steps0, frac0, status, steps, frac, np.int64(item), per)
+                 status0, steps0, frac0, status, steps, frac, collapsed, np.int64(item), per)
     for r in prange(m):
         for v in range(var_is_base.shape[0]):
             if var_is_base[v]:
@@ -999,7 +1000,9 @@ def simulate_law(
     for the base weights and every row of ``variant_weights`` (the arguments of
     :func:`antisync.kernels.cpu.simulate_model`; ``params`` a :class:`LawParams`): one
     trajectory per item, in parallel. Rodas4 starts at step ``dt``, runs to ``t_max = max_steps
-    dt`` and stores its crossing time on the grid of ``dt`` as the built-in drivers do."""
+    dt`` and stores its crossing time on the grid of ``dt`` as the built-in drivers do; a
+    trajectory whose step size collapses raises ``FloatingPointError`` naming it, as the
+    built-in Rodas4 does (never a status). A state that is not finite is ``NOT_SYNCED``."""
     if integrator not in _METHODS:
         raise ValueError(f"integrator must be one of {', '.join(_METHODS)}, got {integrator!r}")
     law = params.law
@@ -1031,6 +1034,7 @@ def simulate_law(
         params.atol,
     )
     out = unset_outputs(m, n_var)
+    collapsed = np.zeros((m, n_var + 1), dtype=np.bool_)
     with Threads(threads):
         compiled.items(
             ks,
@@ -1052,6 +1056,14 @@ def simulate_law(
             out.status,
             out.steps,
             out.frac,
+            collapsed,
+        )
+    if collapsed.any():
+        r, v = np.argwhere(collapsed)[0]
+        which = "the undamaged network" if v == 0 else f"variant {v - 1}"
+        raise FloatingPointError(
+            f"rodas4: the step size collapsed on {int(collapsed.sum())} trajectories of law {law.name} "
+            f"(first: realization {int(ks[r])}, {which}); loosen dynamics.rtol/atol or use integrator rk4"
         )
     return SimResult(out.status0, out.steps0, out.status, out.steps, out.frac0, out.frac)
 
