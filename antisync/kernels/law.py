@@ -69,7 +69,7 @@ __all__ = [
 ]
 
 #: bumped when the generated code's layout changes (old files are then never read)
-GENERATOR = 6
+GENERATOR = 7
 
 
 class LawParams(NamedTuple):
@@ -778,8 +778,12 @@ def law_items(ks, seed, indptr, indices, base_w, var_w, var_is_base, todo, P, ta
 _ADJOINT_DRIVERS = '''
 
 @njit(cache=True, error_model="numpy")
-def law_step_adjoint(y, lam, wq, indptr, indices, P, dt, rk4, gw, f, z, k2, k3, mu, kap, G):
-    """lam <- the adjoint of one step from y (Euler or RK4), gw += its weight gradient."""
+def law_step_adjoint(y, lam, wq, indptr, indices, P, dt, rk4, gw, kk, z, mu, kap, total, G):
+    """lam <- the adjoint of one step from y (Euler or RK4), gw += its weight gradient.
+
+    RK4's stages backwards, 4 to 1: stage s is evaluated at z_s = y + c_s k_(s-1) and its
+    adjoint input is kap_s = b_s lam + a_s mu_(s+1), mu_s = J(z_s)^T kap_s; the new lam is lam
+    plus every mu_s (kk holds k1 = f(y), k2, k3)."""
     m = y.shape[0]
     if not rk4:
         for a in range(m):
@@ -790,45 +794,30 @@ def law_step_adjoint(y, lam, wq, indptr, indices, P, dt, rk4, gw, f, z, k2, k3, 
             lam[a] += mu[a]
         return
     h = 0.5 * dt
-    law_rhs(y, wq, indptr, indices, P, f, G)
+    law_rhs(y, wq, indptr, indices, P, kk[0], G)
     for a in range(m):
-        z[a] = y[a] + h * f[a]
-    law_rhs(z, wq, indptr, indices, P, k2, G)
+        z[a] = y[a] + h * kk[0, a]
+    law_rhs(z, wq, indptr, indices, P, kk[1], G)
     for a in range(m):
-        z[a] = y[a] + h * k2[a]
-    law_rhs(z, wq, indptr, indices, P, k3, G)
-    total = np.zeros(m)
-    # stage 4 at y + dt k3
+        z[a] = y[a] + h * kk[1, a]
+    law_rhs(z, wq, indptr, indices, P, kk[2], G)
+    c = (dt, h, h, 0.0)
+    b = (dt / 6.0, dt / 3.0, dt / 3.0, dt / 6.0)
+    after = (0.0, dt, h, h)
     for a in range(m):
-        z[a] = y[a] + dt * k3[a]
-        kap[a] = dt / 6.0 * lam[a]
+        total[a] = 0.0
         mu[a] = 0.0
-    law_vjp(z, wq, indptr, indices, P, kap, mu, gw)
+    for stage in range(4):  # stages 4, 3, 2, 1
+        row = 2 - stage
+        for a in range(m):
+            z[a] = y[a] + c[stage] * kk[row, a] if stage < 3 else y[a]
+            kap[a] = b[stage] * lam[a] + after[stage] * mu[a]
+            mu[a] = 0.0
+        law_vjp(z, wq, indptr, indices, P, kap, mu, gw)
+        for a in range(m):
+            total[a] += mu[a]
     for a in range(m):
-        total[a] += mu[a]
-        kap[a] = dt / 3.0 * lam[a] + dt * mu[a]
-    # stage 3 at y + h k2
-    for a in range(m):
-        z[a] = y[a] + h * k2[a]
-        mu[a] = 0.0
-    law_vjp(z, wq, indptr, indices, P, kap, mu, gw)
-    for a in range(m):
-        total[a] += mu[a]
-        kap[a] = dt / 3.0 * lam[a] + h * mu[a]
-    # stage 2 at y + h k1
-    for a in range(m):
-        z[a] = y[a] + h * f[a]
-        mu[a] = 0.0
-    law_vjp(z, wq, indptr, indices, P, kap, mu, gw)
-    for a in range(m):
-        total[a] += mu[a]
-        kap[a] = dt / 6.0 * lam[a] + h * mu[a]
-    # stage 1 at y
-    for a in range(m):
-        mu[a] = 0.0
-    law_vjp(y, wq, indptr, indices, P, kap, mu, gw)
-    for a in range(m):
-        lam[a] += total[a] + mu[a]
+        lam[a] += total[a]
 
 
 @njit(cache=True, error_model="numpy")
@@ -895,10 +884,12 @@ def law_adjoint_one(y0, wq, indptr, indices, P, dt, rk4, target, max_steps, gw):
     gRd = np.empty(m)
     mu = np.empty(m)
     kap = np.empty(m)
+    kk = np.empty((3, m))
+    total = np.empty(m)
     net = (wq, indptr, indices, P)
     law_crossing_seed(ys[steps], *net, c * h_r1, c * h_m1 * dt, lam, gw, f, gR, gRd, mu, kap, G)
     for k in range(steps, 0, -1):
-        law_step_adjoint(ys[k - 1], lam, wq, indptr, indices, P, dt, rk4, gw, f, z, k2, k3, mu, kap, G)
+        law_step_adjoint(ys[k - 1], lam, wq, indptr, indices, P, dt, rk4, gw, kk, z, mu, kap, total, G)
         if k == steps:
             law_crossing_seed(ys[k - 1], *net, c * h_r0, c * h_m0 * dt, lam, gw, f, gR, gRd, mu, kap, G)
     return st, steps, x
