@@ -970,6 +970,20 @@ def _no_plan():
 _METHODS = {"euler": 0, "rk4": 1, "rodas4": 2}
 
 
+def _batch(params: LawParams, first, count, realizations, indptr, indices) -> tuple:
+    """A batch's ``(compiled law, realization ids, indptr, indices, per-node values)`` in the
+    kernels' types."""
+    law = params.law
+    n = indptr.size - 1
+    return (
+        compile_law(law),
+        realization_ids(first, count, realizations),
+        np.ascontiguousarray(indptr, dtype=np.int64),
+        np.ascontiguousarray(indices, dtype=np.int64),
+        np.ascontiguousarray(params.values, dtype=np.float64).reshape(len(law.params), n),
+    )
+
+
 def simulate_law(
     seed: int,
     first: int,
@@ -997,17 +1011,12 @@ def simulate_law(
     if integrator not in _METHODS:
         raise ValueError(f"integrator must be one of {', '.join(_METHODS)}, got {integrator!r}")
     law = params.law
-    compiled = compile_law(law)
-    ks = realization_ids(first, count, realizations)
+    compiled, ks, indptr, indices, values = _batch(params, first, count, realizations, indptr, indices)
     m = ks.size
-    n = indptr.size - 1
-    indptr = np.ascontiguousarray(indptr, dtype=np.int64)
-    indices = np.ascontiguousarray(indices, dtype=np.int64)
     base = np.ascontiguousarray(base_weights, dtype=np.float64)
     var_w = np.ascontiguousarray(variant_weights, dtype=np.float64).reshape(-1, base.size)
     n_var = var_w.shape[0]
     var_is_base = np.array([np.array_equal(w, base) for w in var_w], dtype=np.bool_)
-    values = np.ascontiguousarray(params.values, dtype=np.float64).reshape(len(law.params), n)
     targets = np.ascontiguousarray(params.targets, dtype=np.float64)
     if targets.shape != (n_var + 1,):
         raise ValueError(f"targets must have shape ({n_var + 1},), got {targets.shape}")
@@ -1086,15 +1095,9 @@ def simulate_law_adjoint(
     them. ``params.targets[0]`` is the target."""
     if integrator not in ("euler", "rk4"):
         raise ValueError(f"the adjoint differentiates euler or rk4 steps, not {integrator!r}")
-    law = params.law
-    compiled = compile_law(law)
-    ks = realization_ids(first, count, realizations)
+    compiled, ks, indptr, indices, values = _batch(params, first, count, realizations, indptr, indices)
     m = ks.size
-    n = indptr.size - 1
-    indptr = np.ascontiguousarray(indptr, dtype=np.int64)
-    indices = np.ascontiguousarray(indices, dtype=np.int64)
     w = np.ascontiguousarray(weights, dtype=np.float64)
-    values = np.ascontiguousarray(params.values, dtype=np.float64).reshape(len(law.params), n)
     status0 = np.full(m, -1, dtype=np.int8)
     steps0 = np.full(m, -1, dtype=np.int64)
     frac0 = np.full(m, np.nan)
