@@ -501,6 +501,27 @@ def test_a_design_runs_on_a_law(tmp_path):
     assert (tmp_path / "d_design.h5").is_file()
 
 
+def test_a_sweep_compares_models_and_a_laws_parameter(tmp_path):
+    """``sweep.grid`` over ``model.law`` (one graph under three models) and over a law's
+    parameter (``model.params.omega``): one file, a group per point."""
+    cfg = tmp_path / "s.yaml"
+    cfg.write_text(
+        "graph: {kind: lollipop, nodes: 6, path: 3}\n"
+        "sweep: {grid: {model.law: [kuramoto, stuart-landau], model.params.omega: [0.0, 0.2]}}\n"
+        "edges: ['2->1']\nbetas: []\nrealizations: 20\nlambda: {method: central-difference}\n"
+        f"dynamics: {{integrator: rk4, dt: 0.01}}\noutput: {tmp_path / 's.h5'}\n"
+    )
+    res = CliRunner().invoke(app, ["sweep", str(cfg), "--quiet"])
+    assert res.exit_code == 0, res.output
+    summary = CliRunner().invoke(app, ["summary", str(tmp_path / "s.h5")])
+    assert summary.exit_code == 0, summary.output
+    for point in (
+        "model.law=kuramoto, model.params.omega=0",
+        "model.law=stuart-landau, model.params.omega=0.2",
+    ):
+        assert point in summary.output, summary.output
+
+
 # -- a run ---------------------------------------------------------------------------------------
 
 

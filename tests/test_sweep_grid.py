@@ -36,7 +36,10 @@ screen: {realizations: 16, t_max: 100}
 @pytest.mark.parametrize(
     ("sweep", "message"),
     [
-        ("{grid: {model.lag: [0, 0.1]}}", "unknown key 'model.lag' (did you mean 'model.phase_lag'?)"),
+        (
+            "{grid: {model.phaselag: [0, 0.1]}}",
+            "unknown key 'model.phaselag' (did you mean 'model.phase_lag'?)",
+        ),
         ("{grid: {model.phase_lag: []}}", "sweep.grid.model.phase_lag must be a non-empty list"),
         ("{grid: {model.phase_lag: 0.1}}", "sweep.grid.model.phase_lag must be a non-empty list"),
         ("{zip: {model.phase_lag: [0, 0.1], model.inertia: [1]}}", "must have equal lengths"),
