@@ -146,6 +146,26 @@ def _loads(exprs, sym, indent: str, fmt: str) -> list[str]:
     return [f"{indent}{s} = {fmt.format(k=k)}" for k, s in enumerate(sym) if s in used]
 
 
+def _node_loads(exprs, sym) -> list[str]:
+    """Node ``i``'s states and parameters that ``exprs`` read (inside ``for i in range(n)``)."""
+    return _loads(exprs, sym.x, "        ", "y[{k} * n + i]") + _loads(exprs, sym.p, "        ", "P[{k}, i]")
+
+
+def _link_loop(exprs, sym) -> list[str]:
+    """The loop over node ``i``'s in-links ``q`` (neighbour ``j``, weight ``w``) and the
+    neighbour's states and parameters that ``exprs`` read."""
+    head = [
+        "        for q in range(indptr[i], indptr[i + 1]):",
+        "            j = indices[q]",
+        "            w = wq[q]",
+    ]
+    return (
+        head
+        + _loads(exprs, sym.xj, "            ", "y[{k} * n + j]")
+        + _loads(exprs, sym.pj, "            ", "P[{k}, j]")
+    )
+
+
 #: the most neighbour sums a hoisted edge law may need (more: the law is evaluated per link)
 MAX_HOISTED = 12
 
@@ -250,21 +270,14 @@ def _rhs_variant(sym, pr, signature: str, split: dict, pairs: dict, arrays: dict
         for m in hoisted
     }
     every = node_exprs + link_exprs + list(sums.values())
-    out += _loads(every, sym.x, "        ", "y[{k} * n + i]")
-    out += _loads(every, sym.p, "        ", "P[{k}, i]")
+    out += _node_loads(every, sym)
     out += [f"        s{k} = 0.0" for k in range(len(pairs))]
     out += [f"        {sym.u[m]} = 0.0" for m in per_link]
-    out += [
-        "        for q in range(indptr[i], indptr[i + 1]):",
-        "            j = indices[q]",
-        "            w = wq[q]",
-    ]
+    out += _link_loop(link_exprs, sym)
     for (w, j), k in pairs.items():
         term = pr.doprint(w) if j == 1 else f"({pr.doprint(w)}) * G[{arrays[j]}, j]"
         out.append(f"            s{k} += {term}")
     if per_link:
-        out += _loads(link_exprs, sym.xj, "            ", "y[{k} * n + j]")
-        out += _loads(link_exprs, sym.pj, "            ", "P[{k}, j]")
         out += _block(link_exprs, [str(sym.u[m]) for m in per_link], "            ", pr, accumulate=True)
     if hoisted:
         out += _block([sums[m] for m in hoisted], [str(sym.u[m]) for m in hoisted], "        ", pr)
@@ -308,8 +321,7 @@ def generate_source(law: Law) -> str:
         "    ds = 0.0",
         "    for i in range(n):",
     ]
-    out += _loads([sym.phase, rate], sym.x, "        ", "y[{k} * n + i]")
-    out += _loads([sym.phase, rate], sym.p, "        ", "P[{k}, i]")
+    out += _node_loads([sym.phase, rate], sym)
     out += [f"        f{k} = f[{k} * n + i]" for k in range(n_s)]
     out += _block([sym.phase, rate], ["ph", "rate"], "        ", pr)
     out += [
@@ -350,24 +362,16 @@ def generate_source(law: Law) -> str:
         '@njit(cache=True, error_model="numpy")',
         "def law_jac(y, wq, indptr, indices, P, jq):",
         "    n = indptr.shape[0] - 1",
-        "    nnz = indices.shape[0]",
         "    for i in range(n):",
-        "        deg = indptr[i + 1] - indptr[i]",
-        # row (s, i) of the expanded CSR starts at s * (S n + S nnz)/S... see expanded_pattern
-        "        rowlen = S * (1 + deg)",
+        # node i's S rows are stored one after another, each S (1 + deg_i) long, after those of
+        # the nodes before it (the layout expanded_pattern maps to the pattern's order)
+        "        rowlen = S * (1 + indptr[i + 1] - indptr[i])",
         "        base = S * (S * i + S * indptr[i])",
     ]
-    out += _loads(every, sym.x, "        ", "y[{k} * n + i]")
-    out += _loads(every, sym.p, "        ", "P[{k}, i]")
+    out += _node_loads(every, sym)
     out += [f"        {u} = 0.0" for u in sym.u]
     out += [f"        {a} = 0.0" for a in own]
-    out += [
-        "        for q in range(indptr[i], indptr[i + 1]):",
-        "            j = indices[q]",
-        "            w = wq[q]",
-    ]
-    out += _loads(edge_exprs + flat_i, sym.xj, "            ", "y[{k} * n + j]")
-    out += _loads(edge_exprs + flat_i, sym.pj, "            ", "P[{k}, j]")
+    out += _link_loop(edge_exprs + flat_i, sym)
     out += _block(edge_exprs + flat_i, [str(u) for u in sym.u] + own, "            ", pr, accumulate=True)
     out += _block(node_flat, gx + gu, "        ", pr)
     # the diagonal block
@@ -375,20 +379,14 @@ def generate_source(law: Law) -> str:
         for r in range(n_s):
             chain = " + ".join([f"gx{s}_{r}"] + [f"gu{s}_{m} * a{m}_{r}" for m in range(n_u)])
             out.append(f"        jq[base + {s} * rowlen + {r}] = {chain}")
-    out += [
-        "        for q in range(indptr[i], indptr[i + 1]):",
-        "            j = indices[q]",
-        "            w = wq[q]",
-        "            at = base + S + S * (q - indptr[i])",
-    ]
-    out += _loads(flat_j, sym.xj, "            ", "y[{k} * n + j]")
-    out += _loads(flat_j, sym.pj, "            ", "P[{k}, j]")
+    out += _link_loop(flat_j, sym)
+    out += ["            at = base + S + S * (q - indptr[i])"]
     out += _block(flat_j, hj, "            ", pr)
     for s in range(n_s):
         for r in range(n_s):
             chain = " + ".join(f"gu{s}_{m} * hj{m}_{r}" for m in range(n_u))
             out.append(f"            jq[at + {s} * rowlen + {r}] = {chain}")
-    out += ["    return nnz", "", ""]
+    out += ["", ""]
     out += _adjoint_source(sym, pr)
     return "\n".join(out) + _DRIVERS + _ADJOINT_DRIVERS
 
@@ -413,18 +411,11 @@ def _adjoint_source(sym, pr) -> list[str]:
         "    n = indptr.shape[0] - 1",
         "    for i in range(n):",
     ]
-    out += _loads(node + edge + hi + hj + hw, sym.x, "        ", "y[{k} * n + i]")
-    out += _loads(node + edge + hi + hj + hw, sym.p, "        ", "P[{k}, i]")
+    out += _node_loads(node + edge + hi + hj + hw, sym)
     needs_u = any(e.has(u) for e in gx + gu for u in sym.u)
     if needs_u:
         out += [f"        {u} = 0.0" for u in sym.u]
-        out += [
-            "        for q in range(indptr[i], indptr[i + 1]):",
-            "            j = indices[q]",
-            "            w = wq[q]",
-        ]
-        out += _loads(edge, sym.xj, "            ", "y[{k} * n + j]")
-        out += _loads(edge, sym.pj, "            ", "P[{k}, j]")
+        out += _link_loop(edge, sym)
         out += _block(edge, [str(u) for u in sym.u], "            ", pr, accumulate=True)
     names_x = [f"gx{s}_{r}" for s in range(n_s) for r in range(n_s)]
     names_u = [f"gu{s}_{m}" for s in range(n_s) for m in range(n_u)]
@@ -436,13 +427,7 @@ def _adjoint_source(sym, pr) -> list[str]:
     for m in range(n_u):
         terms = " + ".join(f"a{s} * gu{s}_{m}" for s in range(n_s))
         out.append(f"        b{m} = {terms}")
-    out += [
-        "        for q in range(indptr[i], indptr[i + 1]):",
-        "            j = indices[q]",
-        "            w = wq[q]",
-    ]
-    out += _loads(hi + hj + hw, sym.xj, "            ", "y[{k} * n + j]")
-    out += _loads(hi + hj + hw, sym.pj, "            ", "P[{k}, j]")
+    out += _link_loop(hi + hj + hw, sym)
     names = [f"hi{m}_{r}" for m in range(n_u) for r in range(n_s)]
     names += [f"hj{m}_{r}" for m in range(n_u) for r in range(n_s)]
     names += [f"hw{m}" for m in range(n_u)]
@@ -472,8 +457,7 @@ def _adjoint_source(sym, pr) -> list[str]:
         "    tb = 0.0",
         "    for i in range(n):",
     ]
-    out += _loads(first, sym.x, "        ", "y[{k} * n + i]")
-    out += _loads(first, sym.p, "        ", "P[{k}, i]")
+    out += _node_loads(first, sym)
     out += [f"        f{k} = f[{k} * n + i]" for k in range(n_s)]
     out += _block([sym.phase, rate], ["ph", "rate"], "        ", pr)
     out += [
@@ -485,8 +469,7 @@ def _adjoint_source(sym, pr) -> list[str]:
         "        tb += co * rate",
         "    for i in range(n):",
     ]
-    out += _loads(second, sym.x, "        ", "y[{k} * n + i]")
-    out += _loads(second, sym.p, "        ", "P[{k}, i]")
+    out += _node_loads(second, sym)
     out += [f"        f{k} = f[{k} * n + i]" for k in range(n_s)]
     out += _block(
         second, ["ph", "rate", *[f"d{r}" for r in range(n_s)], *[f"e{r}" for r in range(n_s)]], "        ", pr
