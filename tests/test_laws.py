@@ -184,6 +184,24 @@ def test_the_jacobian_is_the_rates_derivative():
     np.testing.assert_allclose(jac, num, atol=1e-7)
 
 
+@pytest.mark.parametrize("name", ["kuramoto", "second-harmonic", "stuart-landau", "winfree"])
+def test_the_hoisted_right_hand_side_is_the_per_link_one(name):
+    """The right-hand side from per-node factors and neighbour sums (a scratch ``G`` of
+    ``KH`` rows) and the one per link (``G`` of no rows) are the same function: to rounding."""
+    law = read_law(name)
+    g = nx.karate_club_graph()
+    _, csr = _csr(g)
+    n = g.number_of_nodes()
+    compiled = compile_law(law)
+    values = np.linspace(-0.3, 0.3, n)[None, :].repeat(len(law.params), axis=0)
+    ip, ix = csr.indptr.astype(np.int64), csr.indices.astype(np.int64)
+    for y in starts(law, values, 4, [0, 1, 2]):
+        hoisted, per_link = np.empty(y.size), np.empty(y.size)
+        compiled.rhs(y, csr.weights, ip, ix, values, hoisted, np.empty((compiled.hoisted, n)))
+        compiled.rhs(y, csr.weights, ip, ix, values, per_link, np.empty((0, n)))
+        np.testing.assert_allclose(hoisted, per_link, rtol=0, atol=1e-13 * np.abs(per_link).max())
+
+
 # -- the built-in models written as laws --------------------------------------------------------
 
 

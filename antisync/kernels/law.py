@@ -314,7 +314,7 @@ def generate_source(law: Law) -> str:
         "",
         "",
         '@njit(cache=True, error_model="numpy")',
-        "def law_order(y, f, P, n):",
+        "def law_sums(y, f, P, n):",
         "    tc = 0.0",
         "    ts = 0.0",
         "    dc = 0.0",
@@ -331,6 +331,12 @@ def generate_source(law: Law) -> str:
         "        ts += si",
         "        dc -= si * rate",
         "        ds += co * rate",
+        "    return tc, ts, dc, ds",
+        "",
+        "",
+        '@njit(cache=True, error_model="numpy")',
+        "def law_order(y, f, P, n):",
+        "    tc, ts, dc, ds = law_sums(y, f, P, n)",
         "    return tc * tc + ts * ts, 2.0 * (tc * dc + ts * ds)",
         "",
         "",
@@ -440,33 +446,18 @@ def _adjoint_source(sym, pr) -> list[str]:
     out.append("            out_w[q] += " + " + ".join(f"b{m} * hw{m}" for m in range(n_u)))
 
     # R = C^2 + S^2, Rdot = 2 (C A + S B): A = -sum sin(phi) phi', B = sum cos(phi) phi'
+    # (law_sums' four sums)
     f = [sympy.Symbol(f"f{k}") for k in range(n_s)]
     grad = list(sym.phase_gradient)
     rate = sum((g * fk for g, fk in zip(grad, f, strict=True)), sympy.Integer(0))
     hess_f = [sum((grad[r].diff(sym.x[t]) * f[t] for t in range(n_s)), sympy.Integer(0)) for r in range(n_s)]
-    first = [sym.phase, rate, *grad]
     second = [sym.phase, rate, *grad, *hess_f]
     out += [
         "",
         "",
         '@njit(cache=True, error_model="numpy")',
         "def law_grads(y, f, P, n, gR, gRd):",
-        "    tc = 0.0",
-        "    ts = 0.0",
-        "    ta = 0.0",
-        "    tb = 0.0",
-        "    for i in range(n):",
-    ]
-    out += _node_loads(first, sym)
-    out += [f"        f{k} = f[{k} * n + i]" for k in range(n_s)]
-    out += _block([sym.phase, rate], ["ph", "rate"], "        ", pr)
-    out += [
-        "        co = math.cos(ph)",
-        "        si = math.sin(ph)",
-        "        tc += co",
-        "        ts += si",
-        "        ta -= si * rate",
-        "        tb += co * rate",
+        "    tc, ts, ta, tb = law_sums(y, f, P, n)",
         "    for i in range(n):",
     ]
     out += _node_loads(second, sym)
