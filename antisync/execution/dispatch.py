@@ -261,6 +261,12 @@ def design_drivers(config) -> DesignDrivers:
         if model_kind(config) == "law":
             from antisync.kernels.law import simulate_law, simulate_law_adjoint
 
+            if config.sync.criterion != "order-parameter":
+                raise ConfigError(
+                    f"a design of a law differentiates the order-parameter crossing only, not "
+                    f"sync.criterion {config.sync.criterion}: use order-parameter"
+                )
+
             simulate = functools.partial(simulate_law, integrator=dyn.integrator)
             backward = simulate_law_adjoint
         else:
@@ -655,12 +661,18 @@ def _model_adjoint_pass(job, first: int, count: int, threads: int | None):
     )
 
 
-def _law_params(job, kinds: int):
-    """A law job's :class:`~antisync.kernels.law.LawParams` for ``kinds`` networks."""
+def law_params(setup, dynamics, kinds: int):
+    """The :class:`~antisync.kernels.law.LawParams` of a :class:`~antisync.plan.model.LawSetup`
+    for ``kinds`` networks (every one the same target), Rodas4's tolerances from ``dynamics``."""
     from antisync.kernels.law import LawParams
 
-    rtol, atol = job.config.dynamics.tolerances
-    return LawParams(job.law.law, job.law.values, np.full(kinds, job.law.target), rtol, atol)
+    rtol, atol = dynamics.tolerances
+    return LawParams(setup.law, setup.values, np.full(kinds, setup.target), rtol, atol, setup.criterion)
+
+
+def _law_params(job, kinds: int):
+    """A law job's :class:`~antisync.kernels.law.LawParams` for ``kinds`` networks."""
+    return law_params(job.law, job.config.dynamics, kinds)
 
 
 def _law_adjoint_pass(job, first: int, count: int, threads: int | None):

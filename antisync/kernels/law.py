@@ -3,7 +3,8 @@
 :class:`~antisync.laws.spec.Law` gives a node law and an edge law in sympy. This module writes
 them as Python source over the CSR loops every kernel of antisync uses (``indptr``,
 ``indices``, one weight per in-link), appends the generic drivers of :data:`_DRIVERS` (Euler,
-RK4 and Rodas4 from the realization's random phases to the order-parameter criterion), and
+RK4 and Rodas4 from the realization's random phases to the order-parameter or the frequency
+criterion), and
 imports the file: numba compiles it once and caches the machine code beside it, keyed by the
 law's text and antisync's sources, so a second process loads it in about a second. Nothing is
 generated per node: the compile time does not depend on the network.
@@ -18,6 +19,8 @@ per-node parameters ``P`` of shape ``(n_params, n)``):
   rate ``grad(phase) . f`` (the cubic Hermite crossing of :mod:`antisync.kernels.core` needs it);
 - ``law_start(seed, k, P, y, n)``: the start of realization ``k`` from the paper's
   counter-based phases (:func:`antisync.physics.phases.phase`);
+- ``law_devs(y, f, w, indptr, indices, P, D)``: the frequency criterion's quantities and their
+  rates, each minus its mean over the nodes (:func:`_frequency_source`);
 - ``law_jac(y, w, indptr, indices, P, jq)``: the Jacobian's entries on the expanded pattern of
   :func:`expanded_pattern` (each node's ``S x S`` block with itself and with each in-neighbour),
   by the chain rule through the coupling inputs: what Rodas4 factors.
@@ -42,6 +45,7 @@ import numba
 import numpy as np
 
 from antisync import _numba_cache
+from antisync.kernels.core import CRIT_ORDER
 from antisync.kernels.shared import (
     PathwiseResult,
     SimResult,
@@ -69,19 +73,22 @@ __all__ = [
 ]
 
 #: bumped when the generated code's layout changes (old files are then never read)
-GENERATOR = 7
+GENERATOR = 8
 
 
 class LawParams(NamedTuple):
     """A law's run constants: ``values`` ``(n_params, n)`` (the law's parameters per node, in
-    the order of ``law.params``), ``targets`` ``(V + 1,)`` (``R = (r N)^2`` at the threshold, base
-    first), and Rodas4's tolerances."""
+    the order of ``law.params``), ``targets`` ``(V + 1,)`` (base first: ``R = (r N)^2`` at the
+    threshold, or the frequency tolerance), Rodas4's tolerances and the criterion
+    (:data:`~antisync.kernels.core.CRIT_ORDER`, or :data:`~antisync.kernels.core.CRIT_FREQUENCY`:
+    every deviation of the law's ``frequency`` quantities from their mean below the target)."""
 
     law: Law
     values: np.ndarray
     targets: np.ndarray
     rtol: float = RODAS4_RTOL
     atol: float = RODAS4_ATOL
+    criterion: int = CRIT_ORDER
 
 
 class CompiledLaw(NamedTuple):
@@ -302,6 +309,7 @@ def generate_source(law: Law) -> str:
         "from antisync.kernels import law_support as support",
         "from antisync.kernels.law_support import ALREADY_SYNCED, NOT_SYNCED, SYNCED, RA, RC, RGAMMA",
         "from antisync.kernels.law_support import factor, item_of, order_crossing, phase, record, solve",
+        "from antisync.kernels.law_support import DENSE_POINTS, hermite_range",
         "",
         f"S = {n_s}",
     ]
@@ -347,6 +355,7 @@ def generate_source(law: Law) -> str:
     ]
     out += _loads(list(sym.start), sym.p, "        ", "P[{k}, i]")
     out += _block(list(sym.start), [f"y[{k} * n + i]" for k in range(n_s)], "        ", pr)
+    out += _frequency_source(sym, pr)
 
     # the Jacobian on the expanded pattern: row (s, i), entries (r, i) then (r, j) per in-link
     d_edge_i = [[h.diff(x) for x in sym.x] for h in sym.coupling]  # d h_m / d x_r (own)
@@ -395,6 +404,68 @@ def generate_source(law: Law) -> str:
     out += ["", ""]
     out += _adjoint_source(sym, pr)
     return "\n".join(out) + _DRIVERS + _ADJOINT_DRIVERS
+
+
+def _frequency_source(sym, pr) -> list[str]:
+    """``law_devs(y, f, wq, indptr, indices, P, D)``: the frequency criterion's quantities ``q_k``
+    (``sym.frequency``) minus their means in ``D``'s rows ``2 k`` and their rates minus theirs in
+    rows ``2 k + 1`` (``KF`` quantities), the rates by the chain rule: ``dq/dt = dq/dx . f + dq/du
+    . du/dt``, ``du_i/dt = sum_j (dh/dx_i . f_i + dh/dx_j . f_j)`` over the in-links (what the
+    cubic Hermite crossing of the frequency criterion needs, as the built-in kernels'
+    ``deviations``)."""
+    import sympy
+
+    n_s = len(sym.x)
+    f = sympy.symbols(f"f0:{n_s}", real=True)
+    fj = sympy.symbols(f"fj0:{n_s}", real=True)
+    qs = list(sym.frequency)
+    read = [m for m, u in enumerate(sym.u) if any(q.has(u) for q in qs)]
+    du = {m: sympy.Symbol(f"du{m}", real=True) for m in read}
+    rates = [
+        sum((q.diff(x) * fk for x, fk in zip(sym.x, f, strict=True)), sympy.Integer(0))
+        + sum((q.diff(sym.u[m]) * du[m] for m in read), sympy.Integer(0))
+        for q in qs
+    ]
+    edge = [sym.coupling[m] for m in read]
+    edge_rates = [
+        sum(
+            (h.diff(x) * fk + h.diff(xj) * fjk for x, xj, fk, fjk in zip(sym.x, sym.xj, f, fj, strict=True)),
+            sympy.Integer(0),
+        )
+        for h in edge
+    ]
+    every = qs + rates + edge + edge_rates
+    out = [
+        "",
+        "",
+        f"KF = {len(qs)}",
+        "",
+        "",
+        '@njit(cache=True, error_model="numpy")',
+        "def law_devs(y, f, wq, indptr, indices, P, D):",
+        "    n = indptr.shape[0] - 1",
+        "    for i in range(n):",
+    ]
+    out += _node_loads(every, sym)
+    out += _loads(every, f, "        ", "f[{k} * n + i]")
+    if read:
+        out += [f"        {sym.u[m]} = 0.0" for m in read]
+        out += [f"        {du[m]} = 0.0" for m in read]
+        out += _link_loop(edge + edge_rates, sym)
+        out += _loads(edge_rates, fj, "            ", "f[{k} * n + j]")
+        targets = [str(sym.u[m]) for m in read] + [str(du[m]) for m in read]
+        out += _block(edge + edge_rates, targets, "            ", pr, accumulate=True)
+    rows = [f"D[{2 * k + r}, i]" for k in range(len(qs)) for r in range(2)]
+    out += _block([e for pair in zip(qs, rates, strict=True) for e in pair], rows, "        ", pr)
+    out += [
+        "    for row in range(2 * KF):",
+        "        mean = 0.0",
+        "        for i in range(n):",
+        "            mean += D[row, i]",
+        "        for i in range(n):",
+        "            D[row, i] -= mean / n",
+    ]
+    return out
 
 
 def _adjoint_source(sym, pr) -> list[str]:
@@ -516,6 +587,25 @@ def expanded_pattern(indptr: np.ndarray, indices: np.ndarray, n_states: int) -> 
 # The drivers: generic in the law (they call law_rhs, law_order, law_start, law_jac above).
 _DRIVERS = '''
 @njit(cache=True, error_model="numpy")
+def hermite(y0, m0, y1, m1, x):
+    """The cubic Hermite interpolant at x in [0, 1] (m0, m1: rates times dt)."""
+    x2 = x * x
+    x3 = x2 * x
+    return (2 * x3 - 3 * x2 + 1) * y0 + (x3 - 2 * x2 + x) * m0 + (-2 * x3 + 3 * x2) * y1 + (x3 - x2) * m1
+
+
+@njit(cache=True, error_model="numpy")
+def dev_ends(D, Dp, row, i, dt, rk4):
+    """(y0, m0, y1, m1) of deviation row at node i over the last step: RK4's Hermite data, or
+    Euler's straight line."""
+    y0 = Dp[row, i]
+    y1 = D[row, i]
+    if rk4:
+        return y0, dt * Dp[row + 1, i], y1, dt * D[row + 1, i]
+    return y0, y1 - y0, y1, y1 - y0
+
+
+@njit(cache=True, error_model="numpy")
 def law_advance(y, out, f, wq, indptr, indices, P, dt, rk4, k2, k3, k4, z, G):
     """out = one Euler or RK4 step from y (f = law_rhs at y); out may be y."""
     m = y.shape[0]
@@ -538,8 +628,61 @@ def law_advance(y, out, f, wq, indptr, indices, P, dt, rk4, k2, k3, k4, z, G):
 
 
 @njit(cache=True, error_model="numpy")
-def law_sync(y, wq, indptr, indices, P, dt, rk4, target, max_steps):
-    """Euler or RK4 from y to the order-parameter criterion: (status, steps, frac)."""
+def law_deviation(D, Dp, n, dt, rk4, x):
+    """The largest |deviation| of the frequency criterion's quantities at x of the last step's
+    interpolants (x = 1: the step's end, exactly; a NaN kept: never synchronized)."""
+    dev = 0.0
+    for i in range(n):
+        for k in range(KF):
+            y0, m0, y1, m1 = dev_ends(D, Dp, 2 * k, i, dt, rk4)
+            d = abs(hermite(y0, m0, y1, m1, x))
+            if not (d <= dev or dev != dev):
+                dev = d
+    return dev
+
+
+@njit(cache=True, error_model="numpy")
+def frequency_crossing(D, Dp, n, dt, rk4, target):
+    """First x in (0, 1] of the last step where every interpolated deviation is below target,
+    or -1 (the built-in kernels' frequency_crossing on the law's quantities)."""
+    for i in range(n):
+        for k in range(KF):
+            y0, m0, y1, m1 = dev_ends(D, Dp, 2 * k, i, dt, rk4)
+            lo, hi = hermite_range(y0, m0, y1, m1)
+            if lo >= target or hi <= -target:
+                return -1.0  # this deviation stays out of the band for the whole step
+    a = 0.0
+    for point in range(1, DENSE_POINTS + 1):
+        b = point / DENSE_POINTS
+        if law_deviation(D, Dp, n, dt, rk4, b) < target:
+            for _ in range(60):
+                x = 0.5 * (a + b)
+                if law_deviation(D, Dp, n, dt, rk4, x) < target:
+                    b = x
+                else:
+                    a = x
+            return b
+        a = b
+    return -1.0
+
+
+@njit(cache=True, error_model="numpy")
+def near_step(D, n, target):
+    """The longest step once every deviation is within BAND times the tolerance: NEAR of the
+    tolerance over the fastest deviation's rate (inf while one is farther)."""
+    fastest = 0.0
+    for k in range(KF):
+        for i in range(n):
+            if abs(D[2 * k, i]) > support.BAND * target:
+                return np.inf
+            fastest = max(fastest, abs(D[2 * k + 1, i]))
+    return support.NEAR * target / fastest if fastest > 0.0 else np.inf
+
+
+@njit(cache=True, error_model="numpy")
+def law_sync(y, wq, indptr, indices, P, dt, rk4, freq, target, max_steps):
+    """Euler or RK4 from y to the order-parameter criterion, or with freq to the frequency
+    criterion (every deviation of law_devs below target): (status, steps, frac)."""
     n = indptr.shape[0] - 1
     m = y.shape[0]
     G = np.empty((rhs_rows(n, indices.shape[0]), n))
@@ -548,30 +691,51 @@ def law_sync(y, wq, indptr, indices, P, dt, rk4, target, max_steps):
     k3 = np.empty(m)
     k4 = np.empty(m)
     z = np.empty(m)
+    D = np.empty((2 * KF, n))
+    Dp = np.empty((2 * KF, n))
     law_rhs(y, wq, indptr, indices, P, f, G)
-    r2, dr2 = law_order(y, f, P, n)
-    if not (r2 == r2 and dr2 == dr2):
-        return NOT_SYNCED, max_steps, 0.0
-    if r2 >= target:
-        return ALREADY_SYNCED, 0, 0.0
-    for step in range(1, max_steps + 1):
-        r2_prev = r2
-        dr2_prev = dr2
-        law_advance(y, y, f, wq, indptr, indices, P, dt, rk4, k2, k3, k4, z, G)
-        law_rhs(y, wq, indptr, indices, P, f, G)
+    r2 = 0.0
+    dr2 = 0.0
+    if freq:
+        law_devs(y, f, wq, indptr, indices, P, D)
+        dev = law_deviation(D, D, n, dt, rk4, 1.0)
+        if dev != dev:
+            return NOT_SYNCED, max_steps, 0.0
+        if dev < target:
+            return ALREADY_SYNCED, 0, 0.0
+    else:
         r2, dr2 = law_order(y, f, P, n)
         if not (r2 == r2 and dr2 == dr2):
-            return NOT_SYNCED, max_steps, 0.0  # diverged: never synchronized
-        x = order_crossing(r2_prev, dr2_prev, r2, dr2, dt, rk4, target)
+            return NOT_SYNCED, max_steps, 0.0
+        if r2 >= target:
+            return ALREADY_SYNCED, 0, 0.0
+    for step in range(1, max_steps + 1):
+        law_advance(y, y, f, wq, indptr, indices, P, dt, rk4, k2, k3, k4, z, G)
+        law_rhs(y, wq, indptr, indices, P, f, G)
+        if freq:
+            D, Dp = Dp, D
+            law_devs(y, f, wq, indptr, indices, P, D)
+            dev = law_deviation(D, Dp, n, dt, rk4, 1.0)
+            if dev != dev:
+                return NOT_SYNCED, max_steps, 0.0  # diverged: never synchronized
+            x = frequency_crossing(D, Dp, n, dt, rk4, target)
+        else:
+            r2_prev = r2
+            dr2_prev = dr2
+            r2, dr2 = law_order(y, f, P, n)
+            if not (r2 == r2 and dr2 == dr2):
+                return NOT_SYNCED, max_steps, 0.0  # diverged: never synchronized
+            x = order_crossing(r2_prev, dr2_prev, r2, dr2, dt, rk4, target)
         if x >= 0.0:
             return SYNCED, step, x
     return NOT_SYNCED, max_steps, 0.0
 
 
 @njit(cache=True, error_model="numpy")
-def law_rodas4(y, wq, indptr, indices, P, target, t_max, h0, rtol, atol, plan, jperm):
+def law_rodas4(y, wq, indptr, indices, P, freq, target, t_max, h0, rtol, atol, plan, jperm):
     """Rodas4 (the coefficients and controller of antisync.kernels.implicit) from y to the
-    order-parameter criterion: (status, tau, accepted, rejected, failed)."""
+    order-parameter criterion, or with freq the frequency criterion: (status, tau, accepted,
+    rejected, failed)."""
     fp_perm, fp_inv, fp_ptr, fp_col, fp_diag, fp_entry = plan[:6]
     div_ptr, div_pos, upd_ptr, upd_ij, upd_ik, upd_kj = plan[6:]
     n = indptr.shape[0] - 1
@@ -589,12 +753,24 @@ def law_rodas4(y, wq, indptr, indices, P, target, t_max, h0, rtol, atol, plan, j
     kept_f = np.empty(m)
     jq = np.empty(jperm.shape[0])
     val = np.empty(fp_col.shape[0])
+    D = np.empty((2 * KF, n))
+    Dp = np.empty((2 * KF, n))
     law_rhs(y, wq, indptr, indices, P, f0, G)
-    r2, dr2 = law_order(y, f0, P, n)
-    if not (r2 == r2 and dr2 == dr2):
-        return NOT_SYNCED, 0.0, 0, 0, False  # not finite at the start: never synchronized
-    if r2 >= target:
-        return ALREADY_SYNCED, 0.0, 0, 0, False
+    r2 = 0.0
+    dr2 = 0.0
+    if freq:
+        law_devs(y, f0, wq, indptr, indices, P, D)
+        dev = law_deviation(D, D, n, 0.0, False, 1.0)
+        if dev != dev:
+            return NOT_SYNCED, 0.0, 0, 0, False  # not finite at the start: never synchronized
+        if dev < target:
+            return ALREADY_SYNCED, 0.0, 0, 0, False
+    else:
+        r2, dr2 = law_order(y, f0, P, n)
+        if not (r2 == r2 and dr2 == dr2):
+            return NOT_SYNCED, 0.0, 0, 0, False  # not finite at the start: never synchronized
+        if r2 >= target:
+            return ALREADY_SYNCED, 0.0, 0, 0, False
     t = 0.0
     h = min(h0, t_max)
     h_cap = t_max
@@ -673,12 +849,23 @@ def law_rodas4(y, wq, indptr, indices, P, target, t_max, h0, rtol, atol, plan, j
         r2_prev = r2
         dr2_prev = dr2
         law_rhs(y, wq, indptr, indices, P, f0, G)
-        r2, dr2 = law_order(y, f0, P, n)
-        if not (r2 == r2 and dr2 == dr2):
-            return NOT_SYNCED, t, accepted, rejected, False  # diverged: never synchronized
-        xc = order_crossing(r2_prev, dr2_prev, r2, dr2, t - t_prev, True, target)
+        if freq:
+            D, Dp = Dp, D
+            law_devs(y, f0, wq, indptr, indices, P, D)
+            dev = law_deviation(D, Dp, n, 0.0, False, 1.0)
+            if dev != dev:
+                return NOT_SYNCED, t, accepted, rejected, False  # diverged: never synchronized
+            xc = frequency_crossing(D, Dp, n, t - t_prev, True, target)
+        else:
+            r2, dr2 = law_order(y, f0, P, n)
+            if not (r2 == r2 and dr2 == dr2):
+                return NOT_SYNCED, t, accepted, rejected, False  # diverged: never synchronized
+            xc = order_crossing(r2_prev, dr2_prev, r2, dr2, t - t_prev, True, target)
         if xc >= 0.0:
-            xl = order_crossing(r2_prev, dr2_prev, r2, dr2, t - t_prev, False, target)
+            if freq:
+                xl = frequency_crossing(D, Dp, n, t - t_prev, False, target)
+            else:
+                xl = order_crossing(r2_prev, dr2_prev, r2, dr2, t - t_prev, False, target)
             tau = t_prev + xc * (t - t_prev)
             if (xl >= 0.0 and abs(xc - xl) * (t - t_prev) <= support.CROSSING_RTOL * tau) or (
                 t - t_prev <= support.H_FLOOR * 1e3 * t_max
@@ -687,6 +874,8 @@ def law_rodas4(y, wq, indptr, indices, P, target, t_max, h0, rtol, atol, plan, j
             for a in range(m):
                 y[a] = kept[a]
                 f0[a] = kept_f[a]
+            if freq:
+                D, Dp = Dp, D  # the deviations at the step's start again
             r2 = r2_prev
             dr2 = dr2_prev
             h_cap = support.REFINE * (t - t_prev)
@@ -701,7 +890,9 @@ def law_rodas4(y, wq, indptr, indices, P, target, t_max, h0, rtol, atol, plan, j
         if t >= cap_until:
             h_cap = t_max
         h = min(h * max(support.SHRINK, min(support.GROW, fac)), h_cap)
-        if dr2 != 0.0:
+        if freq:
+            h = min(h, near_step(D, n, target))
+        elif dr2 != 0.0:
             h = min(h, support.NEAR * max(target - r2, n * n - target) / abs(dr2))
     return NOT_SYNCED, t_max, accepted, rejected, False
 
@@ -709,7 +900,8 @@ def law_rodas4(y, wq, indptr, indices, P, target, t_max, h0, rtol, atol, plan, j
 @njit(cache=True, error_model="numpy")
 def law_item(ks, seed, indptr, indices, base_w, var_w, var_is_base, todo, P, targets, clock, plan, jperm,
              status0, steps0, frac0, status, steps, frac, collapsed, item, per):
-    dt, t_max, max_steps, method, rtol, atol = clock
+    dt, t_max, max_steps, method, rtol, atol, criterion = clock
+    freq = criterion == 1
     r, v, run = item_of(item, per, var_is_base, todo)
     if not run:
         return
@@ -719,7 +911,7 @@ def law_item(ks, seed, indptr, indices, base_w, var_w, var_is_base, todo, P, tar
     w = base_w if v < 0 else var_w[v]
     if method == 2:
         st, tau, acc, rej, failed = law_rodas4(
-            y, w, indptr, indices, P, targets[v + 1], t_max, dt, rtol, atol, plan, jperm
+            y, w, indptr, indices, P, freq, targets[v + 1], t_max, dt, rtol, atol, plan, jperm
         )
         k, x = support.on_the_grid(st, tau, dt, int(max_steps))
         if failed:  # the step size collapsed: reported by simulate_law, never a status
@@ -728,7 +920,9 @@ def law_item(ks, seed, indptr, indices, base_w, var_w, var_is_base, todo, P, tar
             k = int(max_steps)
             x = 0.0
     else:
-        st, k, x = law_sync(y, w, indptr, indices, P, dt, method == 1, targets[v + 1], int(max_steps))
+        st, k, x = law_sync(
+            y, w, indptr, indices, P, dt, method == 1, freq, targets[v + 1], int(max_steps)
+        )
     record(status0, steps0, frac0, status, steps, frac, r, v, st, k, x)
 
 
@@ -817,7 +1011,7 @@ def law_adjoint_one(y0, wq, indptr, indices, P, dt, rk4, target, max_steps, gw):
     m = y0.shape[0]
     G = np.empty((rhs_rows(n, indices.shape[0]), n))
     y = y0.copy()
-    st, steps, x = law_sync(y, wq, indptr, indices, P, dt, rk4, target, max_steps)
+    st, steps, x = law_sync(y, wq, indptr, indices, P, dt, rk4, False, target, max_steps)
     if st != SYNCED:
         return st, steps, x
     ys = np.empty((steps + 1, m))
@@ -1006,6 +1200,7 @@ def simulate_law(
         _METHODS[integrator],
         params.rtol,
         params.atol,
+        float(params.criterion),
     )
     out = unset_outputs(m, n_var)
     collapsed = np.zeros((m, n_var + 1), dtype=np.bool_)
@@ -1069,6 +1264,8 @@ def simulate_law_adjoint(
     them. ``params.targets[0]`` is the target."""
     if integrator not in ("euler", "rk4"):
         raise ValueError(f"the adjoint differentiates euler or rk4 steps, not {integrator!r}")
+    if params.criterion != CRIT_ORDER:
+        raise ValueError("the adjoint of a law differentiates the order-parameter crossing only")
     compiled, ks, indptr, indices, values = _batch(params, first, count, realizations, indptr, indices)
     m = ks.size
     w = np.ascontiguousarray(weights, dtype=np.float64)

@@ -1,20 +1,22 @@
 """What the generated kernels of a user's law (:mod:`antisync.kernels.law`) use of antisync:
-the paper's phases, the crossing on the step's cubic interpolant, the item bookkeeping of the
-one-trajectory drivers and Rodas4's coefficients, sparse LU and step-size controller, under one
-module so a generated file imports one name."""
+the paper's phases, the crossing on the step's cubic interpolant (its range and points), the
+item bookkeeping of the one-trajectory drivers and Rodas4's coefficients, sparse LU and
+step-size controller, under one module so a generated file imports one name."""
 
 from __future__ import annotations
 
 from antisync.kernels import implicit
+from antisync.kernels.core import DENSE_POINTS
 from antisync.kernels.lanes import item_of
 from antisync.kernels.model_steps import MK
 from antisync.kernels.shared import record
 from antisync.physics.phases import phase
 from antisync.status import ALREADY_SYNCED, NOT_SYNCED, SYNCED
 
-__all__ = ["ALREADY_SYNCED", "NOT_SYNCED", "SYNCED", "item_of", "phase", "record"]
+__all__ = ["ALREADY_SYNCED", "DENSE_POINTS", "NOT_SYNCED", "SYNCED", "item_of", "phase", "record"]
 
 order_crossing = MK.order_crossing
+hermite_range = MK.hermite_range
 factor = implicit._factor
 solve = implicit._solve
 on_the_grid = implicit._on_the_grid
@@ -31,3 +33,4 @@ BETA2 = implicit._BETA2
 CROSSING_RTOL = implicit._CROSSING_RTOL
 REFINE = implicit._REFINE
 NEAR = implicit._NEAR
+BAND = implicit._BAND

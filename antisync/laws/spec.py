@@ -15,6 +15,11 @@ A :class:`Law` names
   its parameters and the constants;
 - ``phase``: the node's phase, an expression of its states (``theta``, ``atan2(y, x)``), from
   which ``r(t)`` and the order-parameter criterion are computed;
+- ``frequency``: what the frequency criterion (``sync.criterion: frequency``) brings within
+  its tolerance of the network's mean: one or more per-node expressions of the node's states,
+  inputs and parameters (the swing equation's ``[nu, (P + u) / gamma]``: the speed, and the
+  speed the node relaxes to, so a start at rest is not "locked"); by default the phase's rate
+  ``grad(phase) . rates``;
 - ``start``: every state's initial value from the realization's random phase ``phi`` (the
   paper's counter-based phase of the node, uniform on the circle): ``{x: cos(phi), y:
   sin(phi)}``. By default a state that is the phase starts at ``phi`` and every other at 0.
@@ -47,7 +52,7 @@ __all__ = ["LIBRARY", "Law", "Symbolic", "law_names", "read_law"]
 #: the folder of the shipped laws (``<name>.yaml``, a name's ``-`` written ``_``)
 LIBRARY = Path(__file__).resolve().parent.parent / "data" / "laws"
 
-_KEYS = {"name", "about", "states", "params", "constants", "coupling", "rates", "phase", "start"}
+_KEYS = {"name", "about", "states", "params", "constants", "coupling", "rates", "phase", "start", "frequency"}
 _RESERVED = {"w", "phi", "t", *FUNCTIONS, *CONSTANTS}
 
 
@@ -121,6 +126,8 @@ class Law:
     rates: tuple[tuple[str, str], ...]
     phase: str
     start: tuple[tuple[str, str], ...]
+    frequency: tuple[str, ...] = ()
+    """the frequency criterion's quantities (empty: the phase's rate)"""
 
     @classmethod
     def from_mapping(cls, data, key: str = "model.law") -> Law:
@@ -190,11 +197,20 @@ class Law:
             (s, _text(f"{key}.start.{s}", start[s]) if s in start else ("phi" if s == phase else "0"))
             for s in states
         )
+        frequency = data.get("frequency", [])
+        if isinstance(frequency, str | int | float) and not isinstance(frequency, bool):
+            frequency = [frequency]
+        if not isinstance(frequency, list):
+            raise ConfigError(
+                f"{key}.frequency must be an expression or a list of them, e.g. [nu, (P + u) / gamma], "
+                f"got {show(frequency)}"
+            )
+        frequency = tuple(_text(f"{key}.frequency[{k}]", e) for k, e in enumerate(frequency))
         name = data.get("name", "law")
         about = data.get("about", "")
         if not isinstance(name, str) or not isinstance(about, str):
             raise ConfigError(f"{key}.name and {key}.about must be text")
-        law = cls(name, about, states, params, constants, coupling, rates, phase, start)
+        law = cls(name, about, states, params, constants, coupling, rates, phase, start, frequency)
         law.symbolic(key)  # every expression parsed now: a fault is found on load
         return law
 
@@ -210,6 +226,8 @@ class Law:
             "rates": dict(self.rates),
             "phase": self.phase,
             "start": dict(self.start),
+            # only when given: the laws without it keep their texts (and cached kernels)
+            **({"frequency": list(self.frequency)} if self.frequency else {}),
         }
 
     @property
@@ -267,6 +285,8 @@ class Symbolic:
     """of ``x, p``"""
     start: tuple
     """one expression per state, of ``phi, p``"""
+    frequency: tuple
+    """the frequency criterion's quantities, of ``x, u, p`` (by default the phase's rate)"""
 
     @cached_property
     def phase_gradient(self) -> tuple:
@@ -309,4 +329,17 @@ def _symbolic(law: Law, key: str) -> Symbolic:
     start = tuple(
         parse_expression(f"{key}.start.{s}", e, {**consts, **params, "phi": phi}) for s, e in law.start
     )
-    return Symbolic(x, xj, p, pj, w, u, phi, coupling, rates, phase, start)
+    if law.frequency:
+        frequency = tuple(
+            parse_expression(f"{key}.frequency[{k}]", e, {**node, **inputs})
+            for k, e in enumerate(law.frequency)
+        )
+        for k, q in enumerate(frequency):
+            if not any(q.has(v) for v in (*x, *u)):
+                raise ConfigError(
+                    f"{key}.frequency[{k}] must read the node's states or inputs (a constant is never "
+                    f"off the mean), got {law.frequency[k]!r}"
+                )
+    else:
+        frequency = (sum((phase.diff(v) * r for v, r in zip(x, rates, strict=True)), sympy.Integer(0)),)
+    return Symbolic(x, xj, p, pj, w, u, phi, coupling, rates, phase, start, frequency)

@@ -33,7 +33,7 @@ import networkx as nx
 import numpy as np
 
 from antisync.errors import ConfigError
-from antisync.execution.dispatch import design_drivers, model_params
+from antisync.execution.dispatch import design_drivers, law_params, model_params
 from antisync.kernels.adjoint import LinkDerivatives
 from antisync.optimize.budget import Budget
 from antisync.physics import graphs
@@ -304,11 +304,7 @@ def _times(config: Config, status, steps, frac) -> np.ndarray:
 def _model_params(problem: Problem, csr: CouplingCSR, ks: np.ndarray, kinds: int):
     config = problem.config
     if config.model.law is not None:
-        from antisync.kernels.law import LawParams
-
-        law = law_setup(config, problem.n_nodes)
-        rtol, atol = config.dynamics.tolerances
-        return LawParams(law.law, law.values, np.full(kinds, law.target), rtol, atol)
+        return law_params(law_setup(config, problem.n_nodes), config.dynamics, kinds)
     setup, _, _ = model_setup(config, csr.indptr, csr.indices, [csr.weights], [], 0)
     targets = np.full(kinds, setup.targets[0])
     return model_params(setup, config.model, config.seed, ks, problem.n_nodes, targets)

@@ -404,10 +404,20 @@ class Config:
                 "frequencies or per-node inertia/damping do not respect (a link and its image see "
                 "different nodes); use central-difference (every link on its own)"
             )
-        if self.model.law is not None and self.sync.criterion != "order-parameter":
+        if self.model.law is not None and self.sync.criterion == "relative":
             raise ConfigError(
-                f"sync.criterion {self.sync.criterion} is written for the built-in model; a law "
-                "(model.law) runs to the order-parameter criterion of its phases: remove sync.criterion"
+                "sync.criterion relative needs the locked state of every damaged network, which antisync "
+                "finds for the built-in model only; a law (model.law) runs to order-parameter or "
+                "frequency (its law's frequency quantities within sync.tolerance of their mean)"
+            )
+        if (
+            self.model.law is not None
+            and self.sync.criterion == "frequency"
+            and LAMBDA_ROWS[method].passes == "backward"
+        ):
+            raise ConfigError(
+                f"lambda.method {method}: a law's adjoint differentiates the order-parameter crossing "
+                "only; with sync.criterion frequency use central-difference, finite-difference or orbit"
             )
         if self.sync.criterion == "relative" and self.model.drawn:
             raise ConfigError(

@@ -481,19 +481,24 @@ def read_frequency_file(path: str | Path, what: str = "model.frequencies.file") 
 @dataclass(frozen=True)
 class LawSetup:
     """A user's law resolved for a graph: the :class:`~antisync.laws.spec.Law`, its parameters per
-    node ``values`` ``(n_params, n)``, and the order-parameter target ``R = (r N)^2`` at the
-    threshold (every network of the job has the same)."""
+    node ``values`` ``(n_params, n)``, the criterion (``CRIT_ORDER`` or ``CRIT_FREQUENCY`` of
+    :mod:`antisync.kernels.core`) and its target, the same for every network of the job: ``R =
+    (r N)^2`` at the threshold, or the frequency tolerance."""
 
     law: object
     values: np.ndarray
     target: float
+    criterion: int = 0
 
 
 def law_setup(config, n: int) -> LawSetup:
     """``config.model``'s law for a graph of ``n`` nodes (:class:`LawSetup`)."""
-    return LawSetup(
-        config.model.user_law, law_values(config.model, n), float((config.dynamics.threshold * n) ** 2)
-    )
+    from antisync.kernels.core import CRIT_FREQUENCY, CRIT_ORDER
+
+    values = law_values(config.model, n)
+    if config.sync.criterion == "frequency":
+        return LawSetup(config.model.user_law, values, float(config.sync.tolerance), CRIT_FREQUENCY)
+    return LawSetup(config.model.user_law, values, float((config.dynamics.threshold * n) ** 2), CRIT_ORDER)
 
 
 def _law_parameter(key: str, value):
