@@ -520,3 +520,32 @@ def test_report_index_of_a_removal_table_names_the_given_up_counts(tmp_path):
     index = (tmp_path / "rep" / "index.md").read_text()
     assert "Stopped by sync.give_up (counted as not synchronized): 2 intact, 3 after" in index
     assert "audit integrated 4 given-up trajectories" in index
+
+
+# --- the step check of an explicit integrator ------------------------------------------------------
+
+
+def test_the_step_check_flags_a_stable_but_coarse_step(tmp_path):
+    """IEEE 39 at RK4 dt 0.0025 (stable, but its load buses' fast modes damped 10x too slowly):
+    start 4 locks there and at no smaller step, so the check, which integrates the first starts
+    of the intact grid again at dt / 2, warns and the table says so; at the shipped dt 0.00125
+    it passes. A Rodas4 removal has no step check (its steps follow rtol)."""
+    from pathlib import Path
+
+    from antisync.report.removal import removal_doc
+
+    config = Path(__file__).resolve().parent.parent / "configs" / "ieee39_grid.yaml"
+    run = {"lines": "22-23", "realizations": 6, "seed": 1}
+    with pytest.warns(UserWarning, match="1 changed status .first: start 4.*run again at dynamics.dt = 0.00125"):
+        coarse = line_removal(config, dynamics={"dt": 0.0025}, **run)
+    check = coarse.step_check
+    assert check["changed"] == 1 and check["first_changed"] == 4 and not check["passed"]
+    assert "these numbers depend on the step" in coarse.to_markdown().splitlines()[0]
+    fine = line_removal(config, **run)
+    assert fine.step_check["passed"] and fine.step_check["dt"] == 0.00125
+    assert fine.step_check["largest_dtau"] < 1e-3
+    out = tmp_path / "t.json"
+    write_table(coarse, out)
+    doc = removal_doc(out)
+    assert doc["summary"]["step_check"] == check
+    assert line_removal(config, dynamics={"integrator": "rodas4"}, **run).step_check is None

@@ -17,7 +17,7 @@ from antisync.stats.exact import clopper_pearson, mcnemar_exact, tau_p_value
 from antisync.stats.multiplicity import FDR_LEVEL, benjamini_hochberg
 from antisync.status import ALREADY_SYNCED, GAVE_UP, SYNCED
 
-__all__ = ["LineRemoval", "RemovalTable", "audit_line", "line_rows"]
+__all__ = ["LineRemoval", "RemovalTable", "audit_line", "line_rows", "step_check_line"]
 
 
 def _mean_se(x: np.ndarray) -> tuple[float, float]:
@@ -112,6 +112,10 @@ class RemovalTable(Rows):
     given-up trajectories sampled and integrated to ``t_max`` without the rule, how many of them
     locked, how many were integrated again, and the 95% upper bound of the share of the others
     that would lock (``bound95``, 3 / sampled when none did); None without the rule."""
+    step_check: dict | None = None
+    """The step check of Euler or RK4 (:func:`antisync.grids.removal.line_removal`): intact
+    starts integrated again at ``dt / 2``, how many changed status and the largest change of
+    ``tau`` (:func:`step_check_line`); None for Rodas4 and for tables written before it."""
 
     @property
     def n(self) -> int:
@@ -213,6 +217,7 @@ class RemovalTable(Rows):
             "gave_up0": self.gave_up0,
             "gave_up": self.gave_up,
             "give_up_audit": self.audit,
+            "step_check": self.step_check,
             "p_sync": self.p_sync,
             "p_sync_ci": list(self.p_sync_ci),
             "tau0_mean": t,
@@ -248,6 +253,8 @@ class RemovalTable(Rows):
             )
         if self.audit is not None:
             head += f"; {audit_line(self.audit)}"
+        if self.step_check is not None:
+            head += f"; {step_check_line(self.step_check)}"
         braess = {r.line for r in self.braess_lines(q)}
         sync, tau = self.sync_called(q), self.tau_called(q)
         out = [
@@ -342,6 +349,24 @@ def line_rows(
             )
         )
     return rows
+
+
+def step_check_line(check: dict) -> str:
+    """One line on the step check of Euler or RK4 (a removal table's ``step_check``)."""
+    half = check["dt"] / 2
+    moved = f"{check['changed']} changed status" + (
+        f" (first: start {check['first_changed']})" if check["changed"] else ""
+    )
+    text = f"step checked: the first {check['starts']} intact starts again at dt / 2 = {half:g}: {moved}"
+    if check["worst"] is not None:
+        text += (
+            f", {check.get('jumped', 0)} moved by more than {check.get('share', 0.01):.0%} of the median "
+            f"tau0, the largest by "
+            f"{check['largest_dtau']:.2g} s (start {check['worst']})"
+        )
+    if check.get("passed", True):
+        return text
+    return text + f": these numbers depend on the step; run again at dynamics.dt = {half:g}"
 
 
 def audit_line(audit: dict) -> str:

@@ -18,7 +18,7 @@ from pathlib import Path
 from antisync.grids.errors import GridError
 from antisync.grids.removal_file import FORMAT as REMOVAL_FORMAT
 from antisync.grids.removal_file import is_hdf5_table, plain, read_document
-from antisync.grids.removal_table import audit_line
+from antisync.grids.removal_table import audit_line, step_check_line
 from antisync.grids.trip import FORMAT as TRIP_FORMAT
 from antisync.grids.trip import format_trips
 from antisync.report.removal import removal_doc, removal_figure, resolved, trip_figure
@@ -137,6 +137,13 @@ def _give_up_words(summary: dict) -> str:
     return text + (f" {audit_line(audit)}." if audit else "")
 
 
+def _step_words(summary: dict) -> str:
+    """What a removal table's summary says of its step check (nothing for Rodas4 or an older
+    table)."""
+    check = summary.get("step_check")
+    return f" The {step_check_line(check)}." if check else ""
+
+
 def removal_markdown(doc: dict) -> str:
     """The removal table's summary and its first :data:`TOP_ROWS` rows, ranked by the net
     starts lost, then the change of tau (the marks of :func:`antisync.report.removal.resolved`)."""
@@ -149,7 +156,7 @@ def removal_markdown(doc: dict) -> str:
         f"{'; ' + s['starts'] if 'starts' in s else ''}): intact "
         f"P_sync = {s['p_sync']:.4f} [{lo:.4f}, {hi:.4f}], tau0 = {tau0:.3f}; {s['lines']} lines. "
         "T: troublemaker (P_sync lost), B: Braess line, slower: tau rises (resolved at false "
-        f"discovery rate {doc.get('fdr_level', 0.05):g} over the lines).{_give_up_words(s)}",
+        f"discovery rate {doc.get('fdr_level', 0.05):g} over the lines).{_give_up_words(s)}{_step_words(s)}",
         "",
         "| line | P_sync after | lost | gained | d P_sync | d tau +- se | tau0/tau +- se | mark |",
         "|---|---|---|---|---|---|---|---|",

@@ -223,6 +223,14 @@ def _check_doc(doc: dict, where: str) -> dict:
         isinstance(audit, dict) and all(_is_int(audit.get(k)) for k in ("sampled", "locked", "rerun"))
     ):
         refuse("summary.give_up_audit is not sync.give_up's audit (sampled, locked and rerun counts)")
+    check = summary.get("step_check")  # Euler's or RK4's step check (tables before it lack it)
+    if check is not None and not (
+        isinstance(check, dict)
+        and all(_is_int(check.get(k)) for k in ("starts", "changed"))
+        and all(isinstance(check.get(k), int | float) for k in ("dt", "largest_dtau"))
+        and (check.get("worst") is None or _is_int(check["worst"]))
+    ):
+        refuse("summary.step_check is not the step check's record (starts, dt, changed, largest_dtau)")
     if summary["lines"] != len(rows):
         refuse(f"summary.lines is {summary['lines']} but it has {len(rows)} rows")
     for key in ("sync_called", "tau_called"):
