@@ -536,7 +536,8 @@ def test_the_step_check_flags_a_stable_but_coarse_step(tmp_path):
 
     config = Path(__file__).resolve().parent.parent / "configs" / "ieee39_grid.yaml"
     run = {"lines": "22-23", "realizations": 6, "seed": 1}
-    with pytest.warns(UserWarning, match="1 changed status .first: start 4.*run again at dynamics.dt = 0.00125"):
+    warning = "1 changed status .first: start 4.*run again at dynamics.dt = 0.00125"
+    with pytest.warns(UserWarning, match=warning):
         coarse = line_removal(config, dynamics={"dt": 0.0025}, **run)
     check = coarse.step_check
     assert check["changed"] == 1 and check["first_changed"] == 4 and not check["passed"]
