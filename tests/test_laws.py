@@ -639,6 +639,11 @@ def test_a_design_runs_on_a_law(tmp_path):
     res = CliRunner().invoke(app, ["design", str(cfg), "--no-figures", "--quiet"])
     assert res.exit_code == 0, res.output
     assert (tmp_path / "d_design.h5").is_file()
+    # to frequency locking the adjoint has no crossing to differentiate: one line, nothing written
+    cfg.write_text(cfg.read_text().replace("d.h5", "f.h5") + "sync: {criterion: frequency}\n")
+    res = CliRunner().invoke(app, ["design", str(cfg), "--no-figures", "--quiet"])
+    assert res.exit_code == 2 and "differentiates the order-parameter crossing only" in res.output, res.output
+    assert "Traceback" not in res.output and not (tmp_path / "f_design.h5").exists()
 
 
 def test_a_sweep_compares_models_and_a_laws_parameter(tmp_path):
