@@ -258,18 +258,23 @@ def test_the_papers_model_as_a_law_is_the_builtin(graph):
     assert gaps[0.01] < 1e-8 and gaps[0.02] / gaps[0.01] > 8, gaps
 
 
-def test_the_swing_equation_as_a_law_is_the_builtin():
-    """The second-order model with injections, inertia and damping per node (karate club): the
-    law's 2N states against the built-in kernels' (Rodas4 eliminates ``nu``; the same matrix)."""
+def _karate_swing():
+    """The karate club's CSR (unit weights, normalized) and per-node injections (mean 0),
+    inertia and damping drawn from seed 1."""
     g = nx.karate_club_graph()
     nx.set_edge_attributes(g, 1.0, "weight")
     _, csr = _csr(g)
-    n = g.number_of_nodes()
     rng = np.random.default_rng(1)
+    n = g.number_of_nodes()
     p = rng.normal(0, 0.1, n)
-    p -= p.mean()
-    m = rng.uniform(0.3, 0.7, n)
-    gamma = rng.uniform(0.8, 1.2, n)
+    return csr, p - p.mean(), rng.uniform(0.3, 0.7, n), rng.uniform(0.8, 1.2, n)
+
+
+def test_the_swing_equation_as_a_law_is_the_builtin():
+    """The second-order model with injections, inertia and damping per node (karate club): the
+    law's 2N states against the built-in kernels' (Rodas4 eliminates ``nu``; the same matrix)."""
+    csr, p, m, gamma = _karate_swing()
+    n = p.size
     targets = np.full(1, (0.95 * n) ** 2)
     vw = np.zeros((0, csr.weights.size))
     params = ModelParams(p[None, :], 1.0, 0.0, m, gamma, 0, targets)
@@ -325,15 +330,7 @@ def test_the_frequency_criterion_of_a_law_is_the_builtins():
     equation (``[nu, (P + u) / gamma]``: the speed and the speed it relaxes to). Euler and Rodas4
     within 1e-11 relative of tau0 over ~5,000 steps (a one-ulp change of the weights moves these
     times by ~1e-12: the criterion's own conditioning), RK4 within its method's error."""
-    g = nx.karate_club_graph()
-    nx.set_edge_attributes(g, 1.0, "weight")
-    _, csr = _csr(g)
-    n = g.number_of_nodes()
-    rng = np.random.default_rng(1)
-    p = rng.normal(0, 0.1, n)
-    p -= p.mean()
-    m = rng.uniform(0.3, 0.7, n)
-    gamma = rng.uniform(0.8, 1.2, n)
+    csr, p, m, gamma = _karate_swing()
     tol = np.full(1, 1e-3)
     args = (3, 0, 32, csr.indptr, csr.indices, csr.weights, np.zeros((0, csr.weights.size)))
     cases = {
