@@ -550,3 +550,26 @@ def test_the_step_check_flags_a_stable_but_coarse_step(tmp_path):
     doc = removal_doc(out)
     assert doc["summary"]["step_check"] == check
     assert line_removal(config, dynamics={"integrator": "rodas4"}, **run).step_check is None
+
+
+def test_a_run_checks_its_explicit_step_too():
+    """``antisync run`` of a generalized model (and of a law) checks Euler's or RK4's step on its
+    undamaged network's first starts (:func:`antisync.execution.step_check.job_step_check`); the
+    paper's identical oscillators, whose step defines tau, and Rodas4 are not checked."""
+    from pathlib import Path
+
+    from antisync.execution.step_check import job_step_check
+    from antisync.plan.config import load_config
+    from antisync.plan.jobs import make_job
+
+    config = Path(__file__).resolve().parent.parent / "configs" / "ieee39_grid.yaml"
+    coarse = job_step_check(make_job(load_config(config, ["realizations=8", "dynamics.dt=0.0025"])))
+    assert coarse["changed"] == 1 and coarse["first_changed"] == 4 and not coarse["passed"]
+    fine = job_step_check(make_job(load_config(config, ["realizations=8"])))
+    assert fine["passed"] and fine["starts"] == 8 and fine["largest_dtau"] < 1e-3
+    rodas4 = load_config(config, ["realizations=8", "dynamics.integrator=rodas4"])
+    assert job_step_check(make_job(rodas4)) is None
+    lollipop = {"graph": {"kind": "lollipop", "nodes": 6, "path": 3}, "realizations": 8}
+    assert job_step_check(make_job(config_from_mapping(lollipop))) is None
+    law = config_from_mapping({**lollipop, "model": {"law": "kuramoto"}})
+    assert job_step_check(make_job(law))["passed"]

@@ -385,6 +385,7 @@ def test_a_law_runs_to_frequency_locking(tmp_path):
     )
     res = CliRunner().invoke(app, ["run", str(cfg)])
     assert res.exit_code == 0, res.output
+    assert "step checked: the first 16 starts again at dt / 2 = 0.005: 0 changed status" in res.output
     summary = CliRunner().invoke(app, ["summary", str(out)])
     assert summary.exit_code == 0 and "frequency" in summary.output, summary.output
 

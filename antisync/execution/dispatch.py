@@ -358,6 +358,25 @@ def model_simulator(dynamics, give_up: tuple[float, float] | None = None) -> Cal
     }[dynamics.integrator]
 
 
+def base_network_times(job, ks: np.ndarray, dt: float, max_steps: int, threads=None) -> tuple:
+    """``(status, tau)`` of ``job``'s undamaged network on realizations ``ks`` at step ``dt``
+    (``tau`` in the model's units, NaN unless SYNCED) by the CPU driver of its model kind: what
+    the step check (:mod:`antisync.execution.step_check`) compares at ``dt`` and ``dt / 2``."""
+    csr = job.csr
+    common = (job.config.seed, 0, 0, csr.indptr, csr.indices, csr.weights, np.zeros((0, csr.weights.size)))
+    clock = {"dt": dt, "max_steps": int(max_steps), "threads": threads, "realizations": ks}
+    if model_kind(job.config) == "law":
+        from antisync.kernels.law import simulate_law
+
+        params = law_params(job.law, job.config.dynamics, 1)
+        sim = simulate_law(*common, params, integrator=job.config.dynamics.integrator, **clock)
+    else:
+        params = job_model_params(job, ks, job.model.targets[:1])
+        sim = model_simulator(job.config.dynamics)(*common, params, **clock)
+    t0, _ = estimators.crossing_times(sim, job.config.dynamics.interpolate)
+    return sim.status0, np.where(sim.status0 == SYNCED, t0 * dt, np.nan)
+
+
 def _law_lanes(job, first, count, threads, variant_weights, realizations, todo, variant_targets):
     """A user's law by its generated kernels (:func:`antisync.kernels.law.simulate_law`; Euler,
     RK4 or Rodas4, one trajectory per item). Every network of the job has the same target."""

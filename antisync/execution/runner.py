@@ -19,6 +19,7 @@ from antisync.execution import stopping
 from antisync.execution.compute import check_job, host_part
 from antisync.execution.executors import Executor
 from antisync.execution.executors.local import LocalExecutor
+from antisync.execution.step_check import job_step_check, step_check_line
 from antisync.kernels.backends import resolve_backend
 from antisync.measures.pipeline import COMPUTED, compute_measures, wants_measures, with_nnc
 from antisync.plan.config import Config
@@ -130,6 +131,11 @@ def run_jobs(
                 f"cannot write to folder {store.path.parent} to finish {store.path}; "
                 "make it writable or use --out for a new file"
             )
+        for job in jobs:  # Euler's or RK4's step, checked again at dt / 2 (a note, never a refusal)
+            check = job_step_check(job, config.threads)
+            if check is not None:
+                word = "note" if check["passed"] else "WARNING"
+                say(f"{word}: {job.name}: {step_check_line(check)}")
         own_executor = executor is None
         if own_executor:
             executor = LocalExecutor(backend, config.threads)

@@ -60,11 +60,12 @@ from antisync.errors import AntisyncError
 from antisync.execution.dispatch import model_params, model_simulator
 from antisync.execution.executors.dask import TaskLostError, check_client, client_threads
 from antisync.execution.executors.tasks import map_tasks
+from antisync.execution.step_check import STEP_CHECK_STARTS, step_check_line, step_record
 from antisync.grids.errors import GridError
 from antisync.grids.lines import pick_lines
 from antisync.grids.removal_config import check_beta, resolve_config, work_config
 from antisync.grids.removal_journal import RemovalJournal, remove_journal, work_digest
-from antisync.grids.removal_table import RemovalTable, line_rows, step_check_line
+from antisync.grids.removal_table import RemovalTable, line_rows
 from antisync.physics import coupling, graphs
 from antisync.plan.jobs import check_step
 from antisync.plan.model import model_setup
@@ -87,17 +88,6 @@ LINES_PER_TASK = 4
 PILOT_MARGIN = 1.25
 AUDIT_FRACTION = 0.01
 AUDIT_MIN = 2
-
-#: The **step check** of an explicit integrator (Euler, RK4; docs/power_grids.md): before any
-#: task, the first ``STEP_CHECK_STARTS`` starts of the intact grid are integrated at ``dt`` and
-#: at ``dt / 2``; a start that changes status, or whose time moves by more than
-#: ``STEP_CHECK_SHARE`` of the sample's median ``tau0``, depends on the step, and the table says
-#: so in its first line (a stable step is not always an accurate one: RK4 at IEEE 39's former
-#: ``dt = 0.0025`` moved 12 of 375 times by 0.1 to 1.3 s and locked one start of 400 that locks
-#: at no smaller step). A start whose frequency deviation only grazes the tolerance can jump at
-#: any step, so the check reports; it does not refuse.
-STEP_CHECK_STARTS = 64
-STEP_CHECK_SHARE = 0.01
 
 #: Tasks per Dask worker thread that :func:`line_removal` aims for (lines are grouped so that a
 #: few realizations x many lines still spread over the cluster).
@@ -447,18 +437,16 @@ def _pilot(fixed: dict, variants, m: int, threads, log) -> None:
 
 
 def _step_check(fixed: dict, variants, m: int, threads, log) -> dict | None:
-    """The step check of Euler or RK4 (:data:`STEP_CHECK_STARTS`): its record for the table
-    (``starts``, ``dt``, ``changed`` status and the first start that did, ``jumped``: times moved
-    by more than :data:`STEP_CHECK_SHARE` of the median ``tau0``, the largest change of ``tau``
-    and its start, ``passed``: none changed or jumped); a warning through ``log`` (or
-    :func:`warnings.warn`) when it did not pass. None for Rodas4 (its steps are controlled by ``rtol``)."""
+    """The step check of Euler or RK4 (:mod:`antisync.execution.step_check`) on the intact
+    grid's first starts, before any task: its record for the table, and a warning through
+    ``log`` (or :func:`warnings.warn`) when it did not pass. None for Rodas4."""
     if fixed["dynamics"].integrator == "rodas4":
         return None
     k = min(STEP_CHECK_STARTS, m)
     ks = np.arange(k, dtype=np.int64)
     todo = np.zeros((k, 2), dtype=np.bool_)
     todo[:, 0] = True
-    status, times = [], []
+    runs = []
     for split in (1, 2):
         run = {
             **fixed,
@@ -468,26 +456,8 @@ def _step_check(fixed: dict, variants, m: int, threads, log) -> dict | None:
         }
         sim = _simulate(ks, variants[:1], run, threads, todo, None)
         t0, _ = crossing_times(sim, fixed["interpolate"])
-        status.append(sim.status0)
-        times.append(np.where(sim.status0 == SYNCED, t0 * run["dt"], np.nan))
-    changed = np.flatnonzero(status[0] != status[1])
-    both = (status[0] == SYNCED) & (status[1] == SYNCED)
-    moved = np.where(both, np.abs(times[0] - times[1]), -1.0)
-    median = float(np.median(times[1][both])) if both.any() else None
-    jumped = int((moved > STEP_CHECK_SHARE * median).sum()) if both.any() else 0
-    worst = int(np.argmax(moved)) if both.any() else None
-    record = {
-        "starts": k,
-        "dt": float(fixed["dt"]),
-        "changed": int(changed.size),
-        "first_changed": int(changed[0]) if changed.size else None,
-        "jumped": jumped,
-        "largest_dtau": float(moved[worst]) if both.any() else 0.0,
-        "worst": worst,
-        "median_tau0": median,
-        "share": STEP_CHECK_SHARE,
-        "passed": not (changed.size or jumped),
-    }
+        runs += [sim.status0, np.where(sim.status0 == SYNCED, t0 * run["dt"], np.nan)]
+    record = step_record(fixed["dt"], *runs)
     if not record["passed"]:  # a pass is said in the table's first line
         text = f"WARNING: {step_check_line(record)}"
         if log is not None:

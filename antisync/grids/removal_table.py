@@ -11,13 +11,14 @@ from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
+from antisync.execution.step_check import step_check_line
 from antisync.grids.errors import GridError
 from antisync.grids.lines import Rows, listed
 from antisync.stats.exact import clopper_pearson, mcnemar_exact, tau_p_value
 from antisync.stats.multiplicity import FDR_LEVEL, benjamini_hochberg
 from antisync.status import ALREADY_SYNCED, GAVE_UP, SYNCED
 
-__all__ = ["LineRemoval", "RemovalTable", "audit_line", "line_rows", "step_check_line"]
+__all__ = ["LineRemoval", "RemovalTable", "audit_line", "line_rows"]
 
 
 def _mean_se(x: np.ndarray) -> tuple[float, float]:
@@ -113,9 +114,9 @@ class RemovalTable(Rows):
     locked, how many were integrated again, and the 95% upper bound of the share of the others
     that would lock (``bound95``, 3 / sampled when none did); None without the rule."""
     step_check: dict | None = None
-    """The step check of Euler or RK4 (:func:`antisync.grids.removal.line_removal`): intact
-    starts integrated again at ``dt / 2``, how many changed status and the largest change of
-    ``tau`` (:func:`step_check_line`); None for Rodas4 and for tables written before it."""
+    """The step check of Euler or RK4 (:mod:`antisync.execution.step_check`): the intact grid's
+    first starts integrated again at ``dt / 2``, how many changed status and the largest change
+    of ``tau``; None for Rodas4 and for tables written before it."""
 
     @property
     def n(self) -> int:
@@ -349,24 +350,6 @@ def line_rows(
             )
         )
     return rows
-
-
-def step_check_line(check: dict) -> str:
-    """One line on the step check of Euler or RK4 (a removal table's ``step_check``)."""
-    half = check["dt"] / 2
-    moved = f"{check['changed']} changed status" + (
-        f" (first: start {check['first_changed']})" if check["changed"] else ""
-    )
-    text = f"step checked: the first {check['starts']} intact starts again at dt / 2 = {half:g}: {moved}"
-    if check["worst"] is not None:
-        text += (
-            f", {check.get('jumped', 0)} moved by more than {check.get('share', 0.01):.0%} of the median "
-            f"tau0, the largest by "
-            f"{check['largest_dtau']:.2g} s (start {check['worst']})"
-        )
-    if check.get("passed", True):
-        return text
-    return text + f": these numbers depend on the step; run again at dynamics.dt = {half:g}"
 
 
 def audit_line(audit: dict) -> str:

@@ -15,10 +15,11 @@ import json
 import math
 from pathlib import Path
 
+from antisync.execution.step_check import step_check_line
 from antisync.grids.errors import GridError
 from antisync.grids.removal_file import FORMAT as REMOVAL_FORMAT
 from antisync.grids.removal_file import is_hdf5_table, plain, read_document
-from antisync.grids.removal_table import audit_line, step_check_line
+from antisync.grids.removal_table import audit_line
 from antisync.grids.trip import FORMAT as TRIP_FORMAT
 from antisync.grids.trip import format_trips
 from antisync.report.removal import removal_doc, removal_figure, resolved, trip_figure
