@@ -51,22 +51,24 @@ from antisync.laws import read_law
 law = read_law("stuart-landau")
 ip = np.array([0, 1, 2, 3]); ix = np.array([1, 2, 0])
 simulate_law(1, 0, 2, ip, ix, np.ones(3), np.zeros((0, 3)), LawParams(law, np.zeros((1, 3)), np.full(1, 8.0)),
-             dt=0.01, max_steps=10, integrator="rk4")
+             dt=0.01, max_steps=10, integrator=INTEGRATOR)
 print(time.perf_counter() - t)
 """
 
 
-def _compile_times() -> tuple[float, float]:
+def _compile_times(integrator: str) -> tuple[float, float]:
+    """A fresh cache folder: the compile of ``integrator``'s drivers, then their load from it."""
+    code = COMPILE.replace("INTEGRATOR", repr(integrator))
     with tempfile.TemporaryDirectory() as folder:
         env = {**os.environ, "ANTISYNC_LAW_CACHE": folder}
         cold = float(
             subprocess.run(
-                [sys.executable, "-c", COMPILE], env=env, capture_output=True, text=True, check=True
+                [sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True
             ).stdout
         )
         warm = float(
             subprocess.run(
-                [sys.executable, "-c", COMPILE], env=env, capture_output=True, text=True, check=True
+                [sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True
             ).stdout
         )
     return cold, warm
@@ -79,11 +81,12 @@ def main() -> None:
     ap.add_argument("--steps", type=int, default=400)
     args = ap.parse_args()
     print(f"# {platform.processor() or platform.machine()}, {os.cpu_count()} cores, threads {args.threads}")
-    cold, warm = _compile_times()
-    print(
-        f"law stuart-landau: cold compile + first call {cold:.1f} s, "
-        f"from the cache {warm:.2f} s (new processes)"
-    )
+    for integrator in ("rk4", "rodas4"):
+        cold, warm = _compile_times(integrator)
+        print(
+            f"law stuart-landau, {integrator}: cold compile + first call {cold:.1f} s, "
+            f"from the cache {warm:.2f} s (new processes)"
+        )
     law = read_law("kuramoto")
     for name, (make, m) in GRAPHS.items():
         g = make()

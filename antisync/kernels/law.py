@@ -73,7 +73,7 @@ __all__ = [
 ]
 
 #: bumped when the generated code's layout changes (old files are then never read)
-GENERATOR = 8
+GENERATOR = 9
 
 
 class LawParams(NamedTuple):
@@ -101,6 +101,8 @@ class CompiledLaw(NamedTuple):
     hoisted: int
     """``KH``: the rows of ``law_rhs``' scratch ``G`` (``(KH, n)``)."""
     items: object
+    """Euler's and RK4's items in parallel (``law_items_explicit``)."""
+    items_rodas4: object
     vjp: object
     adjoint: object
     path: Path
@@ -898,49 +900,68 @@ def law_rodas4(y, wq, indptr, indices, P, freq, target, t_max, h0, rtol, atol, p
 
 
 @njit(cache=True, error_model="numpy")
-def law_item(ks, seed, indptr, indices, base_w, var_w, var_is_base, todo, P, targets, clock, plan, jperm,
-             status0, steps0, frac0, status, steps, frac, collapsed, item, per):
-    dt, t_max, max_steps, method, rtol, atol, criterion = clock
-    freq = criterion == 1
+def item_start(ks, seed, indptr, base_w, var_w, var_is_base, todo, P, item, per):
+    """(r, v, run, y, w): the item's realization and network, whether it runs, its start and
+    its weights."""
     r, v, run = item_of(item, per, var_is_base, todo)
-    if not run:
-        return
     n = indptr.shape[0] - 1
     y = np.empty(S * n)
-    law_start(seed, ks[r], P, y, n)
-    w = base_w if v < 0 else var_w[v]
-    if method == 2:
-        st, tau, acc, rej, failed = law_rodas4(
-            y, w, indptr, indices, P, freq, targets[v + 1], t_max, dt, rtol, atol, plan, jperm
-        )
-        k, x = support.on_the_grid(st, tau, dt, int(max_steps))
-        if failed:  # the step size collapsed: reported by simulate_law, never a status
-            collapsed[r, v + 1] = True
-            st = NOT_SYNCED
-            k = int(max_steps)
-            x = 0.0
-    else:
-        st, k, x = law_sync(
-            y, w, indptr, indices, P, dt, method == 1, freq, targets[v + 1], int(max_steps)
-        )
+    if run:
+        law_start(seed, ks[r], P, y, n)
+    return r, v, run, y, base_w if v < 0 else var_w[v]
+
+
+@njit(cache=True, error_model="numpy")
+def law_item_explicit(ks, seed, indptr, indices, base_w, var_w, var_is_base, todo, P, targets, clock, plan,
+                      jperm, status0, steps0, frac0, status, steps, frac, collapsed, item, per):
+    dt, t_max, max_steps, method, rtol, atol, criterion = clock
+    r, v, run, y, w = item_start(ks, seed, indptr, base_w, var_w, var_is_base, todo, P, item, per)
+    if not run:
+        return
+    st, k, x = law_sync(
+        y, w, indptr, indices, P, dt, method == 1, criterion == 1, targets[v + 1], int(max_steps)
+    )
     record(status0, steps0, frac0, status, steps, frac, r, v, st, k, x)
 
 
+@njit(cache=True, error_model="numpy")
+def law_item_rodas4(ks, seed, indptr, indices, base_w, var_w, var_is_base, todo, P, targets, clock, plan,
+                    jperm, status0, steps0, frac0, status, steps, frac, collapsed, item, per):
+    dt, t_max, max_steps, method, rtol, atol, criterion = clock
+    r, v, run, y, w = item_start(ks, seed, indptr, base_w, var_w, var_is_base, todo, P, item, per)
+    if not run:
+        return
+    st, tau, acc, rej, failed = law_rodas4(
+        y, w, indptr, indices, P, criterion == 1, targets[v + 1], t_max, dt, rtol, atol, plan, jperm
+    )
+    k, x = support.on_the_grid(st, tau, dt, int(max_steps))
+    if failed:  # the step size collapsed: reported by simulate_law, never a status
+        collapsed[r, v + 1] = True
+        st = NOT_SYNCED
+        k = int(max_steps)
+        x = 0.0
+    record(status0, steps0, frac0, status, steps, frac, r, v, st, k, x)
+''' + "".join(
+    # one parallel loop per item driver, so that a run compiles only its integrator's
+    f"""
+
 @njit(parallel=True, cache=True, error_model="numpy")
-def law_items(ks, seed, indptr, indices, base_w, var_w, var_is_base, todo, P, targets, clock, plan, jperm,
-              status0, steps0, frac0, status, steps, frac, collapsed):
+def law_items_{kind}(ks, seed, indptr, indices, base_w, var_w, var_is_base, todo, P, targets, clock, plan,
+                     jperm, status0, steps0, frac0, status, steps, frac, collapsed):
     m = ks.shape[0]
     per = var_w.shape[0] + 1
     for item in prange(m * per):
-        law_item(ks, seed, indptr, indices, base_w, var_w, var_is_base, todo, P, targets, clock, plan, jperm,
-                 status0, steps0, frac0, status, steps, frac, collapsed, np.int64(item), per)
+        law_item_{kind}(ks, seed, indptr, indices, base_w, var_w, var_is_base, todo, P, targets, clock, plan,
+                        jperm, status0, steps0, frac0, status, steps, frac, collapsed, np.int64(item), per)
     for r in prange(m):
         for v in range(var_is_base.shape[0]):
             if var_is_base[v]:
                 status[r, v] = status0[r]
                 steps[r, v] = steps0[r]
                 frac[r, v] = frac0[r]
-'''
+"""
+    for kind in ("explicit", "rodas4")
+)
 
 
 _ADJOINT_DRIVERS = '''
@@ -1111,7 +1132,8 @@ def compile_law(law: Law) -> CompiledLaw:
         module.law_start,
         module.law_jac,
         module.KH,
-        module.law_items,
+        module.law_items_explicit,
+        module.law_items_rodas4,
         module.law_vjp,
         module.law_adjoint_items,
         path,
@@ -1205,7 +1227,7 @@ def simulate_law(
     out = unset_outputs(m, n_var)
     collapsed = np.zeros((m, n_var + 1), dtype=np.bool_)
     with Threads(threads):
-        compiled.items(
+        (compiled.items_rodas4 if integrator == "rodas4" else compiled.items)(
             ks,
             np.uint64(seed),
             indptr,
