@@ -254,7 +254,7 @@ def line_removal(
         done = int(have.sum())
         if done and log is not None:
             log(f"resumed: {done} trajectories read from {book.folder}")
-    # on Dask one numba thread per task: the cluster already runs a task per worker thread
+    # on Dask one kernel thread per task: the cluster already runs a task per worker thread
     task_threads = threads if client is None else threads or 1
     calls = (_task_call(task, variants, fixed, task_threads) for task in tasks)
     grids = len(todo) + 1

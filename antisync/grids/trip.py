@@ -679,8 +679,8 @@ def trip_report(
 
     The trips run in tasks of :data:`TRIPS_PER_TASK` (fewer on a cluster,
     :data:`TASKS_PER_THREAD`; :func:`_trip_task`, each with its own critical clearing scan):
-    here on ``threads`` numba threads, or on the Dask cluster of ``client`` (an open
-    ``distributed.Client``; one numba thread per task unless ``threads`` says otherwise) through
+    here on ``threads`` kernel threads, or on the Dask cluster of ``client`` (an open
+    ``distributed.Client``; one kernel thread per task unless ``threads`` says otherwise) through
     :func:`antisync.execution.executors.tasks.map_tasks`, with the same
     rows either way. ``journal`` (a folder: :class:`~antisync.grids.removal_journal.TripJournal`)
     keeps every finished task at once, and a call with the same arguments and journal reads
@@ -696,7 +696,7 @@ def trip_report(
     clear = 0.0 if t_clear is None else t_clear
     _check(grid, clear, t_max, dt)
     theta0 = operating_point(grid)
-    # on Dask one numba thread per task: the cluster already runs a task per worker thread
+    # on Dask one kernel thread per task: the cluster already runs a task per worker thread
     settings = {"t_max": t_max, "dt": dt, "tolerance": tolerance, "theta0": theta0}
     settings.update(integrator=integrator, rtol=rtol, atol=atol)
     settings["threads"] = threads if client is None else threads or 1
