@@ -573,3 +573,35 @@ def test_a_run_checks_its_explicit_step_too():
     assert job_step_check(make_job(config_from_mapping(lollipop))) is None
     law = config_from_mapping({**lollipop, "model": {"law": "kuramoto"}})
     assert job_step_check(make_job(law))["passed"]
+
+
+def test_the_step_check_forgives_a_start_that_grazes_and_only_that():
+    """:func:`check_step_accuracy` on given outcomes (start: status, time by step): start 1 is
+    the coarse step's error (it moves from dt to dt / 2, then stays), start 2 grazes (it moves
+    again at dt / 4). Only the first fails the check; the second is counted as grazing."""
+    from antisync.execution.step_check import check_step_accuracy, step_check_line
+
+    times = {  # dt -> time of starts 0..3 (start 3 never synchronizes)
+        0.1: [10.0, 14.0, 12.0, np.nan],
+        0.05: [10.001, 12.0, 13.5, np.nan],
+        0.025: [10.0011, 12.0001, 12.0, np.nan],
+    }
+
+    def run(flagged_only_moves):
+        def run_at(dt, ks):
+            t = np.array(times[dt])[ks]
+            if not flagged_only_moves and dt == 0.025:
+                t = np.array(times[0.05])[ks]
+            return np.where(np.isnan(t), 2, SYNCED).astype(np.int8), t
+
+        return run_at
+
+    ks = np.arange(4)
+    record = check_step_accuracy(run(True), 0.1, ks)
+    assert record["jumped"] == 2 and record["grazing"] == 1 and not record["passed"]
+    assert "1 of these moved again at dt / 4" in step_check_line(record)
+    times[0.05][1] = 14.0  # start 1 now agrees at dt and dt / 2: only the grazing start is flagged
+    record = check_step_accuracy(run(True), 0.1, ks)
+    assert record["jumped"] == 1 and record["grazing"] == 1 and record["passed"]
+    record = check_step_accuracy(run(False), 0.1, ks)  # the grazing start settles at dt / 4
+    assert record["grazing"] == 0 and not record["passed"]

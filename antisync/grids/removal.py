@@ -60,7 +60,7 @@ from antisync.errors import AntisyncError
 from antisync.execution.dispatch import model_params, model_simulator
 from antisync.execution.executors.dask import TaskLostError, check_client, client_threads
 from antisync.execution.executors.tasks import map_tasks
-from antisync.execution.step_check import STEP_CHECK_STARTS, step_check_line, step_record
+from antisync.execution.step_check import STEP_CHECK_STARTS, check_step_accuracy, step_check_line
 from antisync.grids.errors import GridError
 from antisync.grids.lines import pick_lines
 from antisync.grids.removal_config import check_beta, resolve_config, work_config
@@ -442,22 +442,22 @@ def _step_check(fixed: dict, variants, m: int, threads, log) -> dict | None:
     ``log`` (or :func:`warnings.warn`) when it did not pass. None for Rodas4."""
     if fixed["dynamics"].integrator == "rodas4":
         return None
-    k = min(STEP_CHECK_STARTS, m)
-    ks = np.arange(k, dtype=np.int64)
-    todo = np.zeros((k, 2), dtype=np.bool_)
-    todo[:, 0] = True
-    runs = []
-    for split in (1, 2):
+    ks = np.arange(min(STEP_CHECK_STARTS, m), dtype=np.int64)
+
+    def run_at(dt, starts):
+        todo = np.zeros((starts.size, 2), dtype=np.bool_)
+        todo[:, 0] = True
         run = {
             **fixed,
             "targets": fixed["setup"].targets[:2],
-            "dt": fixed["dt"] / split,
-            "max_steps": fixed["max_steps"] * split,
+            "dt": dt,
+            "max_steps": round(fixed["max_steps"] * fixed["dt"] / dt),
         }
-        sim = _simulate(ks, variants[:1], run, threads, todo, None)
+        sim = _simulate(starts, variants[:1], run, threads, todo, None)
         t0, _ = crossing_times(sim, fixed["interpolate"])
-        runs += [sim.status0, np.where(sim.status0 == SYNCED, t0 * run["dt"], np.nan)]
-    record = step_record(fixed["dt"], *runs)
+        return sim.status0, np.where(sim.status0 == SYNCED, t0 * dt, np.nan)
+
+    record = check_step_accuracy(run_at, fixed["dt"], ks)
     if not record["passed"]:  # a pass is said in the table's first line
         text = f"WARNING: {step_check_line(record)}"
         if log is not None:
