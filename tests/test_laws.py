@@ -19,12 +19,13 @@ from antisync.errors import ConfigError
 from antisync.execution.dispatch import job_model_params
 from antisync.kernels import cpu, implicit
 from antisync.kernels.core import CRIT_FREQUENCY
-from antisync.kernels.law import LawParams, compile_law, jacobian, simulate_law, starts
+from antisync.kernels.law import LawParams, compile_law, jacobian, parameter_blocks, simulate_law, starts
 from antisync.kernels.model_steps import ModelParams
 from antisync.laws import Law, law_names, read_law
 from antisync.physics import coupling, graphs
 from antisync.plan.config import load_config, load_config_text
 from antisync.plan.jobs import make_job
+from antisync.plan.model import Model, drawn_frequencies
 from antisync.status import NOT_SYNCED, SYNCED
 
 KURAMOTO = read_law("kuramoto")
@@ -127,6 +128,12 @@ def test_bad_config_values_are_one_line_exit_2(tmp_path):
         "model: {law: kuramoto, phase_lag: 0.1}\n": "model.phase_lag belongs to the built-in model",
         "model: {law: nosuch}\n": "model.law must be a shipped law",
         "model: {law: kuramoto}\nsync: {criterion: relative}\n": "sync.criterion relative needs the locked",
+        "model: {law: kuramoto, params: {omega: {distribution: normal}}}\n": (
+            "omega with distribution normal needs sd"
+        ),
+        "model: {law: kuramoto, params: {omega: {distribution: normal, sd: 1, w: 2}}}\n": (
+            "unknown key 'model.params.omega.w' for distribution normal"
+        ),
         "model: {law: kuramoto}\nsync: {criterion: frequency}\nlambda: {method: adjoint-hybrid}\n": (
             "a law's adjoint differentiates the order-parameter crossing only"
         ),
@@ -388,6 +395,47 @@ def test_a_law_runs_to_frequency_locking(tmp_path):
     assert "step checked: the first 16 starts again at dt / 2 = 0.005: 0 changed status" in res.output
     summary = CliRunner().invoke(app, ["summary", str(out)])
     assert summary.exit_code == 0 and "frequency" in summary.output, summary.output
+
+
+# -- parameters drawn per realization ------------------------------------------------------------
+
+
+def test_a_drawn_parameter_is_the_builtins_drawn_frequencies(tmp_path):
+    """``model.params.omega: {distribution: normal, sd: S}``: each realization's and node's draw
+    on the counter streams keyed by (seed, realization, node), the first parameter on the
+    built-in frequencies' streams. The paper's model as a law with drawn omega is the built-in
+    model with drawn frequencies (which removes each realization's mean: a common rotation,
+    invisible to R): Euler within 1e-12 of every tau0. The draws do not depend on the chunk, and
+    a second drawn parameter has streams of its own."""
+    csr, _, _, _ = _karate_swing()
+    n = csr.indptr.size - 1
+    spec = {"distribution": "normal", "sd": 0.05, "mean": 0.0}
+    freqs = drawn_frequencies(Model(frequencies=spec), 3, np.arange(48), n)
+    targets = np.full(1, (0.95 * n) ** 2)
+    model = ModelParams(freqs, 1.0, 0.0, 0.0, 1.0, 0, targets)
+    law = LawParams(KURAMOTO, np.zeros((1, n)), targets, drawn=((0, spec),))
+    vw = np.zeros((0, csr.weights.size))
+    args = (3, 0, 48, csr.indptr, csr.indices, csr.weights, vw)
+    want = cpu.simulate_model(*args, model, dt=0.01, max_steps=20000, integrator="euler", lanes=0)
+    got = simulate_law(*args, law, dt=0.01, max_steps=20000, integrator="euler")
+    np.testing.assert_array_equal(got.status0, want.status0)
+    ok = want.status0 == SYNCED
+    assert ok.sum() > 40 and np.max(np.abs(_tau(got) - _tau(want))[ok] / _tau(want)[ok]) < 1e-12
+    part = simulate_law(3, 40, 8, *args[3:], law, dt=0.01, max_steps=20000, integrator="euler")
+    np.testing.assert_array_equal(_tau(part), _tau(got)[40:])
+    two = parameter_blocks(np.zeros((2, n)), ((0, spec), (1, spec)), 3, np.arange(4))
+    assert two.shape == (4, 2, n) and not np.array_equal(two[:, 0], two[:, 1])
+    raw = two[:, 0]  # the built-in's draws, their mean kept
+    np.testing.assert_allclose(raw - raw.mean(axis=1, keepdims=True), freqs[:4], rtol=0, atol=1e-15)
+    cfg = tmp_path / "d.yaml"
+    cfg.write_text(
+        "graph: {kind: lollipop, nodes: 6, path: 3}\n"
+        "model: {law: kuramoto, params: {omega: {distribution: uniform, width: 0.1}}}\n"
+        "edges: ['2->1']\nbetas: [0.5]\nrealizations: 8\nlambda: {method: orbit}\n"
+        f"dynamics: {{dt: 0.01, integrator: rk4}}\noutput: {tmp_path / 'd.h5'}\n"
+    )
+    res = CliRunner().invoke(app, ["run", str(cfg)])
+    assert res.exit_code == 0, res.output
 
 
 # -- independent references ---------------------------------------------------------------------

@@ -686,7 +686,8 @@ def law_params(setup, dynamics, kinds: int):
     from antisync.kernels.law import LawParams
 
     rtol, atol = dynamics.tolerances
-    return LawParams(setup.law, setup.values, np.full(kinds, setup.target), rtol, atol, setup.criterion)
+    targets = np.full(kinds, setup.target)
+    return LawParams(setup.law, setup.values, targets, rtol, atol, setup.criterion, setup.drawn)
 
 
 def _law_params(job, kinds: int):

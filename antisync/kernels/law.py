@@ -73,7 +73,7 @@ __all__ = [
 ]
 
 #: bumped when the generated code's layout changes (old files are then never read)
-GENERATOR = 9
+GENERATOR = 10
 
 
 class LawParams(NamedTuple):
@@ -89,6 +89,9 @@ class LawParams(NamedTuple):
     rtol: float = RODAS4_RTOL
     atol: float = RODAS4_ATOL
     criterion: int = CRIT_ORDER
+    drawn: tuple = ()
+    """``(k, spec)`` per parameter drawn per realization (its row of ``values`` unused): ``spec``
+    a distribution as ``model.frequencies`` takes it (:func:`parameter_blocks`)."""
 
 
 class CompiledLaw(NamedTuple):
@@ -900,22 +903,23 @@ def law_rodas4(y, wq, indptr, indices, P, freq, target, t_max, h0, rtol, atol, p
 
 
 @njit(cache=True, error_model="numpy")
-def item_start(ks, seed, indptr, base_w, var_w, var_is_base, todo, P, item, per):
-    """(r, v, run, y, w): the item's realization and network, whether it runs, its start and
-    its weights."""
+def item_start(ks, seed, indptr, base_w, var_w, var_is_base, todo, PR, item, per):
+    """(r, v, run, y, w, P): the item's realization and network, whether it runs, its start,
+    its weights and its parameters (PR: one (n_params, n) block, or one per realization)."""
     r, v, run = item_of(item, per, var_is_base, todo)
     n = indptr.shape[0] - 1
+    P = PR[0] if PR.shape[0] == 1 else PR[r]
     y = np.empty(S * n)
     if run:
         law_start(seed, ks[r], P, y, n)
-    return r, v, run, y, base_w if v < 0 else var_w[v]
+    return r, v, run, y, base_w if v < 0 else var_w[v], P
 
 
 @njit(cache=True, error_model="numpy")
-def law_item_explicit(ks, seed, indptr, indices, base_w, var_w, var_is_base, todo, P, targets, clock, plan,
+def law_item_explicit(ks, seed, indptr, indices, base_w, var_w, var_is_base, todo, PR, targets, clock, plan,
                       jperm, status0, steps0, frac0, status, steps, frac, collapsed, item, per):
     dt, t_max, max_steps, method, rtol, atol, criterion = clock
-    r, v, run, y, w = item_start(ks, seed, indptr, base_w, var_w, var_is_base, todo, P, item, per)
+    r, v, run, y, w, P = item_start(ks, seed, indptr, base_w, var_w, var_is_base, todo, PR, item, per)
     if not run:
         return
     st, k, x = law_sync(
@@ -925,10 +929,10 @@ def law_item_explicit(ks, seed, indptr, indices, base_w, var_w, var_is_base, tod
 
 
 @njit(cache=True, error_model="numpy")
-def law_item_rodas4(ks, seed, indptr, indices, base_w, var_w, var_is_base, todo, P, targets, clock, plan,
+def law_item_rodas4(ks, seed, indptr, indices, base_w, var_w, var_is_base, todo, PR, targets, clock, plan,
                     jperm, status0, steps0, frac0, status, steps, frac, collapsed, item, per):
     dt, t_max, max_steps, method, rtol, atol, criterion = clock
-    r, v, run, y, w = item_start(ks, seed, indptr, base_w, var_w, var_is_base, todo, P, item, per)
+    r, v, run, y, w, P = item_start(ks, seed, indptr, base_w, var_w, var_is_base, todo, PR, item, per)
     if not run:
         return
     st, tau, acc, rej, failed = law_rodas4(
@@ -946,12 +950,12 @@ def law_item_rodas4(ks, seed, indptr, indices, base_w, var_w, var_is_base, todo,
     f"""
 
 @njit(parallel=True, cache=True, error_model="numpy")
-def law_items_{kind}(ks, seed, indptr, indices, base_w, var_w, var_is_base, todo, P, targets, clock, plan,
+def law_items_{kind}(ks, seed, indptr, indices, base_w, var_w, var_is_base, todo, PR, targets, clock, plan,
                      jperm, status0, steps0, frac0, status, steps, frac, collapsed):
     m = ks.shape[0]
     per = var_w.shape[0] + 1
     for item in prange(m * per):
-        law_item_{kind}(ks, seed, indptr, indices, base_w, var_w, var_is_base, todo, P, targets, clock, plan,
+        law_item_{kind}(ks, seed, indptr, indices, base_w, var_w, var_is_base, todo, PR, targets, clock, plan,
                         jperm, status0, steps0, frac0, status, steps, frac, collapsed, np.int64(item), per)
     for r in prange(m):
         for v in range(var_is_base.shape[0]):
@@ -1085,11 +1089,12 @@ def law_adjoint_one(y0, wq, indptr, indices, P, dt, rk4, target, max_steps, gw):
 
 
 @njit(parallel=True, cache=True, error_model="numpy")
-def law_adjoint_items(ks, seed, indptr, indices, wq, P, dt, rk4, target, max_steps,
+def law_adjoint_items(ks, seed, indptr, indices, wq, PR, dt, rk4, target, max_steps,
                       status0, steps0, frac0, gw):
     m = ks.shape[0]
     n = indptr.shape[0] - 1
     for r in prange(m):
+        P = PR[0] if PR.shape[0] == 1 else PR[r]
         y = np.empty(S * n)
         law_start(seed, ks[r], P, y, n)
         st, k, x = law_adjoint_one(y, wq, indptr, indices, P, dt, rk4, target, max_steps, gw[r])
@@ -1174,6 +1179,25 @@ def _batch(params: LawParams, first, count, realizations, indptr, indices) -> tu
     )
 
 
+def parameter_blocks(values: np.ndarray, drawn: tuple, seed: int, ks: np.ndarray) -> np.ndarray:
+    """The kernels' parameters from the fixed ``values`` ``(n_params, n)``: ``(1, n_params, n)``
+    when none is ``drawn`` (:attr:`LawParams.drawn`), else one block per realization ``ks`` with
+    each drawn parameter ``k`` from its distribution on the counter
+    streams ``1 + 2 k``, ``2 + 2 k`` keyed by ``(seed, realization, node)``
+    (:func:`antisync.kernels.model_steps.draw_frequencies`: the same draws whatever the chunk,
+    thread or executor; a law's first parameter draws the built-in model's frequencies)."""
+    from antisync.kernels.model_steps import draw_frequencies
+
+    values = np.ascontiguousarray(values, dtype=np.float64)
+    if not drawn:
+        return values[None]
+    n = values.shape[1]
+    out = np.repeat(values[None], len(ks), axis=0)
+    for k, spec in drawn:
+        out[:, k, :] = draw_frequencies(spec, seed, np.asarray(ks), n, streams=(1 + 2 * k, 2 + 2 * k))
+    return out
+
+
 def simulate_law(
     seed: int,
     first: int,
@@ -1236,7 +1260,7 @@ def simulate_law(
             var_w,
             var_is_base,
             todo,
-            values,
+            parameter_blocks(values, params.drawn, seed, ks),
             targets,
             clock,
             plan,
@@ -1302,7 +1326,7 @@ def simulate_law_adjoint(
             indptr,
             indices,
             w,
-            values,
+            parameter_blocks(values, params.drawn, seed, ks),
             float(dt),
             integrator == "rk4",
             float(params.targets[0]),
@@ -1392,7 +1416,8 @@ def check_step(setup, seed: int, csr, dynamics) -> None:
     never counted as synchronized (its state is not finite)."""
     from antisync.errors import ConfigError
 
-    law, values = setup.law, setup.values
+    law = setup.law
+    values = parameter_blocks(setup.values, setup.drawn, seed, np.zeros(1, dtype=np.int64))[0]
     n = values.shape[1]
     dt, integrator = dynamics.dt, dynamics.integrator
     explicit = integrator in ("euler", "rk4") and len(law.states) * n <= CHECK_MAX_STATES

@@ -413,29 +413,35 @@ _uniform = make_uniform(lambda f: njit(f, inline="always"))
 
 
 @njit(cache=True)
-def _fill_frequencies(seed, ks, n, normal, mean, scale, out):
+def _fill_frequencies(seed, ks, n, normal, mean, scale, out, stream_a, stream_b):
     for r in range(ks.shape[0]):
         for i in range(n):
-            u1 = _uniform(seed, ks[r], i, STREAM_FREQ_A)
+            u1 = _uniform(seed, ks[r], i, stream_a)
             if normal:
                 # Box-Muller: 1 - u1 in (0, 1], so the logarithm is finite
-                u2 = _uniform(seed, ks[r], i, STREAM_FREQ_B)
+                u2 = _uniform(seed, ks[r], i, stream_b)
                 z = math.sqrt(-2.0 * math.log(1.0 - u1)) * math.cos(2.0 * math.pi * u2)
                 out[r, i] = mean + scale * z
             else:
                 out[r, i] = mean + scale * (2.0 * u1 - 1.0)
 
 
-def draw_frequencies(spec: dict, seed: int, ks: np.ndarray, n: int) -> np.ndarray:
+def draw_frequencies(
+    spec: dict, seed: int, ks: np.ndarray, n: int, streams: tuple[int, int] = (STREAM_FREQ_A, STREAM_FREQ_B)
+) -> np.ndarray:
     """Natural frequencies of realizations ``ks`` (shape ``(len(ks), n)``), mean not removed.
 
     ``normal``: ``mean + sd z`` with ``z`` from Box-Muller on two counter streams;
     ``uniform``: ``mean + width (2 u - 1)``. Keyed by ``(seed, k, node)`` like the phases, so
-    chunks, threads and backends cannot change them.
+    chunks, threads and backends cannot change them. ``streams``: the two counter streams (a
+    user law's ``k``-th parameter draws on ``1 + 2 k`` and ``2 + 2 k``: its first, the built-in
+    frequencies' streams).
     """
     ks = np.ascontiguousarray(ks, dtype=np.uint64)
     out = np.empty((ks.size, n))
     normal = spec["distribution"] == "normal"
     scale = spec["sd"] if normal else spec["width"]
-    _fill_frequencies(np.uint64(seed), ks, n, normal, float(spec.get("mean", 0.0)), float(scale), out)
+    mean = float(spec.get("mean", 0.0))
+    a, b = (np.uint64(x) for x in streams)
+    _fill_frequencies(np.uint64(seed), ks, n, normal, mean, float(scale), out, a, b)
     return out

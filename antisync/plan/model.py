@@ -331,9 +331,13 @@ class Model:
 
     @property
     def per_node(self) -> bool:
-        """Inertia or damping given per node (or, for a law, a parameter given per node)."""
+        """Inertia or damping given per node (or, for a law, a parameter given per node; one
+        drawn i.i.d. per realization and node is exchangeable, as drawn frequencies are)."""
         if self.law is not None:
-            return any(not isinstance(v, float) for v in (self.params or {}).values())
+            return any(
+                not isinstance(v, float) and not (isinstance(v, dict) and "distribution" in v)
+                for v in (self.params or {}).values()
+            )
         return not (isinstance(self.inertia, float) and isinstance(self.damping, float))
 
 
@@ -489,6 +493,8 @@ class LawSetup:
     values: np.ndarray
     target: float
     criterion: int = 0
+    drawn: tuple = ()
+    """``(k, distribution)`` per parameter drawn per realization (:func:`law_drawn`)."""
 
 
 def law_setup(config, n: int) -> LawSetup:
@@ -496,24 +502,54 @@ def law_setup(config, n: int) -> LawSetup:
     from antisync.kernels.core import CRIT_FREQUENCY, CRIT_ORDER
 
     values = law_values(config.model, n)
+    law, drawn = config.model.user_law, law_drawn(config.model)
     if config.sync.criterion == "frequency":
-        return LawSetup(config.model.user_law, values, float(config.sync.tolerance), CRIT_FREQUENCY)
-    return LawSetup(config.model.user_law, values, float((config.dynamics.threshold * n) ** 2), CRIT_ORDER)
+        return LawSetup(law, values, float(config.sync.tolerance), CRIT_FREQUENCY, drawn)
+    return LawSetup(law, values, float((config.dynamics.threshold * n) ** 2), CRIT_ORDER, drawn)
 
 
 def _law_parameter(key: str, value):
-    """A law's parameter: a finite number, one per node (a list) or ``{file: PATH}``."""
+    """A law's parameter: a finite number, one per node (a list), ``{file: PATH}``, or a
+    distribution drawn per realization and node (``{distribution: normal, sd: S, mean: M}`` or
+    ``{distribution: uniform, width: W, mean: M}``, as ``model.frequencies`` takes it)."""
+    valid = "a number, a list (one per node), {file: PATH} or {distribution: normal, sd: S, mean: M}"
     if isinstance(value, list | tuple):
         if not value:
             raise ConfigError(f"{key} is an empty list; give a number or one number per node")
         return tuple(parse_number(f"{key}[{i}]", x) for i, x in enumerate(value))
+    if isinstance(value, dict) and "distribution" in value:
+        dist = value["distribution"]
+        choice(f"{key}.distribution", dist, DISTRIBUTIONS)
+        extra = sorted(set(value) - _FREQ_KEYS[dist])
+        if extra:
+            raise ConfigError(
+                f"unknown key '{key}.{extra[0]}' for distribution {dist}; valid keys: "
+                + ", ".join(sorted(_FREQ_KEYS[dist]))
+            )
+        scale = "sd" if dist == "normal" else "width"
+        if scale not in value:
+            raise ConfigError(f"{key} with distribution {dist} needs {scale}")
+        return {
+            "distribution": dist,
+            "mean": _frequency(f"{key}.mean", value.get("mean", 0.0)),
+            scale: _frequency(f"{key}.{scale}", value[scale], lo=0.0),
+        }
     if isinstance(value, dict):
         if set(value) != {"file"} or not isinstance(value["file"], str) or not value["file"]:
-            raise ConfigError(
-                f"{key} must be a number, a list (one per node) or {{file: PATH}}, got {show(value)}"
-            )
+            raise ConfigError(f"{key} must be {valid}, got {show(value)}")
         return {"file": value["file"]}
-    return parse_number(key, value, "a number, a list (one per node) or {file: PATH}")
+    return parse_number(key, value, valid)
+
+
+def law_drawn(model: Model) -> tuple:
+    """``(k, distribution)`` for each of the law's parameters that ``model.params`` draws per
+    realization (``k``: its index in the law's parameters)."""
+    params = model.params or {}
+    return tuple(
+        (k, dict(params[name]))
+        for k, (name, _) in enumerate(model.user_law.params)
+        if isinstance(params.get(name), dict) and "distribution" in params[name]
+    )
 
 
 def law_values(model: Model, n: int) -> np.ndarray:
@@ -528,6 +564,9 @@ def law_values(model: Model, n: int) -> np.ndarray:
         key = f"model.params.{name}"
         if isinstance(value, float):
             out[k] = value
+            continue
+        if isinstance(value, dict) and "distribution" in value:
+            out[k] = value["mean"]  # drawn per realization by the kernels' caller (law_drawn)
             continue
         if isinstance(value, dict):
             key = f"{key}.file {value['file']}"
