@@ -73,7 +73,7 @@ __all__ = [
 ]
 
 #: bumped when the generated code's layout changes (old files are then never read)
-GENERATOR = 10
+GENERATOR = 11
 
 
 class LawParams(NamedTuple):
@@ -281,8 +281,14 @@ def _rhs_variant(sym, pr, signature: str, split: dict, pairs: dict, arrays: dict
         m: sum((i * sympy.Symbol(f"s{pairs[w, j]}") for i, w, j in split[m]), sympy.Integer(0))
         for m in hoisted
     }
+    # a factor of the receiving node that is one of G's neighbour functions is read from G's
+    # row for node i (computed once above: the same bits, no second sine per node)
+    own = {sym_j: sym_i for sym_j, sym_i in zip((*sym.xj, *sym.pj), (*sym.x, *sym.p), strict=True)}
+    reuse = {j.xreplace(own): sympy.Symbol(f"gi{row}", real=True) for j, row in arrays.items()}
+    sums = {m: e.xreplace(reuse) for m, e in sums.items()}
     every = node_exprs + link_exprs + list(sums.values())
     out += _node_loads(every, sym)
+    out += _loads(every, list(reuse.values()), "        ", "G[{k}, i]")
     out += [f"        s{k} = 0.0" for k in range(len(pairs))]
     out += [f"        {sym.u[m]} = 0.0" for m in per_link]
     out += _link_loop(link_exprs, sym)
