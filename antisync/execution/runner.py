@@ -28,6 +28,9 @@ from antisync.store import JobState, ResultStore, chunk_tag, command_line, git_r
 
 __all__ = ["Interrupted", "run_config", "run_jobs"]
 
+#: jobs whose passing step checks are each said in a line (more: one line for all of them)
+MAX_STEP_NOTES = 4
+
 # Trajectories (realizations x (1 + variants)) per chunk on a GPU: enough threads to fill it
 # many times over, one device batch of antisync.kernels.cuda.simulate_reduced.
 GPU_CHUNK_TRAJECTORIES = 1 << 24
@@ -131,11 +134,16 @@ def run_jobs(
                 f"cannot write to folder {store.path.parent} to finish {store.path}; "
                 "make it writable or use --out for a new file"
             )
-        for job in jobs:  # Euler's or RK4's step, checked again at dt / 2 (a note, never a refusal)
-            check = job_step_check(job, config.threads)
-            if check is not None:
+        # Euler's or RK4's step, checked again at dt / 2: a note (one line for many jobs), never a refusal
+        checks = {job.name: job_step_check(job, config.threads) for job in jobs}
+        checked = {name: c for name, c in checks.items() if c is not None}
+        for name, check in checked.items():
+            if not check["passed"] or len(checked) <= MAX_STEP_NOTES:
                 word = "note" if check["passed"] else "WARNING"
-                say(f"{word}: {job.name}: {step_check_line(check)}")
+                say(f"{word}: {name}: {step_check_line(check)}")
+        passed = sum(c["passed"] for c in checked.values())
+        if len(checked) > MAX_STEP_NOTES and passed:
+            say(f"note: the explicit step checked again at dt / 2 on {len(checked)} jobs: {passed} passed")
         own_executor = executor is None
         if own_executor:
             executor = LocalExecutor(backend, config.threads)
