@@ -52,7 +52,15 @@ from antisync.kernels.core import CRIT_FREQUENCY, DEV_PREV_ROW, DEV_ROW, WORK_RO
 from antisync.kernels.lanes import item_of
 from antisync.kernels.model_steps import ModelParams
 from antisync.kernels.precision import K64
-from antisync.kernels.shared import SimResult, Threads, has_inertia, model_batch, record_item, share_base
+from antisync.kernels.shared import (
+    SimResult,
+    Threads,
+    check_collapsed,
+    has_inertia,
+    model_batch,
+    record_item,
+    share_base,
+)
 from antisync.physics.phases import start_phase
 from antisync.status import ALREADY_SYNCED, GAVE_UP, NOT_SYNCED, SYNCED
 from antisync.types import RODAS4_ATOL, RODAS4_RTOL
@@ -1046,12 +1054,6 @@ def simulate_model(
             out,
             (acc0, rej0, acc, rej, failed),
         )
-    if failed.any():
-        r, v = np.argwhere(failed)[0]
-        which = "the undamaged network" if v == 0 else f"variant {v - 1}"
-        raise FloatingPointError(
-            f"rodas4: the step size collapsed on {int(failed.sum())} trajectories (first: "
-            f"realization {int(ks[r])}, {which}); loosen dynamics.rtol/atol or use integrator rk4"
-        )
+    check_collapsed(failed, ks)
     result = SimResult(out.status0, out.steps0, out.status, out.steps, out.frac0, out.frac)
     return (result, StepStats(acc0, rej0, acc, rej)) if stats else result

@@ -50,6 +50,7 @@ from antisync.kernels.shared import (
     PathwiseResult,
     SimResult,
     Threads,
+    check_collapsed,
     realization_ids,
     todo_mask,
     unset_outputs,
@@ -1279,13 +1280,7 @@ def simulate_law(
             out.frac,
             collapsed,
         )
-    if collapsed.any():
-        r, v = np.argwhere(collapsed)[0]
-        which = "the undamaged network" if v == 0 else f"variant {v - 1}"
-        raise FloatingPointError(
-            f"rodas4: the step size collapsed on {int(collapsed.sum())} trajectories of law {law.name} "
-            f"(first: realization {int(ks[r])}, {which}); loosen dynamics.rtol/atol or use integrator rk4"
-        )
+    check_collapsed(collapsed, ks, f" of law {law.name}")
     return SimResult(out.status0, out.steps0, out.status, out.steps, out.frac0, out.frac)
 
 

@@ -26,6 +26,7 @@ __all__ = [
     "Tangents",
     "Threads",
     "batch_starts",
+    "check_collapsed",
     "csr_mv2",
     "has_inertia",
     "model_batch",
@@ -324,6 +325,20 @@ def unset_outputs(m: int, n_var: int) -> Outputs:
         np.full((m, n_var), -1, dtype=np.int64),
         np.full((m, n_var), np.nan),
         np.empty((m, 0)),
+    )
+
+
+def check_collapsed(failed: np.ndarray, ks: np.ndarray, what: str = "") -> None:
+    """Rodas4's step-size collapse, never a status: ``FloatingPointError`` naming how many
+    trajectories of ``failed`` (``(m, 1 + V)``, column 0 the undamaged network) collapsed and the
+    first (``what``: words after "trajectories", e.g. " of law kuramoto")."""
+    if not failed.any():
+        return
+    r, v = np.argwhere(failed)[0]
+    which = "the undamaged network" if v == 0 else f"variant {v - 1}"
+    raise FloatingPointError(
+        f"rodas4: the step size collapsed on {int(failed.sum())} trajectories{what} (first: "
+        f"realization {int(ks[r])}, {which}); loosen dynamics.rtol/atol or use integrator rk4"
     )
 
 
