@@ -116,6 +116,49 @@ def test_intact_tau_is_the_ordinary_runs_tau0_and_removal_is_the_grid_without_th
     assert row.ratio == pytest.approx(np.nanmean(table.tau0 / table.tau[:, 0]))
 
 
+@pytest.mark.parametrize("kind", ["raw", "normalized"])
+@pytest.mark.parametrize("beta", [1.0, 0.3])
+def test_a_lines_weights_are_the_whole_damaged_matrix_s_bit_for_bit(kind, beta):
+    """The one builder of damaged weights (``coupling.variant_weights``, ``both_ways``: a line's
+    two links) against the slow obvious reference: the whole ``Omega`` copied, the line scaled
+    both ways, ``W`` of the copy compressed on the intact pattern."""
+    import networkx as nx
+
+    from antisync.physics import coupling, graphs
+
+    g = nx.gnm_random_graph(40, 120, seed=3)
+    for u, v in g.edges:
+        g.edges[u, v]["weight"] = 0.5 + (u * 7 + v * 3) % 5 / 4
+    omega = graphs.omega_matrix(g)
+    csr = coupling.to_csr(coupling.coupling_matrix(omega, kind), pattern=omega > 0)
+    lines = [(u, v) for u, v in g.edges if g.degree(u) > 1 and g.degree(v) > 1][:30]
+    fast = coupling.variant_weights(omega, csr, [(a, b, beta) for a, b in lines], kind, both_ways=True)
+    for v, (a, b) in enumerate(lines):
+        changed = omega.copy()
+        changed[a, b] *= 1.0 - beta
+        changed[b, a] *= 1.0 - beta
+        slow = coupling.to_csr(coupling.coupling_matrix(changed, kind), pattern=omega > 0).weights
+        np.testing.assert_array_equal(fast[v], slow)
+
+
+def test_a_removal_plan_is_built_once_and_refuses_arguments_beside_it():
+    """``plan_removal`` resolves the lines and the grid once; ``line_removal`` of the plan is the
+    removal of its config and lines, and refuses lines, overrides or another beta beside it."""
+    from antisync.grids.removal_config import plan_removal
+
+    cfg = config_from_mapping(ring_config(4))
+    plan = plan_removal(cfg, [(0, 3)], 1.0, False)
+    assert plan.asked == {("0", "3"): False}
+    a, b = line_removal(plan), line_removal(ring_config(4), lines=[(0, 3)])
+    np.testing.assert_array_equal(a.tau, b.tau)
+    np.testing.assert_array_equal(a.status0, b.status0)
+    for kwargs, words in (({"lines": [(1, 2)]}, "drop lines"), ({"beta": 0.5}, "drop beta")):
+        with pytest.raises(GridError, match=words):
+            line_removal(plan, **kwargs)
+    with pytest.raises(GridError, match="drop realizations"):
+        line_removal(plan, realizations=8)
+
+
 def test_braess_line_removal_restores_synchrony_in_the_dynamics():
     """Witthaut and Timme's Braess paradox in the dynamic indicator: with the line 0-4 the ring
     has no stable locked state and no start frequency-locks (P_sync = 0); removing 0-4 (or

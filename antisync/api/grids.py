@@ -22,20 +22,17 @@ full object) and ``to_pandas()``::
                           output="ieee39_removal.json")
     antisync.grid.trip("configs/ieee14_grid.yaml", lines="1-2", t_clear=0.1, cct=True)
 
-``antisync grid static|removal|trip CONFIG`` is a thin layer over these functions: the output
-policy (an existing file replaced only with ``overwrite`` and only when it is a table of the
-same kind, never a file the config reads), the one-writer lock and the journal that resumes an
-interrupted run live here, once. Every bad argument is a one-line
+These functions and ``antisync grid static|removal|trip CONFIG`` are two faces of the same
+work: the output policy (an existing file replaced only with ``overwrite`` and only when it is a
+table of the same kind, never a file the config reads), the one-writer lock and the journal that
+resumes an interrupted run live once, in :mod:`antisync.grids.runner`. Every bad argument is a one-line
 :class:`~antisync.grids.errors.GridError` (or :class:`~antisync.errors.ConfigError`) before any
 file is made.
 """
 
 from __future__ import annotations
 
-import contextlib
 import dataclasses
-import json
-import math
 import os
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
@@ -46,45 +43,24 @@ from antisync.errors import AntisyncError, ConfigError
 from antisync.grids.errors import GridError
 from antisync.grids.lines import parse_lines
 from antisync.grids.load import grid_from_config
-from antisync.grids.removal import line_removal
-from antisync.grids.removal_config import check_beta, planned_lines, resolve_config
+from antisync.grids.removal_config import check_beta, resolve_config
 from antisync.grids.removal_file import (
-    check_output,
-    is_hdf5_table,
     plain,
-    replace_atomically,
     table_document,
-    write_table,
 )
-from antisync.grids.removal_journal import journal_folder, remove_journal
+from antisync.grids.runner import run_removal, run_trip, trip_times
 from antisync.grids.static import format_table, static_table
 from antisync.grids.trip import (
-    CCT_SCAN,
-    CCT_TOL,
-    CLOCK,
-    FORMAT,
-    check_explicit_step,
-    check_finished_trips,
     format_trips,
-    integration_record,
-    plan_trips,
-    provenance,
     read_contingencies,
-    trip_report,
 )
 from antisync.plan.config import Config
 from antisync.plan.sources import flag, shown
 from antisync.report.grid_tables import read_table, removal_markdown
 from antisync.report.removal import (
-    check_figure,
-    check_finished_table,
     removal_figure,
     trip_figure,
 )
-from antisync.store.grid_file import write_grid_table
-from antisync.store.lock import writer_lock
-from antisync.store.outputs import config_inputs
-from antisync.store.provenance import command_line
 
 __all__ = ["GridResult", "contingencies", "load_table", "removal", "static", "trip"]
 
@@ -244,46 +220,27 @@ def removal(
     _check_files(where, resume, overwrite, output, log)
     out = None if output is None else Path(output)
     cfg = _config(where, config, overrides)
-    beta = check_beta(beta)
-    if threads is None:
-        threads = cfg.threads
-    # threads only say where the work runs: kept out of the config a journal and a table store
-    cfg = dataclasses.replace(cfg, threads=None)
-    # the work's own refusals (a line not in the grid, a bridge, a per-node file of the wrong
-    # length) come before any about the output files
-    picked = _lines(lines, None)  # a string is read against the grid's labels by the removal
-    asked = planned_lines(cfg, picked, beta, islanding)
-    inputs = config_inputs(cfg, _source(config, source))
-    journal = None if out is None else journal_folder(out)
-    say = log or (lambda m: None)
-    # one writer at a time, taken before the journal or the output is looked at
-    with writer_lock(out) if out is not None else contextlib.nullcontext():
-        if journal is not None:
-            _check_journal(journal, "removal", resume=resume, overwrite=overwrite)
-            if resume and out.exists() and not journal.exists():
-                check_finished_table(out, cfg, asked, beta)  # only the arguments are compared
-                say(f"{out} is complete: nothing to resume (it is left as it is)")
-                return dataclasses.replace(load_table(out), kept=True)
-            check_output(out, overwrite or (resume and journal.exists()), protect=inputs)
-        if figure is not None:
-            check_figure(figure, overwrite, protect=inputs)
-        table = line_removal(
-            cfg,
-            lines=picked,
-            beta=beta,
-            islanding=islanding,
-            threads=threads,
-            log=log,
-            client=client,
-            journal=journal,
-            restart=overwrite,
-        )
-        if out is not None:
-            out = write_table(table, out, overwrite=overwrite or resume, command=command_line())
-            remove_journal(journal)
-            say(f"wrote {out}")
-        if figure is not None:
-            say(f"wrote {removal_figure(table, cfg, figure, by=by, overwrite=overwrite)}")
+    done = run_removal(
+        cfg,
+        lines=_lines(lines, None),  # a string is read against the grid's labels by the removal
+        beta=beta,
+        islanding=islanding,
+        out=out,
+        source=_source(config, source),
+        resume=resume,
+        overwrite=overwrite,
+        threads=threads,
+        client=client,
+        log=log,
+        figure=figure,
+    )
+    if done.kept:
+        return dataclasses.replace(load_table(out), kept=True)
+    table, out = done.table, done.path
+    if figure is not None:
+        drawn = removal_figure(table, done.config, figure, by=by, overwrite=overwrite)
+        if log is not None:
+            log(f"wrote {drawn}")
     return GridResult("removal", table_document(table)["rows"], table, out)
 
 
@@ -341,73 +298,33 @@ def trip(
         progress = flag(f"{where}: progress", progress)
     _check_files(where, resume, overwrite, output, log)
     out = None if output is None else Path(output)
-    cct_max, cct_scan, t_max = _trip_times(cct, cct_max, cct_scan, t_max)
-    cfg = _config(where, config, overrides)
-    if cfg.sync.give_up is not None:
-        raise GridError(
-            "sync.give_up stops random starts that keep slipping (removal); a trip runs from the "
-            "operating point for t_max: remove give_up"
-        )
-    g = grid_from_config(cfg)
-    if cfg.dynamics.integrator != "rodas4":
-        check_explicit_step(cfg, g)  # the trip's RK4 at dt, checked as `antisync run` checks it
-    table = None if contingencies is None else read_contingencies(contingencies, g)
-    picked = _lines(lines, g.labels)
-    tolerance = cfg.sync.tolerance if cfg.sync.criterion == "frequency" else 1e-3
-    # the config's integrator: rk4 at dt, or rodas4 (a stiff grid's) with its tolerances; the
-    # dispatch table's trip row refuses euler
-    rtol, atol = cfg.dynamics.tolerances
-    integration = {"integrator": cfg.dynamics.integrator, "rtol": rtol, "atol": atol}
-    inputs = config_inputs(cfg, _source(config, source))
-    journal = None if out is None else journal_folder(out)
-    say = log or (lambda m: None)
-    with writer_lock(out) if out is not None else contextlib.nullcontext():
-        if journal is not None:
-            _check_journal(journal, "trip", resume=resume, overwrite=overwrite)
-            if resume and out.exists() and not journal.exists():
-                # nothing is written: only the arguments are compared with the table's
-                settings = {"t_clear": t_clear, "t_max": t_max, "dt": cfg.dynamics.dt, "tolerance": tolerance}
-                settings.update(integration_record(**integration))
-                settings.update(cct_max=cct_max if cct else None, cct_tol=CCT_TOL if cct else None)
-                settings.update(cct_scan=cct_scan if cct else None, clock=CLOCK)
-                check_finished_trips(out, g, plan_trips(g, picked, table), settings)
-                say(f"{out} is complete: nothing to resume (it is left as it is)")
-                return dataclasses.replace(load_table(out), kept=True)
-            out = check_output(
-                out, overwrite or (resume and journal.exists()), protect=inputs, table="trip", fmt=FORMAT
-            )
-            if overwrite:
-                remove_journal(journal)
-        if figure is not None:
-            check_figure(figure, overwrite, protect=inputs)
-        report = trip_report(
-            g,
-            picked,
-            contingencies=table,
-            t_clear=t_clear,
-            cct=cct,
-            cct_max=cct_max,
-            cct_scan=cct_scan,
-            t_max=t_max,
-            dt=cfg.dynamics.dt,
-            tolerance=tolerance,
-            **integration,
-            threads=cfg.threads if threads is None else threads,
-            client=client,
-            journal=journal,
-            progress=progress,
-        )
-        if out is not None:
-            doc = plain({**report, **provenance(command_line()), "config": cfg.to_dict()})
-            if is_hdf5_table(out):
-                write_grid_table(out, doc)
-            else:
-                text = json.dumps(doc, indent=1, allow_nan=False) + "\n"  # strict JSON: nan as null
-                replace_atomically(out, lambda tmp: tmp.write_text(text, encoding="utf-8"))
-            remove_journal(journal)
-            say(f"wrote {out}")
-        if figure is not None:
-            say(f"wrote {trip_figure(report, g, figure, overwrite=overwrite)}")
+    cct_max, cct_scan, t_max = trip_times(cct, cct_max, cct_scan, t_max)
+    done = run_trip(
+        _config(where, config, overrides),
+        lines=_lines(lines, None),
+        contingencies=contingencies,
+        t_clear=t_clear,
+        cct=cct,
+        cct_max=cct_max,
+        cct_scan=cct_scan,
+        t_max=t_max,
+        out=out,
+        source=_source(config, source),
+        resume=resume,
+        overwrite=overwrite,
+        threads=threads,
+        client=client,
+        progress=progress,
+        log=log,
+        figure=figure,
+    )
+    if done.kept:
+        return dataclasses.replace(load_table(out), kept=True)
+    report, out = done.table, done.path
+    if figure is not None:
+        drawn = trip_figure(report, done.grid, figure, overwrite=overwrite)
+        if log is not None:
+            log(f"wrote {drawn}")
     return GridResult("trip", plain(report["lines"]), report, out)
 
 
@@ -481,36 +398,4 @@ def _check_files(where: str, resume: bool, overwrite: bool, output, log) -> None
     if log is not None and not callable(log):
         raise ConfigError(
             f"{where}: log must be None or a callable taking one string (e.g. print), got {shown(log)}"
-        )
-
-
-def _trip_times(cct: bool, cct_max, cct_scan, t_max) -> tuple[float, float, float]:
-    """``(cct_max, cct_scan, t_max)`` checked; ``cct_scan`` None: 0.01 s (``cct_max`` itself for
-    a ``cct_max`` under 0.01 s)."""
-    if cct_scan is None:
-        cct_scan = CCT_SCAN if not CCT_TOL <= cct_max < CCT_SCAN else cct_max
-    if not 0 < t_max < math.inf:
-        raise GridError(f"--t-max must be a finite positive number of seconds, got {t_max:g}")
-    if cct and not CCT_TOL <= cct_max < math.inf:
-        raise GridError(
-            f"--cct-max must be a finite fault duration of at least {CCT_TOL:g} s, got {cct_max:g}"
-        )
-    if cct and not CCT_TOL <= cct_scan <= cct_max:
-        raise GridError(
-            f"--cct-scan must be in [{CCT_TOL:g}, --cct-max = {cct_max:g}] seconds, got {cct_scan:g}"
-        )
-    return float(cct_max), float(cct_scan), float(t_max)
-
-
-def _check_journal(journal: Path, kind: str, *, resume: bool, overwrite: bool) -> None:
-    """Refuse a journal path that is a link or a file, and an interrupted run's journal that
-    neither ``resume`` nor ``overwrite`` addresses (``kind``: removal or trip)."""
-    if journal.is_symlink():
-        raise GridError(f"{journal} is a symbolic link, not a {kind} journal (a folder); move it away")
-    if journal.exists() and not journal.is_dir():
-        raise GridError(f"{journal} is a file, not a {kind} journal (a folder); move it away")
-    if journal.exists() and not (resume or overwrite):
-        raise GridError(
-            f"an interrupted {kind} run left {journal}: pass --resume to finish it (same arguments) "
-            "or --overwrite to start over"
         )

@@ -62,12 +62,10 @@ from antisync.execution.executors.dask import TaskLostError, check_client, clien
 from antisync.execution.executors.tasks import map_tasks
 from antisync.execution.step_check import STEP_CHECK_STARTS, check_step_accuracy, step_check_line
 from antisync.grids.errors import GridError
-from antisync.grids.lines import pick_lines
-from antisync.grids.removal_config import check_beta, resolve_config, work_config
+from antisync.grids.removal_config import RemovalPlan, check_beta, plan_removal, resolve_config, work_config
 from antisync.grids.removal_journal import RemovalJournal, remove_journal, work_digest
 from antisync.grids.removal_table import RemovalTable, line_rows
-from antisync.physics import coupling, graphs
-from antisync.plan.jobs import check_step
+from antisync.physics import coupling
 from antisync.plan.model import model_setup
 from antisync.stats.estimators import crossing_times
 from antisync.status import ALREADY_SYNCED, GAVE_UP, SYNCED
@@ -120,11 +118,14 @@ def line_removal(
 
     Parameters
     ----------
-    grid_or_config : path, mapping, Config or Grid
+    grid_or_config : path, mapping, Config, Grid or RemovalPlan
         A config with a ``model:`` (``configs/ieee39_grid.yaml``), the same keys as a mapping,
         an :class:`antisync.plan.config.Config`, or a :class:`antisync.grids.load.Grid` (integrated with
         rk4, ``dt = 0.01``, ``t_max = 400`` and frequency locking to 1e-3 unless ``overrides``
-        say otherwise).
+        say otherwise); or the :class:`~antisync.grids.removal_config.RemovalPlan` of
+        :func:`~antisync.grids.removal_config.plan_removal`, which holds the config, the grid
+        as built and the lines (a command builds its graph once: ``lines``, ``islanding`` and
+        overrides are refused beside a plan, and ``beta`` must be the plan's).
     lines : list of (u, v), str or None
         The lines (node labels, or ``"4-5,2-3"``); default every line, the bridges left out
         (at ``beta = 1``) and listed in ``skipped``. A bridge named here is refused.
@@ -180,25 +181,20 @@ def line_removal(
         overrides["realizations"] = realizations
     if seed is not None:
         overrides["seed"] = seed
-    cfg = resolve_config(grid_or_config, overrides)
+    if isinstance(grid_or_config, RemovalPlan):
+        given = {"lines": lines, "islanding": islanding or None, **overrides}
+        if beta != grid_or_config.beta or any(v is not None for v in given.values()):
+            named = ", ".join(k for k, v in given.items() if v is not None) or "beta"
+            raise GridError(f"a RemovalPlan holds its lines, beta and config: drop {named}")
+        plan = grid_or_config
+    else:
+        plan = plan_removal(resolve_config(grid_or_config, overrides), lines, beta, islanding)
+    cfg, labels, todo, bridges, skipped = plan.config, plan.labels, plan.todo, plan.bridges, plan.skipped
+    islanding, omega, kind = plan.islanding, plan.omega, cfg.dynamics.coupling
     try:
-        g = graphs.build_graph(cfg.graph, seed=cfg.seed)
-        labels = graphs.node_order(g)
-        omega = graphs.omega_matrix(g)
-        check_step(omega, cfg)
-        todo, bridges, skipped = pick_lines(omega, labels, lines, beta, islanding)
-        if not todo:
-            raise GridError("no line to remove: every line asked for is a bridge")
-        pattern = omega > 0
-        csr = coupling.to_csr(coupling.coupling_matrix(omega, cfg.dynamics.coupling), pattern=pattern)
-        variants = np.empty((len(todo), csr.weights.size))
-        for v, (a, b) in enumerate(todo):
-            changed = omega.copy()
-            changed[a, b] *= 1.0 - beta
-            changed[b, a] *= 1.0 - beta
-            variants[v] = coupling.to_csr(
-                coupling.coupling_matrix(changed, cfg.dynamics.coupling), pattern
-            ).weights
+        csr = coupling.coupling_csr(omega, kind)
+        damages = [(a, b, beta) for a, b in todo]
+        variants = coupling.variant_weights(omega, csr, damages, kind, both_ways=True)
         names = [f"line {labels[a]}-{labels[b]} beta {beta:g}" for a, b in todo]
         setup, _, _ = model_setup(cfg, csr.indptr, csr.indices, [csr.weights, *variants], names)
     except AntisyncError as exc:
@@ -225,7 +221,7 @@ def line_removal(
         dt=dyn.dt,
         max_steps=dyn.max_steps,
         dynamics=dyn,
-        give_up=cfg.sync.give_up_rule,
+        give_up=cfg.stop_rule("removal"),
         interpolate=dyn.interpolate,
     )
     if fixed["give_up"] is not None:

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import json
 from collections.abc import Mapping
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -18,9 +19,18 @@ from antisync.grids.removal_file import plain
 from antisync.physics import graphs
 from antisync.plan import sources
 from antisync.plan.config import Config
+from antisync.plan.jobs import check_step
 from antisync.plan.model import node_frequencies, node_parameters
 
-__all__ = ["WHERE_KEYS", "check_beta", "planned_lines", "resolve_config", "work_config"]
+__all__ = [
+    "WHERE_KEYS",
+    "RemovalPlan",
+    "check_beta",
+    "plan_removal",
+    "planned_lines",
+    "resolve_config",
+    "work_config",
+]
 
 
 def _grid_mapping(grid: Grid) -> dict:
@@ -82,19 +92,68 @@ def work_config(config) -> dict:
     return {k: v for k, v in d.items() if k not in WHERE_KEYS}
 
 
-def planned_lines(cfg, lines, beta: float, islanding: bool) -> dict:
-    """The lines a removal run of ``cfg`` would change, ``{(u, v) as strings: islanding}``,
-    found as :func:`antisync.grids.removal.line_removal` finds them (its refusals, one line each:
-    a line not in the grid, a bridge, a per-node value that does not fit the graph)."""
+@dataclass(frozen=True)
+class RemovalPlan:
+    """A removal's work, resolved once (:func:`plan_removal`): its config, the grid's node
+    labels and ``Omega`` as built from it, ``beta``, and the lines it changes.
+
+    Attributes
+    ----------
+    config : Config
+    labels : list
+        The grid's node labels, in the order of ``omega``'s rows.
+    omega : ndarray, shape (N, N)
+    beta : float
+    islanding : bool
+    todo : list of (int, int)
+        0-based ``(a, b)`` of the lines changed, in table order.
+    bridges : set of (int, int)
+        The bridges among ``todo`` (``islanding``; empty at ``beta < 1``).
+    skipped : list
+        The bridges left out (every line asked for, ``beta = 1``, no ``islanding``).
+    """
+
+    config: Config
+    labels: list
+    omega: np.ndarray = field(repr=False)
+    beta: float
+    islanding: bool
+    todo: list
+    bridges: set
+    skipped: list
+
+    @property
+    def asked(self) -> dict:
+        """``{(u, v) as strings: islanding}`` of the lines changed (what a finished table's
+        rows are compared with)."""
+        labels = self.labels
+        return {(str(labels[a]), str(labels[b])): (a, b) in self.bridges for a, b in self.todo}
+
+
+def plan_removal(cfg: Config, lines, beta: float, islanding: bool) -> RemovalPlan:
+    """The :class:`RemovalPlan` of a removal run of ``cfg``: its graph built once, the lines
+    picked, and every refusal the work makes before it starts, one line each (a line not in the
+    grid, a bridge, a per-node value that does not fit the graph, a config whose step the grid
+    cannot take, no line left)."""
     try:
         g = graphs.build_graph(cfg.graph, seed=cfg.seed)
         labels = graphs.node_order(g)
+        omega = graphs.omega_matrix(g)
         node_frequencies(cfg.model, len(labels))
         node_parameters(cfg.model, len(labels))
+        check_step(omega, cfg)
     except AntisyncError as exc:
         raise GridError(str(exc)) from None
-    todo, bridges, _ = pick_lines(graphs.omega_matrix(g), labels, lines, beta, islanding)
-    return {(str(labels[a]), str(labels[b])): (a, b) in bridges for a, b in todo}
+    todo, bridges, skipped = pick_lines(omega, labels, lines, beta, islanding)
+    if not todo:
+        raise GridError("no line to remove: every line asked for is a bridge")
+    return RemovalPlan(cfg, labels, omega, float(beta), bool(islanding), todo, bridges, skipped)
+
+
+def planned_lines(cfg, lines, beta: float, islanding: bool) -> dict:
+    """The lines a removal run of ``cfg`` would change, ``{(u, v) as strings: islanding}``
+    (:attr:`RemovalPlan.asked` of :func:`plan_removal`, with its refusals)."""
+    return plan_removal(cfg, lines, beta, islanding).asked
 
 
 def check_beta(beta) -> float:

@@ -23,12 +23,14 @@ from antisync.grids.removal_table import RemovalTable
 from antisync.stats.multiplicity import FDR_LEVEL
 from antisync.store.grid_file import SUFFIXES as HDF5_SUFFIXES
 from antisync.store.grid_file import grid_table_kind, read_grid_table, write_grid_table
-from antisync.store.outputs import check_output_path, config_inputs, json_format_problem
+from antisync.store.outputs import check_output_path, config_inputs, image_problem, json_format_problem
 from antisync.store.provenance import git_revision, now
 
 __all__ = [
+    "FIGURE_SUFFIXES",
     "FORMAT",
     "FORMAT_VERSION",
+    "check_figure",
     "check_new_file",
     "check_output",
     "plain",
@@ -196,3 +198,25 @@ def replace_atomically(path: Path, write) -> Path:
         Path(tmp).unlink(missing_ok=True)
         raise
     return path
+
+
+#: The file types a grid command's ``--figure`` writes (matplotlib picks the format from the suffix).
+FIGURE_SUFFIXES = (".png", ".pdf", ".svg")
+
+
+def check_figure(path, overwrite: bool = False, protect=()) -> Path:
+    """The figure's ``path``, checked before any work by antisync's one output policy
+    (:func:`antisync.grids.removal_file.check_new_file`): a ``.png``, ``.pdf`` or ``.svg`` file in an
+    existing folder, and an existing file replaced only with ``overwrite`` and only when it is
+    an image of that kind (by its first bytes), never one of ``protect`` (the run's inputs);
+    else a one-line GridError."""
+    return check_new_file(
+        path,
+        overwrite,
+        "--figure",
+        FIGURE_SUFFIXES,
+        "name it *.png, *.pdf or *.svg",
+        replaceable=image_problem,
+        kind="an image of the kind its suffix names (PNG, PDF or SVG, by its first bytes)",
+        protect=protect,
+    )

@@ -188,6 +188,7 @@ class Problem:
 def check_designable(config: Config) -> None:
     """One clear :class:`ConfigError` for a config whose times a design cannot differentiate."""
     design_drivers(config)  # the dispatch table's refusals: the integrator, the backend
+    config.stop_rule("design")
     if config.sync.criterion == "relative":
         raise ConfigError(
             "a design cannot use sync.criterion relative (its target r* moves with every weight "

@@ -44,7 +44,7 @@ def _check_coupling(coupling: str) -> None:
         raise ValueError(f"coupling must be one of {COUPLINGS}, got {coupling!r}")
 
 
-def damaged_omega(omega: np.ndarray, a: int, b: int, beta: float) -> np.ndarray:
+def damaged_omega(omega: np.ndarray, a: int, b: int, beta: float, *, removal: bool = False) -> np.ndarray:
     """Return ``Omega*``: a copy of ``omega`` with ``Omega*_ab = (1 - beta) Omega_ab``.
 
     Parameters
@@ -56,9 +56,11 @@ def damaged_omega(omega: np.ndarray, a: int, b: int, beta: float) -> np.ndarray:
     beta : float
         Damage, ``-1 < beta < 1``: a negative beta reinforces the link (the ``-dbeta`` side of
         a central difference).
+    removal : bool
+        Allow ``beta = 1`` too (a line removed: its link's weight 0).
     """
-    if not -1.0 < beta < 1.0:
-        raise ValueError(f"beta must satisfy -1 < beta < 1, got {beta}")
+    if not (-1.0 < beta < 1.0 or (removal and beta == 1.0)):
+        raise ValueError(f"beta must satisfy -1 < beta < {'= ' if removal else ''}1, got {beta}")
     if omega[a, b] <= 0:
         raise ValueError(f"there is no link {a}->{b} to damage (Omega[{a}, {b}] = 0)")
     out = np.array(omega, dtype=np.float64, copy=True)
@@ -171,18 +173,36 @@ def to_csr(w: np.ndarray, pattern: np.ndarray | None = None) -> CouplingCSR:
     return CouplingCSR(indptr, cols.astype(np.int64), w[rows, cols].copy())
 
 
+def coupling_csr(omega: np.ndarray, coupling: Coupling = "normalized") -> CouplingCSR:
+    """``W(Omega)`` in CSR over ``Omega``'s links: the pattern every damaged variant of the
+    network shares (:func:`variant_weights`; a removed line keeps its place, weight 0)."""
+    omega = np.asarray(omega, dtype=np.float64)
+    return to_csr(coupling_matrix(omega, coupling), pattern=omega > 0)
+
+
 def variant_weights(
     omega: np.ndarray,
     csr: CouplingCSR,
     damages: list[tuple[int, int, float]],
     coupling: Coupling = "normalized",
+    *,
+    both_ways: bool = False,
 ) -> np.ndarray:
-    """CSR weights of ``W(Omega*)`` for each damage ``(a, b, beta)``, on the pattern of ``csr``.
+    """CSR weights of ``W(Omega*)`` for each damage ``(a, b, beta)``, on the pattern of ``csr``:
+    the one builder of damaged networks' weights (a run's variants and secants, a line removal).
+
+    Parameters
+    ----------
+    both_ways : bool
+        Each damage is a line's: ``Omega*_ab`` and ``Omega*_ba`` both scaled by ``1 - beta``,
+        ``beta`` in ``(-1, 1]`` (1 removes the line). Else the directed link ``a -> b`` alone,
+        ``-1 < beta < 1``.
 
     Returns
     -------
     ndarray, shape (len(damages), nnz)
-        Row ``v`` equals ``csr.weights`` except on row ``a`` of damage ``v``.
+        Row ``v`` equals ``csr.weights`` except on row ``a`` of damage ``v`` (and row ``b``
+        with ``both_ways``).
     """
     _check_coupling(coupling)
     omega = np.asarray(omega, dtype=np.float64)
@@ -191,17 +211,18 @@ def variant_weights(
     base = to_csr(coupling_matrix(omega, coupling), pattern=mask).weights
     out = np.empty((len(damages), base.size))
     for v, (a, b, beta) in enumerate(damages):
-        # only row a changes: W*_a = Omega*_a (raw) or Omega*_a / sum(Omega*_a) (normalized),
-        # the same operations on the same row as coupling_matrix of the whole damaged Omega,
-        # without copying an N x N matrix per variant (ACTIVSg2000: 5,334 variants, 263 s)
-        row = damaged_omega(omega[a : a + 1], 0, b, beta)[0]
-        if coupling == "normalized":
-            if row.sum() <= 0:
-                raise ValueError(f"nodes with zero strength cannot be normalized: indices [{a}]")
-            row = row / row.sum()
-        lo, hi = csr.indptr[a], csr.indptr[a + 1]
         out[v] = base
-        out[v, lo:hi] = row[csr.indices[lo:hi]]
+        for i, j in ((a, b), (b, a)) if both_ways else ((a, b),):
+            # only row i changes: W*_i = Omega*_i (raw) or Omega*_i / sum(Omega*_i) (normalized),
+            # the same operations on the same row as coupling_matrix of the whole damaged Omega,
+            # without copying an N x N matrix per variant (ACTIVSg2000: 5,334 variants, 263 s)
+            row = damaged_omega(omega[i : i + 1], 0, j, beta, removal=both_ways)[0]
+            if coupling == "normalized":
+                if row.sum() <= 0:
+                    raise ValueError(f"nodes with zero strength cannot be normalized: indices [{i}]")
+                row = row / row.sum()
+            lo, hi = csr.indptr[i], csr.indptr[i + 1]
+            out[v, lo:hi] = row[csr.indices[lo:hi]]
     return out
 
 

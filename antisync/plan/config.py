@@ -101,6 +101,8 @@ MAX_REALIZATIONS = 10**15
 #: At most this many time steps per trajectory (t_max / dt): the kernels count steps in int64
 #: and store tau as steps * dt; 2**40 steps (~1e12) is far beyond any run that can finish.
 MAX_STEPS = 2**40
+#: The commands a config is run by (:meth:`Config.stop_rule` rules which may stop early).
+COMMANDS = ("run", "sweep", "design", "removal", "trip")
 
 _GRAPH_KEYS = {
     "lollipop": ({"nodes", "path"}, set()),
@@ -425,6 +427,26 @@ class Config:
                 "frequencies drawn per realization every realization has its own locked state; "
                 "use criterion frequency or order-parameter"
             )
+
+    def stop_rule(self, command: str) -> tuple[float, float] | None:
+        """``sync.give_up``'s ``(after, band)`` for ``command`` (one of :data:`COMMANDS`), None
+        without the rule: the one place that rules which work the rule may stop early. Only a
+        removal's random starts count GAVE_UP (and check the rule: its pilot and audit); every
+        other command refuses a config holding the rule, in one line."""
+        if command not in COMMANDS:
+            raise ValueError(f"stop_rule: command must be one of {', '.join(COMMANDS)}, got {command!r}")
+        rule = self.sync.give_up_rule
+        if rule is None or command == "removal":
+            return rule
+        if command == "trip":
+            raise ConfigError(
+                "sync.give_up stops random starts that keep slipping (removal); a trip runs from the "
+                "operating point for t_max: remove give_up"
+            )
+        raise ConfigError(
+            "sync.give_up records trajectories stopped early as GAVE_UP, which only `antisync grid "
+            f"--removal` counts: remove give_up (antisync {command} does not take it)"
+        )
 
     def _check_give_up(self) -> None:
         rule = self.sync.give_up_rule

@@ -180,13 +180,12 @@ def config_graph(config: Config) -> nx.Graph:
         raise graphs.GraphError(f"graph {config.graph}: {exc}") from None
 
 
-def make_job(config: Config, graph: nx.Graph | None = None, name: str | None = None) -> Job:
-    """Build the graph, resolve edges and betas, and compute all coupling arrays."""
-    if config.sync.give_up is not None:
-        raise ConfigError(
-            "sync.give_up records trajectories stopped early as GAVE_UP, which only `antisync grid "
-            "--removal` counts; remove give_up for run and sweep"
-        )
+def make_job(
+    config: Config, graph: nx.Graph | None = None, name: str | None = None, command: str = "run"
+) -> Job:
+    """Build the graph, resolve edges and betas, and compute all coupling arrays (for
+    ``command``, ``"run"`` or ``"sweep"``: the config's stop rule is ruled on for it)."""
+    config.stop_rule(command)
     if graph is None:
         graph = config_graph(config)
     nodes = graphs.node_order(graph)
@@ -209,8 +208,7 @@ def make_job(config: Config, graph: nx.Graph | None = None, name: str | None = N
     grid = sorted(set(config.betas) | ({dbeta} if needs.dbeta_variant else set())) if kuramoto else []
     variant_edge = np.repeat(np.arange(len(edges)), len(grid))
     variant_beta = np.tile(np.array(grid, dtype=np.float64), len(edges))
-    w = coupling.coupling_matrix(omega, config.dynamics.coupling)
-    csr = coupling.to_csr(w, pattern=omega > 0)
+    csr = coupling.coupling_csr(omega, config.dynamics.coupling)
     damages = [
         (index[edges[e][0]], index[edges[e][1]], float(b))
         for e, b in zip(variant_edge, variant_beta, strict=True)

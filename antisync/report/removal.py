@@ -23,10 +23,11 @@ import numpy as np
 from antisync.errors import AntisyncError
 from antisync.grids.errors import GridError
 from antisync.grids.load import Grid
-from antisync.grids.removal_config import resolve_config, work_config
+from antisync.grids.removal_config import resolve_config
 from antisync.grids.removal_file import (
+    FIGURE_SUFFIXES,
     FORMAT,
-    check_new_file,
+    check_figure,
     read_document,
     replace_atomically,
     table_document,
@@ -37,7 +38,6 @@ from antisync.physics import graphs
 from antisync.plan.model import node_parameters
 from antisync.stats.exact import tau_p_value
 from antisync.stats.multiplicity import benjamini_hochberg
-from antisync.store.outputs import image_problem
 from antisync.types import REMOVAL_BY, RemovalBy
 
 __all__ = [
@@ -46,7 +46,6 @@ __all__ = [
     "trip_figure",
     "lambda_by_line",
     "merge_docs",
-    "check_finished_table",
     "rank_correlations",
     "removal_doc",
     "removal_figure",
@@ -55,8 +54,6 @@ __all__ = [
     "side_by_side_report",
 ]
 
-#: The file types :func:`removal_figure` writes (matplotlib picks the format from the suffix).
-FIGURE_SUFFIXES = (".png", ".pdf", ".svg")
 #: Layouts: Kamada-Kawai up to this many nodes, a spring layout with a fixed seed above.
 KAMADA_KAWAI_MAX = 200
 LAYOUT_SEED = 1
@@ -364,67 +361,7 @@ def merge_docs(sources) -> dict:
     return merged
 
 
-def check_finished_table(out: Path, cfg, asked: dict, beta: float) -> None:
-    """Refuse (one line naming what differs) a ``--resume`` whose finished table ``out`` holds
-    another run than the one asked for: its stored config (seed, realizations, model ...),
-    lines (``asked``: :func:`antisync.grids.removal_config.planned_lines`), beta or islanding rows."""
-    doc = removal_doc(out)
-    rows = [r for r in doc.get("rows") or [] if isinstance(r, dict)]
-    stored = {}
-    for r in rows:
-        line = r.get("line")
-        if isinstance(line, list) and len(line) == 2:
-            stored[(str(line[0]), str(line[1]))] = bool(r.get("islanding"))
-
-    changes = []
-    summary = doc.get("summary") if isinstance(doc.get("summary"), dict) else {}
-    if summary.get("beta") != beta:
-        changes.append(f"beta: {summary.get('beta')} -> {beta:g}")
-    config_diff = key_changes(work_config(doc.get("config")), work_config(cfg.to_dict()))
-    if config_diff != "no key differs":
-        changes.append(config_diff)
-    gone = [f"{u}-{v}" for u, v in stored if (u, v) not in asked and (v, u) not in asked]
-    new = [f"{u}-{v}" for u, v in asked if (u, v) not in stored and (v, u) not in stored]
-    if gone or new:
-        parts = [f"{len(gone)} in the table not asked ({_few(gone)})"] if gone else []
-        parts += [f"{len(new)} asked not in the table ({_few(new)})"] if new else []
-        changes.append("lines: " + ", ".join(parts))
-    else:
-        flips = [f"{u}-{v}" for (u, v), isl in asked.items() if stored.get((u, v), stored.get((v, u))) != isl]
-        if flips:
-            changes.append(f"islanding: the bridge(s) {', '.join(flips[:3])} removed in one run only")
-    if changes:
-        raise GridError(
-            f"--resume: {out} is the finished table of another run ({'; '.join(changes)}): give the "
-            "arguments it was run with, --overwrite to replace it, or another --out (it is left as it is)"
-        )
-
-
-def _few(names: list[str], most: int = 3) -> str:
-    """The first ``most`` names and a count of the rest."""
-    more = f" and {len(names) - most} more" if len(names) > most else ""
-    return ", ".join(names[:most]) + more
-
-
 # --- the figure ------------------------------------------------------------------------------
-
-
-def check_figure(path, overwrite: bool = False, protect=()) -> Path:
-    """The figure's ``path``, checked before any work by antisync's one output policy
-    (:func:`antisync.grids.removal_file.check_new_file`): a ``.png``, ``.pdf`` or ``.svg`` file in an
-    existing folder, and an existing file replaced only with ``overwrite`` and only when it is
-    an image of that kind (by its first bytes), never one of ``protect`` (the run's inputs);
-    else a one-line GridError."""
-    return check_new_file(
-        path,
-        overwrite,
-        "--figure",
-        FIGURE_SUFFIXES,
-        "name it *.png, *.pdf or *.svg",
-        replaceable=image_problem,
-        kind="an image of the kind its suffix names (PNG, PDF or SVG, by its first bytes)",
-        protect=protect,
-    )
 
 
 def _network(config) -> tuple[nx.Graph, dict]:

@@ -219,8 +219,7 @@ def screen_realizations(
     theta : float (m, N)
         Final phases.
     """
-    w = coupling.coupling_matrix(omega, coupling_kind)
-    csr = coupling.to_csr(w, pattern=np.asarray(omega) > 0)
+    csr = coupling.coupling_csr(omega, coupling_kind)
     n = csr.n_nodes
     max_steps = int(math.ceil(t_max / dt - 1e-9))
     status = np.empty(realizations, dtype=np.int8)

@@ -113,7 +113,7 @@ def main_jobs(sweep: Sweep, entries: list[GraphEntry], *, progress: bool = False
             name=desc["job"],
             point=point,
         )
-        jobs.append(make_job(cfg, graph=entry.graph, name=desc["job"]))
+        jobs.append(make_job(cfg, graph=entry.graph, name=desc["job"], command="sweep"))
         meta.append(desc)
         bar.update(1)
     bar.close()
@@ -441,7 +441,7 @@ def _top_job(sweep: Sweep, entry: GraphEntry, edge):
         realizations=sweep.top.realizations,
         name=name,
     )
-    return make_job(replace(cfg, keep_pairs=0), graph=entry.graph, name=name)
+    return make_job(replace(cfg, keep_pairs=0), graph=entry.graph, name=name, command="sweep")
 
 
 def check_sweep(

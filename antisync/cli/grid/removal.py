@@ -64,31 +64,36 @@ def removal(
     debug: DebugOpt = False,
 ) -> None:
     """The dynamic N-1: each line removed on the same random starts, P_sync lost/gained, change of tau."""
-    from antisync.api.grids import removal as removal_table
+    from antisync.grids.runner import run_removal
     from antisync.plan.config import load_config
+    from antisync.report.removal import removal_figure
 
     check_top(top)
     check_files(resume, overwrite, out, "--removal")
     # the config, --set and the typed options read and refused exactly as `antisync run` does
     values = typed_values(realizations=realizations, seed=seed, threads=threads)
     cfg = load_config(config, list(set_ or []), values)
+    say = None if quiet else (lambda m: info(f"antisync grid: {m}"))
     with dask_executor(cfg, workers=workers, scheduler=scheduler, quiet=quiet) as ex:
         try:
-            res = removal_table(
+            done = run_removal(
                 cfg,
-                source=config,
                 lines=lines,
                 beta=1.0 if beta is None else beta,
                 islanding=islanding,
-                output=out,
+                out=out,
+                source=config,
                 resume=resume,
                 overwrite=overwrite,
-                figure=figure,
-                by=by or "speedup",
                 client=None if ex is None else ex.client,
-                log=None if quiet else (lambda m: info(f"antisync grid: {m}")),
+                log=say,
+                figure=figure,
             )
         except KeyboardInterrupt:
             interrupted(out)
-    if not res.kept:  # a finished file asked to resume is left as it is
-        typer.echo(res.to_markdown(top=top))
+    if done.kept:  # a finished file asked to resume is left as it is
+        return
+    if figure is not None:
+        drawn = removal_figure(done.table, done.config, figure, by=by or "speedup", overwrite=overwrite)
+        info(f"antisync grid: wrote {drawn}", quiet)
+    typer.echo(done.table.to_markdown(top=top))

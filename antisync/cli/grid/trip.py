@@ -57,41 +57,48 @@ def trip(
     debug: DebugOpt = False,
 ) -> None:
     """The engineer's N-1: each line tripped from the operating point, after a fault, with CCTs."""
-    from antisync.api.grids import trip as trip_table
     from antisync.grids.errors import GridError
+    from antisync.grids.runner import run_trip, trip_times
+    from antisync.grids.trip import format_trips
     from antisync.plan.config import load_config
+    from antisync.report.removal import trip_figure
 
     for name, value in (("--cct-max", cct_max), ("--cct-scan", cct_scan)):
         if value is not None and not cct:
             raise GridError(f"{name} sets the critical clearing times' search: add --cct")
     check_files(resume, overwrite, out, "--trip")
+    cct_max, cct_scan, t_max = trip_times(
+        cct, 1.0 if cct_max is None else cct_max, cct_scan, 20.0 if t_max is None else t_max
+    )
     cfg = load_config(config, list(set_ or []), typed_values(threads=threads))
     with dask_executor(cfg, workers=workers, scheduler=scheduler, quiet=quiet) as ex:
         try:
-            res = trip_table(
+            done = run_trip(
                 cfg,
-                source=config,
                 lines=lines,
                 contingencies=contingencies,
                 t_clear=t_clear,
                 cct=cct,
-                cct_max=1.0 if cct_max is None else cct_max,
+                cct_max=cct_max,
                 cct_scan=cct_scan,
-                t_max=20.0 if t_max is None else t_max,
-                output=out,
+                t_max=t_max,
+                out=out,
+                source=config,
                 resume=resume,
                 overwrite=overwrite,
-                figure=figure,
                 client=None if ex is None else ex.client,
                 progress=False if quiet else None,
                 log=None if quiet else info,
+                figure=figure,
             )
         except KeyboardInterrupt:
             interrupted(out)
-    if res.kept:
+    if done.kept:
         return  # a finished file asked to resume: left as it is
-    typer.echo(res.to_markdown())
-    skipped = ", ".join("-".join(b) for b in res.table["bridges_skipped"])
+    if figure is not None:
+        info(f"wrote {trip_figure(done.table, done.grid, figure, overwrite=overwrite)}", quiet)
+    typer.echo(format_trips(done.table))
+    skipped = ", ".join("-".join(b) for b in done.table["bridges_skipped"])
     if skipped:
-        n = len(res.table["bridges_skipped"])
+        n = len(done.table["bridges_skipped"])
         info(f"skipped {n} trip(s) that open a bridge whole: {skipped}", quiet)
