@@ -230,7 +230,27 @@ DESIGN_REFUSALS: dict[str, str] = {
     "rodas4": "a design differentiates dynamics.integrator euler or rk4, not rodas4 (the adjoint is "
     "written for the explicit steps)",
     "cuda": "a design runs on the CPU: set backend: cpu (or leave it out)",
+    "relative": "a design cannot use sync.criterion relative (its target r* moves with every weight "
+    "and has no derivative here): use order-parameter or frequency",
+    "model.start": "a design cannot use model.start (its starts lie around the locked state of the "
+    "weights being designed, which moves with every step and has no derivative here): drop "
+    "model.start (uniform phases)",
+    "law frequency": "a design of a law differentiates the order-parameter crossing only, not "
+    "sync.criterion frequency: use order-parameter",
 }
+
+
+def _design_keys(config) -> tuple:
+    """What of ``config`` :data:`DESIGN_REFUSALS` is keyed by: the integrator, the backend, the
+    criterion, a given start, a law's criterion."""
+    law = model_kind(config) == "law"
+    return (
+        config.dynamics.integrator,
+        config.backend,
+        config.sync.criterion,
+        "model.start" if config.model.start is not None else None,
+        f"law {config.sync.criterion}" if law else None,
+    )
 
 
 class DesignDrivers(NamedTuple):
@@ -253,19 +273,13 @@ def design_drivers(config) -> DesignDrivers:
     """The kernels of a design of ``config`` (a :class:`~antisync.plan.config.Config`), or the
     one-line :class:`~antisync.errors.ConfigError` of :data:`DESIGN_REFUSALS`."""
     dyn = config.dynamics
-    for value in (dyn.integrator, config.backend):
+    for value in _design_keys(config):
         if value in DESIGN_REFUSALS:
             raise ConfigError(DESIGN_REFUSALS[value])
     clock = {"dt": dyn.dt, "max_steps": dyn.max_steps}
     if config.generalized:
         if model_kind(config) == "law":
             from antisync.kernels.law import simulate_law, simulate_law_adjoint
-
-            if config.sync.criterion != "order-parameter":
-                raise ConfigError(
-                    f"a design of a law differentiates the order-parameter crossing only, not "
-                    f"sync.criterion {config.sync.criterion}: use order-parameter"
-                )
 
             simulate = functools.partial(simulate_law, integrator=dyn.integrator)
             backward = simulate_law_adjoint

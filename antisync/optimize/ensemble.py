@@ -186,20 +186,11 @@ class Problem:
 
 
 def check_designable(config: Config) -> None:
-    """One clear :class:`ConfigError` for a config whose times a design cannot differentiate."""
-    design_drivers(config)  # the dispatch table's refusals: the integrator, the backend
+    """One clear :class:`ConfigError` for a config whose times a design cannot differentiate:
+    the dispatch table's refusals (:data:`~antisync.execution.dispatch.DESIGN_REFUSALS`) and the
+    config's stop rule (a design takes none)."""
+    design_drivers(config)
     config.stop_rule("design")
-    if config.sync.criterion == "relative":
-        raise ConfigError(
-            "a design cannot use sync.criterion relative (its target r* moves with every weight "
-            "and has no derivative here): use order-parameter or frequency"
-        )
-    if config.model.start is not None:
-        raise ConfigError(
-            "a design cannot use model.start (its starts lie around the locked state of the "
-            "weights being designed, which moves with every step and has no derivative here): "
-            "drop model.start (uniform phases)"
-        )
 
 
 def make_problem(
