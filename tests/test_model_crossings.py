@@ -192,6 +192,9 @@ SMALL = LOLLIPOP + "edges: ['2->1']\nbetas: [0.5]\nrealizations: 10\ndynamics: {
         ),
         ("model: {inertia: [0, 0, 0, 0, 0, 0]}\n", "model.inertia lists 0 for every node", None),
         ("model: {damping: [1, 2, 1, 1, 1, 1]}\n", "model.damping per node needs model.inertia > 0", None),
+        # one damping for a first-order model was ignored by every kernel, silently
+        ("model: {damping: 2}\n", "model.damping 2 needs model.inertia > 0 on some node", None),
+        ("model: {inertia: 0, damping: 0.5}\n", "it would be ignored", None),
         ("model: {inertia: []}\n", "model.inertia is an empty list", None),
         ("model: {inertia: {file: m.txt}}\n", "m.txt has 0 for every node", {"m.txt": "0\n" * 6}),
         (
@@ -210,6 +213,34 @@ SMALL = LOLLIPOP + "edges: ['2->1']\nbetas: [0.5]\nrealizations: 10\ndynamics: {
 )
 def test_bad_per_node_parameters_are_one_line(tmp_path, extra, message, files):
     _one_line(tmp_path, SMALL + extra, message, files)
+
+
+def test_a_stiff_second_order_grid_s_step_is_checked_on_its_own_modes():
+    """With inertia the modes near synchrony solve ``m l^2 + g l + xi = 0`` (``|l| ~ sqrt(xi /
+    m)``), not ``l = -xi``: a ring at K = 1000 (xi_max = 4000) steps at RK4 dt = 0.005, which
+    the first-order bound (2.785 / 4000 = 0.0007) refused for runs and removals, while the
+    second-order check still refuses a step beyond its own bound (~2.8 / 63 = 0.045)."""
+    from antisync.errors import ConfigError
+    from antisync.grids.removal_config import plan_removal
+    from antisync.plan.config import config_from_mapping
+    from antisync.plan.jobs import check_step
+
+    links = [[i, (i + 1) % 6, 1000.0] for i in range(6)]
+    base = {
+        "graph": {"kind": "inline", "links": links},
+        "model": {"frequencies": [1, -1, 0.5, -0.5, 0.8, -0.8], "inertia": 1.0, "damping": 1.0},
+        "sync": {"criterion": "frequency", "tolerance": 1e-3},
+        "realizations": 4,
+    }
+    rk4 = {"coupling": "raw", "integrator": "rk4"}
+    ok = config_from_mapping({**base, "dynamics": {**rk4, "dt": 0.005}})
+    plan = plan_removal(ok, [(0, 1)], 1.0, False)  # refused before: "dt < 0.000696"
+    check_step(plan.omega, ok)
+    too_large = config_from_mapping(
+        {**base, "dynamics": {"coupling": "raw", "integrator": "rk4", "dt": 0.06}}
+    )
+    with pytest.raises(ConfigError, match="dt"):
+        check_step(plan.omega, too_large)
 
 
 # ---- the derivative d<F>/dbeta for every model: central differences ------------------------

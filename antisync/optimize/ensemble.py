@@ -40,7 +40,7 @@ from antisync.physics import graphs
 from antisync.physics.coupling import CouplingCSR, to_csr
 from antisync.plan.config import Config
 from antisync.plan.jobs import check_step, config_graph
-from antisync.plan.model import STABLE_STEP, check_second_order_step, law_setup, model_setup, node_parameters
+from antisync.plan.model import STABLE_STEP, law_setup, model_setup
 from antisync.status import ALREADY_SYNCED, SYNCED
 
 __all__ = ["Problem", "Sample", "check_designable", "evaluate", "make_problem", "sample"]
@@ -125,12 +125,7 @@ class Problem:
                 law = law_setup(config, self.n_nodes)
                 check_law_step(law, config.seed, self.coupling(x), config.dynamics)
                 return
-            mass, gamma = node_parameters(config.model, self.n_nodes)
-            if (mass > 0).any():
-                csr = self.coupling(x)
-                check_second_order_step(config, csr.indptr, csr.indices, csr.weights, mass, gamma)
-            else:
-                check_step(self.omega(x), config)
+            check_step(self.omega(x), config)  # first or second order, as a run checks it
         except ConfigError as exc:
             raise ConfigError(
                 f"{what}: {exc}; lower design.upper (or design.budget) or dynamics.dt so that every "

@@ -18,7 +18,16 @@ from antisync.errors import ConfigError
 from antisync.physics import coupling, graphs
 from antisync.physics.locked import linearization
 from antisync.plan.config import Config, graph_name
-from antisync.plan.model import DTARGET_STEP, STABLE_STEP, LawSetup, ModelSetup, law_setup, model_setup
+from antisync.plan.model import (
+    DTARGET_STEP,
+    STABLE_STEP,
+    LawSetup,
+    ModelSetup,
+    check_second_order_step,
+    law_setup,
+    model_setup,
+    node_parameters,
+)
 from antisync.types import LAMBDA_ROWS
 
 __all__ = ["Chunk", "Job", "make_job", "stiffness_note"]
@@ -317,7 +326,10 @@ def check_step(omega: np.ndarray, config: Config) -> None:
     Near synchrony the model is the linear system ``theta' = -L theta`` (Eq. 9) with ``L`` the
     coupling's Laplacian; a step ``dt`` with ``dt * xi_max`` beyond the integrator's stability
     interval makes that state repel, so no realization would ever synchronize (every one would
-    end NOT_SYNCED with no hint why). Raw coupling with huge weights fails here too.
+    end NOT_SYNCED with no hint why). Raw coupling with huge weights fails here too. With
+    inertia on some node the modes solve ``m lambda^2 + gamma lambda + xi = 0`` instead, and the
+    check is :func:`antisync.plan.model.check_second_order_step` (picked here: a run, a removal,
+    a sweep and a design check a network's step through this one function).
     """
     dyn = config.dynamics
     sym, _ = coupling.symmetrized_laplacian(omega, dyn.coupling)
@@ -325,6 +337,14 @@ def check_step(omega: np.ndarray, config: Config) -> None:
         raise ConfigError("the graph's weights overflow the coupling matrix; rescale them")
     if dyn.integrator not in STABLE_STEP:
         return  # rodas4: L-stable, any step
+    if config.model.law is None:
+        mass, gamma = node_parameters(config.model, omega.shape[0])
+        if (mass > 0).any():
+            # with inertia the modes are m lambda^2 + gamma lambda + xi = 0, not -xi: the bound
+            # below would refuse a stiff grid's stable step (|lambda| ~ sqrt(xi / m) << xi)
+            csr = coupling.coupling_csr(omega, dyn.coupling)
+            check_second_order_step(config, csr.indptr, csr.indices, csr.weights, mass, gamma)
+            return
     xi_max = float(np.linalg.eigvalsh(sym)[-1])
     limit = STABLE_STEP[dyn.integrator] / xi_max
     if dyn.dt >= limit:

@@ -254,6 +254,14 @@ class Model:
                 "model.damping per node needs model.inertia > 0 on some node (with inertia 0 "
                 "everywhere the first-order model has no damping)"
             )
+        if inertia == 0 and damping != 1.0:
+            # theta' = omega + sum w sin(...) has no gamma: a damping would be ignored by every
+            # kernel (a run's, a removal's), silently; a grid's time scale is its K and P
+            raise ConfigError(
+                f"model.damping {damping:g} needs model.inertia > 0 on some node (with inertia 0 "
+                "everywhere the first-order model has no damping, and it would be ignored): remove "
+                "damping, or scale the couplings and frequencies by 1 / damping"
+            )
         object.__setattr__(self, "inertia", inertia)
         object.__setattr__(self, "damping", damping)
 
