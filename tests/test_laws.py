@@ -395,6 +395,12 @@ def test_a_law_runs_to_frequency_locking(tmp_path):
     assert "step checked: the first 16 starts again at dt / 2 = 0.005: 0 changed status" in res.output
     summary = CliRunner().invoke(app, ["summary", str(out)])
     assert summary.exit_code == 0 and "frequency" in summary.output, summary.output
+    # the step check is kept in the file: the summary says what the run said
+    from antisync.store import step_check_records
+
+    (record,) = step_check_records(out).values()
+    assert record["starts"] == 16 and record["dt"] == 0.01 and record["passed"]
+    assert "note: " in summary.output and "step checked: the first 16 starts again" in summary.output
 
 
 # -- parameters drawn per realization ------------------------------------------------------------

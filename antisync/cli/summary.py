@@ -51,6 +51,7 @@ def summary(
 
     from antisync.api import summarize
     from antisync.errors import AntisyncError
+    from antisync.execution.step_check import step_check_notes
     from antisync.execution.stopping import stop_note
     from antisync.plan.describe import stored_name
     from antisync.report.grid_tables import table_kind, table_text
@@ -58,7 +59,7 @@ def summary(
     from antisync.stats.records import flag_signs, sign_rule_note, sort_records
     from antisync.stats.sum_rule import sum_rule_note, views_sums
     from antisync.stats.summary import named_views, view_records
-    from antisync.store import is_sweep_file, read_views, stop_record, stored_config
+    from antisync.store import is_sweep_file, read_views, step_check_records, stop_record, stored_config
     from antisync.store.design_file import is_design_file, read_design
     from antisync.sweeps import sweep_summary
 
@@ -106,6 +107,7 @@ def summary(
                 sign_rule_note(recs),
                 rule,
                 stop_note(stop_record(results)),
+                *step_check_notes(step_check_records(results)),
             )
             for note in notes:
                 if note:

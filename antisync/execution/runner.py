@@ -19,7 +19,7 @@ from antisync.execution import stopping
 from antisync.execution.compute import check_job, host_part
 from antisync.execution.executors import Executor
 from antisync.execution.executors.local import LocalExecutor
-from antisync.execution.step_check import job_step_check, step_check_line
+from antisync.execution.step_check import job_step_check, step_check_notes
 from antisync.kernels.backends import resolve_backend
 from antisync.measures.pipeline import COMPUTED, compute_measures, wants_measures, with_nnc
 from antisync.plan.config import Config
@@ -27,9 +27,6 @@ from antisync.plan.jobs import Chunk, Job, make_job, stiffness_note
 from antisync.store import JobState, ResultStore, chunk_tag, command_line, git_revision
 
 __all__ = ["Interrupted", "run_config", "run_jobs"]
-
-#: jobs whose passing step checks are each said in a line (more: one line for all of them)
-MAX_STEP_NOTES = 4
 
 # Trajectories (realizations x (1 + variants)) per chunk on a GPU: enough threads to fill it
 # many times over, one device batch of antisync.kernels.cuda.simulate_reduced.
@@ -137,13 +134,8 @@ def run_jobs(
         # Euler's or RK4's step, checked again at dt / 2: a note (one line for many jobs), never a refusal
         checks = {job.name: job_step_check(job, config.threads) for job in jobs}
         checked = {name: c for name, c in checks.items() if c is not None}
-        for name, check in checked.items():
-            if not check["passed"] or len(checked) <= MAX_STEP_NOTES:
-                word = "note" if check["passed"] else "WARNING"
-                say(f"{word}: {name}: {step_check_line(check)}")
-        passed = sum(c["passed"] for c in checked.values())
-        if len(checked) > MAX_STEP_NOTES and passed:
-            say(f"note: the explicit step checked again at dt / 2 on {len(checked)} jobs: {passed} passed")
+        for line in step_check_notes(checked):
+            say(line)
         own_executor = executor is None
         if own_executor:
             executor = LocalExecutor(backend, config.threads)
@@ -161,7 +153,7 @@ def run_jobs(
                 progress=progress,
                 chunk_realizations=chunk_realizations,
                 checkpoint_seconds=checkpoint_seconds,
-                provenance=provenance,
+                provenance={**(provenance or {}), **_step_check_attr(checked)},
                 extra=extra,
             )
         except BaseException:
@@ -171,6 +163,14 @@ def run_jobs(
             if own_executor:
                 executor.close()
     return store.path
+
+
+def _step_check_attr(checked: dict) -> dict:
+    """The run file's root attribute ``step_check_json`` (each checked job's
+    :func:`~antisync.execution.step_check.step_record`), or nothing when no job was checked."""
+    if not checked:
+        return {}
+    return {"step_check_json": json.dumps(checked, sort_keys=True)}
 
 
 def _execute(

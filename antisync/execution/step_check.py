@@ -27,9 +27,11 @@ from antisync.status import SYNCED
 __all__ = [
     "STEP_CHECK_SHARE",
     "STEP_CHECK_STARTS",
+    "MAX_STEP_NOTES",
     "check_step_accuracy",
     "job_step_check",
     "step_check_line",
+    "step_check_notes",
     "step_record",
 ]
 
@@ -116,6 +118,27 @@ def step_check_line(check: dict) -> str:
     if check.get("passed", True):
         return text
     return text + f": these numbers depend on the step; run again at dynamics.dt = {half:g}"
+
+
+#: jobs whose passing step checks are each said in a line (more: one line for all of them)
+MAX_STEP_NOTES = 4
+
+
+def step_check_notes(checked: dict[str, dict]) -> list[str]:
+    """The lines a run (and ``antisync summary`` of its file) says of its jobs' step checks
+    (``{job: record}``): a WARNING for each that failed, a note for each that passed, or one
+    line for all that passed when more than :data:`MAX_STEP_NOTES` jobs were checked."""
+    lines = [
+        f"{'note' if c['passed'] else 'WARNING'}: {name}: {step_check_line(c)}"
+        for name, c in checked.items()
+        if not c["passed"] or len(checked) <= MAX_STEP_NOTES
+    ]
+    passed = sum(c["passed"] for c in checked.values())
+    if len(checked) > MAX_STEP_NOTES and passed:
+        lines.append(
+            f"note: the explicit step checked again at dt / 2 on {len(checked)} jobs: {passed} passed"
+        )
+    return lines
 
 
 def job_step_check(job, threads: int | None = None) -> dict | None:

@@ -217,6 +217,23 @@ def stop_record(path: Path) -> dict | None:
     return record
 
 
+def step_check_records(path: Path) -> dict[str, dict]:
+    """Each checked job's record of the explicit step checked again at ``dt / 2`` (root attribute
+    ``step_check_json``, :func:`antisync.execution.step_check.step_record`); ``{}`` for a file
+    whose jobs were not checked (the paper's identical oscillators, Rodas4, files written before
+    the check was stored)."""
+    with open_results(path) as f:
+        raw = f.attrs.get("step_check_json")
+        if raw is None:
+            return {}
+        records = _read(path, "root attribute step_check_json", lambda: json.loads(str(raw)))
+    if not isinstance(records, dict) or not all(
+        isinstance(r, dict) and {"starts", "dt", "changed", "passed"} <= set(r) for r in records.values()
+    ):
+        raise StoreError(f"{path} is damaged: root attribute step_check_json lacks the step check's fields")
+    return records
+
+
 _STOP_KEYS = {"when", "tolerance", "looks", "level", "budget", "stopped_at", "stopped_early", "last_look"}
 _LOOK_KEYS = {"realizations", "level", "links", "resolved", "settled", "unresolved"}
 
