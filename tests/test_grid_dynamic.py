@@ -572,7 +572,7 @@ def test_the_step_check_flags_a_stable_but_coarse_step(tmp_path):
     """IEEE 39 at RK4 dt 0.0025 (stable, but its load buses' fast modes damped 10x too slowly):
     start 4 locks there and at no smaller step, so the check, which integrates the first starts
     of the intact grid again at dt / 2, warns and the table says so; at the shipped dt 0.00125
-    it passes. A Rodas4 removal has no step check (its steps follow rtol)."""
+    it passes. A Rodas4 removal checks its tolerances instead (ten times finer)."""
     from pathlib import Path
 
     from antisync.report.removal import removal_doc
@@ -592,16 +592,19 @@ def test_the_step_check_flags_a_stable_but_coarse_step(tmp_path):
     write_table(coarse, out)
     doc = removal_doc(out)
     assert doc["summary"]["step_check"] == check
-    assert line_removal(config, dynamics={"integrator": "rodas4"}, **run).step_check is None
+    rodas4 = line_removal(config, dynamics={"integrator": "rodas4"}, **run).step_check
+    assert rodas4["passed"] and (rodas4["rtol"], rodas4["atol"]) == (1e-6, 1e-6)
 
 
 def test_a_run_checks_its_explicit_step_too():
     """``antisync run`` of a generalized model (and of a law) checks Euler's or RK4's step on its
     undamaged network's first starts (:func:`antisync.execution.step_check.job_step_check`); the
-    paper's identical oscillators, whose step defines tau, and Rodas4 are not checked."""
+    paper's identical oscillators, whose step defines tau, are not checked; Rodas4 checks its
+    tolerances: at rtol = atol = 1e-4 on IEEE 39 six of eight times move by more than 1% (up to
+    0.3 s) at 1e-5, a warning naming the finer tolerances; at the default 1e-6 it passes."""
     from pathlib import Path
 
-    from antisync.execution.step_check import job_step_check
+    from antisync.execution.step_check import job_step_check, step_check_line
     from antisync.plan.config import load_config
     from antisync.plan.jobs import make_job
 
@@ -611,7 +614,13 @@ def test_a_run_checks_its_explicit_step_too():
     fine = job_step_check(make_job(load_config(config, ["realizations=8"])))
     assert fine["passed"] and fine["starts"] == 8 and fine["largest_dtau"] < 1e-3
     rodas4 = load_config(config, ["realizations=8", "dynamics.integrator=rodas4"])
-    assert job_step_check(make_job(rodas4)) is None
+    assert job_step_check(make_job(rodas4))["passed"]
+    coarse = ["realizations=8", "dynamics.integrator=rodas4", "dynamics.rtol=1e-4", "dynamics.atol=1e-4"]
+    loose = job_step_check(make_job(load_config(config, coarse)))
+    assert not loose["passed"] and loose["jumped"] >= 4 and loose["changed"] == 0
+    line = step_check_line(loose)
+    assert line.startswith("tolerances checked: the first 8 starts again at rtol = 1e-05, atol = 1e-05")
+    assert line.endswith("run again at dynamics.rtol = 1e-05, dynamics.atol = 1e-05")
     lollipop = {"graph": {"kind": "lollipop", "nodes": 6, "path": 3}, "realizations": 8}
     assert job_step_check(make_job(config_from_mapping(lollipop))) is None
     law = config_from_mapping({**lollipop, "model": {"law": "kuramoto"}})

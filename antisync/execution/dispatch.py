@@ -21,6 +21,7 @@ read without integrating anything.
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import itertools
 import time
@@ -372,22 +373,28 @@ def model_simulator(dynamics, give_up: tuple[float, float] | None = None) -> Cal
     }[dynamics.integrator]
 
 
-def base_network_times(job, ks: np.ndarray, dt: float, max_steps: int, threads=None) -> tuple:
+def base_network_times(
+    job, ks: np.ndarray, dt: float, max_steps: int, threads=None, tolerances: tuple | None = None
+) -> tuple:
     """``(status, tau)`` of ``job``'s undamaged network on realizations ``ks`` at step ``dt``
     (``tau`` in the model's units, NaN unless SYNCED) by the CPU driver of its model kind: what
-    the step check (:mod:`antisync.execution.step_check`) compares at ``dt`` and ``dt / 2``."""
+    the step check (:mod:`antisync.execution.step_check`) compares at ``dt`` and ``dt / 2``, or
+    (``tolerances``: Rodas4's ``(rtol, atol)`` in place of the config's) at two tolerances."""
     csr = job.csr
+    dynamics = job.config.dynamics
+    if tolerances is not None:
+        dynamics = dataclasses.replace(dynamics, rtol=float(tolerances[0]), atol=float(tolerances[1]))
     common = (job.config.seed, 0, 0, csr.indptr, csr.indices, csr.weights, np.zeros((0, csr.weights.size)))
     clock = {"dt": dt, "max_steps": int(max_steps), "threads": threads, "realizations": ks}
     if model_kind(job.config) == "law":
         from antisync.kernels.law import simulate_law
 
-        params = law_params(job.law, job.config.dynamics, 1)
-        sim = simulate_law(*common, params, integrator=job.config.dynamics.integrator, **clock)
+        params = law_params(job.law, dynamics, 1)
+        sim = simulate_law(*common, params, integrator=dynamics.integrator, **clock)
     else:
         params = job_model_params(job, ks, job.model.targets[:1])
-        sim = model_simulator(job.config.dynamics)(*common, params, **clock)
-    t0, _ = estimators.crossing_times(sim, job.config.dynamics.interpolate)
+        sim = model_simulator(dynamics)(*common, params, **clock)
+    t0, _ = estimators.crossing_times(sim, dynamics.interpolate)
     return sim.status0, np.where(sim.status0 == SYNCED, t0 * dt, np.nan)
 
 

@@ -50,6 +50,7 @@ it into tasks of realizations x lines, integrates them here or on a Dask client
 
 from __future__ import annotations
 
+import dataclasses
 import time
 import warnings
 from pathlib import Path
@@ -60,7 +61,12 @@ from antisync.errors import AntisyncError
 from antisync.execution.dispatch import model_params, model_simulator
 from antisync.execution.executors.dask import TaskLostError, check_client, client_threads
 from antisync.execution.executors.tasks import map_tasks
-from antisync.execution.step_check import STEP_CHECK_STARTS, check_step_accuracy, step_check_line
+from antisync.execution.step_check import (
+    STEP_CHECK_STARTS,
+    check_step_accuracy,
+    check_tolerance_accuracy,
+    step_check_line,
+)
 from antisync.grids.errors import GridError
 from antisync.grids.removal_config import RemovalPlan, check_beta, plan_removal, resolve_config, work_config
 from antisync.grids.removal_journal import RemovalJournal, remove_journal, work_digest
@@ -433,18 +439,19 @@ def _pilot(fixed: dict, variants, m: int, threads, log) -> None:
 
 
 def _step_check(fixed: dict, variants, m: int, threads, log) -> dict | None:
-    """The step check of Euler or RK4 (:mod:`antisync.execution.step_check`) on the intact
-    grid's first starts, before any task: its record for the table, and a warning through
-    ``log`` (or :func:`warnings.warn`) when it did not pass. None for Rodas4."""
-    if fixed["dynamics"].integrator == "rodas4":
-        return None
+    """The step check of Euler or RK4, or Rodas4's of its tolerances
+    (:mod:`antisync.execution.step_check`), on the intact grid's first starts (without
+    ``sync.give_up``), before any task: its record for the table, and a warning through ``log``
+    (or :func:`warnings.warn`) when it did not pass."""
     ks = np.arange(min(STEP_CHECK_STARTS, m), dtype=np.int64)
+    dyn = fixed["dynamics"]
 
-    def run_at(dt, starts):
+    def run_at(dt, starts, dynamics=dyn):
         todo = np.zeros((starts.size, 2), dtype=np.bool_)
         todo[:, 0] = True
         run = {
             **fixed,
+            "dynamics": dynamics,
             "targets": fixed["setup"].targets[:2],
             "dt": dt,
             "max_steps": round(fixed["max_steps"] * fixed["dt"] / dt),
@@ -453,8 +460,16 @@ def _step_check(fixed: dict, variants, m: int, threads, log) -> dict | None:
         t0, _ = crossing_times(sim, fixed["interpolate"])
         return sim.status0, np.where(sim.status0 == SYNCED, t0 * dt, np.nan)
 
-    record = check_step_accuracy(run_at, fixed["dt"], ks)
-    if not record["passed"]:  # a pass is said in the table's first line
+    if dyn.integrator == "rodas4":
+        rtol, atol = dyn.tolerances
+
+        def at_tolerances(r, a, starts):
+            return run_at(fixed["dt"], starts, dataclasses.replace(dyn, rtol=float(r), atol=float(a)))
+
+        record = check_tolerance_accuracy(at_tolerances, fixed["dt"], rtol, atol, ks)
+    else:
+        record = check_step_accuracy(run_at, fixed["dt"], ks)
+    if record is not None and not record["passed"]:  # a pass is said in the table's first line
         text = f"WARNING: {step_check_line(record)}"
         if log is not None:
             log(text)

@@ -114,9 +114,9 @@ class RemovalTable(Rows):
     locked, how many were integrated again, and the 95% upper bound of the share of the others
     that would lock (``bound95``, 3 / sampled when none did); None without the rule."""
     step_check: dict | None = None
-    """The step check of Euler or RK4 (:mod:`antisync.execution.step_check`): the intact grid's
-    first starts integrated again at ``dt / 2``, how many changed status and the largest change
-    of ``tau``; None for Rodas4 and for tables written before it."""
+    """The step check (:mod:`antisync.execution.step_check`): the intact grid's first starts
+    integrated again at ``dt / 2`` (Euler, RK4) or at ten times finer tolerances (Rodas4), how
+    many changed status and the largest change of ``tau``; None for tables written before it."""
 
     @property
     def n(self) -> int:
