@@ -111,17 +111,16 @@ def run_removal(
     # threads only say where the work runs: kept out of the config a journal and a table store
     cfg = dataclasses.replace(cfg, threads=None)
     plan = plan_removal(cfg, lines, beta, islanding)
-    inputs = config_inputs(cfg, source)
-    if figure is not None:  # drawn by the caller (antisync.report) once the table is made
-        check_figure(figure, overwrite, protect=inputs)
+    inputs = _inputs(cfg, source, figure, overwrite)
     journal = None if out is None else journal_folder(out)
     say = log or (lambda m: None)
     with writer_lock(out) if out is not None else contextlib.nullcontext():
         if journal is not None:
-            _check_journal(journal, "removal", resume=resume, overwrite=overwrite)
-            if resume and out.exists() and not journal.exists():
-                check_finished_table(out, cfg, plan.asked, beta)  # only the arguments are compared
-                say(f"{out} is complete: nothing to resume (it is left as it is)")
+
+            def finished():  # only the arguments are compared with the table's
+                check_finished_table(out, cfg, plan.asked, beta)
+
+            if _kept(out, journal, "removal", resume, overwrite, finished, say):
                 return Written(None, out, kept=True)
             check_output(out, overwrite or (resume and journal.exists()), protect=inputs)
         table = line_removal(
@@ -188,9 +187,7 @@ def run_trip(
     into ``out``, with the order of refusals, the file policy, lock and journal of
     :func:`run_removal`."""
     plan = plan_trip(cfg, lines, contingencies)
-    inputs = config_inputs(cfg, source)
-    if figure is not None:  # drawn by the caller (antisync.report) once the table is made
-        check_figure(figure, overwrite, protect=inputs)
+    inputs = _inputs(cfg, source, figure, overwrite)
     cfg, g = plan.config, plan.grid
     tolerance = cfg.sync.tolerance if cfg.sync.criterion == "frequency" else 1e-3
     # the config's integrator: rk4 at dt, or rodas4 (a stiff grid's) with its tolerances; the
@@ -201,15 +198,15 @@ def run_trip(
     say = log or (lambda m: None)
     with writer_lock(out) if out is not None else contextlib.nullcontext():
         if journal is not None:
-            _check_journal(journal, "trip", resume=resume, overwrite=overwrite)
-            if resume and out.exists() and not journal.exists():
-                # nothing is written: only the arguments are compared with the table's
+
+            def finished():  # nothing is written: only the arguments are compared with the table's
                 settings = {"t_clear": t_clear, "t_max": t_max, "dt": cfg.dynamics.dt, "tolerance": tolerance}
                 settings.update(integration_record(**integration))
                 settings.update(cct_max=cct_max if cct else None, cct_tol=CCT_TOL if cct else None)
                 settings.update(cct_scan=cct_scan if cct else None, clock=CLOCK)
                 check_finished_trips(out, g, plan_trips(g, plan.lines, plan.contingencies), settings)
-                say(f"{out} is complete: nothing to resume (it is left as it is)")
+
+            if _kept(out, journal, "trip", resume, overwrite, finished, say):
                 return Written(None, out, kept=True)
             again = overwrite or (resume and journal.exists())
             out = check_output(out, again, protect=inputs, table="trip", fmt=TRIP_FORMAT)
@@ -305,6 +302,27 @@ def _few(names: list[str], most: int = 3) -> str:
     """The first ``most`` names and a count of the rest."""
     more = f" and {len(names) - most} more" if len(names) > most else ""
     return ", ".join(names[:most]) + more
+
+
+def _inputs(cfg, source, figure, overwrite: bool) -> list:
+    """The files the config reads (``source``: its YAML file), never replaced by an output, and
+    ``figure`` checked against them (drawn by the caller, :mod:`antisync.report`, once the table
+    is made)."""
+    inputs = config_inputs(cfg, source)
+    if figure is not None:
+        check_figure(figure, overwrite, protect=inputs)
+    return inputs
+
+
+def _kept(out: Path, journal: Path, kind: str, resume: bool, overwrite: bool, finished, say) -> bool:
+    """The journal checked (:func:`_check_journal`); True when ``resume`` finds ``out``
+    finished (no journal beside it): ``finished()`` compares its arguments and it is kept."""
+    _check_journal(journal, kind, resume=resume, overwrite=overwrite)
+    if not (resume and out.exists() and not journal.exists()):
+        return False
+    finished()
+    say(f"{out} is complete: nothing to resume (it is left as it is)")
+    return True
 
 
 def _check_journal(journal: Path, kind: str, *, resume: bool, overwrite: bool) -> None:
