@@ -13,6 +13,10 @@ Timed per trajectory-step, in the same round, back to back, against:
 - ``builtin one``: the same kernels one trajectory per item (``lanes=0``), the layout the law's
   generated driver has.
 
+The law's RK4 steps its circle form (``(cos theta, sin theta)``, as the built-in kernels do:
+:func:`antisync.kernels.law.circle_form`); ``law on theta`` is its RK4 on the angle itself
+(``circle=False``, the steps the adjoint differentiates), with a sine per node and stage.
+
 The law's cold compile (a fresh cache folder, a new process) and its load from the cache are
 timed too. Prints the fastest of ``--repeat`` rounds per kind and each round's ratio.
 """
@@ -48,17 +52,18 @@ import time, numpy as np
 t = time.perf_counter()
 from antisync.kernels.law import LawParams, simulate_law
 from antisync.laws import read_law
-law = read_law("stuart-landau")
+law = read_law(LAW)
 ip = np.array([0, 1, 2, 3]); ix = np.array([1, 2, 0])
-simulate_law(1, 0, 2, ip, ix, np.ones(3), np.zeros((0, 3)), LawParams(law, np.zeros((1, 3)), np.full(1, 8.0)),
+values = np.ones((len(law.params), 3))
+simulate_law(1, 0, 2, ip, ix, np.ones(3), np.zeros((0, 3)), LawParams(law, values, np.full(1, 8.0)),
              dt=0.01, max_steps=10, integrator=INTEGRATOR)
 print(time.perf_counter() - t)
 """
 
 
-def _compile_times(integrator: str) -> tuple[float, float]:
-    """A fresh cache folder: the compile of ``integrator``'s drivers, then their load from it."""
-    code = COMPILE.replace("INTEGRATOR", repr(integrator))
+def _compile_times(law: str, integrator: str) -> tuple[float, float]:
+    """A fresh cache folder: the compile of ``law``'s ``integrator`` drivers, then their load."""
+    code = COMPILE.replace("INTEGRATOR", repr(integrator)).replace("LAW", repr(law))
     with tempfile.TemporaryDirectory() as folder:
         env = {**os.environ, "ANTISYNC_LAW_CACHE": folder}
         cold = float(
@@ -81,12 +86,14 @@ def main() -> None:
     ap.add_argument("--steps", type=int, default=400)
     args = ap.parse_args()
     print(f"# {platform.processor() or platform.machine()}, {os.cpu_count()} cores, threads {args.threads}")
-    for integrator in ("rk4", "rodas4"):
-        cold, warm = _compile_times(integrator)
-        print(
-            f"law stuart-landau, {integrator}: cold compile + first call {cold:.1f} s, "
-            f"from the cache {warm:.2f} s (new processes)"
-        )
+    # Stuart-Landau (two states, no circle form) and the swing equation (RK4 on its circle form)
+    for name in ("stuart-landau", "swing"):
+        for integrator in ("rk4", "rodas4"):
+            cold, warm = _compile_times(name, integrator)
+            print(
+                f"law {name}, {integrator}: cold compile + first call {cold:.1f} s, "
+                f"from the cache {warm:.2f} s (new processes)"
+            )
     law = read_law("kuramoto")
     for name, (make, m) in GRAPHS.items():
         g = make()
@@ -102,6 +109,14 @@ def main() -> None:
         kinds = {
             "law": functools.partial(
                 simulate_law, *common, LawParams(law, np.zeros((1, n)), never), integrator="rk4", **clock
+            ),
+            "law on theta": functools.partial(
+                simulate_law,
+                *common,
+                LawParams(law, np.zeros((1, n)), never),
+                integrator="rk4",
+                circle=False,
+                **clock,
             ),
             "builtin lanes": functools.partial(
                 cpu.simulate_model, *common, builtin, integrator="rk4", **clock

@@ -11,6 +11,7 @@ from pathlib import Path
 import networkx as nx
 import numpy as np
 import pytest
+import sympy
 from scipy.integrate import solve_ivp
 from typer.testing import CliRunner
 
@@ -231,10 +232,12 @@ def test_the_hoisted_right_hand_side_is_the_per_link_one(name):
 
 @pytest.mark.parametrize("graph", ["lollipop", "karate"])
 def test_the_papers_model_as_a_law_is_the_builtin(graph):
-    """Same integrator and steps, same realizations: Euler and Rodas4 to 1e-12 relative in every
-    tau0 (Euler's rotation of ``(cos, sin)`` and the law's ``theta += dt theta'`` are the same
-    step in exact arithmetic). The built-in RK4 steps the circle's embedding ``(cos, sin)``, the
-    law ``theta``: the two differ by the method's error, which falls as dt^4."""
+    """Same integrator and steps, same realizations: every tau0 to 1e-12 relative. Euler's
+    rotation of ``(cos, sin)`` and the law's ``theta += dt theta'`` are the same step in exact
+    arithmetic; RK4 steps the law's circle form (``(cos theta, sin theta)``, projected back to the
+    circle each step), which is the built-in kernels' RK4. RK4 on ``theta`` itself
+    (``circle=False``, what the adjoint differentiates) differs from it by the method's error,
+    which falls as dt^4."""
     g = nx.lollipop_graph(3, 3) if graph == "lollipop" else nx.karate_club_graph()
     nx.set_edge_attributes(g, 1.0, "weight")
     _, csr = _csr(g)
@@ -258,11 +261,34 @@ def test_the_papers_model_as_a_law_is_the_builtin(graph):
             np.testing.assert_array_equal(got.status0, want.status0)
             assert (want.status0 == SYNCED).all()
             gap = np.max(np.abs(_tau(got) - _tau(want)) / _tau(want))
+            assert gap < 1e-12, (integrator, dt, gap)
             if integrator == "rk4":
-                gaps[dt] = gap
-            else:
-                assert gap < 1e-12, (integrator, dt, gap)
+                on_theta = simulate_law(*args, law, dt=dt, max_steps=int(200 / dt), circle=False)
+                np.testing.assert_array_equal(on_theta.status0, want.status0)
+                gaps[dt] = np.max(np.abs(_tau(on_theta) - _tau(want)) / _tau(want))
     assert gaps[0.01] < 1e-8 and gaps[0.02] / gaps[0.01] > 8, gaps
+
+
+def test_the_circle_form_reads_angles_through_sine_and_cosine_only():
+    """Which laws RK4 steps on the circle's embedding: the library's phase models (the second
+    harmonic's ``sin(2 (theta_j - theta_i))`` a polynomial in the ends' ``(cos, sin)``, the
+    swing equation's speed kept as it is), not Stuart-Landau (its phase is not a state) nor a
+    law that reads its phase outside a sine (``theta / 2``)."""
+    from antisync.kernels.law import circle_form
+
+    def slots(law):
+        form = circle_form(law.symbolic())
+        return None if form is None else (form.slots, form.phase, form.frequency)
+
+    assert slots(KURAMOTO) == (((0, 1),), (0, 1), True)
+    assert slots(read_law("swing")) == (((0, 1), (2,)), (0, 1), True)
+    assert slots(read_law("second-harmonic"))[0] == ((0, 1),)
+    assert slots(read_law("winfree"))[0] == ((0, 1),)
+    assert slots(read_law("stuart-landau")) is None
+    half = {**KURAMOTO.as_dict(), "name": "half", "rates": {"theta": "omega + u + sin(theta / 2)"}}
+    assert slots(Law.from_mapping(half)) is None
+    form = circle_form(read_law("second-harmonic").symbolic())
+    assert not any(e.has(sympy.sin, sympy.cos) for e in (*form.sym.coupling, *form.sym.rates))
 
 
 def _karate_swing():
@@ -287,7 +313,7 @@ def test_the_swing_equation_as_a_law_is_the_builtin():
     params = ModelParams(p[None, :], 1.0, 0.0, m, gamma, 0, targets)
     law = LawParams(read_law("swing"), np.vstack([p, m, gamma]), targets)
     args = (3, 0, 48, csr.indptr, csr.indices, csr.weights, vw)
-    for integrator, tol in (("euler", 1e-12), ("rodas4", 1e-12), ("rk4", 1e-9)):
+    for integrator, tol in (("euler", 1e-12), ("rodas4", 1e-12), ("rk4", 1e-12)):
         if integrator == "rodas4":
             want = implicit.simulate_model(*args, params, dt=0.01, max_steps=20000)
         else:
@@ -320,11 +346,15 @@ POWER_GRID = {
 
 
 def _frequency_pair(model, law, args, integrator, dt, steps):
+    """``integrator`` ``theta``: the law's RK4 on its angles (``circle=False``) against the
+    built-in RK4."""
+    circle = integrator != "theta"
+    integrator = integrator if circle else "rk4"
     if integrator == "rodas4":
         want = implicit.simulate_model(*args, model, dt=dt, max_steps=steps)
     else:
         want = cpu.simulate_model(*args, model, dt=dt, max_steps=steps, integrator=integrator, lanes=0)
-    got = simulate_law(*args, law, dt=dt, max_steps=steps, integrator=integrator)
+    got = simulate_law(*args, law, dt=dt, max_steps=steps, integrator=integrator, circle=circle)
     np.testing.assert_array_equal(got.status0, want.status0)
     ok = want.status0 == SYNCED
     return ok, np.max(np.abs(_tau(got) - _tau(want))[ok] / _tau(want)[ok])
@@ -336,7 +366,8 @@ def test_the_frequency_criterion_of_a_law_is_the_builtins():
     with fixed frequencies: the paper's model (its phase's rate, the default) and the swing
     equation (``[nu, (P + u) / gamma]``: the speed and the speed it relaxes to). Euler and Rodas4
     within 1e-11 relative of tau0 over ~5,000 steps (a one-ulp change of the weights moves these
-    times by ~1e-12: the criterion's own conditioning), RK4 within its method's error."""
+    times by ~1e-12: the criterion's own conditioning), RK4 too (on the law's circle form, the
+    built-in's discretization), and RK4 on the angles within the method's error."""
     csr, p, m, gamma = _karate_swing()
     tol = np.full(1, 1e-3)
     args = (3, 0, 32, csr.indptr, csr.indices, csr.weights, np.zeros((0, csr.weights.size)))
@@ -351,7 +382,7 @@ def test_the_frequency_criterion_of_a_law_is_the_builtins():
         ),
     }
     for name, (model, law) in cases.items():
-        for integrator, bound in (("euler", 1e-11), ("rodas4", 1e-11), ("rk4", 1e-9)):
+        for integrator, bound in (("euler", 1e-11), ("rodas4", 1e-11), ("rk4", 1e-11), ("theta", 1e-9)):
             ok, gap = _frequency_pair(model, law, args, integrator, 0.01, 20000)
             assert ok.sum() >= 30 and gap < bound, (name, integrator, gap)
 
@@ -360,7 +391,8 @@ def test_the_ieee39_grid_as_a_law_is_the_builtin():
     """configs/ieee39_grid.yaml's data (10 generators with inertia beside 29 first-order buses,
     raw coupling, frequency locking at 1e-3 rad/s) written as the law POWER_GRID: Euler at dt
     5e-4 (80,000 steps) reproduces the built-in kernels' tau0 to 3e-11 relative, within 20 times
-    the times' own response to a one-ulp change of every weight (measured here: ~2e-12)."""
+    the times' own response to a one-ulp change of every weight (measured here: ~2e-12); RK4 at
+    the config's step too."""
     cfg = load_config(Path(__file__).resolve().parent.parent / "configs" / "ieee39_grid.yaml")
     job = make_job(cfg)
     csr = job.csr
@@ -377,6 +409,9 @@ def test_the_ieee39_grid_as_a_law_is_the_builtin():
     base = simulate_law(*args, law, dt=5e-4, max_steps=80000, integrator="euler")
     floor = np.max(np.abs(_tau(moved) - _tau(base))[ok] / _tau(base)[ok])
     assert gap < 3e-11 and gap < 20 * max(floor, 1e-13), (gap, floor)
+    # RK4 at the config's step (the law's circle form: the built-in's discretization)
+    ok, gap = _frequency_pair(model, law, args, "rk4", cfg.dynamics.dt, 40000)
+    assert ok.sum() >= 10 and gap < 3e-11, gap
 
 
 def test_a_law_runs_to_frequency_locking(tmp_path):
@@ -641,6 +676,7 @@ def test_the_adjoint_is_the_derivative_of_the_discrete_tau(name):
             csr.weights,
             vw,
             LawParams(law, values, np.full(len(vw) + 1, (0.99 * n) ** 2)),
+            circle=False,  # RK4 on the angles: the steps the adjoint runs backwards
             **kw,
         )
         assert (adj.status0 == SYNCED).all()

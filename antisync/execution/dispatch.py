@@ -282,7 +282,9 @@ def design_drivers(config) -> DesignDrivers:
         if model_kind(config) == "law":
             from antisync.kernels.law import simulate_law, simulate_law_adjoint
 
-            simulate = functools.partial(simulate_law, integrator=dyn.integrator)
+            # RK4 on the angles: the steps the adjoint runs backwards, so the gradient is the
+            # derivative of the forward's tau (the circle form differs by the method's error)
+            simulate = functools.partial(simulate_law, integrator=dyn.integrator, circle=False)
             backward = simulate_law_adjoint
         else:
             simulate = model_simulator(dyn)

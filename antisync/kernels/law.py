@@ -25,6 +25,13 @@ per-node parameters ``P`` of shape ``(n_params, n)``):
   :func:`expanded_pattern` (each node's ``S x S`` block with itself and with each in-neighbour),
   by the chain rule through the coupling inputs: what Rodas4 factors.
 
+A law whose phase is one of its states, read (with every other angle) only through ``sin`` and
+``cos``, also gets its *circle form* (:func:`circle_form`): each angle stored as ``(cos theta,
+sin theta)``, its right-hand side a polynomial in them (``circle_law_rhs``, no sine or cosine
+per step), ``R`` read off the phase's pair. RK4 steps it, each step projected back to the circle
+(``circle_sync``): the built-in kernels' RK4, to the last bits on the paper's model. Euler,
+Rodas4 and the adjoint step the angles themselves.
+
 The drivers keep the statuses and the crossing times of the built-in model kernels: ``tau =
 (steps - 1 + frac) dt``, the crossing on the cubic Hermite interpolant of ``R`` over the step
 (RK4, Rodas4) or its straight line (Euler), a state that is not finite never synchronized.
@@ -32,6 +39,7 @@ The drivers keep the statuses and the crossing times of the built-in model kerne
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import hashlib
 import importlib.util
@@ -55,15 +63,17 @@ from antisync.kernels.shared import (
     todo_mask,
     unset_outputs,
 )
-from antisync.laws.spec import Law
+from antisync.laws.spec import Law, Symbolic
 from antisync.status import SYNCED
 from antisync.types import RODAS4_ATOL, RODAS4_RTOL
 
 __all__ = [
+    "Circle",
     "CompiledLaw",
     "LawParams",
     "cache_root",
     "check_step",
+    "circle_form",
     "compile_law",
     "expanded_pattern",
     "generate_source",
@@ -74,7 +84,7 @@ __all__ = [
 ]
 
 #: bumped when the generated code's layout changes (old files are then never read)
-GENERATOR = 11
+GENERATOR = 12
 
 
 class LawParams(NamedTuple):
@@ -106,9 +116,14 @@ class CompiledLaw(NamedTuple):
     """``KH``: the rows of ``law_rhs``' scratch ``G`` (``(KH, n)``)."""
     items: object
     """Euler's and RK4's items in parallel (``law_items_explicit``)."""
+    items_circle: object
+    """RK4's on the law's circle form (``law_items_circle``)."""
     items_rodas4: object
     vjp: object
     adjoint: object
+    circle: tuple
+    """whether RK4 runs on the law's circle form (:func:`circle_form`) to the order-parameter
+    criterion and to the frequency criterion"""
     path: Path
 
 
@@ -208,17 +223,19 @@ def _separate(h, sym):
     return terms
 
 
-def _rhs_source(sym, pr) -> list[str]:
+def _rhs_source(sym, pr, prefix: str = "") -> list[str]:
     """``law_rhs(y, wq, indptr, indices, P, out, G)`` and ``rhs_rows(n, nnz)``, the rows of the
-    scratch ``G`` it takes on a network of ``n`` nodes and ``nnz`` links.
+    scratch ``G`` it takes on a network of ``n`` nodes and ``nnz`` links (``prefix`` before
+    every name: the circle form's right-hand side is ``circle_law_rhs``).
 
     An input whose edge law separates (:func:`_separate`: ``w sin(theta_j - theta_i) = w (sin
     theta_j cos theta_i - cos theta_j sin theta_i)``) can be formed from neighbour sums ``sum_j
     W(w_ij) J(state_j)``, each ``J`` computed once per node into a row of ``G`` (``KH`` rows): no
     function of a neighbour's state per link, as the built-in kernels form the Kuramoto coupling
-    (``law_rhs_hoisted``). That pays where the ``KH n`` per-node functions are fewer than the
-    ``nnz`` links (``rhs_rows`` returns ``KH``, else 0); with ``G`` of no rows the edge law is
-    evaluated per link (``law_rhs_link``)."""
+    (``law_rhs_hoisted``). A ``J`` that is a neighbour's state or parameter itself is read where
+    it is stored. That pays where the ``KH n`` per-node functions are fewer than the ``nnz``
+    links, and always when there are none (``rhs_rows`` returns ``KH``, else 0); with ``G`` of
+    no rows the edge law is evaluated per link (``law_rhs_link``)."""
     split = {m: _separate(h, sym) for m, h in enumerate(sym.coupling)}
     pairs: dict = {}
     for terms in split.values():
@@ -230,33 +247,47 @@ def _rhs_source(sym, pr) -> list[str]:
         pairs = {}
     arrays: dict = {}  # J -> row of G
     for _, j in pairs:
-        if j != 1:
+        if j != 1 and j not in _stored(sym):
             arrays.setdefault(j, len(arrays))
     hoists = any(t is not None for t in split.values())
+    cheap = "True" if not arrays else "KH * n < nnz"
+    kh = f"{prefix}KH".upper() if prefix else "KH"
     out = [
-        f"KH = {max(1, len(arrays))}",
+        f"{kh} = {max(1, len(arrays))}",
         "",
         "",
         '@njit(cache=True, error_model="numpy")',
-        "def rhs_rows(n, nnz):",
-        f"    return KH if {hoists} and KH * n < nnz else 0",
+        f"def {prefix}rhs_rows(n, nnz):",
+        f"    return {kh} if {hoists} and {cheap.replace('KH', kh)} else 0",
         "",
         "",
         '@njit(cache=True, error_model="numpy")',
-        "def law_rhs(y, wq, indptr, indices, P, out, G):",
+        f"def {prefix}law_rhs(y, wq, indptr, indices, P, out, G):",
         "    if G.shape[0] > 0:",
-        "        law_rhs_hoisted(y, wq, indptr, indices, P, out, G)",
+        f"        {prefix}law_rhs_hoisted(y, wq, indptr, indices, P, out, G)",
         "    else:",
-        "        law_rhs_link(y, wq, indptr, indices, P, out)",
+        f"        {prefix}law_rhs_link(y, wq, indptr, indices, P, out)",
     ]
-    out += _rhs_variant(sym, pr, "law_rhs_hoisted(y, wq, indptr, indices, P, out, G)", split, pairs, arrays)
-    out += _rhs_variant(sym, pr, "law_rhs_link(y, wq, indptr, indices, P, out)", dict.fromkeys(split), {}, {})
+    out += _rhs_variant(
+        sym, pr, f"{prefix}law_rhs_hoisted(y, wq, indptr, indices, P, out, G)", split, pairs, arrays
+    )
+    out += _rhs_variant(
+        sym, pr, f"{prefix}law_rhs_link(y, wq, indptr, indices, P, out)", dict.fromkeys(split), {}, {}
+    )
     return out
+
+
+def _stored(sym) -> dict:
+    """A neighbour's states and parameters: where each is read in a link loop."""
+    return {
+        **{x: f"y[{k} * n + j]" for k, x in enumerate(sym.xj)},
+        **{p: f"P[{k}, j]" for k, p in enumerate(sym.pj)},
+    }
 
 
 def _rhs_variant(sym, pr, signature: str, split: dict, pairs: dict, arrays: dict) -> list[str]:
     """One right-hand side: the inputs of ``split`` with terms from neighbour sums (``pairs``,
-    ``G``'s rows ``arrays``), the others per link."""
+    ``G``'s rows ``arrays``, or the neighbour's stored values), the others per link."""
     import sympy
 
     n_s = len(sym.x)
@@ -293,14 +324,236 @@ def _rhs_variant(sym, pr, signature: str, split: dict, pairs: dict, arrays: dict
     out += [f"        s{k} = 0.0" for k in range(len(pairs))]
     out += [f"        {sym.u[m]} = 0.0" for m in per_link]
     out += _link_loop(link_exprs, sym)
+    stored = _stored(sym)
     for (w, j), k in pairs.items():
-        term = pr.doprint(w) if j == 1 else f"({pr.doprint(w)}) * G[{arrays[j]}, j]"
+        if j == 1:
+            term = pr.doprint(w)
+        else:
+            term = f"({pr.doprint(w)}) * {stored[j] if j in stored else f'G[{arrays[j]}, j]'}"
         out.append(f"            s{k} += {term}")
     if per_link:
         out += _block(link_exprs, [str(sym.u[m]) for m in per_link], "            ", pr, accumulate=True)
     if hoisted:
         out += _block([sums[m] for m in hoisted], [str(sym.u[m]) for m in hoisted], "        ", pr)
     out += _block(node_exprs, [f"out[{k} * n + i]" for k in range(n_s)], "        ", pr)
+    return out
+
+
+class Circle(NamedTuple):
+    """A law on the circle's embedding: each angle state ``theta`` (one its expressions read only
+    through ``sin`` and ``cos``) stored as ``(cos theta, sin theta)``, as the built-in kernels
+    store the phase (:mod:`antisync.kernels.core`); :func:`circle_form`."""
+
+    sym: Symbolic
+    """the law over the slots: ``x`` one symbol per slot, ``rates`` one per slot (an angle's
+    ``(-sin theta theta', cos theta theta')``), the edge law in the slots' symbols"""
+    slots: tuple
+    """per state of the law: its slots, ``(c, s)`` for an angle, ``(k,)`` else"""
+    phase: tuple
+    """the phase's ``(c, s)`` slots"""
+    frequency: bool
+    """whether the frequency criterion's quantities read the angles through ``sin`` and ``cos``
+    only (``sym.frequency`` in the slots; else that criterion steps the angles themselves)"""
+
+
+def circle_form(sym: Symbolic) -> Circle | None:
+    """``sym`` on the circle's embedding, or None where its phase is not one of its states or
+    that state is read other than through ``sin`` and ``cos`` of integer combinations (after
+    ``expand_trig``: ``sin(2 (theta_j - theta_i))`` is a polynomial in the ends' ``cos`` and
+    ``sin``). Classical RK4 on the embedding, each step projected back to the circle, is the
+    built-in kernels' RK4 (:func:`antisync.kernels.core.make_model_kernels`' ``rk4_step``); its
+    right-hand side needs no sine or cosine."""
+    import sympy
+
+    if sym.phase not in sym.x:
+        return None
+    exprs = [sympy.expand_trig(e) for e in (*sym.coupling, *sym.rates)]
+    subs, angles = {}, set()
+    for k, (x, xj) in enumerate(zip(sym.x, sym.xj, strict=True)):
+        c, s, cj, sj = sympy.symbols(f"xc{k} xs{k} xjc{k} xjs{k}", real=True)
+        mine = {sympy.sin(x): s, sympy.cos(x): c, sympy.sin(xj): sj, sympy.cos(xj): cj}
+        read = any(e.has(x) or e.has(xj) for e in exprs)
+        if (read or x == sym.phase) and not any(e.xreplace(mine).has(x, xj) for e in exprs):
+            subs.update(mine)
+            angles.add(k)
+    k_phase = sym.x.index(sym.phase)
+    if k_phase not in angles:
+        return None
+    coupling, rates = exprs[: len(sym.coupling)], exprs[len(sym.coupling) :]
+    frequency = tuple(sympy.expand_trig(q).xreplace(subs) for q in sym.frequency)
+    on_circle = not any(q.has(*(sym.x[k] for k in angles)) for q in frequency)
+    x, xj, new_rates, slots = [], [], [], []
+    for k, rate in enumerate(rates):
+        rate = rate.xreplace(subs)
+        if k in angles:
+            c, s, cj, sj = (subs[f(v)] for v in (sym.x[k], sym.xj[k]) for f in (sympy.cos, sympy.sin))
+            slots.append((len(x), len(x) + 1))
+            x += [c, s]
+            xj += [cj, sj]
+            new_rates += [-s * rate, c * rate]
+        else:
+            slots.append((len(x),))
+            x.append(sym.x[k])
+            xj.append(sym.xj[k])
+            new_rates.append(rate)
+    circle = dataclasses.replace(
+        sym,
+        x=tuple(x),
+        xj=tuple(xj),
+        coupling=tuple(h.xreplace(subs) for h in coupling),
+        rates=tuple(new_rates),
+        phase=x[slots[k_phase][0]],
+        frequency=frequency if on_circle else (),
+    )
+    return Circle(circle, tuple(slots), slots[k_phase], on_circle)
+
+
+def _circle_source(sym, circle: Circle | None, pr) -> list[str]:
+    """The circle form's right-hand side (``circle_law_rhs``), its frequency quantities
+    (``circle_law_devs``), its conversions and its RK4 (``circle_sync``); without a circle form a
+    ``circle_sync`` that is the law's own RK4 (never chosen: ``CIRCLE`` is False)."""
+    head = ["", "", f"CIRCLE = {circle is not None}"]
+    sync_args = "y, wq, indptr, indices, P, dt, freq, target, max_steps"
+    if circle is None:
+        return head + [
+            "CIRCLE_FREQUENCY = False",
+            "",
+            "",
+            '@njit(cache=True, error_model="numpy")',
+            f"def circle_sync({sync_args}):",
+            "    return law_sync(y, wq, indptr, indices, P, dt, True, freq, target, max_steps)",
+            "",
+        ]
+    out = head + [f"CIRCLE_FREQUENCY = {circle.frequency}", f"CS = {len(circle.sym.x)}"]
+    out += _rhs_source(circle.sym, pr, prefix="circle_")
+    if circle.frequency:
+        out += _frequency_source(circle.sym, pr, prefix="circle_")
+    else:  # never called: the frequency criterion steps the angles (CIRCLE_FREQUENCY)
+        out += [
+            "",
+            "",
+            '@njit(cache=True, error_model="numpy")',
+            "def circle_law_devs(y, f, wq, indptr, indices, P, D):",
+            "    D[:] = np.nan",
+        ]
+    convert, project = [], []
+    for k, slots in enumerate(circle.slots):
+        if len(slots) == 1:
+            convert += [f"        z[{slots[0]} * n + i] = y[{k} * n + i]"]
+            continue
+        c, s = slots
+        convert += [
+            f"        z[{c} * n + i] = math.cos(y[{k} * n + i])",
+            f"        z[{s} * n + i] = math.sin(y[{k} * n + i])",
+        ]
+        project += [
+            f"        c = z[{c} * n + i]",
+            f"        s = z[{s} * n + i]",
+            "        norm2 = c * c + s * s",
+            "        inv = 1.0 / math.sqrt(norm2) if norm2 > 0.0 else math.nan",
+            f"        z[{c} * n + i] = c * inv",
+            f"        z[{s} * n + i] = s * inv",
+        ]
+    pc, ps = circle.phase
+    out += [
+        "",
+        "",
+        '@njit(cache=True, error_model="numpy")',
+        "def circle_from(y, z, n):",
+        '    """z = the state y on the circle\'s embedding."""',
+        "    for i in range(n):",
+        *convert,
+        "",
+        "",
+        '@njit(cache=True, error_model="numpy")',
+        "def circle_project(z, n):",
+        '    """Every angle\'s (cos, sin) back to the unit circle (a pair at 0: NaN)."""',
+        "    for i in range(n):",
+        *project,
+        "",
+        "",
+        '@njit(cache=True, error_model="numpy")',
+        "def circle_order(z, f, n):",
+        '    """(R, dR/dt) from the phase\'s (cos, sin) and their rates: no sine, no cosine."""',
+        "    tc = 0.0",
+        "    ts = 0.0",
+        "    dc = 0.0",
+        "    ds = 0.0",
+        "    for i in range(n):",
+        f"        tc += z[{pc} * n + i]",
+        f"        ts += z[{ps} * n + i]",
+        f"        dc += f[{pc} * n + i]",
+        f"        ds += f[{ps} * n + i]",
+        "    return tc * tc + ts * ts, 2.0 * (tc * dc + ts * ds)",
+        "",
+        "",
+        '@njit(cache=True, error_model="numpy")',
+        f"def circle_sync({sync_args}):",
+        '    """Classical RK4 on the circle\'s embedding from the state y (each step projected back to',
+        "    the circle) to the order-parameter criterion, or with freq the frequency criterion:",
+        '    (status, steps, frac), as law_sync."""',
+        "    n = indptr.shape[0] - 1",
+        "    m = CS * n",
+        "    G = np.empty((circle_rhs_rows(n, indices.shape[0]), n))",
+        "    z = np.empty(m)",
+        "    f = np.empty(m)",
+        "    k2 = np.empty(m)",
+        "    k3 = np.empty(m)",
+        "    k4 = np.empty(m)",
+        "    v = np.empty(m)",
+        "    D = np.empty((2 * KF, n))",
+        "    Dp = np.empty((2 * KF, n))",
+        "    circle_from(y, z, n)",
+        "    circle_law_rhs(z, wq, indptr, indices, P, f, G)",
+        "    r2 = 0.0",
+        "    dr2 = 0.0",
+        "    if freq:",
+        "        circle_law_devs(z, f, wq, indptr, indices, P, D)",
+        "        dev = law_deviation(D, D, n, dt, True, 1.0)",
+        "        if dev != dev:",
+        "            return NOT_SYNCED, max_steps, 0.0",
+        "        if dev < target:",
+        "            return ALREADY_SYNCED, 0, 0.0",
+        "    else:",
+        "        r2, dr2 = circle_order(z, f, n)",
+        "        if not (r2 == r2 and dr2 == dr2):",
+        "            return NOT_SYNCED, max_steps, 0.0",
+        "        if r2 >= target:",
+        "            return ALREADY_SYNCED, 0, 0.0",
+        "    h = 0.5 * dt",
+        "    for step in range(1, max_steps + 1):",
+        "        for a in range(m):",
+        "            v[a] = z[a] + h * f[a]",
+        "        circle_law_rhs(v, wq, indptr, indices, P, k2, G)",
+        "        for a in range(m):",
+        "            v[a] = z[a] + h * k2[a]",
+        "        circle_law_rhs(v, wq, indptr, indices, P, k3, G)",
+        "        for a in range(m):",
+        "            v[a] = z[a] + dt * k3[a]",
+        "        circle_law_rhs(v, wq, indptr, indices, P, k4, G)",
+        "        for a in range(m):",
+        "            z[a] = z[a] + dt / 6.0 * (f[a] + 2.0 * k2[a] + 2.0 * k3[a] + k4[a])",
+        "        circle_project(z, n)",
+        "        circle_law_rhs(z, wq, indptr, indices, P, f, G)",
+        "        if freq:",
+        "            D, Dp = Dp, D",
+        "            circle_law_devs(z, f, wq, indptr, indices, P, D)",
+        "            dev = law_deviation(D, Dp, n, dt, True, 1.0)",
+        "            if dev != dev:",
+        "                return NOT_SYNCED, max_steps, 0.0  # diverged: never synchronized",
+        "            x = frequency_crossing(D, Dp, n, dt, True, target)",
+        "        else:",
+        "            r2_prev = r2",
+        "            dr2_prev = dr2",
+        "            r2, dr2 = circle_order(z, f, n)",
+        "            if not (r2 == r2 and dr2 == dr2):",
+        "                return NOT_SYNCED, max_steps, 0.0  # diverged: never synchronized",
+        "            x = order_crossing(r2_prev, dr2_prev, r2, dr2, dt, True, target)",
+        "        if x >= 0.0:",
+        "            return SYNCED, step, x",
+        "    return NOT_SYNCED, max_steps, 0.0",
+        "",
+    ]
     return out
 
 
@@ -415,16 +668,17 @@ def generate_source(law: Law) -> str:
             out.append(f"            jq[at + {s} * rowlen + {r}] = {chain}")
     out += ["", ""]
     out += _adjoint_source(sym, pr)
+    out += _circle_source(sym, circle_form(sym), pr)
     return "\n".join(out) + _DRIVERS + _ADJOINT_DRIVERS
 
 
-def _frequency_source(sym, pr) -> list[str]:
-    """``law_devs(y, f, wq, indptr, indices, P, D)``: the frequency criterion's quantities ``q_k``
-    (``sym.frequency``) minus their means in ``D``'s rows ``2 k`` and their rates minus theirs in
-    rows ``2 k + 1`` (``KF`` quantities), the rates by the chain rule: ``dq/dt = dq/dx . f + dq/du
-    . du/dt``, ``du_i/dt = sum_j (dh/dx_i . f_i + dh/dx_j . f_j)`` over the in-links (what the
-    cubic Hermite crossing of the frequency criterion needs, as the built-in kernels'
-    ``deviations``)."""
+def _frequency_source(sym, pr, prefix: str = "") -> list[str]:
+    """``law_devs(y, f, wq, indptr, indices, P, D)`` (``prefix`` before its name): the frequency
+    criterion's quantities ``q_k`` (``sym.frequency``) minus their means in ``D``'s rows ``2 k``
+    and their rates minus theirs in rows ``2 k + 1`` (``KF`` quantities), the rates by the chain
+    rule: ``dq/dt = dq/dx . f + dq/du . du/dt``, ``du_i/dt = sum_j (dh/dx_i . f_i + dh/dx_j .
+    f_j)`` over the in-links (what the cubic Hermite crossing of the frequency criterion needs,
+    as the built-in kernels' ``deviations``)."""
     import sympy
 
     n_s = len(sym.x)
@@ -447,14 +701,12 @@ def _frequency_source(sym, pr) -> list[str]:
         for h in edge
     ]
     every = qs + rates + edge + edge_rates
-    out = [
-        "",
-        "",
-        f"KF = {len(qs)}",
+    out = [] if prefix else ["", "", f"KF = {len(qs)}"]
+    out += [
         "",
         "",
         '@njit(cache=True, error_model="numpy")',
-        "def law_devs(y, f, wq, indptr, indices, P, D):",
+        f"def {prefix}law_devs(y, f, wq, indptr, indices, P, D):",
         "    n = indptr.shape[0] - 1",
         "    for i in range(n):",
     ]
@@ -936,6 +1188,17 @@ def law_item_explicit(ks, seed, indptr, indices, base_w, var_w, var_is_base, tod
 
 
 @njit(cache=True, error_model="numpy")
+def law_item_circle(ks, seed, indptr, indices, base_w, var_w, var_is_base, todo, PR, targets, clock, plan,
+                    jperm, status0, steps0, frac0, status, steps, frac, collapsed, item, per):
+    dt, t_max, max_steps, method, rtol, atol, criterion = clock
+    r, v, run, y, w, P = item_start(ks, seed, indptr, base_w, var_w, var_is_base, todo, PR, item, per)
+    if not run:
+        return
+    st, k, x = circle_sync(y, w, indptr, indices, P, dt, criterion == 1, targets[v + 1], int(max_steps))
+    record(status0, steps0, frac0, status, steps, frac, r, v, st, k, x)
+
+
+@njit(cache=True, error_model="numpy")
 def law_item_rodas4(ks, seed, indptr, indices, base_w, var_w, var_is_base, todo, PR, targets, clock, plan,
                     jperm, status0, steps0, frac0, status, steps, frac, collapsed, item, per):
     dt, t_max, max_steps, method, rtol, atol, criterion = clock
@@ -971,7 +1234,7 @@ def law_items_{kind}(ks, seed, indptr, indices, base_w, var_w, var_is_base, todo
                 steps[r, v] = steps0[r]
                 frac[r, v] = frac0[r]
 """
-    for kind in ("explicit", "rodas4")
+    for kind in ("explicit", "circle", "rodas4")
 )
 
 
@@ -1145,9 +1408,11 @@ def compile_law(law: Law) -> CompiledLaw:
         module.law_jac,
         module.KH,
         module.law_items_explicit,
+        module.law_items_circle,
         module.law_items_rodas4,
         module.law_vjp,
         module.law_adjoint_items,
+        (module.CIRCLE, module.CIRCLE_FREQUENCY),
         path,
     )
 
@@ -1221,6 +1486,7 @@ def simulate_law(
     threads: int | None = None,
     realizations: np.ndarray | None = None,
     todo: np.ndarray | None = None,
+    circle: bool = True,
 ) -> SimResult:
     """Integrate realizations ``first .. first+count-1`` (or ``realizations``) of a user's law
     for the base weights and every row of ``variant_weights`` (the arguments of
@@ -1228,7 +1494,13 @@ def simulate_law(
     trajectory per item, in parallel. Rodas4 starts at step ``dt``, runs to ``t_max = max_steps
     dt`` and stores its crossing time on the grid of ``dt`` as the built-in drivers do; a
     trajectory whose step size collapses raises ``FloatingPointError`` naming it, as the
-    built-in Rodas4 does (never a status). A state that is not finite is ``NOT_SYNCED``."""
+    built-in Rodas4 does (never a status). A state that is not finite is ``NOT_SYNCED``.
+
+    RK4 steps the law's circle form where it has one (:func:`circle_form`: its angles as ``(cos,
+    sin)``, each step projected back to the circle; the built-in kernels' RK4), unless ``circle``
+    is False (RK4 on the angles themselves: the
+    discretization the adjoint differentiates). Both are fourth order; they differ by the
+    method's error."""
     if integrator not in _METHODS:
         raise ValueError(f"integrator must be one of {', '.join(_METHODS)}, got {integrator!r}")
     law = params.law
@@ -1246,6 +1518,9 @@ def simulate_law(
         plan, jperm = _jacobian_plan(indptr.tobytes(), indices.tobytes(), len(law.states))
     else:
         plan, jperm = _no_plan()
+    items = compiled.items_rodas4 if integrator == "rodas4" else compiled.items
+    if integrator == "rk4" and circle and compiled.circle[params.criterion != CRIT_ORDER]:
+        items = compiled.items_circle
     clock = (
         float(dt),
         float(dt) * int(max_steps),
@@ -1258,7 +1533,7 @@ def simulate_law(
     out = unset_outputs(m, n_var)
     collapsed = np.zeros((m, n_var + 1), dtype=np.bool_)
     with Threads(threads):
-        (compiled.items_rodas4 if integrator == "rodas4" else compiled.items)(
+        items(
             ks,
             np.uint64(seed),
             indptr,
