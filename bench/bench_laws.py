@@ -14,8 +14,10 @@ Timed per trajectory-step, in the same round, back to back, against:
   generated driver has.
 
 The law's RK4 steps its circle form (``(cos theta, sin theta)``, as the built-in kernels do:
-:func:`antisync.kernels.law.circle_form`); ``law on theta`` is its RK4 on the angle itself
-(``circle=False``, the steps the adjoint differentiates), with a sine per node and stage.
+:func:`antisync.kernels.law.circle_form`) on lane vectors (``law``: 16 trajectories per
+thread, :data:`antisync.kernels.law.LAW_LANES`) or one trajectory per item (``law one``);
+``law on theta`` is its RK4 on the angle itself (``circle=False``, the steps the adjoint
+differentiates), with a sine per node and stage.
 
 The law's cold compile (a fresh cache folder, a new process) and its load from the cache are
 timed too. Prints the fastest of ``--repeat`` rounds per kind and each round's ratio.
@@ -109,6 +111,14 @@ def main() -> None:
         kinds = {
             "law": functools.partial(
                 simulate_law, *common, LawParams(law, np.zeros((1, n)), never), integrator="rk4", **clock
+            ),
+            "law one": functools.partial(
+                simulate_law,
+                *common,
+                LawParams(law, np.zeros((1, n)), never),
+                integrator="rk4",
+                lanes=0,
+                **clock,
             ),
             "law on theta": functools.partial(
                 simulate_law,

@@ -44,6 +44,7 @@ import functools
 import hashlib
 import importlib.util
 import os
+import re
 import sys
 import tempfile
 from pathlib import Path
@@ -53,7 +54,7 @@ import numba
 import numpy as np
 
 from antisync import _numba_cache
-from antisync.kernels.core import CRIT_ORDER
+from antisync.kernels.core import CRIT_ORDER, VEC
 from antisync.kernels.shared import (
     PathwiseResult,
     SimResult,
@@ -118,6 +119,9 @@ class CompiledLaw(NamedTuple):
     """Euler's and RK4's items in parallel (``law_items_explicit``)."""
     items_circle: object
     """RK4's on the law's circle form (``law_items_circle``)."""
+    items_lanes: object
+    """the same on lane vectors (``law_items_lanes``; None where the circle form is missing or
+    not arithmetic: :func:`vectorizable`)"""
     items_rodas4: object
     vjp: object
     adjoint: object
@@ -236,20 +240,7 @@ def _rhs_source(sym, pr, prefix: str = "") -> list[str]:
     it is stored. That pays where the ``KH n`` per-node functions are fewer than the ``nnz``
     links, and always when there are none (``rhs_rows`` returns ``KH``, else 0); with ``G`` of
     no rows the edge law is evaluated per link (``law_rhs_link``)."""
-    split = {m: _separate(h, sym) for m, h in enumerate(sym.coupling)}
-    pairs: dict = {}
-    for terms in split.values():
-        if terms is not None:
-            for _, w, j in terms:
-                pairs.setdefault((w, j), len(pairs))
-    if len(pairs) > MAX_HOISTED:
-        split = dict.fromkeys(split)
-        pairs = {}
-    arrays: dict = {}  # J -> row of G
-    for _, j in pairs:
-        if j != 1 and j not in _stored(sym):
-            arrays.setdefault(j, len(arrays))
-    hoists = any(t is not None for t in split.values())
+    split, pairs, arrays, hoists = _hoisting(sym)
     cheap = "True" if not arrays else "KH * n < nnz"
     kh = f"{prefix}KH".upper() if prefix else "KH"
     out = [
@@ -263,17 +254,17 @@ def _rhs_source(sym, pr, prefix: str = "") -> list[str]:
         "",
         '@njit(cache=True, error_model="numpy")',
         f"def {prefix}law_rhs(y, wq, indptr, indices, P, out, G):",
-        "    if G.shape[0] > 0:",
-        f"        {prefix}law_rhs_hoisted(y, wq, indptr, indices, P, out, G)",
-        "    else:",
-        f"        {prefix}law_rhs_link(y, wq, indptr, indices, P, out)",
     ]
-    out += _rhs_variant(
-        sym, pr, f"{prefix}law_rhs_hoisted(y, wq, indptr, indices, P, out, G)", split, pairs, arrays
-    )
-    out += _rhs_variant(
-        sym, pr, f"{prefix}law_rhs_link(y, wq, indptr, indices, P, out)", dict.fromkeys(split), {}, {}
-    )
+    hoisted = f"{prefix}law_rhs_hoisted(y, wq, indptr, indices, P, out, G)"
+    link = f"{prefix}law_rhs_link(y, wq, indptr, indices, P, out)"
+    if prefix and hoists and not arrays:
+        # the circle form's per-node functions are its stored states: never per link (the
+        # variant is not generated, so not compiled)
+        out += [f"    {hoisted}"]
+        return out + _rhs_variant(sym, pr, hoisted, split, pairs, arrays)
+    out += ["    if G.shape[0] > 0:", f"        {hoisted}", "    else:", f"        {link}"]
+    out += _rhs_variant(sym, pr, hoisted, split, pairs, arrays)
+    out += _rhs_variant(sym, pr, link, dict.fromkeys(split), {}, {})
     return out
 
 
@@ -408,6 +399,276 @@ def circle_form(sym: Symbolic) -> Circle | None:
     return Circle(circle, tuple(slots), slots[k_phase], on_circle)
 
 
+def _hoisting(sym) -> tuple[dict, dict, dict, bool]:
+    """``(split, pairs, arrays, hoists)`` of :func:`_rhs_source`: each input's separated terms
+    (None: per link), the neighbour sums ``(W, J) -> k``, the ``J`` computed into rows of ``G``
+    and whether any input is hoisted."""
+    split = {m: _separate(h, sym) for m, h in enumerate(sym.coupling)}
+    pairs: dict = {}
+    for terms in split.values():
+        if terms is not None:
+            for _, w, j in terms:
+                pairs.setdefault((w, j), len(pairs))
+    if len(pairs) > MAX_HOISTED:
+        split = dict.fromkeys(split)
+        pairs = {}
+    arrays: dict = {}  # J -> row of G
+    for _, j in pairs:
+        if j != 1 and j not in _stored(sym):
+            arrays.setdefault(j, len(arrays))
+    return split, pairs, arrays, any(t is not None for t in split.values())
+
+
+#: the largest |integer power| a lane-vector law spells as products (x**2 -> (x*x))
+MAX_POWER = 4
+
+
+def _product_printer():
+    """:func:`_printer` with integer powers spelt as products (``x**2`` as ``(x*x)``, ``x**-1``
+    as ``(1.0/x)``): the circle form's arithmetic, the same on a scalar and on a lane vector."""
+    base = type(_printer())
+
+    class _Products(base):
+        def _print_Pow(self, expr):
+            b, e = expr.args
+            if e.is_Integer and 1 <= abs(int(e)) <= MAX_POWER:
+                x = self.parenthesize(b, 100)  # atomic: a symbol or a parenthesized expression
+                prod = "*".join([x] * abs(int(e)))
+                return f"({prod})" if e > 0 else f"(1.0/({prod}))"
+            return super()._print_Pow(expr)
+
+    return _Products({"fully_qualified_modules": True, "standard": "python3"})
+
+
+def vectorizable(sym) -> bool:
+    """Whether ``sym``'s edge and node laws are arithmetic only (``+ - * /`` and integer powers
+    up to :data:`MAX_POWER`): what lane vectors compute (:mod:`antisync.kernels.core`)."""
+    import sympy
+
+    for e in (*sym.coupling, *sym.rates):
+        for node in sympy.preorder_traversal(e):
+            if isinstance(node, sympy.Pow):
+                if not (node.exp.is_Integer and 1 <= abs(int(node.exp)) <= MAX_POWER):
+                    return False
+            elif not isinstance(node, sympy.Add | sympy.Mul | sympy.Symbol | sympy.Number):
+                return False
+    return True
+
+
+def _vec_block(exprs, targets, indent: str, pr) -> list[str]:
+    """:func:`_block` for lane vectors: ``vstore(target, expr)`` (a number as ``vsplat``)."""
+    import sympy
+
+    subs, reduced = sympy.cse(list(exprs), symbols=sympy.numbered_symbols("c"), optimizations="basic")
+    lines = [f"{indent}{sym} = {pr.doprint(e)}" for sym, e in subs]
+    for (array, offset), e in zip(targets, reduced, strict=True):
+        value = pr.doprint(e) if e.free_symbols else f"vsplat({float(e)!r})"
+        lines.append(f"{indent}vstore({array}, {offset}, {value})")
+    return lines
+
+
+def _lane_rhs_variant(sym, pr, name: str, split: dict, pairs: dict, arrays: dict) -> list[str]:
+    """:func:`_rhs_variant` on lane vectors: every array flat with lane ``q`` of row ``r`` at
+    ``r L + q``, ``VEC`` lanes per ``vload``; the neighbour sums (and the per-link inputs) in
+    vector registers over a node's in-links, then its rates."""
+    import sympy
+
+    hoisted = [m for m in split if split[m] is not None]
+    per_link = [m for m in split if split[m] is None]
+    link_exprs = [sym.coupling[m] for m in per_link]
+    stored = {
+        **{x: f"vload(y, ({k} * n + j) * L + o)" for k, x in enumerate(sym.xj)},
+        **{p: f"vload(P, ({k} * n + j) * L + o)" for k, p in enumerate(sym.pj)},
+    }
+    out = [
+        "",
+        "",
+        '@njit(cache=True, error_model="numpy")',
+        f"def {name}(y, lw, indptr, indices, P, G, L, mode, z, f, acc, nxt, h):",
+        "    n = indptr.shape[0] - 1",
+    ]
+    if arrays:
+        js = list(arrays)
+        out += ["    for j in range(n):", "        for o in range(0, L, VEC):"]
+        out += _loads(js, sym.xj, "            ", "vload(y, ({k} * n + j) * L + o)")
+        out += _loads(js, sym.pj, "            ", "vload(P, ({k} * n + j) * L + o)")
+        out += _vec_block(js, [("G", f"({k} * n + j) * L + o") for k in range(len(js))], "            ", pr)
+    sums = {
+        m: sum((i * sympy.Symbol(f"s{pairs[w, j]}") for i, w, j in split[m]), sympy.Integer(0))
+        for m in hoisted
+    }
+    own = {sym_j: sym_i for sym_j, sym_i in zip((*sym.xj, *sym.pj), (*sym.x, *sym.p), strict=True)}
+    reuse = {j.xreplace(own): sympy.Symbol(f"gi{row}", real=True) for j, row in arrays.items()}
+    sums = {m: e.xreplace(reuse) for m, e in sums.items()}
+    node_exprs = list(sym.rates)
+    every = node_exprs + link_exprs + list(sums.values())
+    pre = _loads(every, sym.x, "            ", "vload(y, ({k} * n + i) * L + o)")
+    pre += _loads(every, sym.p, "            ", "vload(P, ({k} * n + i) * L + o)")
+    pre += _loads(every, list(reuse.values()), "            ", "vload(G, ({k} * n + i) * L + o)")
+    pre += [f"            s{k} = vsplat(0.0)" for k in range(len(pairs))]
+    pre += [f"            {sym.u[m]} = vsplat(0.0)" for m in per_link]
+    link = ["                w = vload(lw, e * L + o)"]
+    link += _loads(link_exprs, sym.xj, "                ", "vload(y, ({k} * n + j) * L + o)")
+    link += _loads(link_exprs, sym.pj, "                ", "vload(P, ({k} * n + j) * L + o)")
+    for (w, j), k in pairs.items():
+        term = pr.doprint(w) if j == 1 else f"({pr.doprint(w)}) * {stored.get(j) or _g_load(arrays[j])}"
+        link.append(f"                s{k} = s{k} + {term}")
+    if per_link:
+        subs, reduced = sympy.cse(link_exprs, symbols=sympy.numbered_symbols("c"), optimizations="basic")
+        link += [f"                {s} = {pr.doprint(e)}" for s, e in subs]
+        link += [
+            f"                {sym.u[m]} = {sym.u[m]} + {pr.doprint(e)}"
+            for m, e in zip(per_link, reduced, strict=True)
+        ]
+    node = []
+    if hoisted:
+        node += _block([sums[m] for m in hoisted], [str(sym.u[m]) for m in hoisted], "            ", pr)
+    node += _vec_rates(node_exprs, "            ", pr)
+    # two lane vectors at a time (offsets o and o + VEC, the second's locals suffixed _b): two
+    # independent chains of additions per neighbour sum, as the built-in lane kernels step pairs
+    out += ["    for i in range(n):", "        for o in range(0, L, 2 * VEC):", "            ob = o + VEC"]
+    out += pre + _second(pre)
+    out += ["            for e in range(indptr[i], indptr[i + 1]):", "                j = indices[e]"]
+    out += link + _second(link)
+    out += node + _second(node)
+    # the RK4 stage this right-hand side serves, fused (circle_lane_step): no pass of its own
+    stores = {
+        0: ["vstore(f, at, {r})", "vstore(nxt, at, vload(z, at) + h * {r})"],
+        1: ["vstore(nxt, at, vload(z, at) + h * {r})", "vstore(acc, at, vload(f, at) + 2.0 * {r})"],
+        2: ["vstore(nxt, at, vload(z, at) + h * {r})", "vstore(acc, at, vload(acc, at) + 2.0 * {r})"],
+        3: ["vstore(z, at, vload(z, at) + h * (vload(acc, at) + {r}))"],
+    }
+    for mode, lines in stores.items():
+        out.append(
+            f"            {'if' if mode == 0 else 'elif' if mode < 3 else 'else'}"
+            + (f" mode == {mode}:" if mode < 3 else ":")
+        )
+        for k in range(len(sym.x)):
+            for offset, suffix in (("o", ""), ("ob", "_b")):
+                out.append(f"                at = ({k} * n + i) * L + {offset}")
+                out += [f"                {line.format(r=f'rate{k}{suffix}')}" for line in lines]
+    return out
+
+
+def _vec_rates(exprs, indent: str, pr) -> list[str]:
+    """``rate0, rate1, ...`` = the node law's rates on lane vectors (a number as ``vsplat``)."""
+    import sympy
+
+    subs, reduced = sympy.cse(list(exprs), symbols=sympy.numbered_symbols("c"), optimizations="basic")
+    lines = [f"{indent}{sym} = {pr.doprint(e)}" for sym, e in subs]
+    for k, e in enumerate(reduced):
+        value = pr.doprint(e) if e.free_symbols else f"vsplat({float(e)!r})"
+        lines.append(f"{indent}rate{k} = {value}")
+    return lines
+
+
+#: the locals of a generated lane right-hand side (what :func:`_second` renames)
+_LOCALS = re.compile(r"\b(x\d+|xj\d+|xc\d+|xs\d+|xjc\d+|xjs\d+|p\d+|pj\d+|u\d+|s\d+|gi\d+|c\d+|rate\d+|w)\b")
+
+
+_OFFSET = re.compile(r"L \+ o\b")
+
+
+def _second(lines: list[str]) -> list[str]:
+    """``lines`` for the second lane vector of a pair: every local suffixed ``_b``, the offset
+    ``o`` read as ``ob``."""
+    return [_OFFSET.sub("L + ob", _LOCALS.sub(r"\1_b", line)) for line in lines]
+
+
+def _g_load(row: int) -> str:
+    return f"vload(G, ({row} * n + j) * L + o)"
+
+
+def _lane_source(circle: Circle, pr) -> list[str]:
+    """The circle form on lane vectors (:data:`antisync.kernels.core.VEC` trajectories per
+    machine vector, as the built-in lane kernels): ``circle_lane_rhs``, its RK4 step and
+    ``law_items_lanes``, the lane driver (``L`` items of a group stepped together, a lane
+    refilled from the group's queue when its item ends). Only where the circle form is
+    arithmetic (:func:`vectorizable`); ``LANES`` is False otherwise.
+
+    Each lane does exactly the one-trajectory circle form's operations in the same order
+    (hoisted or per link as ``circle_rhs_rows`` chooses, no fused multiply-add), so the results
+    are ``law_items_circle``'s bit for bit (tests/test_laws.py)."""
+    sym = circle.sym
+    if not vectorizable(sym):
+        return ["", "", "LANES = False"]
+    split, pairs, arrays, hoists = _hoisting(sym)
+    out = [
+        "",
+        "",
+        "LANES = True",
+        f"LANE_KH = {max(1, len(arrays))}",
+        "",
+        "",
+        '@njit(cache=True, error_model="numpy")',
+        "def circle_lane_rhs(y, lw, indptr, indices, P, G, L, mode, z, f, acc, nxt, h):",
+        "    \"\"\"The rates at the lanes' state y, stored for RK4's stage `mode` (0: f at the step's",
+        "    state z and nxt = z + h f; 1: nxt = z + h k2, acc = f + 2 k2; 2: nxt = z + h k3, acc += 2",
+        '    k3; 3: z += h (acc + k4)): circle_sync\'s additions in its order."""',
+    ]
+    call = "(y, lw, indptr, indices, P, G, L, mode, z, f, acc, nxt, h)"
+    if hoists and not arrays:  # always hoisted (circle_rhs_rows): no per-link variant
+        out += [f"    circle_lane_rhs_hoisted{call}"]
+    else:
+        out += [
+            "    if G.shape[0] > 0:",
+            f"        circle_lane_rhs_hoisted{call}",
+            "    else:",
+            f"        circle_lane_rhs_link{call}",
+        ]
+        out += _lane_rhs_variant(sym, pr, "circle_lane_rhs_link", dict.fromkeys(split), {}, {})
+    out += _lane_rhs_variant(sym, pr, "circle_lane_rhs_hoisted", split, pairs, arrays)
+    project = []
+    for slots in circle.slots:
+        if len(slots) == 2:
+            c, s = slots
+            project += [
+                f"            c = vload(z, ({c} * n + i) * L + o)",
+                f"            s = vload(z, ({s} * n + i) * L + o)",
+                "            norm2 = c * c + s * s",
+                # 1 / sqrt, then NaN where norm2 is 0 (norm2 / norm2 is exactly 1 elsewhere)
+                "            inv = 1.0 / vsqrt(norm2) * (norm2 / norm2)",
+                f"            vstore(z, ({c} * n + i) * L + o, c * inv)",
+                f"            vstore(z, ({s} * n + i) * L + o, s * inv)",
+            ]
+    pc, ps = circle.phase
+    out += [
+        "",
+        "",
+        '@njit(cache=True, error_model="numpy")',
+        "def circle_lane_step(z, f, acc, ya, yb, lw, indptr, indices, P, G, dt, L):",
+        '    """One RK4 step of every lane (circle_sync\'s, lane by lane), from z with its rates f and',
+        '    its first stage state ya = z + dt / 2 f; on return the same at the new state."""',
+        "    n = indptr.shape[0] - 1",
+        "    h = 0.5 * dt",
+        "    circle_lane_rhs(ya, lw, indptr, indices, P, G, L, 1, z, f, acc, yb, h)",
+        "    circle_lane_rhs(yb, lw, indptr, indices, P, G, L, 2, z, f, acc, ya, dt)",
+        "    circle_lane_rhs(ya, lw, indptr, indices, P, G, L, 3, z, f, acc, yb, dt / 6.0)",
+        "    for i in range(n):",
+        "        for o in range(0, L, VEC):",
+        *project,
+        "    circle_lane_rhs(z, lw, indptr, indices, P, G, L, 0, z, f, acc, ya, h)",
+        "",
+        "",
+        '@njit(cache=True, error_model="numpy")',
+        "def circle_lane_order(z, f, n, r2, dr2, L):",
+        '    """circle_order of every lane: (R, dR/dt) into r2, dr2."""',
+        "    for o in range(0, L, VEC):",
+        "        tc = vsplat(0.0)",
+        "        ts = vsplat(0.0)",
+        "        dc = vsplat(0.0)",
+        "        ds = vsplat(0.0)",
+        "        for i in range(n):",
+        f"            tc = tc + vload(z, ({pc} * n + i) * L + o)",
+        f"            ts = ts + vload(z, ({ps} * n + i) * L + o)",
+        f"            dc = dc + vload(f, ({pc} * n + i) * L + o)",
+        f"            ds = ds + vload(f, ({ps} * n + i) * L + o)",
+        "        vstore(r2, o, tc * tc + ts * ts)",
+        "        vstore(dr2, o, 2.0 * (tc * dc + ts * ds))",
+    ]
+    return out + _LANE_DRIVER.splitlines()
+
+
 def _circle_source(sym, circle: Circle | None, pr) -> list[str]:
     """The circle form's right-hand side (``circle_law_rhs``), its frequency quantities
     (``circle_law_devs``), its conversions and its RK4 (``circle_sync``); without a circle form a
@@ -423,8 +684,11 @@ def _circle_source(sym, circle: Circle | None, pr) -> list[str]:
             f"def circle_sync({sync_args}):",
             "    return law_sync(y, wq, indptr, indices, P, dt, True, freq, target, max_steps)",
             "",
+            "",
+            "LANES = False",
         ]
     out = head + [f"CIRCLE_FREQUENCY = {circle.frequency}", f"CS = {len(circle.sym.x)}"]
+    pr = _product_printer()  # the same spelling on a scalar and on a lane vector
     out += _rhs_source(circle.sym, pr, prefix="circle_")
     if circle.frequency:
         out += _frequency_source(circle.sym, pr, prefix="circle_")
@@ -554,7 +818,7 @@ def _circle_source(sym, circle: Circle | None, pr) -> list[str]:
         "    return NOT_SYNCED, max_steps, 0.0",
         "",
     ]
-    return out
+    return out + _lane_source(circle, pr)
 
 
 def generate_source(law: Law) -> str:
@@ -575,6 +839,7 @@ def generate_source(law: Law) -> str:
         "from antisync.kernels.law_support import ALREADY_SYNCED, NOT_SYNCED, SYNCED, RA, RC, RGAMMA",
         "from antisync.kernels.law_support import factor, item_of, order_crossing, phase, record, solve",
         "from antisync.kernels.law_support import DENSE_POINTS, hermite_range",
+        "from antisync.kernels.law_support import VEC, vload, vsplat, vsqrt, vstore",
         "",
         f"S = {n_s}",
     ]
@@ -1409,6 +1674,7 @@ def compile_law(law: Law) -> CompiledLaw:
         module.KH,
         module.law_items_explicit,
         module.law_items_circle,
+        module.law_items_lanes if module.LANES else None,
         module.law_items_rodas4,
         module.law_vjp,
         module.law_adjoint_items,
@@ -1470,6 +1736,23 @@ def parameter_blocks(values: np.ndarray, drawn: tuple, seed: int, ks: np.ndarray
     return out
 
 
+#: trajectories a law's lane driver steps together (RK4 on the circle form, order parameter)
+LAW_LANES = 16
+
+
+def _lane_width(lanes: int | None, compiled: CompiledLaw, params: LawParams, n: int) -> int:
+    """The lanes of a circle-form RK4 run: ``lanes`` (0: one trajectory per item), else
+    :data:`LAW_LANES` to the order-parameter criterion; 0 where the law has no lane driver or
+    runs to the frequency criterion (one per item)."""
+    if compiled.items_lanes is None or params.criterion != CRIT_ORDER:
+        return 0
+    if lanes is not None:
+        if lanes < 0 or lanes % (2 * VEC):
+            raise ValueError(f"lanes must be 0 or a positive multiple of {2 * VEC}, got {lanes}")
+        return int(lanes)
+    return LAW_LANES
+
+
 def simulate_law(
     seed: int,
     first: int,
@@ -1487,6 +1770,7 @@ def simulate_law(
     realizations: np.ndarray | None = None,
     todo: np.ndarray | None = None,
     circle: bool = True,
+    lanes: int | None = None,
 ) -> SimResult:
     """Integrate realizations ``first .. first+count-1`` (or ``realizations``) of a user's law
     for the base weights and every row of ``variant_weights`` (the arguments of
@@ -1532,29 +1816,38 @@ def simulate_law(
     )
     out = unset_outputs(m, n_var)
     collapsed = np.zeros((m, n_var + 1), dtype=np.bool_)
+    blocks = parameter_blocks(values, params.drawn, seed, ks)
+    width = _lane_width(lanes, compiled, params, indptr.size - 1) if items is compiled.items_circle else 0
     with Threads(threads):
-        items(
-            ks,
-            np.uint64(seed),
-            indptr,
-            indices,
-            base,
-            var_w,
-            var_is_base,
-            todo,
-            parameter_blocks(values, params.drawn, seed, ks),
-            targets,
-            clock,
-            plan,
-            jperm,
-            out.status0,
-            out.steps0,
-            out.frac0,
-            out.status,
-            out.steps,
-            out.frac,
-            collapsed,
-        )
+        if width:
+            groups = max(1, min(4 * numba.get_num_threads(), -(-m * (n_var + 1) // width)))
+            compiled.items_lanes(
+                ks, np.uint64(seed), indptr, indices, base, var_w, var_is_base, todo, blocks, targets,
+                clock, out.status0, out.steps0, out.frac0, out.status, out.steps, out.frac, groups, width,
+            )  # fmt: skip
+        else:
+            items(
+                ks,
+                np.uint64(seed),
+                indptr,
+                indices,
+                base,
+                var_w,
+                var_is_base,
+                todo,
+                blocks,
+                targets,
+                clock,
+                plan,
+                jperm,
+                out.status0,
+                out.steps0,
+                out.frac0,
+                out.status,
+                out.steps,
+                out.frac,
+                collapsed,
+            )
     check_collapsed(collapsed, ks, f" of law {law.name}")
     return SimResult(out.status0, out.steps0, out.status, out.steps, out.frac0, out.frac)
 
@@ -1744,3 +2037,136 @@ def check_step(setup, seed: int, csr, dynamics) -> None:
                 f"mode (eigenvalue {fastest.real:.4g}{fastest.imag:+.4g}i of the Jacobian) grows under "
                 f"{integrator} steps unless dt < {lo:.3g}; use a smaller dt or integrator rodas4"
             )
+
+
+_LANE_DRIVER = '''
+
+@njit(cache=True, error_model="numpy")
+def lane_fill(q, lo, hi, ks, seed, indptr, indices, base_w, var_w, var_is_base, todo, PR, targets,
+              max_steps, per, y, zq, fq, Gq, z, f, ya, lw, PL, r2, dr2, lane_item, lane_target, dt, L,
+              status0, steps0, frac0, status, steps, frac):
+    """Load the next item of lo .. hi - 1 that needs integrating into lane q (the ones that end
+    at their start recorded on the way): the next item to look at, and whether q holds one."""
+    n = indptr.shape[0] - 1
+    while lo < hi:
+        item = lo
+        lo += 1
+        r, v, run = item_of(item, per, var_is_base, todo)
+        if not run:
+            continue
+        P = PR[0] if PR.shape[0] == 1 else PR[r]
+        w = base_w if v < 0 else var_w[v]
+        law_start(seed, ks[r], P, y, n)
+        circle_from(y, zq, n)
+        circle_law_rhs(zq, w, indptr, indices, P, fq, Gq)
+        a, b = circle_order(zq, fq, n)
+        if not (a == a and b == b):
+            record(status0, steps0, frac0, status, steps, frac, r, v, NOT_SYNCED, max_steps, 0.0)
+            continue
+        if a >= targets[v + 1]:
+            record(status0, steps0, frac0, status, steps, frac, r, v, ALREADY_SYNCED, 0, 0.0)
+            continue
+        h = 0.5 * dt
+        for k in range(zq.shape[0]):
+            z[k * L + q] = zq[k]
+            f[k * L + q] = fq[k]
+            ya[k * L + q] = zq[k] + h * fq[k]
+        for e in range(w.shape[0]):
+            lw[e * L + q] = w[e]
+        for k in range(P.shape[0]):
+            for i in range(n):
+                PL[(k * n + i) * L + q] = P[k, i]
+        r2[q] = a
+        dr2[q] = b
+        lane_item[q] = item
+        lane_target[q] = targets[v + 1]
+        return lo, True
+    return lo, False
+
+
+@njit(parallel=True, cache=True, error_model="numpy")
+def law_items_lanes(ks, seed, indptr, indices, base_w, var_w, var_is_base, todo, PR, targets, clock,
+                    status0, steps0, frac0, status, steps, frac, n_groups, L):
+    """RK4 on the circle form, L items of a group stepped together (circle_sync's results; L a
+    multiple of VEC)."""
+    dt = clock[0]
+    max_steps = int(clock[2])
+    n = indptr.shape[0] - 1
+    nnz = indices.shape[0]
+    m = ks.shape[0]
+    per = var_w.shape[0] + 1
+    total = m * per
+    rows = CS * n
+    hoist = circle_rhs_rows(n, nnz) > 0
+    for group in prange(n_groups):
+        lo = group * total // n_groups
+        hi = (group + 1) * total // n_groups
+        z = np.zeros(rows * L)
+        f = np.zeros(rows * L)
+        acc = np.zeros(rows * L)
+        ya = np.zeros(rows * L)
+        yb = np.zeros(rows * L)
+        lw = np.zeros(nnz * L)
+        PL = np.zeros(PR.shape[1] * n * L)
+        G = np.empty(LANE_KH * n * L if hoist else 0)
+        r2 = np.zeros(L)
+        dr2 = np.zeros(L)
+        r2p = np.zeros(L)
+        dr2p = np.zeros(L)
+        y = np.empty(S * n)
+        zq = np.empty(rows)
+        fq = np.empty(rows)
+        Gq = np.empty((circle_rhs_rows(n, nnz), n))
+        lane_item = np.full(L, -1, dtype=np.int64)
+        lane_t0 = np.zeros(L, dtype=np.int64)
+        lane_target = np.zeros(L)
+        t = 0
+        active = 0
+        while True:
+            for q in range(L):
+                if lane_item[q] < 0 and lo < hi:
+                    lo, got = lane_fill(q, lo, hi, ks, seed, indptr, indices, base_w, var_w, var_is_base,
+                                        todo, PR, targets, max_steps, per, y, zq, fq, Gq, z, f, ya, lw,
+                                        PL, r2, dr2, lane_item, lane_target, dt, L,
+                                        status0, steps0, frac0, status, steps, frac)
+                    if got:
+                        lane_t0[q] = t
+                        active += 1
+            if active == 0:
+                break
+            for q in range(L):
+                r2p[q] = r2[q]
+                dr2p[q] = dr2[q]
+            circle_lane_step(z, f, acc, ya, yb, lw, indptr, indices, PL, G, dt, L)
+            circle_lane_order(z, f, n, r2, dr2, L)
+            t += 1
+            for q in range(L):
+                item = lane_item[q]
+                if item < 0:
+                    continue
+                k = t - lane_t0[q]
+                if not (r2[q] == r2[q] and dr2[q] == dr2[q]):
+                    st, k, x = NOT_SYNCED, max_steps, 0.0  # diverged: never synchronized
+                else:
+                    # the Hermite interpolant of R stays below max(R_0, R_1) + 4/27 (|m0| + |m1|):
+                    # a lane below that bound (widened for rounding) cannot cross in this step
+                    top = max(r2p[q], r2[q]) * (1.0 + 1e-12) + 0.15 * dt * (abs(dr2p[q]) + abs(dr2[q]))
+                    if top < lane_target[q] and k < max_steps:
+                        continue
+                    x = order_crossing(r2p[q], dr2p[q], r2[q], dr2[q], dt, True, lane_target[q])
+                    if x >= 0.0:
+                        st = SYNCED
+                    elif k >= max_steps:
+                        st, x = NOT_SYNCED, 0.0
+                    else:
+                        continue
+                record(status0, steps0, frac0, status, steps, frac, item // per, item % per - 1, st, k, x)
+                lane_item[q] = -1
+                active -= 1
+    for r in prange(m):
+        for v in range(var_is_base.shape[0]):
+            if var_is_base[v]:
+                status[r, v] = status0[r]
+                steps[r, v] = steps0[r]
+                frac[r, v] = frac0[r]
+'''

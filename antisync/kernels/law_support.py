@@ -6,14 +6,27 @@ step-size controller, under one module so a generated file imports one name."""
 from __future__ import annotations
 
 from antisync.kernels import implicit
-from antisync.kernels.core import DENSE_POINTS
+from antisync.kernels.core import DENSE_POINTS, VEC, vload, vsplat, vsqrt, vstore
 from antisync.kernels.lanes import item_of
 from antisync.kernels.model_steps import MK
 from antisync.kernels.shared import record
 from antisync.physics.phases import phase
 from antisync.status import ALREADY_SYNCED, NOT_SYNCED, SYNCED
 
-__all__ = ["ALREADY_SYNCED", "DENSE_POINTS", "NOT_SYNCED", "SYNCED", "item_of", "phase", "record"]
+__all__ = [
+    "ALREADY_SYNCED",
+    "DENSE_POINTS",
+    "NOT_SYNCED",
+    "SYNCED",
+    "VEC",
+    "item_of",
+    "phase",
+    "record",
+    "vload",
+    "vsplat",
+    "vsqrt",
+    "vstore",
+]
 
 order_crossing = MK.order_crossing
 hermite_range = MK.hermite_range
