@@ -88,8 +88,9 @@ def main() -> None:
     ap.add_argument("--steps", type=int, default=400)
     args = ap.parse_args()
     print(f"# {platform.processor() or platform.machine()}, {os.cpu_count()} cores, threads {args.threads}")
-    # Stuart-Landau (two states, no circle form) and the swing equation (RK4 on its circle form)
-    for name in ("stuart-landau", "swing"):
+    # Stuart-Landau (two states, no circle form), the swing equation (RK4 on its circle form's lane
+    # vectors, always hoisted) and the second harmonic (the same, hoisted or per link)
+    for name in ("stuart-landau", "swing", "second-harmonic"):
         for integrator in ("rk4", "rodas4"):
             cold, warm = _compile_times(name, integrator)
             print(
