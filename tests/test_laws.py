@@ -296,8 +296,8 @@ def test_the_lane_driver_is_the_one_trajectory_driver_bit_for_bit(name):
     """RK4 on the circle form: 16 trajectories per lane vector group and one per item give the
     same statuses, steps and crossings, bit for bit, with damaged links (one of them equal to
     the base, shared), a ``todo`` mask, drawn parameters and a lane refilled many times (50
-    realizations x 4 networks through 16 lanes). The second harmonic on the lollipop runs per
-    link (its 2 x 6 per-node functions against 12 links), on the karate club hoisted."""
+    realizations x 4 networks through 16 lanes); the second harmonic's neighbour sums of
+    per-node products (``G``) too."""
     law = read_law(name)
     for g in (nx.lollipop_graph(3, 3), nx.karate_club_graph()):
         nx.set_edge_attributes(g, 1.0, "weight")

@@ -241,7 +241,9 @@ def _rhs_source(sym, pr, prefix: str = "") -> list[str]:
     links, and always when there are none (``rhs_rows`` returns ``KH``, else 0); with ``G`` of
     no rows the edge law is evaluated per link (``law_rhs_link``)."""
     split, pairs, arrays, hoists = _hoisting(sym)
-    cheap = "True" if not arrays else "KH * n < nnz"
+    # the circle form's per-node functions are polynomials in its stored states, as cheap as a
+    # link's: hoisted wherever an input separates
+    cheap = "True" if not arrays or prefix else "KH * n < nnz"
     kh = f"{prefix}KH".upper() if prefix else "KH"
     out = [
         f"{kh} = {max(1, len(arrays))}",
@@ -257,11 +259,10 @@ def _rhs_source(sym, pr, prefix: str = "") -> list[str]:
     ]
     hoisted = f"{prefix}law_rhs_hoisted(y, wq, indptr, indices, P, out, G)"
     link = f"{prefix}law_rhs_link(y, wq, indptr, indices, P, out)"
-    if prefix and hoists and not arrays:
-        # the circle form's per-node functions are its stored states: never per link (the
-        # variant is not generated, so not compiled)
-        out += [f"    {hoisted}"]
-        return out + _rhs_variant(sym, pr, hoisted, split, pairs, arrays)
+    if prefix:  # one variant, so one compiled (rhs_rows never changes its mind)
+        if hoists:
+            return out + [f"    {hoisted}"] + _rhs_variant(sym, pr, hoisted, split, pairs, arrays)
+        return out + [f"    {link}"] + _rhs_variant(sym, pr, link, split, {}, {})
     out += ["    if G.shape[0] > 0:", f"        {hoisted}", "    else:", f"        {link}"]
     out += _rhs_variant(sym, pr, hoisted, split, pairs, arrays)
     out += _rhs_variant(sym, pr, link, dict.fromkeys(split), {}, {})
@@ -586,9 +587,9 @@ def _lane_source(circle: Circle, pr) -> list[str]:
     refilled from the group's queue when its item ends). Only where the circle form is
     arithmetic (:func:`vectorizable`); ``LANES`` is False otherwise.
 
-    Each lane does exactly the one-trajectory circle form's operations in the same order
-    (hoisted or per link as ``circle_rhs_rows`` chooses, no fused multiply-add), so the results
-    are ``law_items_circle``'s bit for bit (tests/test_laws.py)."""
+    Each lane does exactly the one-trajectory circle form's operations in the same order (the
+    same variant, no fused multiply-add), so the results are ``law_items_circle``'s bit for bit
+    (tests/test_laws.py)."""
     sym = circle.sym
     if not vectorizable(sym):
         return ["", "", "LANES = False"]
@@ -606,18 +607,10 @@ def _lane_source(circle: Circle, pr) -> list[str]:
         "    state z and nxt = z + h f; 1: nxt = z + h k2, acc = f + 2 k2; 2: nxt = z + h k3, acc += 2",
         '    k3; 3: z += h (acc + k4)): circle_sync\'s additions in its order."""',
     ]
-    call = "(y, lw, indptr, indices, P, G, L, mode, z, f, acc, nxt, h)"
-    if hoists and not arrays:  # always hoisted (circle_rhs_rows): no per-link variant
-        out += [f"    circle_lane_rhs_hoisted{call}"]
-    else:
-        out += [
-            "    if G.shape[0] > 0:",
-            f"        circle_lane_rhs_hoisted{call}",
-            "    else:",
-            f"        circle_lane_rhs_link{call}",
-        ]
-        out += _lane_rhs_variant(sym, pr, "circle_lane_rhs_link", dict.fromkeys(split), {}, {})
-    out += _lane_rhs_variant(sym, pr, "circle_lane_rhs_hoisted", split, pairs, arrays)
+    # the variant circle_law_rhs has (hoisted wherever an input separates)
+    variant = "circle_lane_rhs_hoisted" if hoists else "circle_lane_rhs_link"
+    out += [f"    {variant}(y, lw, indptr, indices, P, G, L, mode, z, f, acc, nxt, h)"]
+    out += _lane_rhs_variant(sym, pr, variant, split, pairs if hoists else {}, arrays if hoists else {})
     project = []
     for slots in circle.slots:
         if len(slots) == 2:
