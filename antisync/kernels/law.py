@@ -119,6 +119,8 @@ class CompiledLaw(NamedTuple):
     """Euler's and RK4's items in parallel (``law_items_explicit``)."""
     items_circle: object
     """RK4's on the law's circle form (``law_items_circle``)."""
+    items_circle_euler: object
+    """Euler's on the law's circle form (``law_items_circle_euler``)."""
     items_lanes: object
     """the same on lane vectors (``law_items_lanes``; None where the circle form is missing or
     not arithmetic: :func:`vectorizable`)"""
@@ -346,6 +348,9 @@ class Circle(NamedTuple):
     frequency: bool
     """whether the frequency criterion's quantities read the angles through ``sin`` and ``cos``
     only (``sym.frequency`` in the slots; else that criterion steps the angles themselves)"""
+    speeds: tuple
+    """per slot, what Euler's step takes: an angle's rate ``theta'`` at both its slots (the
+    rotation's angle over ``dt``), another state's rate at its own"""
 
 
 def circle_form(sym: Symbolic) -> Circle | None:
@@ -374,7 +379,7 @@ def circle_form(sym: Symbolic) -> Circle | None:
     coupling, rates = exprs[: len(sym.coupling)], exprs[len(sym.coupling) :]
     frequency = tuple(sympy.expand_trig(q).xreplace(subs) for q in sym.frequency)
     on_circle = not any(q.has(*(sym.x[k] for k in angles)) for q in frequency)
-    x, xj, new_rates, slots = [], [], [], []
+    x, xj, new_rates, slots, speeds = [], [], [], [], []
     for k, rate in enumerate(rates):
         rate = rate.xreplace(subs)
         if k in angles:
@@ -383,11 +388,13 @@ def circle_form(sym: Symbolic) -> Circle | None:
             x += [c, s]
             xj += [cj, sj]
             new_rates += [-s * rate, c * rate]
+            speeds += [rate, rate]
         else:
             slots.append((len(x),))
             x.append(sym.x[k])
             xj.append(sym.xj[k])
             new_rates.append(rate)
+            speeds.append(rate)
     circle = dataclasses.replace(
         sym,
         x=tuple(x),
@@ -397,7 +404,7 @@ def circle_form(sym: Symbolic) -> Circle | None:
         phase=x[slots[k_phase][0]],
         frequency=frequency if on_circle else (),
     )
-    return Circle(circle, tuple(slots), slots[k_phase], on_circle)
+    return Circle(circle, tuple(slots), slots[k_phase], on_circle, tuple(speeds))
 
 
 def _hoisting(sym) -> tuple[dict, dict, dict, bool]:
@@ -678,6 +685,11 @@ def _circle_source(sym, circle: Circle | None, pr) -> list[str]:
             "    return law_sync(y, wq, indptr, indices, P, dt, True, freq, target, max_steps)",
             "",
             "",
+            '@njit(cache=True, error_model="numpy")',
+            f"def circle_euler_sync({sync_args}):",
+            "    return law_sync(y, wq, indptr, indices, P, dt, False, freq, target, max_steps)",
+            "",
+            "",
             "LANES = False",
         ]
     out = head + [f"CIRCLE_FREQUENCY = {circle.frequency}", f"CS = {len(circle.sym.x)}"]
@@ -711,6 +723,101 @@ def _circle_source(sym, circle: Circle | None, pr) -> list[str]:
             f"        z[{c} * n + i] = c * inv",
             f"        z[{s} * n + i] = s * inv",
         ]
+    # Euler's step: each angle's (cos, sin) rotated by dt theta' (the built-in kernels' step)
+    out += _rhs_source(dataclasses.replace(circle.sym, rates=circle.speeds), pr, prefix="circle_euler_")
+    turn = []
+    for slots in circle.slots:
+        if len(slots) == 1:
+            turn += [f"        z[{slots[0]} * n + i] += dt * F[{slots[0]} * n + i]"]
+            continue
+        c, s = slots
+        turn += [
+            f"        ca, sa = rotation(dt * F[{c} * n + i])",
+            f"        ci = z[{c} * n + i]",
+            f"        si = z[{s} * n + i]",
+            f"        z[{c} * n + i] = ci * ca - si * sa",
+            f"        z[{s} * n + i] = si * ca + ci * sa",
+        ]
+    rates_of = []
+    for slots in circle.slots:
+        if len(slots) == 2:
+            c, s = slots
+            rates_of += [
+                f"        f[{c} * n + i] = -F[{c} * n + i] * z[{s} * n + i]",
+                f"        f[{s} * n + i] = F[{s} * n + i] * z[{c} * n + i]",
+            ]
+        else:
+            rates_of += [f"        f[{slots[0]} * n + i] = F[{slots[0]} * n + i]"]
+    out += [
+        "",
+        "",
+        '@njit(cache=True, error_model="numpy")',
+        "def circle_euler_turn(z, F, n, dt):",
+        '    """One Euler step: z rotated (its angles) or advanced by dt F."""',
+        "    for i in range(n):",
+        *turn,
+        "",
+        "",
+        '@njit(cache=True, error_model="numpy")',
+        "def circle_rates_of(z, F, f, n):",
+        '    """The circle form\'s rates f (an angle\'s (-sin theta theta\', cos theta theta\')) from F."""',
+        "    for i in range(n):",
+        *rates_of,
+        "",
+        "",
+        '@njit(cache=True, error_model="numpy")',
+        f"def circle_euler_sync({sync_args}):",
+        '    """Euler on the circle\'s embedding from the state y to the order-parameter criterion, or',
+        "    with freq the frequency criterion (every angle rotated by dt theta', renormalized every",
+        '    RENORM_EVERY steps, as the built-in kernels): (status, steps, frac), as law_sync."""',
+        "    n = indptr.shape[0] - 1",
+        "    m = CS * n",
+        "    G = np.empty((circle_euler_rhs_rows(n, indices.shape[0]), n))",
+        "    z = np.empty(m)",
+        "    F = np.empty(m)",
+        "    f = np.empty(m)",
+        "    D = np.empty((2 * KF, n))",
+        "    Dp = np.empty((2 * KF, n))",
+        "    circle_from(y, z, n)",
+        "    circle_euler_law_rhs(z, wq, indptr, indices, P, F, G)",
+        "    r2 = 0.0",
+        "    if freq:",
+        "        circle_rates_of(z, F, f, n)",
+        "        circle_law_devs(z, f, wq, indptr, indices, P, D)",
+        "        dev = law_deviation(D, D, n, dt, False, 1.0)",
+        "        if dev != dev:",
+        "            return NOT_SYNCED, max_steps, 0.0",
+        "        if dev < target:",
+        "            return ALREADY_SYNCED, 0, 0.0",
+        "    else:",
+        "        r2, _ = circle_order(z, z, n)",
+        "        if r2 != r2:",
+        "            return NOT_SYNCED, max_steps, 0.0",
+        "        if r2 >= target:",
+        "            return ALREADY_SYNCED, 0, 0.0",
+        "    for step in range(1, max_steps + 1):",
+        "        circle_euler_turn(z, F, n, dt)",
+        "        r2_prev = r2",
+        "        r2, _ = circle_order(z, z, n)",
+        "        if step % RENORM_EVERY == 0:",
+        "            circle_project(z, n)",
+        "        circle_euler_law_rhs(z, wq, indptr, indices, P, F, G)",
+        "        if freq:",
+        "            D, Dp = Dp, D",
+        "            circle_rates_of(z, F, f, n)",
+        "            circle_law_devs(z, f, wq, indptr, indices, P, D)",
+        "            dev = law_deviation(D, Dp, n, dt, False, 1.0)",
+        "            if dev != dev:",
+        "                return NOT_SYNCED, max_steps, 0.0  # diverged: never synchronized",
+        "            x = frequency_crossing(D, Dp, n, dt, False, target)",
+        "        else:",
+        "            if r2 != r2:",
+        "                return NOT_SYNCED, max_steps, 0.0  # diverged: never synchronized",
+        "            x = order_crossing(r2_prev, 0.0, r2, 0.0, dt, False, target)",
+        "        if x >= 0.0:",
+        "            return SYNCED, step, x",
+        "    return NOT_SYNCED, max_steps, 0.0",
+    ]
     pc, ps = circle.phase
     out += [
         "",
@@ -832,7 +939,7 @@ def generate_source(law: Law) -> str:
         "from antisync.kernels.law_support import ALREADY_SYNCED, NOT_SYNCED, SYNCED, RA, RC, RGAMMA",
         "from antisync.kernels.law_support import factor, item_of, order_crossing, phase, record, solve",
         "from antisync.kernels.law_support import DENSE_POINTS, hermite_range",
-        "from antisync.kernels.law_support import VEC, vload, vsplat, vsqrt, vstore",
+        "from antisync.kernels.law_support import RENORM_EVERY, VEC, rotation, vload, vsplat, vsqrt, vstore",
         "",
         f"S = {n_s}",
     ]
@@ -1457,6 +1564,19 @@ def law_item_circle(ks, seed, indptr, indices, base_w, var_w, var_is_base, todo,
 
 
 @njit(cache=True, error_model="numpy")
+def law_item_circle_euler(ks, seed, indptr, indices, base_w, var_w, var_is_base, todo, PR, targets, clock,
+                          plan, jperm, status0, steps0, frac0, status, steps, frac, collapsed, item, per):
+    dt, t_max, max_steps, method, rtol, atol, criterion = clock
+    r, v, run, y, w, P = item_start(ks, seed, indptr, base_w, var_w, var_is_base, todo, PR, item, per)
+    if not run:
+        return
+    st, k, x = circle_euler_sync(
+        y, w, indptr, indices, P, dt, criterion == 1, targets[v + 1], int(max_steps)
+    )
+    record(status0, steps0, frac0, status, steps, frac, r, v, st, k, x)
+
+
+@njit(cache=True, error_model="numpy")
 def law_item_rodas4(ks, seed, indptr, indices, base_w, var_w, var_is_base, todo, PR, targets, clock, plan,
                     jperm, status0, steps0, frac0, status, steps, frac, collapsed, item, per):
     dt, t_max, max_steps, method, rtol, atol, criterion = clock
@@ -1492,7 +1612,7 @@ def law_items_{kind}(ks, seed, indptr, indices, base_w, var_w, var_is_base, todo
                 steps[r, v] = steps0[r]
                 frac[r, v] = frac0[r]
 """
-    for kind in ("explicit", "circle", "rodas4")
+    for kind in ("explicit", "circle", "circle_euler", "rodas4")
 )
 
 
@@ -1667,6 +1787,7 @@ def compile_law(law: Law) -> CompiledLaw:
         module.KH,
         module.law_items_explicit,
         module.law_items_circle,
+        module.law_items_circle_euler,
         module.law_items_lanes if module.LANES else None,
         module.law_items_rodas4,
         module.law_vjp,
@@ -1796,8 +1917,8 @@ def simulate_law(
     else:
         plan, jperm = _no_plan()
     items = compiled.items_rodas4 if integrator == "rodas4" else compiled.items
-    if integrator == "rk4" and circle and compiled.circle[params.criterion != CRIT_ORDER]:
-        items = compiled.items_circle
+    if integrator != "rodas4" and circle and compiled.circle[params.criterion != CRIT_ORDER]:
+        items = compiled.items_circle if integrator == "rk4" else compiled.items_circle_euler
     clock = (
         float(dt),
         float(dt) * int(max_steps),

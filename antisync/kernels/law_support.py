@@ -6,9 +6,10 @@ step-size controller, under one module so a generated file imports one name."""
 from __future__ import annotations
 
 from antisync.kernels import implicit
-from antisync.kernels.core import DENSE_POINTS, VEC, vload, vsplat, vsqrt, vstore
+from antisync.kernels.core import DENSE_POINTS, RENORM_EVERY, VEC, vload, vsplat, vsqrt, vstore
 from antisync.kernels.lanes import item_of
 from antisync.kernels.model_steps import MK
+from antisync.kernels.precision import K64
 from antisync.kernels.shared import record
 from antisync.physics.phases import phase
 from antisync.status import ALREADY_SYNCED, NOT_SYNCED, SYNCED
@@ -17,11 +18,13 @@ __all__ = [
     "ALREADY_SYNCED",
     "DENSE_POINTS",
     "NOT_SYNCED",
+    "RENORM_EVERY",
     "SYNCED",
     "VEC",
     "item_of",
     "phase",
     "record",
+    "rotation",
     "vload",
     "vsplat",
     "vsqrt",
@@ -29,6 +32,7 @@ __all__ = [
 ]
 
 order_crossing = MK.order_crossing
+rotation = K64.rotation
 hermite_range = MK.hermite_range
 factor = implicit._factor
 solve = implicit._solve
