@@ -1,6 +1,6 @@
 """A user's law against the built-in kernels it rewrites, per trajectory-step, and its compile time.
 
-    python bench/bench_laws.py [--threads 2] [--repeat 3]
+    python bench/bench_laws.py [--threads 2] [--repeat 3] [--integrator euler] [--no-compile]
 
 The paper's first-order Kuramoto model written as the law ``kuramoto`` (natural frequencies
 omega: 0) and the built-in model kernels with the same network and starts, on the lollipop (N =
@@ -86,12 +86,16 @@ def main() -> None:
     ap.add_argument("--threads", type=int, default=2)
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--steps", type=int, default=400)
+    ap.add_argument(
+        "--integrator", choices=("rk4", "euler"), default="rk4", help="euler: one trajectory per item"
+    )
+    ap.add_argument("--no-compile", action="store_true", help="skip the compile timings")
     args = ap.parse_args()
     print(f"# {platform.processor() or platform.machine()}, {os.cpu_count()} cores, threads {args.threads}")
     # Stuart-Landau (two states, no circle form), the swing equation (RK4 on its circle form's lane
     # vectors, always hoisted) and the second harmonic (the same, hoisted or per link)
-    for name in ("stuart-landau", "swing", "second-harmonic"):
-        for integrator in ("rk4", "rodas4"):
+    for name in () if args.no_compile else ("stuart-landau", "swing", "second-harmonic"):
+        for integrator in ("euler", "rk4", "rodas4"):
             cold, warm = _compile_times(name, integrator)
             print(
                 f"law {name}, {integrator}: cold compile + first call {cold:.1f} s, "
@@ -111,13 +115,17 @@ def main() -> None:
         builtin = ModelParams(np.zeros((1, n)), 1.0, 0.0, 0.0, 1.0, 0, never)
         kinds = {
             "law": functools.partial(
-                simulate_law, *common, LawParams(law, np.zeros((1, n)), never), integrator="rk4", **clock
+                simulate_law,
+                *common,
+                LawParams(law, np.zeros((1, n)), never),
+                integrator=args.integrator,
+                **clock,
             ),
             "law one": functools.partial(
                 simulate_law,
                 *common,
                 LawParams(law, np.zeros((1, n)), never),
-                integrator="rk4",
+                integrator=args.integrator,
                 lanes=0,
                 **clock,
             ),
@@ -125,15 +133,15 @@ def main() -> None:
                 simulate_law,
                 *common,
                 LawParams(law, np.zeros((1, n)), never),
-                integrator="rk4",
+                integrator=args.integrator,
                 circle=False,
                 **clock,
             ),
             "builtin lanes": functools.partial(
-                cpu.simulate_model, *common, builtin, integrator="rk4", **clock
+                cpu.simulate_model, *common, builtin, integrator=args.integrator, **clock
             ),
             "builtin one": functools.partial(
-                cpu.simulate_model, *common, builtin, integrator="rk4", lanes=0, **clock
+                cpu.simulate_model, *common, builtin, integrator=args.integrator, lanes=0, **clock
             ),
         }
         for f in kinds.values():

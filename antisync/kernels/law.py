@@ -121,8 +121,10 @@ class CompiledLaw(NamedTuple):
     """RK4's on the law's circle form (``law_items_circle``)."""
     items_circle_euler: object
     """Euler's on the law's circle form (``law_items_circle_euler``)."""
+    items_lanes_euler: object
+    """Euler's on lane vectors (None where ``items_lanes`` is)"""
     items_lanes: object
-    """the same on lane vectors (``law_items_lanes``; None where the circle form is missing or
+    """RK4's on lane vectors (``law_items_lanes``; None where the circle form is missing or
     not arithmetic: :func:`vectorizable`)"""
     items_rodas4: object
     vjp: object
@@ -475,10 +477,13 @@ def _vec_block(exprs, targets, indent: str, pr) -> list[str]:
     return lines
 
 
-def _lane_rhs_variant(sym, pr, name: str, split: dict, pairs: dict, arrays: dict) -> list[str]:
+def _lane_rhs_variant(
+    sym, pr, name: str, split: dict, pairs: dict, arrays: dict, stages: bool = True
+) -> list[str]:
     """:func:`_rhs_variant` on lane vectors: every array flat with lane ``q`` of row ``r`` at
     ``r L + q``, ``VEC`` lanes per ``vload``; the neighbour sums (and the per-link inputs) in
-    vector registers over a node's in-links, then its rates."""
+    vector registers over a node's in-links, then its rates: stored for RK4's ``stages``
+    (:func:`_lane_source`), else into ``f``."""
     import sympy
 
     hoisted = [m for m in split if split[m] is not None]
@@ -492,7 +497,7 @@ def _lane_rhs_variant(sym, pr, name: str, split: dict, pairs: dict, arrays: dict
         "",
         "",
         '@njit(cache=True, error_model="numpy")',
-        f"def {name}(y, lw, indptr, indices, P, G, L, mode, z, f, acc, nxt, h):",
+        f"def {name}(y, lw, indptr, indices, P, G, L, {'mode, z, f, acc, nxt, h' if stages else 'f'}):",
         "    n = indptr.shape[0] - 1",
     ]
     if arrays:
@@ -539,6 +544,11 @@ def _lane_rhs_variant(sym, pr, name: str, split: dict, pairs: dict, arrays: dict
     out += ["            for e in range(indptr[i], indptr[i + 1]):", "                j = indices[e]"]
     out += link + _second(link)
     out += node + _second(node)
+    if not stages:
+        for k in range(len(sym.x)):
+            out += [f"            vstore(f, ({k} * n + i) * L + o, rate{k})"]
+            out += [f"            vstore(f, ({k} * n + i) * L + ob, rate{k}_b)"]
+        return out
     # the RK4 stage this right-hand side serves, fused (circle_lane_step): no pass of its own
     stores = {
         0: ["vstore(f, at, {r})", "vstore(nxt, at, vload(z, at) + h * {r})"],
@@ -631,6 +641,64 @@ def _lane_source(circle: Circle, pr) -> list[str]:
                 f"            vstore(z, ({c} * n + i) * L + o, c * inv)",
                 f"            vstore(z, ({s} * n + i) * L + o, s * inv)",
             ]
+    out += _lane_rhs_variant(
+        dataclasses.replace(sym, rates=circle.speeds),
+        pr,
+        "circle_euler_lane_rhs",
+        split,
+        pairs if hoists else {},
+        arrays if hoists else {},
+        stages=False,
+    )
+    turn, one = [], []
+    for slots in circle.slots:
+        if len(slots) == 1:
+            at = f"({slots[0]} * n + i) * L + o"
+            turn += [f"            vstore(z, {at}, vload(z, {at}) + dt * vload(F, {at}))"]
+            continue
+        c, s = slots
+        turn += [
+            f"            a = dt * vload(F, ({c} * n + i) * L + o)",
+            "            if vany_outside(a, TAYLOR_MAX_ANGLE):",
+            "                for q in range(o, o + VEC):  # rotation's own choice, lane by lane",
+            f"                    ca, sa = rotation(dt * F[({c} * n + i) * L + q])",
+            f"                    ci = z[({c} * n + i) * L + q]",
+            f"                    si = z[({s} * n + i) * L + q]",
+            f"                    z[({c} * n + i) * L + q] = ci * ca - si * sa",
+            f"                    z[({s} * n + i) * L + q] = si * ca + ci * sa",
+            "            else:",
+            "                ca, sa = taylor_rotation(a)",
+            f"                ci = vload(z, ({c} * n + i) * L + o)",
+            f"                si = vload(z, ({s} * n + i) * L + o)",
+            f"                vstore(z, ({c} * n + i) * L + o, ci * ca - si * sa)",
+            f"                vstore(z, ({s} * n + i) * L + o, si * ca + ci * sa)",
+        ]
+        one += [
+            f"        c = z[({c} * n + i) * L + q]",
+            f"        s = z[({s} * n + i) * L + q]",
+            "        norm2 = c * c + s * s",
+            "        inv = 1.0 / math.sqrt(norm2) if norm2 > 0.0 else math.nan",
+            f"        z[({c} * n + i) * L + q] = c * inv",
+            f"        z[({s} * n + i) * L + q] = s * inv",
+        ]
+    out += [
+        "",
+        "",
+        '@njit(cache=True, error_model="numpy")',
+        "def circle_lane_turn(z, F, n, dt, L):",
+        '    """circle_euler_turn of every lane (Taylor rotations on vectors where every lane\'s angle',
+        '    is within their range, else the scalar rotation lane by lane: the same bits)."""',
+        "    for i in range(n):",
+        "        for o in range(0, L, VEC):",
+        *turn,
+        "",
+        "",
+        '@njit(cache=True, error_model="numpy")',
+        "def circle_lane_project(z, n, q, L):",
+        '    """circle_project of lane q."""',
+        "    for i in range(n):",
+        *one,
+    ]
     pc, ps = circle.phase
     out += [
         "",
@@ -666,7 +734,7 @@ def _lane_source(circle: Circle, pr) -> list[str]:
         "        vstore(r2, o, tc * tc + ts * ts)",
         "        vstore(dr2, o, 2.0 * (tc * dc + ts * ds))",
     ]
-    return out + _LANE_DRIVER.splitlines()
+    return out + "".join(_LANE_DRIVER.format(**kind) for kind in _LANE_KINDS.values()).splitlines()
 
 
 def _circle_source(sym, circle: Circle | None, pr) -> list[str]:
@@ -939,7 +1007,9 @@ def generate_source(law: Law) -> str:
         "from antisync.kernels.law_support import ALREADY_SYNCED, NOT_SYNCED, SYNCED, RA, RC, RGAMMA",
         "from antisync.kernels.law_support import factor, item_of, order_crossing, phase, record, solve",
         "from antisync.kernels.law_support import DENSE_POINTS, hermite_range",
-        "from antisync.kernels.law_support import RENORM_EVERY, VEC, rotation, vload, vsplat, vsqrt, vstore",
+        "from antisync.kernels.law_support import RENORM_EVERY, TAYLOR_MAX_ANGLE, VEC",
+        "from antisync.kernels.law_support import rotation, taylor_rotation, vany_outside",
+        "from antisync.kernels.law_support import vload, vsplat, vsqrt, vstore",
         "",
         f"S = {n_s}",
     ]
@@ -1788,6 +1858,7 @@ def compile_law(law: Law) -> CompiledLaw:
         module.law_items_explicit,
         module.law_items_circle,
         module.law_items_circle_euler,
+        module.law_items_lanes_euler if module.LANES else None,
         module.law_items_lanes if module.LANES else None,
         module.law_items_rodas4,
         module.law_vjp,
@@ -1854,9 +1925,9 @@ def parameter_blocks(values: np.ndarray, drawn: tuple, seed: int, ks: np.ndarray
 LAW_LANES = 16
 
 
-def _lane_width(lanes: int | None, compiled: CompiledLaw, params: LawParams, n: int) -> int:
-    """The lanes of a circle-form RK4 run: ``lanes`` (0: one trajectory per item), else
-    :data:`LAW_LANES` to the order-parameter criterion; 0 where the law has no lane driver or
+def _lane_width(lanes: int | None, compiled: CompiledLaw, params: LawParams) -> int:
+    """The lanes of a circle-form Euler or RK4 run: ``lanes`` (0: one trajectory per item), else
+    :data:`LAW_LANES` to the order-parameter criterion; 0 where the law has no lane drivers or
     runs to the frequency criterion (one per item)."""
     if compiled.items_lanes is None or params.criterion != CRIT_ORDER:
         return 0
@@ -1931,11 +2002,15 @@ def simulate_law(
     out = unset_outputs(m, n_var)
     collapsed = np.zeros((m, n_var + 1), dtype=np.bool_)
     blocks = parameter_blocks(values, params.drawn, seed, ks)
-    width = _lane_width(lanes, compiled, params, indptr.size - 1) if items is compiled.items_circle else 0
+    on_lanes = {
+        compiled.items_circle: compiled.items_lanes,
+        compiled.items_circle_euler: compiled.items_lanes_euler,
+    }
+    width = _lane_width(lanes, compiled, params) if items in on_lanes else 0
     with Threads(threads):
         if width:
             groups = max(1, min(4 * numba.get_num_threads(), -(-m * (n_var + 1) // width)))
-            compiled.items_lanes(
+            on_lanes[items](
                 ks, np.uint64(seed), indptr, indices, base, var_w, var_is_base, todo, blocks, targets,
                 clock, out.status0, out.steps0, out.frac0, out.status, out.steps, out.frac, groups, width,
             )  # fmt: skip
@@ -2156,7 +2231,7 @@ def check_step(setup, seed: int, csr, dynamics) -> None:
 _LANE_DRIVER = '''
 
 @njit(cache=True, error_model="numpy")
-def lane_fill(q, lo, hi, ks, seed, indptr, indices, base_w, var_w, var_is_base, todo, PR, targets,
+def {fill}(q, lo, hi, ks, seed, indptr, indices, base_w, var_w, var_is_base, todo, PR, targets,
               max_steps, per, y, zq, fq, Gq, z, f, ya, lw, PL, r2, dr2, lane_item, lane_target, dt, L,
               status0, steps0, frac0, status, steps, frac):
     """Load the next item of lo .. hi - 1 that needs integrating into lane q (the ones that end
@@ -2172,7 +2247,7 @@ def lane_fill(q, lo, hi, ks, seed, indptr, indices, base_w, var_w, var_is_base, 
         w = base_w if v < 0 else var_w[v]
         law_start(seed, ks[r], P, y, n)
         circle_from(y, zq, n)
-        circle_law_rhs(zq, w, indptr, indices, P, fq, Gq)
+        {rhs}(zq, w, indptr, indices, P, fq, Gq)
         a, b = circle_order(zq, fq, n)
         if not (a == a and b == b):
             record(status0, steps0, frac0, status, steps, frac, r, v, NOT_SYNCED, max_steps, 0.0)
@@ -2199,10 +2274,10 @@ def lane_fill(q, lo, hi, ks, seed, indptr, indices, base_w, var_w, var_is_base, 
 
 
 @njit(parallel=True, cache=True, error_model="numpy")
-def law_items_lanes(ks, seed, indptr, indices, base_w, var_w, var_is_base, todo, PR, targets, clock,
+def {name}(ks, seed, indptr, indices, base_w, var_w, var_is_base, todo, PR, targets, clock,
                     status0, steps0, frac0, status, steps, frac, n_groups, L):
-    """RK4 on the circle form, L items of a group stepped together (circle_sync's results; L a
-    multiple of VEC)."""
+    """{what} on the circle form, L items of a group stepped together ({sync}'s results; L a
+    multiple of 2 VEC)."""
     dt = clock[0]
     max_steps = int(clock[2])
     n = indptr.shape[0] - 1
@@ -2211,7 +2286,7 @@ def law_items_lanes(ks, seed, indptr, indices, base_w, var_w, var_is_base, todo,
     per = var_w.shape[0] + 1
     total = m * per
     rows = CS * n
-    hoist = circle_rhs_rows(n, nnz) > 0
+    hoist = {rhs_rows}(n, nnz) > 0
     for group in prange(n_groups):
         lo = group * total // n_groups
         hi = (group + 1) * total // n_groups
@@ -2230,7 +2305,7 @@ def law_items_lanes(ks, seed, indptr, indices, base_w, var_w, var_is_base, todo,
         y = np.empty(S * n)
         zq = np.empty(rows)
         fq = np.empty(rows)
-        Gq = np.empty((circle_rhs_rows(n, nnz), n))
+        Gq = np.empty(({rhs_rows}(n, nnz), n))
         lane_item = np.full(L, -1, dtype=np.int64)
         lane_t0 = np.zeros(L, dtype=np.int64)
         lane_target = np.zeros(L)
@@ -2239,7 +2314,7 @@ def law_items_lanes(ks, seed, indptr, indices, base_w, var_w, var_is_base, todo,
         while True:
             for q in range(L):
                 if lane_item[q] < 0 and lo < hi:
-                    lo, got = lane_fill(q, lo, hi, ks, seed, indptr, indices, base_w, var_w, var_is_base,
+                    lo, got = {fill}(q, lo, hi, ks, seed, indptr, indices, base_w, var_w, var_is_base,
                                         todo, PR, targets, max_steps, per, y, zq, fq, Gq, z, f, ya, lw,
                                         PL, r2, dr2, lane_item, lane_target, dt, L,
                                         status0, steps0, frac0, status, steps, frac)
@@ -2251,9 +2326,8 @@ def law_items_lanes(ks, seed, indptr, indices, base_w, var_w, var_is_base, todo,
             for q in range(L):
                 r2p[q] = r2[q]
                 dr2p[q] = dr2[q]
-            circle_lane_step(z, f, acc, ya, yb, lw, indptr, indices, PL, G, dt, L)
-            circle_lane_order(z, f, n, r2, dr2, L)
             t += 1
+{step}
             for q in range(L):
                 item = lane_item[q]
                 if item < 0:
@@ -2262,12 +2336,7 @@ def law_items_lanes(ks, seed, indptr, indices, base_w, var_w, var_is_base, todo,
                 if not (r2[q] == r2[q] and dr2[q] == dr2[q]):
                     st, k, x = NOT_SYNCED, max_steps, 0.0  # diverged: never synchronized
                 else:
-                    # the Hermite interpolant of R stays below max(R_0, R_1) + 4/27 (|m0| + |m1|):
-                    # a lane below that bound (widened for rounding) cannot cross in this step
-                    top = max(r2p[q], r2[q]) * (1.0 + 1e-12) + 0.15 * dt * (abs(dr2p[q]) + abs(dr2[q]))
-                    if top < lane_target[q] and k < max_steps:
-                        continue
-                    x = order_crossing(r2p[q], dr2p[q], r2[q], dr2[q], dt, True, lane_target[q])
+{cross}
                     if x >= 0.0:
                         st = SYNCED
                     elif k >= max_steps:
@@ -2284,3 +2353,45 @@ def law_items_lanes(ks, seed, indptr, indices, base_w, var_w, var_is_base, todo,
                 steps[r, v] = steps0[r]
                 frac[r, v] = frac0[r]
 '''
+
+
+#: what :data:`_LANE_DRIVER` holds for RK4 and for Euler
+_LANE_KINDS = {
+    "rk4": {
+        "name": "law_items_lanes",
+        "fill": "lane_fill",
+        "rhs": "circle_law_rhs",
+        "rhs_rows": "circle_rhs_rows",
+        "what": "RK4",
+        "sync": "circle_sync",
+        "step": """\
+            circle_lane_step(z, f, acc, ya, yb, lw, indptr, indices, PL, G, dt, L)
+            circle_lane_order(z, f, n, r2, dr2, L)""",
+        "cross": """\
+                    # the Hermite interpolant of R stays below max(R_0, R_1) + 4/27 (|m0| + |m1|):
+                    # a lane below that bound (widened for rounding) cannot cross in this step
+                    top = max(r2p[q], r2[q]) * (1.0 + 1e-12) + 0.15 * dt * (abs(dr2p[q]) + abs(dr2[q]))
+                    if top < lane_target[q] and k < max_steps:
+                        continue
+                    x = order_crossing(r2p[q], dr2p[q], r2[q], dr2[q], dt, True, lane_target[q])""",
+    },
+    "euler": {
+        "name": "law_items_lanes_euler",
+        "fill": "lane_fill_euler",
+        "rhs": "circle_euler_law_rhs",
+        "rhs_rows": "circle_euler_rhs_rows",
+        "what": "Euler",
+        "sync": "circle_euler_sync",
+        "step": """\
+            circle_lane_turn(z, f, n, dt, L)
+            circle_lane_order(z, z, n, r2, dr2, L)
+            for q in range(L):
+                if lane_item[q] >= 0 and (t - lane_t0[q]) % RENORM_EVERY == 0:
+                    circle_lane_project(z, n, q, L)
+            circle_euler_lane_rhs(z, lw, indptr, indices, PL, G, L, f)""",
+        "cross": """\
+                    if r2[q] < lane_target[q] and k < max_steps:
+                        continue  # a straight line between two values below the target
+                    x = order_crossing(r2p[q], 0.0, r2[q], 0.0, dt, False, lane_target[q])""",
+    },
+}

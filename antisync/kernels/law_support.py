@@ -6,7 +6,17 @@ step-size controller, under one module so a generated file imports one name."""
 from __future__ import annotations
 
 from antisync.kernels import implicit
-from antisync.kernels.core import DENSE_POINTS, RENORM_EVERY, VEC, vload, vsplat, vsqrt, vstore
+from antisync.kernels.core import (
+    DENSE_POINTS,
+    RENORM_EVERY,
+    TAYLOR_MAX_ANGLE,
+    VEC,
+    vany_outside,
+    vload,
+    vsplat,
+    vsqrt,
+    vstore,
+)
 from antisync.kernels.lanes import item_of
 from antisync.kernels.model_steps import MK
 from antisync.kernels.precision import K64
@@ -20,11 +30,14 @@ __all__ = [
     "NOT_SYNCED",
     "RENORM_EVERY",
     "SYNCED",
+    "TAYLOR_MAX_ANGLE",
     "VEC",
     "item_of",
     "phase",
     "record",
     "rotation",
+    "taylor_rotation",
+    "vany_outside",
     "vload",
     "vsplat",
     "vsqrt",
@@ -33,6 +46,7 @@ __all__ = [
 
 order_crossing = MK.order_crossing
 rotation = K64.rotation
+taylor_rotation = K64.taylor_rotation
 hermite_range = MK.hermite_range
 factor = implicit._factor
 solve = implicit._solve
