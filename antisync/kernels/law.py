@@ -281,10 +281,25 @@ def _stored(sym) -> dict:
     }
 
 
+def _hoisted_inputs(sym, split: dict, pairs: dict, arrays: dict) -> tuple[dict, dict]:
+    """``(sums, reuse)``: each hoisted input as its terms over the neighbour sums ``s{k}``, and
+    the receiving node's factors that are rows of ``G`` (``gi{row}``: read from ``G``'s row for
+    node ``i``, computed once in its pass: the same bits, no second sine per node)."""
+    import sympy
+
+    sums = {
+        m: sum((i * sympy.Symbol(f"s{pairs[w, j]}") for i, w, j in terms), sympy.Integer(0))
+        for m, terms in split.items()
+        if terms is not None
+    }
+    own = {sym_j: sym_i for sym_j, sym_i in zip((*sym.xj, *sym.pj), (*sym.x, *sym.p), strict=True)}
+    reuse = {j.xreplace(own): sympy.Symbol(f"gi{row}", real=True) for j, row in arrays.items()}
+    return {m: e.xreplace(reuse) for m, e in sums.items()}, reuse
+
+
 def _rhs_variant(sym, pr, signature: str, split: dict, pairs: dict, arrays: dict) -> list[str]:
     """One right-hand side: the inputs of ``split`` with terms from neighbour sums (``pairs``,
     ``G``'s rows ``arrays``, or the neighbour's stored values), the others per link."""
-    import sympy
 
     n_s = len(sym.x)
     node_exprs = list(sym.rates)
@@ -305,15 +320,7 @@ def _rhs_variant(sym, pr, signature: str, split: dict, pairs: dict, arrays: dict
         out += _block(js, [f"G[{k}, j]" for k in range(len(js))], "        ", pr)
     out += ["    for i in range(n):"]
     hoisted = [m for m in split if split[m] is not None]
-    sums = {
-        m: sum((i * sympy.Symbol(f"s{pairs[w, j]}") for i, w, j in split[m]), sympy.Integer(0))
-        for m in hoisted
-    }
-    # a factor of the receiving node that is one of G's neighbour functions is read from G's
-    # row for node i (computed once above: the same bits, no second sine per node)
-    own = {sym_j: sym_i for sym_j, sym_i in zip((*sym.xj, *sym.pj), (*sym.x, *sym.p), strict=True)}
-    reuse = {j.xreplace(own): sympy.Symbol(f"gi{row}", real=True) for j, row in arrays.items()}
-    sums = {m: e.xreplace(reuse) for m, e in sums.items()}
+    sums, reuse = _hoisted_inputs(sym, split, pairs, arrays)
     every = node_exprs + link_exprs + list(sums.values())
     out += _node_loads(every, sym)
     out += _loads(every, list(reuse.values()), "        ", "G[{k}, i]")
@@ -506,13 +513,7 @@ def _lane_rhs_variant(
         out += _loads(js, sym.xj, "            ", "vload(y, ({k} * n + j) * L + o)")
         out += _loads(js, sym.pj, "            ", "vload(P, ({k} * n + j) * L + o)")
         out += _vec_block(js, [("G", f"({k} * n + j) * L + o") for k in range(len(js))], "            ", pr)
-    sums = {
-        m: sum((i * sympy.Symbol(f"s{pairs[w, j]}") for i, w, j in split[m]), sympy.Integer(0))
-        for m in hoisted
-    }
-    own = {sym_j: sym_i for sym_j, sym_i in zip((*sym.xj, *sym.pj), (*sym.x, *sym.p), strict=True)}
-    reuse = {j.xreplace(own): sympy.Symbol(f"gi{row}", real=True) for j, row in arrays.items()}
-    sums = {m: e.xreplace(reuse) for m, e in sums.items()}
+    sums, reuse = _hoisted_inputs(sym, split, pairs, arrays)
     node_exprs = list(sym.rates)
     every = node_exprs + link_exprs + list(sums.values())
     pre = _loads(every, sym.x, "            ", "vload(y, ({k} * n + i) * L + o)")
