@@ -629,19 +629,7 @@ def _lane_source(circle: Circle, pr) -> list[str]:
     variant = "circle_lane_rhs_hoisted" if hoists else "circle_lane_rhs_link"
     out += [f"    {variant}(y, lw, indptr, indices, P, G, L, mode, z, f, acc, nxt, h)"]
     out += _lane_rhs_variant(sym, pr, variant, split, pairs if hoists else {}, arrays if hoists else {})
-    project = []
-    for slots in circle.slots:
-        if len(slots) == 2:
-            c, s = slots
-            project += [
-                f"            c = vload(z, ({c} * n + i) * L + o)",
-                f"            s = vload(z, ({s} * n + i) * L + o)",
-                "            norm2 = c * c + s * s",
-                # 1 / sqrt, then NaN where norm2 is 0 (norm2 / norm2 is exactly 1 elsewhere)
-                "            inv = 1.0 / vsqrt(norm2) * (norm2 / norm2)",
-                f"            vstore(z, ({c} * n + i) * L + o, c * inv)",
-                f"            vstore(z, ({s} * n + i) * L + o, s * inv)",
-            ]
+    project = _projection(circle, "            ", "({r} * n + i) * L + o", vector=True)
     out += _lane_rhs_variant(
         dataclasses.replace(sym, rates=circle.speeds),
         pr,
@@ -651,7 +639,8 @@ def _lane_source(circle: Circle, pr) -> list[str]:
         arrays if hoists else {},
         stages=False,
     )
-    turn, one = [], []
+    turn = []
+    one = _projection(circle, "        ", "({r} * n + i) * L + q")
     for slots in circle.slots:
         if len(slots) == 1:
             at = f"({slots[0]} * n + i) * L + o"
@@ -673,14 +662,6 @@ def _lane_source(circle: Circle, pr) -> list[str]:
             f"                si = vload(z, ({s} * n + i) * L + o)",
             f"                vstore(z, ({c} * n + i) * L + o, ci * ca - si * sa)",
             f"                vstore(z, ({s} * n + i) * L + o, si * ca + ci * sa)",
-        ]
-        one += [
-            f"        c = z[({c} * n + i) * L + q]",
-            f"        s = z[({s} * n + i) * L + q]",
-            "        norm2 = c * c + s * s",
-            "        inv = 1.0 / math.sqrt(norm2) if norm2 > 0.0 else math.nan",
-            f"        z[({c} * n + i) * L + q] = c * inv",
-            f"        z[({s} * n + i) * L + q] = s * inv",
         ]
     out += [
         "",
@@ -738,6 +719,33 @@ def _lane_source(circle: Circle, pr) -> list[str]:
     return out + "".join(_LANE_DRIVER.format(**kind) for kind in _LANE_KINDS.values()).splitlines()
 
 
+def _projection(circle: Circle, indent: str, at: str, vector: bool = False) -> list[str]:
+    """Lines putting every angle's ``(cos, sin)`` in ``z`` back on the unit circle, slot ``r`` at
+    index ``at.format(r=r)``, on lane vectors with ``vector``. A pair at 0 becomes NaN (never
+    synchronized): on vectors ``norm2 / norm2`` does that, exactly 1 everywhere else."""
+    inv = (
+        "1.0 / vsqrt(norm2) * (norm2 / norm2)"
+        if vector
+        else "1.0 / math.sqrt(norm2) if norm2 > 0.0 else math.nan"
+    )
+    lines = []
+    for slots in circle.slots:
+        if len(slots) == 1:
+            continue
+        c, s = (at.format(r=r) for r in slots)
+        read = (f"vload(z, {c})", f"vload(z, {s})") if vector else (f"z[{c}]", f"z[{s}]")
+        write = (
+            (f"vstore(z, {c}, c * inv)", f"vstore(z, {s}, s * inv)")
+            if vector
+            else (
+                f"z[{c}] = c * inv",
+                f"z[{s}] = s * inv",
+            )
+        )
+        lines += [f"c = {read[0]}", f"s = {read[1]}", "norm2 = c * c + s * s", f"inv = {inv}", *write]
+    return [indent + line for line in lines]
+
+
 def _circle_source(sym, circle: Circle | None, pr) -> list[str]:
     """The circle form's right-hand side (``circle_law_rhs``), its frequency quantities
     (``circle_law_devs``), its conversions and its RK4 (``circle_sync``); without a circle form a
@@ -774,7 +782,8 @@ def _circle_source(sym, circle: Circle | None, pr) -> list[str]:
             "def circle_law_devs(y, f, wq, indptr, indices, P, D):",
             "    D[:] = np.nan",
         ]
-    convert, project = [], []
+    convert = []
+    project = _projection(circle, "        ", "{r} * n + i")
     for k, slots in enumerate(circle.slots):
         if len(slots) == 1:
             convert += [f"        z[{slots[0]} * n + i] = y[{k} * n + i]"]
@@ -783,14 +792,6 @@ def _circle_source(sym, circle: Circle | None, pr) -> list[str]:
         convert += [
             f"        z[{c} * n + i] = math.cos(y[{k} * n + i])",
             f"        z[{s} * n + i] = math.sin(y[{k} * n + i])",
-        ]
-        project += [
-            f"        c = z[{c} * n + i]",
-            f"        s = z[{s} * n + i]",
-            "        norm2 = c * c + s * s",
-            "        inv = 1.0 / math.sqrt(norm2) if norm2 > 0.0 else math.nan",
-            f"        z[{c} * n + i] = c * inv",
-            f"        z[{s} * n + i] = s * inv",
         ]
     # Euler's step: each angle's (cos, sin) rotated by dt theta' (the built-in kernels' step)
     out += _rhs_source(dataclasses.replace(circle.sym, rates=circle.speeds), pr, prefix="circle_euler_")
@@ -1285,7 +1286,8 @@ def expanded_pattern(indptr: np.ndarray, indices: np.ndarray, n_states: int) -> 
 
 
 # The drivers: generic in the law (they call law_rhs, law_order, law_start, law_jac above).
-_DRIVERS = '''
+_DRIVERS = (
+    '''
 @njit(cache=True, error_model="numpy")
 def hermite(y0, m0, y1, m1, x):
     """The cubic Hermite interpolant at x in [0, 1] (m0, m1: rates times dt)."""
@@ -1611,43 +1613,6 @@ def item_start(ks, seed, indptr, base_w, var_w, var_is_base, todo, PR, item, per
 
 
 @njit(cache=True, error_model="numpy")
-def law_item_explicit(ks, seed, indptr, indices, base_w, var_w, var_is_base, todo, PR, targets, clock, plan,
-                      jperm, status0, steps0, frac0, status, steps, frac, collapsed, item, per):
-    dt, t_max, max_steps, method, rtol, atol, criterion = clock
-    r, v, run, y, w, P = item_start(ks, seed, indptr, base_w, var_w, var_is_base, todo, PR, item, per)
-    if not run:
-        return
-    st, k, x = law_sync(
-        y, w, indptr, indices, P, dt, method == 1, criterion == 1, targets[v + 1], int(max_steps)
-    )
-    record(status0, steps0, frac0, status, steps, frac, r, v, st, k, x)
-
-
-@njit(cache=True, error_model="numpy")
-def law_item_circle(ks, seed, indptr, indices, base_w, var_w, var_is_base, todo, PR, targets, clock, plan,
-                    jperm, status0, steps0, frac0, status, steps, frac, collapsed, item, per):
-    dt, t_max, max_steps, method, rtol, atol, criterion = clock
-    r, v, run, y, w, P = item_start(ks, seed, indptr, base_w, var_w, var_is_base, todo, PR, item, per)
-    if not run:
-        return
-    st, k, x = circle_sync(y, w, indptr, indices, P, dt, criterion == 1, targets[v + 1], int(max_steps))
-    record(status0, steps0, frac0, status, steps, frac, r, v, st, k, x)
-
-
-@njit(cache=True, error_model="numpy")
-def law_item_circle_euler(ks, seed, indptr, indices, base_w, var_w, var_is_base, todo, PR, targets, clock,
-                          plan, jperm, status0, steps0, frac0, status, steps, frac, collapsed, item, per):
-    dt, t_max, max_steps, method, rtol, atol, criterion = clock
-    r, v, run, y, w, P = item_start(ks, seed, indptr, base_w, var_w, var_is_base, todo, PR, item, per)
-    if not run:
-        return
-    st, k, x = circle_euler_sync(
-        y, w, indptr, indices, P, dt, criterion == 1, targets[v + 1], int(max_steps)
-    )
-    record(status0, steps0, frac0, status, steps, frac, r, v, st, k, x)
-
-
-@njit(cache=True, error_model="numpy")
 def law_item_rodas4(ks, seed, indptr, indices, base_w, var_w, var_is_base, todo, PR, targets, clock, plan,
                     jperm, status0, steps0, frac0, status, steps, frac, collapsed, item, per):
     dt, t_max, max_steps, method, rtol, atol, criterion = clock
@@ -1664,9 +1629,30 @@ def law_item_rodas4(ks, seed, indptr, indices, base_w, var_w, var_is_base, todo,
         k = int(max_steps)
         x = 0.0
     record(status0, steps0, frac0, status, steps, frac, r, v, st, k, x)
-''' + "".join(
-    # one parallel loop per item driver, so that a run compiles only its integrator's
-    f"""
+'''
+    + "".join(
+        # an explicit integrator's item: the start, its integration, its record
+        f"""
+
+@njit(cache=True, error_model="numpy")
+def law_item_{kind}(ks, seed, indptr, indices, base_w, var_w, var_is_base, todo, PR, targets, clock, plan,
+                    jperm, status0, steps0, frac0, status, steps, frac, collapsed, item, per):
+    dt, t_max, max_steps, method, rtol, atol, criterion = clock
+    r, v, run, y, w, P = item_start(ks, seed, indptr, base_w, var_w, var_is_base, todo, PR, item, per)
+    if not run:
+        return
+    st, k, x = {sync}(y, w, indptr, indices, P, dt, {which}criterion == 1, targets[v + 1], int(max_steps))
+    record(status0, steps0, frac0, status, steps, frac, r, v, st, k, x)
+"""
+        for kind, sync, which in (
+            ("explicit", "law_sync", "method == 1, "),
+            ("circle", "circle_sync", ""),
+            ("circle_euler", "circle_euler_sync", ""),
+        )
+    )
+    + "".join(
+        # one parallel loop per item driver, so that a run compiles only its integrator's
+        f"""
 
 @njit(parallel=True, cache=True, error_model="numpy")
 def law_items_{kind}(ks, seed, indptr, indices, base_w, var_w, var_is_base, todo, PR, targets, clock, plan,
@@ -1683,7 +1669,8 @@ def law_items_{kind}(ks, seed, indptr, indices, base_w, var_w, var_is_base, todo
                 steps[r, v] = steps0[r]
                 frac[r, v] = frac0[r]
 """
-    for kind in ("explicit", "circle", "circle_euler", "rodas4")
+        for kind in ("explicit", "circle", "circle_euler", "rodas4")
+    )
 )
 
 
