@@ -343,7 +343,7 @@ def _rhs_variant(sym, pr, signature: str, split: dict, pairs: dict, arrays: dict
 
 
 class Circle(NamedTuple):
-    """A law on the circle's embedding: each angle state ``theta`` (one its expressions read only
+    """A law on the circle's embedding: each angle state ``theta`` (a state its expressions read only
     through ``sin`` and ``cos``) stored as ``(cos theta, sin theta)``, as the built-in kernels
     store the phase (:mod:`antisync.kernels.core`); :func:`circle_form`."""
 
