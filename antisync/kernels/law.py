@@ -782,25 +782,21 @@ def _circle_source(sym, circle: Circle | None, pr) -> list[str]:
             "def circle_law_devs(y, f, wq, indptr, indices, P, D):",
             "    D[:] = np.nan",
         ]
-    convert = []
-    project = _projection(circle, "        ", "{r} * n + i")
+    # per slot: the start's conversion, Euler's step (each angle's (cos, sin) rotated by dt
+    # theta', the built-in kernels' step) and the circle form's rates from Euler's
+    convert, turn, rates_of = [], [], []
     for k, slots in enumerate(circle.slots):
         if len(slots) == 1:
-            convert += [f"        z[{slots[0]} * n + i] = y[{k} * n + i]"]
+            r = slots[0]
+            convert += [f"        z[{r} * n + i] = y[{k} * n + i]"]
+            turn += [f"        z[{r} * n + i] += dt * F[{r} * n + i]"]
+            rates_of += [f"        f[{r} * n + i] = F[{r} * n + i]"]
             continue
         c, s = slots
         convert += [
             f"        z[{c} * n + i] = math.cos(y[{k} * n + i])",
             f"        z[{s} * n + i] = math.sin(y[{k} * n + i])",
         ]
-    # Euler's step: each angle's (cos, sin) rotated by dt theta' (the built-in kernels' step)
-    out += _rhs_source(dataclasses.replace(circle.sym, rates=circle.speeds), pr, prefix="circle_euler_")
-    turn = []
-    for slots in circle.slots:
-        if len(slots) == 1:
-            turn += [f"        z[{slots[0]} * n + i] += dt * F[{slots[0]} * n + i]"]
-            continue
-        c, s = slots
         turn += [
             f"        ca, sa = rotation(dt * F[{c} * n + i])",
             f"        ci = z[{c} * n + i]",
@@ -808,16 +804,12 @@ def _circle_source(sym, circle: Circle | None, pr) -> list[str]:
             f"        z[{c} * n + i] = ci * ca - si * sa",
             f"        z[{s} * n + i] = si * ca + ci * sa",
         ]
-    rates_of = []
-    for slots in circle.slots:
-        if len(slots) == 2:
-            c, s = slots
-            rates_of += [
-                f"        f[{c} * n + i] = -F[{c} * n + i] * z[{s} * n + i]",
-                f"        f[{s} * n + i] = F[{s} * n + i] * z[{c} * n + i]",
-            ]
-        else:
-            rates_of += [f"        f[{slots[0]} * n + i] = F[{slots[0]} * n + i]"]
+        rates_of += [
+            f"        f[{c} * n + i] = -F[{c} * n + i] * z[{s} * n + i]",
+            f"        f[{s} * n + i] = F[{s} * n + i] * z[{c} * n + i]",
+        ]
+    project = _projection(circle, "        ", "{r} * n + i")
+    out += _rhs_source(dataclasses.replace(circle.sym, rates=circle.speeds), pr, prefix="circle_euler_")
     out += [
         "",
         "",
@@ -1008,6 +1000,7 @@ def generate_source(law: Law) -> str:
         "from antisync.kernels import law_support as support",
         "from antisync.kernels.law_support import ALREADY_SYNCED, NOT_SYNCED, SYNCED, RA, RC, RGAMMA",
         "from antisync.kernels.law_support import factor, item_of, order_crossing, phase, record, solve",
+        "from antisync.kernels.law_support import share_row",
         "from antisync.kernels.law_support import DENSE_POINTS, hermite_range",
         "from antisync.kernels.law_support import RENORM_EVERY, TAYLOR_MAX_ANGLE, VEC",
         "from antisync.kernels.law_support import rotation, taylor_rotation, vany_outside",
@@ -1663,11 +1656,7 @@ def law_items_{kind}(ks, seed, indptr, indices, base_w, var_w, var_is_base, todo
         law_item_{kind}(ks, seed, indptr, indices, base_w, var_w, var_is_base, todo, PR, targets, clock, plan,
                         jperm, status0, steps0, frac0, status, steps, frac, collapsed, np.int64(item), per)
     for r in prange(m):
-        for v in range(var_is_base.shape[0]):
-            if var_is_base[v]:
-                status[r, v] = status0[r]
-                steps[r, v] = steps0[r]
-                frac[r, v] = frac0[r]
+        share_row(var_is_base, r, status0, steps0, frac0, status, steps, frac)
 """
         for kind in ("explicit", "circle", "circle_euler", "rodas4")
     )
@@ -2335,11 +2324,7 @@ def {name}(ks, seed, indptr, indices, base_w, var_w, var_is_base, todo, PR, targ
                 lane_item[q] = -1
                 active -= 1
     for r in prange(m):
-        for v in range(var_is_base.shape[0]):
-            if var_is_base[v]:
-                status[r, v] = status0[r]
-                steps[r, v] = steps0[r]
-                frac[r, v] = frac0[r]
+        share_row(var_is_base, r, status0, steps0, frac0, status, steps, frac)
 '''
 
 

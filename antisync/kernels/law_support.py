@@ -20,7 +20,7 @@ from antisync.kernels.core import (
 from antisync.kernels.lanes import item_of
 from antisync.kernels.model_steps import MK
 from antisync.kernels.precision import K64
-from antisync.kernels.shared import record
+from antisync.kernels.shared import record, share_row
 from antisync.physics.phases import phase
 from antisync.status import ALREADY_SYNCED, NOT_SYNCED, SYNCED
 
@@ -36,6 +36,7 @@ __all__ = [
     "phase",
     "record",
     "rotation",
+    "share_row",
     "taylor_rotation",
     "vany_outside",
     "vload",
