@@ -637,3 +637,73 @@ def test_a_grid_without_inertia_trips_as_radau_says(method):
             assert abs(trip.settle_time - _reference_settle(grid, line, t_clear, theta0)) <= 2 * DT
         verdicts.append(settles)
     assert any(verdicts) and not all(verdicts)
+
+
+# -- the table's accuracy check ------------------------------------------------------------------
+
+
+def _settles(grid, lines, faults, settings):
+    from antisync.grids.trip import _integrate
+
+    return np.isfinite(_integrate(grid, lines, np.asarray(faults, dtype=float), None, **settings)[0][:, 0])
+
+
+def test_a_trip_table_checks_its_first_trips_at_a_finer_setting(ieee14):
+    """Every trip table integrates its first trips again (RK4 at dt / 2, Rodas4 at its
+    tolerances / 10) and keeps the record: IEEE 14 with RK4 at DT passes (settle times within
+    1e-4 s); Rodas4 at rtol = atol = 1e-2 moves the settle times by tenths of a second and
+    fails, a WARNING under the table naming the tolerances to use."""
+    from antisync.grids.trip import format_trips, trip_report
+    from antisync.grids.trip_check import TRIP_CHECK_TRIPS
+
+    grid, lines = ieee14
+    named = [(grid.labels[a], grid.labels[b]) for a, b in lines[:6]]
+    fine = trip_report(grid, named, t_clear=0.2, t_max=20.0, dt=DT)
+    check = fine["accuracy_check"]
+    assert check["passed"] and check["starts"] == TRIP_CHECK_TRIPS and check["dt"] == DT
+    assert check["lines"] == [f"{grid.labels[a]}-{grid.labels[b]}" for a, b in lines[:TRIP_CHECK_TRIPS]]
+    assert check["changed"] == 0 and check["largest_dtau"] < 1e-4
+    assert "Step checked: the first 4 trips again at dt / 2 = 0.0025: 0 changed verdict" in format_trips(fine)
+    coarse = trip_report(
+        grid, named, t_clear=0.2, t_max=20.0, dt=DT, integrator="rodas4", rtol=1e-2, atol=1e-2
+    )
+    check = coarse["accuracy_check"]
+    assert not check["passed"] and check["jumped"] >= 2 and check["largest_dtau"] > 0.1, check
+    assert check["rtol"] == 1e-2 and check["refine"] == 10.0
+    text = format_trips(coarse)
+    assert "WARNING: Tolerances checked: the first 4 trips again at rtol = 0.001, atol = 0.001" in text
+    assert "run again at dynamics.rtol = 0.001, dynamics.atol = 0.001" in text
+    json.dumps(coarse, allow_nan=False)  # the record is plain JSON
+
+
+def test_the_cct_check_tests_the_scan_s_boundary_and_flags_a_wrong_cct(ieee14):
+    """With --cct the check integrates each sampled line's CCT (survived) and first failing
+    scanned fault (failed) at the finer setting: at the table's own setting these verdicts hold
+    by construction (here at the same step, for the lines whose CCT is below cct_max), and a
+    CCT moved by 0.05 s above the true one is flagged, the line named."""
+    from antisync.grids.trip import _integrate, critical_clearing, operating_point
+    from antisync.grids.trip_check import check_trips, first_failure
+
+    grid, lines = ieee14
+    spec = {"cct_max": 1.5, "cct_tol": 1e-3, "cct_scan": 0.01}
+    theta0 = operating_point(grid)
+    settings = {"t_max": T_MAX, "dt": DT, "tolerance": TOL, "theta0": theta0, "threads": None}
+    settings.update(integrator="rk4", rtol=1e-6, atol=1e-6)
+    cct, _ = critical_clearing(grid, lines, **spec, **{k: v for k, v in settings.items()})
+    short = [e for e in range(len(lines)) if 0 < cct[e] < spec["cct_max"]][:4]
+    assert len(short) >= 2, cct
+    fails = [first_failure(cct[e], spec["cct_tol"], spec["cct_scan"], spec["cct_max"]) for e in short]
+    assert all(cct[e] < f <= cct[e] + spec["cct_tol"] + 1e-12 for e, f in zip(short, fails, strict=True))
+    picked = [lines[e] for e in short]
+    np.testing.assert_array_equal(_settles(grid, picked, cct[short], settings), True)
+    np.testing.assert_array_equal(_settles(grid, picked, fails, settings), False)
+    values = np.full((len(short), 7), np.nan)
+    values[:, 0] = _integrate(grid, picked, 0.0, None, **settings)[0][:, 0]
+    values[:, 4] = cct[short]
+    shares = np.ones(len(short))
+    record = check_trips(_integrate, grid, picked, 0.0, shares, values, settings, spec)
+    assert record["passed"] and record["cct"]["changed"] == 0, record
+    values[0, 4] += 0.05  # a CCT beyond the boundary: its fault fails at every setting
+    record = check_trips(_integrate, grid, picked, 0.0, shares, values, settings, spec)
+    a, b = picked[0]
+    assert not record["passed"] and record["cct"]["moved_lines"] == [f"{grid.labels[a]}-{grid.labels[b]}"]

@@ -145,24 +145,32 @@ def _refined(run, ks: np.ndarray, dt: float) -> dict:
 
 def step_check_line(check: dict) -> str:
     """One line on a :func:`step_record` (a step's, or Rodas4's tolerances')."""
-    moved = f"{check['changed']} changed status" + (
-        f" (first: start {check['first_changed']})" if check["changed"] else ""
+    # a trip table's check (antisync.grids.trip_check) names its trips by line
+    unit, time = check.get("unit", "starts"), check.get("time", "tau0")
+    labels = check.get("lines")
+
+    def which(k):
+        return f"line {labels[k]}" if labels else f"start {k}"
+
+    word = "verdict" if labels else "status"
+    moved = f"{check['changed']} changed {word}" + (
+        f" (first: {which(check['first_changed'])})" if check["changed"] else ""
     )
     if "rtol" in check:
         k = check["refine"]
         finer = f"rtol = {check['rtol'] / k:g}, atol = {check['atol'] / k:g}"
-        text = f"tolerances checked: the first {check['starts']} starts again at {finer}: {moved}"
+        text = f"tolerances checked: the first {check['starts']} {unit} again at {finer}: {moved}"
         again = f"rtol and atol / {k * k:g}"
         fix = f"dynamics.rtol = {check['rtol'] / k:g}, dynamics.atol = {check['atol'] / k:g}"
         depend = "the tolerances"
     else:
         half = check["dt"] / 2
-        text = f"step checked: the first {check['starts']} starts again at dt / 2 = {half:g}: {moved}"
+        text = f"step checked: the first {check['starts']} {unit} again at dt / 2 = {half:g}: {moved}"
         again, fix, depend = "dt / 4", f"dynamics.dt = {half:g}", "the step"
     if check["worst"] is not None:
         text += (
             f", {check.get('jumped', 0)} moved by more than {check.get('share', STEP_CHECK_SHARE):.0%} of "
-            f"the median tau0, the largest by {check['largest_dtau']:.2g} (start {check['worst']})"
+            f"the median {time}, the largest by {check['largest_dtau']:.2g} ({which(check['worst'])})"
         )
     grazing = check.get("grazing", 0)
     if grazing:

@@ -14,6 +14,7 @@ import contextlib
 import dataclasses
 import json
 import math
+import warnings
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -48,6 +49,7 @@ from antisync.grids.trip import (
     trip_report,
 )
 from antisync.grids.trip import FORMAT as TRIP_FORMAT
+from antisync.grids.trip_check import trip_check_line
 from antisync.plan.config import Config
 from antisync.store.grid_file import write_grid_table
 from antisync.store.lock import writer_lock
@@ -229,6 +231,13 @@ def run_trip(
             journal=journal,
             progress=progress,
         )
+        check = report["accuracy_check"]
+        if check is not None and not check["passed"]:
+            text = trip_check_line(check, report["integrator"])
+            if log is not None:
+                log(text)
+            else:
+                warnings.warn(text, stacklevel=2)
         if out is not None:
             doc = plain({**report, **provenance(command_line()), "config": cfg.to_dict()})
             if is_hdf5_table(out):

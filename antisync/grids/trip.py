@@ -58,6 +58,7 @@ from antisync.grids.lines import grid_bridges, lines_of, split_bridges
 from antisync.grids.load import Grid
 from antisync.grids.removal_file import read_document
 from antisync.grids.removal_journal import TripJournal, key_changes
+from antisync.grids.trip_check import check_trips, trip_check_line
 from antisync.kernels.shared import per_node
 from antisync.physics.coupling import to_csr
 from antisync.physics.locked import locked_state
@@ -685,7 +686,9 @@ def trip_report(
     rows either way. ``journal`` (a folder: :class:`~antisync.grids.removal_journal.TripJournal`)
     keeps every finished task at once, and a call with the same arguments and journal reads
     them back and runs only the rest. ``progress``: a bar of the trips done and the time left
-    on stderr (None: when stderr is a terminal).
+    on stderr (None: when stderr is a terminal). The table's first trips are then integrated
+    again at a finer setting (:mod:`antisync.grids.trip_check`): the report's
+    ``accuracy_check``.
 
     Every refusal comes before any integration: a line not in the grid, a bridge named in
     ``lines``, a clearing time that is not in ``(0, t_max)``, a grid without a stable
@@ -754,6 +757,7 @@ def trip_report(
         ) from None
     finally:
         bar.close()
+    check = check_trips(_integrate, grid, todo, clear, shares, values, settings, spec, client)
     trips = _trips(grid, todo, np.full(len(todo), float(clear)), shares, names, values)
     rows = [t.as_dict() for t in trips]
     for row, error in zip(rows, values[:, 6], strict=True):
@@ -781,6 +785,7 @@ def trip_report(
         "cct_scan": cct_scan if cct else None,
         "contingencies": contingencies is not None,
         "bridges_skipped": [list(map(str, b)) for b in skipped],
+        "accuracy_check": check,
         "work": _grid_digest(grid),
         "lines": rows,
         "network": network_record(grid),
@@ -861,6 +866,9 @@ def format_trips(report: dict) -> str:
             f"estimated error {worst['max_frequency_error']:.2g} by step doubling): use a smaller "
             "dynamics.dt or rodas4"
         )
+    if "accuracy_check" in report:  # tables before the check lack it
+        out.append("")
+        out.append(trip_check_line(report["accuracy_check"], report.get("integrator", "rk4")) + ".")
     if cct:
         windows = sum(r.get("cct_again") is not None for r in report["lines"])
         top = sum(r["cct"] >= report["cct_max"] for r in report["lines"])
