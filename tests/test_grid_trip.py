@@ -651,8 +651,9 @@ def _settles(grid, lines, faults, settings):
 def test_a_trip_table_checks_its_first_trips_at_a_finer_setting(ieee14):
     """Every trip table integrates its first trips again (RK4 at dt / 2, Rodas4 at its
     tolerances / 10) and keeps the record: IEEE 14 with RK4 at DT passes (settle times within
-    1e-4 s); Rodas4 at rtol = atol = 1e-2 moves the settle times by tenths of a second and
-    fails, a WARNING under the table naming the tolerances to use."""
+    1e-4 s, frequency peaks and largest angles within 1e-4 relative); Rodas4 at rtol = atol =
+    1e-2 moves the settle times by tenths of a second and fails, a WARNING under the table
+    naming the tolerances to use."""
     from antisync.grids.trip import format_trips, trip_report
     from antisync.grids.trip_check import TRIP_CHECK_TRIPS
 
@@ -663,6 +664,7 @@ def test_a_trip_table_checks_its_first_trips_at_a_finer_setting(ieee14):
     assert check["passed"] and check["starts"] == TRIP_CHECK_TRIPS and check["dt"] == DT
     assert check["lines"] == [f"{grid.labels[a]}-{grid.labels[b]}" for a, b in lines[:TRIP_CHECK_TRIPS]]
     assert check["changed"] == 0 and check["largest_dtau"] < 1e-4
+    assert check["peak_change"] < 1e-4 and check["angle_change"] < 1e-4
     assert "Step checked: the first 4 trips again at dt / 2 = 0.0025: 0 changed verdict" in format_trips(fine)
     coarse = trip_report(
         grid, named, t_clear=0.2, t_max=20.0, dt=DT, integrator="rodas4", rtol=1e-2, atol=1e-2
@@ -698,7 +700,7 @@ def test_the_cct_check_tests_the_scan_s_boundary_and_flags_a_wrong_cct(ieee14):
     np.testing.assert_array_equal(_settles(grid, picked, cct[short], settings), True)
     np.testing.assert_array_equal(_settles(grid, picked, fails, settings), False)
     values = np.full((len(short), 7), np.nan)
-    values[:, 0] = _integrate(grid, picked, 0.0, None, **settings)[0][:, 0]
+    values[:, :3] = _integrate(grid, picked, 0.0, None, **settings)[0]
     values[:, 4] = cct[short]
     shares = np.ones(len(short))
     record = check_trips(_integrate, grid, picked, 0.0, shares, values, settings, spec)

@@ -13,6 +13,8 @@ last fault survived and the first one not. So every trip table integrates its fi
   by more than :data:`~antisync.execution.step_check.STEP_CHECK_SHARE` of the sample's median,
   depends on the setting, unless it moves again at the next finer one (a criterion that grazes
   its band: ill-conditioned at any setting);
+- **the first swing**: each trip's frequency peak and largest angle must move by at most
+  :data:`PEAK_SHARE` (relative);
 - **the CCT's boundary** (with ``--cct``): the fault of the CCT must still be survived and the
   first failing fault of the scan must still fail. Where a verdict changes, the same faults are
   integrated once more at the next finer setting; a change that holds there moves the CCT by at
@@ -41,10 +43,13 @@ from antisync.execution.step_check import (
 from antisync.grids.errors import GridError
 from antisync.status import NOT_SYNCED, SYNCED
 
-__all__ = ["TRIP_CHECK_TRIPS", "check_trips", "first_failure", "trip_check_line"]
+__all__ = ["PEAK_SHARE", "TRIP_CHECK_TRIPS", "check_trips", "first_failure", "trip_check_line"]
 
 #: the table's first trips integrated again at the finer setting
 TRIP_CHECK_TRIPS = 4
+#: a frequency peak or largest angle that moves by more than this share at the finer setting
+#: depends on the setting
+PEAK_SHARE = 0.01
 
 
 def first_failure(cct: float, cct_tol: float, cct_scan: float, cct_max: float) -> float | None:
@@ -58,17 +63,22 @@ def first_failure(cct: float, cct_tol: float, cct_scan: float, cct_max: float) -
     return min(cct + cct_tol, above, cct_max)
 
 
-def _settle_task(integrate, grid, lines, clear, shares, settings) -> np.ndarray:
-    """The settle times (``nan``: it does not settle) of ``lines`` after their faults ``clear``:
-    a task here or on a worker."""
-    return integrate(grid, lines, clear, shares, **settings)[0][:, 0]
+def _trip_task(integrate, grid, lines, clear, shares, settings) -> np.ndarray:
+    """The rows ``[settle_time, max_frequency, max_angle]`` (settle time ``nan``: it does not
+    settle) of ``lines`` after their faults ``clear``: a task here or on a worker."""
+    return integrate(grid, lines, clear, shares, **settings)[0]
 
 
 def _settle_times(integrate, grid, items, settings, client) -> np.ndarray:
-    """The settle times of ``items`` ``(line, fault, share)``: one batch here (the kernel's
-    threads share it), or a task per item on ``client``'s cluster."""
+    """The settle times of ``items`` ``(line, fault, share)`` (:func:`_trip_rows`)."""
+    return _trip_rows(integrate, grid, items, settings, client)[:, 0]
+
+
+def _trip_rows(integrate, grid, items, settings, client) -> np.ndarray:
+    """The rows of ``items`` ``(line, fault, share)``: one batch here (the kernel's threads
+    share it), or a task per item on ``client``'s cluster."""
     if not items:
-        return np.zeros(0)
+        return np.zeros((0, 3))
     groups = [items] if client is None else [[it] for it in items]
     calls = (
         (
@@ -82,8 +92,8 @@ def _settle_times(integrate, grid, items, settings, client) -> np.ndarray:
         for group in groups
     )
     out = [None] * len(groups)
-    for i, times in map_tasks(_settle_task, calls, client=client):
-        out[i] = times
+    for i, rows in map_tasks(_trip_task, calls, client=client):
+        out[i] = rows
     return np.concatenate(out)
 
 
@@ -106,13 +116,16 @@ def check_trips(integrate, grid, todo, clear, shares, values, settings, cct: dic
     if n == 0:
         return {"skipped": "no trip to check", "passed": True}
     sample = np.arange(n)
+    finer = {}
 
     def run(level, picked):
         if level == 0:  # the table's own rows
             times = values[picked, 0]
         else:
             items = [(todo[e], float(clear), float(shares[e])) for e in picked]
-            times = _settle_times(integrate, grid, items, _finer(settings, level), client)
+            rows = _trip_rows(integrate, grid, items, _finer(settings, level), client)
+            finer.setdefault(level, rows)  # level 1 runs on the whole sample, first
+            times = rows[:, 0]
         return np.where(np.isfinite(times), SYNCED, NOT_SYNCED), times
 
     dt = settings["dt"]
@@ -133,6 +146,11 @@ def check_trips(integrate, grid, todo, clear, shares, values, settings, cct: dic
         return None
     record.update(unit="trips", time="settle time", lines=[_label(grid, todo[e]) for e in sample])
     record["settling_passed"] = record["passed"]
+    # the first swing: the largest relative change of each trip's frequency peak and angle
+    peaks = np.abs(finer[1][:, 1:] - values[:n, 1:3]) / np.maximum(np.abs(finer[1][:, 1:]), 1e-300)
+    record["peak_change"] = float(peaks[:, 0].max())
+    record["angle_change"] = float(peaks[:, 1].max())
+    record["passed"] = bool(record["passed"] and max(peaks.max(), 0.0) <= PEAK_SHARE)
     if cct is not None:
         record["cct"] = _boundary(integrate, grid, todo[:n], shares[:n], values[:n], settings, cct, client)
         record["passed"] = record["passed"] and record["cct"]["passed"]
@@ -187,8 +205,15 @@ def trip_check_line(check: dict | None, integrator: str) -> str:
         )
     if "skipped" in check:
         return f"Not checked: the finer setting is refused ({check['skipped']})"
-    text = step_check_line({**check, "passed": check.get("settling_passed", check["passed"])})
-    text = text[0].upper() + text[1:]
+    base = step_check_line({**check, "passed": True})
+    # ": these numbers depend on ...; run again at ...", said once, at the end
+    tail = step_check_line({**check, "passed": False})[len(base) :]
+    text = base[0].upper() + base[1:]
+    if "peak_change" in check:
+        text += (
+            f"; the frequency peaks moved by at most {check['peak_change']:.2g} and the largest angles by "
+            f"{check['angle_change']:.2g} (relative; more than {PEAK_SHARE:.0%} fails)"
+        )
     boundary = check.get("cct")
     if boundary is not None:
         text += (
@@ -199,10 +224,10 @@ def trip_check_line(check: dict | None, integrator: str) -> str:
         if boundary["grazing"]:
             text += f", {boundary['grazing']} of them back again once finer (grazing the boundary)"
         if boundary["moved"]:
-            fix = step_check_line({**check, "passed": False}).rsplit("; run again at ", 1)[1]
             text += (
-                f"; the CCT of {', '.join(boundary['moved_lines'])} depends on the integrator's setting "
-                f"by at least one step of its scan: run again at {fix}"
+                f"; the CCT of {', '.join(boundary['moved_lines'])} moves by at least one step of its scan"
             )
+    if not check["passed"]:
+        text += tail
     prefix = "" if check["passed"] else "WARNING: "
     return prefix + text
