@@ -489,8 +489,8 @@ def test_per_realization_lambda_is_the_builtins():
     built-in kernels with the same integrator and steps: the paper's estimator ``(tau0 /
     tau(dbeta) - 1) / dbeta`` on grid times identical, and ``F = tau0 / tau(dbeta)`` on the
     interpolated times within 1e-12 relative (measured: 0 for ``kuramoto``, 3e-15 for ``swing``
-    under Euler and RK4, 2e-13 under Rodas4, 9e-14 for IEEE 39 under RK4 and 2.5e-13 under
-    Euler at dt 5e-4). Lambda from
+    under Euler and RK4, 2e-13 under Rodas4, 9e-14 for IEEE 39 under RK4;
+    bench/law_builtin_gaps.py prints every case). Lambda from
     interpolated times then differs by at most that over dbeta, absolutely: relatively it is
     unbounded where a realization's Lambda is near 0 (IEEE 39's are ~1e-4)."""
     dbeta = 0.01
