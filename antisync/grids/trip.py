@@ -757,6 +757,8 @@ def trip_report(
         ) from None
     finally:
         bar.close()
+    if show and len(todo):  # a few more trips, at a finer setting: minutes on a large grid
+        print("trips: the first ones again at a finer setting (the table's accuracy check)", file=sys.stderr)
     check = check_trips(_integrate, grid, todo, clear, shares, values, settings, spec, client)
     trips = _trips(grid, todo, np.full(len(todo), float(clear)), shares, names, values)
     rows = [t.as_dict() for t in trips]
