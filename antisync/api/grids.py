@@ -268,7 +268,9 @@ def trip(
 ) -> GridResult:
     """The engineer's N-1 (:func:`antisync.grids.trip.trip_report`): each line tripped from the
     operating point, after a bolted fault of ``t_clear`` s at its first bus (None: no fault),
-    integrated by the config's integrator for ``t_max`` s after the trip.
+    integrated by the config's integrator for ``t_max`` s after the trip. The table's first
+    trips are integrated again at a finer setting (:mod:`antisync.grids.trip_check`): its
+    ``accuracy_check``, a warning through ``log`` (or :func:`warnings.warn`) where it fails.
 
     Parameters
     ----------

@@ -56,7 +56,10 @@ def trip(
     quiet: QuietOpt = False,
     debug: DebugOpt = False,
 ) -> None:
-    """The engineer's N-1: each line tripped from the operating point, after a fault, with CCTs."""
+    """The engineer's N-1: each line tripped from the operating point, after a fault, with CCTs.
+
+    The first four trips run again at a finer setting: the line under the table says if they held.
+    """
     from antisync.grids.errors import GridError
     from antisync.grids.runner import run_trip, trip_times
     from antisync.grids.trip import format_trips
