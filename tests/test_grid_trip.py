@@ -679,12 +679,18 @@ def test_a_trip_table_checks_its_first_trips_at_a_finer_setting(ieee14):
 
 
 def test_the_cct_check_tests_the_scan_s_boundary_and_flags_a_wrong_cct(ieee14):
-    """With --cct the check integrates each sampled line's CCT (survived) and first failing
-    scanned fault (failed) at the finer setting: at the table's own setting these verdicts hold
-    by construction (here at the same step, for the lines whose CCT is below cct_max), and a
-    CCT moved by 0.05 s above the true one is flagged, the line named."""
+    """With --cct the check integrates the CCT (survived) and the first failing scanned fault
+    (failed) of the lines with the shortest CCTs at the finer setting: at the table's own
+    setting these verdicts hold by construction (here at the same step, for the lines whose CCT
+    is below cct_max), and a CCT moved by 0.05 s above the true one is flagged, the line
+    named."""
     from antisync.grids.trip import _integrate, critical_clearing, operating_point
-    from antisync.grids.trip_check import check_trips, first_failure
+    from antisync.grids.trip_check import boundary_sample, check_trips, first_failure
+
+    # the boundary checked is the shortest CCTs' (below cct_max), else the table's first trips
+    ccts = np.array([1.5, 0.4, 1.5, 0.2, 0.9, 0.4, 0.3])
+    np.testing.assert_array_equal(boundary_sample(ccts, 1.5), [3, 6, 1, 5])
+    np.testing.assert_array_equal(boundary_sample(np.full(6, 1.5), 1.5), [0, 1, 2, 3])
 
     grid, lines = ieee14
     spec = {"cct_max": 1.5, "cct_tol": 1e-3, "cct_scan": 0.01}

@@ -15,16 +15,17 @@ last fault survived and the first one not. So every trip table integrates its fi
   its band: ill-conditioned at any setting);
 - **the first swing**: each trip's frequency peak and largest angle must move by at most
   :data:`PEAK_SHARE` (relative);
-- **the CCT's boundary** (with ``--cct``): the fault of the CCT must still be survived and the
+- **the CCT's boundary** (with ``--cct``), on the four lines with the shortest CCTs below
+  ``--cct-max`` (:func:`boundary_sample`): the fault of the CCT must still be survived and the
   first failing fault of the scan must still fail. Where a verdict changes, the same faults are
   integrated once more at the next finer setting; a change that holds there moves the CCT by at
   least one step of its scan, and the check fails (one that flips back grazes the boundary).
 
 The check reports; it refuses nothing. Its record is the table's ``accuracy_check`` (JSON and
-HDF5), its line printed under the table, a failure a WARNING. The sample is the table's first
-trips in its order, so a table on a Dask cluster, a resumed one and a local one check the same
-trips and hold the same record. What it cannot do: prove the other trips accurate, or see a
-window of failure the scan does not see.
+HDF5), its line printed under the table, a failure a WARNING. The samples are the table's first
+trips in its order and its shortest CCTs, read off the table, so a table on a Dask cluster, a
+resumed one and a local one check the same trips and hold the same record. What it cannot do:
+prove the other trips accurate, or see a window of failure the scan does not see.
 """
 
 from __future__ import annotations
@@ -43,7 +44,14 @@ from antisync.execution.step_check import (
 from antisync.grids.errors import GridError
 from antisync.status import NOT_SYNCED, SYNCED
 
-__all__ = ["PEAK_SHARE", "TRIP_CHECK_TRIPS", "check_trips", "first_failure", "trip_check_line"]
+__all__ = [
+    "PEAK_SHARE",
+    "TRIP_CHECK_TRIPS",
+    "boundary_sample",
+    "check_trips",
+    "first_failure",
+    "trip_check_line",
+]
 
 #: the table's first trips integrated again at the finer setting
 TRIP_CHECK_TRIPS = 4
@@ -152,9 +160,22 @@ def check_trips(integrate, grid, todo, clear, shares, values, settings, cct: dic
     record["angle_change"] = float(peaks[:, 1].max())
     record["passed"] = bool(record["passed"] and max(peaks.max(), 0.0) <= PEAK_SHARE)
     if cct is not None:
-        record["cct"] = _boundary(integrate, grid, todo[:n], shares[:n], values[:n], settings, cct, client)
+        picked = boundary_sample(values[:, 4], cct["cct_max"])
+        lines = [todo[e] for e in picked]
+        boundary = _boundary(integrate, grid, lines, shares[picked], values[picked], settings, cct, client)
+        record["cct"] = boundary
         record["passed"] = record["passed"] and record["cct"]["passed"]
     return record
+
+
+def boundary_sample(ccts: np.ndarray, cct_max: float) -> np.ndarray:
+    """The trips whose CCT boundary is checked: the :data:`TRIP_CHECK_TRIPS` shortest CCTs
+    below ``cct_max`` (where a fault fails: the boundary that matters; ties in table order),
+    the table's first trips where there are none."""
+    below = np.flatnonzero(ccts < cct_max)
+    if below.size == 0:
+        return np.arange(min(TRIP_CHECK_TRIPS, ccts.size))
+    return below[np.argsort(ccts[below], kind="stable")][:TRIP_CHECK_TRIPS]
 
 
 def _boundary(integrate, grid, lines, shares, values, settings, cct, client) -> dict:
@@ -182,6 +203,7 @@ def _boundary(integrate, grid, lines, shares, values, settings, cct, client) -> 
     moved = sorted({owner[i] for i in held})
     return {
         "lines": len(lines),
+        "checked_lines": [_label(grid, line) for line in lines],
         "faults": len(items),
         "changed": int(changed.size),
         "moved": len(moved),
@@ -194,6 +216,14 @@ def _boundary(integrate, grid, lines, shares, values, settings, cct, client) -> 
 def _label(grid, line) -> str:
     a, b = line
     return f"{grid.labels[a]}-{grid.labels[b]}"
+
+
+def _lines_of(boundary: dict) -> str:
+    """The lines a boundary record checked (tables before it named them give a count)."""
+    names = boundary.get("checked_lines")
+    if names is None:
+        return f"{boundary['lines']} lines"
+    return f"line{'s' * (len(names) != 1)} {', '.join(names)}"
 
 
 def trip_check_line(check: dict | None, integrator: str) -> str:
@@ -218,7 +248,7 @@ def trip_check_line(check: dict | None, integrator: str) -> str:
     if boundary is not None:
         text += (
             f". The CCT's boundary at the finer setting ({boundary['faults']} faults on "
-            f"{boundary['lines']} lines: the CCT survived, the first failing fault failed): "
+            f"{_lines_of(boundary)}: the CCT survived, the first failing fault failed): "
             f"{boundary['changed']} verdict(s) changed"
         )
         if boundary["grazing"]:
