@@ -202,8 +202,7 @@ def _boundary(integrate, grid, lines, shares, values, settings, cct, client) -> 
     held = changed[again == finer[changed]]  # the change holds at the next finer setting
     moved = sorted({owner[i] for i in held})
     return {
-        "lines": len(lines),
-        "checked_lines": [_label(grid, line) for line in lines],
+        "lines": [_label(grid, line) for line in lines],
         "faults": len(items),
         "changed": int(changed.size),
         "moved": len(moved),
@@ -216,14 +215,6 @@ def _boundary(integrate, grid, lines, shares, values, settings, cct, client) -> 
 def _label(grid, line) -> str:
     a, b = line
     return f"{grid.labels[a]}-{grid.labels[b]}"
-
-
-def _lines_of(boundary: dict) -> str:
-    """The lines a boundary record checked (tables before it named them give a count)."""
-    names = boundary.get("checked_lines")
-    if names is None:
-        return f"{boundary['lines']} lines"
-    return f"line{'s' * (len(names) != 1)} {', '.join(names)}"
 
 
 def trip_check_line(check: dict | None, integrator: str) -> str:
@@ -248,7 +239,8 @@ def trip_check_line(check: dict | None, integrator: str) -> str:
     if boundary is not None:
         text += (
             f". The CCT's boundary at the finer setting ({boundary['faults']} faults on "
-            f"{_lines_of(boundary)}: the CCT survived, the first failing fault failed): "
+            f"line{'s' * (len(boundary['lines']) != 1)} {', '.join(boundary['lines'])}: the CCT survived, "
+            "the first failing fault failed): "
             f"{boundary['changed']} verdict(s) changed"
         )
         if boundary["grazing"]:
