@@ -610,9 +610,12 @@ def test_a_drawn_parameter_is_the_builtins_drawn_frequencies(tmp_path):
 # -- independent references ---------------------------------------------------------------------
 
 
-def _reference_tau(law, values, csr, y0, threshold, t_max, method="DOP853", rtol=1e-11, atol=1e-11):
+def _reference_tau(
+    law, values, csr, y0, threshold, t_max, method="DOP853", rtol=1e-11, atol=1e-11, edges=NONE
+):
     """The first time r(t) reaches ``threshold`` by scipy (an event on r), from the law's own
-    sympy expressions evaluated by numpy: nothing of the generated kernels."""
+    sympy expressions evaluated by numpy: nothing of the generated kernels (``edges``: the law's
+    edge parameters per in-link, ``(n_edge_params, nnz)``)."""
     import sympy
 
     sym = law.symbolic()
@@ -620,7 +623,9 @@ def _reference_tau(law, values, csr, y0, threshold, t_max, method="DOP853", rtol
     S = len(law.states)
     rows = np.repeat(np.arange(n), np.diff(csr.indptr))
     cols = csr.indices
-    edge = [sympy.lambdify([*sym.x, *sym.xj, *sym.p, *sym.pj, sym.w], h, "numpy") for h in sym.coupling]
+    edge = [
+        sympy.lambdify([*sym.x, *sym.xj, *sym.p, *sym.pj, sym.w, *sym.e], h, "numpy") for h in sym.coupling
+    ]
     node = [sympy.lambdify([*sym.x, *sym.u, *sym.p], g, "numpy") for g in sym.rates]
     phase = sympy.lambdify([*sym.x, *sym.p], sym.phase, "numpy")
 
@@ -629,7 +634,7 @@ def _reference_tau(law, values, csr, y0, threshold, t_max, method="DOP853", rtol
         xi, xj = x[:, rows], x[:, cols]
         pi, pj = values[:, rows], values[:, cols]
         u = [
-            np.bincount(rows, np.broadcast_to(h(*xi, *xj, *pi, *pj, csr.weights), rows.shape), n)
+            np.bincount(rows, np.broadcast_to(h(*xi, *xj, *pi, *pj, csr.weights, *edges), rows.shape), n)
             for h in edge
         ]
         return np.concatenate([np.broadcast_to(f(*x, *u, *values), (n,)) for f in node])
@@ -881,6 +886,269 @@ def test_a_sweep_compares_models_and_a_laws_parameter(tmp_path):
         "model.law=stuart-landau, model.params.omega=0.2",
     ):
         assert point in summary.output, summary.output
+
+
+# -- edge parameters ----------------------------------------------------------------------------
+
+#: Kuramoto-Sakaguchi with a lag per link (an edge parameter: what the damage leaves alone)
+LINK_LAG = {
+    "name": "sakaguchi-links",
+    "states": ["theta"],
+    "params": {"omega": 0.0},
+    "edge_params": {"alpha": 0.0},
+    "coupling": {"u": "w * sin(theta_j - theta_i - alpha)"},
+    "rates": {"theta": "omega + u"},
+}
+
+
+def _lags(csr, lag: dict) -> np.ndarray:
+    """``(1, nnz)``: each in-link's lag in CSR order (nodes labelled 0..n-1)."""
+    rows = np.repeat(np.arange(csr.indptr.size - 1), np.diff(csr.indptr))
+    return np.array([[lag[frozenset((int(i), int(j)))] for i, j in zip(rows, csr.indices, strict=True)]])
+
+
+def _lag_network():
+    g = nx.lollipop_graph(4, 2)
+    nx.set_edge_attributes(g, 1.0, "weight")
+    om, csr = _csr(g)
+    lag = {frozenset(e): 0.06 * (k % 5) - 0.1 for k, e in enumerate(g.edges)}
+    return g, om, csr, _lags(csr, lag)
+
+
+@pytest.mark.parametrize("integrator", ["euler", "rk4", "rodas4"])
+def test_an_edge_parameter_equal_on_every_link_is_the_laws_constant(integrator):
+    """``kuramoto-sakaguchi`` (the lag a constant, 0.3) and the lag as an edge parameter at 0.3
+    on every link: the same realizations' tau0 and tau(beta) to 1e-12 relative (the constant's
+    sine and cosine are folded by sympy, the edge parameter's computed per link)."""
+    g, om, csr, _ = _lag_network()
+    n = g.number_of_nodes()
+    vw = coupling.variant_weights(om, csr, [(1, 0, 0.01), (4, 5, 0.01), (5, 4, 0.5)], "normalized")
+    targets = np.full(len(vw) + 1, (0.99 * n) ** 2)
+    args = (3, 0, 48, csr.indptr, csr.indices, csr.weights, vw)
+    kw = {"dt": 0.01, "max_steps": 100000, "integrator": integrator}
+    values = np.zeros((1, n))
+    constant = simulate_law(*args, LawParams(read_law("kuramoto-sakaguchi"), values, targets), **kw)
+    lagged = LawParams(read_law(LINK_LAG), values, targets, edges=np.full((1, csr.indices.size), 0.3))
+    per_link = simulate_law(*args, lagged, **kw)
+    assert (constant.status0 == SYNCED).all() and (constant.status == SYNCED).all()
+    np.testing.assert_array_equal(per_link.status, constant.status)
+    np.testing.assert_allclose(_tau(per_link), _tau(constant), rtol=1e-12)
+    np.testing.assert_allclose(
+        per_link.steps - 1 + per_link.frac, constant.steps - 1 + constant.frac, rtol=1e-12
+    )
+
+
+def test_edge_parameters_per_link_agree_with_solve_ivp():
+    """A lag per link (seven values): tau0 and every third link's central secant of ``F`` per
+    realization by RK4 (the circle form) against DOP853 on the law's own expressions, as
+    :func:`test_tau0_and_lambda_agree_with_solve_ivp`; Rodas4's tau0 within its tolerance."""
+    law = read_law(LINK_LAG)
+    g, om, csr, lags = _lag_network()
+    n = g.number_of_nodes()
+    values = np.zeros((1, n))
+    dbeta = 0.05
+    edges = graphs.all_directed_edges(g)
+    damages = [(a, b, s * dbeta) for a, b in edges for s in (1, -1)]
+    vw = coupling.variant_weights(om, csr, damages, "normalized")
+    targets = np.full(len(vw) + 1, (0.99 * n) ** 2)
+    ks = np.arange(5)
+    params = LawParams(law, values, targets, edges=lags)
+    args = (11, 0, 0, csr.indptr, csr.indices, csr.weights, vw, params)
+    got = simulate_law(*args, dt=0.005, max_steps=40000, integrator="rk4", realizations=ks)
+    stiff = simulate_law(*args, dt=0.01, max_steps=40000, integrator="rodas4", realizations=ks)
+    assert (got.status0 == SYNCED).all() and (got.status == SYNCED).all()
+    tau0 = _tau(got) * 0.005
+    tau = (got.steps - 1 + got.frac) * 0.005
+    y0 = starts(law, values, 11, ks)
+    for r in range(ks.size):
+        want0 = _reference_tau(law, values, csr, y0[r], 0.99, 200, edges=lags)
+        assert abs(tau0[r] - want0) < 1e-6 * want0
+        assert abs(_tau(stiff)[r] * 0.01 - want0) < 1e-3 * want0
+        for e in range(0, len(edges), 3):
+            plus = _reference_tau(law, values, _with(csr, vw[2 * e]), y0[r], 0.99, 200, edges=lags)
+            minus = _reference_tau(law, values, _with(csr, vw[2 * e + 1]), y0[r], 0.99, 200, edges=lags)
+            want = want0 * (1 / plus - 1 / minus) / (2 * dbeta)
+            mine = tau0[r] * (1 / tau[r, 2 * e] - 1 / tau[r, 2 * e + 1]) / (2 * dbeta)
+            assert abs(mine - want) < 1e-4 * max(1.0, abs(want)), (r, edges[e], mine, want)
+    # the lags matter: without them the times differ
+    plain = simulate_law(
+        *args[:7],
+        params._replace(edges=0 * lags),
+        dt=0.005,
+        max_steps=40000,
+        integrator="rk4",
+        realizations=ks,
+    )
+    assert np.abs(_tau(plain) - _tau(got)).max() > 1e-3 * _tau(got).max()
+
+
+def test_the_jacobian_and_the_adjoint_read_edge_parameters():
+    """``law_jac`` against central differences of ``law_rhs`` with a lag per link, and the
+    adjoint's ``d tau0 / d beta`` against central differences of the discrete tau (Euler and
+    RK4 on the angles), as for the laws without edge parameters."""
+    from antisync.kernels.adjoint import link_derivatives
+    from antisync.kernels.law import simulate_law_adjoint, with_edges
+
+    law = read_law(LINK_LAG)
+    g, om, csr, lags = _lag_network()
+    n = g.number_of_nodes()
+    values = np.full((1, n), 0.05)
+    compiled = compile_law(law)
+    y = starts(law, values, 5, [2])[0]
+    jac = jacobian(law, values, csr.indptr, csr.indices, csr.weights, y, lags)
+    P = with_edges(values, lags)
+    ip, ix = csr.indptr.astype(np.int64), csr.indices.astype(np.int64)
+    num = np.empty_like(jac)
+    for a in range(y.size):
+        f = []
+        for step in (1e-6, -1e-6):
+            z, out = y.copy(), np.empty(y.size)
+            z[a] += step
+            compiled.rhs(z, csr.weights, ip, ix, P, out, np.empty((compiled.hoisted, n)))
+            f.append(out)
+        num[:, a] = (f[0] - f[1]) / 2e-6
+    np.testing.assert_allclose(jac, num, atol=1e-8)
+    edges = [(1, 0), (3, 4), (4, 5), (5, 4)]
+    derivs = link_derivatives(om, csr, edges, "normalized")
+    h = 1e-6
+    vw = coupling.variant_weights(om, csr, [(a, b, s * h) for a, b in edges for s in (1, -1)], "normalized")
+    for integrator in ("euler", "rk4"):
+        kw = {"dt": 0.01, "max_steps": 20000, "integrator": integrator}
+        common = (3, 0, 6, csr.indptr, csr.indices, csr.weights)
+        adj = simulate_law_adjoint(
+            *common, derivs, LawParams(law, values, np.full(1, (0.99 * n) ** 2), edges=lags), **kw
+        )
+        fd = simulate_law(
+            *common,
+            vw,
+            LawParams(law, values, np.full(len(vw) + 1, (0.99 * n) ** 2), edges=lags),
+            circle=False,
+            **kw,
+        )
+        assert (adj.status0 == SYNCED).all()
+        np.testing.assert_array_equal(fd.steps[:, 0::2], fd.steps[:, 1::2])
+        tau = (fd.steps - 1 + fd.frac) * 0.01
+        central = (tau[:, 0::2] - tau[:, 1::2]) / (2 * h)
+        assert np.abs(central).max() > 1.0
+        np.testing.assert_allclose(adj.dtau, central, atol=1e-6 * np.abs(central).max())
+
+
+def _lag_files(tmp_path, lags=None):
+    """A law file, and a graph edge list whose header names a fourth column ``lag``."""
+    import yaml
+
+    (tmp_path / "law.yaml").write_text(yaml.safe_dump(LINK_LAG))
+    links = [("a", "b"), ("a", "c"), ("b", "c"), ("c", "d"), ("d", "e")]
+    lags = lags or [0.1, 0.2, -0.1, 0.3, 0.0]
+    rows = [f"{u},{v},{1 + k % 2},{x}" for k, ((u, v), x) in enumerate(zip(links, lags, strict=True))]
+    (tmp_path / "net.csv").write_text("source,target,weight,lag\n" + "\n".join(rows) + "\n")
+    return links, lags
+
+
+def test_edge_parameters_from_a_named_column_of_the_edge_list(tmp_path):
+    """The graph's own edge list carries the lag in a named column: the graph reads its weight
+    column, ``model.edge_params`` the lag, each in-link gets its link's value (both directions),
+    and a run of lags all equal to 0.3 from the file is the run of the number 0.3."""
+    from antisync.api import run
+    from antisync.plan.model import law_edges
+
+    links, lags = _lag_files(tmp_path)
+    base = (
+        "graph: {kind: edgelist, path: net.csv}\nmodel:\n  law: law.yaml\n"
+        "  edge_params: {alpha: {file: net.csv, column: lag}}\n"
+    )
+    (tmp_path / "run.yaml").write_text(base)
+    config = load_config(tmp_path / "run.yaml")
+    job = make_job(config)
+    assert [job.omega[job.nodes.index(u), job.nodes.index(v)] for u, v in links] == [1, 2, 1, 2, 1]
+    edges = law_edges(config.model, job.csr.indptr, job.csr.indices, job.nodes, job.graph)
+    rows = np.repeat(np.arange(len(job.nodes)), np.diff(job.csr.indptr))
+    value = {frozenset(link): x for link, x in zip(links, lags, strict=True)}
+    want = [
+        value[frozenset((job.nodes[i], job.nodes[j]))] for i, j in zip(rows, job.csr.indices, strict=True)
+    ]
+    np.testing.assert_array_equal(edges[0], want)
+    np.testing.assert_array_equal(job.law.edges, edges)
+    assert not config.model.symmetric  # per-link values: orbits would mix links of other lags
+    # the file's values all 0.3 against the number: the same records
+    _lag_files(tmp_path, [0.3] * 5)
+    common = {"edges": ["a->b", "e->d"], "betas": [0.5], "realizations": 16, "dynamics": {"dt": 0.02}}
+    got = []
+    for spec in ({"file": str(tmp_path / "net.csv"), "column": "lag"}, 0.3):
+        cfg = {
+            "graph": {"kind": "edgelist", "path": str(tmp_path / "net.csv")},
+            "model": {"law": str(tmp_path / "law.yaml"), "edge_params": {"alpha": spec}},
+            **common,
+        }
+        got.append(run(cfg, output=tmp_path / f"r{len(got)}.h5").records)
+    assert [r["tau0_mean"] for r in got[0]] == [r["tau0_mean"] for r in got[1]]
+    assert [r.get("f_mean") for r in got[0]] == [r.get("f_mean") for r in got[1]]
+
+
+@pytest.mark.parametrize(
+    "edge_params, words",
+    [
+        ("{alpha: {file: lags.txt}}", "the link a-c is not given (4 of 5 are)"),
+        ("{alpha: {file: extra.txt}}", "a-e is not a link of the graph"),
+        ("{alpha: {file: twice.txt}}", "the link b-a is given twice (first on line 1)"),
+        ("{alpha: {file: nan.txt}}", "'1,5' is not a finite number"),
+        ("{alpha: {file: net.csv, column: lags}}", "no column 'lags' in its header (columns: weight, lag)"),
+        ("{alpha: {file: net.csv}}", "its header names 2 value columns (weight, lag); give column: NAME"),
+        ("{alpha: {file: lags.txt, column: lag}}", "column 'lag' needs a first line that names the columns"),
+        ("{alpha: [0.1, 0.2]}", "model.edge_params.alpha must be a number (every link) or {file: PATH}"),
+        ("{alpha: {file: lags.txt, colour: 1}}", "unknown key 'model.edge_params.alpha.colour'"),
+        (
+            "{beta: 0.1}",
+            "unknown key 'model.edge_params.beta'; law sakaguchi-links has the edge parameters: alpha",
+        ),
+    ],
+)
+def test_bad_edge_parameters_are_one_line_exit_2(tmp_path, edge_params, words):
+    from helpers import assert_one_line
+
+    _lag_files(tmp_path)
+    (tmp_path / "lags.txt").write_text("a b 0.1\nb c 0.2\nc d 0\nd e 1e-3\n")
+    (tmp_path / "extra.txt").write_text("a b 0.1\na c 0.1\nb c 0.2\nc d 0\nd e 1e-3\na e 1\n")
+    (tmp_path / "twice.txt").write_text("a b 0.1\nb a 0.1\n")
+    (tmp_path / "nan.txt").write_text("a b 1,5\n")
+    out = tmp_path / "r.h5"
+    (tmp_path / "run.yaml").write_text(
+        "graph: {kind: edgelist, path: net.csv}\n"
+        f"model: {{law: law.yaml, edge_params: {edge_params}}}\n"
+        f"edges: ['a->b']\nbetas: [0.5]\nrealizations: 4\noutput: {out}\n"
+    )
+    res = CliRunner().invoke(app, ["run", str(tmp_path / "run.yaml")])
+    assert_one_line(res, words)
+    assert not out.exists()
+
+
+def test_a_law_without_edge_parameters_refuses_them_and_designs_take_a_number(tmp_path):
+    """``model.edge_params`` of a law that has none, and a design of a file's lags (its candidate
+    links have none), are one line each; a design takes a number on every link."""
+    from helpers import assert_one_line
+
+    _lag_files(tmp_path)
+    cfg = tmp_path / "run.yaml"
+    cfg.write_text(
+        "graph: {kind: lollipop, nodes: 6, path: 3}\nmodel: {law: kuramoto, edge_params: {a: 1}}\n"
+    )
+    assert_one_line(CliRunner().invoke(app, ["run", str(cfg)]), "law kuramoto has the edge parameters: none")
+    cfg.write_text("graph: {kind: lollipop, nodes: 6, path: 3}\nmodel: {edge_params: {a: 1}}\n")
+    assert_one_line(CliRunner().invoke(app, ["run", str(cfg)]), "model.edge_params gives a law's parameters")
+    design = (
+        "graph: {kind: edgelist, path: net.csv}\n"
+        "model: {law: law.yaml, edge_params: {alpha: SPEC}}\n"
+        "dynamics: {integrator: rk4, dt: 0.02, t_max: 200}\n"
+        "design: {objective: tau, iterations: 1, starts: 16, check_every: 1, check_starts: 16,"
+        " evaluate: 16}\n"
+        f"output: {tmp_path / 'd.h5'}\n"
+    )
+    cfg.write_text(design.replace("SPEC", "{file: net.csv, column: lag}"))
+    res = CliRunner().invoke(app, ["design", str(cfg), "--no-figures", "--quiet"])
+    assert_one_line(res, "model.edge_params.alpha: a design moves weights on links a file may not list")
+    cfg.write_text(design.replace("SPEC", "0.2"))
+    res = CliRunner().invoke(app, ["design", str(cfg), "--no-figures", "--quiet"])
+    assert res.exit_code == 0, res.output
 
 
 # -- a run ---------------------------------------------------------------------------------------

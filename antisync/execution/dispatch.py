@@ -710,7 +710,7 @@ def law_params(setup, dynamics, kinds: int):
 
     rtol, atol = dynamics.tolerances
     targets = np.full(kinds, setup.target)
-    return LawParams(setup.law, setup.values, targets, rtol, atol, setup.criterion, setup.drawn)
+    return LawParams(setup.law, setup.values, targets, rtol, atol, setup.criterion, setup.drawn, setup.edges)
 
 
 def _law_params(job, kinds: int):

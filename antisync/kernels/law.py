@@ -82,6 +82,7 @@ __all__ = [
     "simulate_law",
     "simulate_law_adjoint",
     "starts",
+    "with_edges",
 ]
 
 #: bumped when the generated code's layout changes (old files are then never read)
@@ -104,6 +105,9 @@ class LawParams(NamedTuple):
     drawn: tuple = ()
     """``(k, spec)`` per parameter drawn per realization (its row of ``values`` unused): ``spec``
     a distribution as ``model.frequencies`` takes it (:func:`parameter_blocks`)."""
+    edges: np.ndarray | None = None
+    """``(n_edge_params, nnz)``: the law's edge parameters per in-link, in the CSR order of the
+    weights (None: the law has none)."""
 
 
 class CompiledLaw(NamedTuple):
@@ -189,7 +193,8 @@ def _node_loads(exprs, sym) -> list[str]:
 
 def _link_loop(exprs, sym) -> list[str]:
     """The loop over node ``i``'s in-links ``q`` (neighbour ``j``, weight ``w``) and the
-    neighbour's states and parameters that ``exprs`` read."""
+    neighbour's states and parameters and the link's edge parameters that ``exprs`` read (the
+    link's ``k``-th at ``P[n_params + k, q]``: :func:`parameter_blocks`)."""
     head = [
         "        for q in range(indptr[i], indptr[i + 1]):",
         "            j = indices[q]",
@@ -199,7 +204,13 @@ def _link_loop(exprs, sym) -> list[str]:
         head
         + _loads(exprs, sym.xj, "            ", "y[{k} * n + j]")
         + _loads(exprs, sym.pj, "            ", "P[{k}, j]")
+        + _edge_loads(exprs, sym, "            ")
     )
+
+
+def _edge_loads(exprs, sym, indent: str) -> list[str]:
+    """The link ``q``'s edge parameters that ``exprs`` read (rows after the per-node ones)."""
+    return _loads(exprs, sym.e, indent, f"P[{len(sym.p)} + {{k}}, q]")
 
 
 #: the most neighbour sums a hoisted edge law may need (more: the law is evaluated per link)
@@ -213,6 +224,7 @@ def _separate(h, sym):
 
     own = set(sym.x) | set(sym.p)
     other = set(sym.xj) | set(sym.pj)
+    link = {sym.w, *sym.e}  # the link's own: its weight and edge parameters
     expanded = sympy.expand(sympy.expand_trig(h))
     terms = []
     for term in sympy.Add.make_args(expanded):
@@ -223,7 +235,7 @@ def _separate(h, sym):
                 parts["I"] *= factor
             elif free <= other:
                 parts["J"] *= factor
-            elif free <= {sym.w}:
+            elif free <= link:
                 parts["W"] *= factor
             else:
                 return None
@@ -326,7 +338,7 @@ def _rhs_variant(sym, pr, signature: str, split: dict, pairs: dict, arrays: dict
     out += _loads(every, list(reuse.values()), "        ", "G[{k}, i]")
     out += [f"        s{k} = 0.0" for k in range(len(pairs))]
     out += [f"        {sym.u[m]} = 0.0" for m in per_link]
-    out += _link_loop(link_exprs, sym)
+    out += _link_loop(link_exprs + [w for w, _ in pairs], sym)
     stored = _stored(sym)
     for (w, j), k in pairs.items():
         if j == 1:
@@ -609,7 +621,7 @@ def _lane_source(circle: Circle, pr) -> list[str]:
     same variant, no fused multiply-add), so the results are ``law_items_circle``'s bit for bit
     (tests/test_laws.py)."""
     sym = circle.sym
-    if not vectorizable(sym):
+    if not vectorizable(sym) or sym.e:  # lanes hold per-node values only, no edge parameters
         return ["", "", "LANES = False"]
     split, pairs, arrays, hoists = _hoisting(sym)
     out = [
@@ -1879,22 +1891,46 @@ def _batch(params: LawParams, first, count, realizations, indptr, indices) -> tu
     )
 
 
-def parameter_blocks(values: np.ndarray, drawn: tuple, seed: int, ks: np.ndarray) -> np.ndarray:
+def parameter_blocks(
+    values: np.ndarray, drawn: tuple, seed: int, ks: np.ndarray, edges: np.ndarray | None = None
+) -> np.ndarray:
     """The kernels' parameters from the fixed ``values`` ``(n_params, n)``: ``(1, n_params, n)``
     when none is ``drawn`` (:attr:`LawParams.drawn`), else one block per realization ``ks`` with
     each drawn parameter ``k`` from its distribution on the counter
     streams ``1 + 2 k``, ``2 + 2 k`` keyed by ``(seed, realization, node)``
     (:func:`antisync.kernels.model_steps.draw_frequencies`: the same draws whatever the chunk,
-    thread or executor; a law's first parameter draws the built-in model's frequencies)."""
+    thread or executor; a law's first parameter draws the built-in model's frequencies).
+
+    With ``edges`` (:attr:`LawParams.edges`, ``(n_edge_params, nnz)``) every block is widened
+    by :func:`with_edges`: the link ``q``'s ``k``-th edge parameter at ``[n_params + k, q]``."""
     from antisync.kernels.model_steps import draw_frequencies
 
     values = np.ascontiguousarray(values, dtype=np.float64)
     if not drawn:
-        return values[None]
+        return with_edges(values, edges)[None]
     n = values.shape[1]
     out = np.repeat(values[None], len(ks), axis=0)
     for k, spec in drawn:
         out[:, k, :] = draw_frequencies(spec, seed, np.asarray(ks), n, streams=(1 + 2 * k, 2 + 2 * k))
+    if edges is None or not len(edges):
+        return out
+    return np.stack([with_edges(block, edges) for block in out])
+
+
+def with_edges(values: np.ndarray, edges: np.ndarray | None) -> np.ndarray:
+    """The kernels' parameter array: the per-node ``values`` ``(n_params, n)`` and, below them,
+    the per-link ``edges`` ``(n_edge_params, nnz)``, in one ``(n_params + n_edge_params,
+    max(n, nnz))`` array (zero where a row is shorter): what every generated function reads as
+    ``P`` (a node's ``k``-th parameter at ``P[k, i]``, a link's at ``P[n_params + k, q]``), so
+    no signature grows. ``values`` itself where there are no edge parameters."""
+    values = np.ascontiguousarray(values, dtype=np.float64)
+    if edges is None or not len(edges):
+        return values
+    edges = np.ascontiguousarray(edges, dtype=np.float64)
+    (n_p, n), (n_e, nnz) = values.shape, edges.shape
+    out = np.zeros((n_p + n_e, max(n, nnz)))
+    out[:n_p, :n] = values
+    out[n_p:, :nnz] = edges
     return out
 
 
@@ -1978,7 +2014,7 @@ def simulate_law(
     )
     out = unset_outputs(m, n_var)
     collapsed = np.zeros((m, n_var + 1), dtype=np.bool_)
-    blocks = parameter_blocks(values, params.drawn, seed, ks)
+    blocks = parameter_blocks(values, params.drawn, seed, ks, params.edges)
     on_lanes = {
         compiled.items_circle: compiled.items_lanes,
         compiled.items_circle_euler: compiled.items_lanes_euler,
@@ -2061,7 +2097,7 @@ def simulate_law_adjoint(
             indptr,
             indices,
             w,
-            parameter_blocks(values, params.drawn, seed, ks),
+            parameter_blocks(values, params.drawn, seed, ks, params.edges),
             float(dt),
             integrator == "rk4",
             float(params.targets[0]),
@@ -2092,8 +2128,11 @@ def _growth(z: np.ndarray, integrator: str) -> np.ndarray:
     return np.abs(1 + z + z**2 / 2 + z**3 / 6 + z**4 / 24)
 
 
-def jacobian(law: Law, values: np.ndarray, indptr, indices, weights, y: np.ndarray) -> np.ndarray:
-    """The law's Jacobian at the flat state ``y`` as a dense matrix (``(S n, S n)``)."""
+def jacobian(
+    law: Law, values: np.ndarray, indptr, indices, weights, y: np.ndarray, edges: np.ndarray | None = None
+) -> np.ndarray:
+    """The law's Jacobian at the flat state ``y`` as a dense matrix (``(S n, S n)``); ``values``
+    the per-node parameters, ``edges`` the per-link ones (:attr:`LawParams.edges`)."""
     compiled = compile_law(law)
     indptr = np.ascontiguousarray(indptr, dtype=np.int64)
     indices = np.ascontiguousarray(indices, dtype=np.int64)
@@ -2104,7 +2143,7 @@ def jacobian(law: Law, values: np.ndarray, indptr, indices, weights, y: np.ndarr
         np.ascontiguousarray(weights, dtype=np.float64),
         indptr,
         indices,
-        np.ascontiguousarray(values, dtype=np.float64),
+        with_edges(values, edges),
         jq,
     )
     dense = np.zeros((ptr.size - 1, ptr.size - 1))
@@ -2160,7 +2199,7 @@ def check_step(setup, seed: int, csr, dynamics) -> None:
     ip = np.ascontiguousarray(csr.indptr, dtype=np.int64)
     ix = np.ascontiguousarray(csr.indices, dtype=np.int64)
     w = np.ascontiguousarray(csr.weights, dtype=np.float64)
-    vals = np.ascontiguousarray(values, dtype=np.float64)
+    vals = with_edges(values, setup.edges)
     for where, y in (
         ("the start of realization 0", starts(law, values, seed, [0])[0]),
         ("the in-phase state", in_phase(law, values)),
@@ -2181,7 +2220,7 @@ def check_step(setup, seed: int, csr, dynamics) -> None:
             )
         if not explicit:
             continue
-        jac = jacobian(law, values, csr.indptr, csr.indices, csr.weights, y)
+        jac = jacobian(law, values, csr.indptr, csr.indices, csr.weights, y, setup.edges)
         if not np.isfinite(jac).all():
             raise ConfigError(
                 f"model.law {law.name}: the law is not finite at {where} (its Jacobian has inf or "

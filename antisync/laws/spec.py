@@ -5,6 +5,10 @@ A :class:`Law` names
 - ``states``: the state variables of every node (``[theta]``, ``[x, y]``, ``[theta, omega]``);
 - ``params``: per-node parameters with their defaults (``{omega: 0.0}``); a run's
   ``model.params`` gives them values per node;
+- ``edge_params``: per-link parameters with their defaults (``{alpha: 0.0}``), read by the edge
+  law alone, by their bare names; a run's ``model.edge_params`` gives them values per link (a
+  number, or a column of an edge list): what the damage leaves alone, where ``w`` is what it
+  scales;
 - ``constants``: named numbers the expressions may use (``pi`` always);
 - ``coupling``: the edge law, one or more coupling inputs ``u`` of node ``i``, each an
   expression of the link's ends (``theta_i``, ``theta_j``: the receiving node's state and its
@@ -37,6 +41,7 @@ import functools
 import json
 import keyword
 import math
+import re
 from dataclasses import dataclass
 from functools import cached_property
 from pathlib import Path
@@ -52,7 +57,19 @@ __all__ = ["LIBRARY", "Law", "Symbolic", "law_names", "read_law"]
 #: the folder of the shipped laws (``<name>.yaml``, a name's ``-`` written ``_``)
 LIBRARY = Path(__file__).resolve().parent.parent / "data" / "laws"
 
-_KEYS = {"name", "about", "states", "params", "constants", "coupling", "rates", "phase", "start", "frequency"}
+_KEYS = {
+    "name",
+    "about",
+    "states",
+    "params",
+    "edge_params",
+    "constants",
+    "coupling",
+    "rates",
+    "phase",
+    "start",
+    "frequency",
+}
 _RESERVED = {"w", "phi", "t", *FUNCTIONS, *CONSTANTS}
 
 
@@ -128,6 +145,8 @@ class Law:
     start: tuple[tuple[str, str], ...]
     frequency: tuple[str, ...] = ()
     """the frequency criterion's quantities (empty: the phase's rate)"""
+    edge_params: tuple[tuple[str, float], ...] = ()
+    """per-link parameters with their defaults, read by the edge law alone"""
 
     @classmethod
     def from_mapping(cls, data, key: str = "model.law") -> Law:
@@ -153,6 +172,11 @@ class Law:
             (_name(f"{key}.params", p, "parameter"), parse_number(f"{key}.params.{p}", v))
             for p, v in params.items()
         )
+        edge_params = _mapping(f"{key}.edge_params", data.get("edge_params"), "names to default values")
+        edge_params = tuple(
+            (_name(f"{key}.edge_params", q, "edge parameter"), parse_number(f"{key}.edge_params.{q}", v))
+            for q, v in edge_params.items()
+        )
         constants = _mapping(f"{key}.constants", data.get("constants"), "names to numbers")
         constants = tuple(
             (_name(f"{key}.constants", c, "constant"), parse_number(f"{key}.constants.{c}", v))
@@ -175,12 +199,19 @@ class Law:
             if s not in rates:
                 raise ConfigError(f"{key}.rates has no law for the state {s!r}; give {key}.rates.{s}")
         rates = tuple((s, _text(f"{key}.rates.{s}", rates[s])) for s in states)
-        names = [*states, *(p for p, _ in params), *(c for c, _ in constants), *(u for u, _ in coupling)]
+        names = [
+            *states,
+            *(p for p, _ in params),
+            *(q for q, _ in edge_params),
+            *(c for c, _ in constants),
+            *(u for u, _ in coupling),
+        ]
         seen = set()
         for n in names:
             if n in seen:
                 raise ConfigError(
-                    f"{key}: the name {n!r} is declared twice (states, params, constants, coupling)"
+                    f"{key}: the name {n!r} is declared twice (states, params, edge_params, constants, "
+                    "coupling)"
                 )
             seen.add(n)
         phase = data.get("phase")
@@ -210,7 +241,9 @@ class Law:
         about = data.get("about", "")
         if not isinstance(name, str) or not isinstance(about, str):
             raise ConfigError(f"{key}.name and {key}.about must be text")
-        law = cls(name, about, states, params, constants, coupling, rates, phase, start, frequency)
+        law = cls(
+            name, about, states, params, constants, coupling, rates, phase, start, frequency, edge_params
+        )
         law.symbolic(key)  # every expression parsed now: a fault is found on load
         return law
 
@@ -226,8 +259,9 @@ class Law:
             "rates": dict(self.rates),
             "phase": self.phase,
             "start": dict(self.start),
-            # only when given: the laws without it keep their texts (and cached kernels)
+            # only when given: the laws without them keep their texts (and cached kernels)
             **({"frequency": list(self.frequency)} if self.frequency else {}),
+            **({"edge_params": dict(self.edge_params)} if self.edge_params else {}),
         }
 
     @property
@@ -246,6 +280,10 @@ class Law:
     @property
     def param_names(self) -> tuple[str, ...]:
         return tuple(p for p, _ in self.params)
+
+    @property
+    def edge_param_names(self) -> tuple[str, ...]:
+        return tuple(q for q, _ in self.edge_params)
 
     def symbolic(self, key: str = "model.law") -> Symbolic:
         """The law's expressions in sympy (:class:`Symbolic`)."""
@@ -267,7 +305,8 @@ class Symbolic:
 
     The symbols: ``x[k]`` the node's ``k``-th state (the node law; the edge law's receiving
     node), ``xj[k]`` the neighbour's, ``p[k]`` and ``pj[k]`` the parameters likewise, ``w`` the
-    link's weight, ``u[m]`` the ``m``-th coupling input, ``phi`` the start's random phase.
+    link's weight, ``e[k]`` the link's ``k``-th edge parameter, ``u[m]`` the ``m``-th coupling
+    input, ``phi`` the start's random phase.
     """
 
     x: tuple
@@ -287,6 +326,8 @@ class Symbolic:
     """one expression per state, of ``phi, p``"""
     frequency: tuple
     """the frequency criterion's quantities, of ``x, u, p`` (by default the phase's rate)"""
+    e: tuple = ()
+    """the link's edge parameters (the edge law reads them as it reads ``w``)"""
 
     @cached_property
     def phase_gradient(self) -> tuple:
@@ -305,10 +346,11 @@ def _symbolic(law: Law, key: str) -> Symbolic:
     pj = sympy.symbols(f"pj0:{n_p}", real=True) if n_p else ()
     u = sympy.symbols(f"u0:{n_u}", real=True)
     w, phi = sympy.symbols("w phi", real=True)
+    e = sympy.symbols(f"ep0:{len(law.edge_params)}", real=True) if law.edge_params else ()
     consts = {c: sympy.Float(v) for c, v in law.constants}
     params = dict(zip(law.param_names, p, strict=True))
     node = {**consts, **dict(zip(law.states, x, strict=True)), **params}
-    edge = {**consts, "w": w}
+    edge = {**consts, "w": w, **dict(zip(law.edge_param_names, e, strict=True))}
     for k, s in enumerate(law.states):
         edge[f"{s}_i"], edge[f"{s}_j"] = x[k], xj[k]
     for k, q in enumerate(law.param_names):
@@ -319,6 +361,19 @@ def _symbolic(law: Law, key: str) -> Symbolic:
             f"{key}.coupling: no input reads the link's weight w, so damaging a link would change "
             "nothing; write the coupling with w (e.g. w * sin(theta_j - theta_i))"
         )
+    node_texts = [
+        *((f"{key}.rates.{s}", t) for s, t in law.rates),
+        (f"{key}.phase", law.phase),
+        *((f"{key}.start.{s}", t) for s, t in law.start),
+        *((f"{key}.frequency[{k}]", t) for k, t in enumerate(law.frequency)),
+    ]
+    for where, text in node_texts:
+        for q in law.edge_param_names:
+            if re.search(rf"\b{q}\b", text):
+                raise ConfigError(
+                    f"{where}: {q!r} is an edge parameter, which only the coupling (the edge law) reads; "
+                    f"got {text!r} (a per-node value belongs in params)"
+                )
     inputs = dict(zip((name for name, _ in law.coupling), u, strict=True))
     rates = tuple(parse_expression(f"{key}.rates.{s}", e, {**node, **inputs}) for s, e in law.rates)
     phase = parse_expression(f"{key}.phase", law.phase, node)
@@ -342,4 +397,10 @@ def _symbolic(law: Law, key: str) -> Symbolic:
                 )
     else:
         frequency = (sum((phase.diff(v) * r for v, r in zip(x, rates, strict=True)), sympy.Integer(0)),)
-    return Symbolic(x, xj, p, pj, w, u, phi, coupling, rates, phase, start, frequency)
+    for k, q in enumerate(law.edge_param_names):
+        if not any(h.has(e[k]) for h in coupling):
+            raise ConfigError(
+                f"{key}.edge_params.{q}: no coupling input reads it; use it in the edge law "
+                f"(e.g. w * sin(theta_j - theta_i - {q})) or drop it"
+            )
+    return Symbolic(x, xj, p, pj, w, u, phi, coupling, rates, phase, start, frequency, e)

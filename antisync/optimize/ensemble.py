@@ -40,7 +40,7 @@ from antisync.physics import graphs
 from antisync.physics.coupling import CouplingCSR, to_csr
 from antisync.plan.config import Config
 from antisync.plan.jobs import check_step, config_graph
-from antisync.plan.model import STABLE_STEP, law_setup, model_setup
+from antisync.plan.model import STABLE_STEP, law_edges, law_setup, model_setup
 from antisync.status import ALREADY_SYNCED, SYNCED
 
 __all__ = ["Problem", "Sample", "check_designable", "evaluate", "make_problem", "sample"]
@@ -108,6 +108,12 @@ class Problem:
         safe = np.where(strength > 0, strength, 1.0)
         return CouplingCSR(self._pattern.indptr, self._pattern.indices, raw / safe[rows])
 
+    def law_setup(self):
+        """The config's law on the design's pattern (its edge parameters a number per link: a
+        candidate link has no value in a file)."""
+        p = self._pattern
+        return law_setup(self.config, self.n_nodes, law_edges(self.config.model, p.indptr, p.indices))
+
     def check_step(self, x: np.ndarray, what: str) -> None:
         """Refuse weights ``x`` at which ``dynamics.dt`` makes the synchronized state unstable
         (the check ``antisync run`` makes of its graph: :func:`antisync.plan.jobs.check_step`, or
@@ -122,7 +128,7 @@ class Problem:
             if config.model.law is not None:
                 from antisync.kernels.law import check_step as check_law_step
 
-                law = law_setup(config, self.n_nodes)
+                law = self.law_setup()
                 check_law_step(law, config.seed, self.coupling(x), config.dynamics)
                 return
             check_step(self.omega(x), config)  # first or second order, as a run checks it
@@ -186,6 +192,12 @@ def check_designable(config: Config) -> None:
     config's stop rule (a design takes none)."""
     design_drivers(config)
     config.stop_rule("design")
+    if config.model.per_link:
+        name = next(k for k, v in config.model.edge_params.items() if isinstance(v, dict))
+        raise ConfigError(
+            f"model.edge_params.{name}: a design moves weights on links a file may not list (its "
+            "candidates); give the edge parameter one number for every link"
+        )
 
 
 def make_problem(
@@ -291,7 +303,7 @@ def _times(config: Config, status, steps, frac) -> np.ndarray:
 def _model_params(problem: Problem, csr: CouplingCSR, ks: np.ndarray, kinds: int):
     config = problem.config
     if config.model.law is not None:
-        return law_params(law_setup(config, problem.n_nodes), config.dynamics, kinds)
+        return law_params(problem.law_setup(), config.dynamics, kinds)
     setup, _, _ = model_setup(config, csr.indptr, csr.indices, [csr.weights], [], 0)
     targets = np.full(kinds, setup.targets[0])
     return model_params(setup, config.model, config.seed, ks, problem.n_nodes, targets)

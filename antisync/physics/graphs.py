@@ -51,6 +51,7 @@ __all__ = [
     "node_order",
     "omega_matrix",
     "parse_edge",
+    "link_values",
     "simple_graph",
 ]
 
@@ -203,8 +204,11 @@ def from_edgelist(
         ``True``: the first line (after comments) names the columns and is skipped; ``False``:
         every line is a link; ``None`` or ``"auto"`` (the default): the first line is skipped
         when its first two columns are a pair of :data:`HEADER_PAIRS` (``source,target``,
-        ``from to``, ``u v``, ... any case), its third column (if any) is not a number, and
-        neither word is a node of another line.
+        ``from to``, ``u v``, ... any case), no other column is a number, and neither word is
+        a node of another line. A header of more than three columns (``source target weight
+        alpha``) names them: the weight is the column ``weight`` (every weight 1 without one),
+        every line has as many columns, and the others are there for a law's
+        ``model.edge_params`` (:func:`link_values`).
 
     Notes
     -----
@@ -240,11 +244,25 @@ def from_edgelist(
     rows = _split_rows(text, path, sep)
     # without graph.header, a bad weight on the first line may be a header's word
     first = rows[0][0] if rows and header is None else None
+    names = None
     if rows and (header is True or (header is None and _is_header(rows))):
+        names = [text for text, _ in rows[0][2]]
         rows, first = rows[1:], None
+    # a header of more columns names them: the weight is the column 'weight', the others are
+    # read by whoever asks for them (a law's model.edge_params)
+    at, width = 2, 3
+    if names is not None and len(names) > 3:
+        lower = [name.lower() for name in names[2:]]
+        at = 2 + lower.index("weight") if "weight" in lower else None
+        width = len(names)
     parsed = []
     for lineno, line, fields in rows:
-        if len(fields) not in (2, 3):
+        if width > 3 and len(fields) != width:
+            raise GraphError(
+                f"{path}:{lineno}: expected {width} columns as the header names them "
+                f"({', '.join(names)}), got {show(line)}" + _columns_hint(line, sep, len(fields))
+            )
+        if width == 3 and len(fields) not in (2, 3):
             raise GraphError(
                 f"{path}:{lineno}: expected 'u v' or 'u v weight', got {show(line)}"
                 + _columns_hint(line, sep, len(fields))
@@ -252,8 +270,8 @@ def from_edgelist(
         for label, plain in fields[:2]:
             _check_label(label, path, lineno, plain)
         weight = 1.0
-        if len(fields) == 3:
-            token = fields[2][0]
+        if at is not None and len(fields) > at:
+            token = fields[at][0]
             weight = number_text(token)
             if weight is None:
                 hint = "; a header line? give graph.header: true" if lineno == first else ""
@@ -287,6 +305,75 @@ def from_edgelist(
     for _, _, d in g.edges(data=True):
         del d["line"]
     return g
+
+
+def link_values(path: str | Path, g: nx.Graph, column: str | None = None, what: str = "edge values") -> dict:
+    """``{(u, v): value}`` for every link of ``g`` (both directions of a link share its value),
+    read from an edge list: ``u v value`` lines, or a file whose first line names its columns
+    (``source target weight alpha``, any pair of :data:`HEADER_PAIRS` first) and ``column`` the
+    one to read (the graph's own edge list can carry a law's edge parameters so). Delimiters as
+    :func:`from_edgelist` takes them by default (by the file's suffix).
+
+    Labels are matched by their text (``1`` in the file is node ``1``). Refused with one line
+    naming the file and the line (:class:`GraphError`): a link the graph does not have, a link
+    given twice, a value that is not a finite number in the grammar of
+    :data:`antisync.validation.DECIMAL`, a missing column, and a link of the graph the file does
+    not give (none is filled in silently)."""
+    path = Path(path)
+    where = f"{what} {path}"
+    sep = edge_delimiter(None, path)
+    rows = _split_rows(read_input_text(path, what, GraphError), path, sep)
+    if not rows:
+        raise GraphError(f"{where}: no links found; give one 'u v value' line per link")
+    first = [text for text, _ in rows[0][2]]
+    header = len(first) >= 3 and (first[0].lower(), first[1].lower()) in HEADER_PAIRS
+    if header:
+        names, rows = first, rows[1:]
+        if column is None and len(names) != 3:
+            raise GraphError(
+                f"{where}: its header names {len(names) - 2} value columns ({', '.join(names[2:])}); "
+                "give column: NAME"
+            )
+        at = 2 if column is None else names.index(column) if column in names[2:] else None
+        if at is None:
+            raise GraphError(f"{where}: no column {column!r} in its header (columns: {', '.join(names[2:])})")
+    elif column is not None:
+        raise GraphError(
+            f"{where}: column {column!r} needs a first line that names the columns, e.g. "
+            f"'source target {column}'"
+        )
+    else:
+        at = 2
+    by_name = {str(v): v for v in g.nodes}
+    out: dict = {}
+    seen: dict = {}
+    for lineno, line, fields in rows:
+        if len(fields) <= at or (not header and len(fields) != 3):
+            raise GraphError(f"{where}:{lineno}: expected 'u v value', got {show(line)}")
+        a, b = (by_name.get(text) for text, _ in fields[:2])
+        if a is None or b is None or not g.has_edge(a, b):
+            raise GraphError(f"{where}:{lineno}: {fields[0][0]}-{fields[1][0]} is not a link of the graph")
+        token = fields[at][0]
+        value = number_text(token)
+        if value is None or not math.isfinite(value):
+            raise GraphError(
+                f"{where}:{lineno}: {show(token)} is not a finite number (write decimal digits such "
+                "as -0.25 or 1.5e-3)"
+            )
+        if (a, b) in out:
+            raise GraphError(
+                f"{where}:{lineno}: the link {a}-{b} is given twice (first on line {seen[a, b]}); "
+                "give each link once"
+            )
+        out[a, b] = out[b, a] = value
+        seen[a, b] = seen[b, a] = lineno
+    for a, b in g.edges:
+        if (a, b) not in out:
+            raise GraphError(
+                f"{where}: the link {a}-{b} is not given ({len(out) // 2} of {g.number_of_edges()} are); "
+                "give every link of the graph a value"
+            )
+    return out
 
 
 def edge_delimiter(value, path: str | Path = "") -> str | None:
@@ -396,9 +483,9 @@ def _split_delimited(line: str, sep: str, where: str) -> list[str]:
 def _is_header(rows: list[tuple]) -> bool:
     """Is the first row a header (``graph.header: auto``, see :func:`from_edgelist`)?"""
     fields = [text for text, _ in rows[0][2]]
-    if len(fields) not in (2, 3) or (fields[0].lower(), fields[1].lower()) not in HEADER_PAIRS:
+    if len(fields) < 2 or (fields[0].lower(), fields[1].lower()) not in HEADER_PAIRS:
         return False
-    if len(fields) == 3 and number_text(fields[2]) is not None:
+    if any(number_text(name) is not None for name in fields[2:]):
         return False
     nodes = {text for row in rows[1:] for text, _ in row[2][:2]}
     return fields[0] not in nodes and fields[1] not in nodes

@@ -403,8 +403,9 @@ class Config:
         if LAMBDA_ROWS[method].orbit == "automorphism" and not self.model.symmetric:
             raise ConfigError(
                 "lambda.method orbit averages over the graph's automorphisms, which fixed natural "
-                "frequencies or per-node inertia/damping do not respect (a link and its image see "
-                "different nodes); use central-difference (every link on its own)"
+                "frequencies, per-node inertia/damping or a law's parameters per node or per link "
+                "do not respect (a link and its image see different values); use central-difference "
+                "(every link on its own)"
             )
         if self.model.law is not None and self.sync.criterion == "relative":
             raise ConfigError(
@@ -548,9 +549,10 @@ class Config:
             if isinstance(spec, dict) and "file" in spec:
                 # the file's content decides the numbers, not its name: an edited file is another run
                 d["model"][key] = {**spec, "sha256": _file_digest(spec["file"])}
-        for name, spec in (self.model.params or {}).items():
-            if isinstance(spec, dict) and "file" in spec:
-                d["model"]["params"][name] = {**spec, "sha256": _file_digest(spec["file"])}
+        for key in ("params", "edge_params"):
+            for name, spec in (getattr(self.model, key) or {}).items():
+                if isinstance(spec, dict) and "file" in spec:
+                    d["model"][key][name] = {**spec, "sha256": _file_digest(spec["file"])}
         return d
 
 
@@ -815,15 +817,16 @@ def _resolve_frequency_file(value: dict, source: Path | None) -> dict:
     law = value.get("law")
     if isinstance(law, str) and law.endswith((".yaml", ".yml")) and source and not Path(law).is_absolute():
         value = {**value, "law": str((source.parent / law).resolve())}
-    params = value.get("params")
-    if isinstance(params, dict) and source:
-        resolved = {}
-        for name, spec in params.items():
-            if isinstance(spec, dict) and set(spec) == {"file"} and isinstance(spec["file"], str):
-                if not Path(spec["file"]).is_absolute():
-                    spec = {"file": str((source.parent / spec["file"]).resolve())}
-            resolved[name] = spec
-        value = {**value, "params": resolved}
+    for key in ("params", "edge_params"):
+        params = value.get(key)
+        if isinstance(params, dict) and source:
+            resolved = {}
+            for name, spec in params.items():
+                if isinstance(spec, dict) and isinstance(spec.get("file"), str) and spec["file"]:
+                    if not Path(spec["file"]).is_absolute():
+                        spec = {**spec, "file": str((source.parent / spec["file"]).resolve())}
+                resolved[name] = spec
+            value = {**value, key: resolved}
     return value
 
 

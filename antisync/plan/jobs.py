@@ -24,6 +24,7 @@ from antisync.plan.model import (
     LawSetup,
     ModelSetup,
     check_second_order_step,
+    law_edges,
     law_setup,
     model_setup,
     node_parameters,
@@ -234,7 +235,7 @@ def make_job(
     orbit = _orbit_fields(graph, nodes, omega, csr, edges, config)
     model = law = None
     if config.model.law is not None:
-        law = law_setup(config, len(nodes))
+        law = law_setup(config, len(nodes), law_edges(config.model, csr.indptr, csr.indices, nodes, graph))
     elif config.generalized:
         model = _model_fields(
             config, edges, edge_idx, variant_edge, variant_beta, omega, csr, vw, secant, orbit

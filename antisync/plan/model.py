@@ -55,6 +55,7 @@ __all__ = [
     "Sync",
     "check_second_order_step",
     "drawn_frequencies",
+    "law_edges",
     "law_setup",
     "law_values",
     "model_setup",
@@ -224,9 +225,13 @@ class Model:
     params: None | dict = None
     """The law's per-node parameters: ``{name: number, list (one per node) or {file: PATH}}``;
     a parameter not given keeps the law's default."""
+    edge_params: None | dict = None
+    """The law's per-link parameters: ``{name: number or {file: PATH, column: NAME}}`` (an edge
+    list of ``u v value`` lines, or a named column of one: :func:`law_edges`); a parameter not
+    given keeps the law's default on every link."""
 
     def __post_init__(self):
-        if self.law is not None or self.params is not None:
+        if self.law is not None or self.params is not None or self.edge_params is not None:
             self._check_law()
             return
         object.__setattr__(self, "frequencies", _check_frequencies(self.frequencies))
@@ -270,8 +275,9 @@ class Model:
         from antisync.laws import read_law
 
         if self.law is None:
+            key = "params" if self.params is not None else "edge_params"
             raise ConfigError(
-                "model.params gives a law's parameters: it needs model.law (e.g. law: stuart-landau)"
+                f"model.{key} gives a law's parameters: it needs model.law (e.g. law: stuart-landau)"
             )
         for key, default in (
             ("frequencies", None),
@@ -300,6 +306,21 @@ class Model:
                 )
             out[name] = _law_parameter(f"model.params.{name}", value)
         object.__setattr__(self, "params", out or None)
+        edge_params = self.edge_params or {}
+        if not isinstance(edge_params, dict):
+            raise ConfigError(
+                f"model.edge_params must be a mapping of the law's edge parameters, got {show(edge_params)}"
+            )
+        known = law.edge_param_names
+        out = {}
+        for name, value in edge_params.items():
+            if name not in known:
+                have = ", ".join(known) or "none"
+                raise ConfigError(
+                    f"unknown key 'model.edge_params.{name}'; law {law.name} has the edge parameters: {have}"
+                )
+            out[name] = _law_edge_parameter(f"model.edge_params.{name}", value)
+        object.__setattr__(self, "edge_params", out or None)
 
     @property
     def user_law(self):
@@ -335,7 +356,13 @@ class Model:
         (frequencies drawn i.i.d. per realization are exchangeable, so averages keep the
         symmetry)."""
         fixed = self.frequencies is not None and not self.drawn
-        return not fixed and not self.per_node
+        return not fixed and not self.per_node and not self.per_link
+
+    @property
+    def per_link(self) -> bool:
+        """A law's edge parameter given per link (a file): an automorphism of the graph need not
+        map a link to one of the same value."""
+        return any(isinstance(v, dict) for v in (self.edge_params or {}).values())
 
     @property
     def per_node(self) -> bool:
@@ -503,17 +530,83 @@ class LawSetup:
     criterion: int = 0
     drawn: tuple = ()
     """``(k, distribution)`` per parameter drawn per realization (:func:`law_drawn`)."""
+    edges: np.ndarray | None = None
+    """``(n_edge_params, nnz)``: the law's edge parameters per in-link in the coupling's CSR order
+    (:func:`law_edges`); None without edge parameters."""
 
 
-def law_setup(config, n: int) -> LawSetup:
-    """``config.model``'s law for a graph of ``n`` nodes (:class:`LawSetup`)."""
+def law_setup(config, n: int, edges: np.ndarray | None = None) -> LawSetup:
+    """``config.model``'s law for a graph of ``n`` nodes (:class:`LawSetup`), with the edge
+    parameters ``edges`` of :func:`law_edges`."""
     from antisync.kernels.core import CRIT_FREQUENCY, CRIT_ORDER
 
     values = law_values(config.model, n)
     law, drawn = config.model.user_law, law_drawn(config.model)
+    if law.edge_params and edges is None:
+        raise ValueError("law_setup: the law has edge parameters; give edges (law_edges)")
     if config.sync.criterion == "frequency":
-        return LawSetup(law, values, float(config.sync.tolerance), CRIT_FREQUENCY, drawn)
-    return LawSetup(law, values, float((config.dynamics.threshold * n) ** 2), CRIT_ORDER, drawn)
+        return LawSetup(law, values, float(config.sync.tolerance), CRIT_FREQUENCY, drawn, edges)
+    return LawSetup(law, values, float((config.dynamics.threshold * n) ** 2), CRIT_ORDER, drawn, edges)
+
+
+def law_edges(model: Model, indptr, indices, nodes=None, graph=None) -> np.ndarray | None:
+    """The law's edge parameters per in-link, ``(n_edge_params, nnz)`` in the CSR order of
+    ``indptr``/``indices`` (the coupling's weights), or None for a law without them. Each from
+    ``model.edge_params``: a number on every link, or a file read by
+    :func:`antisync.physics.graphs.link_values` onto ``graph`` (node ``i`` of the CSR is
+    ``nodes[i]``; both directions of a link share its value); the law's default where not given.
+
+    Raises
+    ------
+    ConfigError
+        A file of values where no graph is given (a design's candidate links have none).
+    GraphError
+        A file that does not give every link of ``graph`` one finite value (one line).
+    """
+    from antisync.physics.graphs import link_values
+
+    law = model.user_law
+    if law is None or not law.edge_params:
+        return None
+    indptr = np.asarray(indptr, dtype=np.int64)
+    indices = np.asarray(indices, dtype=np.int64)
+    rows = np.repeat(np.arange(indptr.size - 1), np.diff(indptr))
+    given = model.edge_params or {}
+    out = np.empty((len(law.edge_params), indices.size))
+    for k, (name, default) in enumerate(law.edge_params):
+        spec = given.get(name, default)
+        if isinstance(spec, float):
+            out[k] = spec
+            continue
+        if graph is None:
+            raise ConfigError(
+                f"model.edge_params.{name}: a file of values per link needs the graph's links; here "
+                "links may be added (a design's candidates), so give one number for every link"
+            )
+        values = link_values(spec["file"], graph, spec.get("column"), f"model.edge_params.{name}.file")
+        out[k] = [values[nodes[i], nodes[j]] for i, j in zip(rows, indices, strict=True)]
+    return out
+
+
+def _law_edge_parameter(key: str, value):
+    """A law's edge parameter: a finite number (every link), or ``{file: PATH}`` / ``{file:
+    PATH, column: NAME}`` (:func:`law_edges`)."""
+    valid = "a number (every link) or {file: PATH} (u v value lines; column: NAME for a named column)"
+    if isinstance(value, dict):
+        extra = sorted(set(value) - {"file", "column"})
+        if extra:
+            raise ConfigError(f"unknown key '{key}.{extra[0]}'; valid keys: file, column")
+        if not isinstance(value.get("file"), str) or not value["file"]:
+            raise ConfigError(f"{key} must be {valid}, got {show(value)}")
+        column = value.get("column")
+        if column is not None and (not isinstance(column, str) or not column):
+            raise ConfigError(
+                f"{key}.column must be a column's name from the file's header, got {show(column)}"
+            )
+        return {"file": value["file"], **({"column": column} if column is not None else {})}
+    if isinstance(value, list | tuple):
+        raise ConfigError(f"{key} must be {valid}, got a list: a link has no order a list could follow")
+    return parse_number(key, value, valid)
 
 
 def _law_parameter(key: str, value):
