@@ -81,6 +81,36 @@ def _compile_times(law: str, integrator: str) -> tuple[float, float]:
     return cold, warm
 
 
+def unit_network(g):
+    """``(csr, n, never)``: ``g`` at unit weights, normalized coupling, and a target ``R`` out
+    of reach (``R = |sum e^{i theta}|^2 <= n^2``): every item runs all its steps."""
+    nx.set_edge_attributes(g, 1.0, "weight")
+    om = graphs.omega_matrix(g)
+    csr = coupling.to_csr(coupling.coupling_matrix(om, "normalized"), pattern=om > 0)
+    n = om.shape[0]
+    return csr, n, np.full(1, 2.0 * n * n)
+
+
+def time_rounds(kinds: dict, reference: str, repeat: int, per: int) -> tuple[dict, dict]:
+    """Each of ``kinds`` (name: a call) once to compile, then ``repeat`` rounds back to back:
+    ``(best, ratios)``, the fastest ns per ``per`` units of each and, per round, ``reference``'s
+    time over each one's."""
+    for f in kinds.values():
+        f()  # compile or load
+    best = {k: np.inf for k in kinds}
+    ratios = {k: [] for k in kinds}
+    for _ in range(repeat):
+        t = {}
+        for k, f in kinds.items():
+            t0 = time.perf_counter()
+            f()
+            t[k] = (time.perf_counter() - t0) / per * 1e9
+            best[k] = min(best[k], t[k])
+        for k in kinds:
+            ratios[k].append(t[reference] / t[k])
+    return best, ratios
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--threads", type=int, default=2)
@@ -103,12 +133,7 @@ def main() -> None:
             )
     law = read_law("kuramoto")
     for name, (make, m) in GRAPHS.items():
-        g = make()
-        nx.set_edge_attributes(g, 1.0, "weight")
-        om = graphs.omega_matrix(g)
-        csr = coupling.to_csr(coupling.coupling_matrix(om, "normalized"), pattern=om > 0)
-        n = om.shape[0]
-        never = np.full(1, 2.0 * n * n)  # R = |sum e^{i theta}|^2 <= n^2: never reached
+        csr, n, never = unit_network(make())
         vw = np.zeros((0, csr.weights.size))
         common = (5, 0, m, csr.indptr, csr.indices, csr.weights, vw)
         clock = {"dt": 0.01, "max_steps": args.steps, "threads": args.threads}
@@ -144,19 +169,7 @@ def main() -> None:
                 cpu.simulate_model, *common, builtin, integrator=args.integrator, lanes=0, **clock
             ),
         }
-        for f in kinds.values():
-            f()  # compile or load
-        best = {k: np.inf for k in kinds}
-        ratios = {k: [] for k in kinds}
-        for _ in range(args.repeat):
-            t = {}
-            for k, f in kinds.items():
-                t0 = time.perf_counter()
-                f()
-                t[k] = (time.perf_counter() - t0) / (m * args.steps) * 1e9
-                best[k] = min(best[k], t[k])
-            for k in kinds:
-                ratios[k].append(t["law"] / t[k])
+        best, ratios = time_rounds(kinds, "law", args.repeat, m * args.steps)
         for k in kinds:
             r = np.median(ratios[k])
             print(

@@ -301,7 +301,8 @@ _LANE_CASES = {"euler": (("euler", 0.01), ("euler", 0.08)), "rk4": (("rk4", 0.01
 
 
 @pytest.mark.parametrize(
-    "name, integrators", [("kuramoto", "euler rk4"), ("second-harmonic", "rk4"), ("swing", "euler")]
+    "name, integrators",
+    [("kuramoto", "euler rk4"), ("second-harmonic", "rk4"), ("swing", "euler"), ("sakaguchi-links", "rk4")],
 )
 def test_the_lane_driver_is_the_one_trajectory_driver_bit_for_bit(name, integrators):
     """Euler and RK4 on the circle form: 16 trajectories per lane vector group and one per item
@@ -309,9 +310,10 @@ def test_the_lane_driver_is_the_one_trajectory_driver_bit_for_bit(name, integrat
     vectors, or lane by lane where an angle is beyond their range), with damaged links (one of
     them equal to the base, shared), a ``todo`` mask, drawn parameters and a lane refilled many
     times (50 realizations x 4 networks through 16 lanes); the second harmonic's neighbour sums
-    of per-node products (``G``) and the swing equation's speed (a state that is no angle) too.
-    (Each law with the integrators that bring something new: every driver is a compile.)"""
-    law = read_law(name)
+    of per-node products (``G``), the swing equation's speed (a state that is no angle) and a
+    lag per link (edge rows, and their sines and cosines computed once) too. (Each law with the
+    integrators that bring something new: every driver is a compile.)"""
+    law = read_law(LINK_LAG if name == "sakaguchi-links" else name)
     for g in (nx.lollipop_graph(3, 3), nx.karate_club_graph()):
         nx.set_edge_attributes(g, 1.0, "weight")
         om, csr = _csr(g)
@@ -326,7 +328,10 @@ def test_the_lane_driver_is_the_one_trajectory_driver_bit_for_bit(name, integrat
         targets = np.full(len(vw) + 1, (0.9 * n) ** 2)
         todo = np.ones((50, 4), dtype=bool)
         todo[::3, 2] = False
-        params = LawParams(law, values, targets, drawn=drawn)
+        lags = None
+        if law.edge_params:
+            lags = _lags(csr, {frozenset(e): 0.05 * (k % 5) - 0.1 for k, e in enumerate(g.edges)})
+        params = LawParams(law, values, targets, drawn=drawn, edges=lags)
         args = (7, 0, 50, csr.indptr, csr.indices, csr.weights, vw, params)
         for integrator, dt in (case for kind in integrators.split() for case in _LANE_CASES[kind]):
             kw = {"dt": dt, "max_steps": int(200 / dt), "integrator": integrator, "todo": todo}
@@ -996,7 +1001,7 @@ def test_the_jacobian_and_the_adjoint_read_edge_parameters():
     compiled = compile_law(law)
     y = starts(law, values, 5, [2])[0]
     jac = jacobian(law, values, csr.indptr, csr.indices, csr.weights, y, lags)
-    P = with_edges(values, lags)
+    P = with_edges(values, law, lags)
     ip, ix = csr.indptr.astype(np.int64), csr.indices.astype(np.int64)
     num = np.empty_like(jac)
     for a in range(y.size):
@@ -1031,6 +1036,10 @@ def test_the_jacobian_and_the_adjoint_read_edge_parameters():
         central = (tau[:, 0::2] - tau[:, 1::2]) / (2 * h)
         assert np.abs(central).max() > 1.0
         np.testing.assert_allclose(adj.dtau, central, atol=1e-6 * np.abs(central).max())
+    # a law's edge rows missing or of another shape would be read out of bounds: refused
+    for lacking, words in ((None, "has 1 edge parameter"), (lags[:, :3], "one column per in-link")):
+        with pytest.raises(ValueError, match=words):
+            simulate_law(*common, vw, LawParams(law, values, np.full(len(vw) + 1, 1.0), edges=lacking), **kw)
 
 
 def _lag_files(tmp_path, lags=None):

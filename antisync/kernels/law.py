@@ -82,6 +82,7 @@ __all__ = [
     "simulate_law",
     "simulate_law_adjoint",
     "starts",
+    "with_derived",
     "with_edges",
 ]
 
@@ -209,8 +210,73 @@ def _link_loop(exprs, sym) -> list[str]:
 
 
 def _edge_loads(exprs, sym, indent: str) -> list[str]:
-    """The link ``q``'s edge parameters that ``exprs`` read (rows after the per-node ones)."""
-    return _loads(exprs, sym.e, indent, f"P[{len(sym.p)} + {{k}}, q]")
+    """The link ``q``'s edge parameters that ``exprs`` read (rows after the per-node ones), and
+    the functions of them that :func:`with_edges` computes once per run (rows after those)."""
+    derived = _derived_symbols(sym)
+    return _loads(exprs, sym.e, indent, f"P[{len(sym.p)} + {{k}}, q]") + _loads(
+        exprs, derived, indent, f"P[{len(sym.p) + len(sym.e)} + {{k}}, q]"
+    )
+
+
+def _derived_symbols(sym) -> tuple:
+    """``ed0, ed1, ...``: one symbol per function of the edge parameters in ``sym.derived``."""
+    import sympy
+
+    return tuple(sympy.Symbol(f"ed{k}", real=True) for k in range(len(sym.derived)))
+
+
+def _link_part(w, sym):
+    """A separated term's link factor ``W`` with each function of the edge parameters alone
+    (``cos(alpha)``) read as its row (:func:`with_edges`): no sine per link and step."""
+    return w.xreplace(dict(zip(sym.derived, _derived_symbols(sym), strict=True))) if sym.derived else w
+
+
+def _factors_of(sym) -> list:
+    """The functions of the edge parameters alone (not a bare parameter, not a number) among
+    the factors of ``sym``'s separated link parts ``W`` (:func:`_separate`)."""
+    import sympy
+
+    own = set(sym.e)
+    out = []
+    _, pairs, _, _ = _hoisting(sym)
+    for w, _ in pairs:
+        for f in sympy.Mul.make_args(w):
+            if f.free_symbols and f.free_symbols <= own and not f.is_Symbol and f not in out:
+                out.append(f)
+    return out
+
+
+def with_derived(sym):
+    """``sym`` with :attr:`~antisync.laws.spec.Symbolic.derived`: the functions of the edge
+    parameters alone that its separated edge law and its circle form's multiply a link's
+    weight by (``w cos(alpha)``, ``w sin(alpha)`` of ``w sin(theta_j - theta_i - alpha)``), in a
+    fixed order; :func:`with_edges` computes them per link once per run."""
+    if not sym.e:
+        return sym
+    factors = _factors_of(sym)
+    circle = circle_form(sym)
+    if circle is not None:
+        factors += [f for f in _factors_of(circle.sym) if f not in factors]
+    return dataclasses.replace(sym, derived=tuple(factors))
+
+
+@functools.lru_cache(maxsize=64)
+def _derived_functions(law: Law) -> tuple:
+    import sympy
+
+    sym = with_derived(law.symbolic())
+    return tuple(sympy.lambdify(list(sym.e), f, "numpy") for f in sym.derived)
+
+
+def _edge_rows(law: Law, edges: np.ndarray | None) -> np.ndarray | None:
+    """The kernels' per-link rows: the edge parameters ``edges`` ``(n_edge_params, nnz)`` and
+    below them each function of them in :func:`with_derived`'s order, computed once here
+    rather than per link and step; None without edge parameters."""
+    if edges is None or not len(edges):
+        return None
+    edges = np.ascontiguousarray(edges, dtype=np.float64)
+    rows = [np.broadcast_to(f(*edges), edges.shape[1:]) for f in _derived_functions(law)]
+    return np.vstack([edges, *rows]) if rows else edges
 
 
 #: the most neighbour sums a hoisted edge law may need (more: the law is evaluated per link)
@@ -338,9 +404,10 @@ def _rhs_variant(sym, pr, signature: str, split: dict, pairs: dict, arrays: dict
     out += _loads(every, list(reuse.values()), "        ", "G[{k}, i]")
     out += [f"        s{k} = 0.0" for k in range(len(pairs))]
     out += [f"        {sym.u[m]} = 0.0" for m in per_link]
-    out += _link_loop(link_exprs + [w for w, _ in pairs], sym)
+    out += _link_loop(link_exprs + [_link_part(w, sym) for w, _ in pairs], sym)
     stored = _stored(sym)
     for (w, j), k in pairs.items():
+        w = _link_part(w, sym)
         if j == 1:
             term = pr.doprint(w)
         else:
@@ -474,7 +541,8 @@ def vectorizable(sym) -> bool:
     up to :data:`MAX_POWER`): what lane vectors compute (:mod:`antisync.kernels.core`)."""
     import sympy
 
-    for e in (*sym.coupling, *sym.rates):
+    # a function of the edge parameters alone is read from its row (with_derived): a number
+    for e in (*(_link_part(h, sym) for h in sym.coupling), *sym.rates):
         for node in sympy.preorder_traversal(e):
             if isinstance(node, sympy.Pow):
                 if not (node.exp.is_Integer and 1 <= abs(int(node.exp)) <= MAX_POWER):
@@ -507,7 +575,8 @@ def _lane_rhs_variant(
 
     hoisted = [m for m in split if split[m] is not None]
     per_link = [m for m in split if split[m] is None]
-    link_exprs = [sym.coupling[m] for m in per_link]
+    link_exprs = [_link_part(sym.coupling[m], sym) for m in per_link]
+    parts = {w: _link_part(w, sym) for w, _ in pairs}
     stored = {
         **{x: f"vload(y, ({k} * n + j) * L + o)" for k, x in enumerate(sym.xj)},
         **{p: f"vload(P, ({k} * n + j) * L + o)" for k, p in enumerate(sym.pj)},
@@ -518,6 +587,7 @@ def _lane_rhs_variant(
         '@njit(cache=True, error_model="numpy")',
         f"def {name}(y, lw, indptr, indices, P, G, L, {'mode, z, f, acc, nxt, h' if stages else 'f'}):",
         "    n = indptr.shape[0] - 1",
+        "    nnz = indices.shape[0]",
     ]
     if arrays:
         js = list(arrays)
@@ -536,7 +606,12 @@ def _lane_rhs_variant(
     link = ["                w = vload(lw, e * L + o)"]
     link += _loads(link_exprs, sym.xj, "                ", "vload(y, ({k} * n + j) * L + o)")
     link += _loads(link_exprs, sym.pj, "                ", "vload(P, ({k} * n + j) * L + o)")
+    # the link's edge rows, after the per-node ones: row NP + k of link e at (NP n + k nnz + e) L
+    edge_rows = (*sym.e, *_derived_symbols(sym))
+    every_link = link_exprs + list(parts.values())
+    link += _loads(every_link, edge_rows, "                ", "vload(P, (NP * n + {k} * nnz + e) * L + o)")
     for (w, j), k in pairs.items():
+        w = parts[w]
         term = pr.doprint(w) if j == 1 else f"({pr.doprint(w)}) * {stored.get(j) or _g_load(arrays[j])}"
         link.append(f"                s{k} = s{k} + {term}")
     if per_link:
@@ -594,7 +669,9 @@ def _vec_rates(exprs, indent: str, pr) -> list[str]:
 
 
 #: the locals of a generated lane right-hand side (what :func:`_second` renames)
-_LOCALS = re.compile(r"\b(x\d+|xj\d+|xc\d+|xs\d+|xjc\d+|xjs\d+|p\d+|pj\d+|u\d+|s\d+|gi\d+|c\d+|rate\d+|w)\b")
+_LOCALS = re.compile(
+    r"\b(x\d+|xj\d+|xc\d+|xs\d+|xjc\d+|xjs\d+|p\d+|pj\d+|ep\d+|ed\d+|u\d+|s\d+|gi\d+|c\d+|rate\d+|w)\b"
+)
 
 
 _OFFSET = re.compile(r"L \+ o\b")
@@ -621,7 +698,7 @@ def _lane_source(circle: Circle, pr) -> list[str]:
     same variant, no fused multiply-add), so the results are ``law_items_circle``'s bit for bit
     (tests/test_laws.py)."""
     sym = circle.sym
-    if not vectorizable(sym) or sym.e:  # lanes hold per-node values only, no edge parameters
+    if not vectorizable(sym):
         return ["", "", "LANES = False"]
     split, pairs, arrays, hoists = _hoisting(sym)
     out = [
@@ -999,7 +1076,7 @@ def generate_source(law: Law) -> str:
     """The Python source of ``law``'s kernels (module docstring)."""
     import sympy
 
-    sym = law.symbolic()
+    sym = with_derived(law.symbolic())
     pr = _printer()
     n_s, n_u = len(sym.x), len(sym.u)
     edge_exprs = list(sym.coupling)
@@ -1019,6 +1096,7 @@ def generate_source(law: Law) -> str:
         "from antisync.kernels.law_support import vload, vsplat, vsqrt, vstore",
         "",
         f"S = {n_s}",
+        f"NP = {len(sym.p)}",
     ]
     out += _rhs_source(sym, pr)
 
@@ -1882,6 +1960,10 @@ def _batch(params: LawParams, first, count, realizations, indptr, indices) -> tu
     kernels' types."""
     law = params.law
     n = indptr.size - 1
+    if params.edges is not None and np.shape(params.edges)[1:] != (np.size(indices),):
+        raise ValueError(
+            f"edges must have one column per in-link ({np.size(indices)}), got shape {np.shape(params.edges)}"
+        )
     return (
         compile_law(law),
         realization_ids(first, count, realizations),
@@ -1892,7 +1974,7 @@ def _batch(params: LawParams, first, count, realizations, indptr, indices) -> tu
 
 
 def parameter_blocks(
-    values: np.ndarray, drawn: tuple, seed: int, ks: np.ndarray, edges: np.ndarray | None = None
+    values: np.ndarray, drawn: tuple, seed: int, ks: np.ndarray, law: Law | None = None, edges=None
 ) -> np.ndarray:
     """The kernels' parameters from the fixed ``values`` ``(n_params, n)``: ``(1, n_params, n)``
     when none is ``drawn`` (:attr:`LawParams.drawn`), else one block per realization ``ks`` with
@@ -1901,36 +1983,41 @@ def parameter_blocks(
     (:func:`antisync.kernels.model_steps.draw_frequencies`: the same draws whatever the chunk,
     thread or executor; a law's first parameter draws the built-in model's frequencies).
 
-    With ``edges`` (:attr:`LawParams.edges`, ``(n_edge_params, nnz)``) every block is widened
-    by :func:`with_edges`: the link ``q``'s ``k``-th edge parameter at ``[n_params + k, q]``."""
+    With ``law``'s edge parameters ``edges`` (:attr:`LawParams.edges`) every block is widened
+    by :func:`with_edges`."""
     from antisync.kernels.model_steps import draw_frequencies
 
     values = np.ascontiguousarray(values, dtype=np.float64)
     if not drawn:
-        return with_edges(values, edges)[None]
+        return with_edges(values, law, edges)[None]
     n = values.shape[1]
     out = np.repeat(values[None], len(ks), axis=0)
     for k, spec in drawn:
         out[:, k, :] = draw_frequencies(spec, seed, np.asarray(ks), n, streams=(1 + 2 * k, 2 + 2 * k))
-    if edges is None or not len(edges):
-        return out
-    return np.stack([with_edges(block, edges) for block in out])
+    return np.stack([with_edges(block, law, edges) for block in out])
 
 
-def with_edges(values: np.ndarray, edges: np.ndarray | None) -> np.ndarray:
-    """The kernels' parameter array: the per-node ``values`` ``(n_params, n)`` and, below them,
-    the per-link ``edges`` ``(n_edge_params, nnz)``, in one ``(n_params + n_edge_params,
-    max(n, nnz))`` array (zero where a row is shorter): what every generated function reads as
-    ``P`` (a node's ``k``-th parameter at ``P[k, i]``, a link's at ``P[n_params + k, q]``), so
-    no signature grows. ``values`` itself where there are no edge parameters."""
+def with_edges(values: np.ndarray, law: Law | None = None, edges: np.ndarray | None = None) -> np.ndarray:
+    """The kernels' parameter array ``P``: the per-node ``values`` ``(n_params, n)``, below them
+    ``law``'s per-link ``edges`` ``(n_edge_params, nnz)`` and each function of them that
+    :func:`with_derived` lists (computed here once, not per link and step), in one ``(n_params +
+    n_edge_rows, max(n, nnz))`` array (zero where a row is shorter). Every generated function
+    reads a node's ``k``-th parameter at ``P[k, i]`` and a link's ``k``-th edge row at
+    ``P[n_params + k, q]``, so no signature grows. ``values`` itself without edge parameters."""
     values = np.ascontiguousarray(values, dtype=np.float64)
-    if edges is None or not len(edges):
+    wanted = 0 if law is None else len(law.edge_params)
+    given = 0 if edges is None else len(edges)
+    if law is None and given:
+        raise ValueError("with_edges: edge parameters need their law (its functions of them are rows too)")
+    if given != wanted:
+        raise ValueError(f"law {law.name} has {wanted} edge parameter(s); edges gives {given} row(s)")
+    if not given:
         return values
-    edges = np.ascontiguousarray(edges, dtype=np.float64)
-    (n_p, n), (n_e, nnz) = values.shape, edges.shape
+    rows = _edge_rows(law, edges)
+    (n_p, n), (n_e, nnz) = values.shape, rows.shape
     out = np.zeros((n_p + n_e, max(n, nnz)))
     out[:n_p, :n] = values
-    out[n_p:, :nnz] = edges
+    out[n_p:, :nnz] = rows
     return out
 
 
@@ -2014,7 +2101,7 @@ def simulate_law(
     )
     out = unset_outputs(m, n_var)
     collapsed = np.zeros((m, n_var + 1), dtype=np.bool_)
-    blocks = parameter_blocks(values, params.drawn, seed, ks, params.edges)
+    blocks = parameter_blocks(values, params.drawn, seed, ks, law, params.edges)
     on_lanes = {
         compiled.items_circle: compiled.items_lanes,
         compiled.items_circle_euler: compiled.items_lanes_euler,
@@ -2097,7 +2184,7 @@ def simulate_law_adjoint(
             indptr,
             indices,
             w,
-            parameter_blocks(values, params.drawn, seed, ks, params.edges),
+            parameter_blocks(values, params.drawn, seed, ks, params.law, params.edges),
             float(dt),
             integrator == "rk4",
             float(params.targets[0]),
@@ -2143,7 +2230,7 @@ def jacobian(
         np.ascontiguousarray(weights, dtype=np.float64),
         indptr,
         indices,
-        with_edges(values, edges),
+        with_edges(values, law, edges),
         jq,
     )
     dense = np.zeros((ptr.size - 1, ptr.size - 1))
@@ -2199,7 +2286,7 @@ def check_step(setup, seed: int, csr, dynamics) -> None:
     ip = np.ascontiguousarray(csr.indptr, dtype=np.int64)
     ix = np.ascontiguousarray(csr.indices, dtype=np.int64)
     w = np.ascontiguousarray(csr.weights, dtype=np.float64)
-    vals = with_edges(values, setup.edges)
+    vals = with_edges(values, law, setup.edges)
     for where, y in (
         ("the start of realization 0", starts(law, values, seed, [0])[0]),
         ("the in-phase state", in_phase(law, values)),
@@ -2278,9 +2365,12 @@ def {fill}(q, lo, hi, ks, seed, indptr, indices, base_w, var_w, var_is_base, tod
             ya[k * L + q] = zq[k] + h * fq[k]
         for e in range(w.shape[0]):
             lw[e * L + q] = w[e]
-        for k in range(P.shape[0]):
+        for k in range(NP):
             for i in range(n):
                 PL[(k * n + i) * L + q] = P[k, i]
+        for k in range(P.shape[0] - NP):  # a law's edge rows (with_edges), per link
+            for e in range(w.shape[0]):
+                PL[(NP * n + k * w.shape[0] + e) * L + q] = P[NP + k, e]
         r2[q] = a
         dr2[q] = b
         lane_item[q] = item
@@ -2312,7 +2402,7 @@ def {name}(ks, seed, indptr, indices, base_w, var_w, var_is_base, todo, PR, targ
         ya = np.zeros(rows * L)
         yb = np.zeros(rows * L)
         lw = np.zeros(nnz * L)
-        PL = np.zeros(PR.shape[1] * n * L)
+        PL = np.zeros((NP * n + (PR.shape[1] - NP) * nnz) * L)
         G = np.empty(LANE_KH * n * L if hoist else 0)
         r2 = np.zeros(L)
         dr2 = np.zeros(L)

@@ -328,6 +328,9 @@ class Symbolic:
     """the frequency criterion's quantities, of ``x, u, p`` (by default the phase's rate)"""
     e: tuple = ()
     """the link's edge parameters (the edge law reads them as it reads ``w``)"""
+    derived: tuple = ()
+    """functions of the edge parameters alone that the kernels read per link, computed once
+    per run (:func:`antisync.kernels.law.with_derived`)"""
 
     @cached_property
     def phase_gradient(self) -> tuple:

@@ -70,7 +70,10 @@ def model_text(model: Model) -> str:
     natural frequencies."""
     if model.law is not None:
         law = model.law
-        given = ", ".join(f"{k} {_per_node(v)}" for k, v in (model.params or {}).items())
+        given = ", ".join(
+            [f"{k} {_per_node(v)}" for k, v in (model.params or {}).items()]
+            + [f"{k} {_per_link(v)}" for k, v in (model.edge_params or {}).items()]
+        )
         rates = "; ".join(f"{s}' = {e}" for s, e in law["rates"].items())
         coupling = "; ".join(f"{u} = sum_j {e}" for u, e in law["coupling"].items())
         return f"law {law['name']} ({rates}; {coupling}" + (f"; {given})" if given else ")")
@@ -122,6 +125,14 @@ def _per_node(value) -> str:
     if isinstance(value, tuple):
         return f"{min(value):g} to {max(value):g} per node"
     return f"{value:g}"
+
+
+def _per_link(value) -> str:
+    """A law's edge parameter: its value on every link, or ``per link from FILE[, column C]``."""
+    if isinstance(value, Mapping):
+        column = f", column {value['column']}" if value.get("column") else ""
+        return f"per link from {Path(value['file']).name}{column}"
+    return f"{value:g} on every link"
 
 
 def _frequencies(spec) -> str:

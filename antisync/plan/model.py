@@ -293,34 +293,22 @@ class Model:
                 )
         law = read_law(self.law)
         object.__setattr__(self, "law", law.as_dict())
-        params = self.params or {}
-        if not isinstance(params, dict):
-            raise ConfigError(f"model.params must be a mapping of the law's parameters, got {show(params)}")
-        known = law.param_names
-        out = {}
-        for name, value in params.items():
-            if name not in known:
-                have = ", ".join(known) or "none"
-                raise ConfigError(
-                    f"unknown key 'model.params.{name}'; law {law.name} has the parameters: {have}"
-                )
-            out[name] = _law_parameter(f"model.params.{name}", value)
-        object.__setattr__(self, "params", out or None)
-        edge_params = self.edge_params or {}
-        if not isinstance(edge_params, dict):
-            raise ConfigError(
-                f"model.edge_params must be a mapping of the law's edge parameters, got {show(edge_params)}"
-            )
-        known = law.edge_param_names
-        out = {}
-        for name, value in edge_params.items():
-            if name not in known:
-                have = ", ".join(known) or "none"
-                raise ConfigError(
-                    f"unknown key 'model.edge_params.{name}'; law {law.name} has the edge parameters: {have}"
-                )
-            out[name] = _law_edge_parameter(f"model.edge_params.{name}", value)
-        object.__setattr__(self, "edge_params", out or None)
+        for key, known, what, read in (
+            ("params", law.param_names, "parameters", _law_parameter),
+            ("edge_params", law.edge_param_names, "edge parameters", _law_edge_parameter),
+        ):
+            given = getattr(self, key) or {}
+            if not isinstance(given, dict):
+                raise ConfigError(f"model.{key} must be a mapping of the law's {what}, got {show(given)}")
+            out = {}
+            for name, value in given.items():
+                if name not in known:
+                    have = ", ".join(known) or "none"
+                    raise ConfigError(
+                        f"unknown key 'model.{key}.{name}'; law {law.name} has the {what}: {have}"
+                    )
+                out[name] = read(f"model.{key}.{name}", value)
+            object.__setattr__(self, key, out or None)
 
     @property
     def user_law(self):
