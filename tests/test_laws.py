@@ -1131,6 +1131,27 @@ def test_bad_edge_parameters_are_one_line_exit_2(tmp_path, edge_params, words):
     assert not out.exists()
 
 
+def test_a_sweep_over_an_edge_parameter_and_configs_without_one(tmp_path):
+    """``sweep.grid`` over ``model.edge_params.alpha``: a group per point; a config without edge
+    parameters writes none (its stored text, and so ``--resume`` of files written before them,
+    unchanged)."""
+    _lag_files(tmp_path)
+    cfg = tmp_path / "s.yaml"
+    cfg.write_text(
+        "graph: {kind: edgelist, path: net.csv}\nmodel: {law: law.yaml}\n"
+        "sweep: {grid: {model.edge_params.alpha: [0.0, 0.4]}}\n"
+        "edges: ['a->b']\nbetas: []\nrealizations: 8\nlambda: {method: central-difference}\n"
+        f"dynamics: {{integrator: rk4, dt: 0.01}}\noutput: {tmp_path / 's.h5'}\n"
+    )
+    res = CliRunner().invoke(app, ["sweep", str(cfg), "--quiet"])
+    assert res.exit_code == 0, res.output
+    summary = CliRunner().invoke(app, ["summary", str(tmp_path / "s.h5")])
+    assert "model.edge_params.alpha=0.4" in summary.output, summary.output
+    for model in ("{frequencies: [0, 0, 0, 0, 0, 0.1]}", "{law: kuramoto}", "{inertia: 1}"):
+        config = load_config_text(f"graph: {{kind: lollipop, nodes: 6, path: 3}}\nmodel: {model}\n")
+        assert "edge_params" not in config.to_dict()["model"]
+
+
 def test_a_law_without_edge_parameters_refuses_them_and_designs_take_a_number(tmp_path):
     """``model.edge_params`` of a law that has none, and a design of a file's lags (its candidate
     links have none), are one line each; a design takes a number on every link."""

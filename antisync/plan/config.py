@@ -521,7 +521,7 @@ class Config:
         else:
             if self.model.start is None:
                 d["model"].pop("start")  # the uniform start: files written before it existed read the same
-            for key in ("law", "params"):
+            for key in ("law", "params", "edge_params"):
                 if d["model"][key] is None:
                     d["model"].pop(key)  # likewise without a law
                 elif key == "params":

@@ -54,14 +54,15 @@ __all__ = [
 # run's realizations and seed; the graph, the links, where and how it runs are the sweep's
 _SECTION_KEYS = {
     "dynamics": ("coupling", "integrator", "dt", "threshold", "t_max", "crossing", "precision"),
-    "model": ("frequencies", "phase_lag", "inertia", "damping", "law", "params"),
+    "model": ("frequencies", "phase_lag", "inertia", "damping", "law", "params", "edge_params"),
     "sync": ("criterion", "threshold", "fraction", "tolerance"),
     "lambda": ("method", "dbeta", "hybrid_cut"),
     "linear": ("realizations", "method"),
 }
 _TOP_GRID_KEYS = ("realizations", "seed")
 #: every key a ``grid:`` or ``zip:`` may name (deeper keys of a mapping value are allowed below
-#: them, e.g. ``model.frequencies.sd``, ``model.params.omega``: a law's parameter)
+#: them, e.g. ``model.frequencies.sd``, ``model.params.omega``: a law's parameter,
+#: ``model.edge_params.alpha``: its edge parameter)
 GRID_KEYS: tuple[str, ...] = _TOP_GRID_KEYS + tuple(f"{s}.{k}" for s, ks in _SECTION_KEYS.items() for k in ks)
 #: grid keys that set the synchronization threshold of a point's jobs
 THRESHOLD_KEYS = ("dynamics.threshold", "sync.threshold")
@@ -367,7 +368,9 @@ def _check_key(where: str, key) -> None:
             f"{where}: {key} cannot be swept ({_REFUSED[name]}); valid keys: {', '.join(GRID_KEYS)}"
         )
     if key in GRID_KEYS or any(
-        key.startswith(k + ".") for k in GRID_KEYS if k.split(".")[-1] in ("frequencies", "params")
+        key.startswith(k + ".")
+        for k in GRID_KEYS
+        if k.split(".")[-1] in ("frequencies", "params", "edge_params")
     ):
         return
     raise ConfigError(
