@@ -1,11 +1,13 @@
 """A user's law against the built-in kernels it rewrites, per trajectory-step, and its compile time.
 
     python bench/bench_laws.py [--threads 2] [--repeat 3] [--integrator euler] [--no-compile]
+                               [--criterion frequency]
 
 The paper's first-order Kuramoto model written as the law ``kuramoto`` (natural frequencies
 omega: 0) and the built-in model kernels with the same network and starts, on the lollipop (N =
 6), the karate club (N = 34) and a random 3-regular graph of N = 1,000 nodes, RK4 at dt 0.01 for
-a fixed number of steps (the target ``R`` is out of reach: every item runs ``--steps`` steps).
+a fixed number of steps (the target ``R`` is out of reach: every item runs ``--steps`` steps;
+with ``--criterion frequency`` the frequency tolerance, every step's deviations computed).
 Timed per trajectory-step, in the same round, back to back, against:
 
 - ``builtin lanes``: :func:`antisync.kernels.cpu.simulate_model`, the SIMD lane driver every
@@ -120,7 +122,14 @@ def main() -> None:
         "--integrator", choices=("rk4", "euler"), default="rk4", help="euler: one trajectory per item"
     )
     ap.add_argument("--no-compile", action="store_true", help="skip the compile timings")
+    ap.add_argument(
+        "--criterion",
+        choices=("order-parameter", "frequency"),
+        default="order-parameter",
+        help="frequency: every step's deviations too (the law's RK4 lanes by the scalar per lane)",
+    )
     args = ap.parse_args()
+    frequency = args.criterion == "frequency"
     print(f"# {platform.processor() or platform.machine()}, {os.cpu_count()} cores, threads {args.threads}")
     # Stuart-Landau (two states, no circle form), the swing equation (RK4 on its circle form's lane
     # vectors, always hoisted) and the second harmonic (the same, hoisted or per link)
@@ -134,22 +143,24 @@ def main() -> None:
     law = read_law("kuramoto")
     for name, (make, m) in GRAPHS.items():
         csr, n, never = unit_network(make())
+        if frequency:
+            never = np.full(1, -1.0)  # every deviation below -1: never
         vw = np.zeros((0, csr.weights.size))
         common = (5, 0, m, csr.indptr, csr.indices, csr.weights, vw)
         clock = {"dt": 0.01, "max_steps": args.steps, "threads": args.threads}
-        builtin = ModelParams(np.zeros((1, n)), 1.0, 0.0, 0.0, 1.0, 0, never)
+        builtin = ModelParams(np.zeros((1, n)), 1.0, 0.0, 0.0, 1.0, int(frequency), never)
         kinds = {
             "law": functools.partial(
                 simulate_law,
                 *common,
-                LawParams(law, np.zeros((1, n)), never),
+                LawParams(law, np.zeros((1, n)), never, criterion=int(frequency)),
                 integrator=args.integrator,
                 **clock,
             ),
             "law one": functools.partial(
                 simulate_law,
                 *common,
-                LawParams(law, np.zeros((1, n)), never),
+                LawParams(law, np.zeros((1, n)), never, criterion=int(frequency)),
                 integrator=args.integrator,
                 lanes=0,
                 **clock,
@@ -157,7 +168,7 @@ def main() -> None:
             "law on theta": functools.partial(
                 simulate_law,
                 *common,
-                LawParams(law, np.zeros((1, n)), never),
+                LawParams(law, np.zeros((1, n)), never, criterion=int(frequency)),
                 integrator=args.integrator,
                 circle=False,
                 **clock,

@@ -138,6 +138,9 @@ class CompiledLaw(NamedTuple):
     """whether RK4 runs on the law's circle form (:func:`circle_form`) to the order-parameter
     criterion and to the frequency criterion"""
     path: Path
+    items_lanes_frequency: object = None
+    """RK4's on lane vectors to the frequency criterion (``law_items_lanes_frequency``; None
+    where ``items_lanes`` is; used where ``circle[1]``)"""
 
 
 def cache_root() -> Path:
@@ -1932,6 +1935,7 @@ def compile_law(law: Law) -> CompiledLaw:
         module.law_adjoint_items,
         (module.CIRCLE, module.CIRCLE_FREQUENCY),
         path,
+        module.law_items_lanes_frequency if module.LANES else None,
     )
 
 
@@ -2027,9 +2031,8 @@ LAW_LANES = 16
 
 def _lane_width(lanes: int | None, compiled: CompiledLaw, params: LawParams) -> int:
     """The lanes of a circle-form Euler or RK4 run: ``lanes`` (0: one trajectory per item), else
-    :data:`LAW_LANES` to the order-parameter criterion; 0 where the law has no lane drivers or
-    runs to the frequency criterion (one per item)."""
-    if compiled.items_lanes is None or params.criterion != CRIT_ORDER:
+    :data:`LAW_LANES`; 0 where the law has no lane drivers (one per item)."""
+    if compiled.items_lanes is None:
         return 0
     if lanes is not None:
         if lanes < 0 or lanes % (2 * VEC):
@@ -2102,10 +2105,12 @@ def simulate_law(
     out = unset_outputs(m, n_var)
     collapsed = np.zeros((m, n_var + 1), dtype=np.bool_)
     blocks = parameter_blocks(values, params.drawn, seed, ks, law, params.edges)
-    on_lanes = {
+    on_lanes = {  # Euler to the frequency criterion runs one trajectory per item
         compiled.items_circle: compiled.items_lanes,
         compiled.items_circle_euler: compiled.items_lanes_euler,
     }
+    if params.criterion != CRIT_ORDER:
+        on_lanes = {compiled.items_circle: compiled.items_lanes_frequency}
     width = _lane_width(lanes, compiled, params) if items in on_lanes else 0
     with Threads(threads):
         if width:
@@ -2336,7 +2341,7 @@ _LANE_DRIVER = '''
 @njit(cache=True, error_model="numpy")
 def {fill}(q, lo, hi, ks, seed, indptr, indices, base_w, var_w, var_is_base, todo, PR, targets,
               max_steps, per, y, zq, fq, Gq, z, f, ya, lw, PL, r2, dr2, lane_item, lane_target, dt, L,
-              status0, steps0, frac0, status, steps, frac):
+              status0, steps0, frac0, status, steps, frac, DL):
     """Load the next item of lo .. hi - 1 that needs integrating into lane q (the ones that end
     at their start recorded on the way): the next item to look at, and whether q holds one."""
     n = indptr.shape[0] - 1
@@ -2351,13 +2356,24 @@ def {fill}(q, lo, hi, ks, seed, indptr, indices, base_w, var_w, var_is_base, tod
         law_start(seed, ks[r], P, y, n)
         circle_from(y, zq, n)
         {rhs}(zq, w, indptr, indices, P, fq, Gq)
-        a, b = circle_order(zq, fq, n)
-        if not (a == a and b == b):
-            record(status0, steps0, frac0, status, steps, frac, r, v, NOT_SYNCED, max_steps, 0.0)
-            continue
-        if a >= targets[v + 1]:
-            record(status0, steps0, frac0, status, steps, frac, r, v, ALREADY_SYNCED, 0, 0.0)
-            continue
+        if {freq}:  # the frequency criterion's deviations at the start: circle_sync's checks
+            circle_law_devs(zq, fq, w, indptr, indices, P, DL[0, q])
+            a = law_deviation(DL[0, q], DL[0, q], n, dt, True, 1.0)
+            b = 0.0
+            if a != a:
+                record(status0, steps0, frac0, status, steps, frac, r, v, NOT_SYNCED, max_steps, 0.0)
+                continue
+            if a < targets[v + 1]:
+                record(status0, steps0, frac0, status, steps, frac, r, v, ALREADY_SYNCED, 0, 0.0)
+                continue
+        else:
+            a, b = circle_order(zq, fq, n)
+            if not (a == a and b == b):
+                record(status0, steps0, frac0, status, steps, frac, r, v, NOT_SYNCED, max_steps, 0.0)
+                continue
+            if a >= targets[v + 1]:
+                record(status0, steps0, frac0, status, steps, frac, r, v, ALREADY_SYNCED, 0, 0.0)
+                continue
         h = 0.5 * dt
         for k in range(zq.shape[0]):
             z[k * L + q] = zq[k]
@@ -2415,6 +2431,8 @@ def {name}(ks, seed, indptr, indices, base_w, var_w, var_is_base, todo, PR, targ
         lane_item = np.full(L, -1, dtype=np.int64)
         lane_t0 = np.zeros(L, dtype=np.int64)
         lane_target = np.zeros(L)
+        # the frequency criterion's deviations per lane at the step's two ends (rows 0 and 1 by turns)
+        DL = np.empty((2, L if {freq} else 0, 2 * KF, n))
         t = 0
         active = 0
         while True:
@@ -2423,7 +2441,7 @@ def {name}(ks, seed, indptr, indices, base_w, var_w, var_is_base, todo, PR, targ
                     lo, got = {fill}(q, lo, hi, ks, seed, indptr, indices, base_w, var_w, var_is_base,
                                         todo, PR, targets, max_steps, per, y, zq, fq, Gq, z, f, ya, lw,
                                         PL, r2, dr2, lane_item, lane_target, dt, L,
-                                        status0, steps0, frac0, status, steps, frac)
+                                        status0, steps0, frac0, status, steps, frac, DL)
                     if got:
                         lane_t0[q] = t
                         active += 1
@@ -2458,10 +2476,41 @@ def {name}(ks, seed, indptr, indices, base_w, var_w, var_is_base, todo, PR, targ
 
 
 #: what :data:`_LANE_DRIVER` holds for RK4 and for Euler
+#: the frequency criterion on RK4's lanes: each lane's deviations by the scalar circle_law_devs at
+#: its own weights and parameters (circle_sync's numbers, bit for bit), their crossing on the last
+#: step's interpolants; a deviation that is not a number: never synchronized
+_FREQUENCY_CROSS = """\
+                    at = (t - lane_t0[q]) % 2  # the step's end in row at, its start in 1 - at
+                    for a in range(rows):
+                        zq[a] = z[a * L + q]
+                        fq[a] = f[a * L + q]
+                    rq, vq, _ = item_of(item, per, var_is_base, todo)
+                    Pq = PR[0] if PR.shape[0] == 1 else PR[rq]
+                    circle_law_devs(zq, fq, base_w if vq < 0 else var_w[vq], indptr, indices, Pq, DL[at, q])
+                    dev = law_deviation(DL[at, q], DL[1 - at, q], n, dt, True, 1.0)
+                    if dev != dev:
+                        k = max_steps  # diverged: never synchronized
+                        x = -1.0
+                    else:
+                        x = frequency_crossing(DL[at, q], DL[1 - at, q], n, dt, True, lane_target[q])"""
+
 _LANE_KINDS = {
+    "rk4_frequency": {
+        "name": "law_items_lanes_frequency",
+        "fill": "lane_fill_frequency",
+        "freq": "True",
+        "rhs": "circle_law_rhs",
+        "rhs_rows": "circle_rhs_rows",
+        "what": "RK4 to the frequency criterion",
+        "sync": "circle_sync",
+        "step": """\
+            circle_lane_step(z, f, acc, ya, yb, lw, indptr, indices, PL, G, dt, L)""",
+        "cross": _FREQUENCY_CROSS,
+    },
     "rk4": {
         "name": "law_items_lanes",
         "fill": "lane_fill",
+        "freq": "False",
         "rhs": "circle_law_rhs",
         "rhs_rows": "circle_rhs_rows",
         "what": "RK4",
@@ -2480,6 +2529,7 @@ _LANE_KINDS = {
     "euler": {
         "name": "law_items_lanes_euler",
         "fill": "lane_fill_euler",
+        "freq": "False",
         "rhs": "circle_euler_law_rhs",
         "rhs_rows": "circle_euler_rhs_rows",
         "what": "Euler",
