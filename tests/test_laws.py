@@ -344,25 +344,31 @@ def test_the_lane_driver_is_the_one_trajectory_driver_bit_for_bit(name, integrat
         simulate_law(*args, dt=0.01, max_steps=10, lanes=12)
 
 
-def test_the_frequency_criterion_on_lanes_is_the_one_trajectory_driver_bit_for_bit():
-    """RK4 to the frequency criterion on lane vectors (each lane's deviations by the scalar
-    ``circle_law_devs`` at its own weights and parameters) against one trajectory per item: the
-    same statuses, steps and crossings, bit for bit, with damaged links, a shared base variant,
-    a ``todo`` mask and lanes refilled (24 realizations x 4 networks through 16 lanes), on the
-    swing equation (a speed beside the angle: the criterion's two quantities per node)."""
-    law = read_law("swing")
+@pytest.mark.parametrize("name", ["swing", "sakaguchi-links"])
+def test_the_frequency_criterion_on_lanes_is_the_one_trajectory_driver_bit_for_bit(name):
+    """RK4 to the frequency criterion on lane vectors (every lane's deviations by
+    ``circle_lane_devs``, each lane's crossing by the scalar code) against one trajectory per
+    item: the same statuses, steps and crossings, bit for bit, with damaged links, a shared base
+    variant, a ``todo`` mask and lanes refilled (24 realizations x 4 networks through 16
+    lanes), on the swing equation (a speed beside the angle: the criterion's two quantities per
+    node) and on a lag per link (the deviations read the edge rows)."""
+    law = read_law(LINK_LAG if name == "sakaguchi-links" else name)
     g = nx.lollipop_graph(4, 3)
     nx.set_edge_attributes(g, 1.0, "weight")
     om, csr = _csr(g)
     n = g.number_of_nodes()
     values = np.ones((len(law.params), n))  # m, gamma
     values[0] = np.linspace(-0.1, 0.1, n)
+    lags = None
+    if law.edge_params:
+        lags = _lags(csr, {frozenset(e): 0.05 * (k % 5) - 0.1 for k, e in enumerate(g.edges)})
     vw = coupling.variant_weights(om, csr, [(0, 1, 0.3), (5, 6, 0.5), (1, 0, 0.0)], "normalized")
     todo = np.ones((24, 4), dtype=bool)
     todo[::3, 2] = False
-    params = LawParams(law, values, np.full(len(vw) + 1, 1e-2), criterion=CRIT_FREQUENCY)
+    params = LawParams(law, values, np.full(len(vw) + 1, 1e-2), criterion=CRIT_FREQUENCY, edges=lags)
     args = (7, 0, 24, csr.indptr, csr.indices, csr.weights, vw, params)
     kw = {"dt": 0.01, "max_steps": 20000, "integrator": "rk4", "todo": todo}
+    assert compile_law(law).items_lanes_frequency is not None  # on lanes, not one per item again
     one = simulate_law(*args, lanes=0, **kw)
     lanes = simulate_law(*args, lanes=16, **kw)
     assert (one.status0 == SYNCED).sum() > 16

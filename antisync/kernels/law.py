@@ -808,6 +808,21 @@ def _lane_source(circle: Circle, pr) -> list[str]:
         "        vstore(r2, o, tc * tc + ts * ts)",
         "        vstore(dr2, o, 2.0 * (tc * dc + ts * ds))",
     ]
+    _, _, qs, _, _, rates, edge, edge_rates = _frequency_exprs(sym)
+    quantities = dataclasses.replace(sym, coupling=(*edge, *edge_rates), rates=(*qs, *rates))
+    if circle.frequency and vectorizable(quantities):
+        out += ["", "", "LANES_FREQUENCY = True"] + _lane_frequency_source(sym, pr)
+    else:  # never called: the frequency criterion runs one trajectory per item (LANES_FREQUENCY)
+        out += [
+            "",
+            "",
+            "LANES_FREQUENCY = False",
+            "",
+            "",
+            '@njit(cache=True, error_model="numpy")',
+            "def circle_lane_devs(y, f, lw, indptr, indices, P, DV, L):",
+            "    DV[:] = np.nan",
+        ]
     return out + "".join(_LANE_DRIVER.format(**kind) for kind in _LANE_KINDS.values()).splitlines()
 
 
@@ -1195,13 +1210,10 @@ def generate_source(law: Law) -> str:
     return "\n".join(out) + _DRIVERS + _ADJOINT_DRIVERS
 
 
-def _frequency_source(sym, pr, prefix: str = "") -> list[str]:
-    """``law_devs(y, f, wq, indptr, indices, P, D)`` (``prefix`` before its name): the frequency
-    criterion's quantities ``q_k`` (``sym.frequency``) minus their means in ``D``'s rows ``2 k``
-    and their rates minus theirs in rows ``2 k + 1`` (``KF`` quantities), the rates by the chain
-    rule: ``dq/dt = dq/dx . f + dq/du . du/dt``, ``du_i/dt = sum_j (dh/dx_i . f_i + dh/dx_j .
-    f_j)`` over the in-links (what the cubic Hermite crossing of the frequency criterion needs,
-    as the built-in kernels' ``deviations``)."""
+def _frequency_exprs(sym) -> tuple:
+    """``(f, fj, qs, read, du, rates, edge, edge_rates)`` of :func:`_frequency_source`: the rate
+    symbols of a node and its neighbour, the quantities, the inputs they read (their indices
+    and rate symbols), the quantities' rates, those inputs' edge laws and the edge laws' rates."""
     import sympy
 
     n_s = len(sym.x)
@@ -1223,6 +1235,74 @@ def _frequency_source(sym, pr, prefix: str = "") -> list[str]:
         )
         for h in edge
     ]
+    return f, fj, qs, read, du, rates, edge, edge_rates
+
+
+def _lane_frequency_source(sym, pr) -> list[str]:
+    """``circle_lane_devs(y, f, lw, indptr, indices, P, DV, L)``: ``circle_law_devs`` of every lane
+    (``DV`` flat, row ``r`` of node ``i`` in lane ``q`` at ``(r n + i) L + q``), the same operations
+    in the same order on lane vectors: the same bits."""
+    import sympy
+
+    f, fj, qs, read, du, rates, edge, edge_rates = _frequency_exprs(sym)
+    edge = [_link_part(h, sym) for h in edge]  # functions of edge parameters alone: their rows
+    edge_rates = [_link_part(h, sym) for h in edge_rates]
+    every = qs + rates + edge + edge_rates
+    at = "({k} * n + i) * L + o"
+    out = [
+        "",
+        "",
+        '@njit(cache=True, error_model="numpy")',
+        "def circle_lane_devs(y, f, lw, indptr, indices, P, DV, L):",
+        "    n = indptr.shape[0] - 1",
+        "    nnz = indices.shape[0]",
+        "    for i in range(n):",
+        "        for o in range(0, L, VEC):",
+    ]
+    out += _loads(every, sym.x, "            ", f"vload(y, {at})")
+    out += _loads(every, sym.p, "            ", f"vload(P, {at})")
+    out += _loads(every, f, "            ", f"vload(f, {at})")
+    if read:
+        out += [f"            {sym.u[m]} = vsplat(0.0)" for m in read]
+        out += [f"            {du[m]} = vsplat(0.0)" for m in read]
+        links = edge + edge_rates
+        out += ["            for e in range(indptr[i], indptr[i + 1]):", "                j = indices[e]"]
+        out += ["                w = vload(lw, e * L + o)"]
+        near = "({k} * n + j) * L + o"
+        out += _loads(links, sym.xj, "                ", f"vload(y, {near})")
+        out += _loads(links, sym.pj, "                ", f"vload(P, {near})")
+        out += _loads(links, fj, "                ", f"vload(f, {near})")
+        edge_rows = (*sym.e, *_derived_symbols(sym))
+        out += _loads(links, edge_rows, "                ", "vload(P, (NP * n + {k} * nnz + e) * L + o)")
+        subs, reduced = sympy.cse(links, symbols=sympy.numbered_symbols("c"), optimizations="basic")
+        out += [f"                {c} = {pr.doprint(e)}" for c, e in subs]
+        targets = [str(sym.u[m]) for m in read] + [str(du[m]) for m in read]
+        out += [f"                {t} = {t} + {pr.doprint(e)}" for t, e in zip(targets, reduced, strict=True)]
+    pairs = [e for pair in zip(qs, rates, strict=True) for e in pair]
+    rows = [("DV", at.format(k=r)) for r in range(2 * len(qs))]
+    out += _vec_block(pairs, rows, "            ", pr)
+    out += [
+        "    for row in range(2 * KF):",
+        "        for o in range(0, L, VEC):",
+        "            mean = vsplat(0.0)",
+        "            for i in range(n):",
+        "                mean = mean + vload(DV, (row * n + i) * L + o)",
+        "            for i in range(n):",
+        "                vstore(DV, (row * n + i) * L + o, vload(DV, (row * n + i) * L + o) - mean / n)",
+    ]
+    return out
+
+
+def _frequency_source(sym, pr, prefix: str = "") -> list[str]:
+    """``law_devs(y, f, wq, indptr, indices, P, D)`` (``prefix`` before its name): the frequency
+    criterion's quantities ``q_k`` (``sym.frequency``) minus their means in ``D``'s rows ``2 k``
+    and their rates minus theirs in rows ``2 k + 1`` (``KF`` quantities), the rates by the chain
+    rule: ``dq/dt = dq/dx . f + dq/du . du/dt``, ``du_i/dt = sum_j (dh/dx_i . f_i + dh/dx_j .
+    f_j)`` over the in-links (what the cubic Hermite crossing of the frequency criterion needs,
+    as the built-in kernels' ``deviations``)."""
+    f, fj, qs, read, du, rates, edge, edge_rates = _frequency_exprs(sym)
+    edge = [_link_part(h, sym) for h in edge]  # functions of edge parameters alone: their rows
+    edge_rates = [_link_part(h, sym) for h in edge_rates]
     every = qs + rates + edge + edge_rates
     out = [] if prefix else ["", "", f"KF = {len(qs)}"]
     out += [
@@ -1935,7 +2015,7 @@ def compile_law(law: Law) -> CompiledLaw:
         module.law_adjoint_items,
         (module.CIRCLE, module.CIRCLE_FREQUENCY),
         path,
-        module.law_items_lanes_frequency if module.LANES else None,
+        module.law_items_lanes_frequency if module.LANES and module.LANES_FREQUENCY else None,
     )
 
 
@@ -2111,6 +2191,8 @@ def simulate_law(
     }
     if params.criterion != CRIT_ORDER:
         on_lanes = {compiled.items_circle: compiled.items_lanes_frequency}
+    if on_lanes.get(items) is None:
+        on_lanes = {}
     width = _lane_width(lanes, compiled, params) if items in on_lanes else 0
     with Threads(threads):
         if width:
@@ -2341,7 +2423,7 @@ _LANE_DRIVER = '''
 @njit(cache=True, error_model="numpy")
 def {fill}(q, lo, hi, ks, seed, indptr, indices, base_w, var_w, var_is_base, todo, PR, targets,
               max_steps, per, y, zq, fq, Gq, z, f, ya, lw, PL, r2, dr2, lane_item, lane_target, dt, L,
-              status0, steps0, frac0, status, steps, frac, DL):
+              status0, steps0, frac0, status, steps, frac, DV, Dq):
     """Load the next item of lo .. hi - 1 that needs integrating into lane q (the ones that end
     at their start recorded on the way): the next item to look at, and whether q holds one."""
     n = indptr.shape[0] - 1
@@ -2357,8 +2439,8 @@ def {fill}(q, lo, hi, ks, seed, indptr, indices, base_w, var_w, var_is_base, tod
         circle_from(y, zq, n)
         {rhs}(zq, w, indptr, indices, P, fq, Gq)
         if {freq}:  # the frequency criterion's deviations at the start: circle_sync's checks
-            circle_law_devs(zq, fq, w, indptr, indices, P, DL[0, q])
-            a = law_deviation(DL[0, q], DL[0, q], n, dt, True, 1.0)
+            circle_law_devs(zq, fq, w, indptr, indices, P, Dq)
+            a = law_deviation(Dq, Dq, n, dt, True, 1.0)
             b = 0.0
             if a != a:
                 record(status0, steps0, frac0, status, steps, frac, r, v, NOT_SYNCED, max_steps, 0.0)
@@ -2387,6 +2469,10 @@ def {fill}(q, lo, hi, ks, seed, indptr, indices, base_w, var_w, var_is_base, tod
         for k in range(P.shape[0] - NP):  # a law's edge rows (with_edges), per link
             for e in range(w.shape[0]):
                 PL[(NP * n + k * w.shape[0] + e) * L + q] = P[NP + k, e]
+        if {freq}:  # the start's deviations: the next step's first end
+            for row in range(2 * KF):
+                for i in range(n):
+                    DV[(row * n + i) * L + q] = Dq[row, i]
         r2[q] = a
         dr2[q] = b
         lane_item[q] = item
@@ -2431,17 +2517,22 @@ def {name}(ks, seed, indptr, indices, base_w, var_w, var_is_base, todo, PR, targ
         lane_item = np.full(L, -1, dtype=np.int64)
         lane_t0 = np.zeros(L, dtype=np.int64)
         lane_target = np.zeros(L)
-        # the frequency criterion's deviations per lane at the step's two ends (rows 0 and 1 by turns)
-        DL = np.empty((2, L if {freq} else 0, 2 * KF, n))
+        # the frequency criterion's deviations of every lane at the step's two ends (DA and DB
+        # by turns: the end of step t in DA for an even t), and one lane's for the crossing
+        DA = np.empty(2 * KF * n * L if {freq} else 0)
+        DB = np.empty(2 * KF * n * L if {freq} else 0)
+        Dq = np.empty((2 * KF, n))
+        Dpq = np.empty((2 * KF, n))
         t = 0
         active = 0
         while True:
+            DV = DA if t % 2 == 0 else DB  # where a lane filled now keeps its start's deviations
             for q in range(L):
                 if lane_item[q] < 0 and lo < hi:
                     lo, got = {fill}(q, lo, hi, ks, seed, indptr, indices, base_w, var_w, var_is_base,
                                         todo, PR, targets, max_steps, per, y, zq, fq, Gq, z, f, ya, lw,
                                         PL, r2, dr2, lane_item, lane_target, dt, L,
-                                        status0, steps0, frac0, status, steps, frac, DL)
+                                        status0, steps0, frac0, status, steps, frac, DV, Dq)
                     if got:
                         lane_t0[q] = t
                         active += 1
@@ -2476,23 +2567,20 @@ def {name}(ks, seed, indptr, indices, base_w, var_w, var_is_base, todo, PR, targ
 
 
 #: what :data:`_LANE_DRIVER` holds for RK4 and for Euler
-#: the frequency criterion on RK4's lanes: each lane's deviations by the scalar circle_law_devs at
-#: its own weights and parameters (circle_sync's numbers, bit for bit), their crossing on the last
-#: step's interpolants; a deviation that is not a number: never synchronized
+#: the frequency criterion on RK4's lanes: every lane's deviations by circle_lane_devs (circle_sync's
+#: numbers, bit for bit), each lane's crossing on the last step's interpolants by the scalar code;
+#: a deviation that is not a number: never synchronized
 _FREQUENCY_CROSS = """\
-                    at = (t - lane_t0[q]) % 2  # the step's end in row at, its start in 1 - at
-                    for a in range(rows):
-                        zq[a] = z[a * L + q]
-                        fq[a] = f[a * L + q]
-                    rq, vq, _ = item_of(item, per, var_is_base, todo)
-                    Pq = PR[0] if PR.shape[0] == 1 else PR[rq]
-                    circle_law_devs(zq, fq, base_w if vq < 0 else var_w[vq], indptr, indices, Pq, DL[at, q])
-                    dev = law_deviation(DL[at, q], DL[1 - at, q], n, dt, True, 1.0)
+                    for row in range(2 * KF):
+                        for i in range(n):
+                            Dq[row, i] = DE[(row * n + i) * L + q]
+                            Dpq[row, i] = DS[(row * n + i) * L + q]
+                    dev = law_deviation(Dq, Dpq, n, dt, True, 1.0)
                     if dev != dev:
                         k = max_steps  # diverged: never synchronized
                         x = -1.0
                     else:
-                        x = frequency_crossing(DL[at, q], DL[1 - at, q], n, dt, True, lane_target[q])"""
+                        x = frequency_crossing(Dq, Dpq, n, dt, True, lane_target[q])"""
 
 _LANE_KINDS = {
     "rk4_frequency": {
@@ -2504,7 +2592,10 @@ _LANE_KINDS = {
         "what": "RK4 to the frequency criterion",
         "sync": "circle_sync",
         "step": """\
-            circle_lane_step(z, f, acc, ya, yb, lw, indptr, indices, PL, G, dt, L)""",
+            circle_lane_step(z, f, acc, ya, yb, lw, indptr, indices, PL, G, dt, L)
+            DE = DA if t % 2 == 0 else DB
+            DS = DB if t % 2 == 0 else DA
+            circle_lane_devs(z, f, lw, indptr, indices, PL, DE, L)""",
         "cross": _FREQUENCY_CROSS,
     },
     "rk4": {
