@@ -904,20 +904,30 @@ def test_a_design_runs_on_a_law(tmp_path):
     assert "Traceback" not in res.output and not (tmp_path / "f_design.h5").exists()
 
 
-def test_a_sweep_compares_models_and_a_laws_parameter(tmp_path):
-    """``sweep.grid`` over ``model.law`` (one graph under three models) and over a law's
-    parameter (``model.params.omega``): one file, a group per point."""
+def _sweep_summary(tmp_path, head: str):
+    """``antisync sweep`` of ``head`` (graph, sweep, edges, realizations) by central differences
+    under RK4 in ``tmp_path``, and its ``antisync summary``."""
     cfg = tmp_path / "s.yaml"
     cfg.write_text(
-        "graph: {kind: lollipop, nodes: 6, path: 3}\n"
-        "sweep: {grid: {model.law: [kuramoto, stuart-landau], model.params.omega: [0.0, 0.2]}}\n"
-        "edges: ['2->1']\nbetas: []\nrealizations: 20\nlambda: {method: central-difference}\n"
+        head + "betas: []\nlambda: {method: central-difference}\n"
         f"dynamics: {{integrator: rk4, dt: 0.01}}\noutput: {tmp_path / 's.h5'}\n"
     )
     res = CliRunner().invoke(app, ["sweep", str(cfg), "--quiet"])
     assert res.exit_code == 0, res.output
     summary = CliRunner().invoke(app, ["summary", str(tmp_path / "s.h5")])
     assert summary.exit_code == 0, summary.output
+    return summary
+
+
+def test_a_sweep_compares_models_and_a_laws_parameter(tmp_path):
+    """``sweep.grid`` over ``model.law`` (one graph under three models) and over a law's
+    parameter (``model.params.omega``): one file, a group per point."""
+    summary = _sweep_summary(
+        tmp_path,
+        "graph: {kind: lollipop, nodes: 6, path: 3}\n"
+        "sweep: {grid: {model.law: [kuramoto, stuart-landau], model.params.omega: [0.0, 0.2]}}\n"
+        "edges: ['2->1']\nrealizations: 20\n",
+    )
     for point in (
         "model.law=kuramoto, model.params.omega=0",
         "model.law=stuart-landau, model.params.omega=0.2",
@@ -1168,16 +1178,11 @@ def test_a_sweep_over_an_edge_parameter_and_configs_without_one(tmp_path):
     parameters writes none (its stored text, and so ``--resume`` of files written before them,
     unchanged)."""
     _lag_files(tmp_path)
-    cfg = tmp_path / "s.yaml"
-    cfg.write_text(
+    summary = _sweep_summary(
+        tmp_path,
         "graph: {kind: edgelist, path: net.csv}\nmodel: {law: law.yaml}\n"
-        "sweep: {grid: {model.edge_params.alpha: [0.0, 0.4]}}\n"
-        "edges: ['a->b']\nbetas: []\nrealizations: 8\nlambda: {method: central-difference}\n"
-        f"dynamics: {{integrator: rk4, dt: 0.01}}\noutput: {tmp_path / 's.h5'}\n"
+        "sweep: {grid: {model.edge_params.alpha: [0.0, 0.4]}}\nedges: ['a->b']\nrealizations: 8\n",
     )
-    res = CliRunner().invoke(app, ["sweep", str(cfg), "--quiet"])
-    assert res.exit_code == 0, res.output
-    summary = CliRunner().invoke(app, ["summary", str(tmp_path / "s.h5")])
     assert "model.edge_params.alpha=0.4" in summary.output, summary.output
     for model in ("{frequencies: [0, 0, 0, 0, 0, 0.1]}", "{law: kuramoto}", "{inertia: 1}"):
         config = load_config_text(f"graph: {{kind: lollipop, nodes: 6, path: 3}}\nmodel: {model}\n")

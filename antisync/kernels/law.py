@@ -1213,7 +1213,8 @@ def generate_source(law: Law) -> str:
 def _frequency_exprs(sym) -> tuple:
     """``(f, fj, qs, read, du, rates, edge, edge_rates)`` of :func:`_frequency_source`: the rate
     symbols of a node and its neighbour, the quantities, the inputs they read (their indices
-    and rate symbols), the quantities' rates, those inputs' edge laws and the edge laws' rates."""
+    and rate symbols), the quantities' rates, those inputs' edge laws and the edge laws' rates
+    (each function of the edge parameters alone read as its row: :func:`_link_part`)."""
     import sympy
 
     n_s = len(sym.x)
@@ -1235,6 +1236,9 @@ def _frequency_exprs(sym) -> tuple:
         )
         for h in edge
     ]
+    # a function of the edge parameters alone is read from its row (with_derived)
+    edge = [_link_part(h, sym) for h in edge]
+    edge_rates = [_link_part(h, sym) for h in edge_rates]
     return f, fj, qs, read, du, rates, edge, edge_rates
 
 
@@ -1245,8 +1249,6 @@ def _lane_frequency_source(sym, pr) -> list[str]:
     import sympy
 
     f, fj, qs, read, du, rates, edge, edge_rates = _frequency_exprs(sym)
-    edge = [_link_part(h, sym) for h in edge]  # functions of edge parameters alone: their rows
-    edge_rates = [_link_part(h, sym) for h in edge_rates]
     every = qs + rates + edge + edge_rates
     at = "({k} * n + i) * L + o"
     out = [
@@ -1301,8 +1303,6 @@ def _frequency_source(sym, pr, prefix: str = "") -> list[str]:
     f_j)`` over the in-links (what the cubic Hermite crossing of the frequency criterion needs,
     as the built-in kernels' ``deviations``)."""
     f, fj, qs, read, du, rates, edge, edge_rates = _frequency_exprs(sym)
-    edge = [_link_part(h, sym) for h in edge]  # functions of edge parameters alone: their rows
-    edge_rates = [_link_part(h, sym) for h in edge_rates]
     every = qs + rates + edge + edge_rates
     out = [] if prefix else ["", "", f"KF = {len(qs)}"]
     out += [
