@@ -100,6 +100,19 @@ def test_the_language_refuses_by_name(rates, words):
             {"states": ["x"], "coupling": {"u": "w * x_j"}, "rates": {"x": "u"}, "frequency": {"a": "x"}},
             "model.law.frequency must be an expression or a list",
         ),
+        (
+            {
+                "states": ["x"],
+                "edge_params": {"a": 0},
+                "coupling": {"u": "w * x_j * a"},
+                "rates": {"x": "u + a"},
+            },
+            "model.law.rates.x: 'a' is an edge parameter, which only the coupling (the edge law) reads",
+        ),
+        (
+            {"states": ["x"], "edge_params": {"a": 0}, "coupling": {"u": "w * x_j"}, "rates": {"x": "u"}},
+            "model.law.edge_params.a: no coupling input reads it",
+        ),
     ],
 )
 def test_a_law_with_a_fault_is_refused_on_load(law, words):

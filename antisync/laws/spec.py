@@ -41,7 +41,6 @@ import functools
 import json
 import keyword
 import math
-import re
 from dataclasses import dataclass
 from functools import cached_property
 from pathlib import Path
@@ -364,32 +363,33 @@ def _symbolic(law: Law, key: str) -> Symbolic:
             f"{key}.coupling: no input reads the link's weight w, so damaging a link would change "
             "nothing; write the coupling with w (e.g. w * sin(theta_j - theta_i))"
         )
-    node_texts = [
-        *((f"{key}.rates.{s}", t) for s, t in law.rates),
-        (f"{key}.phase", law.phase),
-        *((f"{key}.start.{s}", t) for s, t in law.start),
-        *((f"{key}.frequency[{k}]", t) for k, t in enumerate(law.frequency)),
-    ]
-    for where, text in node_texts:
-        for q in law.edge_param_names:
-            if re.search(rf"\b{q}\b", text):
+    # an edge parameter read where no link is (the node law, the phase, the start, the
+    # frequency quantities): parsed as a marker, refused by name
+    markers = {q: sympy.Symbol(f"edge parameter {q}") for q in law.edge_param_names}
+
+    def node_expression(where: str, text, names: dict):
+        expr = parse_expression(where, text, {**markers, **names})
+        for q, marker in markers.items():
+            if expr.has(marker):
                 raise ConfigError(
-                    f"{where}: {q!r} is an edge parameter, which only the coupling (the edge law) reads; "
-                    f"got {text!r} (a per-node value belongs in params)"
+                    f"{where}: {q!r} is an edge parameter, which only the coupling (the edge law) "
+                    f"reads; got {text!r} (a per-node value belongs in params)"
                 )
+        return expr
+
     inputs = dict(zip((name for name, _ in law.coupling), u, strict=True))
-    rates = tuple(parse_expression(f"{key}.rates.{s}", e, {**node, **inputs}) for s, e in law.rates)
-    phase = parse_expression(f"{key}.phase", law.phase, node)
+    rates = tuple(node_expression(f"{key}.rates.{s}", e, {**node, **inputs}) for s, e in law.rates)
+    phase = node_expression(f"{key}.phase", law.phase, node)
     if not any(phase.has(v) for v in x):
         raise ConfigError(
             f"{key}.phase must read the node's states (e.g. {law.states[0]}), got {law.phase!r}"
         )
     start = tuple(
-        parse_expression(f"{key}.start.{s}", e, {**consts, **params, "phi": phi}) for s, e in law.start
+        node_expression(f"{key}.start.{s}", e, {**consts, **params, "phi": phi}) for s, e in law.start
     )
     if law.frequency:
         frequency = tuple(
-            parse_expression(f"{key}.frequency[{k}]", e, {**node, **inputs})
+            node_expression(f"{key}.frequency[{k}]", e, {**node, **inputs})
             for k, e in enumerate(law.frequency)
         )
         for k, q in enumerate(frequency):

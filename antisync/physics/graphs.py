@@ -325,16 +325,15 @@ def link_values(path: str | Path, g: nx.Graph, column: str | None = None, what: 
     rows = _split_rows(read_input_text(path, what, GraphError), path, sep)
     if not rows:
         raise GraphError(f"{where}: no links found; give one 'u v value' line per link")
-    first = [text for text, _ in rows[0][2]]
-    header = len(first) >= 3 and (first[0].lower(), first[1].lower()) in HEADER_PAIRS
+    header = len(rows[0][2]) >= 3 and _is_header(rows)  # the edge list's own rule
     if header:
-        names, rows = first, rows[1:]
+        names, rows = [text for text, _ in rows[0][2]], rows[1:]
         if column is None and len(names) != 3:
             raise GraphError(
                 f"{where}: its header names {len(names) - 2} value columns ({', '.join(names[2:])}); "
                 "give column: NAME"
             )
-        at = 2 if column is None else names.index(column) if column in names[2:] else None
+        at = 2 if column is None else 2 + names[2:].index(column) if column in names[2:] else None
         if at is None:
             raise GraphError(f"{where}: no column {column!r} in its header (columns: {', '.join(names[2:])})")
     elif column is not None:
