@@ -38,7 +38,7 @@ from antisync.kernels.core import TAYLOR_MAX_ANGLE
 from antisync.kernels.model_adjoint import simulate_model_adjoint
 from antisync.kernels.model_steps import ModelParams
 from antisync.kernels.shared import realization_ids, rotation_angle_bound
-from antisync.plan.model import drawn_frequencies, start_phases
+from antisync.plan.model import drawn_frequencies, law_targets, start_phases
 from antisync.stats import estimators
 from antisync.status import NOT_SYNCED, SYNCED
 from antisync.store.state import ChunkResult
@@ -402,7 +402,9 @@ def base_network_times(
 
 def _law_lanes(job, first, count, threads, variant_weights, realizations, todo, variant_targets):
     """A user's law by its generated kernels (:func:`antisync.kernels.law.simulate_law`; Euler,
-    RK4 or Rodas4, one trajectory per item). Every network of the job has the same target."""
+    RK4 or Rodas4, one trajectory per item). Every network has the job's one target, or with the
+    relative criterion its own (:func:`_law_params`: ``variant_targets`` is the built-in
+    model's)."""
     from antisync.kernels.law import simulate_law
 
     weights = job.variant_weights if variant_weights is None else variant_weights
@@ -410,7 +412,7 @@ def _law_lanes(job, first, count, threads, variant_weights, realizations, todo, 
     return simulate_law(
         *_network(job, first, count),
         weights,
-        _law_params(job, len(weights) + 1),
+        _law_params(job, weights),
         **_clock(dyn, threshold=False),
         integrator=dyn.integrator,
         threads=threads,
@@ -703,19 +705,30 @@ def _model_adjoint_pass(job, first: int, count: int, threads: int | None):
     )
 
 
-def law_params(setup, dynamics, kinds: int):
+def law_params(setup, dynamics, kinds: int, targets: np.ndarray | None = None):
     """The :class:`~antisync.kernels.law.LawParams` of a :class:`~antisync.plan.model.LawSetup`
-    for ``kinds`` networks (every one the same target), Rodas4's tolerances from ``dynamics``."""
+    for ``kinds`` networks (every one the same target, or ``targets``), Rodas4's tolerances from
+    ``dynamics``."""
     from antisync.kernels.law import LawParams
 
     rtol, atol = dynamics.tolerances
-    targets = np.full(kinds, setup.target)
+    targets = np.full(kinds, setup.target) if targets is None else np.asarray(targets, dtype=np.float64)
     return LawParams(setup.law, setup.values, targets, rtol, atol, setup.criterion, setup.drawn, setup.edges)
 
 
-def _law_params(job, kinds: int):
-    """A law job's :class:`~antisync.kernels.law.LawParams` for ``kinds`` networks."""
-    return law_params(job.law, job.config.dynamics, kinds)
+def _law_params(job, weights=None):
+    """A law job's :class:`~antisync.kernels.law.LawParams` for its undamaged network and the
+    networks ``weights`` (rows; none by default): with the relative criterion each its own
+    target (:func:`antisync.plan.model.law_targets`; the variants' ``r*`` from the job)."""
+    setup = job.law
+    if weights is None or not len(weights):
+        return law_params(setup, job.config.dynamics, 1)
+    if setup.fraction is not None and weights is job.variant_weights:
+        n = setup.values.shape[1]
+        targets = (setup.fraction * setup.r_star * n) ** 2
+    else:
+        targets = law_targets(setup, job.csr.indptr, job.csr.indices, weights)
+    return law_params(setup, job.config.dynamics, len(weights) + 1, targets)
 
 
 def _law_adjoint_pass(job, first: int, count: int, threads: int | None):
@@ -727,7 +740,7 @@ def _law_adjoint_pass(job, first: int, count: int, threads: int | None):
     return simulate_law_adjoint(
         *_network(job, first, count),
         _job_link_derivatives(job),
-        _law_params(job, 1),
+        _law_params(job),
         **_clock(dyn, threshold=False),
         integrator=dyn.integrator,
         threads=threads,

@@ -141,6 +141,10 @@ class CompiledLaw(NamedTuple):
     items_lanes_frequency: object = None
     """RK4's on lane vectors to the frequency criterion (``law_items_lanes_frequency``; None
     where ``items_lanes`` is; used where ``circle[1]``)"""
+    devs: object = None
+    """``law_devs``: the frequency criterion's deviations and their rates (``(2 KF, n)``)"""
+    kf: int = 0
+    """``KF``: the number of the frequency criterion's quantities"""
 
 
 def cache_root() -> Path:
@@ -2016,6 +2020,8 @@ def compile_law(law: Law) -> CompiledLaw:
         (module.CIRCLE, module.CIRCLE_FREQUENCY),
         path,
         module.law_items_lanes_frequency if module.LANES and module.LANES_FREQUENCY else None,
+        module.law_devs,
+        module.KF,
     )
 
 

@@ -408,11 +408,21 @@ class Config:
                 "(every link on its own)"
             )
         if self.model.law is not None and self.sync.criterion == "relative":
-            raise ConfigError(
-                "sync.criterion relative needs the locked state of every damaged network, which antisync "
-                "finds for the built-in model only; a law (model.law) runs to order-parameter or "
-                "frequency (its law's frequency quantities within sync.tolerance of their mean)"
-            )
+            if LAMBDA_ROWS[method].passes == "backward":
+                raise ConfigError(
+                    f"lambda.method {method}: a law's adjoint does not differentiate r* (its locked "
+                    "state moves with every link); with sync.criterion relative use central-difference, "
+                    "finite-difference or orbit"
+                )
+            drawn = [
+                k for k, v in (self.model.params or {}).items() if isinstance(v, dict) and "distribution" in v
+            ]
+            if drawn:
+                raise ConfigError(
+                    f"sync.criterion relative needs fixed law parameters: model.params.{drawn[0]} is drawn "
+                    "per realization, so every realization has its own locked state; give it as a number, "
+                    "a list or a file, or use criterion frequency or order-parameter"
+                )
         if (
             self.model.law is not None
             and self.sync.criterion == "frequency"

@@ -28,6 +28,7 @@ from antisync.plan.model import (
     law_setup,
     model_setup,
     node_parameters,
+    with_law_r_star,
 )
 from antisync.types import LAMBDA_ROWS
 
@@ -236,6 +237,11 @@ def make_job(
     model = law = None
     if config.model.law is not None:
         law = law_setup(config, len(nodes), law_edges(config.model, csr.indptr, csr.indices, nodes, graph))
+        labels = [
+            f"variant {graphs.edge_label(*edges[e])} beta {b:g}"
+            for e, b in zip(variant_edge, variant_beta, strict=True)
+        ]
+        law = with_law_r_star(law, csr.indptr, csr.indices, [csr.weights, *vw], labels)
     elif config.generalized:
         model = _model_fields(
             config, edges, edge_idx, variant_edge, variant_beta, omega, csr, vw, secant, orbit

@@ -34,6 +34,7 @@ of the stable phase-locked state of the weights in use, :mod:`antisync.physics.l
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 from pathlib import Path
@@ -56,12 +57,15 @@ __all__ = [
     "check_second_order_step",
     "drawn_frequencies",
     "law_edges",
+    "law_r_star",
     "law_setup",
+    "law_targets",
     "law_values",
     "model_setup",
     "node_frequencies",
     "node_parameters",
     "start_phases",
+    "with_law_r_star",
     "unsynced_hint",
 ]
 
@@ -509,8 +513,10 @@ def read_frequency_file(path: str | Path, what: str = "model.frequencies.file") 
 class LawSetup:
     """A user's law resolved for a graph: the :class:`~antisync.laws.spec.Law`, its parameters per
     node ``values`` ``(n_params, n)``, the criterion (``CRIT_ORDER`` or ``CRIT_FREQUENCY`` of
-    :mod:`antisync.kernels.core`) and its target, the same for every network of the job: ``R =
-    (r N)^2`` at the threshold, or the frequency tolerance."""
+    :mod:`antisync.kernels.core`) and its target: ``R = (r N)^2`` at the threshold, or the
+    frequency tolerance, the same for every network of the job; with the relative criterion
+    (``fraction``) ``R = (fraction r* N)^2`` of the undamaged network, each other network's from
+    its own ``r*`` (:func:`law_targets`)."""
 
     law: object
     values: np.ndarray
@@ -521,6 +527,88 @@ class LawSetup:
     edges: np.ndarray | None = None
     """``(n_edge_params, nnz)``: the law's edge parameters per in-link in the coupling's CSR order
     (:func:`law_edges`); None without edge parameters."""
+    fraction: float | None = None
+    """``sync.fraction`` with the relative criterion, else None."""
+    lock_t_max: float = 0.0
+    """How long the law may take to lock from its in-phase state (:func:`law_r_star`)."""
+    r_star: np.ndarray | None = None
+    """``(1 + V,)`` with the relative criterion: ``r*`` of the undamaged network and of each
+    variant (:func:`with_law_r_star`), what the records store."""
+
+
+#: How long a law may take to lock from its in-phase state, in units of ``dynamics.t_max`` (and
+#: at least :data:`LOCK_T_MIN`): the relative criterion's ``r*`` (:mod:`antisync.laws.locked`).
+LOCK_T_FACTOR = 10.0
+LOCK_T_MIN = 1000.0
+#: ``r*`` of the networks already locked in this process, by the law, its values and the
+#: network's weights: a chunk's secant rows are the same networks in every chunk.
+_R_STAR: dict = {}
+
+
+def law_r_star(setup: LawSetup, indptr, indices, weights, labels) -> np.ndarray:
+    """``r*`` of the law's locked state on each network (rows of ``weights``, named by
+    ``labels`` in a refusal), by :func:`antisync.laws.locked.locked_state`.
+
+    Raises
+    ------
+    ConfigError
+        A network where the law does not lock from its in-phase state within ``lock_t_max``.
+    """
+    from antisync.laws.locked import locked_state as law_locked
+
+    ip = np.ascontiguousarray(indptr, dtype=np.int64)
+    ix = np.ascontiguousarray(indices, dtype=np.int64)
+    head = (
+        setup.law.text,
+        setup.values.tobytes(),
+        None if setup.edges is None else setup.edges.tobytes(),
+        ip.tobytes(),
+        ix.tobytes(),
+        setup.lock_t_max,
+    )
+    out = np.empty(len(weights))
+    for row, (w, label) in enumerate(zip(weights, labels, strict=True)):
+        w = np.ascontiguousarray(w, dtype=np.float64)
+        key = (*head, w.tobytes())
+        if key not in _R_STAR:
+            state = law_locked(setup.law, setup.values, setup.edges, ip, ix, w, t_max=setup.lock_t_max)
+            if state is None:
+                raise ConfigError(
+                    f"sync.criterion relative: {label}: law {setup.law.name} does not lock from its "
+                    f"in-phase state within t = {setup.lock_t_max:g} (no locked state connected to "
+                    "synchrony; its parameters may be too spread for the coupling): use sync.criterion "
+                    "frequency or order-parameter"
+                )
+            if len(_R_STAR) > 4096:
+                _R_STAR.clear()
+            _R_STAR[key] = state.r
+        out[row] = _R_STAR[key]
+    return out
+
+
+def with_law_r_star(setup: LawSetup, indptr, indices, weights, labels) -> LawSetup:
+    """``setup`` with the relative criterion's ``r*`` of the undamaged network (``weights[0]``)
+    and of each variant, and its target from the undamaged one (nothing to do without the
+    criterion)."""
+    if setup.fraction is None:
+        return setup
+    r_star = law_r_star(setup, indptr, indices, weights, ["the undamaged network", *labels])
+    n = setup.values.shape[1]
+    return dataclasses.replace(setup, r_star=r_star, target=float((setup.fraction * r_star[0] * n) ** 2))
+
+
+def law_targets(setup: LawSetup, indptr, indices, weights) -> np.ndarray:
+    """The targets of the undamaged network and of each network of ``weights`` (rows): the one
+    target of the order-parameter and frequency criteria, or ``(fraction r* N)^2`` of each
+    (:func:`law_r_star`; the variants' from :attr:`LawSetup.r_star` where ``weights`` are
+    they)."""
+    out = np.full(len(weights) + 1, setup.target)
+    if setup.fraction is None or not len(weights):
+        return out
+    labels = [f"network {k + 1} of {len(weights)}" for k in range(len(weights))]
+    r_star = law_r_star(setup, indptr, indices, weights, labels)
+    out[1:] = (setup.fraction * r_star * setup.values.shape[1]) ** 2
+    return out
 
 
 def law_setup(config, n: int, edges: np.ndarray | None = None) -> LawSetup:
@@ -534,6 +622,9 @@ def law_setup(config, n: int, edges: np.ndarray | None = None) -> LawSetup:
         raise ValueError("law_setup: the law has edge parameters; give edges (law_edges)")
     if config.sync.criterion == "frequency":
         return LawSetup(law, values, float(config.sync.tolerance), CRIT_FREQUENCY, drawn, edges)
+    if config.sync.criterion == "relative":  # the target is r*'s: with_law_r_star
+        t_max = max(LOCK_T_MIN, LOCK_T_FACTOR * config.dynamics.t_max)
+        return LawSetup(law, values, np.nan, CRIT_ORDER, drawn, edges, float(config.sync.fraction), t_max)
     return LawSetup(law, values, float((config.dynamics.threshold * n) ** 2), CRIT_ORDER, drawn, edges)
 
 

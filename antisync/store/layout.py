@@ -407,10 +407,12 @@ def _write_state(g, st: JobState) -> None:
 
 def _r_star(job: Job) -> np.ndarray | None:
     """``job``'s r* per trajectory kind (undamaged, then each variant) with ``sync.criterion:
-    relative`` (:class:`antisync.plan.model.ModelSetup`), else None."""
-    if job.model is None or job.model.r_star is None:
+    relative`` (:class:`antisync.plan.model.ModelSetup`, or a law's
+    :class:`antisync.plan.model.LawSetup`), else None."""
+    setup = job.model if job.model is not None else job.law
+    if setup is None or setup.r_star is None:
         return None
-    return np.asarray(job.model.r_star, dtype=np.float64)
+    return np.asarray(setup.r_star, dtype=np.float64)
 
 
 def _read_state(path: Path, g, st: JobState) -> None:
