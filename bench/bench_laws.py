@@ -118,15 +118,13 @@ def main() -> None:
     ap.add_argument("--threads", type=int, default=2)
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--steps", type=int, default=400)
-    ap.add_argument(
-        "--integrator", choices=("rk4", "euler"), default="rk4", help="euler: one trajectory per item"
-    )
+    ap.add_argument("--integrator", choices=("rk4", "euler"), default="rk4")
     ap.add_argument("--no-compile", action="store_true", help="skip the compile timings")
     ap.add_argument(
         "--criterion",
         choices=("order-parameter", "frequency"),
         default="order-parameter",
-        help="frequency: every step's deviations too (the law's RK4 lanes by the scalar per lane)",
+        help="frequency: every step's deviations too (the law's lanes by the scalar per lane)",
     )
     args = ap.parse_args()
     frequency = args.criterion == "frequency"

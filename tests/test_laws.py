@@ -365,10 +365,14 @@ def test_the_lane_driver_is_the_one_trajectory_driver_bit_for_bit(name, integrat
         simulate_law(*args, dt=0.01, max_steps=10, lanes=12)
 
 
-@pytest.mark.parametrize("name", ["swing", "sakaguchi-links"])
-def test_the_frequency_criterion_on_lanes_is_the_one_trajectory_driver_bit_for_bit(name):
-    """RK4 to the frequency criterion on lane vectors (every lane's deviations by
-    ``circle_lane_devs``, each lane's crossing by the scalar code) against one trajectory per
+@pytest.mark.parametrize(
+    "name, integrator",
+    [("swing", "rk4"), ("sakaguchi-links", "rk4"), ("swing", "euler"), ("sakaguchi-links", "euler")],
+)
+def test_the_frequency_criterion_on_lanes_is_the_one_trajectory_driver_bit_for_bit(name, integrator):
+    """RK4 and Euler to the frequency criterion on lane vectors (every lane's deviations by
+    ``circle_lane_devs``, Euler's circle rates by ``circle_lane_rates_of``, each lane's crossing
+    by the scalar code) against one trajectory per
     item: the same statuses, steps and crossings, bit for bit, with damaged links, a shared base
     variant, a ``todo`` mask and lanes refilled (24 realizations x 4 networks through 16
     lanes), on the swing equation (a speed beside the angle: the criterion's two quantities per
@@ -388,8 +392,9 @@ def test_the_frequency_criterion_on_lanes_is_the_one_trajectory_driver_bit_for_b
     todo[::3, 2] = False
     params = LawParams(law, values, np.full(len(vw) + 1, 1e-2), criterion=CRIT_FREQUENCY, edges=lags)
     args = (7, 0, 24, csr.indptr, csr.indices, csr.weights, vw, params)
-    kw = {"dt": 0.01, "max_steps": 20000, "integrator": "rk4", "todo": todo}
-    assert compile_law(law).items_lanes_frequency is not None  # on lanes, not one per item again
+    kw = {"dt": 0.01, "max_steps": 20000, "integrator": integrator, "todo": todo}
+    compiled = compile_law(law)  # on lanes, not one per item again
+    assert compiled.items_lanes_frequency is not None and compiled.items_lanes_euler_frequency is not None
     one = simulate_law(*args, lanes=0, **kw)
     lanes = simulate_law(*args, lanes=16, **kw)
     assert (one.status0 == SYNCED).sum() > 16

@@ -141,6 +141,9 @@ class CompiledLaw(NamedTuple):
     items_lanes_frequency: object = None
     """RK4's on lane vectors to the frequency criterion (``law_items_lanes_frequency``; None
     where ``items_lanes`` is; used where ``circle[1]``)"""
+    items_lanes_euler_frequency: object = None
+    """Euler's on lane vectors to the frequency criterion (``law_items_lanes_euler_frequency``;
+    None where ``items_lanes_frequency`` is)"""
     devs: object = None
     """``law_devs``: the frequency criterion's deviations and their rates (``(2 KF, n)``)"""
     kf: int = 0
@@ -759,6 +762,24 @@ def _lane_source(circle: Circle, pr) -> list[str]:
             f"                vstore(z, ({c} * n + i) * L + o, ci * ca - si * sa)",
             f"                vstore(z, ({s} * n + i) * L + o, si * ca + ci * sa)",
         ]
+    rates_of = []
+    for slots in circle.slots:
+        if len(slots) == 1:
+            at = f"({slots[0]} * n + i) * L + q"
+            rates_of += [f"            f[{at}] = F[{at}]"]
+            continue
+        c, s = (f"({r} * n + i) * L + q" for r in slots)
+        rates_of += [f"            f[{c}] = -F[{c}] * z[{s}]", f"            f[{s}] = F[{s}] * z[{c}]"]
+    out += [
+        "",
+        "",
+        '@njit(cache=True, error_model="numpy")',
+        "def circle_lane_rates_of(z, F, f, n, L):",
+        '    """circle_rates_of of every lane."""',
+        "    for i in range(n):",
+        "        for q in range(L):",
+        *rates_of,
+    ]
     out += [
         "",
         "",
@@ -2020,6 +2041,7 @@ def compile_law(law: Law) -> CompiledLaw:
         (module.CIRCLE, module.CIRCLE_FREQUENCY),
         path,
         module.law_items_lanes_frequency if module.LANES and module.LANES_FREQUENCY else None,
+        module.law_items_lanes_euler_frequency if module.LANES and module.LANES_FREQUENCY else None,
         module.law_devs,
         module.KF,
     )
@@ -2191,12 +2213,15 @@ def simulate_law(
     out = unset_outputs(m, n_var)
     collapsed = np.zeros((m, n_var + 1), dtype=np.bool_)
     blocks = parameter_blocks(values, params.drawn, seed, ks, law, params.edges)
-    on_lanes = {  # Euler to the frequency criterion runs one trajectory per item
+    on_lanes = {
         compiled.items_circle: compiled.items_lanes,
         compiled.items_circle_euler: compiled.items_lanes_euler,
     }
     if params.criterion != CRIT_ORDER:
-        on_lanes = {compiled.items_circle: compiled.items_lanes_frequency}
+        on_lanes = {
+            compiled.items_circle: compiled.items_lanes_frequency,
+            compiled.items_circle_euler: compiled.items_lanes_euler_frequency,
+        }
     if on_lanes.get(items) is None:
         on_lanes = {}
     width = _lane_width(lanes, compiled, params) if items in on_lanes else 0
@@ -2444,9 +2469,8 @@ def {fill}(q, lo, hi, ks, seed, indptr, indices, base_w, var_w, var_is_base, tod
         law_start(seed, ks[r], P, y, n)
         circle_from(y, zq, n)
         {rhs}(zq, w, indptr, indices, P, fq, Gq)
-        if {freq}:  # the frequency criterion's deviations at the start: circle_sync's checks
-            circle_law_devs(zq, fq, w, indptr, indices, P, Dq)
-            a = law_deviation(Dq, Dq, n, dt, True, 1.0)
+        if {freq}:  # the frequency criterion's deviations at the start: {sync}'s checks
+{start_devs}
             b = 0.0
             if a != a:
                 record(status0, steps0, frac0, status, steps, frac, r, v, NOT_SYNCED, max_steps, 0.0)
@@ -2581,12 +2605,25 @@ _FREQUENCY_CROSS = """\
                         for i in range(n):
                             Dq[row, i] = DE[(row * n + i) * L + q]
                             Dpq[row, i] = DS[(row * n + i) * L + q]
-                    dev = law_deviation(Dq, Dpq, n, dt, True, 1.0)
+                    dev = law_deviation(Dq, Dpq, n, dt, {rk4}, 1.0)
                     if dev != dev:
                         k = max_steps  # diverged: never synchronized
                         x = -1.0
                     else:
-                        x = frequency_crossing(Dq, Dpq, n, dt, True, lane_target[q])"""
+                        x = frequency_crossing(Dq, Dpq, n, dt, {rk4}, lane_target[q])"""
+
+#: the start's deviations in a lane's fill: RK4's circle rates are its right-hand side's; Euler's
+#: are made from its angles' speeds (circle_rates_of), as circle_euler_sync makes them
+_START_DEVS = {
+    "rk4": """\
+            circle_law_devs(zq, fq, w, indptr, indices, P, Dq)
+            a = law_deviation(Dq, Dq, n, dt, True, 1.0)""",
+    "euler": """\
+            frq = np.empty(zq.shape[0])
+            circle_rates_of(zq, fq, frq, n)
+            circle_law_devs(zq, frq, w, indptr, indices, P, Dq)
+            a = law_deviation(Dq, Dq, n, dt, False, 1.0)""",
+}
 
 _LANE_KINDS = {
     "rk4_frequency": {
@@ -2602,7 +2639,31 @@ _LANE_KINDS = {
             DE = DA if t % 2 == 0 else DB
             DS = DB if t % 2 == 0 else DA
             circle_lane_devs(z, f, lw, indptr, indices, PL, DE, L)""",
-        "cross": _FREQUENCY_CROSS,
+        "cross": _FREQUENCY_CROSS.format(rk4="True"),
+        "start_devs": _START_DEVS["rk4"],
+    },
+    "euler_frequency": {
+        "name": "law_items_lanes_euler_frequency",
+        "fill": "lane_fill_euler_frequency",
+        "freq": "True",
+        "rhs": "circle_euler_law_rhs",
+        "rhs_rows": "circle_euler_rhs_rows",
+        "what": "Euler to the frequency criterion",
+        "sync": "circle_euler_sync",
+        # circle_euler_sync's order: the turn, the projection every RENORM_EVERY steps, the
+        # angles' speeds, the circle rates from them (into acc, RK4's accumulator), the deviations
+        "step": """\
+            circle_lane_turn(z, f, n, dt, L)
+            for q in range(L):
+                if lane_item[q] >= 0 and (t - lane_t0[q]) % RENORM_EVERY == 0:
+                    circle_lane_project(z, n, q, L)
+            circle_euler_lane_rhs(z, lw, indptr, indices, PL, G, L, f)
+            circle_lane_rates_of(z, f, acc, n, L)
+            DE = DA if t % 2 == 0 else DB
+            DS = DB if t % 2 == 0 else DA
+            circle_lane_devs(z, acc, lw, indptr, indices, PL, DE, L)""",
+        "cross": _FREQUENCY_CROSS.format(rk4="False"),
+        "start_devs": _START_DEVS["euler"],
     },
     "rk4": {
         "name": "law_items_lanes",
@@ -2615,6 +2676,7 @@ _LANE_KINDS = {
         "step": """\
             circle_lane_step(z, f, acc, ya, yb, lw, indptr, indices, PL, G, dt, L)
             circle_lane_order(z, f, n, r2, dr2, L)""",
+        "start_devs": _START_DEVS["rk4"],
         "cross": """\
                     # the Hermite interpolant of R stays below max(R_0, R_1) + 4/27 (|m0| + |m1|):
                     # a lane below that bound (widened for rounding) cannot cross in this step
@@ -2638,6 +2700,7 @@ _LANE_KINDS = {
                 if lane_item[q] >= 0 and (t - lane_t0[q]) % RENORM_EVERY == 0:
                     circle_lane_project(z, n, q, L)
             circle_euler_lane_rhs(z, lw, indptr, indices, PL, G, L, f)""",
+        "start_devs": _START_DEVS["euler"],
         "cross": """\
                     if r2[q] < lane_target[q] and k < max_steps:
                         continue  # a straight line between two values below the target
