@@ -236,21 +236,17 @@ DESIGN_REFUSALS: dict[str, str] = {
     "model.start": "a design cannot use model.start (its starts lie around the locked state of the "
     "weights being designed, which moves with every step and has no derivative here): drop "
     "model.start (uniform phases)",
-    "law frequency": "a design of a law differentiates the order-parameter crossing only, not "
-    "sync.criterion frequency: use order-parameter",
 }
 
 
 def _design_keys(config) -> tuple:
     """What of ``config`` :data:`DESIGN_REFUSALS` is keyed by: the integrator, the backend, the
-    criterion, a given start, a law's criterion."""
-    law = model_kind(config) == "law"
+    criterion, a given start."""
     return (
         config.dynamics.integrator,
         config.backend,
         config.sync.criterion,
         "model.start" if config.model.start is not None else None,
-        f"law {config.sync.criterion}" if law else None,
     )
 
 

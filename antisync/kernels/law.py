@@ -1360,12 +1360,9 @@ def _frequency_source(sym, pr, prefix: str = "") -> list[str]:
     return out
 
 
-def _adjoint_source(sym, pr) -> list[str]:
-    """``law_vjp`` (``out_y += J^T a``, ``out_w[q] += (d f / d w_q)^T a``) and ``law_grads``
-    (``gR = dR/dy`` and the part of ``d Rdot / dy`` that is not ``J^T gR``): what the adjoint of
-    the steps and of the crossing needs (:data:`_ADJOINT_DRIVERS`)."""
-    import sympy
-
+def _vjp_source(sym, pr, name: str) -> list[str]:
+    """``name(y, wq, indptr, indices, P, a, out_y, out_w)``: ``out_y += J^T a`` and ``out_w[q] +=
+    (d f / d w_q)^T a`` of the law ``sym`` (its rates ``f`` of its states ``y``)."""
     n_s, n_u = len(sym.x), len(sym.u)
     node = list(sym.rates)
     edge = list(sym.coupling)
@@ -1376,7 +1373,7 @@ def _adjoint_source(sym, pr) -> list[str]:
     hw = [h.diff(sym.w) for h in edge]
     out = [
         '@njit(cache=True, error_model="numpy")',
-        "def law_vjp(y, wq, indptr, indices, P, a, out_y, out_w):",
+        f"def {name}(y, wq, indptr, indices, P, a, out_y, out_w):",
         "    n = indptr.shape[0] - 1",
         "    for i in range(n):",
     ]
@@ -1407,7 +1404,58 @@ def _adjoint_source(sym, pr) -> list[str]:
         out.append(f"            out_y[{r} * n + i] += {own}")
         out.append(f"            out_y[{r} * n + j] += {other}")
     out.append("            out_w[q] += " + " + ".join(f"b{m} * hw{m}" for m in range(n_u)))
+    return out
 
+
+def _frequency_symbolic(sym):
+    """The law whose vector-Jacobian product is the frequency criterion's crossing seed
+    (``freq_vjp``, ``law_freq_seed``): its states the law's ``x`` and their rates ``f``, its
+    inputs the law's ``u`` and their rates ``du = sum_j (dh/dx_i f_i + dh/dx_j f_j)``, its
+    "rates" the criterion's quantities ``q_k`` (rows ``0 .. KF - 1``) and their rates ``dq_k/dt
+    = dq/dx . f + dq/du . du`` (rows ``KF .. 2 KF - 1``), zero after them (padded with unread
+    states where ``2 KF`` exceeds ``2 S``)."""
+    import sympy
+
+    n_s, n_u = len(sym.x), len(sym.u)
+    f = sympy.symbols(f"f0:{n_s}", real=True)
+    fj = sympy.symbols(f"fj0:{n_s}", real=True)
+    du = sympy.symbols(f"du0:{n_u}", real=True) if n_u else ()
+    qs = list(sym.frequency)
+    rates = [
+        sum((q.diff(x) * fk for x, fk in zip(sym.x, f, strict=True)), sympy.Integer(0))
+        + sum((q.diff(u) * d for u, d in zip(sym.u, du, strict=True)), sympy.Integer(0))
+        for q in qs
+    ]
+    dh = [
+        sum(
+            (h.diff(x) * fk + h.diff(xj) * fjk for x, xj, fk, fjk in zip(sym.x, sym.xj, f, fj, strict=True)),
+            sympy.Integer(0),
+        )
+        for h in sym.coupling
+    ]
+    width = max(2 * n_s, 2 * len(qs))
+    pad = sympy.symbols(f"pad0:{width - 2 * n_s}", real=True) if width > 2 * n_s else ()
+    padj = sympy.symbols(f"padj0:{width - 2 * n_s}", real=True) if width > 2 * n_s else ()
+    return dataclasses.replace(
+        sym,
+        x=(*sym.x, *f, *pad),
+        xj=(*sym.xj, *fj, *padj),
+        u=(*sym.u, *du),
+        coupling=(*sym.coupling, *dh),
+        rates=(*qs, *rates, *([sympy.Integer(0)] * (width - 2 * len(qs)))),
+    )
+
+
+def _adjoint_source(sym, pr) -> list[str]:
+    """``law_vjp`` (``out_y += J^T a``, ``out_w[q] += (d f / d w_q)^T a``) and ``law_grads``
+    (``gR = dR/dy`` and the part of ``d Rdot / dy`` that is not ``J^T gR``): what the adjoint of
+    the steps and of the crossing needs (:data:`_ADJOINT_DRIVERS`)."""
+    import sympy
+
+    out = _vjp_source(sym, pr, "law_vjp")
+    freq = _frequency_symbolic(sym)
+    out += ["", "", f"FREQ_STATES = {len(freq.x)}", "", ""] + _vjp_source(freq, pr, "freq_vjp")
+    n_s = len(sym.x)
     # R = C^2 + S^2, Rdot = 2 (C A + S B): A = -sum sin(phi) phi', B = sum cos(phi) phi'
     # (law_sums' four sums)
     f = [sympy.Symbol(f"f{k}") for k in range(n_s)]
@@ -1923,13 +1971,53 @@ def law_crossing_seed(y, wq, indptr, indices, P, cr, cm, lam, gw, f, gR, gRd, mu
 
 
 @njit(cache=True, error_model="numpy")
-def law_adjoint_one(y0, wq, indptr, indices, P, dt, rk4, target, max_steps, gw):
-    """d tau0 / d w_q of one trajectory (gw, zero unless SYNCED): (status, steps, frac)."""
+def law_freq_seed(y, wq, indptr, indices, P, k, i, cq, cr, lam, gw, f, ya, a, oa, G):
+    """lam += d(cq D + cr dD/dt)/dy and gw += the same by w, D the deviation of the frequency
+    criterion's quantity k at node i from its mean: freq_vjp on (y, f) (the quantities and
+    their rates as functions of the states and their rates), then its part by f through
+    J^T (law_vjp)."""
+    n = indptr.shape[0] - 1
+    m = y.shape[0]
+    law_rhs(y, wq, indptr, indices, P, f, G)
+    ya[:] = 0.0
+    ya[:m] = y
+    ya[m : 2 * m] = f
+    a[:] = 0.0
+    oa[:] = 0.0
+    for j in range(n):
+        a[k * n + j] = -cq / n
+        a[(KF + k) * n + j] = -cr / n
+    a[k * n + i] += cq
+    a[(KF + k) * n + i] += cr
+    freq_vjp(ya, wq, indptr, indices, P, a, oa, gw)
+    for b in range(m):
+        lam[b] += oa[b]
+    law_vjp(y, wq, indptr, indices, P, oa[m : 2 * m], lam, gw)
+
+
+@njit(cache=True, error_model="numpy")
+def law_binding(D, Dp, n, dt, rk4, x):
+    """(k, i) of the deviation whose interpolant is farthest from 0 at x (the one that sets
+    the frequency criterion's crossing there)."""
+    best, bk, bi = -1.0, 0, 0
+    for i in range(n):
+        for k in range(KF):
+            y0, m0, y1, m1 = dev_ends(D, Dp, 2 * k, i, dt, rk4)
+            d = abs(hermite(y0, m0, y1, m1, x))
+            if d > best:
+                best, bk, bi = d, k, i
+    return bk, bi
+
+
+@njit(cache=True, error_model="numpy")
+def law_adjoint_one(y0, wq, indptr, indices, P, dt, rk4, freq, target, max_steps, gw):
+    """d tau0 / d w_q of one trajectory (gw, zero unless SYNCED) to the order-parameter or, with
+    freq, the frequency criterion: (status, steps, frac)."""
     n = indptr.shape[0] - 1
     m = y0.shape[0]
     G = np.empty((rhs_rows(n, indices.shape[0]), n))
     y = y0.copy()
-    st, steps, x = law_sync(y, wq, indptr, indices, P, dt, rk4, False, target, max_steps)
+    st, steps, x = law_sync(y, wq, indptr, indices, P, dt, rk4, freq, target, max_steps)
     if st != SYNCED:
         return st, steps, x
     ys = np.empty((steps + 1, m))
@@ -1942,11 +2030,21 @@ def law_adjoint_one(y0, wq, indptr, indices, P, dt, rk4, target, max_steps, gw):
     for k in range(1, steps + 1):
         law_rhs(ys[k - 1], wq, indptr, indices, P, f, G)
         law_advance(ys[k - 1], ys[k], f, wq, indptr, indices, P, dt, rk4, k2, k3, k4, z, G)
-    # the crossing: H(x) = target on the step (steps - 1, steps); tau = (steps - 1 + x) dt
+    # the crossing: H(x) = target on the step (steps - 1, steps); tau = (steps - 1 + x) dt; H
+    # the interpolant of R, or of the deviation that sets the frequency criterion's crossing
     law_rhs(ys[steps - 1], wq, indptr, indices, P, f, G)
     r0, d0 = law_order(ys[steps - 1], f, P, n)
+    Dp = np.empty((2 * KF, n))
+    D = np.empty((2 * KF, n))
+    if freq:
+        law_devs(ys[steps - 1], f, wq, indptr, indices, P, Dp)
     law_rhs(ys[steps], wq, indptr, indices, P, f, G)
     r1, d1 = law_order(ys[steps], f, P, n)
+    bk, bi = 0, 0
+    if freq:
+        law_devs(ys[steps], f, wq, indptr, indices, P, D)
+        bk, bi = law_binding(D, Dp, n, dt, rk4, x)
+        r0, d0, r1, d1 = Dp[2 * bk, bi], Dp[2 * bk + 1, bi], D[2 * bk, bi], D[2 * bk + 1, bi]
     if rk4:
         m0 = dt * d0
         m1 = dt * d1
@@ -1973,16 +2071,26 @@ def law_adjoint_one(y0, wq, indptr, indices, P, dt, rk4, target, max_steps, gw):
     kk = np.empty((3, m))
     total = np.empty(m)
     net = (wq, indptr, indices, P)
-    law_crossing_seed(ys[steps], *net, c * h_r1, c * h_m1 * dt, lam, gw, f, gR, gRd, mu, kap, G)
+    width = FREQ_STATES * n
+    ya = np.empty(width)
+    a = np.empty(width)
+    oa = np.empty(width)
+    if freq:
+        law_freq_seed(ys[steps], *net, bk, bi, c * h_r1, c * h_m1 * dt, lam, gw, f, ya, a, oa, G)
+    else:
+        law_crossing_seed(ys[steps], *net, c * h_r1, c * h_m1 * dt, lam, gw, f, gR, gRd, mu, kap, G)
     for k in range(steps, 0, -1):
         law_step_adjoint(ys[k - 1], lam, wq, indptr, indices, P, dt, rk4, gw, kk, z, mu, kap, total, G)
         if k == steps:
-            law_crossing_seed(ys[k - 1], *net, c * h_r0, c * h_m0 * dt, lam, gw, f, gR, gRd, mu, kap, G)
+            if freq:
+                law_freq_seed(ys[k - 1], *net, bk, bi, c * h_r0, c * h_m0 * dt, lam, gw, f, ya, a, oa, G)
+            else:
+                law_crossing_seed(ys[k - 1], *net, c * h_r0, c * h_m0 * dt, lam, gw, f, gR, gRd, mu, kap, G)
     return st, steps, x
 
 
 @njit(parallel=True, cache=True, error_model="numpy")
-def law_adjoint_items(ks, seed, indptr, indices, wq, PR, dt, rk4, target, max_steps,
+def law_adjoint_items(ks, seed, indptr, indices, wq, PR, dt, rk4, freq, target, max_steps,
                       status0, steps0, frac0, gw):
     m = ks.shape[0]
     n = indptr.shape[0] - 1
@@ -1990,7 +2098,7 @@ def law_adjoint_items(ks, seed, indptr, indices, wq, PR, dt, rk4, target, max_st
         P = PR[0] if PR.shape[0] == 1 else PR[r]
         y = np.empty(S * n)
         law_start(seed, ks[r], P, y, n)
-        st, k, x = law_adjoint_one(y, wq, indptr, indices, P, dt, rk4, target, max_steps, gw[r])
+        st, k, x = law_adjoint_one(y, wq, indptr, indices, P, dt, rk4, freq, target, max_steps, gw[r])
         status0[r] = st
         steps0[r] = k
         frac0[r] = x
@@ -2286,8 +2394,6 @@ def simulate_law_adjoint(
     them. ``params.targets[0]`` is the target."""
     if integrator not in ("euler", "rk4"):
         raise ValueError(f"the adjoint differentiates euler or rk4 steps, not {integrator!r}")
-    if params.criterion != CRIT_ORDER:
-        raise ValueError("the adjoint of a law differentiates the order-parameter crossing only")
     compiled, ks, indptr, indices, values = _batch(params, first, count, realizations, indptr, indices)
     m = ks.size
     w = np.ascontiguousarray(weights, dtype=np.float64)
@@ -2305,6 +2411,7 @@ def simulate_law_adjoint(
             parameter_blocks(values, params.drawn, seed, ks, params.law, params.edges),
             float(dt),
             integrator == "rk4",
+            params.criterion != CRIT_ORDER,
             float(params.targets[0]),
             int(max_steps),
             status0,

@@ -423,15 +423,6 @@ class Config:
                     "per realization, so every realization has its own locked state; give it as a number, "
                     "a list or a file, or use criterion frequency or order-parameter"
                 )
-        if (
-            self.model.law is not None
-            and self.sync.criterion == "frequency"
-            and LAMBDA_ROWS[method].passes == "backward"
-        ):
-            raise ConfigError(
-                f"lambda.method {method}: a law's adjoint differentiates the order-parameter crossing "
-                "only; with sync.criterion frequency use central-difference, finite-difference or orbit"
-            )
         if self.sync.criterion == "relative" and self.model.drawn:
             raise ConfigError(
                 "sync.criterion relative needs fixed model.frequencies (a list or a file): with "
