@@ -144,6 +144,8 @@ class CompiledLaw(NamedTuple):
     items_lanes_euler_frequency: object = None
     """Euler's on lane vectors to the frequency criterion (``law_items_lanes_euler_frequency``;
     None where ``items_lanes_frequency`` is)"""
+    adjoint_freq: object = None
+    """the adjoint's items to the frequency criterion (``law_adjoint_items_freq``)"""
     devs: object = None
     """``law_devs``: the frequency criterion's deviations and their rates (``(2 KF, n)``)"""
     kf: int = 0
@@ -2010,16 +2012,16 @@ def law_binding(D, Dp, n, dt, rk4, x):
 
 
 @njit(cache=True, error_model="numpy")
-def law_adjoint_one(y0, wq, indptr, indices, P, dt, rk4, freq, target, max_steps, gw):
-    """d tau0 / d w_q of one trajectory (gw, zero unless SYNCED) to the order-parameter or, with
-    freq, the frequency criterion: (status, steps, frac)."""
+def law_adjoint_forward(y0, wq, indptr, indices, P, dt, rk4, freq, target, max_steps):
+    """The forward pass of the adjoint: (status, steps, frac, ys), ys the states at every step
+    (steps + 1 rows; only the start unless SYNCED)."""
     n = indptr.shape[0] - 1
     m = y0.shape[0]
     G = np.empty((rhs_rows(n, indices.shape[0]), n))
     y = y0.copy()
     st, steps, x = law_sync(y, wq, indptr, indices, P, dt, rk4, freq, target, max_steps)
     if st != SYNCED:
-        return st, steps, x
+        return st, steps, x, np.empty((1, m))
     ys = np.empty((steps + 1, m))
     ys[0] = y0
     f = np.empty(m)
@@ -2030,21 +2032,14 @@ def law_adjoint_one(y0, wq, indptr, indices, P, dt, rk4, freq, target, max_steps
     for k in range(1, steps + 1):
         law_rhs(ys[k - 1], wq, indptr, indices, P, f, G)
         law_advance(ys[k - 1], ys[k], f, wq, indptr, indices, P, dt, rk4, k2, k3, k4, z, G)
-    # the crossing: H(x) = target on the step (steps - 1, steps); tau = (steps - 1 + x) dt; H
-    # the interpolant of R, or of the deviation that sets the frequency criterion's crossing
-    law_rhs(ys[steps - 1], wq, indptr, indices, P, f, G)
-    r0, d0 = law_order(ys[steps - 1], f, P, n)
-    Dp = np.empty((2 * KF, n))
-    D = np.empty((2 * KF, n))
-    if freq:
-        law_devs(ys[steps - 1], f, wq, indptr, indices, P, Dp)
-    law_rhs(ys[steps], wq, indptr, indices, P, f, G)
-    r1, d1 = law_order(ys[steps], f, P, n)
-    bk, bi = 0, 0
-    if freq:
-        law_devs(ys[steps], f, wq, indptr, indices, P, D)
-        bk, bi = law_binding(D, Dp, n, dt, rk4, x)
-        r0, d0, r1, d1 = Dp[2 * bk, bi], Dp[2 * bk + 1, bi], D[2 * bk, bi], D[2 * bk + 1, bi]
+    return st, steps, x, ys
+
+
+@njit(cache=True, error_model="numpy")
+def law_crossing_weights(r0, d0, r1, d1, dt, rk4, x):
+    """d tau / d(H's data) of the crossing H(x) = target on the last step (tau = (steps - 1 + x)
+    dt), H the cubic Hermite interpolant of (r0, dt d0, r1, dt d1), or Euler's straight line:
+    the weights of r0, d0, r1 and d1."""
     if rk4:
         m0 = dt * d0
         m1 = dt * d1
@@ -2063,6 +2058,25 @@ def law_adjoint_one(y0, wq, indptr, indices, P, dt, rk4, freq, target, max_steps
         h_m1 = 0.0
         h_x = r1 - r0
     c = -dt / h_x
+    return c * h_r0, c * h_m0 * dt, c * h_r1, c * h_m1 * dt
+
+
+@njit(cache=True, error_model="numpy")
+def law_adjoint_one(y0, wq, indptr, indices, P, dt, rk4, target, max_steps, gw):
+    """d tau0 / d w_q of one trajectory to the order-parameter criterion (gw, zero unless
+    SYNCED): (status, steps, frac)."""
+    n = indptr.shape[0] - 1
+    m = y0.shape[0]
+    st, steps, x, ys = law_adjoint_forward(y0, wq, indptr, indices, P, dt, rk4, False, target, max_steps)
+    if st != SYNCED:
+        return st, steps, x
+    G = np.empty((rhs_rows(n, indices.shape[0]), n))
+    f = np.empty(m)
+    law_rhs(ys[steps - 1], wq, indptr, indices, P, f, G)
+    r0, d0 = law_order(ys[steps - 1], f, P, n)
+    law_rhs(ys[steps], wq, indptr, indices, P, f, G)
+    r1, d1 = law_order(ys[steps], f, P, n)
+    c0, e0, c1, e1 = law_crossing_weights(r0, d0, r1, d1, dt, rk4, x)
     lam = np.zeros(m)
     gR = np.empty(m)
     gRd = np.empty(m)
@@ -2070,35 +2084,81 @@ def law_adjoint_one(y0, wq, indptr, indices, P, dt, rk4, freq, target, max_steps
     kap = np.empty(m)
     kk = np.empty((3, m))
     total = np.empty(m)
+    z = np.empty(m)
     net = (wq, indptr, indices, P)
+    law_crossing_seed(ys[steps], *net, c1, e1, lam, gw, f, gR, gRd, mu, kap, G)
+    for k in range(steps, 0, -1):
+        law_step_adjoint(ys[k - 1], lam, wq, indptr, indices, P, dt, rk4, gw, kk, z, mu, kap, total, G)
+        if k == steps:
+            law_crossing_seed(ys[k - 1], *net, c0, e0, lam, gw, f, gR, gRd, mu, kap, G)
+    return st, steps, x
+
+
+@njit(cache=True, error_model="numpy")
+def law_adjoint_one_freq(y0, wq, indptr, indices, P, dt, rk4, target, max_steps, gw):
+    """law_adjoint_one to the frequency criterion: the crossing is that of the deviation whose
+    interpolant sets it (law_binding), its seed law_freq_seed. Its own function, so that the
+    order-parameter adjoint does not compile freq_vjp."""
+    n = indptr.shape[0] - 1
+    m = y0.shape[0]
+    st, steps, x, ys = law_adjoint_forward(y0, wq, indptr, indices, P, dt, rk4, True, target, max_steps)
+    if st != SYNCED:
+        return st, steps, x
+    G = np.empty((rhs_rows(n, indices.shape[0]), n))
+    f = np.empty(m)
+    Dp = np.empty((2 * KF, n))
+    D = np.empty((2 * KF, n))
+    law_rhs(ys[steps - 1], wq, indptr, indices, P, f, G)
+    law_devs(ys[steps - 1], f, wq, indptr, indices, P, Dp)
+    law_rhs(ys[steps], wq, indptr, indices, P, f, G)
+    law_devs(ys[steps], f, wq, indptr, indices, P, D)
+    bk, bi = law_binding(D, Dp, n, dt, rk4, x)
+    r0, d0, r1, d1 = Dp[2 * bk, bi], Dp[2 * bk + 1, bi], D[2 * bk, bi], D[2 * bk + 1, bi]
+    c0, e0, c1, e1 = law_crossing_weights(r0, d0, r1, d1, dt, rk4, x)
+    lam = np.zeros(m)
+    mu = np.empty(m)
+    kap = np.empty(m)
+    kk = np.empty((3, m))
+    total = np.empty(m)
+    z = np.empty(m)
     width = FREQ_STATES * n
     ya = np.empty(width)
     a = np.empty(width)
     oa = np.empty(width)
-    if freq:
-        law_freq_seed(ys[steps], *net, bk, bi, c * h_r1, c * h_m1 * dt, lam, gw, f, ya, a, oa, G)
-    else:
-        law_crossing_seed(ys[steps], *net, c * h_r1, c * h_m1 * dt, lam, gw, f, gR, gRd, mu, kap, G)
+    net = (wq, indptr, indices, P)
+    law_freq_seed(ys[steps], *net, bk, bi, c1, e1, lam, gw, f, ya, a, oa, G)
     for k in range(steps, 0, -1):
         law_step_adjoint(ys[k - 1], lam, wq, indptr, indices, P, dt, rk4, gw, kk, z, mu, kap, total, G)
         if k == steps:
-            if freq:
-                law_freq_seed(ys[k - 1], *net, bk, bi, c * h_r0, c * h_m0 * dt, lam, gw, f, ya, a, oa, G)
-            else:
-                law_crossing_seed(ys[k - 1], *net, c * h_r0, c * h_m0 * dt, lam, gw, f, gR, gRd, mu, kap, G)
+            law_freq_seed(ys[k - 1], *net, bk, bi, c0, e0, lam, gw, f, ya, a, oa, G)
     return st, steps, x
 
 
 @njit(parallel=True, cache=True, error_model="numpy")
-def law_adjoint_items(ks, seed, indptr, indices, wq, PR, dt, rk4, freq, target, max_steps,
-                      status0, steps0, frac0, gw):
+def law_adjoint_items(ks, seed, indptr, indices, wq, PR, dt, rk4, target, max_steps,
+        status0, steps0, frac0, gw):
     m = ks.shape[0]
     n = indptr.shape[0] - 1
     for r in prange(m):
         P = PR[0] if PR.shape[0] == 1 else PR[r]
         y = np.empty(S * n)
         law_start(seed, ks[r], P, y, n)
-        st, k, x = law_adjoint_one(y, wq, indptr, indices, P, dt, rk4, freq, target, max_steps, gw[r])
+        st, k, x = law_adjoint_one(y, wq, indptr, indices, P, dt, rk4, target, max_steps, gw[r])
+        status0[r] = st
+        steps0[r] = k
+        frac0[r] = x
+
+
+@njit(parallel=True, cache=True, error_model="numpy")
+def law_adjoint_items_freq(ks, seed, indptr, indices, wq, PR, dt, rk4, target, max_steps,
+        status0, steps0, frac0, gw):
+    m = ks.shape[0]
+    n = indptr.shape[0] - 1
+    for r in prange(m):
+        P = PR[0] if PR.shape[0] == 1 else PR[r]
+        y = np.empty(S * n)
+        law_start(seed, ks[r], P, y, n)
+        st, k, x = law_adjoint_one_freq(y, wq, indptr, indices, P, dt, rk4, target, max_steps, gw[r])
         status0[r] = st
         steps0[r] = k
         frac0[r] = x
@@ -2150,6 +2210,7 @@ def compile_law(law: Law) -> CompiledLaw:
         path,
         module.law_items_lanes_frequency if module.LANES and module.LANES_FREQUENCY else None,
         module.law_items_lanes_euler_frequency if module.LANES and module.LANES_FREQUENCY else None,
+        module.law_adjoint_items_freq,
         module.law_devs,
         module.KF,
     )
@@ -2401,8 +2462,9 @@ def simulate_law_adjoint(
     steps0 = np.full(m, -1, dtype=np.int64)
     frac0 = np.full(m, np.nan)
     gw = np.zeros((m, w.size))
+    adjoint = compiled.adjoint if params.criterion == CRIT_ORDER else compiled.adjoint_freq
     with Threads(threads):
-        compiled.adjoint(
+        adjoint(
             ks,
             np.uint64(seed),
             indptr,
@@ -2411,7 +2473,6 @@ def simulate_law_adjoint(
             parameter_blocks(values, params.drawn, seed, ks, params.law, params.edges),
             float(dt),
             integrator == "rk4",
-            params.criterion != CRIT_ORDER,
             float(params.targets[0]),
             int(max_steps),
             status0,
