@@ -1466,3 +1466,22 @@ def test_the_relative_criterion_on_a_law_is_the_builtins(tmp_path):
     assert len(set(np.round(a["r_star"], 9))) == 3  # damage moves r*
     np.testing.assert_allclose(b["tau0_records"], a["tau0_records"], rtol=1e-9)
     np.testing.assert_allclose(b["kept/lambda"], a["kept/lambda"], rtol=1e-6, atol=1e-12)
+
+
+def test_the_grid_tools_refuse_a_law_in_one_line(tmp_path):
+    """``antisync grid`` runs the built-in model's kernels (its operating point, load flows, line
+    trips, and the removal's drivers): a law is refused in one line, exit 2, nothing written,
+    never run as the built-in model under the law's name."""
+    cfg = tmp_path / "g.yaml"
+    cfg.write_text(
+        "graph: {kind: lollipop, nodes: 6, path: 3}\nrealizations: 8\nmodel: {law: kuramoto}\n"
+        f"output: {tmp_path / 'g.h5'}\n"
+    )
+    for args, words in (
+        (["--removal"], "antisync grid --removal runs the built-in model's kernels, not a law's"),
+        ([], "the grid tools need the built-in swing equation"),
+    ):
+        res = CliRunner().invoke(app, ["grid", str(cfg), *args])
+        assert res.exit_code == 2 and words in res.output, (args, res.output)
+        assert "Traceback" not in res.output and len(res.output.strip().splitlines()) == 1
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["g.yaml"]

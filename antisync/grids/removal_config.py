@@ -134,7 +134,13 @@ def plan_removal(cfg: Config, lines, beta: float, islanding: bool) -> RemovalPla
     """The :class:`RemovalPlan` of a removal run of ``cfg``: its graph built once, the lines
     picked, and every refusal the work makes before it starts, one line each (a line not in the
     grid, a bridge, a per-node value that does not fit the graph, a config whose step the grid
-    cannot take, no line left)."""
+    cannot take, no line left, a law: the removal runs the built-in model's kernels)."""
+    if cfg.model.law is not None:
+        raise GridError(
+            f"model.law {cfg.model.law['name']}: antisync grid --removal runs the built-in model's "
+            "kernels, not a law's; for a law's damaged lines use antisync run with edges: and "
+            "betas: [1.0] (each direction of a line removed on the same starts)"
+        )
     try:
         g = graphs.build_graph(cfg.graph, seed=cfg.seed)
         labels = graphs.node_order(g)
