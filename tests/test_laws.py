@@ -843,50 +843,43 @@ def test_the_adjoint_is_the_derivative_of_the_discrete_tau(name):
     """Every link's ``d tau0 / d beta`` by the generated adjoint (one backward pass) against
     central differences of the same realization's tau at ``beta = +-1e-6`` (the crossing in the
     same step), Euler and RK4: the adjoint is the exact derivative of the discrete ``tau``."""
+    law = read_law(name)
+    values = np.full((len(law.params), 6), 0.1)
+    for integrator in ("euler", "rk4"):
+        adj, central, same = _adjoint_and_central_differences(law, values, None, integrator, (0.99 * 6) ** 2)
+        assert same.all()  # the same crossing step
+        np.testing.assert_allclose(adj.dtau, central, atol=1e-6 * np.abs(central).max())
+
+
+def _adjoint_and_central_differences(law, values, lags, integrator, target, criterion=0):
+    """On the lollipop (3, 3) at dt 0.01, realizations 0..5 of seed 3 and five links: the
+    adjoint's :class:`~antisync.kernels.shared.PathwiseResult`, the central differences of the
+    same realizations' tau at ``beta = +-1e-6`` (RK4 on the angles: the steps the adjoint runs
+    backwards), and where both ends of each difference cross in the same step."""
     from antisync.kernels.adjoint import link_derivatives
     from antisync.kernels.law import simulate_law_adjoint
 
-    law = read_law(name)
     g = nx.lollipop_graph(3, 3)
     nx.set_edge_attributes(g, 1.0, "weight")
     om, csr = _csr(g)
-    n = g.number_of_nodes()
-    values = np.full((len(law.params), n), 0.1)
     edges = [(1, 0), (2, 3), (3, 4), (5, 4), (4, 3)]
-    derivs = link_derivatives(om, csr, edges, "normalized")
     h = 1e-6
     vw = coupling.variant_weights(om, csr, [(a, b, s * h) for a, b in edges for s in (1, -1)], "normalized")
-    for integrator in ("euler", "rk4"):
-        kw = {"dt": 0.01, "max_steps": 20000, "integrator": integrator}
-        adj = simulate_law_adjoint(
-            3,
-            0,
-            6,
-            csr.indptr,
-            csr.indices,
-            csr.weights,
-            derivs,
-            LawParams(law, values, np.full(1, (0.99 * n) ** 2)),
-            **kw,
-        )
-        fd = simulate_law(
-            3,
-            0,
-            6,
-            csr.indptr,
-            csr.indices,
-            csr.weights,
-            vw,
-            LawParams(law, values, np.full(len(vw) + 1, (0.99 * n) ** 2)),
-            circle=False,  # RK4 on the angles: the steps the adjoint runs backwards
-            **kw,
-        )
-        assert (adj.status0 == SYNCED).all()
-        np.testing.assert_array_equal(fd.steps[:, 0::2], fd.steps[:, 1::2])  # the same crossing step
-        tau = (fd.steps - 1 + fd.frac) * 0.01
-        central = (tau[:, 0::2] - tau[:, 1::2]) / (2 * h)
-        assert np.abs(central).max() > 1.0
-        np.testing.assert_allclose(adj.dtau, central, atol=1e-6 * np.abs(central).max())
+    kw = {"dt": 0.01, "max_steps": 40000, "integrator": integrator}
+    net = (3, 0, 6, csr.indptr, csr.indices, csr.weights)
+    derivs = link_derivatives(om, csr, edges, "normalized")
+    adj = simulate_law_adjoint(
+        *net, derivs, LawParams(law, values, np.full(1, target), criterion=criterion, edges=lags), **kw
+    )
+    params = LawParams(law, values, np.full(len(vw) + 1, target), criterion=criterion, edges=lags)
+    fd = simulate_law(*net, vw, params, circle=False, **kw)
+    assert (adj.status0 == SYNCED).all(), (integrator, adj.status0)
+    np.testing.assert_array_equal(fd.steps0, adj.steps0)
+    tau = (fd.steps - 1 + fd.frac) * 0.01
+    central = (tau[:, 0::2] - tau[:, 1::2]) / (2 * h)
+    same = fd.steps[:, 0::2] == fd.steps[:, 1::2]
+    assert np.abs(central[same]).max() > 1.0
+    return adj, central, same
 
 
 @pytest.mark.parametrize("name", ["kuramoto", "swing", "stuart-landau", "sakaguchi-links"])
@@ -897,59 +890,22 @@ def test_the_adjoint_of_the_frequency_crossing_is_the_derivative_of_the_discrete
     tau at ``beta = +-1e-6``, Euler and RK4, with spread frequencies (the swing equation: its
     speed and ``(P + u) / gamma``, a quantity that reads the coupling; Stuart-Landau: the
     rate of ``atan2(y, x)``; a lag per link: the edge rows)."""
-    from antisync.kernels.adjoint import link_derivatives
-    from antisync.kernels.law import simulate_law_adjoint
-
     law = read_law(LINK_LAG if name == "sakaguchi-links" else name)
     g = nx.lollipop_graph(3, 3)
     nx.set_edge_attributes(g, 1.0, "weight")
-    om, csr = _csr(g)
-    n = g.number_of_nodes()
-    values = np.ones((len(law.params), n))
-    values[0] = np.linspace(-0.1, 0.1, n)
-    lags = (
-        _lags(csr, {frozenset(e): 0.05 * (k % 5) - 0.1 for k, e in enumerate(g.edges)})
-        if law.edge_params
-        else None
-    )
-    edges = [(1, 0), (2, 3), (3, 4), (5, 4), (4, 3)]
-    derivs = link_derivatives(om, csr, edges, "normalized")
-    h = 1e-6
-    vw = coupling.variant_weights(om, csr, [(a, b, s * h) for a, b in edges for s in (1, -1)], "normalized")
+    _, csr = _csr(g)
+    values = np.ones((len(law.params), 6))
+    values[0] = np.linspace(-0.1, 0.1, 6)
+    lags = None
+    if law.edge_params:
+        lags = _lags(csr, {frozenset(e): 0.05 * (k % 5) - 0.1 for k, e in enumerate(g.edges)})
     for integrator in ("euler", "rk4"):
-        kw = {"dt": 0.01, "max_steps": 40000, "integrator": integrator}
-        adj = simulate_law_adjoint(
-            3,
-            0,
-            6,
-            csr.indptr,
-            csr.indices,
-            csr.weights,
-            derivs,
-            LawParams(law, values, np.full(1, 1e-3), criterion=CRIT_FREQUENCY, edges=lags),
-            **kw,
+        adj, central, same = _adjoint_and_central_differences(
+            law, values, lags, integrator, 1e-3, CRIT_FREQUENCY
         )
-        fd = simulate_law(
-            3,
-            0,
-            6,
-            csr.indptr,
-            csr.indices,
-            csr.weights,
-            vw,
-            LawParams(law, values, np.full(len(vw) + 1, 1e-3), criterion=CRIT_FREQUENCY, edges=lags),
-            circle=False,
-            **kw,
-        )
-        assert (adj.status0 == SYNCED).all(), (integrator, adj.status0)
-        np.testing.assert_array_equal(fd.steps0, adj.steps0)
         # a crossing at a step's end can move to the next step at beta = +-1e-6: there the
         # discrete tau has a kink, and no derivative to compare (1 of 30 with the lags, RK4)
-        same = fd.steps[:, 0::2] == fd.steps[:, 1::2]
         assert same.sum() >= 28, same
-        tau = (fd.steps - 1 + fd.frac) * 0.01
-        central = (tau[:, 0::2] - tau[:, 1::2]) / (2 * h)
-        assert np.abs(central[same]).max() > 1.0
         np.testing.assert_allclose(
             adj.dtau[same], central[same], atol=1e-6 * np.abs(central[same]).max(), err_msg=integrator
         )

@@ -2133,36 +2133,27 @@ def law_adjoint_one_freq(y0, wq, indptr, indices, P, dt, rk4, target, max_steps,
             law_freq_seed(ys[k - 1], *net, bk, bi, c0, e0, lam, gw, f, ya, a, oa, G)
     return st, steps, x
 
-
-@njit(parallel=True, cache=True, error_model="numpy")
-def law_adjoint_items(ks, seed, indptr, indices, wq, PR, dt, rk4, target, max_steps,
-        status0, steps0, frac0, gw):
-    m = ks.shape[0]
-    n = indptr.shape[0] - 1
-    for r in prange(m):
-        P = PR[0] if PR.shape[0] == 1 else PR[r]
-        y = np.empty(S * n)
-        law_start(seed, ks[r], P, y, n)
-        st, k, x = law_adjoint_one(y, wq, indptr, indices, P, dt, rk4, target, max_steps, gw[r])
-        status0[r] = st
-        steps0[r] = k
-        frac0[r] = x
-
-
-@njit(parallel=True, cache=True, error_model="numpy")
-def law_adjoint_items_freq(ks, seed, indptr, indices, wq, PR, dt, rk4, target, max_steps,
-        status0, steps0, frac0, gw):
-    m = ks.shape[0]
-    n = indptr.shape[0] - 1
-    for r in prange(m):
-        P = PR[0] if PR.shape[0] == 1 else PR[r]
-        y = np.empty(S * n)
-        law_start(seed, ks[r], P, y, n)
-        st, k, x = law_adjoint_one_freq(y, wq, indptr, indices, P, dt, rk4, target, max_steps, gw[r])
-        status0[r] = st
-        steps0[r] = k
-        frac0[r] = x
 '''
+
+#: the adjoint's items, one driver per criterion (each compiles only its own crossing seed)
+_ADJOINT_ITEMS = """
+
+@njit(parallel=True, cache=True, error_model="numpy")
+def {name}(ks, seed, indptr, indices, wq, PR, dt, rk4, target, max_steps,
+        status0, steps0, frac0, gw):
+    m = ks.shape[0]
+    n = indptr.shape[0] - 1
+    for r in prange(m):
+        P = PR[0] if PR.shape[0] == 1 else PR[r]
+        y = np.empty(S * n)
+        law_start(seed, ks[r], P, y, n)
+        st, k, x = {one}(y, wq, indptr, indices, P, dt, rk4, target, max_steps, gw[r])
+        status0[r] = st
+        steps0[r] = k
+        frac0[r] = x
+"""
+_ADJOINT_DRIVERS += _ADJOINT_ITEMS.format(name="law_adjoint_items", one="law_adjoint_one")
+_ADJOINT_DRIVERS += _ADJOINT_ITEMS.format(name="law_adjoint_items_freq", one="law_adjoint_one_freq")
 
 
 # -- compiling and running ----------------------------------------------------------------------
