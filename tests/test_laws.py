@@ -1314,12 +1314,12 @@ OMEGAS = [0.15, -0.1, 0.05, 0.12, -0.2, -0.02]
 
 
 def test_a_laws_locked_state_is_the_builtin_newton_state():
-    """r* of :mod:`antisync.laws.locked` (the law integrated from its in-phase state until it
+    """r* of :mod:`antisync.kernels.law_locked` (the law integrated from its in-phase state until it
     locks) against the built-in model's Newton state (:mod:`antisync.physics.locked`), for the
     paper's model and the swing equation written as laws, on the undamaged lollipop and on a
     damaged one: within 1e-11 (measured 2e-13). A common frequency added to every node moves
     nothing (the state rotates; r* does not)."""
-    from antisync.laws.locked import locked_state as law_locked
+    from antisync.kernels.law_locked import locked_state as law_locked
     from antisync.physics.locked import locked_state
 
     g = nx.lollipop_graph(3, 3)

@@ -537,7 +537,7 @@ class LawSetup:
 
 
 #: How long a law may take to lock from its in-phase state, in units of ``dynamics.t_max`` (and
-#: at least :data:`LOCK_T_MIN`): the relative criterion's ``r*`` (:mod:`antisync.laws.locked`).
+#: at least :data:`LOCK_T_MIN`): the relative criterion's ``r*`` (:mod:`antisync.kernels.law_locked`).
 LOCK_T_FACTOR = 10.0
 LOCK_T_MIN = 1000.0
 #: ``r*`` of the networks already locked in this process, by the law, its values and the
@@ -547,14 +547,14 @@ _R_STAR: dict = {}
 
 def law_r_star(setup: LawSetup, indptr, indices, weights, labels) -> np.ndarray:
     """``r*`` of the law's locked state on each network (rows of ``weights``, named by
-    ``labels`` in a refusal), by :func:`antisync.laws.locked.locked_state`.
+    ``labels`` in a refusal), by :func:`antisync.kernels.law_locked.locked_state`.
 
     Raises
     ------
     ConfigError
         A network where the law does not lock from its in-phase state within ``lock_t_max``.
     """
-    from antisync.laws.locked import locked_state as law_locked
+    from antisync.kernels.law_locked import locked_state as law_locked
 
     ip = np.ascontiguousarray(indptr, dtype=np.int64)
     ix = np.ascontiguousarray(indices, dtype=np.int64)
