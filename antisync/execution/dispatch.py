@@ -707,6 +707,8 @@ def law_params(setup, dynamics, kinds: int, targets: np.ndarray | None = None):
     ``dynamics``."""
     from antisync.kernels.law import LawParams
 
+    if setup.fraction is not None and setup.r_star is None:  # a NaN target: never synchronized
+        raise ValueError("law_params: the relative criterion's r* is not found yet (with_law_r_star)")
     rtol, atol = dynamics.tolerances
     targets = np.full(kinds, setup.target) if targets is None else np.asarray(targets, dtype=np.float64)
     return LawParams(setup.law, setup.values, targets, rtol, atol, setup.criterion, setup.drawn, setup.edges)
@@ -720,8 +722,7 @@ def _law_params(job, weights=None):
     if weights is None or not len(weights):
         return law_params(setup, job.config.dynamics, 1)
     if setup.fraction is not None and weights is job.variant_weights:
-        n = setup.values.shape[1]
-        targets = (setup.fraction * setup.r_star * n) ** 2
+        targets = setup.relative_target(setup.r_star)
     else:
         targets = law_targets(setup, job.csr.indptr, job.csr.indices, weights)
     return law_params(setup, job.config.dynamics, len(weights) + 1, targets)

@@ -28,7 +28,7 @@ from typing import Any, Literal
 import yaml
 
 from antisync.errors import ConfigError
-from antisync.plan.model import Model, Sync
+from antisync.plan.model import Model, Sync, law_drawn
 from antisync.types import (
     BACKENDS,
     COUPLINGS,
@@ -414,12 +414,11 @@ class Config:
                     "state moves with every link); with sync.criterion relative use central-difference, "
                     "finite-difference or orbit"
                 )
-            drawn = [
-                k for k, v in (self.model.params or {}).items() if isinstance(v, dict) and "distribution" in v
-            ]
+            drawn = law_drawn(self.model)
             if drawn:
+                name = self.model.user_law.params[drawn[0][0]][0]
                 raise ConfigError(
-                    f"sync.criterion relative needs fixed law parameters: model.params.{drawn[0]} is drawn "
+                    f"sync.criterion relative needs fixed law parameters: model.params.{name} is drawn "
                     "per realization, so every realization has its own locked state; give it as a number, "
                     "a list or a file, or use criterion frequency or order-parameter"
                 )

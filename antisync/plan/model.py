@@ -535,6 +535,10 @@ class LawSetup:
     """``(1 + V,)`` with the relative criterion: ``r*`` of the undamaged network and of each
     variant (:func:`with_law_r_star`), what the records store."""
 
+    def relative_target(self, r_star):
+        """The relative criterion's ``R = (fraction r* N)^2`` of networks with ``r_star``."""
+        return (self.fraction * np.asarray(r_star) * self.values.shape[1]) ** 2
+
 
 #: How long a law may take to lock from its in-phase state, in units of ``dynamics.t_max`` (and
 #: at least :data:`LOCK_T_MIN`): the relative criterion's ``r*`` (:mod:`antisync.kernels.law_locked`).
@@ -593,8 +597,7 @@ def with_law_r_star(setup: LawSetup, indptr, indices, weights, labels) -> LawSet
     if setup.fraction is None:
         return setup
     r_star = law_r_star(setup, indptr, indices, weights, ["the undamaged network", *labels])
-    n = setup.values.shape[1]
-    return dataclasses.replace(setup, r_star=r_star, target=float((setup.fraction * r_star[0] * n) ** 2))
+    return dataclasses.replace(setup, r_star=r_star, target=float(setup.relative_target(r_star[0])))
 
 
 def law_targets(setup: LawSetup, indptr, indices, weights) -> np.ndarray:
@@ -606,8 +609,7 @@ def law_targets(setup: LawSetup, indptr, indices, weights) -> np.ndarray:
     if setup.fraction is None or not len(weights):
         return out
     labels = [f"network {k + 1} of {len(weights)}" for k in range(len(weights))]
-    r_star = law_r_star(setup, indptr, indices, weights, labels)
-    out[1:] = (setup.fraction * r_star * setup.values.shape[1]) ** 2
+    out[1:] = setup.relative_target(law_r_star(setup, indptr, indices, weights, labels))
     return out
 
 
