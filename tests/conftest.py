@@ -13,6 +13,13 @@ os.environ.setdefault(
     "ANTISYNC_LAW_CACHE", str(Path(__file__).resolve().parent.parent / "build" / "law-cache")
 )
 
+#: numba's OpenMP threads wait for the next parallel kernel without spinning. With the default
+#: (active) policy a worker's idle threads spin on the cores the other xdist worker is using, and
+#: each of the thousands of short parallel kernels waits a time slice for them: tests/test_laws.py
+#: on two workers took 277 s so, 34 s without the spin (and 39 s alone in one process; 2026-12-06,
+#: this project's 2-core VM). Read by libgomp when numba first starts its threads, so set before.
+os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
+
 
 @pytest.fixture(scope="session")
 def paper_values():
