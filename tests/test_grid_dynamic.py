@@ -408,6 +408,20 @@ def test_removal_from_starts_around_the_operating_point_on_dask_equals_the_local
     assert not np.array_equal(uniform.tau0, here.tau0)
 
 
+def test_a_laws_removal_on_a_dask_cluster_equals_the_local_table(client):
+    """A user's law (the swing law, tests/test_laws.py) through the same tasks: its setup travels
+    to the workers as data, its kernels compile (or load) there, and the table equals the local
+    one array for array."""
+    cfg = ring_config(realizations=16)
+    p = cfg["model"]["frequencies"]
+    cfg["model"] = {"law": "swing", "params": {"P": p, "m": 1.0, "gamma": 1.0}}
+    here = line_removal(cfg, lines=[(0, 3), (1, 2)])
+    there = line_removal(cfg, lines=[(0, 3), (1, 2)], client=client)
+    for name in ("status0", "tau0", "status", "tau"):
+        np.testing.assert_array_equal(getattr(there, name), getattr(here, name), err_msg=name)
+    assert there.rows == here.rows and (here.status0 == SYNCED).all()
+
+
 def test_cli_removal_with_workers_equals_the_local_run(tmp_path):
     cfg = _grid_files(tmp_path)
     out = {}

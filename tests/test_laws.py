@@ -5,6 +5,7 @@ and second-harmonic networks agree with an independent scipy solve."""
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from pathlib import Path
 
@@ -1424,20 +1425,108 @@ def test_the_relative_criterion_on_a_law_is_the_builtins(tmp_path):
     np.testing.assert_allclose(b["kept/lambda"], a["kept/lambda"], rtol=1e-6, atol=1e-12)
 
 
-def test_the_grid_tools_refuse_a_law_in_one_line(tmp_path):
-    """``antisync grid`` runs the built-in model's kernels (its operating point, load flows, line
-    trips, and the removal's drivers): a law is refused in one line, exit 2, nothing written,
-    never run as the built-in model under the law's name."""
+# -- the dynamic N-1 of a law (antisync grid --removal) -------------------------------------------
+
+#: A six-bus ring with a chord, second order (tests/test_grid_dynamic.py's ring_config), as the
+#: built-in model and as the swing law.
+RING_LINKS = [[i, (i + 1) % 6, 2.0] for i in range(6)] + [[0, 3, 1.0]]
+RING_P = [1.0, -1.0, 0.5, -0.5, 0.8, -0.8]
+
+
+def _ring(model: dict, integrator: str = "rk4", **sync) -> dict:
+    return {
+        "name": "ring6",
+        "graph": {"kind": "inline", "links": RING_LINKS},
+        "model": model,
+        "sync": {"criterion": "frequency", "tolerance": 1e-3, **sync},
+        "dynamics": {"coupling": "raw", "integrator": integrator, "dt": 0.02, "t_max": 80.0},
+        "realizations": 24,
+        "seed": 11,
+    }
+
+
+@pytest.mark.parametrize("integrator", ["rk4", "rodas4"])
+def test_a_laws_removal_is_the_builtin_models(integrator):
+    """``antisync grid --removal`` with the swing law: every start of the intact grid and of each
+    line's removal has the built-in model's status, and its time within 1e-12 relative (the
+    law's kernels take the built-in steps: test_the_swing_equation_as_a_law_is_the_builtin);
+    the table's rows follow."""
+    from antisync.grids.removal import line_removal
+
+    builtin = {"frequencies": RING_P, "inertia": 1.0, "damping": 1.0}
+    swing = {"law": "swing", "params": {"P": RING_P, "m": 1.0, "gamma": 1.0}}
+    want = line_removal(_ring(builtin, integrator), lines=[(0, 3), (1, 2), (4, 5)])
+    got = line_removal(_ring(swing, integrator), lines=[(0, 3), (1, 2), (4, 5)])
+    np.testing.assert_array_equal(got.status0, want.status0)
+    np.testing.assert_array_equal(got.status, want.status)
+    assert (want.status0 == SYNCED).all() and (want.status == SYNCED).all()
+    np.testing.assert_allclose(got.tau0, want.tau0, rtol=1e-12)
+    np.testing.assert_allclose(got.tau, want.tau, rtol=1e-12)
+    for a, b in zip(got.rows, want.rows, strict=True):
+        assert (a.line, a.lost, a.gained, a.both, a.p_value) == (b.line, b.lost, b.gained, b.both, b.p_value)
+    assert got.step_check["passed"] and got.config["model"]["law"]["name"] == "swing"
+
+
+def test_a_stuart_landau_removal_takes_each_lines_own_r_star_and_resumes(tmp_path):
+    """Stuart-Landau oscillators on the ring, relative criterion: each line's removal is timed
+    to its own ``r*`` (the intact grid's start and its realization's run of that damaged network
+    by :func:`simulate_law` agree), and a run through a journal that is read back integrates
+    nothing again and gives the same table."""
+    from antisync.execution.dispatch import law_params
+    from antisync.grids.removal import line_removal
+    from antisync.plan.config import config_from_mapping
+    from antisync.plan.model import law_r_star, law_setup
+    from antisync.stats.estimators import crossing_times
+
+    omegas = [0.3, -0.3, 0.2, -0.2, 0.1, -0.1]
+    cfg = _ring({"law": "stuart-landau", "params": {"omega": omegas}}, criterion="relative", fraction=0.98)
+    cfg["dynamics"].update(dt=0.01, t_max=60.0)
+    cfg["realizations"] = 16
+    journal = tmp_path / "t.partial"
+    lines = [(0, 3), (1, 2)]
+    table = line_removal(cfg, lines=lines, journal=journal)
+    assert (table.status0 == SYNCED).all()
+    again = line_removal(cfg, lines=lines, journal=journal)
+    for name in ("status0", "tau0", "status", "tau"):
+        np.testing.assert_array_equal(getattr(again, name), getattr(table, name), err_msg=name)
+
+    # line 1-2's column is the law's own run of the ring without 1-2, to its own r*
+    config = config_from_mapping(cfg)
+    omega = graphs.omega_matrix(graphs.build_graph(config.graph))
+    gone = omega.copy()
+    gone[1, 2] = gone[2, 1] = 0.0
+    csr = coupling.coupling_csr(omega, "raw")
+    (w,) = coupling.variant_weights(omega, csr, [(1, 2, 1.0)], "raw", both_ways=True)
+    setup = law_setup(config, 6)
+    r_star = law_r_star(setup, csr.indptr, csr.indices, [csr.weights, w], ["intact", "1-2"])
+    assert abs(r_star[1] - r_star[0]) > 1e-4  # the line moves r*: its own target matters
+    setup = dataclasses.replace(setup, r_star=r_star)
+    params = law_params(setup, config.dynamics, 1, setup.relative_target(r_star[1:]))
+    network = (config.seed, 0, 16, csr.indptr, csr.indices, w, np.zeros((0, w.size)))
+    alone = simulate_law(*network, params, dt=0.01, max_steps=6000, integrator="rk4")
+    t0, _ = crossing_times(alone, config.dynamics.interpolate)
+    np.testing.assert_array_equal(alone.status0, table.status[:, 1])
+    np.testing.assert_allclose(t0 * 0.01, table.tau[:, 1], rtol=1e-12)
+
+
+def test_the_static_grid_tools_refuse_a_law_and_give_up_with_a_law_in_one_line(tmp_path):
+    """``antisync grid`` without ``--removal`` needs the built-in swing equation (its operating
+    point, load flows, line trips), and ``sync.give_up`` stops only the built-in Rodas4: a law is
+    refused there in one line, exit 2, nothing written, never run as the built-in model under
+    the law's name."""
     cfg = tmp_path / "g.yaml"
-    cfg.write_text(
-        "graph: {kind: lollipop, nodes: 6, path: 3}\nrealizations: 8\nmodel: {law: kuramoto}\n"
-        f"output: {tmp_path / 'g.h5'}\n"
+    text = "graph: {kind: lollipop, nodes: 6, path: 3}\nrealizations: 8\nmodel: {law: kuramoto}\n"
+    cfg.write_text(text + f"output: {tmp_path / 'g.h5'}\n")
+    stop = tmp_path / "s.yaml"
+    stop.write_text(
+        text + "dynamics: {integrator: rodas4, t_max: 50}\nsync: {criterion: frequency, tolerance: "
+        f"1.0e-3, give_up: {{after: 20, band: 0.5}}}}\noutput: {tmp_path / 's.h5'}\n"
     )
-    for args, words in (
-        (["--removal"], "antisync grid --removal runs the built-in model's kernels, not a law's"),
-        ([], "the grid tools need the built-in swing equation"),
+    for path, args, words in (
+        (cfg, [], "the grid tools need the built-in swing equation"),
+        (stop, ["--removal"], "law kuramoto's kernels have no such stop: remove give_up"),
     ):
-        res = CliRunner().invoke(app, ["grid", str(cfg), *args])
+        res = CliRunner().invoke(app, ["grid", str(path), *args])
         assert res.exit_code == 2 and words in res.output, (args, res.output)
         assert "Traceback" not in res.output and len(res.output.strip().splitlines()) == 1
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["g.yaml"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["g.yaml", "s.yaml"]

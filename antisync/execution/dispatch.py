@@ -63,6 +63,8 @@ __all__ = [
     "job_model_params",
     "key_of",
     "lambda_pass",
+    "law_params",
+    "law_simulator",
     "lookup",
     "model_params",
     "model_kind",
@@ -371,6 +373,16 @@ def model_simulator(dynamics, give_up: tuple[float, float] | None = None) -> Cal
     }[dynamics.integrator]
 
 
+def law_simulator(dynamics) -> Callable:
+    """A user's law's CPU driver with ``dynamics.integrator`` bound
+    (:func:`antisync.kernels.law.simulate_law`: Euler, RK4 or Rodas4; its tolerances are in the
+    :class:`~antisync.kernels.law.LawParams` of :func:`law_params`): :func:`model_simulator`'s
+    counterpart for ``model.law``."""
+    from antisync.kernels.law import simulate_law
+
+    return functools.partial(simulate_law, integrator=dynamics.integrator)
+
+
 def base_network_times(
     job, ks: np.ndarray, dt: float, max_steps: int, threads=None, tolerances: tuple | None = None
 ) -> tuple:
@@ -385,10 +397,7 @@ def base_network_times(
     common = (job.config.seed, 0, 0, csr.indptr, csr.indices, csr.weights, np.zeros((0, csr.weights.size)))
     clock = {"dt": dt, "max_steps": int(max_steps), "threads": threads, "realizations": ks}
     if model_kind(job.config) == "law":
-        from antisync.kernels.law import simulate_law
-
-        params = law_params(job.law, dynamics, 1)
-        sim = simulate_law(*common, params, integrator=dynamics.integrator, **clock)
+        sim = law_simulator(dynamics)(*common, law_params(job.law, dynamics, 1), **clock)
     else:
         params = job_model_params(job, ks, job.model.targets[:1])
         sim = model_simulator(dynamics)(*common, params, **clock)

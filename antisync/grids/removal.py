@@ -58,7 +58,7 @@ from pathlib import Path
 import numpy as np
 
 from antisync.errors import AntisyncError
-from antisync.execution.dispatch import model_params, model_simulator
+from antisync.execution.dispatch import law_params, law_simulator, model_params, model_simulator
 from antisync.execution.executors.dask import TaskLostError, check_client, client_threads
 from antisync.execution.executors.tasks import map_tasks
 from antisync.execution.step_check import (
@@ -72,7 +72,7 @@ from antisync.grids.removal_config import RemovalPlan, check_beta, plan_removal,
 from antisync.grids.removal_journal import RemovalJournal, remove_journal, work_digest
 from antisync.grids.removal_table import RemovalTable, line_rows
 from antisync.physics import coupling
-from antisync.plan.model import model_setup
+from antisync.plan.model import law_edges, law_setup, model_setup, with_law_r_star
 from antisync.stats.estimators import crossing_times
 from antisync.status import ALREADY_SYNCED, GAVE_UP, SYNCED
 
@@ -202,7 +202,11 @@ def line_removal(
         damages = [(a, b, beta) for a, b in todo]
         variants = coupling.variant_weights(omega, csr, damages, kind, both_ways=True)
         names = [f"line {labels[a]}-{labels[b]} beta {beta:g}" for a, b in todo]
-        setup, _, _ = model_setup(cfg, csr.indptr, csr.indices, [csr.weights, *variants], names)
+        if cfg.model.law is None:
+            setup, law = model_setup(cfg, csr.indptr, csr.indices, [csr.weights, *variants], names)[0], None
+            targets = setup.targets
+        else:
+            setup, (law, targets) = None, _law_work(plan, csr, variants, names)
     except AntisyncError as exc:
         if isinstance(exc, GridError):
             raise
@@ -222,6 +226,8 @@ def line_removal(
         indices=csr.indices,
         base=csr.weights,
         setup=setup,
+        law=law,
+        all_targets=targets,
         model=cfg.model,
         n_nodes=len(labels),
         dt=dyn.dt,
@@ -334,13 +340,38 @@ def _groups(client, m: int) -> int:
     return max(1, -(-TASKS_PER_WORKER * threads // chunks))
 
 
+def _law_work(plan: RemovalPlan, csr, variants: np.ndarray, names: list) -> tuple:
+    """A law's removal: its :class:`~antisync.plan.model.LawSetup` on the grid (edge parameters
+    read onto the grid as built; with the relative criterion ``r*`` of the intact grid and of
+    every line's), checked finite at its start and its explicit step on its own Jacobian
+    (:func:`antisync.kernels.law.check_step`), and the target of the intact grid and of each
+    line's."""
+    from antisync.kernels.law import check_step
+
+    cfg = plan.config
+    edges = law_edges(cfg.model, csr.indptr, csr.indices, plan.labels, plan.graph)
+    law = law_setup(cfg, len(plan.labels), edges)
+    check_step(law, cfg.seed, csr, cfg.dynamics)
+    law = with_law_r_star(law, csr.indptr, csr.indices, [csr.weights, *variants], names)
+    if law.fraction is None:
+        return law, np.full(1 + len(names), law.target)
+    return law, law.relative_target(law.r_star)
+
+
 def _simulate(ks, variants, fixed: dict, threads, todo, give_up):
-    """The model driver on realizations ``ks`` of the intact grid and ``variants`` (``todo``:
-    bool ``(ks, 1 + variants)`` or None, every item) with the stop rule ``give_up``."""
-    params = model_params(
-        fixed["setup"], fixed["model"], fixed["seed"], ks, fixed["n_nodes"], fixed["targets"]
-    )
-    return model_simulator(fixed["dynamics"], give_up)(
+    """The model driver, or the law's, on realizations ``ks`` of the intact grid and
+    ``variants`` (``todo``: bool ``(ks, 1 + variants)`` or None, every item) with the stop rule
+    ``give_up`` (the built-in model's Rodas4 only)."""
+    if fixed["law"] is not None:
+        dyn = fixed["dynamics"]
+        params = law_params(fixed["law"], dyn, 1 + variants.shape[0], fixed["targets"])
+        simulate = law_simulator(dyn)
+    else:
+        params = model_params(
+            fixed["setup"], fixed["model"], fixed["seed"], ks, fixed["n_nodes"], fixed["targets"]
+        )
+        simulate = model_simulator(fixed["dynamics"], give_up)
+    return simulate(
         fixed["seed"],
         0,
         0,
@@ -419,7 +450,7 @@ def _pilot(fixed: dict, variants, m: int, threads, log) -> None:
     ks = np.arange(m, dtype=np.int64)
     todo = np.zeros((m, 2), dtype=np.bool_)
     todo[:, 0] = True
-    pilot = {**fixed, "targets": fixed["setup"].targets[:2]}
+    pilot = {**fixed, "targets": fixed["all_targets"][:2]}
     free = _simulate(ks, variants[:1], pilot, threads, todo, None).status0
     tight = _simulate(ks, variants[:1], pilot, threads, todo, (after / PILOT_MARGIN, band)).status0
     locks = np.isin(free, (SYNCED, ALREADY_SYNCED))
@@ -452,7 +483,7 @@ def _step_check(fixed: dict, variants, m: int, threads, log) -> dict | None:
         run = {
             **fixed,
             "dynamics": dynamics,
-            "targets": fixed["setup"].targets[:2],
+            "targets": fixed["all_targets"][:2],
             "dt": dt,
             "max_steps": round(fixed["max_steps"] * fixed["dt"] / dt),
         }
@@ -496,7 +527,7 @@ def _audit_record(audit: np.ndarray) -> dict:
 def _task_call(task: tuple, variants: np.ndarray, fixed: dict, threads) -> tuple:
     """The arguments of :func:`_removal_task` for ``task`` (its ``targets`` cut to its own lines)."""
     ks, group, intact = task
-    targets = fixed["setup"].targets
+    targets = fixed["all_targets"]
     targets = np.concatenate([targets[:1], targets[1:][group]])
     return ks, variants[group], intact, {**fixed, "targets": targets, "group": group}, threads
 

@@ -121,6 +121,8 @@ class RemovalPlan:
     todo: list
     bridges: set
     skipped: list
+    graph: object = field(default=None, repr=False, compare=False)
+    """The grid as built (a law's edge parameters are read onto it)."""
 
     @property
     def asked(self) -> dict:
@@ -134,12 +136,12 @@ def plan_removal(cfg: Config, lines, beta: float, islanding: bool) -> RemovalPla
     """The :class:`RemovalPlan` of a removal run of ``cfg``: its graph built once, the lines
     picked, and every refusal the work makes before it starts, one line each (a line not in the
     grid, a bridge, a per-node value that does not fit the graph, a config whose step the grid
-    cannot take, no line left, a law: the removal runs the built-in model's kernels)."""
-    if cfg.model.law is not None:
+    cannot take, no line left, ``sync.give_up`` with a law)."""
+    law = cfg.model.law is not None
+    if law and cfg.stop_rule("removal") is not None:
         raise GridError(
-            f"model.law {cfg.model.law['name']}: antisync grid --removal runs the built-in model's "
-            "kernels, not a law's; for a law's damaged lines use antisync run with edges: and "
-            "betas: [1.0] (each direction of a line removed on the same starts)"
+            f"sync.give_up stops the built-in Rodas4 early; law {cfg.model.law['name']}'s kernels have "
+            "no such stop: remove give_up"
         )
     try:
         g = graphs.build_graph(cfg.graph, seed=cfg.seed)
@@ -147,13 +149,14 @@ def plan_removal(cfg: Config, lines, beta: float, islanding: bool) -> RemovalPla
         omega = graphs.omega_matrix(g)
         node_frequencies(cfg.model, len(labels))
         node_parameters(cfg.model, len(labels))
-        check_step(omega, cfg)
+        if not law:  # a law's step is checked on its own Jacobian (line_removal)
+            check_step(omega, cfg)
     except AntisyncError as exc:
         raise GridError(str(exc)) from None
     todo, bridges, skipped = pick_lines(omega, labels, lines, beta, islanding)
     if not todo:
         raise GridError("no line to remove: every line asked for is a bridge")
-    return RemovalPlan(cfg, labels, omega, float(beta), bool(islanding), todo, bridges, skipped)
+    return RemovalPlan(cfg, labels, omega, float(beta), bool(islanding), todo, bridges, skipped, g)
 
 
 def planned_lines(cfg, lines, beta: float, islanding: bool) -> dict:

@@ -58,7 +58,7 @@ def key_changes(old, new, most: int = 4) -> str:
 
 def work_digest(fixed: dict, variants: np.ndarray) -> str:
     """SHA-256 of the work as built: the grid's CSR pattern and weights, every line's changed
-    weights and the resolved model (per-node parameters, targets).
+    weights and the resolved model (per-node parameters, targets), or the law.
 
     Part of a :class:`RemovalJournal`'s task tag beside its key: the key names per-node files
     by path and a graph generator by its arguments, so an edited file or another built graph
@@ -79,7 +79,7 @@ def work_digest(fixed: dict, variants: np.ndarray) -> str:
     for name in ("indptr", "indices", "base"):
         add(name, np.asarray(fixed[name]))
     add("variants", np.asarray(variants))
-    setup = fixed["setup"]
+    setup = fixed["setup"] if fixed.get("law") is None else fixed["law"]  # a law's: its text too
     for f in fields(setup):
         add(f.name, getattr(setup, f.name))
     return h.hexdigest()
