@@ -161,6 +161,13 @@ def test_bad_config_values_are_one_line_exit_2(tmp_path):
         "model: {law: kuramoto}\nlambda: {method: adjoint}\ndynamics: {integrator: rodas4}\n": "no discrete",
         "model: {law: kuramoto}\ndynamics: {dt: 2.0}\n": "dynamics.dt = 2 is too large for law kuramoto",
         "model: {law: swing, params: {m: 0}}\ndynamics: {integrator: rodas4}\n": "the rate of nu is not",
+        "model: {law: kuramoto, params: {omega: {distribution: normal, sd: 0.1}}, start: {width: 1}}\n": (
+            "model.start around the locked state needs fixed law parameters: model.params.omega is drawn"
+        ),
+        "model: {law: kuramoto, start: {width: 4}}\n": "model.start.width must be a number in (0, pi]",
+        "model: {law: kuramoto, params: {omega: [-1.5, 1.5, 0, 0, 0, 0]}, start: {width: 1}}\n": (
+            "model.start around the locked state: the undamaged network: law kuramoto does not lock"
+        ),
     }
     for extra, words in cases.items():
         path = tmp_path / "c.yaml"
@@ -1507,6 +1514,84 @@ def test_a_stuart_landau_removal_takes_each_lines_own_r_star_and_resumes(tmp_pat
     t0, _ = crossing_times(alone, config.dynamics.interpolate)
     np.testing.assert_array_equal(alone.status0, table.status[:, 1])
     np.testing.assert_allclose(t0 * 0.01, table.tau[:, 1], rtol=1e-12)
+
+
+@pytest.mark.parametrize("name", ["kuramoto", "stuart-landau"])
+def test_a_laws_start_around_a_locked_state_is_the_builtins_draw(name):
+    """``model.start``: with the two rows of :func:`with_start` below its parameters, a law's
+    start is its ``start`` at ``phi_i = center_i + width (2 u_i - 1)``, bit for bit the phases
+    the built-in model draws (:func:`antisync.plan.model.start_phases`); without them, the
+    paper's phases."""
+    from antisync.kernels.law import with_start
+    from antisync.plan.model import start_phases
+
+    law = read_law(name)
+    n, seed, ks = 7, 5, np.arange(3, 9)
+    values = np.full((len(law.params), n), 0.1)
+    center = np.linspace(-2.0, 2.5, n)
+    rows = np.vstack([center, np.full(n, 0.7)])
+    compiled = compile_law(law)
+    want = start_phases(center, 0.7, seed, ks)
+    for k, phi in zip(ks, want, strict=True):
+        y = np.empty(len(law.states) * n)
+        compiled.start(np.uint64(seed), np.int64(k), with_start(values, rows), y, n)
+        if name == "kuramoto":
+            np.testing.assert_array_equal(y, phi)
+        else:
+            np.testing.assert_array_equal(y, np.concatenate([np.cos(phi), np.sin(phi)]))
+    np.testing.assert_array_equal(with_start(values, None), values)
+    assert not np.allclose(starts(law, values, seed, ks)[:, :n], want)
+
+
+def test_a_laws_removal_from_starts_around_its_locked_state_is_the_builtins():
+    """``model.start: {around: locked}`` with the swing law: the law's locked phases (found by
+    integration) are the built-in model's (Newton), so every start of the ring and of each
+    line's removal has the built-in status and time within 1e-10 relative (measured 6e-13);
+    the starts are not the paper's."""
+    from antisync.grids.removal import line_removal
+
+    start = {"around": "locked", "width": 1.0}
+    builtin = {"frequencies": RING_P, "inertia": 1.0, "damping": 1.0, "start": start}
+    swing = {"law": "swing", "params": {"P": RING_P, "m": 1.0, "gamma": 1.0}, "start": start}
+    want = line_removal(_ring(builtin), lines=[(0, 3), (1, 2)])
+    got = line_removal(_ring(swing), lines=[(0, 3), (1, 2)])
+    np.testing.assert_array_equal(got.status0, want.status0)
+    np.testing.assert_array_equal(got.status, want.status)
+    assert (want.status0 == SYNCED).all()
+    np.testing.assert_allclose(got.tau0, want.tau0, rtol=1e-10)
+    np.testing.assert_allclose(got.tau, want.tau, rtol=1e-10)
+    uniform = line_removal(_ring({k: v for k, v in swing.items() if k != "start"}), lines=[(0, 3)])
+    assert not np.allclose(uniform.tau0, got.tau0)
+
+
+def test_a_laws_run_from_starts_around_its_locked_state_is_the_builtins(tmp_path):
+    """``antisync run`` with ``model.start`` and a law (Kuramoto with spread frequencies, the
+    lollipop, frequency locking): the sums of tau0, tau(beta) and F - 1 of every block are the built-in model's
+    within 1e-9 (its locked phases within the law's locking tolerance of Newton's)."""
+    from antisync.api import run
+
+    base = {
+        "graph": {"kind": "lollipop", "nodes": 6, "path": 3},
+        "edges": ["2->1", "5->6"],
+        "betas": [0.5],
+        "realizations": 48,
+        "seed": 3,
+        "sync": {"criterion": "frequency", "tolerance": 1e-3},
+        "dynamics": {"integrator": "rk4", "dt": 0.01, "t_max": 200},
+    }
+    start = {"around": "locked", "width": 2.0}
+    out = {}
+    for name, model in (
+        ("builtin", {"frequencies": OMEGAS, "start": start}),
+        ("law", {"law": "kuramoto", "params": {"omega": OMEGAS}, "start": start}),
+    ):
+        run({**base, "model": model}, output=tmp_path / f"{name}.h5")
+        with h5py.File(tmp_path / f"{name}.h5") as f:
+            g = f["jobs/lollipop_6_3"]
+            out[name] = {k: g[k][()] for k in ("tau0_records", "block_records")}
+    for key in ("tau0_records", "block_records"):
+        np.testing.assert_allclose(out["law"][key], out["builtin"][key], rtol=1e-9, atol=1e-9, err_msg=key)
+    assert out["law"]["tau0_records"][:, 0].sum() == 48  # every start synchronized
 
 
 def test_the_static_grid_tools_refuse_a_law_and_give_up_with_a_law_in_one_line(tmp_path):

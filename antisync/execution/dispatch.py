@@ -718,9 +718,13 @@ def law_params(setup, dynamics, kinds: int, targets: np.ndarray | None = None):
 
     if setup.fraction is not None and setup.r_star is None:  # a NaN target: never synchronized
         raise ValueError("law_params: the relative criterion's r* is not found yet (with_law_r_star)")
+    if setup.start_width is not None and setup.start is None:  # else: the paper's phases, silently
+        raise ValueError("law_params: model.start's locked phases are not found yet (with_law_start)")
     rtol, atol = dynamics.tolerances
     targets = np.full(kinds, setup.target) if targets is None else np.asarray(targets, dtype=np.float64)
-    return LawParams(setup.law, setup.values, targets, rtol, atol, setup.criterion, setup.drawn, setup.edges)
+    return LawParams(
+        setup.law, setup.values, targets, rtol, atol, setup.criterion, setup.drawn, setup.edges, setup.start
+    )
 
 
 def _law_params(job, weights=None):

@@ -72,7 +72,7 @@ from antisync.grids.removal_config import RemovalPlan, check_beta, plan_removal,
 from antisync.grids.removal_journal import RemovalJournal, remove_journal, work_digest
 from antisync.grids.removal_table import RemovalTable, line_rows
 from antisync.physics import coupling
-from antisync.plan.model import law_edges, law_setup, model_setup, with_law_r_star
+from antisync.plan.model import law_edges, law_setup, model_setup, with_law_r_star, with_law_start
 from antisync.stats.estimators import crossing_times
 from antisync.status import ALREADY_SYNCED, GAVE_UP, SYNCED
 
@@ -343,9 +343,9 @@ def _groups(client, m: int) -> int:
 def _law_work(plan: RemovalPlan, csr, variants: np.ndarray, names: list) -> tuple:
     """A law's removal: its :class:`~antisync.plan.model.LawSetup` on the grid (edge parameters
     read onto the grid as built; with the relative criterion ``r*`` of the intact grid and of
-    every line's), checked finite at its start and its explicit step on its own Jacobian
-    (:func:`antisync.kernels.law.check_step`), and the target of the intact grid and of each
-    line's."""
+    every line's; with ``model.start`` the intact grid's locked phases), checked finite at its
+    start and its explicit step on its own Jacobian (:func:`antisync.kernels.law.check_step`),
+    and the target of the intact grid and of each line's."""
     from antisync.kernels.law import check_step
 
     cfg = plan.config
@@ -353,6 +353,7 @@ def _law_work(plan: RemovalPlan, csr, variants: np.ndarray, names: list) -> tupl
     law = law_setup(cfg, len(plan.labels), edges)
     check_step(law, cfg.seed, csr, cfg.dynamics)
     law = with_law_r_star(law, csr.indptr, csr.indices, [csr.weights, *variants], names)
+    law = with_law_start(law, csr.indptr, csr.indices, csr.weights)
     if law.fraction is None:
         return law, np.full(1 + len(names), law.target)
     return law, law.relative_target(law.r_star)

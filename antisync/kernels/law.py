@@ -18,7 +18,9 @@ per-node parameters ``P`` of shape ``(n_params, n)``):
 - ``law_order(y, f, P, n)``: ``(R, dR/dt)``, ``R = |sum_i e^{i phase_i}|^2``, with the phase's
   rate ``grad(phase) . f`` (the cubic Hermite crossing of :mod:`antisync.kernels.core` needs it);
 - ``law_start(seed, k, P, y, n)``: the start of realization ``k`` from the paper's
-  counter-based phases (:func:`antisync.physics.phases.phase`);
+  counter-based phases (:func:`antisync.physics.phases.phase`), or (``P`` with the two rows of
+  :func:`with_start` below its own ``NROWS``) from phases around a locked state's, as
+  ``model.start`` draws the built-in model's (:func:`antisync.plan.model.start_phases`);
 - ``law_devs(y, f, w, indptr, indices, P, D)``: the frequency criterion's quantities and their
   rates, each minus its mean over the nodes (:func:`_frequency_source`);
 - ``law_jac(y, w, indptr, indices, P, jq)``: the Jacobian's entries on the expanded pattern of
@@ -79,15 +81,17 @@ __all__ = [
     "expanded_pattern",
     "generate_source",
     "jacobian",
+    "node_phases",
     "simulate_law",
     "simulate_law_adjoint",
     "starts",
     "with_derived",
     "with_edges",
+    "with_start",
 ]
 
 #: bumped when the generated code's layout changes (old files are then never read)
-GENERATOR = 12
+GENERATOR = 13
 
 
 class LawParams(NamedTuple):
@@ -109,6 +113,10 @@ class LawParams(NamedTuple):
     edges: np.ndarray | None = None
     """``(n_edge_params, nnz)``: the law's edge parameters per in-link, in the CSR order of the
     weights (None: the law has none)."""
+    start: np.ndarray | None = None
+    """``(2, n)``: ``model.start``'s phases around a locked state, the state's phase per node
+    and the width (every start phase ``phi_i = center_i + width (2 u_i - 1)``); None: the
+    paper's uniform phases."""
 
 
 class CompiledLaw(NamedTuple):
@@ -1142,6 +1150,7 @@ def generate_source(law: Law) -> str:
         "",
         f"S = {n_s}",
         f"NP = {len(sym.p)}",
+        f"NROWS = {len(sym.p) + (len(sym.e) + len(sym.derived) if sym.e else 0)}",
     ]
     out += _rhs_source(sym, pr)
 
@@ -1180,8 +1189,11 @@ def generate_source(law: Law) -> str:
         "",
         '@njit(cache=True, error_model="numpy")',
         "def law_start(seed, k, P, y, n):",
+        "    around = P.shape[0] > NROWS",
         "    for i in range(n):",
         "        phi = phase(seed, k, i)",
+        "        if around:  # model.start: phases around a locked state's (rows NROWS, NROWS + 1)",
+        "            phi = P[NROWS, i] + P[NROWS + 1, i] * (phi * (1.0 / np.pi) - 1.0)",
     ]
     out += _loads(list(sym.start), sym.p, "        ", "P[{k}, i]")
     out += _block(list(sym.start), [f"y[{k} * n + i]" for k in range(n_s)], "        ", pr)
@@ -2245,6 +2257,20 @@ def _batch(params: LawParams, first, count, realizations, indptr, indices) -> tu
     )
 
 
+def with_start(P: np.ndarray, start: np.ndarray | None) -> np.ndarray:
+    """The kernels' parameter array ``P`` (of :func:`with_edges`, or a stack of them) with
+    ``start``'s two rows below it (:attr:`LawParams.start`): ``law_start`` reads a row beyond its
+    law's ``NROWS`` as the phases around which it draws; ``P`` itself without ``start``."""
+    if start is None:
+        return P
+    start = np.asarray(start, dtype=np.float64)
+    *lead, rows, cols = P.shape
+    out = np.zeros((*lead, rows + 2, max(cols, start.shape[1])))
+    out[..., :rows, :cols] = P
+    out[..., rows:, : start.shape[1]] = start
+    return out
+
+
 def parameter_blocks(
     values: np.ndarray, drawn: tuple, seed: int, ks: np.ndarray, law: Law | None = None, edges=None
 ) -> np.ndarray:
@@ -2372,7 +2398,7 @@ def simulate_law(
     )
     out = unset_outputs(m, n_var)
     collapsed = np.zeros((m, n_var + 1), dtype=np.bool_)
-    blocks = parameter_blocks(values, params.drawn, seed, ks, law, params.edges)
+    blocks = with_start(parameter_blocks(values, params.drawn, seed, ks, law, params.edges), params.start)
     on_lanes = {
         compiled.items_circle: compiled.items_lanes,
         compiled.items_circle_euler: compiled.items_lanes_euler,
@@ -2454,6 +2480,9 @@ def simulate_law_adjoint(
     frac0 = np.full(m, np.nan)
     gw = np.zeros((m, w.size))
     adjoint = compiled.adjoint if params.criterion == CRIT_ORDER else compiled.adjoint_freq
+    blocks = with_start(
+        parameter_blocks(values, params.drawn, seed, ks, params.law, params.edges), params.start
+    )
     with Threads(threads):
         adjoint(
             ks,
@@ -2461,7 +2490,7 @@ def simulate_law_adjoint(
             indptr,
             indices,
             w,
-            parameter_blocks(values, params.drawn, seed, ks, params.law, params.edges),
+            blocks,
             float(dt),
             integrator == "rk4",
             float(params.targets[0]),
@@ -2540,6 +2569,19 @@ def in_phase(law: Law, values: np.ndarray) -> np.ndarray:
         f = sympy.lambdify([sym.phi, *sym.p], expr, modules="math")
         out[k * n : (k + 1) * n] = [f(0.0, *values[:, i]) for i in range(n)]
     return out
+
+
+def node_phases(law: Law, values: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """Each node's phase (the law's ``phase`` expression) in the flat state ``y``, in
+    ``(-pi, pi]`` (wrapped: a phase that is a state may have wound any number of times)."""
+    import sympy
+
+    sym = law.symbolic()
+    n = values.shape[1]
+    f = sympy.lambdify([*sym.x, *sym.p], sym.phase, modules="numpy")
+    states = np.asarray(y, dtype=np.float64).reshape(len(law.states), n)
+    angle = np.broadcast_to(np.asarray(f(*states, *np.asarray(values, dtype=np.float64)), dtype=float), (n,))
+    return np.angle(np.exp(1j * angle))
 
 
 def check_step(setup, seed: int, csr, dynamics) -> None:
@@ -2655,7 +2697,7 @@ def {fill}(q, lo, hi, ks, seed, indptr, indices, base_w, var_w, var_is_base, tod
         for k in range(NP):
             for i in range(n):
                 PL[(k * n + i) * L + q] = P[k, i]
-        for k in range(P.shape[0] - NP):  # a law's edge rows (with_edges), per link
+        for k in range(NROWS - NP):  # a law's edge rows (with_edges), per link
             for e in range(w.shape[0]):
                 PL[(NP * n + k * w.shape[0] + e) * L + q] = P[NP + k, e]
         if {freq}:  # the start's deviations: the next step's first end
@@ -2693,7 +2735,7 @@ def {name}(ks, seed, indptr, indices, base_w, var_w, var_is_base, todo, PR, targ
         ya = np.zeros(rows * L)
         yb = np.zeros(rows * L)
         lw = np.zeros(nnz * L)
-        PL = np.zeros((NP * n + (PR.shape[1] - NP) * nnz) * L)
+        PL = np.zeros((NP * n + (NROWS - NP) * nnz) * L)
         G = np.empty(LANE_KH * n * L if hoist else 0)
         r2 = np.zeros(L)
         dr2 = np.zeros(L)

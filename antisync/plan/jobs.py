@@ -29,6 +29,7 @@ from antisync.plan.model import (
     model_setup,
     node_parameters,
     with_law_r_star,
+    with_law_start,
 )
 from antisync.types import LAMBDA_ROWS
 
@@ -242,6 +243,7 @@ def make_job(
             for e, b in zip(variant_edge, variant_beta, strict=True)
         ]
         law = with_law_r_star(law, csr.indptr, csr.indices, [csr.weights, *vw], labels)
+        law = with_law_start(law, csr.indptr, csr.indices, csr.weights)
     elif config.generalized:
         model = _model_fields(
             config, edges, edge_idx, variant_edge, variant_beta, omega, csr, vw, secant, orbit

@@ -288,13 +288,13 @@ class Model:
             ("phase_lag", 0.0),
             ("inertia", 0.0),
             ("damping", 1.0),
-            ("start", None),
         ):
             if getattr(self, key) != default:
                 raise ConfigError(
                     f"model.{key} belongs to the built-in model; with model.law give the law's parameters "
                     "in model.params (and write the dynamics in the law)"
                 )
+        object.__setattr__(self, "start", _check_start(self.start))
         law = read_law(self.law)
         object.__setattr__(self, "law", law.as_dict())
         for key, known, what, read in (
@@ -313,6 +313,13 @@ class Model:
                     )
                 out[name] = read(f"model.{key}.{name}", value)
             object.__setattr__(self, key, out or None)
+        drawn = law_drawn(self)
+        if self.start is not None and drawn:
+            raise ConfigError(
+                f"model.start around the locked state needs fixed law parameters: model.params."
+                f"{law.params[drawn[0][0]][0]} is drawn per realization, which moves the locked state "
+                "with every realization; fix it (a number, a list or a file), or drop model.start"
+            )
 
     @property
     def user_law(self):
@@ -534,6 +541,12 @@ class LawSetup:
     r_star: np.ndarray | None = None
     """``(1 + V,)`` with the relative criterion: ``r*`` of the undamaged network and of each
     variant (:func:`with_law_r_star`), what the records store."""
+    start_width: float | None = None
+    """``model.start.width``: starts drawn around the undamaged network's locked state, else
+    None (the paper's uniform phases)."""
+    start: np.ndarray | None = None
+    """``(2, n)`` with ``model.start``: the undamaged network's locked phase per node and the
+    width (:func:`with_law_start`; :attr:`antisync.kernels.law.LawParams.start`)."""
 
     def relative_target(self, r_star):
         """The relative criterion's ``R = (fraction r* N)^2`` of networks with ``r_star``."""
@@ -544,9 +557,36 @@ class LawSetup:
 #: at least :data:`LOCK_T_MIN`): the relative criterion's ``r*`` (:mod:`antisync.kernels.law_locked`).
 LOCK_T_FACTOR = 10.0
 LOCK_T_MIN = 1000.0
-#: ``r*`` of the networks already locked in this process, by the law, its values and the
+#: The law's locked states already found in this process, by the law, its values and the
 #: network's weights: a chunk's secant rows are the same networks in every chunk.
-_R_STAR: dict = {}
+_LOCKED: dict = {}
+
+
+def _law_locked(setup: LawSetup, indptr, indices, weights):
+    """The law's locked state on the network ``weights`` (a
+    :class:`~antisync.kernels.law_locked.LawLocked`), or None where it does not lock from its
+    in-phase state within ``lock_t_max``; each network found once per process."""
+    from antisync.kernels.law_locked import locked_state
+
+    ip = np.ascontiguousarray(indptr, dtype=np.int64)
+    ix = np.ascontiguousarray(indices, dtype=np.int64)
+    w = np.ascontiguousarray(weights, dtype=np.float64)
+    edges = None if setup.edges is None else setup.edges.tobytes()
+    key = (setup.law.text, setup.values.tobytes(), edges, ip.tobytes(), ix.tobytes(), setup.lock_t_max)
+    key += (w.tobytes(),)
+    if key not in _LOCKED:
+        if len(_LOCKED) > 4096:
+            _LOCKED.clear()
+        _LOCKED[key] = locked_state(setup.law, setup.values, setup.edges, ip, ix, w, t_max=setup.lock_t_max)
+    return _LOCKED[key]
+
+
+def _no_lock(setup: LawSetup, label: str) -> str:
+    return (
+        f"{label}: law {setup.law.name} does not lock from its in-phase state within t = "
+        f"{setup.lock_t_max:g} (no locked state connected to synchrony; its parameters may be too "
+        "spread for the coupling)"
+    )
 
 
 def law_r_star(setup: LawSetup, indptr, indices, weights, labels) -> np.ndarray:
@@ -558,36 +598,42 @@ def law_r_star(setup: LawSetup, indptr, indices, weights, labels) -> np.ndarray:
     ConfigError
         A network where the law does not lock from its in-phase state within ``lock_t_max``.
     """
-    from antisync.kernels.law_locked import locked_state as law_locked
-
-    ip = np.ascontiguousarray(indptr, dtype=np.int64)
-    ix = np.ascontiguousarray(indices, dtype=np.int64)
-    head = (
-        setup.law.text,
-        setup.values.tobytes(),
-        None if setup.edges is None else setup.edges.tobytes(),
-        ip.tobytes(),
-        ix.tobytes(),
-        setup.lock_t_max,
-    )
     out = np.empty(len(weights))
     for row, (w, label) in enumerate(zip(weights, labels, strict=True)):
-        w = np.ascontiguousarray(w, dtype=np.float64)
-        key = (*head, w.tobytes())
-        if key not in _R_STAR:
-            state = law_locked(setup.law, setup.values, setup.edges, ip, ix, w, t_max=setup.lock_t_max)
-            if state is None:
-                raise ConfigError(
-                    f"sync.criterion relative: {label}: law {setup.law.name} does not lock from its "
-                    f"in-phase state within t = {setup.lock_t_max:g} (no locked state connected to "
-                    "synchrony; its parameters may be too spread for the coupling): use sync.criterion "
-                    "frequency or order-parameter"
-                )
-            if len(_R_STAR) > 4096:
-                _R_STAR.clear()
-            _R_STAR[key] = state.r
-        out[row] = _R_STAR[key]
+        state = _law_locked(setup, indptr, indices, w)
+        if state is None:
+            raise ConfigError(
+                f"sync.criterion relative: {_no_lock(setup, label)}: use sync.criterion frequency or "
+                "order-parameter"
+            )
+        out[row] = state.r
     return out
+
+
+def with_law_start(setup: LawSetup, indptr, indices, weights) -> LawSetup:
+    """``setup`` with ``model.start``'s rows: the locked phase of every node of the undamaged
+    network ``weights`` (the law's ``phase`` in the state it locks to from its in-phase state,
+    :func:`~antisync.kernels.law_locked.locked_state`) and the width; the start of node ``i`` is
+    the law's ``start`` at ``phi_i = center_i + width (2 u_i - 1)``, the built-in model's
+    :func:`start_phases` (nothing to do without ``model.start``).
+
+    Raises
+    ------
+    ConfigError
+        The undamaged network does not lock from its in-phase state within ``lock_t_max``.
+    """
+    from antisync.kernels.law import node_phases
+
+    if setup.start_width is None or setup.start is not None:
+        return setup
+    state = _law_locked(setup, indptr, indices, weights)
+    if state is None:
+        raise ConfigError(
+            f"model.start around the locked state: {_no_lock(setup, 'the undamaged network')}: drop "
+            "model.start (uniform phases)"
+        )
+    center = node_phases(setup.law, setup.values, state.y)
+    return dataclasses.replace(setup, start=np.vstack([center, np.full(center.size, setup.start_width)]))
 
 
 def with_law_r_star(setup: LawSetup, indptr, indices, weights, labels) -> LawSetup:
@@ -622,12 +668,18 @@ def law_setup(config, n: int, edges: np.ndarray | None = None) -> LawSetup:
     law, drawn = config.model.user_law, law_drawn(config.model)
     if law.edge_params and edges is None:
         raise ValueError("law_setup: the law has edge parameters; give edges (law_edges)")
+    start = config.model.start
+    common = {
+        "drawn": drawn,
+        "edges": edges,
+        "lock_t_max": max(LOCK_T_MIN, LOCK_T_FACTOR * config.dynamics.t_max),
+        "start_width": None if start is None else float(start["width"]),
+    }
     if config.sync.criterion == "frequency":
-        return LawSetup(law, values, float(config.sync.tolerance), CRIT_FREQUENCY, drawn, edges)
+        return LawSetup(law, values, float(config.sync.tolerance), CRIT_FREQUENCY, **common)
     if config.sync.criterion == "relative":  # the target is r*'s: with_law_r_star
-        t_max = max(LOCK_T_MIN, LOCK_T_FACTOR * config.dynamics.t_max)
-        return LawSetup(law, values, np.nan, CRIT_ORDER, drawn, edges, float(config.sync.fraction), t_max)
-    return LawSetup(law, values, float((config.dynamics.threshold * n) ** 2), CRIT_ORDER, drawn, edges)
+        return LawSetup(law, values, np.nan, CRIT_ORDER, fraction=float(config.sync.fraction), **common)
+    return LawSetup(law, values, float((config.dynamics.threshold * n) ** 2), CRIT_ORDER, **common)
 
 
 def law_edges(model: Model, indptr, indices, nodes=None, graph=None) -> np.ndarray | None:
