@@ -1398,34 +1398,46 @@ def test_a_stuart_landau_locked_state_and_its_relative_times_are_solve_ivps():
         assert abs(_tau(got)[r] * 0.005 - want) < 1e-6 * want, (r, _tau(got)[r] * 0.005, want)
 
 
-def test_the_relative_criterion_on_a_law_is_the_builtins(tmp_path):
-    """The paper's model with fixed frequencies, built in and as the law ``kuramoto``, to the
-    relative criterion by central differences under RK4 on the same realizations: the stored r*
-    of every network within 1e-11, tau0's records within 1e-9 relative, each realization's
-    Lambda within 1e-6 relative (measured 2e-13, 3e-12, 1.4e-8: r* found by integration, not
-    Newton, and the central secant divides its difference by 2 dbeta)."""
+def _lollipop_builtin_and_law(tmp_path, keys, realizations: int, start=None, **config) -> tuple:
+    """The paper's model with :data:`OMEGAS`, built in and as the law ``kuramoto``, run by
+    :func:`antisync.api.run` on the same realizations of the lollipop (edges 2->1, 5->6):
+    ``keys`` of each file's job, ``(builtin, law)``."""
     from antisync.api import run
 
     base = {
         "graph": {"kind": "lollipop", "nodes": 6, "path": 3},
         "edges": ["2->1", "5->6"],
         "betas": [0.5],
-        "realizations": 64,
+        "realizations": realizations,
         "seed": 3,
-        "sync": {"criterion": "relative", "fraction": 0.98},
         "dynamics": {"integrator": "rk4", "dt": 0.01, "t_max": 200},
-        "lambda": {"method": "central-difference", "dbeta": 0.01},
+        **config,
     }
-    out = {}
+    extra = {} if start is None else {"start": start}
+    out = []
     for name, model in (
-        ("builtin", {"frequencies": OMEGAS}),
-        ("law", {"law": "kuramoto", "params": {"omega": OMEGAS}}),
+        ("builtin", {"frequencies": OMEGAS, **extra}),
+        ("law", {"law": "kuramoto", "params": {"omega": OMEGAS}, **extra}),
     ):
         run({**base, "model": model}, output=tmp_path / f"{name}.h5")
         with h5py.File(tmp_path / f"{name}.h5") as f:
-            g = f["jobs/lollipop_6_3"]
-            out[name] = {k: g[k][()] for k in ("r_star", "tau0_records", "kept/lambda")}
-    a, b = out["builtin"], out["law"]
+            out.append({k: f["jobs/lollipop_6_3"][k][()] for k in keys})
+    return tuple(out)
+
+
+def test_the_relative_criterion_on_a_law_is_the_builtins(tmp_path):
+    """The paper's model with fixed frequencies, built in and as the law ``kuramoto``, to the
+    relative criterion by central differences under RK4 on the same realizations: the stored r*
+    of every network within 1e-11, tau0's records within 1e-9 relative, each realization's
+    Lambda within 1e-6 relative (measured 2e-13, 3e-12, 1.4e-8: r* found by integration, not
+    Newton, and the central secant divides its difference by 2 dbeta)."""
+    a, b = _lollipop_builtin_and_law(
+        tmp_path,
+        ("r_star", "tau0_records", "kept/lambda"),
+        64,
+        sync={"criterion": "relative", "fraction": 0.98},
+        **{"lambda": {"method": "central-difference", "dbeta": 0.01}},
+    )
     np.testing.assert_allclose(b["r_star"], a["r_star"], rtol=0, atol=1e-11)
     assert len(set(np.round(a["r_star"], 9))) == 3  # damage moves r*
     np.testing.assert_allclose(b["tau0_records"], a["tau0_records"], rtol=1e-9)
@@ -1566,32 +1578,19 @@ def test_a_laws_removal_from_starts_around_its_locked_state_is_the_builtins():
 
 def test_a_laws_run_from_starts_around_its_locked_state_is_the_builtins(tmp_path):
     """``antisync run`` with ``model.start`` and a law (Kuramoto with spread frequencies, the
-    lollipop, frequency locking): the sums of tau0, tau(beta) and F - 1 of every block are the built-in model's
-    within 1e-9 (its locked phases within the law's locking tolerance of Newton's)."""
-    from antisync.api import run
-
-    base = {
-        "graph": {"kind": "lollipop", "nodes": 6, "path": 3},
-        "edges": ["2->1", "5->6"],
-        "betas": [0.5],
-        "realizations": 48,
-        "seed": 3,
-        "sync": {"criterion": "frequency", "tolerance": 1e-3},
-        "dynamics": {"integrator": "rk4", "dt": 0.01, "t_max": 200},
-    }
-    start = {"around": "locked", "width": 2.0}
-    out = {}
-    for name, model in (
-        ("builtin", {"frequencies": OMEGAS, "start": start}),
-        ("law", {"law": "kuramoto", "params": {"omega": OMEGAS}, "start": start}),
-    ):
-        run({**base, "model": model}, output=tmp_path / f"{name}.h5")
-        with h5py.File(tmp_path / f"{name}.h5") as f:
-            g = f["jobs/lollipop_6_3"]
-            out[name] = {k: g[k][()] for k in ("tau0_records", "block_records")}
+    lollipop, frequency locking): the sums of tau0, tau(beta) and F - 1 of every block are the
+    built-in model's within 1e-9 (its locked phases within the law's locking tolerance of
+    Newton's)."""
+    builtin, law = _lollipop_builtin_and_law(
+        tmp_path,
+        ("tau0_records", "block_records"),
+        48,
+        start={"around": "locked", "width": 2.0},
+        sync={"criterion": "frequency", "tolerance": 1e-3},
+    )
     for key in ("tau0_records", "block_records"):
-        np.testing.assert_allclose(out["law"][key], out["builtin"][key], rtol=1e-9, atol=1e-9, err_msg=key)
-    assert out["law"]["tau0_records"][:, 0].sum() == 48  # every start synchronized
+        np.testing.assert_allclose(law[key], builtin[key], rtol=1e-9, atol=1e-9, err_msg=key)
+    assert law["tau0_records"][:, 0].sum() == 48  # every start synchronized
 
 
 def test_the_static_grid_tools_refuse_a_law_and_give_up_with_a_law_in_one_line(tmp_path):
