@@ -372,7 +372,13 @@ def test_the_lane_driver_is_the_one_trajectory_driver_bit_for_bit(name, integrat
 
 @pytest.mark.parametrize(
     "name, integrator",
-    [("swing", "rk4"), ("sakaguchi-links", "rk4"), ("swing", "euler"), ("sakaguchi-links", "euler")],
+    [
+        ("swing", "rk4"),
+        ("swing", "euler"),
+        # the same templates with a lag per link (their edge rows): compile-heavy repeats
+        pytest.param("sakaguchi-links", "rk4", marks=pytest.mark.slow),
+        pytest.param("sakaguchi-links", "euler", marks=pytest.mark.slow),
+    ],
 )
 def test_the_frequency_criterion_on_lanes_is_the_one_trajectory_driver_bit_for_bit(name, integrator):
     """RK4 and Euler to the frequency criterion on lane vectors (every lane's deviations by
@@ -890,7 +896,11 @@ def _adjoint_and_central_differences(law, values, lags, integrator, target, crit
     return adj, central, same
 
 
-@pytest.mark.parametrize("name", ["kuramoto", "swing", "stuart-landau", "sakaguchi-links"])
+@pytest.mark.parametrize(
+    "name",
+    # a lag per link in the adjoint: test_the_jacobian_and_the_adjoint_read_edge_parameters
+    ["kuramoto", "swing", "stuart-landau", pytest.param("sakaguchi-links", marks=pytest.mark.slow)],
+)
 def test_the_adjoint_of_the_frequency_crossing_is_the_derivative_of_the_discrete_tau(name):
     """To the frequency criterion: every link's ``d tau0 / d beta`` by the generated adjoint
     (its crossing seed the vector-Jacobian product of the deviation that sets the crossing, and
@@ -1028,7 +1038,11 @@ def _lag_network():
     return g, om, csr, _lags(csr, lag)
 
 
-@pytest.mark.parametrize("integrator", ["euler", "rk4", "rodas4"])
+@pytest.mark.parametrize(
+    "integrator",
+    # Euler's and Rodas4's templates read edge rows as RK4's do: compile-heavy repeats
+    [pytest.param("euler", marks=pytest.mark.slow), "rk4", pytest.param("rodas4", marks=pytest.mark.slow)],
+)
 def test_an_edge_parameter_equal_on_every_link_is_the_laws_constant(integrator):
     """``kuramoto-sakaguchi`` (the lag a constant, 0.3) and the lag as an edge parameter at 0.3
     on every link: the same realizations' tau0 and tau(beta) to 1e-12 relative (the constant's
