@@ -113,7 +113,7 @@ def test_todo_integrates_only_the_marked_items_with_the_same_bits(integrator):
         assert np.array_equal(got[mask], want[mask]), name
         skipped = got[~mask]
         assert (np.isnan(skipped) if name.startswith("frac") else skipped == -1).all(), name
-    # the default 32 lanes narrowed to 16 for these few items (_scattered_layout): same bits
+    # the default 32 lanes narrowed to 16 for these few items (_layout): same bits
     wide = simulate(5, 0, 40, *args, todo=todo, **kw)
     for name in ("status0", "steps0", "status", "steps"):
         assert np.array_equal(getattr(wide, name), getattr(part, name)), name
@@ -128,15 +128,15 @@ def test_todo_integrates_only_the_marked_items_with_the_same_bits(integrator):
 def test_scattered_items_narrow_the_lanes_and_the_groups():
     """A todo run's layout: 32 lanes halved to 16 (never below, never widened) while a group
     would get fewer than eight items a lane, and no more groups than it takes to fill them."""
-    from antisync.kernels.cpu import _scattered_layout
+    from antisync.kernels.cpu import _layout
 
-    assert _scattered_layout(46, 1, 32) == (1, 16)
-    assert _scattered_layout(46, 2, 32) == (2, 16)
-    assert _scattered_layout(10, 2, 32) == (1, 16)
-    assert _scattered_layout(256, 1, 32) == (1, 32)
-    assert _scattered_layout(300, 2, 32) == (2, 16)
-    assert _scattered_layout(5, 4, 8) == (1, 8)
-    assert _scattered_layout(0, 2, 32) == (1, 16)
+    assert _layout(46, 1, 32) == (1, 16)
+    assert _layout(46, 2, 32) == (2, 16)
+    assert _layout(10, 2, 32) == (1, 16)
+    assert _layout(256, 1, 32) == (1, 32)
+    assert _layout(300, 2, 32) == (2, 16)
+    assert _layout(5, 4, 8) == (1, 8)
+    assert _layout(0, 2, 32) == (1, 16)
 
 
 @pytest.mark.parametrize("kind", ["normalized", "raw"])

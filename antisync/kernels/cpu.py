@@ -246,8 +246,9 @@ def simulate(
         # a variant equal to the base is integrated, not copied from a base that may not run
         graph = graph._replace(var_is_base=np.zeros_like(var_is_base), todo=todo)
     with Threads(threads) as groups:
-        if todo is not None and lanes:
-            groups, lanes = _scattered_layout(int(todo.sum()), groups, int(lanes))
+        if lanes:
+            items = m * (1 + var_w.shape[0]) if todo is None else int(todo.sum())
+            groups, lanes = _layout(items, groups, int(lanes))
         run = Run(
             np.uint64(seed),
             ftype(dt),
@@ -369,20 +370,24 @@ def simulate_model(
         if not lanes:
             _integrate_items(ks, np.uint64(seed), graph, model, float(dt), rk4, int(max_steps), out)
         else:
-            if graph.todo.shape[0] > 0:
-                groups, lanes = _scattered_layout(int(graph.todo.sum()), groups, int(lanes))
+            every = ks.size * (1 + graph.var_w.shape[0])
+            groups, lanes = _layout(
+                int(graph.todo.sum()) if graph.todo.shape[0] else every, groups, int(lanes)
+            )
             taylor = _taylor_everywhere(dt, indptr, graph.base_w, graph.var_w, model.freqs, params, n)
             run = Run(np.uint64(seed), float(dt), 0.0, int(max_steps), taylor, rk4, int(lanes))
             integrate_lanes(ks, graph, run, model, out, NO_TANGENTS, groups)
     return SimResult(out.status0, out.steps0, out.status, out.steps, out.frac0, out.frac)
 
 
-def _scattered_layout(items: int, groups: int, lanes: int) -> tuple[int, int]:
-    """``(groups, lanes)`` for a run of ``items`` scattered items (``todo``): half the lanes,
-    down to 16, while a group would get fewer than eight items a lane, then no more groups (row
-    ranges) than it takes to fill the lanes. A group steps until its last lane is done, so a
-    few items, long ones among them (the hybrid's secants pass near saddles), leave most of 32
-    lanes idle. Either gives the same results, bit for bit. Measured, one thread, the secants of
+def _layout(items: int, groups: int, lanes: int) -> tuple[int, int]:
+    """``(groups, lanes)`` for a run of ``items`` items (every realization of every network, or
+    the ``todo`` ones): half the lanes, down to 16, while a group would get fewer than eight
+    items a lane, then no more groups (row ranges) than it takes to fill the lanes. A group
+    steps until its last lane is done, so a few items, long ones among them (the hybrid's
+    secants pass near saddles), leave most of 32 lanes idle; and a small batch cut into
+    ``4 x threads`` groups steps mostly empty lanes (32 realizations at N = 1,000: 8 groups of
+    4). Either gives the same results, bit for bit. Measured, one thread, the secants of
     ``adjoint-hybrid`` (ms per realization, 32 against 16 lanes): IEEE 118 swing, 46 items, 24
     against 16; karate, 242 items, 0.23-0.28 against 0.16-0.18; les miserables, 56 items,
     0.43-0.50 against 0.26-0.29 (bench/RESULTS.md)."""
