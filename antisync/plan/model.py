@@ -562,10 +562,12 @@ LOCK_T_MIN = 1000.0
 _LOCKED: dict = {}
 
 
-def _law_locked(setup: LawSetup, indptr, indices, weights):
+def _law_locked(setup: LawSetup, indptr, indices, weights, state: bool = False):
     """The law's locked state on the network ``weights`` (a
     :class:`~antisync.kernels.law_locked.LawLocked`), or None where it does not lock from its
-    in-phase state within ``lock_t_max``; each network found once per process."""
+    in-phase state within ``lock_t_max``; each network found once per process. The cache keeps
+    ``r*`` and, only where ``state`` asked for it, the state itself (``y`` is None otherwise: a
+    10,000-bus grid's thousands of secant networks would hold gigabytes)."""
     from antisync.kernels.law_locked import locked_state
 
     ip = np.ascontiguousarray(indptr, dtype=np.int64)
@@ -574,11 +576,13 @@ def _law_locked(setup: LawSetup, indptr, indices, weights):
     edges = None if setup.edges is None else setup.edges.tobytes()
     key = (setup.law.text, setup.values.tobytes(), edges, ip.tobytes(), ix.tobytes(), setup.lock_t_max)
     key += (w.tobytes(),)
-    if key not in _LOCKED:
+    have = _LOCKED.get(key, False)
+    if have is False or (state and have is not None and have.y is None):
         if len(_LOCKED) > 4096:
             _LOCKED.clear()
-        _LOCKED[key] = locked_state(setup.law, setup.values, setup.edges, ip, ix, w, t_max=setup.lock_t_max)
-    return _LOCKED[key]
+        have = locked_state(setup.law, setup.values, setup.edges, ip, ix, w, t_max=setup.lock_t_max)
+        _LOCKED[key] = have if have is None or state else dataclasses.replace(have, y=None)
+    return have
 
 
 def _no_lock(setup: LawSetup, label: str) -> str:
@@ -626,7 +630,7 @@ def with_law_start(setup: LawSetup, indptr, indices, weights) -> LawSetup:
 
     if setup.start_width is None or setup.start is not None:
         return setup
-    state = _law_locked(setup, indptr, indices, weights)
+    state = _law_locked(setup, indptr, indices, weights, state=True)
     if state is None:
         raise ConfigError(
             f"model.start around the locked state: {_no_lock(setup, 'the undamaged network')}: drop "
