@@ -1500,6 +1500,25 @@ def test_a_laws_removal_is_the_builtin_models(integrator):
     assert got.step_check["passed"] and got.config["model"]["law"]["name"] == "swing"
 
 
+def test_a_laws_removal_at_the_braess_boundary_is_the_builtin_models():
+    """Where the removal changes the answer: the Braess ring (tests/test_grid_dynamic.py) has no
+    stable locked state, so no start of the intact grid synchronizes, and removing line 0-4
+    restores it for every start. The Kuramoto law with the same injections gives the built-in
+    model's statuses, every one, and its times within 1e-12 relative (measured 4.7e-14)."""
+    from test_grid_dynamic import P_BRAESS, K, braess_config
+
+    from antisync.grids.removal import line_removal
+
+    cfg = braess_config(K, realizations=24)
+    want = line_removal(cfg)
+    got = line_removal({**cfg, "model": {"law": "kuramoto", "params": {"omega": P_BRAESS}}})
+    assert (want.status0 != SYNCED).all() and want.row(0, 4).gained == 24
+    np.testing.assert_array_equal(got.status0, want.status0)
+    np.testing.assert_array_equal(got.status, want.status)
+    np.testing.assert_allclose(got.tau, want.tau, rtol=1e-12)
+    assert [(r.line, r.lost, r.gained) for r in got.rows] == [(r.line, r.lost, r.gained) for r in want.rows]
+
+
 def test_a_stuart_landau_removal_takes_each_lines_own_r_star_and_resumes(tmp_path):
     """Stuart-Landau oscillators on the ring, relative criterion: each line's removal is timed
     to its own ``r*`` (the intact grid's start and its realization's run of that damaged network
