@@ -410,16 +410,13 @@ def _law_lanes(job, first, count, threads, variant_weights, realizations, todo, 
     RK4 or Rodas4, one trajectory per item). Every network has the job's one target, or with the
     relative criterion its own (:func:`_law_params`: ``variant_targets`` is the built-in
     model's)."""
-    from antisync.kernels.law import simulate_law
-
     weights = job.variant_weights if variant_weights is None else variant_weights
     dyn = job.config.dynamics
-    return simulate_law(
+    return law_simulator(dyn)(
         *_network(job, first, count),
         weights,
         _law_params(job, weights),
         **_clock(dyn, threshold=False),
-        integrator=dyn.integrator,
         threads=threads,
         realizations=realizations,
         todo=todo,

@@ -72,7 +72,7 @@ from antisync.grids.removal_config import RemovalPlan, check_beta, plan_removal,
 from antisync.grids.removal_journal import RemovalJournal, remove_journal, work_digest
 from antisync.grids.removal_table import RemovalTable, line_rows
 from antisync.physics import coupling
-from antisync.plan.model import law_edges, law_setup, model_setup, with_law_r_star, with_law_start
+from antisync.plan.model import law_on_network, model_setup
 from antisync.stats.estimators import crossing_times
 from antisync.status import ALREADY_SYNCED, GAVE_UP, SYNCED
 
@@ -349,11 +349,11 @@ def _law_work(plan: RemovalPlan, csr, variants: np.ndarray, names: list) -> tupl
     from antisync.kernels.law import check_step
 
     cfg = plan.config
-    edges = law_edges(cfg.model, csr.indptr, csr.indices, plan.labels, plan.graph)
-    law = law_setup(cfg, len(plan.labels), edges)
-    check_step(law, cfg.seed, csr, cfg.dynamics)
-    law = with_law_r_star(law, csr.indptr, csr.indices, [csr.weights, *variants], names)
-    law = with_law_start(law, csr.indptr, csr.indices, csr.weights)
+
+    def check(setup):
+        check_step(setup, cfg.seed, csr, cfg.dynamics)
+
+    law = law_on_network(cfg, plan.labels, plan.graph, csr, variants, names, check)
     if law.fraction is None:
         return law, np.full(1 + len(names), law.target)
     return law, law.relative_target(law.r_star)

@@ -24,12 +24,9 @@ from antisync.plan.model import (
     LawSetup,
     ModelSetup,
     check_second_order_step,
-    law_edges,
-    law_setup,
+    law_on_network,
     model_setup,
     node_parameters,
-    with_law_r_star,
-    with_law_start,
 )
 from antisync.types import LAMBDA_ROWS
 
@@ -237,13 +234,11 @@ def make_job(
     orbit = _orbit_fields(graph, nodes, omega, csr, edges, config)
     model = law = None
     if config.model.law is not None:
-        law = law_setup(config, len(nodes), law_edges(config.model, csr.indptr, csr.indices, nodes, graph))
         labels = [
             f"variant {graphs.edge_label(*edges[e])} beta {b:g}"
             for e, b in zip(variant_edge, variant_beta, strict=True)
         ]
-        law = with_law_r_star(law, csr.indptr, csr.indices, [csr.weights, *vw], labels)
-        law = with_law_start(law, csr.indptr, csr.indices, csr.weights)
+        law = law_on_network(config, nodes, graph, csr, vw, labels)
     elif config.generalized:
         model = _model_fields(
             config, edges, edge_idx, variant_edge, variant_beta, omega, csr, vw, secant, orbit

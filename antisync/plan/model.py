@@ -686,6 +686,19 @@ def law_setup(config, n: int, edges: np.ndarray | None = None) -> LawSetup:
     return LawSetup(law, values, float((config.dynamics.threshold * n) ** 2), CRIT_ORDER, **common)
 
 
+def law_on_network(config, nodes, graph, csr, variants, labels, check=None) -> LawSetup:
+    """``config``'s law on a network as built (``graph``, its ``nodes`` in the order of the
+    coupling ``csr``): :func:`law_setup` with the edge parameters read onto it, ``check(setup)``
+    if given (before any locking), then ``r*`` of the undamaged network and of each row of
+    ``variants`` (``labels`` name them; relative criterion) and ``model.start``'s locked phases:
+    what a run's job and a grid's removal integrate."""
+    setup = law_setup(config, len(nodes), law_edges(config.model, csr.indptr, csr.indices, nodes, graph))
+    if check is not None:
+        check(setup)
+    setup = with_law_r_star(setup, csr.indptr, csr.indices, [csr.weights, *variants], labels)
+    return with_law_start(setup, csr.indptr, csr.indices, csr.weights)
+
+
 def law_edges(model: Model, indptr, indices, nodes=None, graph=None) -> np.ndarray | None:
     """The law's edge parameters per in-link, ``(n_edge_params, nnz)`` in the CSR order of
     ``indptr``/``indices`` (the coupling's weights), or None for a law without them. Each from
