@@ -384,3 +384,19 @@ def test_a_law_runs_on_the_cluster_as_locally(client, tmp_path):
         chunk_realizations=50,
     )
     _assert_same(out, (_arrays(local), _summary(local)))
+
+
+def test_two_maps_on_one_client_read_their_own_shared_settings(client):
+    """A settings dict every call shares is sent once, under a key of its own: two maps whose
+    dicts have the same keys ({"dt": ...}) each read their own values, and releasing one map's
+    copy loses nothing of the other's (a dict scattered as itself was stored under "dt")."""
+    import operator
+
+    from antisync.execution.executors.dask import map_on_client
+
+    first, second = {"dt": 0.1}, {"dt": 0.05}
+    opened = map_on_client(client, operator.getitem, [(first, "dt"), (first, "dt")])
+    assert next(opened)[1] == 0.1
+    assert sorted(map_on_client(client, operator.getitem, [(second, "dt")] * 2)) == [(0, 0.05), (1, 0.05)]
+    opened.close()
+    assert sorted(map_on_client(client, operator.getitem, [(second, "dt")] * 2)) == [(0, 0.05), (1, 0.05)]

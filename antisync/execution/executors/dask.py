@@ -418,8 +418,11 @@ def map_on_client(client, fn: Callable[..., Any], calls: Iterable[tuple]) -> Ite
     shared = {id(a): a for a in calls[0]} if len(calls) > 1 else {}
     for call in calls[1:]:
         shared = {id(a): a for a in call if id(a) in shared}
+    # each in a list of one: scattering a dict itself would send each value under the dict's
+    # own keys ("dt", "rtol"), shared by every map's settings, so two maps on one client
+    # would read each other's values or lose them when the other's futures were released
     sent = {
-        k: client.scatter(a, broadcast=True, hash=False)
+        k: client.scatter([a], broadcast=True, hash=False)[0]
         for k, a in shared.items()
         if a is not None and not isinstance(a, bool | int | float | str)
     }
