@@ -750,6 +750,7 @@ def _law_adjoint_pass(job, first: int, count: int, threads: int | None):
         _law_params(job),
         **_clock(dyn, threshold=False),
         integrator=dyn.integrator,
+        dtarget=job.law.dtarget,
         threads=threads,
     )
 

@@ -91,7 +91,7 @@ __all__ = [
 ]
 
 #: bumped when the generated code's layout changes (old files are then never read)
-GENERATOR = 13
+GENERATOR = 14
 
 
 class LawParams(NamedTuple):
@@ -2051,7 +2051,7 @@ def law_adjoint_forward(y0, wq, indptr, indices, P, dt, rk4, freq, target, max_s
 def law_crossing_weights(r0, d0, r1, d1, dt, rk4, x):
     """d tau / d(H's data) of the crossing H(x) = target on the last step (tau = (steps - 1 + x)
     dt), H the cubic Hermite interpolant of (r0, dt d0, r1, dt d1), or Euler's straight line:
-    the weights of r0, d0, r1 and d1."""
+    the weights of r0, d0, r1 and d1, and d tau / d target."""
     if rk4:
         m0 = dt * d0
         m1 = dt * d1
@@ -2070,25 +2070,25 @@ def law_crossing_weights(r0, d0, r1, d1, dt, rk4, x):
         h_m1 = 0.0
         h_x = r1 - r0
     c = -dt / h_x
-    return c * h_r0, c * h_m0 * dt, c * h_r1, c * h_m1 * dt
+    return c * h_r0, c * h_m0 * dt, c * h_r1, c * h_m1 * dt, -c
 
 
 @njit(cache=True, error_model="numpy")
 def law_adjoint_one(y0, wq, indptr, indices, P, dt, rk4, target, max_steps, gw):
     """d tau0 / d w_q of one trajectory to the order-parameter criterion (gw, zero unless
-    SYNCED): (status, steps, frac)."""
+    SYNCED): (status, steps, frac, d tau0 / d target), the last 0 unless SYNCED."""
     n = indptr.shape[0] - 1
     m = y0.shape[0]
     st, steps, x, ys = law_adjoint_forward(y0, wq, indptr, indices, P, dt, rk4, False, target, max_steps)
     if st != SYNCED:
-        return st, steps, x
+        return st, steps, x, 0.0
     G = np.empty((rhs_rows(n, indices.shape[0]), n))
     f = np.empty(m)
     law_rhs(ys[steps - 1], wq, indptr, indices, P, f, G)
     r0, d0 = law_order(ys[steps - 1], f, P, n)
     law_rhs(ys[steps], wq, indptr, indices, P, f, G)
     r1, d1 = law_order(ys[steps], f, P, n)
-    c0, e0, c1, e1 = law_crossing_weights(r0, d0, r1, d1, dt, rk4, x)
+    c0, e0, c1, e1, ct = law_crossing_weights(r0, d0, r1, d1, dt, rk4, x)
     lam = np.zeros(m)
     gR = np.empty(m)
     gRd = np.empty(m)
@@ -2103,19 +2103,20 @@ def law_adjoint_one(y0, wq, indptr, indices, P, dt, rk4, target, max_steps, gw):
         law_step_adjoint(ys[k - 1], lam, wq, indptr, indices, P, dt, rk4, gw, kk, z, mu, kap, total, G)
         if k == steps:
             law_crossing_seed(ys[k - 1], *net, c0, e0, lam, gw, f, gR, gRd, mu, kap, G)
-    return st, steps, x
+    return st, steps, x, ct
 
 
 @njit(cache=True, error_model="numpy")
 def law_adjoint_one_freq(y0, wq, indptr, indices, P, dt, rk4, target, max_steps, gw):
     """law_adjoint_one to the frequency criterion: the crossing is that of the deviation whose
     interpolant sets it (law_binding), its seed law_freq_seed. Its own function, so that the
-    order-parameter adjoint does not compile freq_vjp."""
+    order-parameter adjoint does not compile freq_vjp. The tolerance does not move with the
+    weights: its d tau0 / d target is returned as 0."""
     n = indptr.shape[0] - 1
     m = y0.shape[0]
     st, steps, x, ys = law_adjoint_forward(y0, wq, indptr, indices, P, dt, rk4, True, target, max_steps)
     if st != SYNCED:
-        return st, steps, x
+        return st, steps, x, 0.0
     G = np.empty((rhs_rows(n, indices.shape[0]), n))
     f = np.empty(m)
     Dp = np.empty((2 * KF, n))
@@ -2126,7 +2127,7 @@ def law_adjoint_one_freq(y0, wq, indptr, indices, P, dt, rk4, target, max_steps,
     law_devs(ys[steps], f, wq, indptr, indices, P, D)
     bk, bi = law_binding(D, Dp, n, dt, rk4, x)
     r0, d0, r1, d1 = Dp[2 * bk, bi], Dp[2 * bk + 1, bi], D[2 * bk, bi], D[2 * bk + 1, bi]
-    c0, e0, c1, e1 = law_crossing_weights(r0, d0, r1, d1, dt, rk4, x)
+    c0, e0, c1, e1, _ = law_crossing_weights(r0, d0, r1, d1, dt, rk4, x)
     lam = np.zeros(m)
     mu = np.empty(m)
     kap = np.empty(m)
@@ -2143,7 +2144,7 @@ def law_adjoint_one_freq(y0, wq, indptr, indices, P, dt, rk4, target, max_steps,
         law_step_adjoint(ys[k - 1], lam, wq, indptr, indices, P, dt, rk4, gw, kk, z, mu, kap, total, G)
         if k == steps:
             law_freq_seed(ys[k - 1], *net, bk, bi, c0, e0, lam, gw, f, ya, a, oa, G)
-    return st, steps, x
+    return st, steps, x, 0.0
 
 '''
 
@@ -2152,17 +2153,18 @@ _ADJOINT_ITEMS = """
 
 @njit(parallel=True, cache=True, error_model="numpy")
 def {name}(ks, seed, indptr, indices, wq, PR, dt, rk4, target, max_steps,
-        status0, steps0, frac0, gw):
+        status0, steps0, frac0, gw, coef):
     m = ks.shape[0]
     n = indptr.shape[0] - 1
     for r in prange(m):
         P = PR[0] if PR.shape[0] == 1 else PR[r]
         y = np.empty(S * n)
         law_start(seed, ks[r], P, y, n)
-        st, k, x = {one}(y, wq, indptr, indices, P, dt, rk4, target, max_steps, gw[r])
+        st, k, x, c = {one}(y, wq, indptr, indices, P, dt, rk4, target, max_steps, gw[r])
         status0[r] = st
         steps0[r] = k
         frac0[r] = x
+        coef[r] = c
 """
 _ADJOINT_DRIVERS += _ADJOINT_ITEMS.format(name="law_adjoint_items", one="law_adjoint_one")
 _ADJOINT_DRIVERS += _ADJOINT_ITEMS.format(name="law_adjoint_items_freq", one="law_adjoint_one_freq")
@@ -2458,6 +2460,7 @@ def simulate_law_adjoint(
     dt: float,
     max_steps: int,
     integrator: str = "rk4",
+    dtarget: np.ndarray | None = None,
     threads: int | None = None,
     realizations: np.ndarray | None = None,
 ) -> PathwiseResult:
@@ -2469,7 +2472,9 @@ def simulate_law_adjoint(
     ``tau0 = (steps0 - 1 + frac0) dt`` while the crossing stays in its step. One backward pass
     per trajectory gives every link (the gradient with respect to every weight, then
     contracted with each link's ``dW/dbeta``); the forward states are kept, ``steps0 + 1`` of
-    them. ``params.targets[0]`` is the target."""
+    them. ``params.targets[0]`` is the target; ``dtarget`` ``(E,)``, where the target moves with
+    the damage (the relative criterion's ``(fraction r* N)^2``), its ``d target / d beta_e``,
+    added through the crossing's ``d tau0 / d target`` (None: a target that does not move)."""
     if integrator not in ("euler", "rk4"):
         raise ValueError(f"the adjoint differentiates euler or rk4 steps, not {integrator!r}")
     compiled, ks, indptr, indices, values = _batch(params, first, count, realizations, indptr, indices)
@@ -2479,6 +2484,7 @@ def simulate_law_adjoint(
     steps0 = np.full(m, -1, dtype=np.int64)
     frac0 = np.full(m, np.nan)
     gw = np.zeros((m, w.size))
+    coef = np.zeros(m)
     adjoint = compiled.adjoint if params.criterion == CRIT_ORDER else compiled.adjoint_freq
     blocks = with_start(
         parameter_blocks(values, params.drawn, seed, ks, params.law, params.edges), params.start
@@ -2499,6 +2505,7 @@ def simulate_law_adjoint(
             steps0,
             frac0,
             gw,
+            coef,
         )
     n_links = derivatives.indptr.size - 1
     link = np.repeat(np.arange(n_links), np.diff(derivatives.indptr))
@@ -2506,6 +2513,8 @@ def simulate_law_adjoint(
     for e in range(n_links):
         part = link == e
         dtau[:, e] = gw[:, derivatives.position[part]] @ derivatives.value[part]
+        if dtarget is not None:
+            dtau[:, e] += coef * dtarget[e]
     dtau[status0 != SYNCED] = 0.0
     return PathwiseResult(status0, steps0, frac0, dtau)
 

@@ -408,12 +408,6 @@ class Config:
                 "(every link on its own)"
             )
         if self.model.law is not None and self.sync.criterion == "relative":
-            if LAMBDA_ROWS[method].passes == "backward":
-                raise ConfigError(
-                    f"lambda.method {method}: a law's adjoint does not differentiate r* (its locked "
-                    "state moves with every link); with sync.criterion relative use central-difference, "
-                    "finite-difference or orbit"
-                )
             drawn = law_drawn(self.model)
             if drawn:
                 name = self.model.user_law.params[drawn[0][0]][0]

@@ -27,6 +27,7 @@ from antisync.plan.model import (
     law_on_network,
     model_setup,
     node_parameters,
+    with_law_dtarget,
 )
 from antisync.types import LAMBDA_ROWS
 
@@ -239,6 +240,11 @@ def make_job(
             for e, b in zip(variant_edge, variant_beta, strict=True)
         ]
         law = law_on_network(config, nodes, graph, csr, vw, labels)
+        rows = _dtarget_rows(config, omega, csr, edge_idx)
+        if rows is not None:
+            h = DTARGET_STEP
+            names = [f"{graphs.edge_label(*e)} beta {x:g}" for e in edges for x in (h, -h)]
+            law = with_law_dtarget(law, csr.indptr, csr.indices, rows, names, DTARGET_STEP)
     elif config.generalized:
         model = _model_fields(
             config, edges, edge_idx, variant_edge, variant_beta, omega, csr, vw, secant, orbit
@@ -265,6 +271,17 @@ def make_job(
     )
 
 
+def _dtarget_rows(config: Config, omega, csr, edge_idx) -> np.ndarray | None:
+    """The weights of every link at ``+DTARGET_STEP`` then ``-DTARGET_STEP`` of damage (rows
+    ``2 e``, ``2 e + 1``): the networks whose targets give the adjoint's ``d target / d beta_e``
+    with the relative criterion (``r*`` moves with the damage); None where the run needs none."""
+    if LAMBDA_ROWS[config.lambda_.method].passes != "backward" or config.sync.criterion != "relative":
+        return None
+    h = DTARGET_STEP
+    damages = [(a, b, x) for a, b in edge_idx for x in (h, -h)]
+    return coupling.variant_weights(omega, csr, damages, config.dynamics.coupling)
+
+
 def _model_fields(
     config, edges, edge_idx, variant_edge, variant_beta, omega, csr, vw, secant, orbit
 ) -> ModelSetup:
@@ -288,11 +305,9 @@ def _model_fields(
                 for e in range(len(secant))
             ],
         )
-    if needs.passes == "backward" and config.sync.criterion == "relative":
-        h = DTARGET_STEP
-        damages = [(a, b, x) for a, b in edge_idx for x in (h, -h)]
-        rows = coupling.variant_weights(omega, csr, damages, config.dynamics.coupling)
-        blocks["dtarget"] = (list(rows), [(e // 2, (-1) ** e * h) for e in range(len(rows))])
+    rows = _dtarget_rows(config, omega, csr, edge_idx)
+    if rows is not None:
+        blocks["dtarget"] = (list(rows), [(e // 2, (-1) ** e * DTARGET_STEP) for e in range(len(rows))])
     extra = []
     for rows, names in blocks.values():
         extra += rows

@@ -65,6 +65,7 @@ __all__ = [
     "node_frequencies",
     "node_parameters",
     "start_phases",
+    "with_law_dtarget",
     "with_law_r_star",
     "unsynced_hint",
 ]
@@ -547,6 +548,9 @@ class LawSetup:
     start: np.ndarray | None = None
     """``(2, n)`` with ``model.start``: the undamaged network's locked phase per node and the
     width (:func:`with_law_start`; :attr:`antisync.kernels.law.LawParams.start`)."""
+    dtarget: np.ndarray | None = None
+    """``(E,)`` for the adjoint with the relative criterion: ``d target / d beta_e`` at 0, the
+    target ``(fraction r* N)^2`` moving with each link's damage (:func:`with_law_dtarget`)."""
 
     def relative_target(self, r_star):
         """The relative criterion's ``R = (fraction r* N)^2`` of networks with ``r_star``."""
@@ -648,6 +652,14 @@ def with_law_r_star(setup: LawSetup, indptr, indices, weights, labels) -> LawSet
         return setup
     r_star = law_r_star(setup, indptr, indices, weights, ["the undamaged network", *labels])
     return dataclasses.replace(setup, r_star=r_star, target=float(setup.relative_target(r_star[0])))
+
+
+def with_law_dtarget(setup: LawSetup, indptr, indices, rows, labels, h: float) -> LawSetup:
+    """``setup`` with :attr:`LawSetup.dtarget`: the central difference of the relative target
+    over ``rows`` (each link at ``+h`` then ``-h`` of damage; ``labels`` name them), each
+    network's ``r*`` found as :func:`law_r_star` finds it."""
+    target = setup.relative_target(law_r_star(setup, indptr, indices, rows, labels))
+    return dataclasses.replace(setup, dtarget=(target[0::2] - target[1::2]) / (2.0 * h))
 
 
 def law_targets(setup: LawSetup, indptr, indices, weights) -> np.ndarray:
