@@ -36,6 +36,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import sys
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Literal, get_args
@@ -606,8 +607,21 @@ def law_r_star(setup: LawSetup, indptr, indices, weights, labels) -> np.ndarray:
     ConfigError
         A network where the law does not lock from its in-phase state within ``lock_t_max``.
     """
+    from tqdm import tqdm
+
     out = np.empty(len(weights))
-    for row, (w, label) in enumerate(zip(weights, labels, strict=True)):
+    networks = tqdm(
+        zip(weights, labels, strict=True),
+        total=len(weights),
+        unit="network",
+        desc="locked states (r*)",
+        delay=1.0,
+        disable=not sys.stderr.isatty(),
+        file=sys.stderr,
+        dynamic_ncols=True,
+        leave=False,
+    )
+    for row, (w, label) in enumerate(networks):
         state = _law_locked(setup, indptr, indices, w)
         if state is None:
             raise ConfigError(
