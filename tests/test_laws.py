@@ -926,11 +926,29 @@ def test_the_adjoint_of_the_frequency_crossing_is_the_derivative_of_the_discrete
         )
 
 
-@pytest.mark.parametrize("sync", [{}, {"sync": {"criterion": "frequency", "tolerance": 0.01}}])
-def test_adjoint_hybrid_on_a_law_matches_central_differences(tmp_path, sync):
+@pytest.mark.parametrize(
+    ("sync", "dbeta"),
+    [
+        ({}, 0.01),
+        ({"sync": {"criterion": "frequency", "tolerance": 0.01}}, 0.01),
+        (
+            {
+                "sync": {"criterion": "relative", "fraction": 0.98},
+                "model": {"law": "stuart-landau", "params": {"omega": [0.15, -0.1, 0.05, 0.12, -0.2, -0.02]}},
+            },
+            0.001,
+        ),
+    ],
+)
+def test_adjoint_hybrid_on_a_law_matches_central_differences(tmp_path, sync, dbeta):
     """A run of ``lambda.method: adjoint-hybrid`` and one of ``central-difference`` on the same
     realizations of a Stuart-Landau lollipop estimate the same derivative d<F>/dbeta: per link
-    within 4 of their paired standard errors; to the order parameter and to frequency locking."""
+    within 4 of their paired standard errors; to the order parameter, to frequency locking, and
+    with spread frequencies to the relative criterion (``r*`` below 1 and moving with each link).
+    There the central difference is taken at ``dbeta = 0.001``: at 0.01 link 4->3's secant bends
+    (0.36 +- 0.10 against the derivative's -0.17 +- 0.04, which the central difference at 0.001
+    gives, -0.171 +- 0.042; bench/RESULTS.md). At 600 realizations this comparison does not see
+    the adjoint's target term (it passes without it); the two tests above do."""
     from antisync.api import run
 
     base = {
@@ -943,7 +961,7 @@ def test_adjoint_hybrid_on_a_law_matches_central_differences(tmp_path, sync):
     }
     got = {}
     for method in ("adjoint-hybrid", "central-difference"):
-        cfg = {**base, "lambda": {"method": method, "dbeta": 0.01}}
+        cfg = {**base, "lambda": {"method": method, "dbeta": dbeta}}
         res = run(cfg, output=tmp_path / f"{method}.h5")
         got[method] = {
             r["edge"]: (r["lambda_km"], r["lambda_km_se"])
