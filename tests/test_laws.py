@@ -948,7 +948,8 @@ def test_adjoint_hybrid_on_a_law_matches_central_differences(tmp_path, sync, dbe
     There the central difference is taken at ``dbeta = 0.001``: at 0.01 link 4->3's secant bends
     (0.36 +- 0.10 against the derivative's -0.17 +- 0.04, which the central difference at 0.001
     gives, -0.171 +- 0.042; bench/RESULTS.md). At 600 realizations this comparison does not see
-    the adjoint's target term (it passes without it); the two tests above do."""
+    the adjoint's target term (it passes without it); the tests of the relative criterion's
+    adjoint against central differences of the discrete tau and against the built-in model do."""
     from antisync.api import run
 
     base = {
