@@ -1490,23 +1490,46 @@ def test_the_adjoint_with_the_relative_criterion_on_a_law_is_the_builtins(tmp_pa
     np.testing.assert_allclose(b["kept/lambda"], a["kept/lambda"], rtol=1e-6)
 
 
-def test_the_adjoint_with_the_relative_criterion_is_the_derivative_of_the_discrete_tau():
+#: The frequencies' scale at which the lollipop (3, 3) with :data:`OMEGAS` stops locking: the
+#: built-in model's Newton continuation has a stable locked state up to 16 / 7 times them.
+LOCK_EDGE = 16 / 7
+
+
+@pytest.mark.parametrize("scale", [1.0, 0.97 * LOCK_EDGE])
+def test_the_adjoint_with_the_relative_criterion_is_the_derivative_of_the_discrete_tau(scale):
     """To the relative criterion, where the target ``(0.98 r* N)^2`` moves with each link's
     damage: every link's ``d tau0 / d beta`` by the generated adjoint plus the crossing's
     ``d tau0 / d target`` times ``d target / d beta`` (a central difference of ``r*`` at
     ``+-1e-5``, each network's ``r*`` found by integration to its locked state) against central
     differences of the same realization's tau at ``beta = +-1e-6``, each of those networks timed
     to its own ``r*``; Euler and RK4, spread frequencies: within 1e-5 of the largest (measured
-    8.2e-9 and 8.8e-9), where the adjoint without the target's term misses by 1.1."""
+    8.2e-9 and 8.8e-9), where the adjoint without the target's term misses by 1.1. And at the
+    boundary, frequencies 3% short of where the network stops locking (``r* = 0.666``, the
+    target's derivative up to 28): ``d target / d beta`` within 1e-7 of the built-in model's
+    Newton states' (measured 6.8e-9) and the adjoint within 1e-5 (measured 3.6e-9, 2.6e-9)."""
     from antisync.kernels.adjoint import link_derivatives
     from antisync.kernels.law import simulate_law_adjoint
     from antisync.kernels.law_locked import locked_state
+    from antisync.physics.locked import locked_state as newton_state
 
     g = nx.lollipop_graph(3, 3)
     nx.set_edge_attributes(g, 1.0, "weight")
     om, csr = _csr(g)
-    values = np.array([OMEGAS])
+    values = np.array([OMEGAS]) * scale
     edges = [(1, 0), (2, 3), (3, 4), (5, 4), (4, 3)]
+    receiver = np.repeat(np.arange(6), np.diff(csr.indptr))
+
+    def dense(w):
+        out = np.zeros((6, 6))
+        out[receiver, csr.indices] = w
+        return out
+
+    def newton_targets(rows):
+        return (0.98 * np.array([newton_state(dense(w), values[0]).r for w in rows]) * 6) ** 2
+
+    if scale > 1.0:  # 1% past the edge the built-in model has no stable locked state
+        past = newton_state(dense(csr.weights), np.array(OMEGAS) * 1.01 * LOCK_EDGE)
+        assert past is None or not past.stable
 
     def targets(rows):
         r = [locked_state(KURAMOTO, values, None, csr.indptr, csr.indices, w, t_max=1000.0).r for w in rows]
@@ -1525,6 +1548,8 @@ def test_the_adjoint_with_the_relative_criterion_is_the_derivative_of_the_discre
     # 5->4, the path's end's one in-link, divided by its own damaged weight stays 1: the paper's
     # neutral link leaves every weight, r* and tau where they are
     assert (np.abs(dtarget) > 0.1).sum() == 4 and dtarget[3] == 0.0
+    newton = newton_targets(rows(k))
+    np.testing.assert_allclose(dtarget, (newton[0::2] - newton[1::2]) / (2 * k), rtol=0, atol=1e-7)
     net = (3, 0, 6, csr.indptr, csr.indices, csr.weights)
     derivs = link_derivatives(om, csr, edges, "normalized")
     for integrator in ("euler", "rk4"):
