@@ -244,7 +244,7 @@ def make_job(
         if rows is not None:
             h = DTARGET_STEP
             names = [f"{graphs.edge_label(*e)} beta {x:g}" for e in edges for x in (h, -h)]
-            law = with_law_dtarget(law, csr.indptr, csr.indices, rows, names, DTARGET_STEP)
+            law = with_law_dtarget(law, csr.indptr, csr.indices, rows, names, h)
     elif config.generalized:
         model = _model_fields(
             config, edges, edge_idx, variant_edge, variant_beta, omega, csr, vw, secant, orbit
