@@ -1739,10 +1739,10 @@ def test_a_laws_run_from_starts_around_its_locked_state_is_the_builtins(tmp_path
 
 
 def test_the_static_grid_tools_refuse_a_law_and_give_up_with_a_law_in_one_line(tmp_path):
-    """``antisync grid`` without ``--removal`` needs the built-in swing equation (its operating
-    point, load flows, line trips), and ``sync.give_up`` stops only the built-in Rodas4: a law is
-    refused there in one line, exit 2, nothing written, never run as the built-in model under
-    the law's name."""
+    """``antisync grid`` without ``--removal`` or ``--trip`` (the static indicators) needs the
+    built-in swing equation (its load flow and stability margin), and ``sync.give_up`` stops
+    only the built-in Rodas4: a law is refused there in one line, exit 2, nothing written, never
+    run as the built-in model under the law's name."""
     cfg = tmp_path / "g.yaml"
     text = "graph: {kind: lollipop, nodes: 6, path: 3}\nrealizations: 8\nmodel: {law: kuramoto}\n"
     cfg.write_text(text + f"output: {tmp_path / 'g.h5'}\n")
@@ -1752,7 +1752,7 @@ def test_the_static_grid_tools_refuse_a_law_and_give_up_with_a_law_in_one_line(t
         f"1.0e-3, give_up: {{after: 20, band: 0.5}}}}\noutput: {tmp_path / 's.h5'}\n"
     )
     for path, args, words in (
-        (cfg, [], "the grid tools need the built-in swing equation"),
+        (cfg, [], "the static indicators need the built-in swing equation"),
         (stop, ["--removal"], "law kuramoto's kernels have no such stop: remove give_up"),
     ):
         res = CliRunner().invoke(app, ["grid", str(path), *args])

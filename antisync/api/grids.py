@@ -337,7 +337,7 @@ def contingencies(
     ``configs/activsg2000_grid_contingencies.txt``) checked against the grid of ``config``: one
     dict per row (``label``, ``line`` as a label pair, ``share``: the part of the line's
     coupling it opens); a row naming no line of the grid is a one-line GridError."""
-    g = grid_from_config(_config("antisync.grid.contingencies", config, overrides))
+    g = grid_from_config(_config("antisync.grid.contingencies", config, overrides), law=True)
     return [
         {"label": label, "line": [g.labels[a], g.labels[b]], "share": float(share)}
         for label, (a, b), share in read_contingencies(path, g)

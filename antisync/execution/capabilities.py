@@ -55,9 +55,10 @@ def table() -> str:
             lines.append(f"| {model} | {method} | " + " | ".join(cells) + " |")
     lines.append("")
     lines += [f"[{k}] {why}  " for why, k in notes.items()]
-    runs = [i for i, why in TRIP_ROWS.items() if why is None]
-    lines += ["", f"Line trips (`antisync grid --trip`, cpu float64): {', '.join(runs)}.  "]
-    lines += [f"{i}: {why}.  " for i, why in TRIP_ROWS.items() if why is not None]
+    for kind, name in (("model", "the swing equation"), ("law", "a law (model.law)")):
+        runs = [i for (k, i), why in TRIP_ROWS.items() if k == kind and why is None]
+        lines += ["", f"Line trips (`antisync grid --trip`, cpu float64) of {name}: {', '.join(runs)}.  "]
+        lines += [f"{i}: {why}.  " for (k, i), why in TRIP_ROWS.items() if k == kind and why is not None]
     designs = [i for i in INTEGRATORS if i not in DESIGN_REFUSALS]
     lines += ["", f"Designs (`antisync design`, cpu float64, every model kind): {', '.join(designs)}.  "]
     lines += [f"{value}: {why}.  " for value, why in DESIGN_REFUSALS.items()]

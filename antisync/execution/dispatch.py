@@ -205,23 +205,35 @@ def _model(simulate_model, job, first, count, variant_weights, realizations, tod
     )
 
 
-#: The integrators of a line trip (``antisync grid --trip``: the swing equation from the
-#: operating point, with a fault and the trip; :mod:`antisync.kernels.trip`), and why the others
-#: do not run one.
-TRIP_ROWS: dict[str, str | None] = {
-    "euler": "a line trip integrates by rk4 or rodas4 (Euler's first-order step under-resolves the swing)",
-    "rk4": None,
-    "rodas4": None,
+#: The integrators of a line trip (``antisync grid --trip``: the swing equation, or a user's law,
+#: from the operating point, with a fault and the trip; :mod:`antisync.kernels.trip`, the law's
+#: generated ``law_trips``), by model kind (``model`` or ``law``), and why the others do not run one.
+TRIP_ROWS: dict[tuple[str, str], str | None] = {
+    ("model", "euler"): (
+        "a line trip integrates by rk4 or rodas4 (Euler's first-order step under-resolves the swing)"
+    ),
+    ("model", "rk4"): None,
+    ("model", "rodas4"): None,
+    ("law", "euler"): (
+        "a law's line trip integrates by rk4 or rodas4 (Euler's first-order step under-resolves the swing)"
+    ),
+    ("law", "rk4"): None,
+    ("law", "rodas4"): None,
 }
 
 
-def trip_simulator(integrator: str) -> Callable:
-    """The trip kernels' driver (:func:`antisync.kernels.trip.integrate_trips`) with
-    ``integrator`` bound, or the row's one-line refusal (:data:`TRIP_ROWS`) as a
-    :class:`~antisync.errors.ConfigError`."""
-    why = TRIP_ROWS.get(integrator, f"a line trip integrates by rk4 or rodas4, not {integrator}")
+def trip_simulator(integrator: str, law: bool = False) -> Callable:
+    """The trip kernels' driver with ``integrator`` bound (:func:`antisync.kernels.trip.integrate_trips`;
+    with ``law`` :func:`antisync.kernels.law.integrate_law_trips`), or the row's one-line refusal
+    (:data:`TRIP_ROWS`) as a :class:`~antisync.errors.ConfigError`."""
+    kind = "law" if law else "model"
+    why = TRIP_ROWS.get((kind, integrator), f"a line trip integrates by rk4 or rodas4, not {integrator}")
     if why is not None:
         raise ConfigError(why)
+    if law:
+        from antisync.kernels.law import integrate_law_trips
+
+        return functools.partial(integrate_law_trips, integrator=integrator)
     from antisync.kernels.trip import integrate_trips
 
     return functools.partial(integrate_trips, integrator=integrator)

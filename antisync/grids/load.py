@@ -34,6 +34,11 @@ class Grid:
     damping: object = 1.0
     coupling: str = "raw"
     lag: float = 0.0
+    law: object = None
+    """A user's law (``model.law``): its :class:`~antisync.plan.model.LawSetup` on the
+    coupling's CSR order (:func:`antisync.physics.coupling.to_csr` of ``omega``), whose nodes
+    and links then hold the dynamics (``p``, ``inertia`` and ``damping`` are unused); None: the
+    built-in swing equation. Only the line trip (:mod:`antisync.grids.trip`) runs a law."""
 
 
 def _vector(path: Path, n: int, what: str) -> np.ndarray:
@@ -77,24 +82,28 @@ def load_grid(
     return Grid(name or edges.stem, labels, omega, p - p.mean(), per_node[0], per_node[1], coupling)
 
 
-def grid_from_config(config: Config) -> Grid:
+def grid_from_config(config: Config, *, law: bool = False) -> Grid:
     """The :class:`Grid` of a validated config, read as ``antisync run`` reads it: its graph
     (any kind, ``graph.header``/``delimiter`` honoured; :func:`antisync.physics.graphs.build_graph`),
     ``model.frequencies`` (the injections, a list or ``{file: PATH}``; none: all 0), inertia,
-    damping and ``phase_lag``, and ``dynamics.coupling``.
+    damping and ``phase_lag``, and ``dynamics.coupling``. With ``law`` (the line trip's caller) a
+    config's ``model.law`` is read onto the grid (:attr:`Grid.law`).
 
     Raises
     ------
     GridError
-        A graph or per-node value that cannot be read, or frequencies drawn per realization
-        (the static indicators need one operating point): one line.
+        A graph or per-node value that cannot be read, frequencies drawn per realization (the
+        static indicators need one operating point), or a law where ``law`` is False: one line.
     """
     model = config.model
     if model.law is not None:
-        raise GridError(
-            f"model.law {model.law['name']}: the grid tools need the built-in swing equation (its operating "
-            "point, load flows and line trips); write the grid with model: frequencies/inertia/damping"
-        )
+        if not law:
+            raise GridError(
+                f"model.law {model.law['name']}: the static indicators need the built-in swing equation "
+                "(its load flow and stability margin); a law runs antisync grid --removal and --trip, or "
+                "write the grid with model: frequencies/inertia/damping"
+            )
+        return _law_grid(config)
     if model.drawn:
         raise GridError(
             f"model.frequencies {model.frequencies} are drawn per realization; the static indicators "
@@ -116,6 +125,30 @@ def grid_from_config(config: Config) -> Grid:
     return Grid(
         config.name, labels, omega, p - p.mean(), inertia, damping, config.dynamics.coupling, model.phase_lag
     )
+
+
+def _law_grid(config: Config) -> Grid:
+    """The grid of a config whose ``model.law`` holds its dynamics: the graph's capacities and
+    the law's :class:`~antisync.plan.model.LawSetup` (its edge parameters read onto the links)."""
+    from antisync.physics.coupling import to_csr
+    from antisync.plan.model import law_edges, law_setup
+
+    try:
+        g = graphs.build_graph(config.graph, seed=config.seed)
+        labels = graphs.node_order(g)
+        omega = graphs.omega_matrix(g)
+        csr = to_csr(omega)
+        setup = law_setup(config, len(labels), law_edges(config.model, csr.indptr, csr.indices, labels, g))
+    except AntisyncError as exc:
+        raise GridError(str(exc)) from None
+    if setup.drawn:
+        names = ", ".join(config.model.user_law.params[k][0] for k, _ in setup.drawn)
+        raise GridError(
+            f"model.law {config.model.law['name']}: {names} drawn per realization; a line trip needs one "
+            "operating point: give each parameter as a number, a list or {file: PATH}"
+        )
+    n = len(labels)
+    return Grid(config.name, labels, omega, np.zeros(n), 0.0, 1.0, config.dynamics.coupling, 0.0, law=setup)
 
 
 def load_grid_config(path, overrides: list[str] | None = None) -> Grid:

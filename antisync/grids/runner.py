@@ -21,6 +21,7 @@ from pathlib import Path
 from typing import Any
 
 from antisync.errors import ConfigError
+from antisync.execution.dispatch import trip_simulator
 from antisync.grids.errors import GridError
 from antisync.grids.load import Grid, grid_from_config
 from antisync.grids.removal import line_removal
@@ -154,7 +155,11 @@ def plan_trip(cfg: Config, lines, contingencies) -> TripPlan:
         cfg.stop_rule("trip")
     except ConfigError as exc:
         raise GridError(str(exc)) from None
-    g = grid_from_config(cfg)
+    try:  # the dispatch table's trip row for this model kind and integrator
+        trip_simulator(cfg.dynamics.integrator, law=cfg.model.law is not None)
+    except ConfigError as exc:
+        raise GridError(str(exc)) from None
+    g = grid_from_config(cfg, law=True)
     if cfg.dynamics.integrator != "rodas4":
         check_explicit_step(cfg, g)  # the trip's RK4 at dt, checked as `antisync run` checks it
     table = None if contingencies is None else read_contingencies(contingencies, g)

@@ -39,6 +39,7 @@ sound where the verdicts switch more than once near the boundary.
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import math
 import sys
@@ -79,6 +80,12 @@ CRITERION = (
     "(g_i = (P_i + coupling_i) / D_i) below the tolerance"
 )
 """The settling criterion of a trip table (its ``criterion``), ``sync: {criterion: frequency}``'s."""
+
+LAW_CRITERION = (
+    "frequency locking: every one of the law's frequency quantities within the tolerance of its mean; "
+    "max_frequency is the largest |first quantity| and max_angle the largest difference of the law's phases"
+)
+"""A law's trip table's ``criterion`` (:attr:`antisync.laws.spec.Law.frequency`)."""
 
 __all__ = [
     "CCT_TOL",
@@ -129,7 +136,10 @@ class Trip:
 
 
 def operating_point(grid: Grid) -> np.ndarray:
-    """The intact grid's stable locked phases; one-line :class:`GridError` when it has none."""
+    """The intact grid's stable locked phases (a law's: its flat state, :func:`_law_operating_point`);
+    one-line :class:`GridError` when it has none."""
+    if grid.law is not None:
+        return _law_operating_point(grid)
     state = locked_state(grid.omega, grid.p, grid.lag, grid.inertia, grid.damping)
     if state is None or not state.stable:
         why = (
@@ -142,6 +152,25 @@ def operating_point(grid: Grid) -> np.ndarray:
             "from; lower the injections or raise the capacities (antisync grid CONFIG shows the static state)"
         )
     return state.phi.copy()
+
+
+def _law_operating_point(grid: Grid) -> np.ndarray:
+    """A law's operating point: the locked state its network reaches from the in-phase state
+    (:func:`antisync.kernels.law_locked.locked_state`, a stable one: it attracts), the flat
+    state of its kernels."""
+    from antisync.kernels.law_locked import locked_state as law_locked_state
+
+    setup, csr = grid.law, to_csr(grid.omega)
+    state = law_locked_state(
+        setup.law, setup.values, setup.edges, csr.indptr, csr.indices, csr.weights, t_max=setup.lock_t_max
+    )
+    if state is None:
+        raise GridError(
+            f"{grid.name}: law {setup.law.name} does not lock from its in-phase state within "
+            f"{setup.lock_t_max:g} time units, so there is no operating point to trip a line from; lower "
+            "the injections or raise the capacities"
+        )
+    return state.y.copy()
 
 
 def _arrays(grid: Grid):
@@ -169,6 +198,14 @@ def check_explicit_step(config, grid: Grid) -> None:
     check with inertia, else the first-order one): a one-line
     :class:`~antisync.errors.ConfigError` naming the largest stable ``dt``. A trip by Rodas4 has
     no such limit."""
+    if grid.law is not None:  # checked on the law's own Jacobian, as antisync run checks it
+        from antisync.kernels.law import check_step as check_law_step
+
+        try:
+            check_law_step(grid.law, config.seed, to_csr(grid.omega), config.dynamics)
+        except ConfigError as exc:
+            raise GridError(str(exc)) from None
+        return
     n = len(grid.labels)
     mass, gamma = per_node(grid.inertia, n), per_node(grid.damping, n)
     if (mass > 0).any():
@@ -226,12 +263,11 @@ def _integrate(
             f"rodas4's rtol and atol must be in [{MIN_TOLERANCE:g}, 1), got {rtol:g} and {atol:g}"
         )
     try:
-        simulate = trip_simulator(integrator)
+        simulate = trip_simulator(integrator, law=grid.law is not None)
     except ConfigError as exc:
         raise GridError(str(exc)) from None
     if theta0 is None:
         theta0 = operating_point(grid)
-    indptr, indices, k, p, mass, damping = _arrays(grid)
     ta = np.array([a for a, _ in lines], dtype=np.int64)
     tb = np.array([b for _, b in lines], dtype=np.int64)
     clear = np.ascontiguousarray(np.broadcast_to(np.asarray(t_clear, dtype=np.float64), (len(lines),)))
@@ -239,9 +275,19 @@ def _integrate(
     if share.shape != (len(lines),) or not np.all((share > 0) & (share <= 1)):
         raise GridError("a trip's share of its line must be in (0, 1], one per line")
     keep = np.ascontiguousarray(1.0 - share)
+    trips = (ta, tb, keep, clear)
     tols = (float(tolerance), float(rtol), float(atol))
-    grid_arrays = (p, indptr, indices, mass, damping)
-    out = simulate(theta0, grid_arrays, k, (ta, tb, keep, clear), t_max, dt, tols, threads=threads)
+    if grid.law is not None:  # the law's generated trip kernels
+        from antisync.kernels.law import with_edges
+
+        setup, csr = grid.law, to_csr(grid.omega)
+        params = with_edges(setup.values, setup.law, setup.edges)
+        network = (setup.law, theta0, params, csr.indptr, csr.indices, csr.weights)
+        out = simulate(*network, trips, t_max, dt, tols, threads=threads)
+    else:
+        indptr, indices, k, p, mass, damping = _arrays(grid)
+        grid_arrays = (p, indptr, indices, mass, damping)
+        out = simulate(theta0, grid_arrays, k, trips, t_max, dt, tols, threads=threads)
     if out[:, 3].any():
         a, b = lines[int(np.flatnonzero(out[:, 3])[0])]
         count, first = int(out[:, 3].sum()), f"{grid.labels[a]}-{grid.labels[b]}"
@@ -329,10 +375,17 @@ STEP_ANGLE = 0.1
 
 
 def _post_locked(grid: Grid, a: int, b: int, share: float) -> bool:
-    """Whether the grid with ``share`` of line ``a-b``'s ``K`` taken has a stable locked state."""
+    """Whether the grid with ``share`` of line ``a-b``'s ``K`` taken has a stable locked state
+    (a law's: whether it locks from its in-phase state, :func:`_law_operating_point`)."""
     post = grid.omega.copy()
     post[a, b] *= 1.0 - share
     post[b, a] *= 1.0 - share
+    if grid.law is not None:
+        try:
+            _law_operating_point(dataclasses.replace(grid, omega=post))
+        except GridError:
+            return False
+        return True
     state = locked_state(post, grid.p, grid.lag, grid.inertia, grid.damping)
     return bool(state is not None and state.stable)
 
@@ -411,6 +464,14 @@ def _grid_digest(grid: Grid) -> str:
         h.update(f"{name}{value.shape}".encode())
         h.update(value.tobytes())
     h.update(f"{grid.coupling} {grid.lag!r}".encode())
+    if grid.law is not None:  # the law's text and its values per node and per link
+        setup = grid.law
+        h.update(setup.law.text.encode())
+        for value in (setup.values, setup.edges):
+            if value is not None:
+                value = np.ascontiguousarray(value, dtype=np.float64)
+                h.update(f"{value.shape}".encode())
+                h.update(value.tobytes())
     return h.hexdigest()
 
 
@@ -778,7 +839,8 @@ def trip_report(
         "t_clear": t_clear,
         "t_max": t_max,
         "clock": CLOCK,
-        "criterion": CRITERION,
+        "criterion": CRITERION if grid.law is None else LAW_CRITERION,
+        **({} if grid.law is None else {"law": grid.law.law.name}),
         "dt": dt,
         "tolerance": tolerance,
         **integration_record(integrator, rtol, atol),

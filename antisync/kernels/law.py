@@ -80,6 +80,7 @@ __all__ = [
     "compile_law",
     "expanded_pattern",
     "generate_source",
+    "integrate_law_trips",
     "jacobian",
     "node_phases",
     "simulate_law",
@@ -91,7 +92,7 @@ __all__ = [
 ]
 
 #: bumped when the generated code's layout changes (old files are then never read)
-GENERATOR = 14
+GENERATOR = 15
 
 
 class LawParams(NamedTuple):
@@ -158,6 +159,9 @@ class CompiledLaw(NamedTuple):
     """``law_devs``: the frequency criterion's deviations and their rates (``(2 KF, n)``)"""
     kf: int = 0
     """``KF``: the number of the frequency criterion's quantities"""
+    trips: object = None
+    """``(law_trips_rk4, law_trips_rodas4)``: line trips from an operating point
+    (:func:`integrate_law_trips`)"""
 
 
 def cache_root() -> Path:
@@ -1142,7 +1146,7 @@ def generate_source(law: Law) -> str:
         "from antisync.kernels import law_support as support",
         "from antisync.kernels.law_support import ALREADY_SYNCED, NOT_SYNCED, SYNCED, RA, RC, RGAMMA",
         "from antisync.kernels.law_support import factor, item_of, order_crossing, phase, record, solve",
-        "from antisync.kernels.law_support import share_row",
+        "from antisync.kernels.law_support import share_row, trip_weights",
         "from antisync.kernels.law_support import DENSE_POINTS, hermite_range",
         "from antisync.kernels.law_support import RENORM_EVERY, TAYLOR_MAX_ANGLE, VEC",
         "from antisync.kernels.law_support import rotation, taylor_rotation, vany_outside",
@@ -1198,6 +1202,18 @@ def generate_source(law: Law) -> str:
     out += _loads(list(sym.start), sym.p, "        ", "P[{k}, i]")
     out += _block(list(sym.start), [f"y[{k} * n + i]" for k in range(n_s)], "        ", pr)
     out += _frequency_source(sym, pr)
+    # a line trip's largest frequency and angle differences: the quantities themselves, the phases
+    out += _frequency_source(sym, pr, raw=True)
+    out += [
+        "",
+        "",
+        '@njit(cache=True, error_model="numpy")',
+        "def law_phases(y, f, P, n, ph, dph):",
+        "    for i in range(n):",
+    ]
+    out += _node_loads([sym.phase, rate], sym)
+    out += [f"        f{k} = f[{k} * n + i]" for k in range(n_s)]
+    out += _block([sym.phase, rate], ["ph[i]", "dph[i]"], "        ", pr)
 
     # the Jacobian on the expanded pattern: row (s, i), entries (r, i) then (r, j) per in-link
     d_edge_i = [[h.diff(x) for x in sym.x] for h in sym.coupling]  # d h_m / d x_r (own)
@@ -1246,7 +1262,7 @@ def generate_source(law: Law) -> str:
     out += ["", ""]
     out += _adjoint_source(sym, pr)
     out += _circle_source(sym, circle_form(sym), pr)
-    return "\n".join(out) + _DRIVERS + _ADJOINT_DRIVERS
+    return "\n".join(out) + _DRIVERS + _ADJOINT_DRIVERS + _TRIP_DRIVERS
 
 
 def _frequency_exprs(sym) -> tuple:
@@ -1334,21 +1350,22 @@ def _lane_frequency_source(sym, pr) -> list[str]:
     return out
 
 
-def _frequency_source(sym, pr, prefix: str = "") -> list[str]:
+def _frequency_source(sym, pr, prefix: str = "", raw: bool = False) -> list[str]:
     """``law_devs(y, f, wq, indptr, indices, P, D)`` (``prefix`` before its name): the frequency
     criterion's quantities ``q_k`` (``sym.frequency``) minus their means in ``D``'s rows ``2 k``
     and their rates minus theirs in rows ``2 k + 1`` (``KF`` quantities), the rates by the chain
     rule: ``dq/dt = dq/dx . f + dq/du . du/dt``, ``du_i/dt = sum_j (dh/dx_i . f_i + dh/dx_j .
     f_j)`` over the in-links (what the cubic Hermite crossing of the frequency criterion needs,
-    as the built-in kernels' ``deviations``)."""
+    as the built-in kernels' ``deviations``). With ``raw``: ``law_freqs``, the quantities and
+    their rates themselves (a line trip's largest frequency, :data:`_TRIP_DRIVERS`)."""
     f, fj, qs, read, du, rates, edge, edge_rates = _frequency_exprs(sym)
     every = qs + rates + edge + edge_rates
-    out = [] if prefix else ["", "", f"KF = {len(qs)}"]
+    out = [] if prefix or raw else ["", "", f"KF = {len(qs)}"]
     out += [
         "",
         "",
         '@njit(cache=True, error_model="numpy")',
-        f"def {prefix}law_devs(y, f, wq, indptr, indices, P, D):",
+        f"def {prefix}law_{'freqs' if raw else 'devs'}(y, f, wq, indptr, indices, P, D):",
         "    n = indptr.shape[0] - 1",
         "    for i in range(n):",
     ]
@@ -1363,6 +1380,8 @@ def _frequency_source(sym, pr, prefix: str = "") -> list[str]:
         out += _block(edge + edge_rates, targets, "            ", pr, accumulate=True)
     rows = [f"D[{2 * k + r}, i]" for k in range(len(qs)) for r in range(2)]
     out += _block([e for pair in zip(qs, rates, strict=True) for e in pair], rows, "        ", pr)
+    if raw:
+        return out
     out += [
         "    for row in range(2 * KF):",
         "        mean = 0.0",
@@ -1687,27 +1706,89 @@ def law_sync(y, wq, indptr, indices, P, dt, rk4, freq, target, max_steps):
 
 
 @njit(cache=True, error_model="numpy")
+def rodas4_work(n, nnz, m, plan, jperm):
+    """The arrays of rodas4_attempt: (G, u, f, d, z, b, x, xp, jq, val)."""
+    return (
+        np.empty((rhs_rows(n, nnz), n)),
+        np.zeros((6, m)),
+        np.empty(m),
+        np.empty(m),
+        np.empty(m),
+        np.empty(m),
+        np.empty(m),
+        np.empty(m),
+        np.empty(jperm.shape[0]),
+        np.empty(plan[3].shape[0]),
+    )
+
+
+@njit(cache=True, error_model="numpy")
+def rodas4_attempt(y, wq, indptr, indices, P, f0, h, rtol, atol, plan, jperm, work):
+    """One Rodas4 step of h from y (f0: the rates there; work: rodas4_work's arrays): its stages
+    into u, the step's state y + d + u[5]; returns its scaled error, -1 where the matrix did not
+    factor."""
+    fp_perm, fp_inv, fp_ptr, fp_col, fp_diag, fp_entry = plan[:6]
+    div_ptr, div_pos, upd_ptr, upd_ij, upd_ik, upd_kj = plan[6:]
+    G, u, f, d, z, b, x, xp, jq, val = work
+    m = y.shape[0]
+    g = 1.0 / (h * RGAMMA)
+    inv_h = 1.0 / h
+    law_jac(y, wq, indptr, indices, P, jq)
+    val[:] = 0.0
+    scale = 0.0
+    for e in range(fp_entry.shape[0]):
+        v = jq[jperm[e]]
+        val[fp_entry[e]] -= v
+        scale = max(scale, abs(v))
+    for a in range(m):
+        val[fp_diag[fp_inv[a]]] += g
+    if not factor(val, fp_diag, div_ptr, div_pos, upd_ptr, upd_ij, upd_ik, upd_kj, scale + g):
+        return -1.0
+    for stage in range(6):
+        if stage == 0:
+            for a in range(m):
+                f[a] = f0[a]
+        else:
+            if stage < 5:
+                for a in range(m):
+                    acc = 0.0
+                    for s in range(stage):
+                        acc += RA[stage, s] * u[s, a]
+                    d[a] = acc
+            else:
+                for a in range(m):
+                    d[a] += u[4, a]
+            for a in range(m):
+                z[a] = y[a] + d[a]
+            law_rhs(z, wq, indptr, indices, P, f, G)
+        for a in range(m):
+            acc = f[a]
+            for s in range(stage):
+                acc += RC[stage, s] * inv_h * u[s, a]
+            b[a] = acc
+        solve(val, fp_ptr, fp_col, fp_diag, fp_perm, b, x, xp)
+        for a in range(m):
+            u[stage, a] = x[a]
+    err = 0.0
+    for a in range(m):
+        yn = y[a] + d[a] + u[5, a]
+        e = u[5, a] / (atol + rtol * max(abs(y[a]), abs(yn)))
+        err += e * e
+    return math.sqrt(err / m)
+
+
+@njit(cache=True, error_model="numpy")
 def law_rodas4(y, wq, indptr, indices, P, freq, target, t_max, h0, rtol, atol, plan, jperm):
     """Rodas4 (the coefficients and controller of antisync.kernels.implicit) from y to the
     order-parameter criterion, or with freq the frequency criterion: (status, tau, accepted,
     rejected, failed)."""
-    fp_perm, fp_inv, fp_ptr, fp_col, fp_diag, fp_entry = plan[:6]
-    div_ptr, div_pos, upd_ptr, upd_ij, upd_ik, upd_kj = plan[6:]
     n = indptr.shape[0] - 1
     m = y.shape[0]
-    G = np.empty((rhs_rows(n, indices.shape[0]), n))
-    u = np.zeros((6, m))
+    work = rodas4_work(n, indices.shape[0], m, plan, jperm)
+    G, u, d = work[0], work[1], work[3]
     f0 = np.empty(m)
-    f = np.empty(m)
-    z = np.empty(m)
-    d = np.empty(m)
-    b = np.empty(m)
-    x = np.empty(m)
-    xp = np.empty(m)
     kept = np.empty(m)
     kept_f = np.empty(m)
-    jq = np.empty(jperm.shape[0])
-    val = np.empty(fp_col.shape[0])
     D = np.empty((2 * KF, n))
     Dp = np.empty((2 * KF, n))
     law_rhs(y, wq, indptr, indices, P, f0, G)
@@ -1741,53 +1822,12 @@ def law_rodas4(y, wq, indptr, indices, P, freq, target, t_max, h0, rtol, atol, p
         if t + h >= t_max:
             h = t_max - t
             last = True
-        g = 1.0 / (h * RGAMMA)
-        inv_h = 1.0 / h
-        law_jac(y, wq, indptr, indices, P, jq)
-        val[:] = 0.0
-        scale = 0.0
-        for e in range(fp_entry.shape[0]):
-            v = jq[jperm[e]]
-            val[fp_entry[e]] -= v
-            scale = max(scale, abs(v))
-        for a in range(m):
-            val[fp_diag[fp_inv[a]]] += g
-        if not factor(val, fp_diag, div_ptr, div_pos, upd_ptr, upd_ij, upd_ik, upd_kj, scale + g):
+        err = rodas4_attempt(y, wq, indptr, indices, P, f0, h, rtol, atol, plan, jperm, work)
+        if err < 0.0:  # the matrix did not factor
             h *= 0.25
             rejected += 1
             in_row += 1
             continue
-        for stage in range(6):
-            if stage == 0:
-                for a in range(m):
-                    f[a] = f0[a]
-            else:
-                if stage < 5:
-                    for a in range(m):
-                        acc = 0.0
-                        for s in range(stage):
-                            acc += RA[stage, s] * u[s, a]
-                        d[a] = acc
-                else:
-                    for a in range(m):
-                        d[a] += u[4, a]
-                for a in range(m):
-                    z[a] = y[a] + d[a]
-                law_rhs(z, wq, indptr, indices, P, f, G)
-            for a in range(m):
-                acc = f[a]
-                for s in range(stage):
-                    acc += RC[stage, s] * inv_h * u[s, a]
-                b[a] = acc
-            solve(val, fp_ptr, fp_col, fp_diag, fp_perm, b, x, xp)
-            for a in range(m):
-                u[stage, a] = x[a]
-        err = 0.0
-        for a in range(m):
-            yn = y[a] + d[a] + u[5, a]
-            e = u[5, a] / (atol + rtol * max(abs(y[a]), abs(yn)))
-            err += e * e
-        err = math.sqrt(err / m)
         if not err <= 1.0:
             h *= max(support.SHRINK, min(1.0, support.SAFETY * err**-0.25 if err == err else support.SHRINK))
             rejected += 1
@@ -2170,6 +2210,268 @@ _ADJOINT_DRIVERS += _ADJOINT_ITEMS.format(name="law_adjoint_items", one="law_adj
 _ADJOINT_DRIVERS += _ADJOINT_ITEMS.format(name="law_adjoint_items_freq", one="law_adjoint_one_freq")
 
 
+# A line trip (the engineer's N-1, antisync.grids.trip) of the law: RK4 at a fixed step from its
+# operating point, the fault's weights until t_clear, then the post-trip weights until t_end;
+# the settling clock, frequency peak and first swing of antisync.kernels.trip.rk4_trip on the
+# law's frequency quantities (law_devs, law_freqs) and phases (law_phases).
+_TRIP_DRIVERS = '''
+
+@njit(cache=True, error_model="numpy")
+def trip_clock(D, Dp, n, t_prev, step, tol, settle, start):
+    """The settling clock of a line trip (antisync.kernels.implicit's trip_switch and trip_band
+    on the law's deviations). With start, at the first state of a configuration (D): nan when a
+    deviation is out of the band, else the time from which they have all been in it. After a
+    step: nan when one is out of the band at its end, else the time the interpolants entered it
+    (located in the step) or, after an excursion out of it inside the step, the step's end."""
+    if start:
+        dev = law_deviation(D, D, n, step, False, 1.0)
+        if not dev < tol:
+            return np.nan
+        return t_prev if settle != settle else settle
+    dev = law_deviation(D, Dp, n, step, True, 1.0)
+    if not dev < tol:
+        return np.nan
+    if settle != settle:
+        x = frequency_crossing(D, Dp, n, step, True, tol)
+        return t_prev + (x if x >= 0.0 else 1.0) * step
+    for i in range(n):
+        for k in range(KF):
+            y0, m0, y1, m1 = dev_ends(D, Dp, 2 * k, i, step, True)
+            lo, hi = hermite_range(y0, m0, y1, m1)
+            if hi >= tol or lo <= -tol:
+                return t_prev + step
+    return settle
+
+
+@njit(cache=True, error_model="numpy")
+def trip_swing(Qp, Q, pu, pd, u, d, step, indptr, indices, ta, tb, keep, max_f, max_a):
+    """The running largest |q_0| (the first frequency quantity) and line angle difference
+    |u_i - u_j| over one step's cubic Hermite interpolants (p: the step's start; u the unwrapped
+    phases, d their rates); the tripped line left out when keep is 0."""
+    for i in range(u.shape[0]):
+        lo, hi = hermite_range(Qp[0, i], step * Qp[1, i], Q[0, i], step * Q[1, i])
+        max_f = max(max_f, -lo, hi)
+        for q in range(indptr[i], indptr[i + 1]):
+            j = indices[q]
+            if j > i and not (keep == 0.0 and ((i == ta and j == tb) or (i == tb and j == ta))):
+                lo, hi = hermite_range(
+                    pu[i] - pu[j], step * (pd[i] - pd[j]), u[i] - u[j], step * (d[i] - d[j])
+                )
+                max_a = max(max_a, -lo, hi)
+    return max_f, max_a
+
+
+@njit(cache=True, error_model="numpy")
+def law_trip(y0, w_fault, w_post, indptr, indices, P, t_clear, t_end, dt, tol, ta, tb, keep, out):
+    """One trip from the state y0: ceil(t_clear / dt) RK4 steps on w_fault (the last ending at
+    t_clear; none without a fault), then ceil((t_end - t_clear) / dt) on w_post (the last ending
+    at t_end). out = [settle_time (from t = 0; nan: out of the band at t_end), max |q_0|, max
+    line angle difference, failed (1: the state stopped being finite)]."""
+    n = indptr.shape[0] - 1
+    m = y0.shape[0]
+    G = np.empty((rhs_rows(n, indices.shape[0]), n))
+    y = y0.copy()
+    f = np.empty(m)
+    k2 = np.empty(m)
+    k3 = np.empty(m)
+    k4 = np.empty(m)
+    z = np.empty(m)
+    D = np.empty((2 * KF, n))
+    Dp = np.empty((2 * KF, n))
+    Q = np.empty((2 * KF, n))
+    Qp = np.empty((2 * KF, n))
+    ph = np.empty(n)
+    dph = np.empty(n)
+    p_ph = np.empty(n)
+    p_dph = np.empty(n)
+    u = np.empty(n)
+    p_u = np.empty(n)
+    fault = t_clear > 0.0
+    settle = np.nan
+    max_f = 0.0
+    max_a = 0.0
+    t = 0.0
+    failed = False
+    first = True
+    for stage in range(2):
+        if stage == 0 and not fault:
+            continue
+        w = w_fault if stage == 0 else w_post
+        # the rates at this state in the configuration that holds from it on
+        law_rhs(y, w, indptr, indices, P, f, G)
+        law_devs(y, f, w, indptr, indices, P, D)
+        law_freqs(y, f, w, indptr, indices, P, Q)
+        law_phases(y, f, P, n, ph, dph)
+        if first:
+            for i in range(n):
+                u[i] = ph[i]
+            first = False
+        settle = trip_clock(D, D, n, t, 0.0, tol, settle, True)
+        t0 = t
+        length = t_clear if stage == 0 else t_end - t_clear
+        steps = max(1, int(math.ceil(length / dt - 1e-9)))
+        for k in range(steps):
+            h = dt if k < steps - 1 else length - (steps - 1) * dt
+            D, Dp = Dp, D
+            Q, Qp = Qp, Q
+            for i in range(n):
+                p_u[i] = u[i]
+                p_ph[i] = ph[i]
+                p_dph[i] = dph[i]
+            law_advance(y, y, f, w, indptr, indices, P, h, True, k2, k3, k4, z, G)
+            law_rhs(y, w, indptr, indices, P, f, G)
+            law_devs(y, f, w, indptr, indices, P, D)
+            law_freqs(y, f, w, indptr, indices, P, Q)
+            law_phases(y, f, P, n, ph, dph)
+            for i in range(n):
+                turn = ph[i] - p_ph[i]
+                u[i] += math.atan2(math.sin(turn), math.cos(turn))
+            t_prev = t
+            t = t0 + (k + 1) * dt if k < steps - 1 else t0 + length
+            max_f, max_a = trip_swing(
+                Qp, Q, p_u, p_dph, u, dph, t - t_prev, indptr, indices, ta, tb, keep, max_f, max_a
+            )
+            settle = trip_clock(D, Dp, n, t_prev, t - t_prev, tol, settle, False)
+            total = 0.0
+            for a in range(m):
+                total += y[a]
+            if not math.isfinite(total):
+                failed = True  # the step is unstable for this grid
+                break
+        if failed:
+            break
+    out[0] = np.nan if failed else settle
+    out[1] = max_f
+    out[2] = max_a
+    out[3] = 1.0 if failed else 0.0
+
+
+@njit(cache=True, error_model="numpy")
+def law_rodas4_trip(y0, w_fault, w_post, indptr, indices, P, t_clear, t_end, h0, tols, plan, jperm, ta, tb,
+                    keep, out):
+    """law_trip by Rodas4 with adaptive steps (rodas4_attempt; antisync.kernels.implicit's
+    rodas4_trip): the step that would pass t_clear ends there and the next starts afresh at h0;
+    within the band's reach a step is at most near_step. tols = (band, rtol, atol); out as
+    law_trip's, failed (1) where the step size collapsed (the other values those reached)."""
+    tol, rtol, atol = tols
+    n = indptr.shape[0] - 1
+    m = y0.shape[0]
+    work = rodas4_work(n, indices.shape[0], m, plan, jperm)
+    G, u, d = work[0], work[1], work[3]
+    y = y0.copy()
+    f0 = np.empty(m)
+    D = np.empty((2 * KF, n))
+    Dp = np.empty((2 * KF, n))
+    Q = np.empty((2 * KF, n))
+    Qp = np.empty((2 * KF, n))
+    ph = np.empty(n)
+    dph = np.empty(n)
+    p_ph = np.empty(n)
+    p_dph = np.empty(n)
+    uw = np.empty(n)
+    p_uw = np.empty(n)
+    fault = t_clear > 0.0
+    w = w_fault if fault else w_post
+    law_rhs(y, w, indptr, indices, P, f0, G)
+    law_devs(y, f0, w, indptr, indices, P, D)
+    law_freqs(y, f0, w, indptr, indices, P, Q)
+    law_phases(y, f0, P, n, ph, dph)
+    for i in range(n):
+        uw[i] = ph[i]
+    settle = trip_clock(D, D, n, 0.0, 0.0, tol, np.nan, True)
+    max_f = 0.0
+    max_a = 0.0
+    t = 0.0
+    end = t_clear if fault else t_end  # the end of the current configuration
+    h = min(h0, end)
+    err_prev = 1.0
+    in_row = 0
+    failed = False
+    while t < t_end:
+        if h < support.H_FLOOR * t_end or in_row > support.MAX_REJECTS:
+            failed = True
+            break
+        last = False
+        if t + h >= end:
+            h = end - t
+            last = True
+        err = rodas4_attempt(y, w, indptr, indices, P, f0, h, rtol, atol, plan, jperm, work)
+        if not 0.0 <= err <= 1.0:
+            h = support.shrunk(h, err)
+            in_row += 1
+            continue
+        in_row = 0
+        D, Dp = Dp, D
+        Q, Qp = Qp, Q
+        for i in range(n):
+            p_uw[i] = uw[i]
+            p_ph[i] = ph[i]
+            p_dph[i] = dph[i]
+        for a in range(m):
+            y[a] += d[a] + u[5, a]
+        t_prev = t
+        t = end if last else t + h
+        step = t - t_prev
+        law_rhs(y, w, indptr, indices, P, f0, G)
+        law_devs(y, f0, w, indptr, indices, P, D)
+        law_freqs(y, f0, w, indptr, indices, P, Q)
+        law_phases(y, f0, P, n, ph, dph)
+        for i in range(n):
+            turn = ph[i] - p_ph[i]
+            uw[i] += math.atan2(math.sin(turn), math.cos(turn))
+        max_f, max_a = trip_swing(
+            Qp, Q, p_uw, p_dph, uw, dph, step, indptr, indices, ta, tb, keep, max_f, max_a
+        )
+        settle = trip_clock(D, Dp, n, t_prev, step, tol, settle, False)
+        # a PI controller (Gustafsson), and within the band's reach at most near_step per step
+        err = max(err, 1e-10)
+        fac = support.SAFETY * err**-support.BETA1 * err_prev**support.BETA2
+        err_prev = err
+        h = h * max(support.SHRINK, min(support.GROW, fac))
+        if last and t < t_end:
+            # the fault clears: the grid without the line from this state on
+            w = w_post
+            end = t_end
+            law_rhs(y, w, indptr, indices, P, f0, G)
+            law_devs(y, f0, w, indptr, indices, P, D)
+            law_freqs(y, f0, w, indptr, indices, P, Q)
+            law_phases(y, f0, P, n, ph, dph)
+            settle = trip_clock(D, D, n, t, 0.0, tol, settle, True)
+            h = h0
+            err_prev = 1.0
+        h = min(h, near_step(D, n, tol))
+    out[0] = settle
+    out[1] = max_f
+    out[2] = max_a
+    out[3] = 1.0 if failed else 0.0
+'''
+
+_TRIP_DRIVERS += "".join(
+    f"""
+
+@njit(parallel=True, cache=True, error_model="numpy")
+def law_trips_{kind}(y0, indptr, indices, P, k, ta, tb, keep, t_clear, t_after, dt, tols, plan, jperm, out):
+    \"\"\"Every trip of (ta, tb, keep, t_clear) from y0 for t_after after its trip by {kind}, one
+    per item on the numba threads (out: one row of four per item). tols = (band, rtol, atol).\"\"\"
+    for e in prange(ta.shape[0]):
+        w_fault, w_post = trip_weights(k, indptr, indices, ta[e], tb[e], keep[e])
+        {call}
+"""
+    for kind, call in (
+        (
+            "rk4",
+            "law_trip(y0, w_fault, w_post, indptr, indices, P, t_clear[e], t_clear[e] + t_after, dt, "
+            "tols[0], ta[e], tb[e], keep[e], out[e])",
+        ),
+        (
+            "rodas4",
+            "law_rodas4_trip(y0, w_fault, w_post, indptr, indices, P, t_clear[e], t_clear[e] + t_after, "
+            "dt, tols, plan, jperm, ta[e], tb[e], keep[e], out[e])",
+        ),
+    )
+)
+
+
 # -- compiling and running ----------------------------------------------------------------------
 
 
@@ -2218,6 +2520,7 @@ def compile_law(law: Law) -> CompiledLaw:
         module.law_adjoint_items_freq,
         module.law_devs,
         module.KF,
+        (module.law_trips_rk4, module.law_trips_rodas4),
     )
 
 
@@ -2517,6 +2820,49 @@ def simulate_law_adjoint(
             dtau[:, e] += coef * dtarget[e]
     dtau[status0 != SYNCED] = 0.0
     return PathwiseResult(status0, steps0, frac0, dtau)
+
+
+def integrate_law_trips(
+    law: Law, y0, P, indptr, indices, k, trips, t_after, h0, tols, integrator: str = "rk4", threads=None
+):
+    """Line trips of ``law`` from its operating point ``y0`` (the flat state) by the generated
+    ``law_trips_rk4`` (RK4 at the step ``h0``) or ``law_trips_rodas4`` (Rodas4 from the first
+    step ``h0``), one trip at a time per numba thread: the ``(items, 4)`` rows ``[settle_time,
+    max_frequency, max_angle, failed]`` of :func:`antisync.kernels.trip.integrate_trips`, the
+    frequency that of the law's first frequency quantity and the angles its phases'. ``P``:
+    :func:`with_edges`' rows, ``k`` the CSR weights, ``trips = (ta, tb, keep, t_clear)``, ``tols
+    = (band, rtol, atol)``."""
+    if integrator not in ("rk4", "rodas4"):
+        raise ValueError(f"a law's trip integrates by rk4 or rodas4, not {integrator}")
+    compiled = compile_law(law)
+    types = (np.int64, np.int64, np.float64, np.float64)
+    ta, tb, keep, clear = (np.array(a, dtype=t) for a, t in zip(trips, types, strict=True))
+    indptr = np.ascontiguousarray(indptr, dtype=np.int64)
+    indices = np.ascontiguousarray(indices, dtype=np.int64)
+    rodas4 = integrator == "rodas4"
+    plan, jperm = (
+        _jacobian_plan(indptr.tobytes(), indices.tobytes(), len(law.states)) if rodas4 else _no_plan()
+    )
+    out = np.empty((ta.size, 4))
+    with Threads(threads), numba.parallel_chunksize(1):
+        compiled.trips[rodas4](
+            np.ascontiguousarray(y0, dtype=np.float64),
+            indptr,
+            indices,
+            np.ascontiguousarray(P, dtype=np.float64),
+            np.ascontiguousarray(k, dtype=np.float64),
+            ta,
+            tb,
+            keep,
+            clear,
+            float(t_after),
+            float(h0),
+            tuple(float(v) for v in tols),
+            plan,
+            jperm,
+            out,
+        )
+    return out
 
 
 #: the largest state (states x nodes) whose step is checked by a dense eigenvalue problem

@@ -20,7 +20,7 @@ from antisync.kernels.core import (
 from antisync.kernels.lanes import item_of
 from antisync.kernels.model_steps import MK
 from antisync.kernels.precision import K64
-from antisync.kernels.shared import record, share_row
+from antisync.kernels.shared import record, share_row, trip_weights
 from antisync.physics.phases import phase
 from antisync.status import ALREADY_SYNCED, NOT_SYNCED, SYNCED
 
@@ -38,6 +38,7 @@ __all__ = [
     "rotation",
     "share_row",
     "taylor_rotation",
+    "trip_weights",
     "vany_outside",
     "vload",
     "vsplat",
@@ -52,6 +53,7 @@ hermite_range = MK.hermite_range
 factor = implicit._factor
 solve = implicit._solve
 on_the_grid = implicit._on_the_grid
+shrunk = implicit._shrunk
 RA = implicit._A
 RC = implicit._C
 RGAMMA = implicit._GAMMA

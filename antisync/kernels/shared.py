@@ -40,6 +40,7 @@ __all__ = [
     "share_base",
     "share_row",
     "todo_mask",
+    "trip_weights",
     "unset_outputs",
 ]
 
@@ -416,3 +417,19 @@ def csr_mv2(indptr, indices, w, a, b, out_a, out_b):
             acc_b += w[p] * b[j]
         out_a[i] = acc_a
         out_b[i] = acc_b
+
+
+@numba.njit(cache=True)
+def trip_weights(k, indptr, indices, a, b, keep):
+    """The fault's weights (bus ``a``'s lines at 0) and the post-trip weights (``a-b`` at
+    ``keep`` of its ``K``) of one trip, on the CSR pattern of ``k``."""
+    w_fault = k.copy()
+    w_post = k.copy()
+    for i in range(indptr.shape[0] - 1):
+        for q in range(indptr[i], indptr[i + 1]):
+            j = indices[q]
+            if i == a or j == a:
+                w_fault[q] = 0.0
+            if (i == a and j == b) or (i == b and j == a):
+                w_post[q] = keep * k[q]
+    return w_fault, w_post

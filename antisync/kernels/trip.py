@@ -41,7 +41,7 @@ from antisync.kernels.implicit import (
     trip_switch,
 )
 from antisync.kernels.model_steps import MK
-from antisync.kernels.shared import Threads, has_inertia
+from antisync.kernels.shared import Threads, has_inertia, trip_weights
 
 __all__ = ["INTEGRATORS", "integrate_trips", "rk4_trip", "trip_batch"]
 
@@ -131,22 +131,6 @@ def rk4_trip(th0, grid, w_fault, w_post, t_clear, t_end, dt, tol, line, out):
     out[3] = failed
 
 
-@njit(cache=True)
-def _line_weights(k, indptr, indices, a, b, keep):
-    """The fault's weights (bus ``a``'s lines at 0) and the post-trip weights (``a-b`` at
-    ``keep`` of its ``K``) of one trip, on the CSR pattern of ``k``."""
-    w_fault = k.copy()
-    w_post = k.copy()
-    for i in range(indptr.shape[0] - 1):
-        for q in range(indptr[i], indptr[i + 1]):
-            j = indices[q]
-            if i == a or j == a:
-                w_fault[q] = 0.0
-            if (i == a and j == b) or (i == b and j == a):
-                w_post[q] = keep * k[q]
-    return w_fault, w_post
-
-
 @njit(parallel=True, cache=True)
 def trip_batch(theta0, graph, k, trips, t_after, h0, tols, plan, rodas4, out):
     """Every trip of ``trips = (ta, tb, keep, t_clear)`` (one per item: the line ``ta-tb``, the
@@ -158,7 +142,7 @@ def trip_batch(theta0, graph, k, trips, t_after, h0, tols, plan, rodas4, out):
     _, indptr, indices, _, _ = graph
     ta, tb, keep, t_clear = trips
     for e in prange(ta.size):
-        w_fault, w_post = _line_weights(k, indptr, indices, ta[e], tb[e], keep[e])
+        w_fault, w_post = trip_weights(k, indptr, indices, ta[e], tb[e], keep[e])
         line = (ta[e], tb[e], keep[e])
         t_end = t_clear[e] + t_after
         if rodas4:
