@@ -748,11 +748,13 @@ def speed_rates(cy, sy, f_th, f_nu, indptr, indices, w, mass, gamma, acc):
 
 
 @njit(cache=True, inline="always")
-def trip_swing(p_th, p_f, p_acc, th, f, acc, step, indptr, indices, line, max_f, max_a):
-    """The largest ``|theta_i'|`` and line angle difference ``|theta_i - theta_j|`` over one step
-    of a trip, on the cubic Hermite interpolants from the values and rates at both ends (``p_``:
-    the step's start); ``line = (a, b, keep)``: the tripped line is left out when ``keep`` is 0.
-    Returns the running maxima ``(max_f, max_a)``."""
+def trip_swing(p_th, p_d, p_f, p_acc, th, d, f, acc, step, indptr, indices, line, max_f, max_a):
+    """The largest ``|f_i|`` (``theta_i'``) and line angle difference ``|theta_i - theta_j|`` over
+    one step of a trip, on the cubic Hermite interpolants from the values and rates at both ends
+    (``p_``: the step's start; ``d`` the phases' rates, ``acc`` the frequencies'; the built-in
+    model's ``d`` is its ``f``, a law's frequency quantity need not be its phase's rate);
+    ``line = (a, b, keep)``: the tripped line is left out when ``keep`` is 0. Returns the
+    running maxima ``(max_f, max_a)``."""
     ta, tb, keep = line
     for i in range(th.shape[0]):
         lo, hi = _hermite_range(p_f[i], step * p_acc[i], f[i], step * acc[i])
@@ -761,7 +763,7 @@ def trip_swing(p_th, p_f, p_acc, th, f, acc, step, indptr, indices, line, max_f,
             j = indices[q]
             if j > i and not (keep == 0.0 and ((i == ta and j == tb) or (i == tb and j == ta))):
                 lo, hi = _hermite_range(
-                    p_th[i] - p_th[j], step * (p_f[i] - p_f[j]), th[i] - th[j], step * (f[i] - f[j])
+                    p_th[i] - p_th[j], step * (p_d[i] - p_d[j]), th[i] - th[j], step * (d[i] - d[j])
                 )
                 max_a = max(max_a, -lo, hi)
     return max_f, max_a
@@ -893,7 +895,7 @@ def rodas4_trip(th0, grid, w_fault, w_post, t_clear, t_end, h0, tols, plan, line
         _eval(y_th, y_nu, cy, sy, eq, second, f0_th, f0_nu)
         trip_rates(cy, sy, f0_th, f0_nu, eq, second, gamma_eff, acc, work)
         max_f, max_a = trip_swing(
-            p_th, p_f, p_acc, y_th, f0_th, acc, step, indptr, indices, line, max_f, max_a
+            p_th, p_f, p_f, p_acc, y_th, f0_th, f0_th, acc, step, indptr, indices, line, max_f, max_a
         )
         settle = trip_band(work, n, second, t_prev, step, tol, settle)
         # a PI controller (Gustafsson), and within the band's reach at most half of it per step

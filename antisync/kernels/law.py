@@ -2244,94 +2244,104 @@ def trip_clock(D, Dp, n, t_prev, step, tol, settle, start):
 
 
 @njit(cache=True, error_model="numpy")
-def trip_swing(Qp, Q, pu, pd, u, d, step, indptr, indices, ta, tb, keep, max_f, max_a):
-    """The running largest |q_0| (the first frequency quantity) and line angle difference
-    |u_i - u_j| over one step's cubic Hermite interpolants (p: the step's start; u the unwrapped
-    phases, d their rates); the tripped line left out when keep is 0."""
-    for i in range(u.shape[0]):
-        lo, hi = hermite_range(Qp[0, i], step * Qp[1, i], Q[0, i], step * Q[1, i])
-        max_f = max(max_f, -lo, hi)
-        for q in range(indptr[i], indptr[i + 1]):
-            j = indices[q]
-            if j > i and not (keep == 0.0 and ((i == ta and j == tb) or (i == tb and j == ta))):
-                lo, hi = hermite_range(
-                    pu[i] - pu[j], step * (pd[i] - pd[j]), u[i] - u[j], step * (d[i] - d[j])
-                )
-                max_a = max(max_a, -lo, hi)
-    return max_f, max_a
+def trip_arrays(n):
+    """What a trip keeps of its state now and at the last step's start: the deviations D, Dp, the
+    frequency quantities Q, Qp (rows 2 k, their rates 2 k + 1), the phases, their rates and the
+    unwrapped phases (ph, dph, u, then p_ph, p_dph, p_u)."""
+    return (
+        np.empty((2 * KF, n)),
+        np.empty((2 * KF, n)),
+        np.empty((2 * KF, n)),
+        np.empty((2 * KF, n)),
+        np.empty(n),
+        np.empty(n),
+        np.empty(n),
+        np.empty(n),
+        np.empty(n),
+        np.empty(n),
+    )
 
 
 @njit(cache=True, error_model="numpy")
-def law_trip(y0, w_fault, w_post, indptr, indices, P, t_clear, t_end, dt, tol, ta, tb, keep, out):
+def trip_eval(y, w, indptr, indices, P, f, G, T):
+    """The rates f at y on the weights w, and T's deviations, quantities, phases and rates there."""
+    D, Dp, Q, Qp, ph, dph, u, p_ph, p_dph, p_u = T
+    law_rhs(y, w, indptr, indices, P, f, G)
+    law_devs(y, f, w, indptr, indices, P, D)
+    law_freqs(y, f, w, indptr, indices, P, Q)
+    law_phases(y, f, P, indptr.shape[0] - 1, ph, dph)
+
+
+@njit(cache=True, error_model="numpy")
+def trip_switch(y, w, indptr, indices, P, f, G, T, t, tol, settle, first):
+    """Where a configuration starts (the fault at t = 0, the trip at its clearing time): the
+    rates on its weights, the unwrapped phases set at the first, and the settling clock."""
+    trip_eval(y, w, indptr, indices, P, f, G, T)
+    D, Dp, Q, Qp, ph, dph, u, p_ph, p_dph, p_u = T
+    if first:
+        u[:] = ph
+    return trip_clock(D, D, indptr.shape[0] - 1, t, 0.0, tol, settle, True)
+
+
+@njit(cache=True, error_model="numpy")
+def trip_stepped(y, w, indptr, indices, P, f, G, T, t_prev, step, tol, settle, line, max_f, max_a):
+    """After a step to y (T still holds its start): the rates, the unwrapped phases (each turn
+    below pi), the swing's maxima and the settling clock over the step's interpolants, as
+    (settle, max_f, max_a); line = (ta, tb, keep)."""
+    D, Dp, Q, Qp, ph, dph, u, p_ph, p_dph, p_u = T
+    Dp[:] = D
+    Qp[:] = Q
+    p_u[:] = u
+    p_ph[:] = ph
+    p_dph[:] = dph
+    trip_eval(y, w, indptr, indices, P, f, G, T)
+    for i in range(u.shape[0]):
+        turn = ph[i] - p_ph[i]
+        u[i] += math.atan2(math.sin(turn), math.cos(turn))
+    max_f, max_a = support.trip_swing(
+        p_u, p_dph, Qp[0], Qp[1], u, dph, Q[0], Q[1], step, indptr, indices, line, max_f, max_a
+    )
+    settle = trip_clock(D, Dp, u.shape[0], t_prev, step, tol, settle, False)
+    return settle, max_f, max_a
+
+
+@njit(cache=True, error_model="numpy")
+def law_trip(y0, w_fault, w_post, indptr, indices, P, t_clear, t_end, dt, tol, line, out):
     """One trip from the state y0: ceil(t_clear / dt) RK4 steps on w_fault (the last ending at
     t_clear; none without a fault), then ceil((t_end - t_clear) / dt) on w_post (the last ending
     at t_end). out = [settle_time (from t = 0; nan: out of the band at t_end), max |q_0|, max
-    line angle difference, failed (1: the state stopped being finite)]."""
+    line angle difference, failed (1: the state stopped being finite)]; line = (ta, tb, keep)."""
     n = indptr.shape[0] - 1
     m = y0.shape[0]
     G = np.empty((rhs_rows(n, indices.shape[0]), n))
+    T = trip_arrays(n)
     y = y0.copy()
     f = np.empty(m)
     k2 = np.empty(m)
     k3 = np.empty(m)
     k4 = np.empty(m)
     z = np.empty(m)
-    D = np.empty((2 * KF, n))
-    Dp = np.empty((2 * KF, n))
-    Q = np.empty((2 * KF, n))
-    Qp = np.empty((2 * KF, n))
-    ph = np.empty(n)
-    dph = np.empty(n)
-    p_ph = np.empty(n)
-    p_dph = np.empty(n)
-    u = np.empty(n)
-    p_u = np.empty(n)
-    fault = t_clear > 0.0
     settle = np.nan
     max_f = 0.0
     max_a = 0.0
     t = 0.0
     failed = False
-    first = True
     for stage in range(2):
-        if stage == 0 and not fault:
-            continue
+        if stage == 0 and t_clear <= 0.0:
+            continue  # no fault
         w = w_fault if stage == 0 else w_post
-        # the rates at this state in the configuration that holds from it on
-        law_rhs(y, w, indptr, indices, P, f, G)
-        law_devs(y, f, w, indptr, indices, P, D)
-        law_freqs(y, f, w, indptr, indices, P, Q)
-        law_phases(y, f, P, n, ph, dph)
-        if first:
-            for i in range(n):
-                u[i] = ph[i]
-            first = False
-        settle = trip_clock(D, D, n, t, 0.0, tol, settle, True)
+        settle = trip_switch(y, w, indptr, indices, P, f, G, T, t, tol, settle, t == 0.0)
         t0 = t
         length = t_clear if stage == 0 else t_end - t_clear
         steps = max(1, int(math.ceil(length / dt - 1e-9)))
         for k in range(steps):
             h = dt if k < steps - 1 else length - (steps - 1) * dt
-            D, Dp = Dp, D
-            Q, Qp = Qp, Q
-            for i in range(n):
-                p_u[i] = u[i]
-                p_ph[i] = ph[i]
-                p_dph[i] = dph[i]
             law_advance(y, y, f, w, indptr, indices, P, h, True, k2, k3, k4, z, G)
-            law_rhs(y, w, indptr, indices, P, f, G)
-            law_devs(y, f, w, indptr, indices, P, D)
-            law_freqs(y, f, w, indptr, indices, P, Q)
-            law_phases(y, f, P, n, ph, dph)
-            for i in range(n):
-                turn = ph[i] - p_ph[i]
-                u[i] += math.atan2(math.sin(turn), math.cos(turn))
             t_prev = t
             t = t0 + (k + 1) * dt if k < steps - 1 else t0 + length
-            max_f, max_a = trip_swing(
-                Qp, Q, p_u, p_dph, u, dph, t - t_prev, indptr, indices, ta, tb, keep, max_f, max_a
+            settle, max_f, max_a = trip_stepped(
+                y, w, indptr, indices, P, f, G, T, t_prev, t - t_prev, tol, settle, line, max_f, max_a
             )
-            settle = trip_clock(D, Dp, n, t_prev, t - t_prev, tol, settle, False)
             total = 0.0
             for a in range(m):
                 total += y[a]
@@ -2347,8 +2357,8 @@ def law_trip(y0, w_fault, w_post, indptr, indices, P, t_clear, t_end, dt, tol, t
 
 
 @njit(cache=True, error_model="numpy")
-def law_rodas4_trip(y0, w_fault, w_post, indptr, indices, P, t_clear, t_end, h0, tols, plan, jperm, ta, tb,
-                    keep, out):
+def law_rodas4_trip(y0, w_fault, w_post, indptr, indices, P, t_clear, t_end, h0, tols, plan, jperm, line,
+                    out):
     """law_trip by Rodas4 with adaptive steps (rodas4_attempt; antisync.kernels.implicit's
     rodas4_trip): the step that would pass t_clear ends there and the next starts afresh at h0;
     within the band's reach a step is at most near_step. tols = (band, rtol, atol); out as
@@ -2358,27 +2368,12 @@ def law_rodas4_trip(y0, w_fault, w_post, indptr, indices, P, t_clear, t_end, h0,
     m = y0.shape[0]
     work = rodas4_work(n, indices.shape[0], m, plan, jperm)
     G, u, d = work[0], work[1], work[3]
+    T = trip_arrays(n)
     y = y0.copy()
     f0 = np.empty(m)
-    D = np.empty((2 * KF, n))
-    Dp = np.empty((2 * KF, n))
-    Q = np.empty((2 * KF, n))
-    Qp = np.empty((2 * KF, n))
-    ph = np.empty(n)
-    dph = np.empty(n)
-    p_ph = np.empty(n)
-    p_dph = np.empty(n)
-    uw = np.empty(n)
-    p_uw = np.empty(n)
     fault = t_clear > 0.0
     w = w_fault if fault else w_post
-    law_rhs(y, w, indptr, indices, P, f0, G)
-    law_devs(y, f0, w, indptr, indices, P, D)
-    law_freqs(y, f0, w, indptr, indices, P, Q)
-    law_phases(y, f0, P, n, ph, dph)
-    for i in range(n):
-        uw[i] = ph[i]
-    settle = trip_clock(D, D, n, 0.0, 0.0, tol, np.nan, True)
+    settle = trip_switch(y, w, indptr, indices, P, f0, G, T, 0.0, tol, np.nan, True)
     max_f = 0.0
     max_a = 0.0
     t = 0.0
@@ -2401,50 +2396,31 @@ def law_rodas4_trip(y0, w_fault, w_post, indptr, indices, P, t_clear, t_end, h0,
             in_row += 1
             continue
         in_row = 0
-        D, Dp = Dp, D
-        Q, Qp = Qp, Q
-        for i in range(n):
-            p_uw[i] = uw[i]
-            p_ph[i] = ph[i]
-            p_dph[i] = dph[i]
         for a in range(m):
             y[a] += d[a] + u[5, a]
         t_prev = t
         t = end if last else t + h
-        step = t - t_prev
-        law_rhs(y, w, indptr, indices, P, f0, G)
-        law_devs(y, f0, w, indptr, indices, P, D)
-        law_freqs(y, f0, w, indptr, indices, P, Q)
-        law_phases(y, f0, P, n, ph, dph)
-        for i in range(n):
-            turn = ph[i] - p_ph[i]
-            uw[i] += math.atan2(math.sin(turn), math.cos(turn))
-        max_f, max_a = trip_swing(
-            Qp, Q, p_uw, p_dph, uw, dph, step, indptr, indices, ta, tb, keep, max_f, max_a
+        settle, max_f, max_a = trip_stepped(
+            y, w, indptr, indices, P, f0, G, T, t_prev, t - t_prev, tol, settle, line, max_f, max_a
         )
-        settle = trip_clock(D, Dp, n, t_prev, step, tol, settle, False)
         # a PI controller (Gustafsson), and within the band's reach at most near_step per step
         err = max(err, 1e-10)
         fac = support.SAFETY * err**-support.BETA1 * err_prev**support.BETA2
         err_prev = err
         h = h * max(support.SHRINK, min(support.GROW, fac))
-        if last and t < t_end:
-            # the fault clears: the grid without the line from this state on
+        if last and t < t_end:  # the fault clears: the grid without the line from this state on
             w = w_post
             end = t_end
-            law_rhs(y, w, indptr, indices, P, f0, G)
-            law_devs(y, f0, w, indptr, indices, P, D)
-            law_freqs(y, f0, w, indptr, indices, P, Q)
-            law_phases(y, f0, P, n, ph, dph)
-            settle = trip_clock(D, D, n, t, 0.0, tol, settle, True)
+            settle = trip_switch(y, w, indptr, indices, P, f0, G, T, t, tol, settle, False)
             h = h0
             err_prev = 1.0
-        h = min(h, near_step(D, n, tol))
+        h = min(h, near_step(T[0], n, tol))
     out[0] = settle
     out[1] = max_f
     out[2] = max_a
     out[3] = 1.0 if failed else 0.0
 '''
+
 
 _TRIP_DRIVERS += "".join(
     f"""
@@ -2461,12 +2437,12 @@ def law_trips_{kind}(y0, indptr, indices, P, k, ta, tb, keep, t_clear, t_after, 
         (
             "rk4",
             "law_trip(y0, w_fault, w_post, indptr, indices, P, t_clear[e], t_clear[e] + t_after, dt, "
-            "tols[0], ta[e], tb[e], keep[e], out[e])",
+            "tols[0], (ta[e], tb[e], keep[e]), out[e])",
         ),
         (
             "rodas4",
             "law_rodas4_trip(y0, w_fault, w_post, indptr, indices, P, t_clear[e], t_clear[e] + t_after, "
-            "dt, tols, plan, jperm, ta[e], tb[e], keep[e], out[e])",
+            "dt, tols, plan, jperm, (ta[e], tb[e], keep[e]), out[e])",
         ),
     )
 )

@@ -54,6 +54,7 @@ factor = implicit._factor
 solve = implicit._solve
 on_the_grid = implicit._on_the_grid
 shrunk = implicit._shrunk
+trip_swing = implicit.trip_swing
 RA = implicit._A
 RC = implicit._C
 RGAMMA = implicit._GAMMA

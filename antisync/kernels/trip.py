@@ -114,7 +114,7 @@ def rk4_trip(th0, grid, w_fault, w_post, t_clear, t_end, dt, tol, line, out):
             _rhs(c, s, nu, eq, second, th, dnu)
             trip_rates(c, s, th, dnu, eq, second, gamma, acc, work)
             max_f, max_a = trip_swing(
-                p_u, p_f, p_acc, u, th, acc, t - t_prev, indptr, indices, line, max_f, max_a
+                p_u, p_f, p_f, p_acc, u, th, th, acc, t - t_prev, indptr, indices, line, max_f, max_a
             )
             settle = trip_band(work, n, second, t_prev, t - t_prev, tol, settle)
             total = 0.0
