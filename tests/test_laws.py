@@ -548,6 +548,31 @@ def test_the_ieee39_grid_as_a_law_is_the_builtin():
     assert ok.sum() >= 10 and gap < 1e-12, gap
 
 
+def test_a_stiff_laws_locked_state_is_found_by_radau(monkeypatch):
+    """IEEE 39 as the law POWER_GRID (29 first-order buses beside 10 generators: stiff). Near the
+    lock DOP853 is held at its stability bound (about 810 steps a window) and its deviations ring
+    at ~1e-7, never meeting the lock test (1e-10); from there Radau with the law's sparse
+    Jacobian meets it. The state found is the built-in operating point (Newton,
+    :mod:`antisync.physics.locked`) turned by one angle, within 1e-9, and at rest."""
+    from antisync.grids.load import load_grid_config
+    from antisync.grids.trip import operating_point
+    from antisync.kernels import law_locked
+
+    grid = load_grid_config(Path(__file__).resolve().parent.parent / "configs" / "ieee39_grid.yaml")
+    n = len(grid.labels)
+    mass = np.broadcast_to(grid.inertia, (n,))
+    values = np.vstack([grid.p, np.where(mass > 0, mass, 1.0), np.broadcast_to(grid.damping, (n,)), mass > 0])
+    csr = coupling.to_csr(grid.omega)
+    args = (Law.from_mapping(POWER_GRID), values, None, csr.indptr, csr.indices, csr.weights)
+    state = law_locked.locked_state(*args, t_max=100.0)
+    assert state is not None and state.spread < law_locked.TOL
+    theta = operating_point(grid)
+    np.testing.assert_allclose(state.y[:n] - state.y[0], theta - theta[0], atol=1e-9)
+    assert np.abs(state.y[n:]).max() < 1e-9
+    monkeypatch.setattr(law_locked, "STIFF_STEPS", 10**9)  # DOP853 throughout
+    assert law_locked.locked_state(*args, t_max=100.0) is None
+
+
 def _damaged(csr, entries, dbeta):
     """The CSR weights with each of ``entries`` (one per variant) scaled by ``1 - dbeta``."""
     vw = np.repeat(csr.weights[None, :], len(entries), axis=0)
