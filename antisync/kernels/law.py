@@ -914,6 +914,7 @@ def _circle_source(sym, circle: Circle | None, pr) -> list[str]:
             "",
             "",
             "LANES = False",
+            *_TRIP_RK4_ANGLES,
         ]
     out = head + [f"CIRCLE_FREQUENCY = {circle.frequency}", f"CS = {len(circle.sym.x)}"]
     pr = _product_printer()  # the same spelling on a scalar and on a lane vector
@@ -1126,7 +1127,111 @@ def _circle_source(sym, circle: Circle | None, pr) -> list[str]:
         "    return NOT_SYNCED, max_steps, 0.0",
         "",
     ]
+    out += _circle_trip_source(circle, pr) if circle.frequency else _TRIP_RK4_ANGLES
     return out + _lane_source(circle, pr)
+
+
+#: A line trip's RK4 on the law's own states (law_trip), where its circle form cannot run one.
+_TRIP_RK4_ANGLES = [
+    "",
+    "",
+    '@njit(cache=True, error_model="numpy")',
+    "def trip_rk4(y0, w_fault, w_post, indptr, indices, P, t_clear, t_end, dt, tol, line, out):",
+    "    law_trip(y0, w_fault, w_post, indptr, indices, P, t_clear, t_end, dt, tol, line, out)",
+]
+
+
+def _circle_trip_source(circle: Circle, pr) -> list[str]:
+    """``trip_rk4``: a line trip (law_trip's) by classical RK4 on the circle's embedding, each step
+    projected back to the circle, as the built-in kernels' trip (:func:`antisync.kernels.trip.
+    rk4_trip`) steps ``(cos, sin, nu)``; the phase ``atan2(s, c)`` of its slots, its rate
+    ``c s' - s c'``. Needs the frequency criterion on the circle (``circle.frequency``)."""
+    pc, ps = circle.phase
+    k_phase = next(k for k, slots in enumerate(circle.slots) if slots == circle.phase)
+    out = _frequency_source(circle.sym, pr, prefix="circle_", raw=True)
+    return out + [
+        "",
+        "",
+        '@njit(cache=True, error_model="numpy")',
+        "def circle_trip_eval(z, w, indptr, indices, P, f, G, T):",
+        '    """trip_eval on the circle\'s embedding."""',
+        "    D, Dp, Q, Qp, ph, dph, u, p_ph, p_dph, p_u = T",
+        "    n = indptr.shape[0] - 1",
+        "    circle_law_rhs(z, w, indptr, indices, P, f, G)",
+        "    circle_law_devs(z, f, w, indptr, indices, P, D)",
+        "    circle_law_freqs(z, f, w, indptr, indices, P, Q)",
+        "    for i in range(n):",
+        f"        c = z[{pc} * n + i]",
+        f"        s = z[{ps} * n + i]",
+        "        ph[i] = math.atan2(s, c)",
+        f"        dph[i] = c * f[{ps} * n + i] - s * f[{pc} * n + i]",
+        "",
+        "",
+        '@njit(cache=True, error_model="numpy")',
+        "def trip_rk4(y0, w_fault, w_post, indptr, indices, P, t_clear, t_end, dt, tol, line, out):",
+        '    """law_trip by RK4 on the circle\'s embedding."""',
+        "    n = indptr.shape[0] - 1",
+        "    m = CS * n",
+        "    G = np.empty((circle_rhs_rows(n, indices.shape[0]), n))",
+        "    T = trip_arrays(n)",
+        "    z = np.empty(m)",
+        "    f = np.empty(m)",
+        "    k2 = np.empty(m)",
+        "    k3 = np.empty(m)",
+        "    k4 = np.empty(m)",
+        "    v = np.empty(m)",
+        "    circle_from(y0, z, n)",
+        "    settle = np.nan",
+        "    max_f = 0.0",
+        "    max_a = 0.0",
+        "    t = 0.0",
+        "    failed = False",
+        "    for stage in range(2):",
+        "        if stage == 0 and t_clear <= 0.0:",
+        "            continue  # no fault",
+        "        w = w_fault if stage == 0 else w_post",
+        "        circle_trip_eval(z, w, indptr, indices, P, f, G, T)",
+        "        if t == 0.0:  # the unwrapped phases start at the state's own",
+        "            for i in range(n):",
+        f"                T[6][i] = y0[{k_phase} * n + i]",
+        "        settle = trip_clock(T[0], T[0], n, t, 0.0, tol, settle, True)",
+        "        t0 = t",
+        "        length = t_clear if stage == 0 else t_end - t_clear",
+        "        steps = max(1, int(math.ceil(length / dt - 1e-9)))",
+        "        for k in range(steps):",
+        "            h = dt if k < steps - 1 else length - (steps - 1) * dt",
+        "            for a in range(m):",
+        "                v[a] = z[a] + 0.5 * h * f[a]",
+        "            circle_law_rhs(v, w, indptr, indices, P, k2, G)",
+        "            for a in range(m):",
+        "                v[a] = z[a] + 0.5 * h * k2[a]",
+        "            circle_law_rhs(v, w, indptr, indices, P, k3, G)",
+        "            for a in range(m):",
+        "                v[a] = z[a] + h * k3[a]",
+        "            circle_law_rhs(v, w, indptr, indices, P, k4, G)",
+        "            for a in range(m):",
+        "                z[a] = z[a] + h / 6.0 * (f[a] + 2.0 * k2[a] + 2.0 * k3[a] + k4[a])",
+        "            circle_project(z, n)",
+        "            t_prev = t",
+        "            t = t0 + (k + 1) * dt if k < steps - 1 else t0 + length",
+        "            trip_keep(T)",
+        "            circle_trip_eval(z, w, indptr, indices, P, f, G, T)",
+        "            settle, max_f, max_a = trip_after(",
+        "                T, indptr, indices, t_prev, t - t_prev, tol, settle, line, max_f, max_a",
+        "            )",
+        "            total = 0.0",
+        "            for a in range(m):",
+        "                total += z[a]",
+        "            if not math.isfinite(total):",
+        "                failed = True  # the step is unstable for this grid",
+        "                break",
+        "        if failed:",
+        "            break",
+        "    out[0] = np.nan if failed else settle",
+        "    out[1] = max_f",
+        "    out[2] = max_a",
+        "    out[3] = 1.0 if failed else 0.0",
+    ]
 
 
 def generate_source(law: Law) -> str:
@@ -2284,17 +2389,30 @@ def trip_switch(y, w, indptr, indices, P, f, G, T, t, tol, settle, first):
 
 
 @njit(cache=True, error_model="numpy")
-def trip_stepped(y, w, indptr, indices, P, f, G, T, t_prev, step, tol, settle, line, max_f, max_a):
-    """After a step to y (T still holds its start): the rates, the unwrapped phases (each turn
-    below pi), the swing's maxima and the settling clock over the step's interpolants, as
-    (settle, max_f, max_a); line = (ta, tb, keep)."""
+def trip_keep(T):
+    """T's values at the step's start kept (before the step's end is evaluated into T)."""
     D, Dp, Q, Qp, ph, dph, u, p_ph, p_dph, p_u = T
     Dp[:] = D
     Qp[:] = Q
     p_u[:] = u
     p_ph[:] = ph
     p_dph[:] = dph
+
+
+@njit(cache=True, error_model="numpy")
+def trip_stepped(y, w, indptr, indices, P, f, G, T, t_prev, step, tol, settle, line, max_f, max_a):
+    """After a step to y (T still holds its start): the rates and trip_after's bookkeeping."""
+    trip_keep(T)
     trip_eval(y, w, indptr, indices, P, f, G, T)
+    return trip_after(T, indptr, indices, t_prev, step, tol, settle, line, max_f, max_a)
+
+
+@njit(cache=True, error_model="numpy")
+def trip_after(T, indptr, indices, t_prev, step, tol, settle, line, max_f, max_a):
+    """After a step (T: its end evaluated, its start kept): the unwrapped phases (each turn
+    below pi), the swing's maxima and the settling clock over the step's interpolants, as
+    (settle, max_f, max_a); line = (ta, tb, keep)."""
+    D, Dp, Q, Qp, ph, dph, u, p_ph, p_dph, p_u = T
     for i in range(u.shape[0]):
         turn = ph[i] - p_ph[i]
         u[i] += math.atan2(math.sin(turn), math.cos(turn))
@@ -2436,7 +2554,7 @@ def law_trips_{kind}(y0, indptr, indices, P, k, ta, tb, keep, t_clear, t_after, 
     for kind, call in (
         (
             "rk4",
-            "law_trip(y0, w_fault, w_post, indptr, indices, P, t_clear[e], t_clear[e] + t_after, dt, "
+            "trip_rk4(y0, w_fault, w_post, indptr, indices, P, t_clear[e], t_clear[e] + t_after, dt, "
             "tols[0], (ta[e], tb[e], keep[e]), out[e])",
         ),
         (
