@@ -20,7 +20,9 @@ from __future__ import annotations
 import argparse
 import os
 import platform
+import sys
 import time
+from pathlib import Path
 
 import numpy as np
 
@@ -32,18 +34,8 @@ from antisync.kernels.shared import per_node
 from antisync.laws import Law
 from antisync.plan.model import LawSetup
 
-POWER_GRID = {
-    "name": "power-grid",
-    "states": ["theta", "nu"],
-    "params": {"P": 0.0, "M": 1.0, "gamma": 1.0, "generator": 0.0},
-    "coupling": {"u": "w * sin(theta_j - theta_i)"},
-    "rates": {
-        "theta": "generator * nu + (1 - generator) * (P + u) / gamma",
-        "nu": "generator * (P - gamma * nu + u) / M",
-    },
-    "phase": "theta",
-    "frequency": ["generator * nu + (1 - generator) * (P + u) / gamma", "(P + u) / gamma"],
-}
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "tests"))
+from test_laws import POWER_GRID  # noqa: E402  (the tests' law, not copied here)
 
 
 def law_grid(grid):
