@@ -911,3 +911,51 @@ def test_cli_trip_of_a_law_writes_its_table_and_refuses_what_it_cannot_run(tmp_p
         assert res.exit_code == 2 and words in res.output, (extra, res.output)
         assert "Traceback" not in res.output and len(res.output.strip().splitlines()) == 1
         assert out.read_text() == old
+
+
+def test_a_laws_trip_reads_its_edge_parameters_on_the_grids_links(tmp_path, monkeypatch):
+    """A law with a phase lag per link (an edge parameter read from a file, each link its own):
+    every locked state the trip table looks for (the operating point, each tripped line's post-
+    trip network) reads the lags in the order of the links it integrates, the tripped line kept
+    in its place at weight 0 (a pattern without it would shift every later link's lag onto its
+    neighbour's, silently)."""
+    import yaml
+
+    import antisync
+    from antisync.kernels import law_locked
+
+    law = {
+        "name": "sakaguchi-links",
+        "states": ["theta"],
+        "params": {"omega": 0.0},
+        "edge_params": {"alpha": 0.0},
+        "coupling": {"u": "w * sin(theta_j - theta_i - alpha)"},
+        "rates": {"theta": "omega + u"},
+    }
+    (tmp_path / "law.yaml").write_text(yaml.safe_dump(law))
+    lag = {frozenset((u, v)): 0.05 * (k + 1) for k, (u, v, _) in enumerate(RING_LINKS)}
+    (tmp_path / "lags.txt").write_text("".join(f"{min(e)} {max(e)} {a}\n" for e, a in lag.items()))
+    cfg = _ring(
+        {
+            "law": str(tmp_path / "law.yaml"),
+            "params": {"omega": [0.2, -0.2, 0.1, -0.1, 0.05, -0.05]},
+            "edge_params": {"alpha": {"file": str(tmp_path / "lags.txt")}},
+        }
+    )
+    calls, real = [], law_locked.locked_state
+
+    def spy(law, values, edges, indptr, indices, weights, *, t_max):
+        calls.append((edges.copy(), np.array(indptr), np.array(indices), np.array(weights)))
+        return real(law, values, edges, indptr, indices, weights, t_max=t_max)
+
+    monkeypatch.setattr(law_locked, "locked_state", spy)
+    got = antisync.grid.trip(cfg, lines="0-3,1-2", t_clear=0.2, t_max=40.0)
+    assert [r["line"] for r in got.records] == [["0", "3"], ["1", "2"]]
+    assert all(r["settles"] and r["post_locked"] for r in got.records)
+    out = []
+    for edges, indptr, indices, weights in calls:
+        rows = np.repeat(np.arange(indptr.size - 1), np.diff(indptr))
+        want = [lag[frozenset((int(i), int(j)))] for i, j in zip(rows, indices, strict=True)]
+        np.testing.assert_array_equal(edges[0], want)
+        out.append({frozenset((int(rows[q]), int(indices[q]))) for q in np.flatnonzero(weights == 0)})
+    assert out == [set(), {frozenset((0, 3))}, {frozenset((1, 2))}]

@@ -39,7 +39,6 @@ sound where the verdicts switch more than once near the boundary.
 
 from __future__ import annotations
 
-import dataclasses
 import hashlib
 import math
 import sys
@@ -154,16 +153,21 @@ def operating_point(grid: Grid) -> np.ndarray:
     return state.phi.copy()
 
 
-def _law_operating_point(grid: Grid) -> np.ndarray:
+def _law_operating_point(grid: Grid, weights: np.ndarray | None = None) -> np.ndarray | None:
     """A law's operating point: the locked state its network reaches from the in-phase state
     (:func:`antisync.kernels.law_locked.locked_state`, a stable one: it attracts), the flat
-    state of its kernels."""
+    state of its kernels. ``weights``: other weights on the grid's CSR pattern (the law's edge
+    parameters are in its order: a line out keeps its place, weight 0), whose locked state is
+    returned, or None where there is none."""
     from antisync.kernels.law_locked import locked_state as law_locked_state
 
     setup, csr = grid.law, to_csr(grid.omega)
+    w = csr.weights if weights is None else weights
     state = law_locked_state(
-        setup.law, setup.values, setup.edges, csr.indptr, csr.indices, csr.weights, t_max=setup.lock_t_max
+        setup.law, setup.values, setup.edges, csr.indptr, csr.indices, w, t_max=setup.lock_t_max
     )
+    if weights is not None:
+        return None if state is None else state.y
     if state is None:
         raise GridError(
             f"{grid.name}: law {setup.law.name} does not lock from its in-phase state within "
@@ -377,15 +381,16 @@ STEP_ANGLE = 0.1
 def _post_locked(grid: Grid, a: int, b: int, share: float) -> bool:
     """Whether the grid with ``share`` of line ``a-b``'s ``K`` taken has a stable locked state
     (a law's: whether it locks from its in-phase state, :func:`_law_operating_point`)."""
+    if grid.law is not None:
+        csr = to_csr(grid.omega)
+        rows = np.repeat(np.arange(csr.indptr.size - 1), np.diff(csr.indptr))
+        line = ((rows == a) & (csr.indices == b)) | ((rows == b) & (csr.indices == a))
+        return (
+            _law_operating_point(grid, np.where(line, (1.0 - share) * csr.weights, csr.weights)) is not None
+        )
     post = grid.omega.copy()
     post[a, b] *= 1.0 - share
     post[b, a] *= 1.0 - share
-    if grid.law is not None:
-        try:
-            _law_operating_point(dataclasses.replace(grid, omega=post))
-        except GridError:
-            return False
-        return True
     state = locked_state(post, grid.p, grid.lag, grid.inertia, grid.damping)
     return bool(state is not None and state.stable)
 
