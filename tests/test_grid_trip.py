@@ -920,19 +920,12 @@ def test_a_laws_trip_reads_its_edge_parameters_on_the_grids_links(tmp_path, monk
     in its place at weight 0 (a pattern without it would shift every later link's lag onto its
     neighbour's, silently)."""
     import yaml
+    from test_laws import LINK_LAG
 
     import antisync
     from antisync.kernels import law_locked
 
-    law = {
-        "name": "sakaguchi-links",
-        "states": ["theta"],
-        "params": {"omega": 0.0},
-        "edge_params": {"alpha": 0.0},
-        "coupling": {"u": "w * sin(theta_j - theta_i - alpha)"},
-        "rates": {"theta": "omega + u"},
-    }
-    (tmp_path / "law.yaml").write_text(yaml.safe_dump(law))
+    (tmp_path / "law.yaml").write_text(yaml.safe_dump(LINK_LAG))
     lag = {frozenset((u, v)): 0.05 * (k + 1) for k, (u, v, _) in enumerate(RING_LINKS)}
     (tmp_path / "lags.txt").write_text("".join(f"{min(e)} {max(e)} {a}\n" for e, a in lag.items()))
     cfg = _ring(

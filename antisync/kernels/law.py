@@ -1234,6 +1234,13 @@ def _circle_trip_source(circle: Circle, pr) -> list[str]:
     ]
 
 
+def _phase_lines(sym, rate, targets: list[str], pr) -> list[str]:
+    """Inside ``for i in range(n)``: node ``i``'s phase and its rate along ``f`` into ``targets``."""
+    out = _node_loads([sym.phase, rate], sym)
+    out += [f"        f{k} = f[{k} * n + i]" for k in range(len(sym.x))]
+    return out + _block([sym.phase, rate], targets, "        ", pr)
+
+
 def generate_source(law: Law) -> str:
     """The Python source of ``law``'s kernels (module docstring)."""
     import sympy
@@ -1277,9 +1284,7 @@ def generate_source(law: Law) -> str:
         "    ds = 0.0",
         "    for i in range(n):",
     ]
-    out += _node_loads([sym.phase, rate], sym)
-    out += [f"        f{k} = f[{k} * n + i]" for k in range(n_s)]
-    out += _block([sym.phase, rate], ["ph", "rate"], "        ", pr)
+    out += _phase_lines(sym, rate, ["ph", "rate"], pr)
     out += [
         "        co = math.cos(ph)",
         "        si = math.sin(ph)",
@@ -1316,9 +1321,7 @@ def generate_source(law: Law) -> str:
         "def law_phases(y, f, P, n, ph, dph):",
         "    for i in range(n):",
     ]
-    out += _node_loads([sym.phase, rate], sym)
-    out += [f"        f{k} = f[{k} * n + i]" for k in range(n_s)]
-    out += _block([sym.phase, rate], ["ph[i]", "dph[i]"], "        ", pr)
+    out += _phase_lines(sym, rate, ["ph[i]", "dph[i]"], pr)
 
     # the Jacobian on the expanded pattern: row (s, i), entries (r, i) then (r, j) per in-link
     d_edge_i = [[h.diff(x) for x in sym.x] for h in sym.coupling]  # d h_m / d x_r (own)
