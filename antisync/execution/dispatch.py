@@ -207,7 +207,8 @@ def _model(simulate_model, job, first, count, variant_weights, realizations, tod
 
 #: The integrators of a line trip (``antisync grid --trip``: the swing equation, or a user's law,
 #: from the operating point, with a fault and the trip; :mod:`antisync.kernels.trip`, the law's
-#: generated ``law_trips``), by model kind (``model`` or ``law``), and why the others do not run one.
+#: generated ``law_trips_rk4`` and ``law_trips_rodas4``), by model kind (``model`` or ``law``), and
+#: why the others do not run one.
 TRIP_ROWS: dict[tuple[str, str], str | None] = {
     ("model", "euler"): (
         "a line trip integrates by rk4 or rodas4 (Euler's first-order step under-resolves the swing)"
