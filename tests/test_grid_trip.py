@@ -884,9 +884,10 @@ def test_a_stuart_landau_trip_is_an_independent_integrations():
 
 def test_cli_trip_of_a_law_writes_its_table_and_refuses_what_it_cannot_run(tmp_path):
     """``antisync grid CONFIG --trip`` with a law config writes the table (its law named) and
-    finishes a ``--resume`` of it; a resume with other law values and Euler (which under-resolves
-    the swing) are refused in one line, exit 2, before any integration, the table left as it is
-    (the static indicators' refusal: its own test above)."""
+    finishes a ``--resume`` of it; a resume with other law values, Euler (which under-resolves
+    the swing) and a parameter drawn per realization (no one operating point) are refused in
+    one line, exit 2, before any integration, the table left as it is (the static indicators'
+    refusal: its own test above)."""
     import yaml
 
     cfg = tmp_path / "ring.yaml"
@@ -905,6 +906,11 @@ def test_cli_trip_of_a_law_writes_its_table_and_refuses_what_it_cannot_run(tmp_p
     for extra, words in (
         (["--trip", "--resume", "--set", "model.params.gamma=0.6"], "the grid's data"),  # the law's values
         (["--trip", "--set", "dynamics.integrator=euler"], "a law's line trip integrates by rk4 or rodas4"),
+        # a parameter drawn per realization: a trip has one operating point
+        (
+            ["--trip", "--set", "model.params.gamma={distribution: uniform, width: 0.2, mean: 0.5}"],
+            "gamma drawn per realization; a line trip needs one operating point",
+        ),
     ):
         replace = [] if "--resume" in extra else ["--overwrite"]
         res = CliRunner().invoke(app, [*args, *extra[1:], "--out", str(out), *replace])
