@@ -11,7 +11,8 @@ importing antisync changes nothing for any other numba code in the process (no e
 variable, no global cache folder). A user's own ``NUMBA_CACHE_DIR`` is respected: then numba
 caches antisync there as it caches everything else.
 
-Every module that compiles with ``cache=True`` imports this module first.
+Every module that compiles with ``cache=True`` imports this module first (and so
+:mod:`antisync._numba_compile`, a faster fixed point in numba's copy propagation).
 """
 
 from __future__ import annotations
@@ -22,6 +23,8 @@ import os
 from pathlib import Path
 
 from numba.core import caching
+
+from antisync import _numba_compile  # noqa: F401 -- numba's copy propagation, faster (see there)
 
 __all__ = ["cache_dir"]
 
