@@ -325,7 +325,14 @@ _LANE_CASES = {"euler": (("euler", 0.01), ("euler", 0.08)), "rk4": (("rk4", 0.01
 
 @pytest.mark.parametrize(
     "name, integrators",
-    [("kuramoto", "euler rk4"), ("second-harmonic", "rk4"), ("swing", "euler"), ("sakaguchi-links", "rk4")],
+    [
+        ("kuramoto", "euler rk4"),
+        ("swing", "euler"),
+        # the same drivers on the second harmonic's G rows and on edge rows: compile-heavy
+        # repeats (two lane drivers each, 26-32 s a law on a slow hour)
+        pytest.param("second-harmonic", "rk4", marks=pytest.mark.slow),
+        pytest.param("sakaguchi-links", "rk4", marks=pytest.mark.slow),
+    ],
 )
 def test_the_lane_driver_is_the_one_trajectory_driver_bit_for_bit(name, integrators):
     """Euler and RK4 on the circle form: 16 trajectories per lane vector group and one per item
@@ -524,6 +531,7 @@ def test_the_frequency_criterion_of_a_law_is_the_builtins():
             assert ok.sum() >= 30 and gap < bound, (name, integrator, gap)
 
 
+@pytest.mark.slow  # its law's lane drivers compile for this test alone (37 s of its 39 s, a slow hour)
 def test_the_ieee39_grid_as_a_law_is_the_builtin():
     """configs/ieee39_grid.yaml's data (10 generators with inertia beside 29 first-order buses,
     raw coupling, frequency locking at 1e-3 rad/s) written as the law POWER_GRID: Euler at dt
