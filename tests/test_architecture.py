@@ -44,6 +44,7 @@ ROOT_MODULES = {
     "antisync",
     "antisync.__main__",
     "antisync._numba_cache",
+    "antisync._numba_compile",
     "antisync._version",
     "antisync.errors",
     "antisync.status",
