@@ -2,12 +2,20 @@
 
     NUMBA_CACHE_DIR=$(mktemp -d) python bench/compile_probe.py items
 
-``items``: the one-trajectory model reference (``cpu.simulate_model(lanes=0)``), ``rodas``:
-Rodas4's item driver, ``adjoint``: the model adjoint, ``trip``: the trip kernels (IEEE 14, one
-line). The first call's time is numba compiling the family (its run is milliseconds; the second
-call shows it); run each in a fresh process with an empty ``NUMBA_CACHE_DIR``, or the cache
-answers instead of the compiler. Used to choose how a parallel loop's body is written
-(bench/RESULTS.md, "The test suite on two cores, a tenth time").
+``items``: the one-trajectory model reference (``cpu.simulate_model(lanes=0)``), ``lanes``: the
+model's parallel RK4 lane driver (``lanes=16``), ``rodas``: Rodas4's item driver, ``adjoint``:
+the model adjoint, ``trip``: the trip kernels (IEEE 14, one line). The first call's time is numba
+compiling the family (its run is milliseconds; the second call shows it); run each in a fresh
+process with an empty ``NUMBA_CACHE_DIR``, or the cache answers instead of the compiler. Used to
+choose how a parallel loop's body is written (bench/RESULTS.md, "The test suite on two cores, a
+tenth time").
+
+``--numba-copy-propagate`` compiles with numba's own copy propagation instead of
+antisync._numba_compile's (the same result, a slower fixed point): the pair, each on its own
+empty cache, is that module's measurement::
+
+    for f in lanes adjoint trip; do for o in "" --numba-copy-propagate; do
+      NUMBA_CACHE_DIR=$(mktemp -d) python bench/compile_probe.py $f $o; done; done
 """
 
 from __future__ import annotations
@@ -34,15 +42,24 @@ MODEL = (
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("family", choices=["items", "rodas", "adjoint", "trip"])
-    which = parser.parse_args().family
+    parser.add_argument("family", choices=["items", "lanes", "rodas", "adjoint", "trip"])
+    parser.add_argument("--numba-copy-propagate", action="store_true", help="numba's own copy propagation")
+    args = parser.parse_args()
+    which = args.family
+    if args.numba_copy_propagate:
+        from numba.core import ir_utils
+        from numba.parfors import parfor
+
+        from antisync import _numba_compile
+
+        ir_utils.copy_propagate = parfor.copy_propagate = _numba_compile._numba_copy_propagate
     job = make_job(load_config_text(MODEL))
     ks = np.arange(4, dtype=np.uint64)
     params = job_model_params(job, ks, job.model.targets)
     net = (1, 0, 0, job.csr.indptr, job.csr.indices, job.csr.weights)
 
     def call():
-        if which == "items":
+        if which in ("items", "lanes"):
             return cpu.simulate_model(
                 *net,
                 job.variant_weights,
@@ -50,7 +67,7 @@ def main() -> None:
                 dt=0.01,
                 max_steps=500,
                 integrator="rk4",
-                lanes=0,
+                lanes=0 if which == "items" else 16,
                 realizations=ks,
             )
         if which == "rodas":
@@ -79,7 +96,8 @@ def main() -> None:
     t = time.perf_counter()
     call()
     second = time.perf_counter() - t
-    print(f"{which}: first call {first:.1f} s (compiling), second {second:.3f} s")
+    whose = "numba's" if args.numba_copy_propagate else "antisync's"
+    print(f"{which} ({whose} copy propagation): first call {first:.1f} s (compiling), second {second:.3f} s")
 
 
 if __name__ == "__main__":
