@@ -6,13 +6,15 @@ detect the fixed point, snapshots the per-block sets of copies with ``copy.deepc
 sweep. The sets hold tuples of variable names (strings), so a set copy per block is the same
 snapshot; ``deepcopy`` walks every tuple in pure Python. In the parallel lane drivers' compile
 (the ``prange`` bodies of hundreds of blocks, simplified again and again by the parfor passes)
-the snapshots were a third of the profile: with this module, a cold compile of the model's
-Euler lane driver took 32 s instead of 44 s, and ``tests/test_capabilities.py`` 309 s instead of
-353 s (cold caches, the same two-core machine, side by side).
+the snapshots were a third of the profile: with this module, a cold compile of the model's RK4
+lane driver takes 30 s instead of 41-42 s (``bench/compile_probe.py lanes``, with and without
+``--numba-copy-propagate``), and ``tests/test_capabilities.py`` 309 s instead of 353 s (cold
+caches, the same two-core machine, side by side).
 
 The replacement is numba's own function with that one line changed; it returns the same
-``(in_copies, out_copies)`` and so changes no compiled code (tests/test_numba_compile.py
-compiles a parallel function under a check that runs both on every call and compares them).
+``(in_copies, out_copies)`` and so changes no compiled code: tests/test_numba_compile.py
+compiles a parallel function under a check that runs both on every call and compares them, and
+that lane driver's LLVM IR (1.1 MB) is the same text either way (bench/RESULTS.md).
 It replaces numba's only where numba's source is the one it was written against (the SHA-1 of
 :func:`inspect.getsource` below); any other numba keeps its own. Numba is patched by name in
 the two modules that call it, ``ir_utils`` and ``parfors.parfor`` (which imported it by name).
