@@ -7,9 +7,11 @@ are therefore cached in ``__pycache__/numba-<hash of every source file>`` inside
 so any edit starts a fresh cache.
 
 This is done with a cache *locator* that answers only for files inside this package, so
-importing antisync changes nothing for any other numba code in the process (no environment
+importing antisync changes where no other numba code in the process is cached (no environment
 variable, no global cache folder). A user's own ``NUMBA_CACHE_DIR`` is respected: then numba
-caches antisync there as it caches everything else.
+caches antisync there as it caches everything else. (One process-wide change comes with it:
+:mod:`antisync._numba_compile` makes numba's copy propagation faster for every compile, with
+the same result.)
 
 Every module that compiles with ``cache=True`` imports this module first (and so
 :mod:`antisync._numba_compile`, a faster fixed point in numba's copy propagation).
