@@ -1088,12 +1088,7 @@ def _circle_source(sym, circle: Circle | None, pr) -> list[str]:
         "    n = indptr.shape[0] - 1",
         "    m = CS * n",
         "    G = np.empty((circle_rhs_rows(n, indices.shape[0]), n))",
-        "    z = np.empty(m)",
-        "    f = np.empty(m)",
-        "    k2 = np.empty(m)",
-        "    k3 = np.empty(m)",
-        "    k4 = np.empty(m)",
-        "    v = np.empty(m)",
+        *_CIRCLE_RK4_WORK,
         "    D = np.empty((2 * KF, n))",
         "    Dp = np.empty((2 * KF, n))",
         "    circle_from(y, z, n)",
@@ -1139,6 +1134,10 @@ def _circle_source(sym, circle: Circle | None, pr) -> list[str]:
     return out + _lane_source(circle, pr)
 
 
+#: circle_rk4's arrays, each m = CS * n long: the state z, its rates f, the stages, the stage state
+_CIRCLE_RK4_WORK = [f"    {a} = np.empty(m)" for a in ("z", "f", "k2", "k3", "k4", "v")]
+
+
 #: A line trip's RK4 on the law's own states (law_trip), where its circle form cannot run one.
 _TRIP_RK4_ANGLES = [
     "",
@@ -1182,12 +1181,7 @@ def _circle_trip_source(circle: Circle, pr) -> list[str]:
         "    m = CS * n",
         "    G = np.empty((circle_rhs_rows(n, indices.shape[0]), n))",
         "    T = trip_arrays(n)",
-        "    z = np.empty(m)",
-        "    f = np.empty(m)",
-        "    k2 = np.empty(m)",
-        "    k3 = np.empty(m)",
-        "    k4 = np.empty(m)",
-        "    v = np.empty(m)",
+        *_CIRCLE_RK4_WORK,
         "    circle_from(y0, z, n)",
         "    settle = np.nan",
         "    max_f = 0.0",
