@@ -16,6 +16,9 @@ empty cache, is that module's measurement::
 
     for f in lanes adjoint trip; do for o in "" --numba-copy-propagate; do
       NUMBA_CACHE_DIR=$(mktemp -d) python bench/compile_probe.py $f $o; done; done
+
+With ``lanes``, the line also gives the SHA-1 of the driver's LLVM IR (addresses and long
+numbers masked): the same with either copy propagation.
 """
 
 from __future__ import annotations
@@ -97,7 +100,23 @@ def main() -> None:
     call()
     second = time.perf_counter() - t
     whose = "numba's" if args.numba_copy_propagate else "antisync's"
-    print(f"{which} ({whose} copy propagation): first call {first:.1f} s (compiling), second {second:.3f} s")
+    line = f"{which} ({whose} copy propagation): first call {first:.1f} s (compiling), second {second:.3f} s"
+    if which == "lanes":
+        line += f"; LLVM IR {llvm_digest()}"
+    print(line)
+
+
+def llvm_digest() -> str:
+    """The model's RK4 lane driver's LLVM IR: its length and SHA-1, addresses and long numbers
+    (object ids in names) masked."""
+    import hashlib
+    import re
+
+    from antisync.kernels.lanes import LaneFeatures, make_lane_driver
+
+    text = "".join(make_lane_driver(LaneFeatures(model=True, rk4=True)).inspect_llvm().values())
+    text = re.sub(r"\d{6,}", "N", re.sub(r"0x[0-9a-f]+", "0x", text))
+    return f"{len(text):,} characters, SHA-1 {hashlib.sha1(text.encode()).hexdigest()[:12]}"
 
 
 if __name__ == "__main__":
