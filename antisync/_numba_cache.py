@@ -10,11 +10,11 @@ This is done with a cache *locator* that answers only for files inside this pack
 importing antisync changes where no other numba code in the process is cached (no environment
 variable, no global cache folder). A user's own ``NUMBA_CACHE_DIR`` is respected: then numba
 caches antisync there as it caches everything else. (One process-wide change comes with it:
-:mod:`antisync._numba_compile` makes numba's copy propagation faster for every compile, with
-the same result.)
+:mod:`antisync._numba_compile` makes numba's copy propagation and inlining faster for every
+compile, with the same result.)
 
 Every module that compiles with ``cache=True`` imports this module first (and so
-:mod:`antisync._numba_compile`, a faster fixed point in numba's copy propagation).
+:mod:`antisync._numba_compile`).
 """
 
 from __future__ import annotations
@@ -26,7 +26,7 @@ from pathlib import Path
 
 from numba.core import caching
 
-from antisync import _numba_compile  # noqa: F401 -- numba's copy propagation, faster (see there)
+from antisync import _numba_compile  # noqa: F401 -- numba's compiler passes, faster (see there)
 
 __all__ = ["cache_dir"]
 

@@ -1,23 +1,39 @@
-"""A faster fixed point in numba's copy propagation: the same result, a quarter less compile time
-for a parallel kernel.
+"""Two pure-Python costs of numba's compiler, removed with the same compiled code: a cold compile
+of a parallel kernel takes a quarter to a third less time.
 
-``numba.core.ir_utils.copy_propagate`` iterates its data-flow equations to a fixed point and, to
-detect the fixed point, snapshots the per-block sets of copies with ``copy.deepcopy`` after every
-sweep. The sets hold tuples of variable names (strings), so a set copy per block is the same
-snapshot; ``deepcopy`` walks every tuple in pure Python. In the parallel lane drivers' compile
-(the ``prange`` bodies of hundreds of blocks, simplified again and again by the parfor passes)
-the snapshots were a third of the profile: with this module, a cold compile of the model's RK4
-lane driver takes 30 s instead of 41-42 s (``bench/compile_probe.py lanes``, with and without
-``--numba-copy-propagate``), and ``tests/test_capabilities.py`` 309 s instead of 353 s (cold
-caches, the same two-core machine, side by side).
+**Copy propagation.** ``numba.core.ir_utils.copy_propagate`` iterates its data-flow equations to a
+fixed point and, to detect the fixed point, snapshots the per-block sets of copies with
+``copy.deepcopy`` after every sweep. The sets hold tuples of variable names (strings), so a set
+copy per block is the same snapshot; ``deepcopy`` walks every tuple in pure Python. In the
+parallel lane drivers' compile (the ``prange`` bodies of hundreds of blocks, simplified again and
+again by the parfor passes) the snapshots were a third of the profile: with :func:`copy_propagate`
+a cold compile of the model's RK4 lane driver takes 30 s instead of 41-42 s
+(``bench/compile_probe.py lanes``, with and without ``--numba-copy-propagate``), and
+``tests/test_capabilities.py`` 309 s instead of 353 s (cold caches, the same two-core machine,
+side by side). It is numba's own function with that one line changed; it returns the same
+``(in_copies, out_copies)``.
 
-The replacement is numba's own function with that one line changed; it returns the same
-``(in_copies, out_copies)`` and so changes no compiled code: tests/test_numba_compile.py
-compiles a parallel function under a check that runs both on every call and compares them, and
-that lane driver's LLVM IR (1.1 MB) is the same text either way (bench/RESULTS.md).
-It replaces numba's only where numba's source is the one it was written against (the SHA-1 of
-:func:`inspect.getsource` below); any other numba keeps its own. Numba is patched by name in
-the two modules that call it, ``ir_utils`` and ``parfors.parfor`` (which imported it by name).
+**Inlining.** ``InlineWorker.inline_ir`` (every ``inline="always"`` call and every overload numba
+inlines) copies the callee's IR one block at a time, each block with its own ``copy.deepcopy``.
+Every variable of a block holds the function's scope, which holds every variable of the
+function, so each block's copy copied the whole scope again: blocks times variables. Here the
+blocks are copied with one memo, so the scope is copied once and the copy shares variables
+between blocks as the callee's IR itself does; the blocks' scopes are replaced by the caller's
+when they are inlined. In a profile of the model adjoint's cold compile those copies were 13% of
+the time. :func:`inline_ir` is numba's method compiled from numba's own source with those lines
+changed (:data:`INLINE_COPY`).
+
+Neither changes the compiled code: tests/test_numba_compile.py runs numba's copy propagation and
+the replacement on every call of a parallel compile and compares them, and compiles a kernel of
+inlined functions with numba's inlining and this one: the same LLVM IR.
+``bench/compile_probe.py`` prints a digest of every function's LLVM IR in a cold compile of a
+kernel family (the lane drivers, the model adjoint, the trip kernels): the same with numba's own
+passes (``--numba-own``) as with these (bench/RESULTS.md).
+
+Each replaces numba's only where numba's source is the one it was written against (the SHA-1s
+of :func:`inspect.getsource` below, numba 0.68.1); any other numba keeps its own. Numba is
+patched by name where it is called: ``copy_propagate`` in ``ir_utils`` and ``parfors.parfor``
+(which imported it by name), ``inline_ir`` on ``InlineWorker``.
 
 Every module that compiles with ``cache=True`` imports :mod:`antisync._numba_cache`, which
 imports this module.
@@ -27,16 +43,36 @@ from __future__ import annotations
 
 import hashlib
 import inspect
+import textwrap
 
-from numba.core import config, ir_utils
+from numba.core import config, inline_closurecall, ir_utils
 
-__all__ = ["copy_propagate", "installed"]
+__all__ = ["copy_propagate", "inline_ir", "installed", "inline_installed"]
 
 #: SHA-1 of ``inspect.getsource(numba.core.ir_utils.copy_propagate)`` in the numba versions the
 #: replacement was checked against (0.68.1)
 KNOWN = {"1a90423ce674489b91d5160d7de74135ce4a9f62"}
 
+#: SHA-1 of ``inspect.getsource(numba.core.inline_closurecall.InlineWorker.inline_ir)`` in the
+#: numba versions :func:`inline_ir` was checked against (0.68.1)
+KNOWN_INLINE = {"10d32b87fa025ae2c322724ae6ceca139a0a25ef"}
+
+#: ``inline_ir``'s copy of the callee's blocks in numba (first) and here (second): one memo for
+#: all the blocks, so that the function's scope is copied once, not once per block
+INLINE_COPY = (
+    """            for block_label, block in the_ir.blocks.items():
+                new_block = copy.deepcopy(the_ir.blocks[block_label])
+                kernel_copy.blocks[block_label] = new_block
+""",
+    """            memo = {}
+            for block_label, block in the_ir.blocks.items():
+                new_block = copy.deepcopy(the_ir.blocks[block_label], memo)
+                kernel_copy.blocks[block_label] = new_block
+""",
+)
+
 _numba_copy_propagate = ir_utils.copy_propagate
+_numba_inline_ir = inline_closurecall.InlineWorker.inline_ir
 
 
 def _snapshot(copies: dict) -> dict:
@@ -71,12 +107,44 @@ def copy_propagate(blocks, typemap):
     return in_copies, out_copies
 
 
-def _install() -> bool:
+def _known_source(function, known: set[str]) -> str | None:
+    """``function``'s source where its SHA-1 is in ``known``, else None (another numba)."""
     try:
-        source = inspect.getsource(_numba_copy_propagate)
+        source = inspect.getsource(function)
     except (OSError, TypeError):
-        return False
-    if hashlib.sha1(source.encode()).hexdigest() not in KNOWN:
+        return None
+    return source if hashlib.sha1(source.encode()).hexdigest() in known else None
+
+
+def _inline_ir_from(source: str):
+    """numba's ``InlineWorker.inline_ir`` compiled from its own ``source`` with
+    :data:`INLINE_COPY`'s change, in its module's namespace (the names it reads are numba's)."""
+    old, new = INLINE_COPY
+    if source.count(old) != 1:
+        return None
+    namespace: dict = {}
+    code = compile(textwrap.dedent(source.replace(old, new)), inline_closurecall.__file__, "exec")
+    exec(code, vars(inline_closurecall), namespace)  # reads numba's module globals, live
+    function = namespace["inline_ir"]
+    function.__qualname__ = _numba_inline_ir.__qualname__
+    function.__doc__ = _numba_inline_ir.__doc__
+    return function
+
+
+#: numba's ``InlineWorker.inline_ir`` with the callee's blocks copied under one memo; None where
+#: numba's source is not the known one
+inline_ir = _inline_ir_from(source) if (source := _known_source(_numba_inline_ir, KNOWN_INLINE)) else None
+
+
+def _install_inline() -> bool:
+    if inline_ir is None:
+        return False  # another numba: its own inlining
+    inline_closurecall.InlineWorker.inline_ir = inline_ir
+    return True
+
+
+def _install() -> bool:
+    if _known_source(_numba_copy_propagate, KNOWN) is None:
         return False  # another numba: its own copy propagation
     from numba.parfors import parfor
 
@@ -88,3 +156,6 @@ def _install() -> bool:
 
 #: whether numba's copy propagation is this module's (False: numba's own, another version)
 installed = _install()
+
+#: whether numba's ``InlineWorker.inline_ir`` is this module's (False: numba's own)
+inline_installed = _install_inline()

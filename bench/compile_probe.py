@@ -11,19 +11,26 @@ choose how a parallel loop's body is written (bench/RESULTS.md, "The test suite 
 tenth time").
 
 ``--numba-copy-propagate`` compiles with numba's own copy propagation instead of
-antisync._numba_compile's (the same result, a slower fixed point): the pair, each on its own
-empty cache, is that module's measurement::
+antisync._numba_compile's (the same result, a slower fixed point), ``--numba-inline`` with
+numba's own ``InlineWorker.inline_ir`` (the same result, the callee's scope copied once per
+block); the runs, each on its own empty cache, are that module's measurement::
 
-    for f in lanes adjoint trip; do for o in "" --numba-copy-propagate; do
+    for f in lanes adjoint trip; do for o in "" "--numba-copy-propagate --numba-inline"; do
       NUMBA_CACHE_DIR=$(mktemp -d) python bench/compile_probe.py $f $o; done; done
 
-With ``lanes``, the line also gives the SHA-1 of the driver's LLVM IR (addresses and long
-numbers masked): the same with either copy propagation.
+The line also gives a digest of the LLVM IR of every function the first call compiled (each
+function's text, sorted; addresses, hash-numbered constants and numba's version counters in
+names masked, which differ between any two processes; the probe runs itself under
+``PYTHONHASHSEED=0``, as numba names some temporaries in the order of a set of strings): the
+same with numba's passes and antisync's. With ``lanes``, also the lane driver's own digest
+(its function alone).
 """
 
 from __future__ import annotations
 
 import argparse
+import os
+import sys
 import time
 from pathlib import Path
 
@@ -44,18 +51,25 @@ MODEL = (
 
 
 def main() -> None:
+    if os.environ.get("PYTHONHASHSEED") != "0":
+        # numba names some temporaries in the order it iterates sets of strings: one hash seed,
+        # so that two processes compiling the same code write the same LLVM IR
+        os.execve(sys.executable, [sys.executable, *sys.argv], {**os.environ, "PYTHONHASHSEED": "0"})
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("family", choices=["items", "lanes", "rodas", "adjoint", "trip"])
     parser.add_argument("--numba-copy-propagate", action="store_true", help="numba's own copy propagation")
+    parser.add_argument("--numba-inline", action="store_true", help="numba's own InlineWorker.inline_ir")
     args = parser.parse_args()
     which = args.family
+    from numba.core import inline_closurecall, ir_utils
+    from numba.parfors import parfor
+
+    from antisync import _numba_compile
+
     if args.numba_copy_propagate:
-        from numba.core import ir_utils
-        from numba.parfors import parfor
-
-        from antisync import _numba_compile
-
         ir_utils.copy_propagate = parfor.copy_propagate = _numba_compile._numba_copy_propagate
+    if args.numba_inline:
+        inline_closurecall.InlineWorker.inline_ir = _numba_compile._numba_inline_ir
     job = make_job(load_config_text(MODEL))
     ks = np.arange(4, dtype=np.uint64)
     params = job_model_params(job, ks, job.model.targets)
@@ -99,11 +113,45 @@ def main() -> None:
     t = time.perf_counter()
     call()
     second = time.perf_counter() - t
-    whose = "numba's" if args.numba_copy_propagate else "antisync's"
-    line = f"{which} ({whose} copy propagation): first call {first:.1f} s (compiling), second {second:.3f} s"
+    whose = ", ".join(
+        f"{'numba' if own else 'antisync'}'s {what}"
+        for what, own in (("copy propagation", args.numba_copy_propagate), ("inlining", args.numba_inline))
+    )
+    line = f"{which} ({whose}): first call {first:.1f} s (compiling), second {second:.3f} s"
+    line += f"; LLVM IR of {every_llvm_digest()}"
     if which == "lanes":
-        line += f"; LLVM IR {llvm_digest()}"
+        line += f"; the lane driver's {llvm_digest()}"
     print(line)
+
+
+def _masked(text: str) -> str:
+    """LLVM IR without what differs between two processes compiling the same code: addresses,
+    constants numbered by a string's hash (``@.bytes.-1234567``) and numba's version counters
+    (``B4v118``: the order helpers were first compiled in)."""
+    import re
+
+    text = re.sub(r"0x[0-9a-f]+", "0x", text)
+    text = re.sub(r"-?\d{6,}", "N", text)
+    return re.sub(r"B\d+v\d+", "Bv", text)
+
+
+def every_llvm_digest() -> str:
+    """Every compiled numba function's LLVM IR in this process, each function's text masked by
+    :func:`_masked`, sorted: how many, their length, and the SHA-1 of the whole."""
+    import gc
+    import hashlib
+
+    from numba.core.registry import CPUDispatcher
+
+    texts = sorted(
+        _masked(text)
+        for o in gc.get_objects()
+        if isinstance(o, CPUDispatcher)
+        for text in o.inspect_llvm().values()
+    )
+    whole = "".join(texts)
+    digest = hashlib.sha1(whole.encode()).hexdigest()[:12]
+    return f"{len(texts)} functions, {len(whole):,} characters, SHA-1 {digest}"
 
 
 def llvm_digest() -> str:

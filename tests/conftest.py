@@ -110,10 +110,6 @@ KNOWN_SLOW = (
     "tests/test_laws.py::test_the_ieee39_grid_as_a_law_is_the_builtin",
     "tests/test_laws.py::test_the_frequency_criterion_of_a_law_is_the_builtins",
     "tests/test_laws.py::test_the_lane_driver_is_the_one_trajectory_driver_bit_for_bit",
-    # the first to compile two laws' RK4 lane drivers (the constant lag's and the lag per link's)
-    # since the lane test on edge rows went to `make test-slow` (31.9-33.8 s in fresh clones,
-    # 2026-12-07 03:50 and 04:35; 31.5 s of it compiling)
-    "tests/test_laws.py::test_an_edge_parameter_equal_on_every_link_is_the_laws_constant",
 )
 
 

@@ -588,7 +588,17 @@ def _damaged(csr, entries, dbeta):
     return vw
 
 
-def test_per_realization_lambda_is_the_builtins():
+@pytest.mark.parametrize(
+    "case",
+    [
+        "kuramoto",
+        "swing",
+        # the power-grid law's RK4 lane driver compiles for this case alone (18 s of it, a slow
+        # hour); the IEEE 39 law's tau0 against the built-in is also test-slow's
+        pytest.param("ieee39", marks=pytest.mark.slow),
+    ],
+)
+def test_per_realization_lambda_is_the_builtins(case):
     """Lambda per realization, four damaged links at the default dbeta 0.01, law against
     built-in kernels with the same integrator and steps: the paper's estimator ``(tau0 /
     tau(dbeta) - 1) / dbeta`` on grid times identical, and ``F = tau0 / tau(dbeta)`` on the
@@ -606,44 +616,41 @@ def test_per_realization_lambda_is_the_builtins():
     generator = (grid.inertia > 0).astype(float)
     values = np.vstack([grid.freqs[0], np.where(generator > 0, grid.inertia, 1.0), grid.damping, generator])
     order = np.full(5, (0.95 * n) ** 2)
-    cases = [
-        (
-            "kuramoto",
+    cases = {
+        "kuramoto": (
             kar,
             ModelParams(np.zeros((1, n)), 1.0, 0.0, 0.0, 1.0, 0, order),
             LawParams(KURAMOTO, np.zeros((1, n)), order),
             (("rk4", 0.01),),
         ),
-        (
-            "swing",
+        "swing": (
             kar,
             ModelParams(p[None, :], 1.0, 0.0, m, gamma, 0, order),
             LawParams(read_law("swing"), np.vstack([p, m, gamma]), order),
             (("euler", 0.01), ("rodas4", 0.01)),
         ),
-        (
-            "ieee39",
+        "ieee39": (
             job.csr,
             grid,
             LawParams(Law.from_mapping(POWER_GRID), values, grid.targets, criterion=CRIT_FREQUENCY),
             (("rk4", cfg.dynamics.dt),),
         ),
-    ]
-    for name, csr, model, law, runs in cases:
-        m_real = 10 if name == "ieee39" else 16
-        args = (3, 0, m_real, csr.indptr, csr.indices, csr.weights, _damaged(csr, [0, 10, 20, 40], dbeta))
-        for integrator, dt in runs:
-            steps = int(50 / dt)
-            want = _builtin(args, model, integrator, dt, steps)
-            got = simulate_law(*args, law, dt=dt, max_steps=steps, integrator=integrator)
-            np.testing.assert_array_equal(got.status, want.status)
-            ok = (want.status0 == SYNCED)[:, None] & (want.status == SYNCED)
-            assert ok.sum() >= 36, (name, integrator)
-            paper = [(r.steps0[:, None] / r.steps - 1.0) / dbeta for r in (got, want)]
-            np.testing.assert_array_equal(paper[0][ok], paper[1][ok])
-            f_law, f_builtin = ((_tau(r)[:, None] / (r.steps - 1 + r.frac))[ok] for r in (got, want))
-            gap = np.max(np.abs(f_law - f_builtin) / f_builtin)
-            assert gap < 1e-12, (name, integrator, gap)
+    }
+    csr, model, law, runs = cases[case]
+    m_real = 10 if case == "ieee39" else 16
+    args = (3, 0, m_real, csr.indptr, csr.indices, csr.weights, _damaged(csr, [0, 10, 20, 40], dbeta))
+    for integrator, dt in runs:
+        steps = int(50 / dt)
+        want = _builtin(args, model, integrator, dt, steps)
+        got = simulate_law(*args, law, dt=dt, max_steps=steps, integrator=integrator)
+        np.testing.assert_array_equal(got.status, want.status)
+        ok = (want.status0 == SYNCED)[:, None] & (want.status == SYNCED)
+        assert ok.sum() >= 36, integrator
+        paper = [(r.steps0[:, None] / r.steps - 1.0) / dbeta for r in (got, want)]
+        np.testing.assert_array_equal(paper[0][ok], paper[1][ok])
+        f_law, f_builtin = ((_tau(r)[:, None] / (r.steps - 1 + r.frac))[ok] for r in (got, want))
+        gap = np.max(np.abs(f_law - f_builtin) / f_builtin)
+        assert gap < 1e-12, (integrator, gap)
 
 
 def test_a_law_runs_to_frequency_locking(tmp_path):
@@ -849,9 +856,10 @@ def test_rodas4_on_a_stiff_law_matches_radau():
         assert abs(_tau(got)[r] * 0.01 - want) < 1e-5 * want
 
 
-def test_a_state_that_is_not_finite_is_never_synchronized():
-    """A law whose rates turn NaN at t = 1 (``sqrt`` of a clock that goes negative at the rate
-    ``c = 1``) never synchronizes; the same law with ``c = 0`` (the clock stays at 1) does."""
+def _a_law_that_turns_nan():
+    """A law whose rates turn NaN at t = 1 for ``c = 1`` (``sqrt`` of a clock that goes negative
+    at the rate ``c``) and stay finite for ``c = 0`` (the clock stays at 1), on a 4-ring: the
+    law, the network's arguments and the order-parameter target."""
     law = Law.from_mapping(
         {
             "states": ["theta", "s"],
@@ -866,7 +874,13 @@ def test_a_state_that_is_not_finite_is_never_synchronized():
     nx.set_edge_attributes(g, 1.0, "weight")
     _, csr = _csr(g)
     args = (1, 0, 8, csr.indptr, csr.indices, csr.weights, np.zeros((0, csr.weights.size)))
-    targets = np.full(1, (0.99 * 4) ** 2)
+    return law, args, np.full(1, (0.99 * 4) ** 2)
+
+
+def test_a_state_that_is_not_finite_is_never_synchronized():
+    """The law of :func:`_a_law_that_turns_nan` never synchronizes where it is NaN; with
+    ``c = 0`` the same realizations do."""
+    law, args, targets = _a_law_that_turns_nan()
     fine = simulate_law(*args, LawParams(law, np.zeros((1, 4)), targets), dt=0.01, max_steps=5000)
     assert (fine.status0 == SYNCED).sum() >= 6
     broken = simulate_law(*args, LawParams(law, np.ones((1, 4)), targets), dt=0.01, max_steps=5000)
@@ -874,8 +888,13 @@ def test_a_state_that_is_not_finite_is_never_synchronized():
     assert late.any()
     assert (broken.status0[late] == NOT_SYNCED).all()
     np.testing.assert_array_equal(broken.steps0[late], 5000)
-    # Rodas4 rejects every step of a NaN state until its step size collapses: an error naming
-    # it, never a status (as the built-in Rodas4)
+
+
+@pytest.mark.slow  # this law's Rodas4 driver compiles for this test alone (14 s, a slow hour)
+def test_rodas4_on_a_state_that_is_not_finite_is_an_error():
+    """Rodas4 rejects every step of a NaN state until its step size collapses: an error naming
+    it, never a status (as the built-in Rodas4)."""
+    law, args, targets = _a_law_that_turns_nan()
     with pytest.raises(FloatingPointError, match="step size collapsed on .* law"):
         simulate_law(
             *args, LawParams(law, np.ones((1, 4)), targets), dt=0.01, max_steps=5000, integrator="rodas4"
@@ -1087,11 +1106,11 @@ def _lag_network():
     return g, om, csr, _lags(csr, lag)
 
 
-@pytest.mark.parametrize(
-    "integrator",
-    # Euler's and Rodas4's templates read edge rows as RK4's do: compile-heavy repeats
-    [pytest.param("euler", marks=pytest.mark.slow), "rk4", pytest.param("rodas4", marks=pytest.mark.slow)],
-)
+# compile-heavy: the constant lag's law compiles its lane driver for this test alone (16 s of its
+# 32 s, a slow hour); `make test` checks the edge parameter per link against solve_ivp
+# (test_edge_parameters_per_link_agree_with_solve_ivp) and through the Jacobian and the adjoint
+@pytest.mark.slow
+@pytest.mark.parametrize("integrator", ["euler", "rk4", "rodas4"])
 def test_an_edge_parameter_equal_on_every_link_is_the_laws_constant(integrator):
     """``kuramoto-sakaguchi`` (the lag a constant, 0.3) and the lag as an edge parameter at 0.3
     on every link: the same realizations' tau0 and tau(beta) to 1e-12 relative (the constant's

@@ -1,8 +1,15 @@
-"""antisync._numba_compile: numba's copy propagation with a faster fixed point, the same result."""
+"""antisync._numba_compile: numba's copy propagation and inlining, faster, the same result."""
+
+import hashlib
+import inspect
+import os
+import subprocess
+import sys
+from pathlib import Path
 
 import numpy as np
 from numba import njit, prange
-from numba.core import ir_utils
+from numba.core import inline_closurecall, ir_utils
 from numba.parfors import parfor
 
 from antisync import _numba_compile
@@ -58,9 +65,6 @@ def test_the_replacement_returns_numbas_result_on_every_call_of_a_parallel_compi
 def test_it_is_installed_where_numbas_source_is_the_known_one():
     """Installed in both modules that call it when numba's source is the one it was written
     against; numba's own everywhere otherwise."""
-    import hashlib
-    import inspect
-
     known = hashlib.sha1(inspect.getsource(_numba_compile._numba_copy_propagate).encode()).hexdigest()
     assert _numba_compile.installed == (known in _numba_compile.KNOWN)
     if _numba_compile.installed:
@@ -68,3 +72,94 @@ def test_it_is_installed_where_numbas_source_is_the_known_one():
         assert parfor.copy_propagate is _numba_compile.copy_propagate
     else:
         assert ir_utils.copy_propagate is _numba_compile._numba_copy_propagate
+
+
+# -- inlining -----------------------------------------------------------------------------------
+
+
+@njit(inline="always")
+def _clipped(a, lo, hi):
+    """Branches and a loop: an inlined callee of several blocks."""
+    for _ in range(3):
+        if a < lo:
+            a = lo + 0.25 * (lo - a)
+        elif a > hi:
+            a = hi - 0.25 * (a - hi)
+    return a
+
+
+@njit(inline="always")
+def _step(x, w, i):
+    b = np.sin(x[i]) * w[i]  # numba's overloads inline too
+    return _clipped(b, -0.5, 0.5) + _clipped(-b, -0.25, 0.75)
+
+
+def _inlining_kernel(x, w, out):
+    for i in prange(x.shape[0]):
+        out[i] = _step(x, w, i) if x[i] > 0.0 else _step(w, x, i)
+    return out.sum()
+
+
+#: compiles :func:`_inlining_kernel` in a fresh process with numba's ``inline_ir`` or the
+#: replacement (argv[1]) and prints how many times it ran and the SHA-1 of the LLVM IR (the
+#: addresses in the names of parfor functions masked: they differ between any two processes)
+_COMPILE_IN_A_FRESH_PROCESS = """
+import hashlib, re, sys
+import numpy as np
+from numba import njit
+from numba.core import inline_closurecall
+sys.path.insert(0, sys.argv[2])
+import test_numba_compile as t
+from antisync import _numba_compile as nc
+
+numbas = nc._numba_inline_ir
+ours = nc.inline_ir or nc._inline_ir_from(t.inspect.getsource(numbas))
+function = numbas if sys.argv[1] == "numba" else ours
+calls = []
+
+def inline_ir(*args, **kwargs):
+    calls.append(1)
+    return function(*args, **kwargs)
+
+inline_closurecall.InlineWorker.inline_ir = inline_ir
+kernel = njit(parallel=True)(t._inlining_kernel)
+out = np.empty(29)
+total = kernel(np.linspace(-1.0, 1.0, 29), np.cos(np.arange(29.0)), out)
+text = re.sub(r"0x[0-9a-f]+", "0x", "".join(kernel.inspect_llvm().values()))
+digests = [hashlib.sha1(b).hexdigest() for b in (text.encode(), out.tobytes())]
+print(len(calls), len(text), total.hex(), *digests)
+"""
+
+
+def test_the_replacement_inlines_to_the_same_llvm_ir():
+    """A parallel kernel of inlined functions (ours and numba's overloads), compiled with
+    numba's ``inline_ir`` and with the replacement, each in a fresh process with the same hash
+    seed (numba numbers blocks and functions by process-wide counters): the same LLVM IR, the
+    same output, and each compile ran its own inlining as often. (Under any numba whose
+    ``inline_ir`` copies the blocks as 0.68.1's does; the replacement is installed only where
+    the whole source is the known one.)"""
+    numbas = _numba_compile._numba_inline_ir
+    if (_numba_compile.inline_ir or _numba_compile._inline_ir_from(inspect.getsource(numbas))) is None:
+        assert not _numba_compile.inline_installed  # another numba's inlining: left as it is
+        return
+    env = dict(os.environ, PYTHONHASHSEED="0")
+    here = str(Path(__file__).resolve().parent)
+    lines = [
+        subprocess.run(
+            [sys.executable, "-c", _COMPILE_IN_A_FRESH_PROCESS, which, here],
+            env=env,
+            capture_output=True,
+            text=True,
+            check=True,
+        ).stdout.split()
+        for which in ("numba", "ours")
+    ]
+    assert int(lines[0][0]) >= 4  # the inlining ran, in both (the same number of times)
+    assert lines[1] == lines[0]
+
+
+def test_the_inlining_is_installed_where_numbas_source_is_the_known_one():
+    known = hashlib.sha1(inspect.getsource(_numba_compile._numba_inline_ir).encode()).hexdigest()
+    assert _numba_compile.inline_installed == (known in _numba_compile.KNOWN_INLINE)
+    want = _numba_compile.inline_ir if _numba_compile.inline_installed else _numba_compile._numba_inline_ir
+    assert inline_closurecall.InlineWorker.inline_ir is want
