@@ -504,7 +504,16 @@ def _frequency_pair(model, law, args, integrator, dt, steps):
     return ok, np.max(np.abs(_tau(got) - _tau(want))[ok] / _tau(want)[ok])
 
 
-def test_the_frequency_criterion_of_a_law_is_the_builtins():
+@pytest.mark.parametrize(
+    "name",
+    [
+        # the paper's model's frequency lane drivers compile for this case alone (22 s, a slow
+        # hour); its default frequency (the phase's rate) is also the frequency adjoint test's
+        pytest.param("kuramoto", marks=pytest.mark.slow),
+        "swing",
+    ],
+)
+def test_the_frequency_criterion_of_a_law_is_the_builtins(name):
     """Frequency locking (every quantity of the law's ``frequency`` within the tolerance of its
     mean, found on the step's dense output) against the built-in criterion, on the karate club
     with fixed frequencies: the paper's model (its phase's rate, the default) and the swing
@@ -525,10 +534,10 @@ def test_the_frequency_criterion_of_a_law_is_the_builtins():
             LawParams(read_law("swing"), np.vstack([p, m, gamma]), tol, criterion=CRIT_FREQUENCY),
         ),
     }
-    for name, (model, law) in cases.items():
-        for integrator, bound in (("euler", 1e-12), ("rodas4", 1e-12), ("rk4", 1e-12), ("theta", 1e-9)):
-            ok, gap = _frequency_pair(model, law, args, integrator, 0.01, 20000)
-            assert ok.sum() >= 30 and gap < bound, (name, integrator, gap)
+    model, law = cases[name]
+    for integrator, bound in (("euler", 1e-12), ("rodas4", 1e-12), ("rk4", 1e-12), ("theta", 1e-9)):
+        ok, gap = _frequency_pair(model, law, args, integrator, 0.01, 20000)
+        assert ok.sum() >= 30 and gap < bound, (integrator, gap)
 
 
 @pytest.mark.slow  # its law's lane drivers compile for this test alone (37 s of its 39 s, a slow hour)
@@ -901,7 +910,15 @@ def test_rodas4_on_a_state_that_is_not_finite_is_an_error():
         )
 
 
-@pytest.mark.parametrize("name", ["kuramoto", "stuart-landau", "second-harmonic"])
+@pytest.mark.parametrize(
+    "name",
+    [
+        "kuramoto",
+        "stuart-landau",
+        # its adjoint and one-trajectory drivers compile for this case alone (17 s, a slow hour)
+        pytest.param("second-harmonic", marks=pytest.mark.slow),
+    ],
+)
 def test_the_adjoint_is_the_derivative_of_the_discrete_tau(name):
     """Every link's ``d tau0 / d beta`` by the generated adjoint (one backward pass) against
     central differences of the same realization's tau at ``beta = +-1e-6`` (the crossing in the
@@ -1271,7 +1288,10 @@ def test_edge_parameters_from_a_named_column_of_the_edge_list(tmp_path):
     assert not config.model.symmetric  # per-link values: orbits would mix links of other lags
     # the file's values all 0.3 against the number: the same records
     _lag_files(tmp_path, [0.3] * 5)
-    common = {"edges": ["a->b", "e->d"], "betas": [0.5], "realizations": 16, "dynamics": {"dt": 0.02}}
+    # RK4: the lane driver the solve_ivp test compiles for this law (Euler's would compile for this
+    # test alone)
+    dynamics = {"dt": 0.02, "integrator": "rk4"}
+    common = {"edges": ["a->b", "e->d"], "betas": [0.5], "realizations": 16, "dynamics": dynamics}
     got = []
     for spec in ({"file": str(tmp_path / "net.csv"), "column": "lag"}, 0.3):
         cfg = {
