@@ -193,6 +193,67 @@ def test_orbits_match_enumerated_automorphisms(index):
         assert {f for f in orbits if orbits[f] == orbits[e]} == expected
 
 
+def _enumerated_orbits_agree(g, match=None) -> None:
+    from networkx.algorithms.isomorphism import GraphMatcher
+
+    autos = list(GraphMatcher(g, g, edge_match=match).isomorphisms_iter())
+    orbits = edge_orbits(g)
+    for e in graphs.all_directed_edges(g):
+        assert {f for f in orbits if orbits[f] == orbits[e]} == {(s[e[0]], s[e[1]]) for s in autos}, e
+
+
+def test_orbits_of_every_connected_six_node_graph_match_enumerated_automorphisms():
+    """The paper's 112 connected graphs on six nodes, each directed edge's orbit against the
+    one the enumerated automorphisms give."""
+    from networkx.generators.atlas import graph_atlas_g
+
+    six = [g for g in graph_atlas_g() if g.number_of_nodes() == 6 and nx.is_connected(g)]
+    assert len(six) == 112
+    for g in six:
+        _enumerated_orbits_agree(g)
+
+
+@pytest.mark.parametrize(
+    "g",
+    [
+        nx.balanced_tree(2, 3),  # a tree: branches swapped at every level
+        nx.cycle_graph(9),  # one orbit, joined by the automorphisms found, not by searches
+        nx.grid_2d_graph(3, 4),
+        nx.petersen_graph(),
+        # regular, not edge-transitive: one class before any search, two orbits of edges
+        nx.circular_ladder_graph(5),
+    ],
+    ids=["tree", "ring", "grid", "petersen", "prism"],
+)
+def test_orbits_match_enumerated_automorphisms_beyond_the_atlas(g):
+    _enumerated_orbits_agree(g)
+
+
+def test_weighted_orbits_keep_the_weights():
+    """A ring whose weights alternate 1, 2: only rotations by two steps and the reflections that
+    keep the weights; the orbits are the enumerated ones of the weight-preserving relabellings."""
+    g = nx.cycle_graph(8)
+    for k, (a, b) in enumerate(g.edges):
+        g[a][b]["weight"] = 1.0 + k % 2
+    _enumerated_orbits_agree(g, match=lambda x, y: x["weight"] == y["weight"])
+
+
+def test_a_long_paths_orbits_are_its_mirror_pairs():
+    """A path of 401 nodes (every pair of edges a search before: hours at this size): each
+    directed edge's orbit is itself and its mirror image, and refinement alone gives each node
+    its distance to the nearer end."""
+    n = 401
+    g = nx.path_graph(n)
+    colors = graphs.refined_colors(g)
+    assert len(set(colors.values())) == (n + 1) // 2
+    assert all(colors[i] == colors[n - 1 - i] for i in range(n))
+    orbits = edge_orbits(g)
+    for a, b in graphs.all_directed_edges(g):
+        mirror = (n - 1 - a, n - 1 - b)
+        assert {f for f in orbits if orbits[f] == orbits[a, b]} == {(a, b), mirror}
+        assert orbits[a, b] == min((a, b), mirror, key=list(orbits).index)  # the first edge
+
+
 def test_expand_records_fans_out_to_every_orbit_member():
     recs = [
         {"graph": "g", "edge": "0->1", "beta": 0.5, "lambda_km": 0.2},
