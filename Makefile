@@ -73,6 +73,7 @@ bench: $(STAMP)
 	$(BIN)/python bench/bench_trip.py --rows 16
 	$(BIN)/python bench/removal_give_up.py --lines 4 --starts 200 --check-starts 50 --study-starts 100
 	$(BIN)/python bench/bench_design_gradnet.py --skip-textbook
+	$(BIN)/python bench/bench_edge_orbits.py
 
 # every warning is an error (mkdocs.yml: strict); the API pages come from the docstrings
 docs: $(STAMP)
