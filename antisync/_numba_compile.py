@@ -28,7 +28,7 @@ the replacement on every call of a parallel compile and compares them, and compi
 inlined functions with numba's inlining and this one: the same LLVM IR.
 ``bench/compile_probe.py`` prints a digest of every function's LLVM IR in a cold compile of a
 kernel family (the lane drivers, the model adjoint, the trip kernels): the same with numba's own
-passes (``--numba-own``) as with these (bench/RESULTS.md).
+passes (``--numba-copy-propagate --numba-inline``) as with these (bench/RESULTS.md).
 
 Each replaces numba's only where numba's source is the one it was written against (the SHA-1s
 of :func:`inspect.getsource` below, numba 0.68.1); any other numba keeps its own. Numba is
