@@ -51,26 +51,45 @@ def model_rates(theta, nu, w, p, lag, inertia, damping):
     lag)``; first order (``inertia == 0``): ``theta' = P + coupling``, ``nu' = 0``. Per-node
     ``inertia``/``damping`` arrays: a node with ``m_i = 0`` has ``gamma_i theta_i' = P_i +
     coupling_i`` (when some other node has inertia)."""
-    k = (w * np.sin(theta[None, :] - theta[:, None] - lag)).sum(axis=1)
-    m = np.broadcast_to(np.asarray(inertia, dtype=float), theta.shape)
-    g = np.broadcast_to(np.asarray(damping, dtype=float), theta.shape)
-    if not (m > 0).any():
-        return p + k, np.zeros_like(theta)
-    gen = m > 0
-    th = np.where(gen, nu, (p + k) / g)
-    dnu = np.where(gen, (p + k - g * nu) / np.where(gen, m, 1.0), 0.0)
-    return th, dnu
+    return _Model(w, p, lag, inertia, damping, theta.size).rates(theta, nu)
 
 
 def frequency_deviation(theta, nu, w, p, lag, inertia, damping):
     """Largest ``|theta_i' - mean theta'|``; for ``m > 0`` also of ``(P_i + coupling_i) /
     gamma``, the frequency each node relaxes to (docs/models.md)."""
-    th, dnu = model_rates(theta, nu, w, p, lag, inertia, damping)
-    dev = np.max(np.abs(th - th.mean()))
-    if np.any(np.asarray(inertia) > 0):
-        relax = th + np.asarray(inertia) / np.asarray(damping) * dnu
-        dev = max(dev, np.max(np.abs(relax - relax.mean())))
-    return float(dev)
+    return _Model(w, p, lag, inertia, damping, theta.size).deviation(theta, nu)
+
+
+class _Model:
+    """:func:`model_rates` and :func:`frequency_deviation` of one model, its per-node arrays
+    made once (an integration calls them tens of thousands of times)."""
+
+    def __init__(self, w, p, lag, inertia, damping, n):
+        self.w, self.p, self.lag = w, p, lag
+        m = np.broadcast_to(np.asarray(inertia, dtype=float), (n,))
+        g = np.broadcast_to(np.asarray(damping, dtype=float), (n,))
+        self.second = bool((m > 0).any())
+        self.gen = m > 0
+        self.g = g
+        self.m = np.where(self.gen, m, 1.0)  # divides the generators' rows only
+        if self.second:
+            self.relax = np.asarray(inertia) / np.asarray(damping)
+
+    def rates(self, theta, nu):
+        k = (self.w * np.sin(theta[None, :] - theta[:, None] - self.lag)).sum(axis=1)
+        if not self.second:
+            return self.p + k, np.zeros_like(theta)
+        th = np.where(self.gen, nu, (self.p + k) / self.g)
+        dnu = np.where(self.gen, (self.p + k - self.g * nu) / self.m, 0.0)
+        return th, dnu
+
+    def deviation(self, theta, nu):
+        th, dnu = self.rates(theta, nu)
+        dev = np.max(np.abs(th - th.mean()))
+        if self.second:
+            relax = th + self.relax * dnu
+            dev = max(dev, np.max(np.abs(relax - relax.mean())))
+        return float(dev)
 
 
 def model_tau(
@@ -85,20 +104,21 @@ def model_tau(
     from scipy.integrate import solve_ivp
 
     n = theta0.size
-    second = bool(np.any(np.asarray(inertia) > 0))
+    model = _Model(w, p, lag, inertia, damping, n)
+    second = model.second
 
     def split(y):
         return y[:n], (y[n:] if second else np.zeros(n))
 
     def rhs(t, y):
-        th, dnu = model_rates(*split(y), w, p, lag, inertia, damping)
+        th, dnu = model.rates(*split(y))
         return np.concatenate([th, dnu]) if second else th
 
     def gap(t, y):
         theta, nu = split(y)
         if criterion == "r":
             return order_parameter(theta) - target
-        return target - frequency_deviation(theta, nu, w, p, lag, inertia, damping)
+        return target - model.deviation(theta, nu)
 
     gap.terminal = True
     gap.direction = 1.0
@@ -119,16 +139,17 @@ def model_euler_steps(theta0, w, p, lag, inertia, damping, criterion, target, dt
     grid (as :func:`sync_steps` does for Eq. 2)."""
     theta = np.array(theta0, dtype=np.float64)
     nu = np.zeros_like(theta)
+    model = _Model(w, p, lag, inertia, damping, theta.size)
 
     def met(theta, nu):
         if criterion == "r":
             return order_parameter(theta) >= target
-        return frequency_deviation(theta, nu, w, p, lag, inertia, damping) < target
+        return model.deviation(theta, nu) < target
 
     if met(theta, nu):
         return Status.ALREADY_SYNCED, 0
     for step in range(1, max_steps + 1):
-        th, dnu = model_rates(theta, nu, w, p, lag, inertia, damping)
+        th, dnu = model.rates(theta, nu)
         theta = theta + dt * th
         nu = nu + dt * dnu
         if met(theta, nu):
