@@ -14,8 +14,8 @@ The command line (``antisync run configs/lollipop6.yaml``) is a thin layer over 
 functions. Importing antisync is cheap and changes nothing global: no environment variable,
 no numba setting (numba's cache for antisync's own kernels is chosen per function, see
 :mod:`antisync._numba_cache`); heavy modules load on first use. (The first kernel module loaded
-makes numba's copy propagation and inlining faster for every compile in the process, with the
-same compiled code: :mod:`antisync._numba_compile`.)
+makes numba's copy propagation, inlining and liveness analysis faster for every compile in the
+process, with the same compiled code: :mod:`antisync._numba_compile`.)
 """
 
 from __future__ import annotations

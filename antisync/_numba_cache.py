@@ -10,7 +10,7 @@ This is done with a cache *locator* that answers only for files inside this pack
 importing antisync changes where no other numba code in the process is cached (no environment
 variable, no global cache folder). A user's own ``NUMBA_CACHE_DIR`` is respected: then numba
 caches antisync there as it caches everything else. (One process-wide change comes with it:
-:mod:`antisync._numba_compile` makes numba's copy propagation and inlining faster for every
+:mod:`antisync._numba_compile` makes numba's copy propagation, inlining and liveness analysis faster for every
 compile, with the same result.)
 
 Every module that compiles with ``cache=True`` imports this module first (and so

@@ -13,9 +13,11 @@ tenth time").
 ``--numba-copy-propagate`` compiles with numba's own copy propagation instead of
 antisync._numba_compile's (the same result, a slower fixed point), ``--numba-inline`` with
 numba's own ``InlineWorker.inline_ir`` (the same result, the callee's scope copied once per
-block); the runs, each on its own empty cache, are that module's measurement::
+block), ``--numba-live`` with numba's own ``analysis.compute_live_map`` (the same sets, unions of
+names instead of integers); the runs, each on its own empty cache, are that module's
+measurement::
 
-    for f in lanes adjoint trip; do for o in "" "--numba-copy-propagate --numba-inline"; do
+    for f in lanes adjoint trip; do for o in "" "--numba-copy-propagate --numba-inline --numba-live"; do
       NUMBA_CACHE_DIR=$(mktemp -d) python bench/compile_probe.py $f $o; done; done
 
 The line also gives a digest of the LLVM IR of every function the first call compiled (each
@@ -59,9 +61,10 @@ def main() -> None:
     parser.add_argument("family", choices=["items", "lanes", "rodas", "adjoint", "trip"])
     parser.add_argument("--numba-copy-propagate", action="store_true", help="numba's own copy propagation")
     parser.add_argument("--numba-inline", action="store_true", help="numba's own InlineWorker.inline_ir")
+    parser.add_argument("--numba-live", action="store_true", help="numba's own analysis.compute_live_map")
     args = parser.parse_args()
     which = args.family
-    from numba.core import inline_closurecall, ir_utils
+    from numba.core import analysis, inline_closurecall, ir_utils
     from numba.parfors import parfor
 
     from antisync import _numba_compile
@@ -70,6 +73,9 @@ def main() -> None:
         ir_utils.copy_propagate = parfor.copy_propagate = _numba_compile._numba_copy_propagate
     if args.numba_inline:
         inline_closurecall.InlineWorker.inline_ir = _numba_compile._numba_inline_ir
+    if args.numba_live:
+        live = _numba_compile._numba_compute_live_map
+        analysis.compute_live_map = ir_utils.compute_live_map = parfor.compute_live_map = live
     job = make_job(load_config_text(MODEL))
     ks = np.arange(4, dtype=np.uint64)
     params = job_model_params(job, ks, job.model.targets)
@@ -115,7 +121,11 @@ def main() -> None:
     second = time.perf_counter() - t
     whose = ", ".join(
         f"{'numba' if own else 'antisync'}'s {what}"
-        for what, own in (("copy propagation", args.numba_copy_propagate), ("inlining", args.numba_inline))
+        for what, own in (
+            ("copy propagation", args.numba_copy_propagate),
+            ("inlining", args.numba_inline),
+            ("liveness", args.numba_live),
+        )
     )
     line = f"{which} ({whose}): first call {first:.1f} s (compiling), second {second:.3f} s"
     line += f"; LLVM IR of {every_llvm_digest()}"

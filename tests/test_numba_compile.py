@@ -1,4 +1,4 @@
-"""antisync._numba_compile: numba's copy propagation and inlining, faster, the same result."""
+"""antisync._numba_compile: numba's copy propagation, inlining and liveness, faster, the same result."""
 
 import hashlib
 import inspect
@@ -163,3 +163,56 @@ def test_the_inlining_is_installed_where_numbas_source_is_the_known_one():
     assert _numba_compile.inline_installed == (known in _numba_compile.KNOWN_INLINE)
     want = _numba_compile.inline_ir if _numba_compile.inline_installed else _numba_compile._numba_inline_ir
     assert inline_closurecall.InlineWorker.inline_ir is want
+
+
+# -- liveness -----------------------------------------------------------------------------------
+
+
+def test_the_liveness_is_numbas_on_every_call_of_a_parallel_compile(monkeypatch):
+    """Compiling parallel kernels (branches, loops, copies and inlined callees in their
+    ``prange`` bodies), every liveness map numba asks for (the parfor passes', dead-code
+    removal's, the variable lifetimes' that place the deletions) is computed by numba's own
+    function and by the replacement on the same blocks: the same sets on every call, and the
+    kernels' results unchanged. (Under any numba: the replacement is installed only where
+    numba's source is the known one.)"""
+    from numba.core import analysis
+
+    numbas = _numba_compile._numba_compute_live_map
+    calls = []
+
+    def both(cfg, blocks, var_use_map, var_def_map):
+        want = numbas(cfg, blocks, var_use_map, var_def_map)
+        got = _numba_compile.compute_live_map(cfg, blocks, var_use_map, var_def_map)
+        assert got == want
+        calls.append(sum(len(s) for s in want.values()))
+        return got
+
+    for module in (analysis, ir_utils, parfor):
+        monkeypatch.setattr(module, "compute_live_map", both)
+    x = np.linspace(-1.0, 1.0, 37)
+    w = np.cos(np.arange(37.0))
+    got = np.empty(37)
+    njit(parallel=True)(_parallel_kernel)(x, w, got, 5)  # no cache: compiled here
+    want = np.empty(37)
+    _parallel_kernel(x, w, want, 5)
+    np.testing.assert_array_equal(got, want)
+    got = np.empty(37)
+    njit(parallel=True)(_inlining_kernel)(x, w, got)
+    want = np.empty(37)
+    _inlining_kernel(x, w, want)
+    np.testing.assert_array_equal(got, want)
+    assert len(calls) >= 10 and max(calls) > 0  # every pass that asks, on blocks with live variables
+
+
+def test_the_liveness_is_installed_where_numbas_source_is_the_known_one():
+    from numba.core import analysis
+
+    known = hashlib.sha1(inspect.getsource(_numba_compile._numba_compute_live_map).encode()).hexdigest()
+    assert _numba_compile.live_installed == (known in _numba_compile.KNOWN_LIVE)
+    want = (
+        _numba_compile.compute_live_map
+        if _numba_compile.live_installed
+        else _numba_compile._numba_compute_live_map
+    )
+    for module in (analysis, ir_utils, parfor):
+        assert module.compute_live_map is want
