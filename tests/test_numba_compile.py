@@ -46,6 +46,9 @@ def test_the_replacement_returns_numbas_result_on_every_call_of_a_parallel_compi
         want = numbas(blocks, typemap)
         got = _numba_compile.copy_propagate(blocks, typemap)
         assert got == want
+        entry = ir_utils.compute_cfg_from_blocks(blocks).entry_point()
+        initial = ir_utils.init_copy_propagate_data(blocks, entry, typemap)  # numba's
+        assert _numba_compile.init_copy_propagate_data(blocks, entry, typemap) == initial
         calls.append(sum(len(s) for s in want[1].values()))
         return got
 
