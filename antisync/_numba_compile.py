@@ -200,6 +200,7 @@ def compute_live_map(cfg, blocks, var_use_map, var_def_map):
     topo_order = cfg.topo_order()
     b = _Bits()
     defs = {}
+    uses = {offset: b.of(var_use_map[offset]) for offset in (*blocks.keys(), *topo_order)}
 
     def def_bits(offset):
         if offset not in defs:
@@ -212,7 +213,7 @@ def compute_live_map(cfg, blocks, var_use_map, var_def_map):
         changed = False
         for offset in topo_order:
             old = def_reach.get(offset, 0)
-            here = old | def_bits(offset) | b.of(var_use_map[offset])
+            here = old | def_bits(offset) | uses[offset]
             if here != old:
                 def_reach[offset] = here
                 changed = True
@@ -222,7 +223,7 @@ def compute_live_map(cfg, blocks, var_use_map, var_def_map):
                 if after != before:
                     def_reach[out_blk] = after
                     changed = True
-    live = {offset: b.of(var_use_map[offset]) for offset in blocks.keys()}
+    live = {offset: uses[offset] for offset in blocks.keys()}
     order = list(reversed(topo_order))
     changed = True
     while changed:  # a use pushed back to every predecessor it is reachable at, not defined in
