@@ -207,7 +207,7 @@ def _model(simulate_model, job, first, count, variant_weights, realizations, tod
 
 #: The integrators of a line trip (``antisync grid --trip``: the swing equation, or a user's law,
 #: from the operating point, with a fault and the trip; :mod:`antisync.kernels.trip`, the law's
-#: generated ``law_trips_rk4`` and ``law_trips_rodas4``), by model kind (``model`` or ``law``), and
+#: generated ``law_one_trip_rk4`` and ``law_one_trip_rodas4``), by model kind (``model`` or ``law``), and
 #: why the others do not run one.
 TRIP_ROWS: dict[tuple[str, str], str | None] = {
     ("model", "euler"): (

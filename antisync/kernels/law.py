@@ -56,6 +56,7 @@ import numba
 import numpy as np
 
 from antisync import _numba_cache
+from antisync.kernels import law_support as support
 from antisync.kernels.core import CRIT_ORDER, VEC
 from antisync.kernels.shared import (
     PathwiseResult,
@@ -92,7 +93,7 @@ __all__ = [
 ]
 
 #: bumped when the generated code's layout changes (old files are then never read)
-GENERATOR = 16
+GENERATOR = 17
 
 
 class LawParams(NamedTuple):
@@ -130,17 +131,19 @@ class CompiledLaw(NamedTuple):
     hoisted: int
     """``KH``: the rows of ``law_rhs``' scratch ``G`` (``(KH, n)``)."""
     items: object
-    """Euler's and RK4's items in parallel (``law_items_explicit``)."""
+    """Euler's and RK4's item (``law_item_explicit``: one item's start, integration and record;
+    every item of a batch in parallel by :func:`~antisync.kernels.law_support.in_parallel`)."""
     items_circle: object
-    """RK4's on the law's circle form (``law_items_circle``)."""
+    """RK4's item on the law's circle form (``law_item_circle``)."""
     items_circle_euler: object
-    """Euler's on the law's circle form (``law_items_circle_euler``)."""
+    """Euler's item on the law's circle form (``law_item_circle_euler``)."""
     items_lanes_euler: object
     """Euler's on lane vectors (None where ``items_lanes`` is)"""
     items_lanes: object
     """RK4's on lane vectors (``law_items_lanes``; None where the circle form is missing or
     not arithmetic: :func:`vectorizable`)"""
     items_rodas4: object
+    """Rodas4's item (``law_item_rodas4``)."""
     vjp: object
     adjoint: object
     circle: tuple
@@ -154,14 +157,14 @@ class CompiledLaw(NamedTuple):
     """Euler's on lane vectors to the frequency criterion (``law_items_lanes_euler_frequency``;
     None where ``items_lanes_frequency`` is)"""
     adjoint_freq: object = None
-    """the adjoint's items to the frequency criterion (``law_adjoint_items_freq``)"""
+    """the adjoint's realization to the frequency criterion (``law_adjoint_item_freq``)"""
     devs: object = None
     """``law_devs``: the frequency criterion's deviations and their rates (``(2 KF, n)``)"""
     kf: int = 0
     """``KF``: the number of the frequency criterion's quantities"""
     trips: object = None
-    """``(law_trips_rk4, law_trips_rodas4)``: line trips from an operating point
-    (:func:`integrate_law_trips`)"""
+    """``(law_one_trip_rk4, law_one_trip_rodas4)``: one line trip from an operating point
+    (every trip in parallel: :func:`integrate_law_trips`)"""
 
 
 def cache_root() -> Path:
@@ -1657,8 +1660,7 @@ def expanded_pattern(indptr: np.ndarray, indices: np.ndarray, n_states: int) -> 
 
 
 # The drivers: generic in the law (they call law_rhs, law_order, law_start, law_jac above).
-_DRIVERS = (
-    '''
+_DRIVERS = '''
 @njit(cache=True, error_model="numpy")
 def hermite(y0, m0, y1, m1, x):
     """The cubic Hermite interpolant at x in [0, 1] (m0, m1: rates times dt)."""
@@ -2006,8 +2008,9 @@ def item_start(ks, seed, indptr, base_w, var_w, var_is_base, todo, PR, item, per
 
 @njit(cache=True, error_model="numpy")
 def law_item_rodas4(ks, seed, indptr, indices, base_w, var_w, var_is_base, todo, PR, targets, clock, plan,
-                    jperm, status0, steps0, frac0, status, steps, frac, collapsed, item, per):
+                    jperm, status0, steps0, frac0, status, steps, frac, collapsed, item):
     dt, t_max, max_steps, method, rtol, atol, criterion = clock
+    per = var_w.shape[0] + 1
     r, v, run, y, w, P = item_start(ks, seed, indptr, base_w, var_w, var_is_base, todo, PR, item, per)
     if not run:
         return
@@ -2021,43 +2024,25 @@ def law_item_rodas4(ks, seed, indptr, indices, base_w, var_w, var_is_base, todo,
         k = int(max_steps)
         x = 0.0
     record(status0, steps0, frac0, status, steps, frac, r, v, st, k, x)
-'''
-    + "".join(
-        # an explicit integrator's item: the start, its integration, its record
-        f"""
+''' + "".join(
+    # an explicit integrator's item: the start, its integration, its record
+    f"""
 
 @njit(cache=True, error_model="numpy")
 def law_item_{kind}(ks, seed, indptr, indices, base_w, var_w, var_is_base, todo, PR, targets, clock, plan,
-                    jperm, status0, steps0, frac0, status, steps, frac, collapsed, item, per):
+                    jperm, status0, steps0, frac0, status, steps, frac, collapsed, item):
     dt, t_max, max_steps, method, rtol, atol, criterion = clock
+    per = var_w.shape[0] + 1
     r, v, run, y, w, P = item_start(ks, seed, indptr, base_w, var_w, var_is_base, todo, PR, item, per)
     if not run:
         return
     st, k, x = {sync}(y, w, indptr, indices, P, dt, {which}criterion == 1, targets[v + 1], int(max_steps))
     record(status0, steps0, frac0, status, steps, frac, r, v, st, k, x)
 """
-        for kind, sync, which in (
-            ("explicit", "law_sync", "method == 1, "),
-            ("circle", "circle_sync", ""),
-            ("circle_euler", "circle_euler_sync", ""),
-        )
-    )
-    + "".join(
-        # one parallel loop per item driver, so that a run compiles only its integrator's
-        f"""
-
-@njit(parallel=True, cache=True, error_model="numpy")
-def law_items_{kind}(ks, seed, indptr, indices, base_w, var_w, var_is_base, todo, PR, targets, clock, plan,
-                     jperm, status0, steps0, frac0, status, steps, frac, collapsed):
-    m = ks.shape[0]
-    per = var_w.shape[0] + 1
-    for item in prange(m * per):
-        law_item_{kind}(ks, seed, indptr, indices, base_w, var_w, var_is_base, todo, PR, targets, clock, plan,
-                        jperm, status0, steps0, frac0, status, steps, frac, collapsed, np.int64(item), per)
-    for r in prange(m):
-        share_row(var_is_base, r, status0, steps0, frac0, status, steps, frac)
-"""
-        for kind in ("explicit", "circle", "circle_euler", "rodas4")
+    for kind, sync, which in (
+        ("explicit", "law_sync", "method == 1, "),
+        ("circle", "circle_sync", ""),
+        ("circle_euler", "circle_euler_sync", ""),
     )
 )
 
@@ -2290,23 +2275,23 @@ def law_adjoint_one_freq(y0, wq, indptr, indices, P, dt, rk4, target, max_steps,
 #: the adjoint's items, one driver per criterion (each compiles only its own crossing seed)
 _ADJOINT_ITEMS = """
 
-@njit(parallel=True, cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def {name}(ks, seed, indptr, indices, wq, PR, dt, rk4, target, max_steps,
-        status0, steps0, frac0, gw, coef):
-    m = ks.shape[0]
+        status0, steps0, frac0, gw, coef, r):
+    \"\"\"Realization r's start, its forward pass and adjoint (every realization in parallel:
+    law_support.in_parallel).\"\"\"
     n = indptr.shape[0] - 1
-    for r in prange(m):
-        P = PR[0] if PR.shape[0] == 1 else PR[r]
-        y = np.empty(S * n)
-        law_start(seed, ks[r], P, y, n)
-        st, k, x, c = {one}(y, wq, indptr, indices, P, dt, rk4, target, max_steps, gw[r])
-        status0[r] = st
-        steps0[r] = k
-        frac0[r] = x
-        coef[r] = c
+    P = PR[0] if PR.shape[0] == 1 else PR[r]
+    y = np.empty(S * n)
+    law_start(seed, ks[r], P, y, n)
+    st, k, x, c = {one}(y, wq, indptr, indices, P, dt, rk4, target, max_steps, gw[r])
+    status0[r] = st
+    steps0[r] = k
+    frac0[r] = x
+    coef[r] = c
 """
-_ADJOINT_DRIVERS += _ADJOINT_ITEMS.format(name="law_adjoint_items", one="law_adjoint_one")
-_ADJOINT_DRIVERS += _ADJOINT_ITEMS.format(name="law_adjoint_items_freq", one="law_adjoint_one_freq")
+_ADJOINT_DRIVERS += _ADJOINT_ITEMS.format(name="law_adjoint_item", one="law_adjoint_one")
+_ADJOINT_DRIVERS += _ADJOINT_ITEMS.format(name="law_adjoint_item_freq", one="law_adjoint_one_freq")
 
 
 # A line trip (the engineer's N-1, antisync.grids.trip) of the law: RK4 at a fixed step from its
@@ -2537,13 +2522,14 @@ def law_rodas4_trip(y0, w_fault, w_post, indptr, indices, P, t_clear, t_end, h0,
 _TRIP_DRIVERS += "".join(
     f"""
 
-@njit(parallel=True, cache=True, error_model="numpy")
-def law_trips_{kind}(y0, indptr, indices, P, k, ta, tb, keep, t_clear, t_after, dt, tols, plan, jperm, out):
-    \"\"\"Every trip of (ta, tb, keep, t_clear) from y0 for t_after after its trip by {kind}, one
-    per item on the numba threads (out: one row of four per item). tols = (band, rtol, atol).\"\"\"
-    for e in prange(ta.shape[0]):
-        w_fault, w_post = trip_weights(k, indptr, indices, ta[e], tb[e], keep[e])
-        {call}
+@njit(cache=True, error_model="numpy")
+def law_one_trip_{kind}(y0, indptr, indices, P, k, ta, tb, keep, t_clear, t_after, dt, tols, plan, jperm, out,
+                     e):
+    \"\"\"Trip e of (ta, tb, keep, t_clear) from y0 for t_after after its trip by {kind} (out: one
+    row of four per trip; every trip in parallel: law_support.in_parallel). tols = (band, rtol,
+    atol).\"\"\"
+    w_fault, w_post = trip_weights(k, indptr, indices, ta[e], tb[e], keep[e])
+    {call}
 """
     for kind, call in (
         (
@@ -2593,22 +2579,22 @@ def compile_law(law: Law) -> CompiledLaw:
         module.law_start,
         module.law_jac,
         module.KH,
-        module.law_items_explicit,
-        module.law_items_circle,
-        module.law_items_circle_euler,
+        module.law_item_explicit,
+        module.law_item_circle,
+        module.law_item_circle_euler,
         module.law_items_lanes_euler if module.LANES else None,
         module.law_items_lanes if module.LANES else None,
-        module.law_items_rodas4,
+        module.law_item_rodas4,
         module.law_vjp,
-        module.law_adjoint_items,
+        module.law_adjoint_item,
         (module.CIRCLE, module.CIRCLE_FREQUENCY),
         path,
         module.law_items_lanes_frequency if module.LANES and module.LANES_FREQUENCY else None,
         module.law_items_lanes_euler_frequency if module.LANES and module.LANES_FREQUENCY else None,
-        module.law_adjoint_items_freq,
+        module.law_adjoint_item_freq,
         module.law_devs,
         module.KF,
-        (module.law_trips_rk4, module.law_trips_rodas4),
+        (module.law_one_trip_rk4, module.law_one_trip_rodas4),
     )
 
 
@@ -2804,36 +2790,16 @@ def simulate_law(
     if on_lanes.get(items) is None:
         on_lanes = {}
     width = _lane_width(lanes, compiled, params) if items in on_lanes else 0
+    inputs = (ks, np.uint64(seed), indptr, indices, base, var_w, var_is_base, todo, blocks, targets)
+    outputs = (out.status0, out.steps0, out.frac0, out.status, out.steps, out.frac)
     with Threads(threads):
         if width:
             groups = max(1, min(4 * numba.get_num_threads(), -(-m * (n_var + 1) // width)))
-            on_lanes[items](
-                ks, np.uint64(seed), indptr, indices, base, var_w, var_is_base, todo, blocks, targets,
-                clock, out.status0, out.steps0, out.frac0, out.status, out.steps, out.frac, groups, width,
-            )  # fmt: skip
+            support.in_parallel("groups", on_lanes[items], groups, inputs, clock, outputs, (groups, width))
         else:
-            items(
-                ks,
-                np.uint64(seed),
-                indptr,
-                indices,
-                base,
-                var_w,
-                var_is_base,
-                todo,
-                blocks,
-                targets,
-                clock,
-                plan,
-                jperm,
-                out.status0,
-                out.steps0,
-                out.frac0,
-                out.status,
-                out.steps,
-                out.frac,
-                collapsed,
-            )
+            outputs += (collapsed,)
+            support.in_parallel("items", items, m * (n_var + 1), inputs, clock, plan, jperm, outputs)
+    support.share_rows(var_is_base, out)
     check_collapsed(collapsed, ks, f" of law {law.name}")
     return SimResult(out.status0, out.steps0, out.status, out.steps, out.frac0, out.frac)
 
@@ -2881,23 +2847,9 @@ def simulate_law_adjoint(
         parameter_blocks(values, params.drawn, seed, ks, params.law, params.edges), params.start
     )
     with Threads(threads):
-        adjoint(
-            ks,
-            np.uint64(seed),
-            indptr,
-            indices,
-            w,
-            blocks,
-            float(dt),
-            integrator == "rk4",
-            float(params.targets[0]),
-            int(max_steps),
-            status0,
-            steps0,
-            frac0,
-            gw,
-            coef,
-        )
+        args = (ks, np.uint64(seed), indptr, indices, w, blocks, float(dt), integrator == "rk4")
+        args += (float(params.targets[0]), int(max_steps), status0, steps0, frac0, gw, coef)
+        support.in_parallel("flat", adjoint, m, args)
     n_links = derivatives.indptr.size - 1
     link = np.repeat(np.arange(n_links), np.diff(derivatives.indptr))
     dtau = np.zeros((m, n_links))
@@ -2914,7 +2866,7 @@ def integrate_law_trips(
     law: Law, y0, P, indptr, indices, k, trips, t_after, h0, tols, integrator: str = "rk4", threads=None
 ):
     """Line trips of ``law`` from its operating point ``y0`` (the flat state) by the generated
-    ``law_trips_rk4`` (RK4 at the step ``h0``) or ``law_trips_rodas4`` (Rodas4 from the first
+    ``law_one_trip_rk4`` (RK4 at the step ``h0``) or ``law_one_trip_rodas4`` (Rodas4 from the first
     step ``h0``), one trip at a time per numba thread: the ``(items, 4)`` rows ``[settle_time,
     max_frequency, max_angle, failed]`` of :func:`antisync.kernels.trip.integrate_trips`, the
     frequency that of the law's first frequency quantity and the angles its phases'. ``P``:
@@ -2933,23 +2885,12 @@ def integrate_law_trips(
     )
     out = np.empty((ta.size, 4))
     with Threads(threads), numba.parallel_chunksize(1):
-        compiled.trips[rodas4](
-            np.ascontiguousarray(y0, dtype=np.float64),
-            indptr,
-            indices,
-            np.ascontiguousarray(P, dtype=np.float64),
-            np.ascontiguousarray(k, dtype=np.float64),
-            ta,
-            tb,
-            keep,
-            clear,
-            float(t_after),
-            float(h0),
-            tuple(float(v) for v in tols),
-            plan,
-            jperm,
-            out,
-        )
+        y0 = np.ascontiguousarray(y0, dtype=np.float64)
+        P = np.ascontiguousarray(P, dtype=np.float64)
+        k = np.ascontiguousarray(k, dtype=np.float64)
+        inputs = (y0, indptr, indices, P, k, ta, tb, keep, clear, float(t_after), float(h0))
+        tols = tuple(float(v) for v in tols)
+        support.in_parallel("trips", compiled.trips[rodas4], ta.size, inputs, tols, plan, jperm, out)
     return out
 
 
@@ -3155,11 +3096,11 @@ def {fill}(q, lo, hi, ks, seed, indptr, indices, base_w, var_w, var_is_base, tod
     return lo, False
 
 
-@njit(parallel=True, cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy")
 def {name}(ks, seed, indptr, indices, base_w, var_w, var_is_base, todo, PR, targets, clock,
-                    status0, steps0, frac0, status, steps, frac, n_groups, L):
-    """{what} on the circle form, L items of a group stepped together ({sync}'s results; L a
-    multiple of 2 VEC)."""
+                    status0, steps0, frac0, status, steps, frac, n_groups, L, group):
+    """{what} on the circle form: the items of group `group` of n_groups, L stepped together
+    ({sync}'s results; L a multiple of 2 VEC; every group in parallel: law_support.in_parallel)."""
     dt = clock[0]
     max_steps = int(clock[2])
     n = indptr.shape[0] - 1
@@ -3169,74 +3110,71 @@ def {name}(ks, seed, indptr, indices, base_w, var_w, var_is_base, todo, PR, targ
     total = m * per
     rows = CS * n
     hoist = {rhs_rows}(n, nnz) > 0
-    for group in prange(n_groups):
-        lo = group * total // n_groups
-        hi = (group + 1) * total // n_groups
-        z = np.zeros(rows * L)
-        f = np.zeros(rows * L)
-        acc = np.zeros(rows * L)
-        ya = np.zeros(rows * L)
-        yb = np.zeros(rows * L)
-        lw = np.zeros(nnz * L)
-        PL = np.zeros((NP * n + (NROWS - NP) * nnz) * L)
-        G = np.empty(LANE_KH * n * L if hoist else 0)
-        r2 = np.zeros(L)
-        dr2 = np.zeros(L)
-        r2p = np.zeros(L)
-        dr2p = np.zeros(L)
-        y = np.empty(S * n)
-        zq = np.empty(rows)
-        fq = np.empty(rows)
-        Gq = np.empty(({rhs_rows}(n, nnz), n))
-        lane_item = np.full(L, -1, dtype=np.int64)
-        lane_t0 = np.zeros(L, dtype=np.int64)
-        lane_target = np.zeros(L)
-        # the frequency criterion's deviations of every lane at the step's two ends (DA and DB
-        # by turns: the end of step t in DA for an even t), and one lane's for the crossing
-        DA = np.empty(2 * KF * n * L if {freq} else 0)
-        DB = np.empty(2 * KF * n * L if {freq} else 0)
-        Dq = np.empty((2 * KF, n))
-        Dpq = np.empty((2 * KF, n))
-        t = 0
-        active = 0
-        while True:
-            DV = DA if t % 2 == 0 else DB  # where a lane filled now keeps its start's deviations
-            for q in range(L):
-                if lane_item[q] < 0 and lo < hi:
-                    lo, got = {fill}(q, lo, hi, ks, seed, indptr, indices, base_w, var_w, var_is_base,
-                                        todo, PR, targets, max_steps, per, y, zq, fq, Gq, z, f, ya, lw,
-                                        PL, r2, dr2, lane_item, lane_target, dt, L,
-                                        status0, steps0, frac0, status, steps, frac, DV, Dq)
-                    if got:
-                        lane_t0[q] = t
-                        active += 1
-            if active == 0:
-                break
-            for q in range(L):
-                r2p[q] = r2[q]
-                dr2p[q] = dr2[q]
-            t += 1
+    lo = group * total // n_groups
+    hi = (group + 1) * total // n_groups
+    z = np.zeros(rows * L)
+    f = np.zeros(rows * L)
+    acc = np.zeros(rows * L)
+    ya = np.zeros(rows * L)
+    yb = np.zeros(rows * L)
+    lw = np.zeros(nnz * L)
+    PL = np.zeros((NP * n + (NROWS - NP) * nnz) * L)
+    G = np.empty(LANE_KH * n * L if hoist else 0)
+    r2 = np.zeros(L)
+    dr2 = np.zeros(L)
+    r2p = np.zeros(L)
+    dr2p = np.zeros(L)
+    y = np.empty(S * n)
+    zq = np.empty(rows)
+    fq = np.empty(rows)
+    Gq = np.empty(({rhs_rows}(n, nnz), n))
+    lane_item = np.full(L, -1, dtype=np.int64)
+    lane_t0 = np.zeros(L, dtype=np.int64)
+    lane_target = np.zeros(L)
+    # the frequency criterion's deviations of every lane at the step's two ends (DA and DB
+    # by turns: the end of step t in DA for an even t), and one lane's for the crossing
+    DA = np.empty(2 * KF * n * L if {freq} else 0)
+    DB = np.empty(2 * KF * n * L if {freq} else 0)
+    Dq = np.empty((2 * KF, n))
+    Dpq = np.empty((2 * KF, n))
+    t = 0
+    active = 0
+    while True:
+        DV = DA if t % 2 == 0 else DB  # where a lane filled now keeps its start's deviations
+        for q in range(L):
+            if lane_item[q] < 0 and lo < hi:
+                lo, got = {fill}(q, lo, hi, ks, seed, indptr, indices, base_w, var_w, var_is_base,
+                                    todo, PR, targets, max_steps, per, y, zq, fq, Gq, z, f, ya, lw,
+                                    PL, r2, dr2, lane_item, lane_target, dt, L,
+                                    status0, steps0, frac0, status, steps, frac, DV, Dq)
+                if got:
+                    lane_t0[q] = t
+                    active += 1
+        if active == 0:
+            break
+        for q in range(L):
+            r2p[q] = r2[q]
+            dr2p[q] = dr2[q]
+        t += 1
 {step}
-            for q in range(L):
-                item = lane_item[q]
-                if item < 0:
-                    continue
-                k = t - lane_t0[q]
-                if not (r2[q] == r2[q] and dr2[q] == dr2[q]):
-                    st, k, x = NOT_SYNCED, max_steps, 0.0  # diverged: never synchronized
-                else:
+        for q in range(L):
+            item = lane_item[q]
+            if item < 0:
+                continue
+            k = t - lane_t0[q]
+            if not (r2[q] == r2[q] and dr2[q] == dr2[q]):
+                st, k, x = NOT_SYNCED, max_steps, 0.0  # diverged: never synchronized
+            else:
 {cross}
-                    if x >= 0.0:
-                        st = SYNCED
-                    elif k >= max_steps:
-                        st, x = NOT_SYNCED, 0.0
-                    else:
-                        continue
-                record(status0, steps0, frac0, status, steps, frac, item // per, item % per - 1, st, k, x)
-                lane_item[q] = -1
-                active -= 1
-    for r in prange(m):
-        share_row(var_is_base, r, status0, steps0, frac0, status, steps, frac)
+                if x >= 0.0:
+                    st = SYNCED
+                elif k >= max_steps:
+                    st, x = NOT_SYNCED, 0.0
+                else:
+                    continue
+            record(status0, steps0, frac0, status, steps, frac, item // per, item % per - 1, st, k, x)
+            lane_item[q] = -1
+            active -= 1
 '''
 
 
@@ -3245,16 +3183,16 @@ def {name}(ks, seed, indptr, indices, base_w, var_w, var_is_base, todo, PR, targ
 #: numbers, bit for bit), each lane's crossing on the last step's interpolants by the scalar code;
 #: a deviation that is not a number: never synchronized
 _FREQUENCY_CROSS = """\
-                    for row in range(2 * KF):
-                        for i in range(n):
-                            Dq[row, i] = DE[(row * n + i) * L + q]
-                            Dpq[row, i] = DS[(row * n + i) * L + q]
-                    dev = law_deviation(Dq, Dpq, n, dt, {rk4}, 1.0)
-                    if dev != dev:
-                        k = max_steps  # diverged: never synchronized
-                        x = -1.0
-                    else:
-                        x = frequency_crossing(Dq, Dpq, n, dt, {rk4}, lane_target[q])"""
+                for row in range(2 * KF):
+                    for i in range(n):
+                        Dq[row, i] = DE[(row * n + i) * L + q]
+                        Dpq[row, i] = DS[(row * n + i) * L + q]
+                dev = law_deviation(Dq, Dpq, n, dt, {rk4}, 1.0)
+                if dev != dev:
+                    k = max_steps  # diverged: never synchronized
+                    x = -1.0
+                else:
+                    x = frequency_crossing(Dq, Dpq, n, dt, {rk4}, lane_target[q])"""
 
 #: the start's deviations in a lane's fill: RK4's circle rates are its right-hand side's; Euler's
 #: are made from its angles' speeds (circle_rates_of), as circle_euler_sync makes them
@@ -3279,10 +3217,10 @@ _LANE_KINDS = {
         "what": "RK4 to the frequency criterion",
         "sync": "circle_sync",
         "step": """\
-            circle_lane_step(z, f, acc, ya, yb, lw, indptr, indices, PL, G, dt, L)
-            DE = DA if t % 2 == 0 else DB
-            DS = DB if t % 2 == 0 else DA
-            circle_lane_devs(z, f, lw, indptr, indices, PL, DE, L)""",
+        circle_lane_step(z, f, acc, ya, yb, lw, indptr, indices, PL, G, dt, L)
+        DE = DA if t % 2 == 0 else DB
+        DS = DB if t % 2 == 0 else DA
+        circle_lane_devs(z, f, lw, indptr, indices, PL, DE, L)""",
         "cross": _FREQUENCY_CROSS.format(rk4="True"),
         "start_devs": _START_DEVS["rk4"],
     },
@@ -3297,15 +3235,15 @@ _LANE_KINDS = {
         # circle_euler_sync's order: the turn, the projection every RENORM_EVERY steps, the
         # angles' speeds, the circle rates from them (into acc, RK4's accumulator), the deviations
         "step": """\
-            circle_lane_turn(z, f, n, dt, L)
-            for q in range(L):
-                if lane_item[q] >= 0 and (t - lane_t0[q]) % RENORM_EVERY == 0:
-                    circle_lane_project(z, n, q, L)
-            circle_euler_lane_rhs(z, lw, indptr, indices, PL, G, L, f)
-            circle_lane_rates_of(z, f, acc, n, L)
-            DE = DA if t % 2 == 0 else DB
-            DS = DB if t % 2 == 0 else DA
-            circle_lane_devs(z, acc, lw, indptr, indices, PL, DE, L)""",
+        circle_lane_turn(z, f, n, dt, L)
+        for q in range(L):
+            if lane_item[q] >= 0 and (t - lane_t0[q]) % RENORM_EVERY == 0:
+                circle_lane_project(z, n, q, L)
+        circle_euler_lane_rhs(z, lw, indptr, indices, PL, G, L, f)
+        circle_lane_rates_of(z, f, acc, n, L)
+        DE = DA if t % 2 == 0 else DB
+        DS = DB if t % 2 == 0 else DA
+        circle_lane_devs(z, acc, lw, indptr, indices, PL, DE, L)""",
         "cross": _FREQUENCY_CROSS.format(rk4="False"),
         "start_devs": _START_DEVS["euler"],
     },
@@ -3318,16 +3256,16 @@ _LANE_KINDS = {
         "what": "RK4",
         "sync": "circle_sync",
         "step": """\
-            circle_lane_step(z, f, acc, ya, yb, lw, indptr, indices, PL, G, dt, L)
-            circle_lane_order(z, f, n, r2, dr2, L)""",
+        circle_lane_step(z, f, acc, ya, yb, lw, indptr, indices, PL, G, dt, L)
+        circle_lane_order(z, f, n, r2, dr2, L)""",
         "start_devs": _START_DEVS["rk4"],
         "cross": """\
-                    # the Hermite interpolant of R stays below max(R_0, R_1) + 4/27 (|m0| + |m1|):
-                    # a lane below that bound (widened for rounding) cannot cross in this step
-                    top = max(r2p[q], r2[q]) * (1.0 + 1e-12) + 0.15 * dt * (abs(dr2p[q]) + abs(dr2[q]))
-                    if top < lane_target[q] and k < max_steps:
-                        continue
-                    x = order_crossing(r2p[q], dr2p[q], r2[q], dr2[q], dt, True, lane_target[q])""",
+                # the Hermite interpolant of R stays below max(R_0, R_1) + 4/27 (|m0| + |m1|):
+                # a lane below that bound (widened for rounding) cannot cross in this step
+                top = max(r2p[q], r2[q]) * (1.0 + 1e-12) + 0.15 * dt * (abs(dr2p[q]) + abs(dr2[q]))
+                if top < lane_target[q] and k < max_steps:
+                    continue
+                x = order_crossing(r2p[q], dr2p[q], r2[q], dr2[q], dt, True, lane_target[q])""",
     },
     "euler": {
         "name": "law_items_lanes_euler",
@@ -3338,16 +3276,16 @@ _LANE_KINDS = {
         "what": "Euler",
         "sync": "circle_euler_sync",
         "step": """\
-            circle_lane_turn(z, f, n, dt, L)
-            circle_lane_order(z, z, n, r2, dr2, L)
-            for q in range(L):
-                if lane_item[q] >= 0 and (t - lane_t0[q]) % RENORM_EVERY == 0:
-                    circle_lane_project(z, n, q, L)
-            circle_euler_lane_rhs(z, lw, indptr, indices, PL, G, L, f)""",
+        circle_lane_turn(z, f, n, dt, L)
+        circle_lane_order(z, z, n, r2, dr2, L)
+        for q in range(L):
+            if lane_item[q] >= 0 and (t - lane_t0[q]) % RENORM_EVERY == 0:
+                circle_lane_project(z, n, q, L)
+        circle_euler_lane_rhs(z, lw, indptr, indices, PL, G, L, f)""",
         "start_devs": _START_DEVS["euler"],
         "cross": """\
-                    if r2[q] < lane_target[q] and k < max_steps:
-                        continue  # a straight line between two values below the target
-                    x = order_crossing(r2p[q], 0.0, r2[q], 0.0, dt, False, lane_target[q])""",
+                if r2[q] < lane_target[q] and k < max_steps:
+                    continue  # a straight line between two values below the target
+                x = order_crossing(r2p[q], 0.0, r2[q], 0.0, dt, False, lane_target[q])""",
     },
 }
