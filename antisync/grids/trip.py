@@ -259,7 +259,7 @@ def _integrate(
     it does not settle within ``t_max`` after the trip) and the clearing times and shares as
     arrays; what :func:`trip_lines` reports and all :func:`critical_clearing` needs (no static
     post-trip state: it does not depend on the fault). The kernels are
-    :func:`antisync.kernels.trip.trip_batch`'s: ``rk4`` at the fixed step ``dt``, or ``rodas4``
+    :func:`antisync.kernels.trip.trip_item`'s: ``rk4`` at the fixed step ``dt``, or ``rodas4``
     under ``rtol``, ``atol`` from the first step ``dt``."""
     _check(grid, t_clear, t_max, dt)
     if integrator == "rodas4" and not (MIN_TOLERANCE <= min(rtol, atol) and max(rtol, atol) < 1):

@@ -43,6 +43,7 @@ import numpy as np
 from numba import njit, prange
 
 from antisync import _numba_cache  # noqa: F401 -- before any cache=True function (see there)
+from antisync.kernels import loops
 from antisync.kernels.core import (
     RENORM_EVERY,
     TAYLOR_MAX_ANGLE,
@@ -1137,42 +1138,45 @@ def _adjoint_lanes_batch(ks, indptr, indices, w, tr, deriv, run, status0, steps0
             _link_values(dtau, r, g[:, q], st == SYNCED, d_ptr, d_pos, d_val)
 
 
-@njit(parallel=True, cache=True)
-def _adjoint_batch(ks, indptr, indices, w, deriv, run, n_groups, status0, steps0, frac0, dtau):
-    """Realizations ``ks`` split into ``n_groups`` ranges, one per parallel task; each task
-    integrates its realizations one at a time with per-task buffers."""
-    # every field as a local before the prange (see antisync.kernels.lanes.integrate_lanes)
+@njit(cache=True)
+def _adjoint_group(ks, indptr, indices, w, deriv, run, n_groups, status0, steps0, frac0, dtau, group):
+    """Range ``group`` of realizations ``ks`` split into ``n_groups`` ranges, its realizations
+    one at a time with the group's buffers (every group in parallel: :func:`_adjoint_batch`)."""
     d_ptr, d_pos, d_val = deriv
     seed, dt, r2_target, max_steps, every, rk4 = run
     m = ks.shape[0]
     n = indptr.shape[0] - 1
     nnz = w.shape[0]
+    r_lo, r_hi = group_rows(group, n_groups, m)
+    if r_lo >= r_hi:
+        return
+    c = np.empty(n)
+    s = np.empty(n)
+    acc = np.empty(n)
+    ck = np.empty((16, 2, n))
+    seg = np.empty((min(every, max_steps), 2, n))  # a segment never outgrows the trajectory
+    lam = np.empty(n)
+    lam_new = np.empty(n)
+    g = np.zeros(nnz)
+    for r in range(r_lo, r_hi):
+        _start_state(c, s, seed, ks[r])
+        if rk4:
+            st, k, x, ck = _rk4_adjoint(c, s, ck, seg, g, indptr, indices, w, dt, r2_target, max_steps, every)
+        else:
+            st, k, x, ck = _euler_adjoint(
+                c, s, acc, ck, seg, lam, lam_new, g, indptr, indices, w, dt, r2_target, max_steps, every
+            )
+        status0[r] = st
+        steps0[r] = k
+        frac0[r] = x
+        _link_values(dtau, r, g, st == SYNCED, d_ptr, d_pos, d_val)
+
+
+def _adjoint_batch(item, ks, indptr, indices, w, deriv, run, n_groups, status0, steps0, frac0, dtau):
+    """``item`` (:func:`_adjoint_group`) of every group, one per parallel task (compiled by
+    :func:`antisync.kernels.loops.run`)."""
     for group in prange(n_groups):
-        r_lo, r_hi = group_rows(group, n_groups, m)
-        if r_lo >= r_hi:
-            continue
-        c = np.empty(n)
-        s = np.empty(n)
-        acc = np.empty(n)
-        ck = np.empty((16, 2, n))
-        seg = np.empty((min(every, max_steps), 2, n))  # a segment never outgrows the trajectory
-        lam = np.empty(n)
-        lam_new = np.empty(n)
-        g = np.zeros(nnz)
-        for r in range(r_lo, r_hi):
-            _start_state(c, s, seed, ks[r])
-            if rk4:
-                st, k, x, ck = _rk4_adjoint(
-                    c, s, ck, seg, g, indptr, indices, w, dt, r2_target, max_steps, every
-                )
-            else:
-                st, k, x, ck = _euler_adjoint(
-                    c, s, acc, ck, seg, lam, lam_new, g, indptr, indices, w, dt, r2_target, max_steps, every
-                )
-            status0[r] = st
-            steps0[r] = k
-            frac0[r] = x
-            _link_values(dtau, r, g, st == SYNCED, d_ptr, d_pos, d_val)
+        item(ks, indptr, indices, w, deriv, run, n_groups, status0, steps0, frac0, dtau, np.int64(group))
 
 
 def _lane_order(ks, indptr, indices, w, run: _Run) -> np.ndarray:
@@ -1306,7 +1310,9 @@ def simulate_adjoint(
             target[order] = got
         return PathwiseResult(status0, steps0, frac0, dtau)
     with Threads(threads) as groups:
-        _adjoint_batch(
+        loops.run(
+            _adjoint_batch,
+            _adjoint_group,
             ks,
             np.ascontiguousarray(indptr, dtype=np.int64),
             np.ascontiguousarray(indices, dtype=np.int64),

@@ -24,6 +24,7 @@ import numpy as np
 from numba import njit, prange
 
 from antisync import _numba_cache  # noqa: F401 -- before any cache=True function (see there)
+from antisync.kernels import loops
 from antisync.kernels import model_steps as ms
 from antisync.kernels.core import TAYLOR_MAX_ANGLE, WORK_ROWS, lanes_per_vector, renorm_interval
 from antisync.kernels.lanes import integrate_lanes, item_of
@@ -44,7 +45,7 @@ from antisync.kernels.shared import (
     record_item,
     rotation_angle_bound,
     row_sum_bound,
-    share_base,
+    share_rows,
 )
 from antisync.physics.phases import phase, start_phase
 from antisync.types import Integrator
@@ -109,27 +110,25 @@ def _integrate_batch(ks, graph, run, status0, steps0, status, steps):
             steps[r, v] = k_v
 
 
-@njit(parallel=True, cache=True)
-def _integrate_items(ks, seed, graph, model, dt, rk4, max_steps, out):
+def _integrate_items(item, ks, seed, graph, model, dt, rk4, max_steps, out):
     """A generalized model one trajectory per item (``graph`` a :class:`~.shared.Graph`,
     ``model`` a :class:`~.shared.Model`, results into ``out``, an :class:`~.shared.Outputs`):
     ``make_model_kernels``' ``sync_steps`` from the realization's phases, the plain reference
-    that the lane driver matches bit for bit. The parallel loop only calls :func:`_one_item`:
-    a loop body numba need not analyse compiles in a third of the time."""
-    m = ks.shape[0]
-    per = graph.var_w.shape[0] + 1
-    for item in prange(m * per):
-        _one_item(ks, seed, graph, model, dt, rk4, max_steps, out, np.int64(item), per)
-    for r in prange(m):
-        share_base(graph.var_is_base, np.int64(r), out)
+    that the lane driver matches bit for bit. The parallel loop only calls ``item``
+    (:func:`_one_item`), a first-class function: the loop is compiled by
+    :func:`antisync.kernels.loops.run` without linking the integration into it."""
+    per = graph[3].shape[0] + 1
+    for i in prange(ks.shape[0] * per):
+        item(ks, seed, graph, model, dt, rk4, max_steps, out, np.int64(i))
 
 
 @njit(cache=True)
-def _one_item(ks, seed, graph, model, dt, rk4, max_steps, out, item, per):
+def _one_item(ks, seed, graph, model, dt, rk4, max_steps, out, item):
     """Item ``item`` of :func:`_integrate_items`."""
     indptr, indices, base_w, var_w, var_is_base, todo = graph
     freqs, cl, sl, inertia, damping, criterion, targets, starts = model
     n = indptr.shape[0] - 1
+    per = var_w.shape[0] + 1
     r, v, run = item_of(item, per, var_is_base, todo)
     if not run:
         return
@@ -368,7 +367,9 @@ def simulate_model(
     rk4 = integrator == "rk4"
     with Threads(threads) as groups:
         if not lanes:
-            _integrate_items(ks, np.uint64(seed), graph, model, float(dt), rk4, int(max_steps), out)
+            args = (ks, np.uint64(seed), graph, model, float(dt), rk4, int(max_steps), out)
+            loops.run(_integrate_items, _one_item, *args)
+            share_rows(graph.var_is_base, out)
         else:
             every = ks.size * (1 + graph.var_w.shape[0])
             groups, lanes = _layout(

@@ -47,6 +47,7 @@ import numpy as np
 from numba import njit, prange
 
 from antisync import _numba_cache  # noqa: F401 -- before any cache=True function (see there)
+from antisync.kernels import loops
 from antisync.kernels import model_steps as ms
 from antisync.kernels.core import CRIT_FREQUENCY, DEV_PREV_ROW, DEV_ROW, WORK_ROWS
 from antisync.kernels.lanes import item_of
@@ -59,7 +60,7 @@ from antisync.kernels.shared import (
     has_inertia,
     model_batch,
     record_item,
-    share_base,
+    share_rows,
 )
 from antisync.physics.phases import start_phase
 from antisync.status import ALREADY_SYNCED, GAVE_UP, NOT_SYNCED, SYNCED
@@ -921,52 +922,49 @@ def rodas4_trip(th0, grid, w_fault, w_post, t_clear, t_end, h0, tols, plan, line
     out[3] = failed
 
 
-@njit(parallel=True, cache=True)
-def _integrate_items(ks, seed, graph, model, fp, dt, t_max, tols, max_steps, out, counts):
-    """Every (realization, network) item one trajectory per thread iteration (the layout of
-    :func:`antisync.kernels.cpu._integrate_items`), each with its own step sizes; ``counts``
-    ``(acc0, rej0, acc, rej, failed)`` gets each item's accepted and rejected steps and whether
-    the step size failed; ``tols``: ``(rtol, atol, after, band)`` (:func:`rodas4_sync`)."""
-    # fields as locals before the prange, by index: a parallel loop loses its writes to arrays
-    # bound by unpacking a tuple (tests/test_architecture.py)
-    acc0 = counts[0]
-    rej0 = counts[1]
-    acc = counts[2]
-    rej = counts[3]
-    failed = counts[4]
+@njit(cache=True)
+def _integrate_item(ks, seed, graph, model, fp, dt, t_max, tols, max_steps, out, counts, item):
+    """Item ``item`` of a batch, a (realization, network) pair, with its own step sizes (every
+    item in parallel, one per thread iteration: :func:`_integrate_items`); ``counts`` ``(acc0,
+    rej0, acc, rej, failed)`` gets its accepted and rejected steps and whether the step size
+    failed; ``tols``: ``(rtol, atol, after, band)`` (:func:`rodas4_sync`)."""
+    acc0, rej0, acc, rej, failed = counts
     indptr, indices, base_w, var_w, var_is_base, todo = graph
     freqs, cl, sl, inertia, damping, criterion, targets, starts = model
     rtol, atol, after, band = tols
-    m = ks.shape[0]
     n = indptr.shape[0] - 1
-    n_var = var_w.shape[0]
-    per = n_var + 1
-    for item in prange(m * per):
-        r, v, run = item_of(item, per, var_is_base, todo)
-        if not run:
-            continue
-        th = np.empty(n)
-        nu = np.zeros(n)
-        for i in range(n):
-            th[i] = start_phase(starts, seed, ks[r], r, i)
-        p = freqs[r] if freqs.shape[0] > 1 else freqs[0]
-        w = base_w if v < 0 else var_w[v]
-        eq = (p, w, indptr, indices, cl, sl, inertia, damping)
-        st, tau, n_acc, n_rej, bad = rodas4_sync(
-            th, nu, eq, criterion, targets[v + 1], t_max, dt, rtol, atol, fp, np.bool_(False), after, band
-        )
-        k, x = _on_the_grid(st, tau, dt, max_steps)
-        record_item(out, r, v, st, k, x)
-        if v < 0:
-            acc0[r] = n_acc
-            rej0[r] = n_rej
-        else:
-            acc[r, v] = n_acc
-            rej[r, v] = n_rej
-        if bad:
-            failed[r, v + 1] = True
-    for r in prange(m):
-        share_base(var_is_base, r, out)
+    per = var_w.shape[0] + 1
+    r, v, run = item_of(item, per, var_is_base, todo)
+    if not run:
+        return
+    th = np.empty(n)
+    nu = np.zeros(n)
+    for i in range(n):
+        th[i] = start_phase(starts, seed, ks[r], r, i)
+    p = freqs[r] if freqs.shape[0] > 1 else freqs[0]
+    w = base_w if v < 0 else var_w[v]
+    eq = (p, w, indptr, indices, cl, sl, inertia, damping)
+    st, tau, n_acc, n_rej, bad = rodas4_sync(
+        th, nu, eq, criterion, targets[v + 1], t_max, dt, rtol, atol, fp, np.bool_(False), after, band
+    )
+    k, x = _on_the_grid(st, tau, dt, max_steps)
+    record_item(out, r, v, st, k, x)
+    if v < 0:
+        acc0[r] = n_acc
+        rej0[r] = n_rej
+    else:
+        acc[r, v] = n_acc
+        rej[r, v] = n_rej
+    if bad:
+        failed[r, v + 1] = True
+
+
+def _integrate_items(item, ks, seed, graph, model, fp, dt, t_max, tols, max_steps, out, counts):
+    """``item`` (:func:`_integrate_item`) of every (realization, network) pair, in parallel (the
+    layout of :func:`antisync.kernels.cpu._integrate_items`; compiled by
+    :func:`antisync.kernels.loops.run`)."""
+    for i in prange(ks.shape[0] * (graph[3].shape[0] + 1)):
+        item(ks, seed, graph, model, fp, dt, t_max, tols, max_steps, out, counts, np.int64(i))
 
 
 @njit(cache=True)
@@ -1043,7 +1041,9 @@ def simulate_model(
     t_max = float(dt) * int(max_steps)
     # one item at a time per thread: a start that never locks runs ~6x the steps of one that does
     with Threads(threads), numba.parallel_chunksize(1):
-        _integrate_items(
+        loops.run(
+            _integrate_items,
+            _integrate_item,
             ks,
             np.uint64(seed),
             graph,
@@ -1056,6 +1056,7 @@ def simulate_model(
             out,
             (acc0, rej0, acc, rej, failed),
         )
+    share_rows(graph.var_is_base, out)
     check_collapsed(failed, ks)
     result = SimResult(out.status0, out.steps0, out.status, out.steps, out.frac0, out.frac)
     return (result, StepStats(acc0, rej0, acc, rej)) if stats else result

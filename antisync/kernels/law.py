@@ -132,7 +132,7 @@ class CompiledLaw(NamedTuple):
     """``KH``: the rows of ``law_rhs``' scratch ``G`` (``(KH, n)``)."""
     items: object
     """Euler's and RK4's item (``law_item_explicit``: one item's start, integration and record;
-    every item of a batch in parallel by :func:`~antisync.kernels.law_support.in_parallel`)."""
+    every item of a batch in parallel by :func:`~antisync.kernels.law_support.each_item`)."""
     items_circle: object
     """RK4's item on the law's circle form (``law_item_circle``)."""
     items_circle_euler: object
@@ -2279,7 +2279,7 @@ _ADJOINT_ITEMS = """
 def {name}(ks, seed, indptr, indices, wq, PR, dt, rk4, target, max_steps,
         status0, steps0, frac0, gw, coef, r):
     \"\"\"Realization r's start, its forward pass and adjoint (every realization in parallel:
-    law_support.in_parallel).\"\"\"
+    law_support.each_realization).\"\"\"
     n = indptr.shape[0] - 1
     P = PR[0] if PR.shape[0] == 1 else PR[r]
     y = np.empty(S * n)
@@ -2526,7 +2526,7 @@ _TRIP_DRIVERS += "".join(
 def law_one_trip_{kind}(y0, indptr, indices, P, k, ta, tb, keep, t_clear, t_after, dt, tols, plan, jperm, out,
                      e):
     \"\"\"Trip e of (ta, tb, keep, t_clear) from y0 for t_after after its trip by {kind} (out: one
-    row of four per trip; every trip in parallel: law_support.in_parallel). tols = (band, rtol,
+    row of four per trip; every trip in parallel: law_support.each_trip). tols = (band, rtol,
     atol).\"\"\"
     w_fault, w_post = trip_weights(k, indptr, indices, ta[e], tb[e], keep[e])
     {call}
@@ -2795,10 +2795,10 @@ def simulate_law(
     with Threads(threads):
         if width:
             groups = max(1, min(4 * numba.get_num_threads(), -(-m * (n_var + 1) // width)))
-            support.in_parallel("groups", on_lanes[items], groups, inputs, clock, outputs, (groups, width))
+            support.each_group(on_lanes[items], inputs, clock, outputs, (groups, width))
         else:
             outputs += (collapsed,)
-            support.in_parallel("items", items, m * (n_var + 1), inputs, clock, plan, jperm, outputs)
+            support.each_item(items, inputs, clock, plan, jperm, outputs)
     support.share_rows(var_is_base, out)
     check_collapsed(collapsed, ks, f" of law {law.name}")
     return SimResult(out.status0, out.steps0, out.status, out.steps, out.frac0, out.frac)
@@ -2849,7 +2849,7 @@ def simulate_law_adjoint(
     with Threads(threads):
         args = (ks, np.uint64(seed), indptr, indices, w, blocks, float(dt), integrator == "rk4")
         args += (float(params.targets[0]), int(max_steps), status0, steps0, frac0, gw, coef)
-        support.in_parallel("flat", adjoint, m, args)
+        support.each_realization(adjoint, args)
     n_links = derivatives.indptr.size - 1
     link = np.repeat(np.arange(n_links), np.diff(derivatives.indptr))
     dtau = np.zeros((m, n_links))
@@ -2890,7 +2890,7 @@ def integrate_law_trips(
         k = np.ascontiguousarray(k, dtype=np.float64)
         inputs = (y0, indptr, indices, P, k, ta, tb, keep, clear, float(t_after), float(h0))
         tols = tuple(float(v) for v in tols)
-        support.in_parallel("trips", compiled.trips[rodas4], ta.size, inputs, tols, plan, jperm, out)
+        support.each_trip(compiled.trips[rodas4], inputs, tols, plan, jperm, out)
     return out
 
 
@@ -3100,7 +3100,7 @@ def {fill}(q, lo, hi, ks, seed, indptr, indices, base_w, var_w, var_is_base, tod
 def {name}(ks, seed, indptr, indices, base_w, var_w, var_is_base, todo, PR, targets, clock,
                     status0, steps0, frac0, status, steps, frac, n_groups, L, group):
     """{what} on the circle form: the items of group `group` of n_groups, L stepped together
-    ({sync}'s results; L a multiple of 2 VEC; every group in parallel: law_support.in_parallel)."""
+    ({sync}'s results; L a multiple of 2 VEC; every group in parallel: law_support.each_group)."""
     dt = clock[0]
     max_steps = int(clock[2])
     n = indptr.shape[0] - 1

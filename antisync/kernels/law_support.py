@@ -5,13 +5,10 @@ step-size controller, under one module so a generated file imports one name."""
 
 from __future__ import annotations
 
-import functools
-
-import numba
 import numpy as np
-from numba import njit, prange, types
+from numba import prange
 
-from antisync.kernels import implicit
+from antisync.kernels import implicit, loops
 from antisync.kernels.core import (
     DENSE_POINTS,
     RENORM_EVERY,
@@ -26,7 +23,7 @@ from antisync.kernels.core import (
 from antisync.kernels.lanes import item_of
 from antisync.kernels.model_steps import MK
 from antisync.kernels.precision import K64
-from antisync.kernels.shared import record, share_row, trip_weights
+from antisync.kernels.shared import record, share_row, share_rows, trip_weights
 from antisync.physics.phases import phase
 from antisync.status import ALREADY_SYNCED, NOT_SYNCED, SYNCED
 
@@ -39,7 +36,10 @@ __all__ = [
     "TAYLOR_MAX_ANGLE",
     "VEC",
     "item_of",
-    "in_parallel",
+    "each_group",
+    "each_item",
+    "each_realization",
+    "each_trip",
     "share_rows",
     "phase",
     "record",
@@ -79,74 +79,54 @@ NEAR = implicit._NEAR
 BAND = implicit._BAND
 
 
-# -- the parallel loops, one for every law --------------------------------------------------------
+# -- the parallel loops, one for every law (antisync.kernels.loops) ------------------------------
 #
-# Each runs a generated module's function for one item (a trajectory, a group of lanes, a
-# realization's adjoint, a line trip) on the numba threads, the item's index its last argument.
-# The function comes in as a first-class function (numba's ``FunctionType``), so that a loop is
-# compiled once per argument types for every law, and cached on disk with antisync's kernels,
-# instead of once per law and kind inside the generated module (there each loop was a compile of
-# its own, 2-6 s cold, re-optimizing the whole integration linked into it). The call through the
-# function pointer is once per item, never per step. The arguments come in groups: a tuple in a
-# tuple cannot enter a parallel loop (numba's gufunc wrapper refuses it), so the groups that are
-# flat tuples are spread into the call and the tuples the function takes whole (a clock, a
-# factorization plan, tolerances) come as groups of their own.
+# Each runs a generated module's function for one item on the numba threads, the item's index its
+# last argument: the loop is compiled once per argument types for every law, not once per law
+# and kind inside the generated module (there each loop was a compile of its own, 2-6 s cold).
 
 
-def _each(fn, args, count):
-    for i in prange(count):
-        fn(*args, np.int64(i))
-
-
-def _each_item(fn, inputs, clock, plan, jperm, outputs, count):
+def _items(fn, inputs, clock, plan, jperm, outputs):
+    count = inputs[0].shape[0] * (inputs[5].shape[0] + 1)  # realizations x (variants + base)
     for i in prange(count):
         fn(*inputs, clock, plan, jperm, *outputs, np.int64(i))
 
 
-def _each_group(fn, inputs, clock, outputs, sizes, count):
-    for i in prange(count):
+def _groups(fn, inputs, clock, outputs, sizes):
+    for i in prange(sizes[0]):
         fn(*inputs, clock, *outputs, *sizes, np.int64(i))
 
 
-def _each_trip(fn, inputs, tols, plan, jperm, out, count):
-    for i in prange(count):
+def _realizations(fn, args):
+    for i in prange(args[0].shape[0]):
+        fn(*args, np.int64(i))
+
+
+def _trips(fn, inputs, tols, plan, jperm, out):
+    for i in prange(inputs[5].shape[0]):
         fn(*inputs, tols, plan, jperm, out, np.int64(i))
 
 
-#: each loop: its function, and which of its groups are spread into the call
-_LOOPS = {
-    "items": (_each_item, (0, 4)),
-    "groups": (_each_group, (0, 2, 3)),
-    "flat": (_each, (0,)),
-    "trips": (_each_trip, (0,)),
-}
+def each_item(fn, inputs, clock, plan, jperm, outputs) -> None:
+    """``law_item_<kind>`` (``fn``) on every item of a batch: ``inputs`` ``(ks, seed, indptr,
+    indices, base_w, var_w, var_is_base, todo, PR, targets)``, ``outputs`` ``(status0, steps0,
+    frac0, status, steps, frac, collapsed)``."""
+    loops.run(_items, fn, inputs, clock, plan, jperm, outputs, spread=(0, 4))
 
 
-@functools.cache
-def _loop(kind: str, group_types: tuple):
-    py_func, spread = _LOOPS[kind]
-    call = []
-    for k, t in enumerate(group_types):
-        call += list(t.types) if k in spread else [t]
-    fn = types.FunctionType(types.void(*call, types.int64))
-    return njit(types.void(fn, *group_types, types.int64), parallel=True, cache=True, error_model="numpy")(
-        py_func
-    )
+def each_group(fn, inputs, clock, outputs, sizes) -> None:
+    """A lane driver (``law_items_lanes...``, ``fn``) on every group: ``inputs`` as
+    :func:`each_item`'s, ``outputs`` without ``collapsed``, ``sizes`` ``(n_groups, L)``."""
+    loops.run(_groups, fn, inputs, clock, outputs, sizes, spread=(0, 2, 3))
 
 
-def in_parallel(kind: str, fn, count: int, *groups) -> None:
-    """``fn(..., i)`` for ``i`` in ``0 .. count - 1`` on the numba threads, by the loop ``kind``
-    (``items``: a trajectory per item, ``groups``: a lane group per item, ``flat``: a flat
-    argument list, such as an adjoint's realization, ``trips``: a line trip per item), ``fn``'s
-    arguments before the index given as the loop's groups (the ``kind``'s signature in
-    :data:`_LOOPS`). The loop is compiled for the groups' types (``numba.typeof``), and ``fn`` for
-    its arguments' when it is first passed."""
-    _loop(kind, tuple(numba.typeof(g) for g in groups))(fn, *groups, count)
+def each_realization(fn, args) -> None:
+    """``law_adjoint_item`` or its frequency twin (``fn``) on every realization of ``args``
+    (its arguments but the index; ``args[0]`` the realizations ``ks``)."""
+    loops.run(_realizations, fn, args, spread=(0,))
 
 
-def share_rows(var_is_base: np.ndarray, out) -> None:
-    """The variants that leave the weights unchanged get the undamaged result (``out`` an
-    :class:`~antisync.kernels.shared.Outputs`), as ``share_row`` gives them in a kernel."""
-    out.status[:, var_is_base] = out.status0[:, None]
-    out.steps[:, var_is_base] = out.steps0[:, None]
-    out.frac[:, var_is_base] = out.frac0[:, None]
+def each_trip(fn, inputs, tols, plan, jperm, out) -> None:
+    """``law_one_trip_<kind>`` (``fn``) on every trip: ``inputs`` ``(y0, indptr, indices, P, k,
+    ta, tb, keep, t_clear, t_after, dt)``."""
+    loops.run(_trips, fn, inputs, tols, plan, jperm, out, spread=(0,))

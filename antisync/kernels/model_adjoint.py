@@ -50,6 +50,7 @@ import numpy as np
 from numba import njit, prange
 
 from antisync import _numba_cache  # noqa: F401 -- before any cache=True function (see there)
+from antisync.kernels import loops
 from antisync.kernels.core import (
     CRIT_FREQUENCY,
     DEV_ROW,
@@ -557,36 +558,36 @@ def _model_adjoint(y0, eq, dt, rk4, criterion, target, max_steps, every, g):
     return st, k, x, coef_target
 
 
-@njit(parallel=True, cache=True)
-def _adjoint_items(ks, seed, graph, model, dt, rk4, criterion, target, max_steps, every, out):
-    """:func:`_model_adjoint` of every realization: ``graph`` ``(indptr, indices, w)``, ``model``
+@njit(cache=True)
+def _adjoint_item(ks, seed, graph, model, dt, rk4, criterion, target, max_steps, every, out, r):
+    """:func:`_model_adjoint` of realization ``r``: ``graph`` ``(indptr, indices, w)``, ``model``
     ``(freqs, starts, cl, sl, mass, gamma)`` (a row of ``freqs`` each, or one for all; ``starts``
     as :func:`~antisync.physics.phases.start_phase` takes them), results into ``out``
-    ``(status0, steps0, frac0, grad, coef_t)``."""
-    # the read-only inputs unpacked, the outputs bound by index: a parallel loop loses its writes
-    # to arrays bound by unpacking a tuple (tests/test_architecture.py)
+    ``(status0, steps0, frac0, grad, coef_t)``; every realization in parallel by
+    :func:`_adjoint_items`."""
     indptr, indices, w = graph
     freqs, starts, cl, sl, mass, gamma = model
-    status0 = out[0]
-    steps0 = out[1]
-    frac0 = out[2]
-    grad = out[3]
-    coef_t = out[4]
-    m = ks.shape[0]
+    status0, steps0, frac0, grad, coef_t = out
     n = indptr.shape[0] - 1
-    for r in prange(m):
-        y0 = np.zeros((3, n))
-        for i in range(n):
-            theta = start_phase(starts, seed, ks[r], r, i)
-            y0[0, i] = np.cos(theta)
-            y0[1, i] = np.sin(theta)
-        p = freqs[r] if freqs.shape[0] > 1 else freqs[0]
-        eq = (p, w, indptr, indices, cl, sl, mass, gamma)
-        st, k, x, ct = _model_adjoint(y0, eq, dt, rk4, criterion, target, max_steps, every, grad[r])
-        status0[r] = st
-        steps0[r] = k
-        frac0[r] = x
-        coef_t[r] = ct
+    y0 = np.zeros((3, n))
+    for i in range(n):
+        theta = start_phase(starts, seed, ks[r], r, i)
+        y0[0, i] = np.cos(theta)
+        y0[1, i] = np.sin(theta)
+    p = freqs[r] if freqs.shape[0] > 1 else freqs[0]
+    eq = (p, w, indptr, indices, cl, sl, mass, gamma)
+    st, k, x, ct = _model_adjoint(y0, eq, dt, rk4, criterion, target, max_steps, every, grad[r])
+    status0[r] = st
+    steps0[r] = k
+    frac0[r] = x
+    coef_t[r] = ct
+
+
+def _adjoint_items(item, ks, seed, graph, model, dt, rk4, criterion, target, max_steps, every, out):
+    """``item`` (:func:`_adjoint_item`) of every realization, in parallel (compiled by
+    :func:`antisync.kernels.loops.run`)."""
+    for r in prange(ks.shape[0]):
+        item(ks, seed, graph, model, dt, rk4, criterion, target, max_steps, every, out, np.int64(r))
 
 
 def simulate_model_adjoint(
@@ -646,7 +647,9 @@ def simulate_model_adjoint(
     grad = np.zeros((m, w.size))
     coef_t = np.zeros(m)
     with Threads(threads):
-        _adjoint_items(
+        loops.run(
+            _adjoint_items,
+            _adjoint_item,
             ks,
             np.uint64(seed),
             (indptr.astype(np.int64), indices.astype(np.int64), w),

@@ -39,6 +39,7 @@ __all__ = [
     "row_sum_bound",
     "share_base",
     "share_row",
+    "share_rows",
     "todo_mask",
     "trip_weights",
     "unset_outputs",
@@ -391,6 +392,14 @@ def share_row(var_is_base, r, status0, steps0, frac0, status, steps, frac):
             status[r, v] = status0[r]
             steps[r, v] = steps0[r]
             frac[r, v] = frac0[r]
+
+
+def share_rows(var_is_base: np.ndarray, out) -> None:
+    """:func:`share_base` of every realization, from Python (after a loop of
+    :mod:`antisync.kernels.loops`, whose items record only what they integrate)."""
+    out.status[:, var_is_base] = out.status0[:, None]
+    out.steps[:, var_is_base] = out.steps0[:, None]
+    out.frac[:, var_is_base] = out.frac0[:, None]
 
 
 @numba.njit(cache=True)

@@ -19,7 +19,7 @@ max_frequency, max_angle, failed]``:
   being finite).
 
 :func:`integrate_trips` runs one trip per item (a line, its share and its clearing time) on
-the numba threads (:func:`trip_batch`).
+the numba threads, :func:`trip_item` for each.
 """
 
 from __future__ import annotations
@@ -31,6 +31,7 @@ import numpy as np
 from numba import njit, prange
 
 from antisync import _numba_cache  # noqa: F401 -- before any cache=True function (see there)
+from antisync.kernels import loops
 from antisync.kernels.core import DEV_PREV_ROW, DEV_ROW, WORK_ROWS
 from antisync.kernels.implicit import (
     plan_of_pattern,
@@ -43,7 +44,7 @@ from antisync.kernels.implicit import (
 from antisync.kernels.model_steps import MK
 from antisync.kernels.shared import Threads, has_inertia, trip_weights
 
-__all__ = ["INTEGRATORS", "integrate_trips", "rk4_trip", "trip_batch"]
+__all__ = ["INTEGRATORS", "integrate_trips", "rk4_trip", "trip_item"]
 
 #: The integrators a trip runs on (the dispatch table's ``trip`` row; ``euler`` is refused
 #: there: a first-order step would under-resolve the first swing).
@@ -131,28 +132,34 @@ def rk4_trip(th0, grid, w_fault, w_post, t_clear, t_end, dt, tol, line, out):
     out[3] = failed
 
 
-@njit(parallel=True, cache=True)
-def trip_batch(theta0, graph, k, trips, t_after, h0, tols, plan, rodas4, out):
-    """Every trip of ``trips = (ta, tb, keep, t_clear)`` (one per item: the line ``ta-tb``, the
-    share ``1 - keep`` of its ``K`` the trip takes, the fault's duration) from ``theta0``, for
-    ``t_after`` seconds after its trip: :func:`rk4_trip` at the step ``h0`` or, with
-    ``rodas4``, :func:`~antisync.kernels.implicit.rodas4_trip` from the first step ``h0``;
-    ``graph = (p, indptr, indices, mass, gamma)``, ``tols = (band, rtol, atol)``; ``out`` one row
-    of four per item (module docstring)."""
+@njit(cache=True)
+def trip_item(theta0, graph, k, trips, t_after, h0, tols, plan, rodas4, out, e):
+    """Trip ``e`` of ``trips = (ta, tb, keep, t_clear)`` (the line ``ta-tb``, the share ``1 -
+    keep`` of its ``K`` the trip takes, the fault's duration) from ``theta0``, for ``t_after``
+    seconds after its trip: :func:`rk4_trip` at the step ``h0`` or, with ``rodas4``,
+    :func:`~antisync.kernels.implicit.rodas4_trip` from the first step ``h0``; ``graph = (p,
+    indptr, indices, mass, gamma)``, ``tols = (band, rtol, atol)``; ``out`` one row of four per
+    trip (module docstring). Every trip in parallel: :func:`integrate_trips`."""
     _, indptr, indices, _, _ = graph
     ta, tb, keep, t_clear = trips
-    for e in prange(ta.size):
-        w_fault, w_post = trip_weights(k, indptr, indices, ta[e], tb[e], keep[e])
-        line = (ta[e], tb[e], keep[e])
-        t_end = t_clear[e] + t_after
-        if rodas4:
-            rodas4_trip(theta0, graph, w_fault, w_post, t_clear[e], t_end, h0, tols, plan, line, out[e])
-        else:
-            rk4_trip(theta0, graph, w_fault, w_post, t_clear[e], t_end, h0, tols[0], line, out[e])
+    w_fault, w_post = trip_weights(k, indptr, indices, ta[e], tb[e], keep[e])
+    line = (ta[e], tb[e], keep[e])
+    t_end = t_clear[e] + t_after
+    if rodas4:
+        rodas4_trip(theta0, graph, w_fault, w_post, t_clear[e], t_end, h0, tols, plan, line, out[e])
+    else:
+        rk4_trip(theta0, graph, w_fault, w_post, t_clear[e], t_end, h0, tols[0], line, out[e])
+
+
+def _trips(item, theta0, graph, k, trips, t_after, h0, tols, plan, rodas4, out):
+    """``item`` (:func:`trip_item`) of every trip, in parallel (compiled by
+    :func:`antisync.kernels.loops.run`)."""
+    for e in prange(out.shape[0]):
+        item(theta0, graph, k, trips, t_after, h0, tols, plan, rodas4, out, np.int64(e))
 
 
 def integrate_trips(theta0, grid, k, trips, t_after, h0, tols, integrator, threads=None):
-    """:func:`trip_batch` on ``threads`` numba threads, one trip at a time per thread (a trip
+    """:func:`trip_item` of every trip on ``threads`` numba threads, one at a time per thread (a trip
     that does not settle takes many more steps than one that does): the ``(items, 4)`` rows.
     ``grid = (p, indptr, indices, mass, gamma)``, ``k`` the CSR weights, ``trips = (ta, tb,
     keep, t_clear)``, ``integrator`` one of :data:`INTEGRATORS`."""
@@ -161,10 +168,11 @@ def integrate_trips(theta0, grid, k, trips, t_after, h0, tols, integrator, threa
     _, indptr, indices, _, _ = grid
     plan = plan_of_pattern(indptr, indices)
     # writable C arrays of one type whatever the caller built (a broadcast, a read-only column):
-    # one compiled trip_batch
+    # one compiled trip_item
     types = (np.int64, np.int64, np.float64, np.float64)
     trips = tuple(np.array(a, dtype=t) for a, t in zip(trips, types, strict=True))
     out = np.empty((trips[0].size, 4))
     with Threads(threads), numba.parallel_chunksize(1):
-        trip_batch(theta0, grid, k, trips, float(t_after), float(h0), tols, plan, integrator == "rodas4", out)
+        args = (theta0, grid, k, trips, float(t_after), float(h0), tols, plan, integrator == "rodas4", out)
+        loops.run(_trips, trip_item, *args)
     return out
