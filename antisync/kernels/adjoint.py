@@ -1062,80 +1062,85 @@ def _link_values(dtau, r, g, synced, d_ptr, d_pos, d_val):
         dtau[r, e] = total
 
 
-@njit(parallel=True, cache=True)
-def _adjoint_lanes_batch(ks, indptr, indices, w, tr, deriv, run, status0, steps0, frac0, dtau):
-    """Realizations ``ks`` in groups of ``LANES``, one group per parallel task."""
-    # every field as a local before the prange (see antisync.kernels.lanes.integrate_lanes)
+@njit(cache=True)
+def _adjoint_lanes_group(ks, indptr, indices, w, tr, deriv, run, status0, steps0, frac0, dtau, group):
+    """Group ``group`` of ``LANES`` realizations of ``ks``, stepped together (every group in
+    parallel, one per task: :func:`_adjoint_lanes_batch`)."""
     d_ptr, d_pos, d_val = deriv
     seed, _, _, max_steps, every, rk4 = run
     m = ks.shape[0]
     n = indptr.shape[0] - 1
     nnz = w.shape[0]
     lanes = LANES
-    n_groups = (m + lanes - 1) // lanes
-    for group in prange(n_groups):
-        r_lo = group * lanes
-        r_hi = min(m, r_lo + lanes)
-        # empty lanes hold the synchronized state (1, 0): ALREADY_SYNCED, never looked at
-        c = np.ones((n, lanes))
-        s = np.zeros((n, lanes))
-        for r in range(r_lo, r_hi):
-            _start_state(c[:, r - r_lo], s[:, r - r_lo], seed, ks[r])
-        cn = np.empty((n, lanes))
-        sn = np.empty((n, lanes))
-        ck = np.empty((16, 2, n, lanes))
-        k_lane = np.empty(lanes, dtype=np.int64)
-        x_lane = np.empty(lanes)
-        span_lane = np.empty(lanes)
-        coef = np.empty((4, lanes))
-        code = np.empty(lanes, dtype=np.int8)
-        seg_len = min(every, max_steps + 1)
-        seg_c = np.empty((seg_len, n, lanes))
-        seg_s = np.empty((seg_len, n, lanes))
-        g = np.empty((nnz, lanes))
-        if rk4:
-            lw = np.empty((nnz, lanes))  # per-lane weights of lane_velocity
-            for p in range(nnz):
-                lw[p] = w[p]
-            kv = np.zeros((8, n, lanes))
-            yc = np.empty((n, lanes))
-            ys = np.empty((n, lanes))
-            step_bufs = (kv, yc, ys, cn, sn, lw)
-            crossing = (k_lane, x_lane, coef, code)
-            net = (indptr, indices, w)
-            ck = _rk4_forward_lanes(c, s, step_bufs, ck, crossing, net, run)
-            _rk4_backward_lanes(ck, seg_c, seg_s, c, s, step_bufs, g, crossing, net, tr, run)
-        else:
-            lw = np.empty((1, lanes))  # unused: every lane has the weights w
-            ck = _euler_forward_lanes(
-                c, s, cn, sn, lw, ck, k_lane, x_lane, span_lane, code, indptr, indices, w, run
-            )
-            lam = np.empty((n, lanes))
-            lam_new = np.empty((n, lanes))
-            _euler_backward_lanes(
-                ck,
-                seg_c,
-                seg_s,
-                lw,
-                lam,
-                lam_new,
-                g,
-                k_lane,
-                x_lane,
-                span_lane,
-                code,
-                indptr,
-                indices,
-                w,
-                run,
-            )
-        for r in range(r_lo, r_hi):
-            q = r - r_lo
-            st = code[q]
-            status0[r] = st
-            steps0[r] = k_lane[q] if st == SYNCED else (0 if st == ALREADY_SYNCED else max_steps)
-            frac0[r] = x_lane[q]
-            _link_values(dtau, r, g[:, q], st == SYNCED, d_ptr, d_pos, d_val)
+    r_lo = group * lanes
+    r_hi = min(m, r_lo + lanes)
+    # empty lanes hold the synchronized state (1, 0): ALREADY_SYNCED, never looked at
+    c = np.ones((n, lanes))
+    s = np.zeros((n, lanes))
+    for r in range(r_lo, r_hi):
+        _start_state(c[:, r - r_lo], s[:, r - r_lo], seed, ks[r])
+    cn = np.empty((n, lanes))
+    sn = np.empty((n, lanes))
+    ck = np.empty((16, 2, n, lanes))
+    k_lane = np.empty(lanes, dtype=np.int64)
+    x_lane = np.empty(lanes)
+    span_lane = np.empty(lanes)
+    coef = np.empty((4, lanes))
+    code = np.empty(lanes, dtype=np.int8)
+    seg_len = min(every, max_steps + 1)
+    seg_c = np.empty((seg_len, n, lanes))
+    seg_s = np.empty((seg_len, n, lanes))
+    g = np.empty((nnz, lanes))
+    if rk4:
+        lw = np.empty((nnz, lanes))  # per-lane weights of lane_velocity
+        for p in range(nnz):
+            lw[p] = w[p]
+        kv = np.zeros((8, n, lanes))
+        yc = np.empty((n, lanes))
+        ys = np.empty((n, lanes))
+        step_bufs = (kv, yc, ys, cn, sn, lw)
+        crossing = (k_lane, x_lane, coef, code)
+        net = (indptr, indices, w)
+        ck = _rk4_forward_lanes(c, s, step_bufs, ck, crossing, net, run)
+        _rk4_backward_lanes(ck, seg_c, seg_s, c, s, step_bufs, g, crossing, net, tr, run)
+    else:
+        lw = np.empty((1, lanes))  # unused: every lane has the weights w
+        ck = _euler_forward_lanes(
+            c, s, cn, sn, lw, ck, k_lane, x_lane, span_lane, code, indptr, indices, w, run
+        )
+        lam = np.empty((n, lanes))
+        lam_new = np.empty((n, lanes))
+        _euler_backward_lanes(
+            ck,
+            seg_c,
+            seg_s,
+            lw,
+            lam,
+            lam_new,
+            g,
+            k_lane,
+            x_lane,
+            span_lane,
+            code,
+            indptr,
+            indices,
+            w,
+            run,
+        )
+    for r in range(r_lo, r_hi):
+        q = r - r_lo
+        st = code[q]
+        status0[r] = st
+        steps0[r] = k_lane[q] if st == SYNCED else (0 if st == ALREADY_SYNCED else max_steps)
+        frac0[r] = x_lane[q]
+        _link_values(dtau, r, g[:, q], st == SYNCED, d_ptr, d_pos, d_val)
+
+
+def _adjoint_lanes_batch(item, ks, indptr, indices, w, tr, deriv, run, status0, steps0, frac0, dtau):
+    """``item`` (:func:`_adjoint_lanes_group`) of every group of ``LANES`` realizations, one per
+    parallel task (compiled by :func:`antisync.kernels.loops.run`)."""
+    for group in prange((ks.shape[0] + LANES - 1) // LANES):
+        item(ks, indptr, indices, w, tr, deriv, run, status0, steps0, frac0, dtau, np.int64(group))
 
 
 @njit(cache=True)
@@ -1305,7 +1310,8 @@ def simulate_adjoint(
             order = _lane_order(ks, indptr, indices, base_weights, run)
             out = (np.empty_like(status0), np.empty_like(steps0), np.empty_like(frac0), np.empty_like(dtau))
             tr = _transpose(indptr, indices)
-            _adjoint_lanes_batch(ks[order], indptr, indices, base_weights, tr, deriv, run, *out)
+            args = (ks[order], indptr, indices, base_weights, tr, deriv, run, *out)
+            loops.run(_adjoint_lanes_batch, _adjoint_lanes_group, *args)
         for target, got in zip((status0, steps0, frac0, dtau), out, strict=True):
             target[order] = got
         return PathwiseResult(status0, steps0, frac0, dtau)
