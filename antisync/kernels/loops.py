@@ -46,5 +46,12 @@ def _compiled(loop, group_types: tuple, spread: tuple):
 def run(loop, fn, *groups, spread: tuple = ()) -> None:
     """``loop(fn, *groups)``, ``loop`` compiled as a parallel function for the groups' types
     (``numba.typeof``) and ``fn`` for ``(the groups, spread where their index is in ``spread``,
-    then an int64 index)``."""
-    _compiled(loop, tuple(numba.typeof(g) for g in groups), tuple(spread))(fn, *groups)
+    then an int64 index)``. An exception raised in ``fn`` is raised here as itself (numba reports
+    it from a first-class function as a ``SystemError`` whose cause it is)."""
+    loop = _compiled(loop, tuple(numba.typeof(g) for g in groups), tuple(spread))
+    try:
+        loop(fn, *groups)
+    except SystemError as err:
+        if err.__cause__ is None:
+            raise
+        raise err.__cause__ from None
