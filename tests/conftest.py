@@ -66,17 +66,9 @@ MODEL_FILES = {
 #: compiled them a second time, side by side (35 + 56 s of the model adjoint alone).
 MODEL_TESTS = ("tests/test_capabilities.py::test_every_cpu_row_runs[model-",)
 
-#: Files whose tests are each a unit of their own. pytest-xdist hands out the units with the most
-#: tests first, so a file of a few long tests runs last: test_models_cuda_sim.py's three (38 s,
-#: each a fresh interpreter under the CUDA simulator, nothing shared between them) ran one after
-#: another on one worker while the other had finished 14-23 s before (fresh clones' compile logs,
-#: 2026-12-07). As three units they end on whichever worker is free.
-PER_TEST_FILES = {"test_models_cuda_sim.py"}
-
 
 def pytest_xdist_make_scheduler(config, log):
-    """``--dist loadfile`` with :data:`MODEL_FILES` and :data:`MODEL_TESTS` as one unit of work,
-    and each test of :data:`PER_TEST_FILES` as one.
+    """``--dist loadfile`` with :data:`MODEL_FILES` and :data:`MODEL_TESTS` as one unit of work.
     (pytest-xdist's own ``--dist loadgroup`` with ``xdist_group`` markers does this by rewriting
     each test's node id, which pytest 9 no longer reads: there the groups were silently ignored
     and the tests of one file ran on both workers.)"""
@@ -89,8 +81,6 @@ def pytest_xdist_make_scheduler(config, log):
             path = nodeid.split("::", 1)[0]
             if Path(path).name in MODEL_FILES or nodeid.startswith(MODEL_TESTS):
                 return "models"
-            if Path(path).name in PER_TEST_FILES:
-                return nodeid
             return path
 
     return ModelFilesTogether(config, log)
