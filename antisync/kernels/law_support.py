@@ -1,7 +1,8 @@
 """What the generated kernels of a user's law (:mod:`antisync.kernels.law`) use of antisync:
 the paper's phases, the crossing on the step's cubic interpolant (its range and points), the
 item bookkeeping of the one-trajectory drivers and Rodas4's coefficients, sparse LU and
-step-size controller, under one module so a generated file imports one name."""
+step-size controller, under one module so a generated file imports one name; and the parallel
+loops that run a generated module's item functions, one compiled loop for every law."""
 
 from __future__ import annotations
 
@@ -35,16 +36,16 @@ __all__ = [
     "SYNCED",
     "TAYLOR_MAX_ANGLE",
     "VEC",
-    "item_of",
     "each_group",
     "each_item",
     "each_realization",
     "each_trip",
-    "share_rows",
+    "item_of",
     "phase",
     "record",
     "rotation",
     "share_row",
+    "share_rows",
     "taylor_rotation",
     "trip_weights",
     "vany_outside",
