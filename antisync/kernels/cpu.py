@@ -117,7 +117,7 @@ def _integrate_items(item, ks, seed, graph, model, dt, rk4, max_steps, out):
     that the lane driver matches bit for bit. The parallel loop only calls ``item``
     (:func:`_one_item`), a first-class function: the loop is compiled by
     :func:`antisync.kernels.loops.run` without linking the integration into it."""
-    per = graph[3].shape[0] + 1
+    per = graph.var_w.shape[0] + 1
     for i in prange(ks.shape[0] * per):
         item(ks, seed, graph, model, dt, rk4, max_steps, out, np.int64(i))
 
@@ -128,8 +128,7 @@ def _one_item(ks, seed, graph, model, dt, rk4, max_steps, out, item):
     indptr, indices, base_w, var_w, var_is_base, todo = graph
     freqs, cl, sl, inertia, damping, criterion, targets, starts = model
     n = indptr.shape[0] - 1
-    per = var_w.shape[0] + 1
-    r, v, run = item_of(item, per, var_is_base, todo)
+    r, v, run = item_of(item, var_w.shape[0] + 1, var_is_base, todo)
     if not run:
         return
     c = np.empty(n)

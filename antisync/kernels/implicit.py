@@ -933,8 +933,7 @@ def _integrate_item(ks, seed, graph, model, fp, dt, t_max, tols, max_steps, out,
     freqs, cl, sl, inertia, damping, criterion, targets, starts = model
     rtol, atol, after, band = tols
     n = indptr.shape[0] - 1
-    per = var_w.shape[0] + 1
-    r, v, run = item_of(item, per, var_is_base, todo)
+    r, v, run = item_of(item, var_w.shape[0] + 1, var_is_base, todo)
     if not run:
         return
     th = np.empty(n)
@@ -963,7 +962,7 @@ def _integrate_items(item, ks, seed, graph, model, fp, dt, t_max, tols, max_step
     """``item`` (:func:`_integrate_item`) of every (realization, network) pair, in parallel (the
     layout of :func:`antisync.kernels.cpu._integrate_items`; compiled by
     :func:`antisync.kernels.loops.run`)."""
-    for i in prange(ks.shape[0] * (graph[3].shape[0] + 1)):
+    for i in prange(ks.shape[0] * (graph.var_w.shape[0] + 1)):
         item(ks, seed, graph, model, fp, dt, t_max, tols, max_steps, out, counts, np.int64(i))
 
 

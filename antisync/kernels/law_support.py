@@ -24,7 +24,7 @@ from antisync.kernels.core import (
 from antisync.kernels.lanes import item_of
 from antisync.kernels.model_steps import MK
 from antisync.kernels.precision import K64
-from antisync.kernels.shared import record, share_row, share_rows, trip_weights
+from antisync.kernels.shared import record, share_rows, trip_weights
 from antisync.physics.phases import phase
 from antisync.status import ALREADY_SYNCED, NOT_SYNCED, SYNCED
 
@@ -44,7 +44,6 @@ __all__ = [
     "phase",
     "record",
     "rotation",
-    "share_row",
     "share_rows",
     "taylor_rotation",
     "trip_weights",

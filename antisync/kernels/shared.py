@@ -38,7 +38,6 @@ __all__ = [
     "rotation_angle_bound",
     "row_sum_bound",
     "share_base",
-    "share_row",
     "share_rows",
     "todo_mask",
     "trip_weights",
@@ -382,16 +381,6 @@ def has_inertia(mass):
 def record_item(out, r, v, st, k, x):
     """:func:`record` into ``out`` (an :class:`Outputs`), once per trajectory."""
     record(out.status0, out.steps0, out.frac0, out.status, out.steps, out.frac, r, v, st, k, x)
-
-
-@numba.njit(cache=True)
-def share_row(var_is_base, r, status0, steps0, frac0, status, steps, frac):
-    """:func:`share_base` on the arrays one by one (what a parallel loop may write to)."""
-    for v in range(var_is_base.shape[0]):
-        if var_is_base[v]:
-            status[r, v] = status0[r]
-            steps[r, v] = steps0[r]
-            frac[r, v] = frac0[r]
 
 
 def share_rows(var_is_base: np.ndarray, out) -> None:
