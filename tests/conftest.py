@@ -47,10 +47,11 @@ dynamics: {dt: 0.002, t_max: 60}
 #: sends them to one xdist worker as one unit, one after another, so each model kernel compiles
 #: once and the next file loads it from the on-disk cache, instead of both workers compiling the
 #: same kernel side by side; every other file is its own unit, as plain ``--dist loadfile``.
-#: test_model_crossings.py and test_models_cuda_sim.py (13 tests, about 70 s) stay out: they
-#: compile nothing of their own, and as small units they run last, on whichever worker is free,
-#: from kernels the unit has cached by then (in the unit, its worker ran 122 s longer than the
-#: other: a fresh clone's compile log, 2026-12-06 21:32).
+#: test_model_crossings.py and test_models_cuda_sim.py (13 tests, about 60 s) stay out: they
+#: compile nothing of their own, and run on whichever worker is free from kernels the unit has
+#: cached by then (its capability rows compile the model lane drivers in its first minute; in
+#: the unit, its worker ran 122 s longer than the other: a fresh clone's compile log, 2026-12-06
+#: 21:32).
 MODEL_FILES = {
     "test_models.py",
     "test_hostile_models.py",
@@ -67,11 +68,48 @@ MODEL_FILES = {
 MODEL_TESTS = ("tests/test_capabilities.py::test_every_cpu_row_runs[model-",)
 
 
+#: What each unit of work cost a fresh clone's `make test` (worker-seconds, compiling included; the
+#: units over 5 s of the compile log's ``.tests`` file, 2026-12-07 13:42): the scheduler hands
+#: out the costliest unit left whenever a worker asks for one (longest first), so that the run
+#: does not end on one worker finishing a long file while the other is idle. pytest-xdist orders
+#: units by their number of tests: test_models_cuda_sim.py (3 tests, 41 s) started last, and one
+#: worker ran 21 s after the other had finished. A unit not listed is costed at
+#: :data:`SECONDS_PER_TEST` a test. Stale numbers cost only balance, never a result.
+UNIT_SECONDS = {
+    "models": 363,
+    "test_capabilities.py": 88,
+    "test_grid_trip.py": 81,
+    "test_cuda_sim.py": 55,
+    "test_models_cuda_sim.py": 41,
+    "test_static_fast.py": 31,
+    "test_dask.py": 29,
+    "test_paper.py": 28,
+    "test_sweeps.py": 25,
+    "test_store_safety.py": 25,
+    "test_grid_dynamic.py": 23,
+    "test_adjoint_lanes.py": 20,
+    "test_model_crossings.py": 16,
+    "test_optimize_spectral.py": 15,
+    "test_reliability_hostile.py": 15,
+    "test_kernels.py": 14,
+    "test_give_up.py": 13,
+    "test_lambda_quantities.py": 11,
+    "test_architecture.py": 11,
+    "test_activsg10k.py": 10,
+    "test_readme.py": 9,
+    "test_overwrite_safety.py": 9,
+}
+
+#: The mean cost of a test in the units under 5 s (the same run: 0.097 s).
+SECONDS_PER_TEST = 0.1
+
+
 def pytest_xdist_make_scheduler(config, log):
-    """``--dist loadfile`` with :data:`MODEL_FILES` and :data:`MODEL_TESTS` as one unit of work.
-    (pytest-xdist's own ``--dist loadgroup`` with ``xdist_group`` markers does this by rewriting
-    each test's node id, which pytest 9 no longer reads: there the groups were silently ignored
-    and the tests of one file ran on both workers.)"""
+    """``--dist loadfile`` with :data:`MODEL_FILES` and :data:`MODEL_TESTS` as one unit of work,
+    the costliest unit first (:data:`UNIT_SECONDS`). (pytest-xdist's own ``--dist loadgroup``
+    with ``xdist_group`` markers does the grouping by rewriting each test's node id, which pytest
+    9 no longer reads: there the groups were silently ignored and the tests of one file ran on
+    both workers.)"""
     if config.getvalue("dist") != "loadfile":
         return None
     from xdist.scheduler import LoadFileScheduling
@@ -82,6 +120,14 @@ def pytest_xdist_make_scheduler(config, log):
             if Path(path).name in MODEL_FILES or nodeid.startswith(MODEL_TESTS):
                 return "models"
             return path
+
+        def _assign_work_unit(self, node) -> None:
+            def cost(scope: str) -> float:
+                seconds = UNIT_SECONDS.get(Path(scope).name)
+                return seconds if seconds is not None else SECONDS_PER_TEST * len(self.workqueue[scope])
+
+            self.workqueue.move_to_end(max(self.workqueue, key=cost), last=False)
+            super()._assign_work_unit(node)
 
     return ModelFilesTogether(config, log)
 
