@@ -965,7 +965,14 @@ def _adjoint_and_central_differences(law, values, lags, integrator, target, crit
 @pytest.mark.parametrize(
     "name",
     # a lag per link in the adjoint: test_the_jacobian_and_the_adjoint_read_edge_parameters
-    ["kuramoto", "swing", "stuart-landau", pytest.param("sakaguchi-links", marks=pytest.mark.slow)],
+    [
+        # the first-order crossing in `make test` on stuart-landau (two states); kuramoto's
+        # adjoint driver to the frequency criterion compiles for this case alone (5.3 s)
+        pytest.param("kuramoto", marks=pytest.mark.slow),
+        "swing",
+        "stuart-landau",
+        pytest.param("sakaguchi-links", marks=pytest.mark.slow),
+    ],
 )
 def test_the_adjoint_of_the_frequency_crossing_is_the_derivative_of_the_discrete_tau(name):
     """To the frequency criterion: every link's ``d tau0 / d beta`` by the generated adjoint
@@ -999,7 +1006,10 @@ def test_the_adjoint_of_the_frequency_crossing_is_the_derivative_of_the_discrete
     ("sync", "dbeta"),
     [
         ({}, 0.01),
-        ({"sync": {"criterion": "frequency", "tolerance": 0.01}}, 0.01),
+        # the frequency criterion's adjoint is checked in `make test` against central differences
+        # of the discrete tau (test_the_adjoint_of_the_frequency_crossing_...); this run of both
+        # estimators (10.6 s, a slow hour) in `make test-slow`
+        pytest.param({"sync": {"criterion": "frequency", "tolerance": 0.01}}, 0.01, marks=pytest.mark.slow),
         (
             {
                 "sync": {"criterion": "relative", "fraction": 0.98},

@@ -6,6 +6,7 @@ Each check runs ``tests/cudasim_model_checks.py`` in a fresh interpreter with
 
 from __future__ import annotations
 
+import pytest
 from test_cuda_sim import ROOT, _simulated
 
 CHECKS = ROOT / "tests" / "cudasim_model_checks.py"
@@ -27,6 +28,9 @@ def test_model_run_on_cuda_matches_cpu(tmp_path):
     assert "identical on cpu and cuda" in _check("runner", str(tmp_path))
 
 
+#: bench/gpu_models_check.py's own code path (9-10 s under the simulator): `make test-slow`, which
+#: CI runs; the model kernels it calls are checked above in `make test`
+@pytest.mark.slow
 def test_gpu_models_check_tiny_runs_under_simulator():
     """The script run on a GPU machine (bench/gpu_models_check.py) still runs: its code path."""
     proc = _simulated(str(ROOT / "bench" / "gpu_models_check.py"), "--tiny")
