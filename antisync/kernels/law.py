@@ -93,7 +93,7 @@ __all__ = [
 ]
 
 #: bumped when the generated code's layout changes (old files are then never read)
-GENERATOR = 17
+GENERATOR = 18
 
 
 class LawParams(NamedTuple):
@@ -1254,6 +1254,9 @@ def generate_source(law: Law) -> str:
         "from antisync.kernels.law_support import factor, item_of, order_crossing, phase, record, solve",
         "from antisync.kernels.law_support import trip_weights",
         "from antisync.kernels.law_support import DENSE_POINTS, hermite_range",
+        "from antisync.kernels.law_support import dev_ends, frequency_crossing, hermite, law_binding",
+        "from antisync.kernels.law_support import law_crossing_weights, law_deviation, near_step",
+        "from antisync.kernels.law_support import trip_clock, trip_keep",
         "from antisync.kernels.law_support import RENORM_EVERY, TAYLOR_MAX_ANGLE, VEC",
         "from antisync.kernels.law_support import rotation, taylor_rotation, vany_outside",
         "from antisync.kernels.law_support import vload, vsplat, vsqrt, vstore",
@@ -1662,25 +1665,6 @@ def expanded_pattern(indptr: np.ndarray, indices: np.ndarray, n_states: int) -> 
 # The drivers: generic in the law (they call law_rhs, law_order, law_start, law_jac above).
 _DRIVERS = '''
 @njit(cache=True, error_model="numpy")
-def hermite(y0, m0, y1, m1, x):
-    """The cubic Hermite interpolant at x in [0, 1] (m0, m1: rates times dt)."""
-    x2 = x * x
-    x3 = x2 * x
-    return (2 * x3 - 3 * x2 + 1) * y0 + (x3 - 2 * x2 + x) * m0 + (-2 * x3 + 3 * x2) * y1 + (x3 - x2) * m1
-
-
-@njit(cache=True, error_model="numpy")
-def dev_ends(D, Dp, row, i, dt, rk4):
-    """(y0, m0, y1, m1) of deviation row at node i over the last step: RK4's Hermite data, or
-    Euler's straight line."""
-    y0 = Dp[row, i]
-    y1 = D[row, i]
-    if rk4:
-        return y0, dt * Dp[row + 1, i], y1, dt * D[row + 1, i]
-    return y0, y1 - y0, y1, y1 - y0
-
-
-@njit(cache=True, error_model="numpy")
 def law_advance(y, out, f, wq, indptr, indices, P, dt, rk4, k2, k3, k4, z, G):
     """out = one Euler or RK4 step from y (f = law_rhs at y); out may be y."""
     m = y.shape[0]
@@ -1700,58 +1684,6 @@ def law_advance(y, out, f, wq, indptr, indices, P, dt, rk4, k2, k3, k4, z, G):
     law_rhs(z, wq, indptr, indices, P, k4, G)
     for a in range(m):
         out[a] = y[a] + dt / 6.0 * (f[a] + 2.0 * k2[a] + 2.0 * k3[a] + k4[a])
-
-
-@njit(cache=True, error_model="numpy")
-def law_deviation(D, Dp, n, dt, rk4, x):
-    """The largest |deviation| of the frequency criterion's quantities at x of the last step's
-    interpolants (x = 1: the step's end, exactly; a NaN kept: never synchronized)."""
-    dev = 0.0
-    for i in range(n):
-        for k in range(KF):
-            y0, m0, y1, m1 = dev_ends(D, Dp, 2 * k, i, dt, rk4)
-            d = abs(hermite(y0, m0, y1, m1, x))
-            if not (d <= dev or dev != dev):
-                dev = d
-    return dev
-
-
-@njit(cache=True, error_model="numpy")
-def frequency_crossing(D, Dp, n, dt, rk4, target):
-    """First x in (0, 1] of the last step where every interpolated deviation is below target,
-    or -1 (the built-in kernels' frequency_crossing on the law's quantities)."""
-    for i in range(n):
-        for k in range(KF):
-            y0, m0, y1, m1 = dev_ends(D, Dp, 2 * k, i, dt, rk4)
-            lo, hi = hermite_range(y0, m0, y1, m1)
-            if lo >= target or hi <= -target:
-                return -1.0  # this deviation stays out of the band for the whole step
-    a = 0.0
-    for point in range(1, DENSE_POINTS + 1):
-        b = point / DENSE_POINTS
-        if law_deviation(D, Dp, n, dt, rk4, b) < target:
-            for _ in range(60):
-                x = 0.5 * (a + b)
-                if law_deviation(D, Dp, n, dt, rk4, x) < target:
-                    b = x
-                else:
-                    a = x
-            return b
-        a = b
-    return -1.0
-
-
-@njit(cache=True, error_model="numpy")
-def near_step(D, n, target):
-    """The longest step once every deviation is within BAND times the tolerance: NEAR of the
-    tolerance over the fastest deviation's rate (inf while one is farther)."""
-    fastest = 0.0
-    for k in range(KF):
-        for i in range(n):
-            if abs(D[2 * k, i]) > support.BAND * target:
-                return np.inf
-            fastest = max(fastest, abs(D[2 * k + 1, i]))
-    return support.NEAR * target / fastest if fastest > 0.0 else np.inf
 
 
 @njit(cache=True, error_model="numpy")
@@ -2134,20 +2066,6 @@ def law_freq_seed(y, wq, indptr, indices, P, k, i, cq, cr, lam, gw, f, ya, a, oa
 
 
 @njit(cache=True, error_model="numpy")
-def law_binding(D, Dp, n, dt, rk4, x):
-    """(k, i) of the deviation whose interpolant is farthest from 0 at x (the one that sets
-    the frequency criterion's crossing there)."""
-    best, bk, bi = -1.0, 0, 0
-    for i in range(n):
-        for k in range(KF):
-            y0, m0, y1, m1 = dev_ends(D, Dp, 2 * k, i, dt, rk4)
-            d = abs(hermite(y0, m0, y1, m1, x))
-            if d > best:
-                best, bk, bi = d, k, i
-    return bk, bi
-
-
-@njit(cache=True, error_model="numpy")
 def law_adjoint_forward(y0, wq, indptr, indices, P, dt, rk4, freq, target, max_steps):
     """The forward pass of the adjoint: (status, steps, frac, ys), ys the states at every step
     (steps + 1 rows; only the start unless SYNCED)."""
@@ -2169,32 +2087,6 @@ def law_adjoint_forward(y0, wq, indptr, indices, P, dt, rk4, freq, target, max_s
         law_rhs(ys[k - 1], wq, indptr, indices, P, f, G)
         law_advance(ys[k - 1], ys[k], f, wq, indptr, indices, P, dt, rk4, k2, k3, k4, z, G)
     return st, steps, x, ys
-
-
-@njit(cache=True, error_model="numpy")
-def law_crossing_weights(r0, d0, r1, d1, dt, rk4, x):
-    """d tau / d(H's data) of the crossing H(x) = target on the last step (tau = (steps - 1 + x)
-    dt), H the cubic Hermite interpolant of (r0, dt d0, r1, dt d1), or Euler's straight line:
-    the weights of r0, d0, r1 and d1, and d tau / d target."""
-    if rk4:
-        m0 = dt * d0
-        m1 = dt * d1
-        x2 = x * x
-        x3 = x2 * x
-        h_r0 = 2 * x3 - 3 * x2 + 1
-        h_m0 = x3 - 2 * x2 + x
-        h_r1 = -2 * x3 + 3 * x2
-        h_m1 = x3 - x2
-        h_x = (6 * x2 - 6 * x) * r0 + (3 * x2 - 4 * x + 1) * m0
-        h_x += (-6 * x2 + 6 * x) * r1 + (3 * x2 - 2 * x) * m1
-    else:
-        h_r0 = 1.0 - x
-        h_m0 = 0.0
-        h_r1 = x
-        h_m1 = 0.0
-        h_x = r1 - r0
-    c = -dt / h_x
-    return c * h_r0, c * h_m0 * dt, c * h_r1, c * h_m1 * dt, -c
 
 
 @njit(cache=True, error_model="numpy")
@@ -2301,33 +2193,6 @@ _ADJOINT_DRIVERS += _ADJOINT_ITEMS.format(name="law_adjoint_item_freq", one="law
 _TRIP_DRIVERS = '''
 
 @njit(cache=True, error_model="numpy")
-def trip_clock(D, Dp, n, t_prev, step, tol, settle, start):
-    """The settling clock of a line trip (antisync.kernels.implicit's trip_switch and trip_band
-    on the law's deviations). With start, at the first state of a configuration (D): nan when a
-    deviation is out of the band, else the time from which they have all been in it. After a
-    step: nan when one is out of the band at its end, else the time the interpolants entered it
-    (located in the step) or, after an excursion out of it inside the step, the step's end."""
-    if start:
-        dev = law_deviation(D, D, n, step, False, 1.0)
-        if not dev < tol:
-            return np.nan
-        return t_prev if settle != settle else settle
-    dev = law_deviation(D, Dp, n, step, True, 1.0)
-    if not dev < tol:
-        return np.nan
-    if settle != settle:
-        x = frequency_crossing(D, Dp, n, step, True, tol)
-        return t_prev + (x if x >= 0.0 else 1.0) * step
-    for i in range(n):
-        for k in range(KF):
-            y0, m0, y1, m1 = dev_ends(D, Dp, 2 * k, i, step, True)
-            lo, hi = hermite_range(y0, m0, y1, m1)
-            if hi >= tol or lo <= -tol:
-                return t_prev + step
-    return settle
-
-
-@njit(cache=True, error_model="numpy")
 def trip_arrays(n):
     """What a trip keeps of its state now and at the last step's start: the deviations D, Dp, the
     frequency quantities Q, Qp (rows 2 k, their rates 2 k + 1), the phases, their rates and the
@@ -2365,17 +2230,6 @@ def trip_switch(y, w, indptr, indices, P, f, G, T, t, tol, settle, first):
     if first:
         u[:] = ph
     return trip_clock(D, D, indptr.shape[0] - 1, t, 0.0, tol, settle, True)
-
-
-@njit(cache=True, error_model="numpy")
-def trip_keep(T):
-    """T's values at the step's start kept (before the step's end is evaluated into T)."""
-    D, Dp, Q, Qp, ph, dph, u, p_ph, p_dph, p_u = T
-    Dp[:] = D
-    Qp[:] = Q
-    p_u[:] = u
-    p_ph[:] = ph
-    p_dph[:] = dph
 
 
 @njit(cache=True, error_model="numpy")

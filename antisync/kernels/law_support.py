@@ -1,13 +1,14 @@
 """What the generated kernels of a user's law (:mod:`antisync.kernels.law`) use of antisync:
 the paper's phases, the crossing on the step's cubic interpolant (its range and points), the
 item bookkeeping of the one-trajectory drivers and Rodas4's coefficients, sparse LU and
-step-size controller, under one module so a generated file imports one name; and the parallel
-loops that run a generated module's item functions, one compiled loop for every law."""
+step-size controller, under one module so a generated file imports one name; the frequency
+criterion's crossing and a line trip's settling clock on a law's deviations; and the parallel
+loops that run a generated module's item functions. What is here compiles once for every law."""
 
 from __future__ import annotations
 
 import numpy as np
-from numba import prange
+from numba import njit, prange
 
 from antisync.kernels import implicit, loops
 from antisync.kernels.core import (
@@ -39,13 +40,22 @@ __all__ = [
     "each_group",
     "each_item",
     "each_realization",
+    "dev_ends",
     "each_trip",
+    "frequency_crossing",
+    "hermite",
     "item_of",
+    "law_binding",
+    "law_crossing_weights",
+    "law_deviation",
+    "near_step",
     "phase",
     "record",
     "rotation",
     "share_rows",
     "taylor_rotation",
+    "trip_clock",
+    "trip_keep",
     "trip_weights",
     "vany_outside",
     "vload",
@@ -77,6 +87,162 @@ CROSSING_RTOL = implicit._CROSSING_RTOL
 REFINE = implicit._REFINE
 NEAR = implicit._NEAR
 BAND = implicit._BAND
+
+
+# -- the frequency criterion's crossing and a trip's settling clock, one compile for every law ---
+#
+# The law's frequency quantities are rows 2 k of D (k < D.shape[0] // 2, the law's KF), their rates
+# rows 2 k + 1: nothing here depends on the law but that count, so these are compiled once for
+# every law (in a generated module each was a compile of its own per law and per literal flag).
+
+
+@njit(cache=True, error_model="numpy")
+def hermite(y0, m0, y1, m1, x):
+    """The cubic Hermite interpolant at x in [0, 1] (m0, m1: rates times dt)."""
+    x2 = x * x
+    x3 = x2 * x
+    return (2 * x3 - 3 * x2 + 1) * y0 + (x3 - 2 * x2 + x) * m0 + (-2 * x3 + 3 * x2) * y1 + (x3 - x2) * m1
+
+
+@njit(cache=True, error_model="numpy")
+def dev_ends(D, Dp, row, i, dt, rk4):
+    """(y0, m0, y1, m1) of deviation row at node i over the last step: RK4's Hermite data, or
+    Euler's straight line."""
+    y0 = Dp[row, i]
+    y1 = D[row, i]
+    if rk4:
+        return y0, dt * Dp[row + 1, i], y1, dt * D[row + 1, i]
+    return y0, y1 - y0, y1, y1 - y0
+
+
+@njit(cache=True, error_model="numpy")
+def law_deviation(D, Dp, n, dt, rk4, x):
+    """The largest |deviation| of the frequency criterion's quantities at x of the last step's
+    interpolants (x = 1: the step's end, exactly; a NaN kept: never synchronized)."""
+    dev = 0.0
+    for i in range(n):
+        for k in range(D.shape[0] // 2):
+            y0, m0, y1, m1 = dev_ends(D, Dp, 2 * k, i, dt, rk4)
+            d = abs(hermite(y0, m0, y1, m1, x))
+            if not (d <= dev or dev != dev):
+                dev = d
+    return dev
+
+
+@njit(cache=True, error_model="numpy")
+def frequency_crossing(D, Dp, n, dt, rk4, target):
+    """First x in (0, 1] of the last step where every interpolated deviation is below target,
+    or -1 (the built-in kernels' frequency_crossing on the law's quantities)."""
+    for i in range(n):
+        for k in range(D.shape[0] // 2):
+            y0, m0, y1, m1 = dev_ends(D, Dp, 2 * k, i, dt, rk4)
+            lo, hi = hermite_range(y0, m0, y1, m1)
+            if lo >= target or hi <= -target:
+                return -1.0  # this deviation stays out of the band for the whole step
+    a = 0.0
+    for point in range(1, DENSE_POINTS + 1):
+        b = point / DENSE_POINTS
+        if law_deviation(D, Dp, n, dt, rk4, b) < target:
+            for _ in range(60):
+                x = 0.5 * (a + b)
+                if law_deviation(D, Dp, n, dt, rk4, x) < target:
+                    b = x
+                else:
+                    a = x
+            return b
+        a = b
+    return -1.0
+
+
+@njit(cache=True, error_model="numpy")
+def near_step(D, n, target):
+    """The longest step once every deviation is within BAND times the tolerance: NEAR of the
+    tolerance over the fastest deviation's rate (inf while one is farther)."""
+    fastest = 0.0
+    for k in range(D.shape[0] // 2):
+        for i in range(n):
+            if abs(D[2 * k, i]) > BAND * target:
+                return np.inf
+            fastest = max(fastest, abs(D[2 * k + 1, i]))
+    return NEAR * target / fastest if fastest > 0.0 else np.inf
+
+
+@njit(cache=True, error_model="numpy")
+def law_binding(D, Dp, n, dt, rk4, x):
+    """(k, i) of the deviation whose interpolant is farthest from 0 at x (the one that sets
+    the frequency criterion's crossing there)."""
+    best, bk, bi = -1.0, 0, 0
+    for i in range(n):
+        for k in range(D.shape[0] // 2):
+            y0, m0, y1, m1 = dev_ends(D, Dp, 2 * k, i, dt, rk4)
+            d = abs(hermite(y0, m0, y1, m1, x))
+            if d > best:
+                best, bk, bi = d, k, i
+    return bk, bi
+
+
+@njit(cache=True, error_model="numpy")
+def law_crossing_weights(r0, d0, r1, d1, dt, rk4, x):
+    """d tau / d(H's data) of the crossing H(x) = target on the last step (tau = (steps - 1 + x)
+    dt), H the cubic Hermite interpolant of (r0, dt d0, r1, dt d1), or Euler's straight line:
+    the weights of r0, d0, r1 and d1, and d tau / d target."""
+    if rk4:
+        m0 = dt * d0
+        m1 = dt * d1
+        x2 = x * x
+        x3 = x2 * x
+        h_r0 = 2 * x3 - 3 * x2 + 1
+        h_m0 = x3 - 2 * x2 + x
+        h_r1 = -2 * x3 + 3 * x2
+        h_m1 = x3 - x2
+        h_x = (6 * x2 - 6 * x) * r0 + (3 * x2 - 4 * x + 1) * m0
+        h_x += (-6 * x2 + 6 * x) * r1 + (3 * x2 - 2 * x) * m1
+    else:
+        h_r0 = 1.0 - x
+        h_m0 = 0.0
+        h_r1 = x
+        h_m1 = 0.0
+        h_x = r1 - r0
+    c = -dt / h_x
+    return c * h_r0, c * h_m0 * dt, c * h_r1, c * h_m1 * dt, -c
+
+
+@njit(cache=True, error_model="numpy")
+def trip_clock(D, Dp, n, t_prev, step, tol, settle, start):
+    """The settling clock of a line trip (antisync.kernels.implicit's trip_switch and trip_band
+    on the law's deviations). With start, at the first state of a configuration (D): nan when a
+    deviation is out of the band, else the time from which they have all been in it. After a
+    step: nan when one is out of the band at its end, else the time the interpolants entered it
+    (located in the step) or, after an excursion out of it inside the step, the step's end."""
+    if start:
+        dev = law_deviation(D, D, n, step, False, 1.0)
+        if not dev < tol:
+            return np.nan
+        return t_prev if settle != settle else settle
+    dev = law_deviation(D, Dp, n, step, True, 1.0)
+    if not dev < tol:
+        return np.nan
+    if settle != settle:
+        x = frequency_crossing(D, Dp, n, step, True, tol)
+        return t_prev + (x if x >= 0.0 else 1.0) * step
+    for i in range(n):
+        for k in range(D.shape[0] // 2):
+            y0, m0, y1, m1 = dev_ends(D, Dp, 2 * k, i, step, True)
+            lo, hi = hermite_range(y0, m0, y1, m1)
+            if hi >= tol or lo <= -tol:
+                return t_prev + step
+    return settle
+
+
+@njit(cache=True, error_model="numpy")
+def trip_keep(T):
+    """T's values at the step's start kept (before the step's end is evaluated into T)."""
+    D, Dp, Q, Qp, ph, dph, u, p_ph, p_dph, p_u = T
+    Dp[:] = D
+    Qp[:] = Q
+    p_u[:] = u
+    p_ph[:] = ph
+    p_dph[:] = dph
 
 
 # -- the parallel loops, one for every law (antisync.kernels.loops) ------------------------------
