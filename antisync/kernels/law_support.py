@@ -64,7 +64,6 @@ __all__ = [
     "vstore",
 ]
 
-order_crossing = MK.order_crossing
 rotation = K64.rotation
 taylor_rotation = K64.taylor_rotation
 hermite_range = MK.hermite_range
@@ -87,6 +86,13 @@ CROSSING_RTOL = implicit._CROSSING_RTOL
 REFINE = implicit._REFINE
 NEAR = implicit._NEAR
 BAND = implicit._BAND
+
+
+@njit(cache=True, error_model="numpy")
+def order_crossing(r0, d0, r1, d1, dt, rk4, target):
+    """The built-in kernels' ``order_crossing`` (inlined here), compiled once for every law: the
+    generated modules call it, where each of its call sites in a module inlined it again."""
+    return MK.order_crossing(r0, d0, r1, d1, dt, rk4, target)
 
 
 # -- the frequency criterion's crossing and a trip's settling clock, one compile for every law ---
