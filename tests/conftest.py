@@ -69,38 +69,48 @@ MODEL_TESTS = ("tests/test_capabilities.py::test_every_cpu_row_runs[model-",)
 
 
 #: What each unit of work cost a fresh clone's `make test` (worker-seconds, compiling included; the
-#: units over 5 s of the compile log's ``.tests`` file, 2026-12-07 13:42): the scheduler hands
+#: units over 5 s of the compile log's ``.tests`` file, 2026-12-07 15:51): the scheduler hands
 #: out the costliest unit left whenever a worker asks for one (longest first), so that the run
 #: does not end on one worker finishing a long file while the other is idle. pytest-xdist orders
 #: units by their number of tests: test_models_cuda_sim.py (3 tests, 41 s) started last, and one
 #: worker ran 21 s after the other had finished. A unit not listed is costed at
 #: :data:`SECONDS_PER_TEST` a test. Stale numbers cost only balance, never a result.
 UNIT_SECONDS = {
-    "models": 363,
-    "test_capabilities.py": 88,
-    "test_grid_trip.py": 81,
-    "test_cuda_sim.py": 55,
-    "test_models_cuda_sim.py": 41,
-    "test_static_fast.py": 31,
-    "test_dask.py": 29,
-    "test_paper.py": 28,
-    "test_sweeps.py": 25,
-    "test_store_safety.py": 25,
-    "test_grid_dynamic.py": 23,
-    "test_adjoint_lanes.py": 20,
-    "test_model_crossings.py": 16,
-    "test_optimize_spectral.py": 15,
-    "test_reliability_hostile.py": 15,
-    "test_kernels.py": 14,
-    "test_give_up.py": 13,
-    "test_lambda_quantities.py": 11,
-    "test_architecture.py": 11,
-    "test_activsg10k.py": 10,
-    "test_readme.py": 9,
+    "models": 349,
+    "test_capabilities.py": 87,
+    "test_grid_trip.py": 85,
+    "test_cuda_sim.py": 52,
+    "test_static_fast.py": 29,
+    "test_models_cuda_sim.py": 28,
+    "test_dask.py": 26,
+    "test_store_safety.py": 26,
+    "test_paper.py": 26,
+    "test_sweeps.py": 26,
+    "test_grid_dynamic.py": 25,
+    "test_adjoint_lanes.py": 19,
+    "test_kernels.py": 18,
+    "test_optimize_spectral.py": 18,
+    "test_model_crossings.py": 17,
+    "test_reliability_hostile.py": 16,
+    "test_give_up.py": 15,
+    "test_architecture.py": 13,
+    "test_activsg10k.py": 11,
+    "test_lambda_quantities.py": 10,
+    "test_measures_pipeline.py": 10,
+    "test_readme.py": 10,
     "test_overwrite_safety.py": 9,
+    "test_figures.py": 9,
+    "test_optimize.py": 8,
+    "test_hostile_input.py": 8,
+    "test_large_graphs.py": 8,
+    "test_cli.py": 7,
+    "test_optimize_window.py": 6,
+    "test_numba_compile.py": 6,
+    "test_measures.py": 6,
+    "test_stopping.py": 5,
 }
 
-#: The mean cost of a test in the units under 5 s (the same run: 0.097 s).
+#: The mean cost of a test in the units under 5 s (the same run: 0.100 s).
 SECONDS_PER_TEST = 0.1
 
 
