@@ -864,6 +864,7 @@ class ModelKernels(NamedTuple):
     order_crossing: Callable
     frequency_crossing: Callable
     largest_deviation: Callable
+    hermite: Callable
     hermite_range: Callable
     copy_rows: Callable
 
@@ -1255,6 +1256,7 @@ def make_model_kernels(jit, base: Kernels) -> ModelKernels:
         order_crossing=order_crossing,
         frequency_crossing=frequency_crossing,
         largest_deviation=largest_deviation,
+        hermite=hermite,
         hermite_range=hermite_range,
         copy_rows=copy_rows,
     )

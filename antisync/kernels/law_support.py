@@ -66,6 +66,7 @@ __all__ = [
 
 rotation = K64.rotation
 taylor_rotation = K64.taylor_rotation
+hermite = MK.hermite
 hermite_range = MK.hermite_range
 factor = implicit._factor
 solve = implicit._solve
@@ -100,14 +101,6 @@ def order_crossing(r0, d0, r1, d1, dt, rk4, target):
 # The law's frequency quantities are rows 2 k of D (k < D.shape[0] // 2, the law's KF), their rates
 # rows 2 k + 1: nothing here depends on the law but that count, so these are compiled once for
 # every law (in a generated module each was a compile of its own per law and per literal flag).
-
-
-@njit(cache=True, error_model="numpy")
-def hermite(y0, m0, y1, m1, x):
-    """The cubic Hermite interpolant at x in [0, 1] (m0, m1: rates times dt)."""
-    x2 = x * x
-    x3 = x2 * x
-    return (2 * x3 - 3 * x2 + 1) * y0 + (x3 - 2 * x2 + x) * m0 + (-2 * x3 + 3 * x2) * y1 + (x3 - x2) * m1
 
 
 @njit(cache=True, error_model="numpy")
