@@ -61,7 +61,9 @@ from antisync.kernels.shared import (
     Outputs,
     PathwiseResult,
     Threads,
+    copy_into,
     csr_mv2,
+    doubled,
     realization_ids,
     row_sum_bound,
 )
@@ -152,9 +154,7 @@ class _Run(NamedTuple):
 def _store(ck, idx, c, s):
     """``ck[idx] = (c, s)``, doubling ``ck`` when full; returns the (possibly new) array."""
     if idx >= ck.shape[0]:
-        bigger = np.empty((2 * ck.shape[0], 2, ck.shape[2]))
-        bigger[: ck.shape[0]] = ck
-        ck = bigger
+        ck = doubled(ck)
     for i in range(c.shape[0]):
         ck[idx, 0, i] = c[i]
         ck[idx, 1, i] = s[i]
@@ -578,11 +578,12 @@ def _euler_vjp_vec(c, s, lam, lam_new, g, indptr, indices, w, dt):
 def _store_lanes(ck, idx, c, s):
     """``ck[idx] = (c, s)`` for ``[node, lane]`` states, doubling ``ck`` when full."""
     if idx >= ck.shape[0]:
-        bigger = np.empty((2 * ck.shape[0], 2, ck.shape[2], ck.shape[3]))
-        bigger[: ck.shape[0]] = ck
-        ck = bigger
-    ck[idx, 0] = c
-    ck[idx, 1] = s
+        ck = doubled(ck)
+    # element loops, not slice assignments (see doubled)
+    for i in range(c.shape[0]):
+        for q in range(c.shape[1]):
+            ck[idx, 0, i, q] = c[i, q]
+            ck[idx, 1, i, q] = s[i, q]
     return ck
 
 
@@ -643,8 +644,8 @@ def _euler_backward_lanes(
         j0 = sg * every
         j1 = min(j0 + every, top + 1)
         # states j0 .. j1 - 1 again, exactly as the forward pass made them
-        seg_c[0] = ck[sg, 0]
-        seg_s[0] = ck[sg, 1]
+        copy_into(seg_c[0], ck[sg, 0])
+        copy_into(seg_s[0], ck[sg, 1])
         for j in range(j0 + 1, j1):
             row = j - j0
             _euler_vec(
@@ -998,15 +999,15 @@ def _rk4_backward_lanes(ck, seg_c, seg_s, c, s, step_bufs, g, crossing, net, tr,
         j0 = sg * every
         j1 = min(j0 + every, top + 1)
         # states j0 .. j1 - 1 again, exactly as the forward pass made them
-        c[:] = ck[sg, 0]
-        s[:] = ck[sg, 1]
-        seg_c[0] = c
-        seg_s[0] = s
+        copy_into(c, ck[sg, 0])
+        copy_into(s, ck[sg, 1])
+        copy_into(seg_c[0], c)
+        copy_into(seg_s[0], s)
         _lane_velocity(c, s, kv[0], kv[1], dtot, om, sum_c, sum_s, lw, indptr, indices)
         for j in range(j0 + 1, j1):
             _rk4_vec(c, s, kv, yc, ys, ybc, ybs, lw, w, True, indptr, indices, dt, r2, dr2)
-            seg_c[j - j0] = c
-            seg_s[j - j0] = s
+            copy_into(seg_c[j - j0], c)
+            copy_into(seg_s[j - j0], s)
         for j in range(j1 - 1, j0 - 1, -1):
             cj = seg_c[j - j0]
             sj = seg_s[j - j0]

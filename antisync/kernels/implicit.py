@@ -57,6 +57,7 @@ from antisync.kernels.shared import (
     SimResult,
     Threads,
     check_collapsed,
+    copy_into,
     has_inertia,
     model_batch,
     record_item,
@@ -543,8 +544,8 @@ def rodas4_sync(th0, nu0, eq, criterion, target, t_max, h0, rtol, atol, plan, fi
     # the state at the step's start: theta, nu, cos and sin of theta, the rates of theta and nu
     state = np.zeros((6, n))
     y_th, y_nu, cy, sy, f0_th, f0_nu = state[0], state[1], state[2], state[3], state[4], state[5]
-    y_th[:] = th0
-    y_nu[:] = nu0
+    copy_into(y_th, th0)
+    copy_into(y_nu, nu0)
     kept = np.empty((6, n))  # the state one accepted step back, to redo a step shorter
     d_th = np.empty(n)  # a stage's input: y_th + d_th, z_nu
     z_nu = np.empty(n)
@@ -665,7 +666,7 @@ def rodas4_sync(th0, nu0, eq, criterion, target, t_max, h0, rtol, atol, plan, fi
             continue
         rejects_in_row = 0
         accepted += 1
-        kept[:, :] = state
+        copy_into(kept, state)
         for i in range(n):
             y_th[i] += d_th[i] + u_th[5, i]
             y_nu[i] = z_nu[i] + u_nu[5, i] if (second and mass[i] > 0.0) else 0.0
@@ -696,7 +697,7 @@ def rodas4_sync(th0, nu0, eq, criterion, target, t_max, h0, rtol, atol, plan, fi
                 xl >= 0.0 and abs(xc - xl) * (t - t_prev) <= _CROSSING_RTOL * tau
             ) or t - t_prev <= _H_FLOOR * 1e3 * t_max:
                 return SYNCED, tau, accepted, rejected, False
-            state[:, :] = kept
+            copy_into(state, kept)
             if freq:
                 _copy_rows(work, DEV_ROW, DEV_PREV_ROW, 4)
             r2 = r2_prev

@@ -93,7 +93,7 @@ __all__ = [
 ]
 
 #: bumped when the generated code's layout changes (old files are then never read)
-GENERATOR = 18
+GENERATOR = 19
 
 
 class LawParams(NamedTuple):
@@ -1255,7 +1255,7 @@ def generate_source(law: Law) -> str:
         "from antisync.kernels.law_support import trip_weights",
         "from antisync.kernels.law_support import frequency_crossing, law_binding, law_crossing_weights",
         "from antisync.kernels.law_support import law_deviation, near_step",
-        "from antisync.kernels.law_support import trip_clock, trip_keep",
+        "from antisync.kernels.law_support import copy_into, trip_clock, trip_keep",
         "from antisync.kernels.law_support import RENORM_EVERY, TAYLOR_MAX_ANGLE, VEC",
         "from antisync.kernels.law_support import rotation, taylor_rotation, vany_outside",
         "from antisync.kernels.law_support import vload, vsplat, vsqrt, vstore",
@@ -2049,8 +2049,8 @@ def law_freq_seed(y, wq, indptr, indices, P, k, i, cq, cr, lam, gw, f, ya, a, oa
     m = y.shape[0]
     law_rhs(y, wq, indptr, indices, P, f, G)
     ya[:] = 0.0
-    ya[:m] = y
-    ya[m : 2 * m] = f
+    copy_into(ya[:m], y)
+    copy_into(ya[m : 2 * m], f)
     a[:] = 0.0
     oa[:] = 0.0
     for j in range(n):
@@ -2076,7 +2076,8 @@ def law_adjoint_forward(y0, wq, indptr, indices, P, dt, rk4, freq, target, max_s
     if st != SYNCED:
         return st, steps, x, np.empty((1, m))
     ys = np.empty((steps + 1, m))
-    ys[0] = y0
+    for j in range(m):  # not ys[0] = y0: numba's broadcasting setitem compiles for seconds
+        ys[0, j] = y0[j]
     f = np.empty(m)
     z = np.empty(m)
     k2 = np.empty(m)
@@ -2227,7 +2228,7 @@ def trip_switch(y, w, indptr, indices, P, f, G, T, t, tol, settle, first):
     trip_eval(y, w, indptr, indices, P, f, G, T)
     D, Dp, Q, Qp, ph, dph, u, p_ph, p_dph, p_u = T
     if first:
-        u[:] = ph
+        copy_into(u, ph)
     return trip_clock(D, D, indptr.shape[0] - 1, t, 0.0, tol, settle, True)
 
 

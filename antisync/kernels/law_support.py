@@ -25,7 +25,7 @@ from antisync.kernels.core import (
 from antisync.kernels.lanes import item_of
 from antisync.kernels.model_steps import MK
 from antisync.kernels.precision import K64
-from antisync.kernels.shared import record, share_rows, trip_weights
+from antisync.kernels.shared import copy_into, record, share_rows, trip_weights
 from antisync.physics.phases import phase
 from antisync.status import ALREADY_SYNCED, NOT_SYNCED, SYNCED
 
@@ -237,11 +237,11 @@ def trip_clock(D, Dp, n, t_prev, step, tol, settle, start):
 def trip_keep(T):
     """T's values at the step's start kept (before the step's end is evaluated into T)."""
     D, Dp, Q, Qp, ph, dph, u, p_ph, p_dph, p_u = T
-    Dp[:] = D
-    Qp[:] = Q
-    p_u[:] = u
-    p_ph[:] = ph
-    p_dph[:] = dph
+    copy_into(Dp, D)
+    copy_into(Qp, Q)
+    copy_into(p_u, u)
+    copy_into(p_ph, ph)
+    copy_into(p_dph, dph)
 
 
 # -- the parallel loops, one for every law (antisync.kernels.loops) ------------------------------

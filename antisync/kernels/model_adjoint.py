@@ -63,6 +63,8 @@ from antisync.kernels.shared import (
     PathwiseResult,
     Threads,
     batch_starts,
+    copy_into,
+    doubled,
     has_inertia,
     per_node,
     realization_ids,
@@ -399,10 +401,10 @@ def _forward(y, th, dnu, work, eq, second, dt, rk4, criterion, target, max_steps
         if rk4:
             c = done // every
             if c == ck.shape[0]:
-                grown = np.empty((2 * c, 3, n))
-                grown[:c] = ck
-                ck = grown
-            ck[c] = y
+                ck = doubled(ck)
+            for row in range(3):
+                for i in range(n):
+                    ck[c, row, i] = y[row, i]
         piece = min(length, max_steps - done)
         st, k, x = _sync(y[0], y[1], y[2], th, dnu, work, eq, dt, rk4, criterion, target, piece)
         # SYNCED, ALREADY_SYNCED (at done = 0 only), or NOT_SYNCED at the step cap
@@ -413,11 +415,11 @@ def _forward(y, th, dnu, work, eq, second, dt, rk4, criterion, target, max_steps
     if rk4 or st != SYNCED:
         return st, k, x, ck
     ck = np.empty(((k - 1) // every + 1, 3, n))
-    y[:] = y0
+    copy_into(y, y0)
     _rhs(y[0], y[1], y[2], eq, second, th, dnu)
     for step in range(k):
         if step % every == 0:
-            ck[step // every] = y
+            copy_into(ck[step // every], y)
         if step < k - 1:
             _advance(y, th, dnu, work, eq, second, dt, rk4, step + 1)
     return st, k, x, ck
@@ -444,15 +446,15 @@ def _model_adjoint(y0, eq, dt, rk4, criterion, target, max_steps, every, g):
         return st, k, x, 0.0
     n_ck = (k - 1) // every + 1
     # y: state k - 1 (from its checkpoint); y1: state k
-    y[:] = ck[n_ck - 1]
+    copy_into(y, ck[n_ck - 1])
     _rhs(y[0], y[1], y[2], eq, second, th, dnu)
     for step in range((n_ck - 1) * every, k - 1):
         _advance(y, th, dnu, work, eq, second, dt, rk4, step + 1)
     y1 = y.copy()
     th1 = np.empty(n)
     dnu1 = np.zeros(n)
-    th1[:] = th
-    dnu1[:] = dnu
+    copy_into(th1, th)
+    copy_into(dnu1, dnu)
     _advance(y1, th1, dnu1, work, eq, second, dt, rk4, k)
     lam = np.zeros((3, n))  # the cotangent of state k
     lam0 = np.zeros((3, n))  # the seed at state k - 1
@@ -535,14 +537,14 @@ def _model_adjoint(y0, eq, dt, rk4, criterion, target, max_steps, every, g):
     for c_idx in range(n_ck - 1, -1, -1):
         lo = c_idx * every
         hi = min(k, lo + every)  # steps lo+1 .. hi start from states lo .. hi-1
-        y[:] = ck[c_idx]
+        copy_into(y, ck[c_idx])
         _rhs(y[0], y[1], y[2], eq, second, th, dnu)
         for j in range(lo, hi):
             if rk4:
                 _rk4_record(y, rec_st[j - lo], rec_th[j - lo], kst, th, dnu, eq, second, dt)
             else:
-                seg[j - lo] = y
-                seg_th[j - lo] = th
+                copy_into(seg[j - lo], y)
+                copy_into(seg_th[j - lo], th)
                 if j < hi - 1:
                     _advance(y, th, dnu, work, eq, second, dt, rk4, j + 1)
         for j in range(hi - 1, lo - 1, -1):
@@ -551,7 +553,7 @@ def _model_adjoint(y0, eq, dt, rk4, criterion, target, max_steps, every, g):
                 _rk4_vjp(rec_st[j - lo], rec_th[j - lo], lam, out, ak, by, b_k, eq, second, dt, g)
             else:
                 _euler_vjp(seg[j - lo], seg_th[j - lo], lam, out, b_th, b_dnu, b_k, eq, second, dt, g)
-            lam[:] = out
+            copy_into(lam, out)
             if first_seed:  # state k - 1: add the crossing's seed there
                 first_seed = False
                 lam += lam0
