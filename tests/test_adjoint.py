@@ -138,15 +138,20 @@ def test_checkpoint_interval_changes_nothing(integrator):
 def test_a_grown_checkpoint_store_keeps_every_checkpoint():
     """The adjoints' checkpoint stores double by an element loop (shared.doubled): the first
     half is the old store bit for bit, at the ranks of the one-trajectory and the lanes' stores."""
+    from numba import njit
+
     from antisync.kernels.shared import copy_into, doubled
 
+    copy = njit(lambda dst, src: copy_into(dst, src))
     rng = np.random.default_rng(0)
     for shape in [(3, 2, 4), (3, 2, 4, 5)]:
         ck = rng.random(shape)
         big = doubled(ck)
         assert big.shape == (6, *shape[1:]) and np.array_equal(big[:3], ck)
-        copy_into(big[4], ck[1])
+        copy(big[4], ck[1])  # C-contiguous: as flat vectors
         assert np.array_equal(big[4], ck[1])
+        copy(big[5, :, 1:], ck[2, :, :-1])  # strided: index by index
+        assert np.array_equal(big[5, :, 1:], ck[2, :, :-1])
 
 
 def test_link_derivatives_are_the_coupling_derivative_rows():

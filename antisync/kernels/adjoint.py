@@ -579,11 +579,8 @@ def _store_lanes(ck, idx, c, s):
     """``ck[idx] = (c, s)`` for ``[node, lane]`` states, doubling ``ck`` when full."""
     if idx >= ck.shape[0]:
         ck = doubled(ck)
-    # element loops, not slice assignments (see doubled)
-    for i in range(c.shape[0]):
-        for q in range(c.shape[1]):
-            ck[idx, 0, i, q] = c[i, q]
-            ck[idx, 1, i, q] = s[i, q]
+    copy_into(ck[idx, 0], c)
+    copy_into(ck[idx, 1], s)
     return ck
 
 

@@ -2076,8 +2076,7 @@ def law_adjoint_forward(y0, wq, indptr, indices, P, dt, rk4, freq, target, max_s
     if st != SYNCED:
         return st, steps, x, np.empty((1, m))
     ys = np.empty((steps + 1, m))
-    for j in range(m):  # not ys[0] = y0: numba's broadcasting setitem compiles for seconds
-        ys[0, j] = y0[j]
+    copy_into(ys[0], y0)
     f = np.empty(m)
     z = np.empty(m)
     k2 = np.empty(m)

@@ -12,6 +12,7 @@ from typing import NamedTuple
 
 import numba
 import numpy as np
+from numba.extending import overload
 
 from antisync.kernels.core import CRIT_FREQUENCY, CRIT_ORDER, RENORM_EVERY, VEC
 
@@ -401,12 +402,29 @@ def doubled(ck):
     return bigger
 
 
-@numba.njit(cache=True)
 def copy_into(dst, src):
-    """``dst[...] = src`` for two arrays of one shape, element by element: the same bits as the
-    slice assignment, without compiling numba's broadcasting checks (see :func:`doubled`)."""
-    for idx in np.ndindex(src.shape):
-        dst[idx] = src[idx]
+    """``dst[...] = src`` for two arrays of one shape, inside a kernel element by element: the
+    same bits as the slice assignment, without compiling numba's broadcasting checks (see
+    :func:`doubled`). Two C-contiguous arrays are copied as flat vectors, others index by index."""
+    dst[...] = src
+
+
+@overload(copy_into)
+def _copy_into(dst, src):
+    if dst.layout == "C" and src.layout == "C":
+
+        def flat(dst, src):
+            a, b = dst.reshape(-1), src.reshape(-1)
+            for j in range(b.size):
+                a[j] = b[j]
+
+        return flat
+
+    def each(dst, src):
+        for idx in np.ndindex(src.shape):
+            dst[idx] = src[idx]
+
+    return each
 
 
 @numba.njit(cache=True)
