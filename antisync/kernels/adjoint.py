@@ -152,12 +152,12 @@ class _Run(NamedTuple):
 
 @njit(cache=True)
 def _store(ck, idx, c, s):
-    """``ck[idx] = (c, s)``, doubling ``ck`` when full; returns the (possibly new) array."""
+    """``ck[idx] = (c, s)``, doubling ``ck`` when full; returns the (possibly new) array. The
+    states are ``[node]`` (one trajectory) or ``[node, lane]`` (the lanes)."""
     if idx >= ck.shape[0]:
         ck = doubled(ck)
-    for i in range(c.shape[0]):
-        ck[idx, 0, i] = c[i]
-        ck[idx, 1, i] = s[i]
+    copy_into(ck[idx, 0], c)
+    copy_into(ck[idx, 1], s)
     return ck
 
 
@@ -575,16 +575,6 @@ def _euler_vjp_vec(c, s, lam, lam_new, g, indptr, indices, w, dt):
 
 
 @njit(cache=True)
-def _store_lanes(ck, idx, c, s):
-    """``ck[idx] = (c, s)`` for ``[node, lane]`` states, doubling ``ck`` when full."""
-    if idx >= ck.shape[0]:
-        ck = doubled(ck)
-    copy_into(ck[idx, 0], c)
-    copy_into(ck[idx, 1], s)
-    return ck
-
-
-@njit(cache=True)
 def _euler_forward_lanes(c, s, cn, sn, lw, ck, k_lane, x_lane, span_lane, code, indptr, indices, w, run):
     """The group's forward pass from the states in ``(c, s)``: per lane its status ``code``,
     crossing step ``k_lane`` (``max_steps + 1`` if none: renormalized to the end) and
@@ -599,7 +589,7 @@ def _euler_forward_lanes(c, s, cn, sn, lw, ck, k_lane, x_lane, span_lane, code, 
         x_lane[q] = 0.0
         span_lane[q] = 1.0
         live += _start_lane(q, r2[q], r2_target, max_steps, code, k_lane)
-    ck = _store_lanes(ck, np.int64(0), c, s)
+    ck = _store(ck, np.int64(0), c, s)
     t = 0
     while live > 0 and t < max_steps:
         r2, r2_prev = r2_prev, r2
@@ -619,7 +609,7 @@ def _euler_forward_lanes(c, s, cn, sn, lw, ck, k_lane, x_lane, span_lane, code, 
                 if t < k_lane[q]:
                     _renormalize(c[:, q], s[:, q])
         if t % every == 0:
-            ck = _store_lanes(ck, t // every, c, s)
+            ck = _store(ck, t // every, c, s)
     return ck
 
 
@@ -935,7 +925,7 @@ def _rk4_forward_lanes(c, s, step_bufs, ck, crossing, net, run):
         x_lane[q] = 0.0
         # the reference asks _order2 (sums in the same order as d2, d3 here)
         live += _start_lane(q, _order2(c[:, q], s[:, q]), r2_target, max_steps, code, k_lane)
-    ck = _store_lanes(ck, np.int64(0), c, s)
+    ck = _store(ck, np.int64(0), c, s)
     t = 0
     while live > 0 and t < max_steps:
         r2, r2_prev = r2_prev, r2
@@ -953,7 +943,7 @@ def _rk4_forward_lanes(c, s, step_bufs, ck, crossing, net, run):
                 )
                 live -= 1
         if t % every == 0:
-            ck = _store_lanes(ck, t // every, c, s)
+            ck = _store(ck, t // every, c, s)
     return ck
 
 
