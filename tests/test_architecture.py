@@ -13,6 +13,7 @@ root every module is inside).
 from __future__ import annotations
 
 import ast
+import functools
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -237,7 +238,8 @@ def test_the_cycle_finder_finds_cycles():
     assert find_cycle({"a": {"b"}, "b": set()}) is None
 
 
-def _top_names(path: Path) -> set[str]:
+@functools.cache  # a module imported from in many files is parsed once
+def _top_names(path: Path) -> frozenset[str]:
     """The names a module defines at its top level (defs, classes, assignments, imports)."""
     names = set()
     for node in ast.parse(path.read_text(encoding="utf-8")).body:
@@ -254,7 +256,7 @@ def _top_names(path: Path) -> set[str]:
                 names.add(n.target.id)
             elif isinstance(n, ast.Import | ast.ImportFrom):
                 names |= {(a.asname or a.name).split(".")[0] for a in n.names}
-    return names
+    return frozenset(names)
 
 
 def test_every_name_imported_from_antisync_exists():
