@@ -40,8 +40,10 @@ MODELS = {
 }
 
 
-def models() -> None:
-    for name, text in MODELS.items():
+def models(*names: str) -> None:
+    """The cases ``names`` of :data:`MODELS` (default: every one)."""
+    for name in names or MODELS:
+        text = MODELS[name]
         job = make_job(load_config_text(BASE + text))
         cpu = simulate_job(job, 0, 10, "cpu")
         gpu = simulate_job(job, 0, 10, "cuda")

@@ -13,7 +13,7 @@ import naive
 import networkx as nx
 import numpy as np
 import pytest
-from test_models import FEW, LOLLIPOP, MODELS, REFERENCE_COUNTS, _reference, job_of, tau_of
+from test_models import FEW, LOLLIPOP, MODELS, _reference, job_of, reference_cases, tau_of
 from typer.testing import CliRunner
 
 from antisync.cli.app import app
@@ -167,8 +167,11 @@ def test_stiff_linear_problem_is_stable_far_beyond_the_explicit_limit():
     assert not np.all(np.abs(y) < 1.0)  # blown up (or overflowed), never locked
 
 
-@pytest.mark.parametrize("size", REFERENCE_COUNTS)
-@pytest.mark.parametrize("name", list(MODELS))
+#: inertia-frequency's few (7.5 s of a fresh clone's `make test`) runs in test-slow with its many:
+#: in `make test`, Rodas4's inertia is checked against solve_ivp by inertia-relative, its
+#: frequency criterion by uniform-frequency, and both together on a stiff grid (IEEE 39's
+#: generators beside load buses) by test_a_stiff_grid_matches_rk4_on_the_same_phases
+@pytest.mark.parametrize(("name", "size"), reference_cases(slow_few=("inertia-frequency",)))
 def test_rodas4_matches_solve_ivp(name, size):
     """tau0 and tau(0.5) of 2->1 from Rodas4 (default tolerances) equal solve_ivp's event
     times (the obvious reference, DOP853 at rtol 1e-11) with the same statuses, within 1e-4 of

@@ -290,8 +290,24 @@ FEW, MANY = "few", "many"
 REFERENCE_COUNTS = [FEW, pytest.param(MANY, marks=pytest.mark.slow)]
 
 
-@pytest.mark.parametrize("size", REFERENCE_COUNTS)
-@pytest.mark.parametrize("name", list(MODELS))
+def reference_cases(slow_few: tuple[str, ...] = ()) -> list:
+    """``(name, size)`` for every model of :data:`MODELS` at both sizes: ``many`` in test-slow,
+    and ``few`` too for the names in ``slow_few`` (whose few realizations are the first of the
+    many, so test-slow checks them as strictly; a test that lists one says which of its other
+    cases checks the same kernel path in ``make test``)."""
+    return [
+        pytest.param(name, size, marks=pytest.mark.slow) if size == MANY or name in slow_few else (name, size)
+        for size in (FEW, MANY)
+        for name in MODELS
+    ]
+
+
+#: inertia-frequency's few (14.6 s of a fresh clone's `make test`, the costliest reference) runs
+#: in test-slow with its many: in `make test`, RK4's inertia is checked against solve_ivp by
+#: inertia-relative, the frequency criterion's crossing by uniform-frequency, and both together
+#: (generators beside load buses, the rate of relaxation in the deviation) by
+#: tests/test_model_crossings.py's test_generators_beside_load_buses_match_solve_ivp
+@pytest.mark.parametrize(("name", "size"), reference_cases(slow_few=("inertia-frequency",)))
 def test_rk4_matches_solve_ivp(name, size):
     """tau0 and tau(0.5) of 2->1 from the model kernel's RK4 (dt = 0.005, interpolated
     crossing) equal solve_ivp's event times (DOP853, rtol 1e-11, steps of at most 0.01 so that

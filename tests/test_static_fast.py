@@ -51,21 +51,46 @@ def test_ieee118_every_line_warm_equals_the_continuation():
     assert_same_rows(old, new)
 
 
-def test_ieee300_every_line_sparse_warm_equals_the_continuation(monkeypatch):
-    """IEEE 300 with the sparse path forced (as ACTIVSg2000 runs), every line removed: equal to
-    the continuation's sparse indicators (themselves the dense ones, test_grid_static.py). The
-    two lines whose removal leaves no locked state fall back to the continuation, which finds
-    none either."""
+def _sparse_ieee300(monkeypatch):
+    """IEEE 300 with the sparse path forced (as ACTIVSg2000 runs)."""
     import antisync.grids.static as static
     import antisync.physics.locked as locked
 
-    grid = load_grid_config(ROOT / "configs" / "ieee300_grid.yaml")
     monkeypatch.setattr(locked, "SPARSE_FROM", 1)
     monkeypatch.setattr(static, "SPARSE_FROM", 1)
+    return load_grid_config(ROOT / "configs" / "ieee300_grid.yaml")
+
+
+#: IEEE 300's lines whose removal leaves no locked state
+NO_STATE_300 = ((62, 64), (63, 64))
+
+
+def test_ieee300_sparse_sample_warm_equals_the_continuation(monkeypatch):
+    """IEEE 300 on the sparse path, every 13th line and the two whose removal leaves no locked
+    state: equal to the continuation's sparse indicators (themselves the dense ones,
+    test_grid_static.py); the two fall back to the continuation, which finds none either."""
+    grid = _sparse_ieee300(monkeypatch)
+    pairs = np.argwhere(np.triu(grid.omega))[1::13]
+    lines = [(grid.labels[a], grid.labels[b]) for a, b in pairs] + list(NO_STATE_300)
+    new = static_table(grid, lines=lines)
+    old = static_table(grid, lines=lines, warm=False)
+    assert len(new) >= 25  # the sample's bridges are not in a table of removals
+    assert new.continued == NO_STATE_300
+    assert not any(new.row(*line).exists for line in new.continued)
+    assert_same_rows(old, new)
+
+
+#: every line (12.4 s of a fresh clone's `make test`) in test-slow: `make test` checks the sample
+#: above on the same path, the two fallbacks included
+@pytest.mark.slow
+def test_ieee300_every_line_sparse_warm_equals_the_continuation(monkeypatch):
+    """IEEE 300 on the sparse path, every line removed: equal to the continuation, and only the
+    two lines that leave no locked state fall back to it."""
+    grid = _sparse_ieee300(monkeypatch)
     new = static_table(grid)
     old = static_table(grid, warm=False)
     assert len(new) == 318
-    assert new.continued == ((62, 64), (63, 64))
+    assert new.continued == NO_STATE_300
     assert not any(new.row(*line).exists for line in new.continued)
     assert_same_rows(old, new)
 
@@ -73,12 +98,7 @@ def test_ieee300_every_line_sparse_warm_equals_the_continuation(monkeypatch):
 @pytest.mark.parametrize("beta", [0.5, -1.0])
 def test_weakened_and_strengthened_lines_warm_equal_the_continuation(monkeypatch, beta):
     """Halving or doubling a line (bridges included: the grid stays connected), sparse."""
-    import antisync.grids.static as static
-    import antisync.physics.locked as locked
-
-    grid = load_grid_config(ROOT / "configs" / "ieee300_grid.yaml")
-    monkeypatch.setattr(locked, "SPARSE_FROM", 1)
-    monkeypatch.setattr(static, "SPARSE_FROM", 1)
+    grid = _sparse_ieee300(monkeypatch)
     pairs = np.argwhere(np.triu(grid.omega))[3::10]
     lines = [(grid.labels[a], grid.labels[b]) for a, b in pairs]
     new = static_table(grid, lines=lines, beta=beta)
