@@ -56,10 +56,11 @@ test: $(STAMP)
 test-slow: $(STAMP)
 	$(PYTEST) -m slow
 
-# the CUDA backend under the numba simulator (part of `make test` too); on a GPU machine
-# also run: $(BIN)/python bench/gpu_check.py
+# the CUDA backend under the numba simulator (most of it part of `make test` too), with the slow
+# checks (every kernel lowered to PTX through NVVM, the GPU scripts' code paths); on a GPU
+# machine also run: $(BIN)/python bench/gpu_check.py
 test-cuda: $(STAMP)
-	$(BIN)/python -m pytest tests/test_cuda_sim.py
+	$(BIN)/python -m pytest -m "slow or not slow" tests/test_cuda_sim.py tests/test_models_cuda_sim.py
 	$(BIN)/python bench/ptx_check.py || test $$? -eq 3
 
 bench: $(STAMP)

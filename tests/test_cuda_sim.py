@@ -76,6 +76,9 @@ def test_float32_close():
     assert "float32" in _check("float32")
 
 
+#: bench/gpu_check.py's own code path (2.7 s under the simulator): `make test-slow` and `make
+#: test-cuda`, as bench/gpu_models_check.py's; the kernels it calls are checked above in `make test`
+@pytest.mark.slow
 def test_gpu_check_tiny_runs_under_simulator():
     proc = _simulated(str(ROOT / "bench" / "gpu_check.py"), "--tiny")
     assert proc.returncode == 0, proc.stdout + proc.stderr[-4000:]
@@ -205,6 +208,10 @@ def test_precision_key_is_validated():
         load_config_text(text, ["dynamics.precision=float16"])
 
 
+#: NVVM lowering every kernel (10 s of a fresh clone's `make test`): `make test-slow` (which CI runs)
+#: and `make test-cuda`, the command to run after changing a CUDA kernel; `make test` checks the
+#: kernels' arithmetic under the simulator
+@pytest.mark.slow
 def test_kernels_compile_for_a_real_gpu():
     """PTX for sm_90 through NVVM (needs a CUDA toolkit, not a GPU): the simulator cannot tell
     whether numba-cuda types and lowers the kernels for hardware; this does."""
