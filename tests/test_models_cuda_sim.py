@@ -19,9 +19,9 @@ def _check(name: str, *args: str) -> str:
 
 
 #: the Euler case with inertia and the frequency criterion (5.5 s of the simulator's 14.3 s) runs in
-#: test-slow: in `make test` the runner's check below integrates the same (Euler, inertia, drawn
-#: frequencies, the frequency criterion) through run_config, and the other cases the frequency
-#: criterion on RK4
+#: test-slow: in `make test` the runner's check below integrates the same features (Euler, inertia,
+#: drawn frequencies, the frequency criterion) through run_config, and rk4-inertia-start checks the
+#: frequency criterion on RK4
 SLOW_MODELS = ("euler-inertia-frequency",)
 
 
