@@ -152,6 +152,13 @@ def test_a_grown_checkpoint_store_keeps_every_checkpoint():
         assert np.array_equal(big[4], ck[1])
         copy(big[5, :, 1:], ck[2, :, :-1])  # strided: index by index
         assert np.array_equal(big[5, :, 1:], ck[2, :, :-1])
+        # a shape mismatch raises, never copies out of bounds (both layouts, and in Python)
+        mismatched = [(big[4], ck[1, :1]), (big[5, :, 1:], ck[2, :, :-2]), (big[4].copy(), ck[1].T.copy())]
+        for dst, src in mismatched:
+            with pytest.raises(ValueError, match="differ in shape"):
+                copy(dst, src)
+            with pytest.raises(ValueError, match="differ in shape"):
+                copy_into(dst, src)
 
 
 def test_link_derivatives_are_the_coupling_derivative_rows():

@@ -93,7 +93,7 @@ __all__ = [
 ]
 
 #: bumped when the generated code's layout changes (old files are then never read)
-GENERATOR = 19
+GENERATOR = 20
 
 
 class LawParams(NamedTuple):

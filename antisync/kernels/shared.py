@@ -405,7 +405,11 @@ def doubled(ck):
 def copy_into(dst, src):
     """``dst[...] = src`` for two arrays of one shape, inside a kernel element by element: the
     same bits as the slice assignment, without compiling numba's broadcasting checks (see
-    :func:`doubled`). Two C-contiguous arrays are copied as flat vectors, others index by index."""
+    :func:`doubled`). Two C-contiguous arrays are copied as flat vectors, others index by index.
+    Arrays of different shapes raise ValueError, as the slice assignment does (a message without
+    their shapes: formatting them was the broadcasting check's cost), never a copy out of bounds."""
+    if dst.shape != src.shape:
+        raise ValueError("copy_into: the two arrays differ in shape")
     dst[...] = src
 
 
@@ -414,6 +418,8 @@ def _copy_into(dst, src):
     if dst.layout == "C" and src.layout == "C":
 
         def flat(dst, src):
+            if dst.shape != src.shape:
+                raise ValueError("copy_into: the two arrays differ in shape")
             a, b = dst.reshape(-1), src.reshape(-1)
             for j in range(b.size):
                 a[j] = b[j]
@@ -421,6 +427,8 @@ def _copy_into(dst, src):
         return flat
 
     def each(dst, src):
+        if dst.shape != src.shape:
+            raise ValueError("copy_into: the two arrays differ in shape")
         for idx in np.ndindex(src.shape):
             dst[idx] = src[idx]
 
